@@ -1,0 +1,157 @@
+#include "engine/candidates.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <string>
+#include <unordered_map>
+
+#include "engine/input_error.h"
+
+namespace springfit {
+namespace {
+
+// Nodes within this fraction of a lattice step of their lattice point count as on it.
+constexpr double kLatticeTolerance = 1e-6;
+// Two rest distances within this relative difference are equal when ranking neighbours or
+// comparing with a radius, so that round-off in generated coordinates does not decide.
+constexpr double kDistanceTolerance = 1e-9;
+
+NodePair Ordered(int a, int b) { return a < b ? NodePair{a, b} : NodePair{b, a}; }
+
+void SortUnique(std::vector<NodePair>& pairs) {
+  std::sort(pairs.begin(), pairs.end());
+  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+}
+
+double Distance(const Scene& s, int i, int j) {
+  const int d = s.dimension;
+  return (s.rest.segment(d * i, d) - s.rest.segment(d * j, d)).norm();
+}
+
+std::vector<NodePair> GridCandidates(const Scene& scene) {
+  const int d = scene.dimension;
+  const int n = scene.node_count();
+  std::vector<double> spacing = scene.candidates.spacing;
+  if (spacing.empty()) spacing = InferLatticeSpacing(scene);
+  Vector lo = Vector::Constant(d, std::numeric_limits<double>::infinity());
+  for (int i = 0; i < n; ++i) lo = lo.cwiseMin(scene.rest.segment(d * i, d));
+
+  // Integer lattice coordinates, packed into one key (21 bits per axis is plenty).
+  std::vector<std::array<long, 3>> cell(n, {0, 0, 0});
+  std::unordered_map<long long, int> at;
+  at.reserve(n * 2);
+  auto key = [](const std::array<long, 3>& c) {
+    return (static_cast<long long>(c[0]) << 42) ^ (static_cast<long long>(c[1]) << 21) ^
+           static_cast<long long>(c[2]);
+  };
+  for (int i = 0; i < n; ++i) {
+    for (int a = 0; a < d; ++a) {
+      const double offset = scene.rest[d * i + a] - lo[a];
+      if (spacing[a] == 0.0) continue;  // all nodes share this coordinate
+      const double steps = offset / spacing[a];
+      cell[i][a] = std::lround(steps);
+      if (std::abs(steps - static_cast<double>(cell[i][a])) > kLatticeTolerance) {
+        throw InputError("candidates",
+                         "grid candidates need every node on a lattice of step " +
+                             std::to_string(spacing[a]) + " along axis " + std::to_string(a) +
+                             "; nodes[" + std::to_string(i) + "] is off it");
+      }
+      if (cell[i][a] >= (1L << 20)) {
+        throw InputError("candidates", "grid has more than 2^20 steps along an axis");
+      }
+    }
+    at.emplace(key(cell[i]), i);
+  }
+  std::vector<NodePair> pairs;
+  for (int i = 0; i < n; ++i) {
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = (d == 3 ? -1 : 0); dz <= (d == 3 ? 1 : 0); ++dz) {
+          if (dx == 0 && dy == 0 && dz == 0) continue;
+          std::array<long, 3> c = cell[i];
+          c[0] += dx;
+          c[1] += dy;
+          c[2] += dz;
+          if (c[0] < 0 || c[1] < 0 || c[2] < 0) continue;
+          const auto it = at.find(key(c));
+          if (it != at.end() && it->second > i) pairs.push_back({i, it->second});
+        }
+      }
+    }
+  }
+  return pairs;
+}
+
+std::vector<NodePair> NearestCandidates(const Scene& scene) {
+  const int n = scene.node_count();
+  const int k = std::min(scene.candidates.k, n - 1);
+  std::vector<NodePair> pairs;
+  std::vector<std::pair<double, int>> by_distance;
+  for (int i = 0; i < n; ++i) {
+    by_distance.clear();
+    for (int j = 0; j < n; ++j) {
+      if (j != i) by_distance.emplace_back(Distance(scene, i, j), j);
+    }
+    // Ties within round-off go to the lower index, so the set does not depend on it.
+    auto closer = [](const std::pair<double, int>& a, const std::pair<double, int>& b) {
+      if (std::abs(a.first - b.first) > kDistanceTolerance * std::max(a.first, b.first)) {
+        return a.first < b.first;
+      }
+      return a.second < b.second;
+    };
+    std::partial_sort(by_distance.begin(), by_distance.begin() + k, by_distance.end(), closer);
+    for (int r = 0; r < k; ++r) pairs.push_back(Ordered(i, by_distance[r].second));
+  }
+  return pairs;
+}
+
+std::vector<NodePair> RadiusCandidates(const Scene& scene) {
+  const int n = scene.node_count();
+  const double r = scene.candidates.radius * (1.0 + kDistanceTolerance);
+  std::vector<NodePair> pairs;
+  for (int i = 0; i < n; ++i) {
+    for (int j = i + 1; j < n; ++j) {
+      if (Distance(scene, i, j) <= r) pairs.push_back({i, j});
+    }
+  }
+  return pairs;
+}
+
+}  // namespace
+
+std::vector<double> InferLatticeSpacing(const Scene& scene) {
+  const int d = scene.dimension;
+  const int n = scene.node_count();
+  std::vector<double> spacing(d, 0.0);
+  std::vector<double> coords(n);
+  for (int a = 0; a < d; ++a) {
+    for (int i = 0; i < n; ++i) coords[i] = scene.rest[d * i + a];
+    std::sort(coords.begin(), coords.end());
+    const double extent = coords.back() - coords.front();
+    double step = 0.0;
+    for (int i = 1; i < n; ++i) {
+      const double gap = coords[i] - coords[i - 1];
+      // Gaps within round-off of the extent are the same coordinate.
+      if (gap > kLatticeTolerance * extent && (step == 0.0 || gap < step)) step = gap;
+    }
+    spacing[a] = step;
+  }
+  return spacing;
+}
+
+std::vector<NodePair> GenerateCandidates(const Scene& scene) {
+  std::vector<NodePair> pairs;
+  switch (scene.candidates.kind) {
+    case CandidateSpec::Kind::kGrid: pairs = GridCandidates(scene); break;
+    case CandidateSpec::Kind::kNearest: pairs = NearestCandidates(scene); break;
+    case CandidateSpec::Kind::kRadius: pairs = RadiusCandidates(scene); break;
+    case CandidateSpec::Kind::kPairs:
+      for (const NodePair& p : scene.candidates.pairs) pairs.push_back(Ordered(p.first, p.second));
+      break;
+  }
+  SortUnique(pairs);
+  return pairs;
+}
+
+}  // namespace springfit

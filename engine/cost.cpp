@@ -1,0 +1,100 @@
+#include "engine/cost.h"
+
+#include <algorithm>
+
+namespace springfit {
+namespace {
+
+constexpr double kNotConvergedPenalty = 1.5 * kPenaltyBase;
+
+}  // namespace
+
+CostFunction::CostFunction(const Problem& problem, CostOptions options)
+    : problem_(&problem), options_(options) {
+  solvers_.reserve(problem.free_sets().size());
+  for (const FreeNodes& free : problem.free_sets()) {
+    solvers_.emplace_back(problem.candidates(), free, problem.solver_options());
+  }
+}
+
+Evaluation CostFunction::EvaluateGenome(const Genome& genome) {
+  return EvaluateMask(problem_->MaskFromGenome(genome));
+}
+
+Evaluation CostFunction::EvaluateMask(const std::vector<std::uint8_t>& candidate_mask) {
+  return Evaluate(problem_->SpringsFromMask(candidate_mask));
+}
+
+Evaluation CostFunction::Evaluate(const ActiveSprings& springs, std::vector<Vector>* displacements) {
+  const Problem& p = *problem_;
+  const int d = p.dimension();
+  Evaluation e;
+  e.load_cases.resize(p.load_cases().size());
+  if (displacements) displacements->assign(p.load_cases().size(), Vector());
+
+  // Stability first: one rest factorisation per distinct set of constrained nodes.
+  modes_.assign(solvers_.size(), 0);
+  for (std::size_t f = 0; f < solvers_.size(); ++f) modes_[f] = solvers_[f].RestMechanismModes(springs);
+
+  double stable_cost = 0.0;
+  for (std::size_t k = 0; k < p.load_cases().size(); ++k) {
+    const PreparedLoadCase& lc = p.load_cases()[k];
+    LoadCaseEvaluation& out = e.load_cases[k];
+    const int modes = modes_[lc.free_set];
+    if (modes > 0) {
+      out.solve.termination = Termination::kMechanism;
+      out.solve.mechanism_modes = modes;
+      e.mechanism = true;
+      e.converged = false;
+      e.mechanism_modes += modes;
+      continue;
+    }
+    if (options_.warm_start == CostOptions::WarmStart::kReference) {
+      u_ = lc.reference;
+    } else {
+      u_.setZero(lc.reference.size());
+    }
+    EquilibriumSolver& solver = solvers_[lc.free_set];
+    out.solve = solver.Solve(springs, lc.force, lc.prescribed, u_);
+    if (!out.solve.converged()) {
+      e.converged = false;
+      continue;
+    }
+    const FreeNodes& free = p.free_sets()[lc.free_set];
+    double cost = 0.0;
+    for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
+      if (free.free_index[i] >= 0) {
+        cost += (u_.segment(d * i, d) - lc.reference.segment(d * i, d)).squaredNorm();
+      }
+    }
+    out.cost = cost;
+    out.normalized_error = cost / lc.reference_norm2;
+    stable_cost += cost;
+    if (displacements) (*displacements)[k] = u_;
+  }
+
+  // Penalties per load case, so the breakdown shows where the topology failed.
+  for (std::size_t k = 0; k < p.load_cases().size(); ++k) {
+    LoadCaseEvaluation& out = e.load_cases[k];
+    const double norm2 = p.load_cases()[k].reference_norm2;
+    if (out.solve.termination == Termination::kMechanism) {
+      out.normalized_error = kPenaltyBase * (1.0 + out.solve.mechanism_modes);
+      out.cost = out.normalized_error * norm2;
+    } else if (!out.solve.converged()) {
+      out.normalized_error = kNotConvergedPenalty;
+      out.cost = out.normalized_error * norm2;
+    }
+  }
+  if (e.mechanism) {
+    e.normalized_error = kPenaltyBase * (1.0 + e.mechanism_modes);
+  } else if (!e.converged) {
+    e.normalized_error = kNotConvergedPenalty;
+  } else {
+    e.normalized_error = std::min(stable_cost / p.reference_norm2(), kPenaltyBase);
+  }
+  e.cost = e.converged && e.normalized_error < kPenaltyBase ? stable_cost
+                                                            : e.normalized_error * p.reference_norm2();
+  return e;
+}
+
+}  // namespace springfit

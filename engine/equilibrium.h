@@ -1,0 +1,130 @@
+// Static equilibrium of a mass-spring model under one load case.
+//
+// The equilibrium minimises the potential energy over the free nodes' displacements u:
+//   E(u) = sum_springs 1/2 k (L - l)^2 - sum_free F . u
+// (DESIGN.md, "Numerics that matter"). Newton's method with a backtracking (Armijo) line search
+// on E: each step uses the exact spring Hessian when it is positive definite (quadratic
+// convergence) and the projected one (compressive lateral term clamped at 0, see springs.h)
+// when it is not. Constrained nodes (fixed or with a prescribed displacement) are not unknowns.
+//
+// A mechanism (a topology whose stiffness at rest is singular on the free nodes: a node with
+// too few springs, an island cut off from every constrained node, a square without a diagonal)
+// cannot carry a general load; RestMechanismModes() detects it before any Newton step, from the
+// pivots of the Jacobi-scaled rest stiffness (see symmetric_system.h), and counts its modes.
+//
+// An EquilibriumSolver is built once per spring geometry and set of constrained nodes: that
+// fixes the sparsity pattern, whose symbolic analysis is done in the constructor and reused by
+// every solve. Not thread-safe; copy one per thread (copies are cheap next to a solve and keep
+// the analysis).
+#pragma once
+
+#include <vector>
+
+#include "engine/linalg.h"
+#include "engine/springs.h"
+#include "engine/symmetric_system.h"
+
+namespace springfit {
+
+// Which nodes are unknowns in a load case: free_index[node] is the node's index among the free
+// nodes, or -1 when the node is constrained.
+struct FreeNodes {
+  std::vector<int> free_index;
+  int count = 0;
+
+  // `constrained[node]` true for fixed nodes and nodes with a prescribed displacement.
+  static FreeNodes FromConstrained(const std::vector<bool>& constrained);
+  friend bool operator==(const FreeNodes&, const FreeNodes&) = default;
+};
+
+enum class Termination {
+  kConverged,     // |gradient|_inf <= tolerance (see EquilibriumOptions)
+  kNotConverged,  // iteration limit reached or the line search found no decrease
+  kMechanism,     // the rest stiffness is singular on the free nodes; no solve was attempted
+};
+
+struct EquilibriumOptions {
+  // Converged when the largest free-node force imbalance is at most
+  //   max(relative_force_tolerance * force_scale, roundoff_force_tolerance * k_max * l_max),
+  // force_scale = max(largest external force, k_max * largest prescribed displacement).
+  // The second term is the floor that round-off allows: forces are computed from L - l, which
+  // carries an error of about machine epsilon times l. Both are unit-free, in (0, 1).
+  double relative_force_tolerance = 1e-10;
+  double roundoff_force_tolerance = 1e-12;
+  int max_iterations = 100;  // Newton iterations; the projected Hessian converges only linearly
+  int max_line_search_steps = 50;  // halvings of the step before giving up
+  double armijo = 1e-4;            // sufficient decrease parameter c1, in (0, 1/2)
+  // A scaled pivot at or below this marks a singular direction (unit-free: healthy 5x5 models
+  // have scaled pivots >= 1e-2, mechanisms about 1e-16 plus the shift below).
+  double pivot_tolerance = 1e-10;
+  // Added to the scaled rest stiffness in RestMechanismModes so that a mechanism's zero pivot
+  // is never exactly zero (Eigen's sparse LDLT stops at an exact zero pivot).
+  double mechanism_shift = 1e-13;
+  // Free-node degrees of freedom up to which the dense factorisation is used; above it the
+  // sparse one (bench/solve_bench measures the crossover).
+  int dense_max_dofs = 96;
+};
+
+struct EquilibriumSummary {
+  Termination termination = Termination::kNotConverged;
+  int iterations = 0;          // Newton steps taken
+  int projected_steps = 0;     // of which on the projected Hessian
+  int line_search_steps = 0;   // step halvings in all
+  double initial_residual = 0.0;  // |gradient|_inf / force_scale at the start
+  double final_residual = 0.0;    // |gradient|_inf / force_scale at the end
+  int mechanism_modes = 0;        // kMechanism: the rest stiffness's null-space dimension
+
+  bool converged() const { return termination == Termination::kConverged; }
+};
+
+class EquilibriumSolver {
+ public:
+  EquilibriumSolver() = default;
+  // Keeps a pointer to `geometry`, which must outlive the solver.
+  EquilibriumSolver(const SpringGeometry& geometry, FreeNodes free_nodes,
+                    EquilibriumOptions options = {});
+
+  const FreeNodes& free_nodes() const { return free_; }
+  const EquilibriumOptions& options() const { return options_; }
+
+  // The number of mechanism modes of `springs` at rest with this solver's constrained nodes:
+  // 0 for a model that carries any load.
+  int RestMechanismModes(const ActiveSprings& springs);
+
+  // Solves for the equilibrium. `force` and `prescribed` are flat d*n vectors (entries of
+  // free nodes in `prescribed` and of constrained nodes in `force` are ignored). `u` holds the
+  // starting displacements of the free nodes on entry (the warm start; zero = from rest) and
+  // the equilibrium on return; its constrained entries are set to `prescribed`.
+  // Precondition: RestMechanismModes(springs) == 0 (otherwise the result is kNotConverged or
+  // a meaningless equilibrium, never NaN). Never throws.
+  EquilibriumSummary Solve(const ActiveSprings& springs, const Vector& force,
+                           const Vector& prescribed, Vector& u);
+
+  // E(u) and its gradient on the free degrees of freedom (flat, free-node order). Exposed for
+  // tests; `hessian` true also assembles the Hessian into the system (`projected` clamps it).
+  double EnergyAndGradient(const ActiveSprings& springs, const Vector& force, const Vector& u,
+                           Vector* gradient, bool hessian, bool projected);
+  // The assembled Hessian as a dense matrix on the free degrees of freedom (tests only).
+  Matrix AssembledHessian() const;
+
+ private:
+  template <int D>
+  double Assemble(const ActiveSprings& springs, const Vector& force, const Vector& u,
+                  Vector* gradient, bool hessian, bool projected, double* magnitude);
+  template <int D>
+  EquilibriumSummary SolveImpl(const ActiveSprings& springs, const Vector& force,
+                               const Vector& prescribed, Vector& u);
+
+  const SpringGeometry* geometry_ = nullptr;
+  FreeNodes free_;
+  EquilibriumOptions options_;
+  int dim_ = 2;
+  // slots_[spring * 3 * D*D + block * D*D + a*D + b]: the system slot receiving entry (a, b) of
+  // block 0 = (i,i), 1 = (j,j), 2 = (i,j) of that spring, or -1 (constrained node, or the
+  // upper triangle of a diagonal block).
+  std::vector<int> slots_;
+  SymmetricSystem system_;
+  Vector gradient_, trial_gradient_, step_, trial_u_;
+};
+
+}  // namespace springfit

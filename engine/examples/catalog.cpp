@@ -1,0 +1,322 @@
+#include "engine/examples/catalog.h"
+
+#include <array>
+#include <cmath>
+#include <stdexcept>
+
+#include "engine/problem.h"
+
+namespace springfit::examples {
+namespace {
+
+#include "engine/examples/kidney_mesh.inc"
+
+// A simplex whose signed measure keeps less than this fraction of its rest value is flattened.
+constexpr double kFlattenedRatio = 1e-3;
+
+int GridIndex(const std::vector<int>& n, int x, int y, int z) { return x + n[0] * (y + n[1] * z); }
+
+double SignedMeasure(int d, const Vector& x, const std::vector<int>& s) {
+  if (d == 2) {
+    const Eigen::Vector2d a = x.segment<2>(2 * s[1]) - x.segment<2>(2 * s[0]);
+    const Eigen::Vector2d b = x.segment<2>(2 * s[2]) - x.segment<2>(2 * s[0]);
+    return a.x() * b.y() - a.y() * b.x();
+  }
+  Eigen::Matrix3d m;
+  for (int c = 0; c < 3; ++c) m.col(c) = x.segment<3>(3 * s[c + 1]) - x.segment<3>(3 * s[0]);
+  return m.determinant();
+}
+
+Scene PaperGrid(const std::string& name, bool anisotropic) {
+  Scene s;
+  s.name = name;
+  const std::vector<int> n{5, 5};
+  s.dimension = 2;
+  s.rest = GridNodes(n, 1.0);
+  s.candidates.kind = CandidateSpec::Kind::kGrid;
+  s.reference.kind = Reference::Kind::kMss;
+  s.reference.stiffness = {1.0};
+  for (const NodePair& p : GridNeighbourSprings(n)) {
+    // '\' diagonals join (x, y+1) with (x+1, y): their indices differ by n-1.
+    const bool backslash = p.second - p.first == n[0] - 1;
+    if (!(anisotropic && backslash)) s.reference.springs.push_back(p);
+  }
+  s.description = anisotropic
+                      ? "5x5 grid, reference: horizontals, verticals and the '/' diagonal of every "
+                        "cell (56 springs); paper7 loads of 0.05 k h (Bianchi et al. 2003)"
+                      : "5x5 grid, reference: all 72 springs of the 8-neighbourhood; paper7 loads "
+                        "of 0.05 k h (Bianchi et al. 2003)";
+  s.load_cases = Paper7LoadCases(2, s.rest, 0.05);
+  CheckFoldFree(s, GridSimplices(n));
+  return s;
+}
+
+Scene Grid3d() {
+  Scene s;
+  s.name = "grid3d-4x4x4";
+  s.description =
+      "4x4x4 grid, 26-neighbourhood candidates, reference: every candidate; paper7 extended to "
+      "3D (9 load cases) at 5% strain";
+  const std::vector<int> n{4, 4, 4};
+  s.dimension = 3;
+  s.rest = GridNodes(n, 1.0);
+  s.candidates.kind = CandidateSpec::Kind::kGrid;
+  s.reference.springs = GridNeighbourSprings(n);
+  s.reference.stiffness = {1.0};
+  s.load_cases = Paper7LoadCases(3, s.rest, 1.0);
+  ScaleLoadsToStrain(s, 0.05);
+  CheckFoldFree(s, GridSimplices(n));
+  return s;
+}
+
+Scene Stiff2d() {
+  Scene s;
+  s.name = "stiff-2d";
+  s.description =
+      "5x5 grid, reference: all 72 springs with stiffness spread log-uniformly over 1e-4..1e4; "
+      "paper7 loads at 5% strain; training stiffness 1";
+  const std::vector<int> n{5, 5};
+  s.dimension = 2;
+  s.rest = GridNodes(n, 1.0);
+  s.candidates.kind = CandidateSpec::Kind::kGrid;
+  s.reference.springs = GridNeighbourSprings(n);
+  const int m = static_cast<int>(s.reference.springs.size());
+  // Exponents j / (m-1) * 8 - 4 for j = 0..m-1, permuted by a stride coprime with m so that
+  // neighbouring springs differ widely: both ends 1e-4 and 1e4 occur.
+  for (int i = 0; i < m; ++i) {
+    const int j = (i * 29) % m;
+    s.reference.stiffness.push_back(std::pow(10.0, -4.0 + 8.0 * j / (m - 1)));
+  }
+  s.training_stiffness = 1.0;
+  s.load_cases = Paper7LoadCases(2, s.rest, 1.0);
+  ScaleLoadsToStrain(s, 0.05);
+  CheckFoldFree(s, GridSimplices(n));
+  return s;
+}
+
+Scene Kidney2d() {
+  Scene s;
+  s.name = "kidney-2d";
+  s.description =
+      "irregular triangulated kidney cross-section (gmsh, 99 nodes), reference: the "
+      "triangulation's edges, candidates: 8 nearest neighbours; paper7 loads on opposite ends "
+      "at 5% strain";
+  s.dimension = 2;
+  const int nodes = static_cast<int>(std::size(kKidneyNodes));
+  s.rest.resize(2 * nodes);
+  for (int i = 0; i < nodes; ++i) {
+    s.rest[2 * i] = kKidneyNodes[i][0];
+    s.rest[2 * i + 1] = kKidneyNodes[i][1];
+  }
+  s.candidates.kind = CandidateSpec::Kind::kNearest;
+  s.candidates.k = 8;
+  std::vector<std::vector<int>> triangles;
+  std::vector<NodePair> edges;
+  for (const auto& t : kKidneyTriangles) {
+    triangles.push_back({t[0], t[1], t[2]});
+    for (int e = 0; e < 3; ++e) {
+      const int a = t[e], b = t[(e + 1) % 3];
+      edges.push_back({std::min(a, b), std::max(a, b)});
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  s.reference.springs = edges;
+  s.reference.stiffness = {1.0};
+  s.load_cases = Paper7LoadCases(2, s.rest, 1.0, 0.12);
+  ScaleLoadsToStrain(s, 0.05);
+  CheckFoldFree(s, triangles);
+  return s;
+}
+
+}  // namespace
+
+const std::vector<ExampleInfo>& Catalog() {
+  static const std::vector<ExampleInfo> catalog = [] {
+    std::vector<ExampleInfo> c;
+    for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d"}) {
+      c.push_back({name, Make(name).description});
+    }
+    return c;
+  }();
+  return catalog;
+}
+
+Scene Make(const std::string& name) {
+  if (name == "paper-iso-5x5") return PaperGrid(name, false);
+  if (name == "paper-aniso-5x5") return PaperGrid(name, true);
+  if (name == "kidney-2d") return Kidney2d();
+  if (name == "grid3d-4x4x4") return Grid3d();
+  if (name == "stiff-2d") return Stiff2d();
+  throw std::invalid_argument("unknown example '" + name + "'");
+}
+
+Vector GridNodes(const std::vector<int>& n, double spacing) {
+  const int d = static_cast<int>(n.size());
+  const int nz = d == 3 ? n[2] : 1;
+  Vector rest(d * n[0] * n[1] * nz);
+  int i = 0;
+  for (int z = 0; z < nz; ++z) {
+    for (int y = 0; y < n[1]; ++y) {
+      for (int x = 0; x < n[0]; ++x) {
+        rest[d * i] = spacing * x;
+        rest[d * i + 1] = spacing * y;
+        if (d == 3) rest[d * i + 2] = spacing * z;
+        ++i;
+      }
+    }
+  }
+  return rest;
+}
+
+std::vector<NodePair> GridNeighbourSprings(const std::vector<int>& n) {
+  const int d = static_cast<int>(n.size());
+  const int nz = d == 3 ? n[2] : 1;
+  std::vector<NodePair> springs;
+  for (int z = 0; z < nz; ++z) {
+    for (int y = 0; y < n[1]; ++y) {
+      for (int x = 0; x < n[0]; ++x) {
+        const int i = GridIndex(n, x, y, z);
+        for (int dz = (d == 3 ? -1 : 0); dz <= (d == 3 ? 1 : 0); ++dz) {
+          for (int dy = -1; dy <= 1; ++dy) {
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int X = x + dx, Y = y + dy, Z = z + dz;
+              if (X < 0 || Y < 0 || Z < 0 || X >= n[0] || Y >= n[1] || Z >= nz) continue;
+              const int j = GridIndex(n, X, Y, Z);
+              if (j > i) springs.push_back({i, j});
+            }
+          }
+        }
+      }
+    }
+  }
+  std::sort(springs.begin(), springs.end());
+  return springs;
+}
+
+std::vector<LoadCase> Paper7LoadCases(int d, const Vector& rest, double magnitude, double band) {
+  const int n = static_cast<int>(rest.size()) / d;
+  Vector lo = rest.segment(0, d), hi = lo;
+  for (int i = 1; i < n; ++i) {
+    lo = lo.cwiseMin(rest.segment(d * i, d));
+    hi = hi.cwiseMax(rest.segment(d * i, d));
+  }
+  auto side = [&](int axis, bool low) {
+    const double width = std::max(band * (hi[axis] - lo[axis]), 1e-9 * (hi - lo).norm());
+    std::vector<int> nodes;
+    for (int i = 0; i < n; ++i) {
+      const double x = rest[d * i + axis];
+      if (low ? x <= lo[axis] + width : x >= hi[axis] - width) nodes.push_back(i);
+    }
+    return nodes;
+  };
+  auto unit = [&](int axis, double sign) {
+    Vector v = Vector::Zero(d);
+    v[axis] = sign * magnitude;
+    return v;
+  };
+  struct Pattern {
+    const char* name;
+    int fixed_axis;
+    int load_axis;
+    double sign;
+  };
+  const int up = d - 1;  // y in 2D, z in 3D
+  std::vector<Pattern> patterns;
+  if (d == 2) {
+    patterns = {{"stretch +y", 1, 1, 1},  {"compression -y", 1, 1, -1}, {"shear +x", 1, 0, 1},
+                {"shear -x", 1, 0, -1},   {"stretch +x", 0, 0, 1},      {"shear +y", 0, 1, 1},
+                {"shear -y", 0, 1, -1}};
+  } else {
+    patterns = {{"stretch +z", up, 2, 1}, {"compression -z", up, 2, -1}, {"shear +x", up, 0, 1},
+                {"shear -x", up, 0, -1},  {"shear +y", up, 1, 1},        {"stretch +x", 0, 0, 1},
+                {"shear +y (x)", 0, 1, 1}, {"shear -y (x)", 0, 1, -1},   {"shear +z (x)", 0, 2, 1}};
+  }
+  std::vector<LoadCase> cases;
+  for (const Pattern& p : patterns) {
+    LoadCase lc;
+    lc.name = p.name;
+    lc.fixed = side(p.fixed_axis, true);
+    lc.forces.push_back({side(p.fixed_axis, false), unit(p.load_axis, p.sign), false});
+    cases.push_back(std::move(lc));
+  }
+  return cases;
+}
+
+void ScaleLoadsToStrain(Scene& scene, double strain) {
+  const int d = scene.dimension;
+  const int n = scene.node_count();
+  Vector lo = scene.rest.segment(0, d), hi = lo;
+  for (int i = 1; i < n; ++i) {
+    lo = lo.cwiseMin(scene.rest.segment(d * i, d));
+    hi = hi.cwiseMax(scene.rest.segment(d * i, d));
+  }
+  const double extent = (hi - lo).maxCoeff();
+  // A load this small (relative to the reference's stiffness) is deep in the linear regime.
+  constexpr double kProbe = 1e-6;
+  Scene probe = scene;
+  for (LoadCase& lc : probe.load_cases) {
+    for (NodalLoad& f : lc.forces) f.value *= kProbe / f.value.norm();
+  }
+  const Problem problem = Problem::Build(probe);
+  for (std::size_t k = 0; k < scene.load_cases.size(); ++k) {
+    double umax = 0.0;
+    const Vector& u = problem.load_cases()[k].reference;
+    for (int i = 0; i < n; ++i) umax = std::max(umax, u.segment(d * i, d).norm());
+    for (NodalLoad& f : scene.load_cases[k].forces) {
+      f.value = probe.load_cases[k].forces[0].value * (strain * extent / umax);
+      (void)f;
+    }
+  }
+}
+
+void CheckFoldFree(const Scene& scene, const std::vector<std::vector<int>>& simplices) {
+  const Problem problem = Problem::Build(scene);
+  const int d = scene.dimension;
+  for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
+    const Vector deformed = scene.rest + problem.load_cases()[k].reference;
+    for (const std::vector<int>& s : simplices) {
+      const double before = SignedMeasure(d, scene.rest, s);
+      const double after = SignedMeasure(d, deformed, s);
+      if (!(after / before > kFlattenedRatio)) {
+        throw std::logic_error("example '" + scene.name + "': load case " + std::to_string(k) +
+                               " inverts or flattens a cell");
+      }
+    }
+  }
+}
+
+std::vector<std::vector<int>> GridSimplices(const std::vector<int>& n) {
+  const int d = static_cast<int>(n.size());
+  std::vector<std::vector<int>> simplices;
+  if (d == 2) {
+    for (int y = 0; y + 1 < n[1]; ++y) {
+      for (int x = 0; x + 1 < n[0]; ++x) {
+        const int a = GridIndex(n, x, y, 0), b = GridIndex(n, x + 1, y, 0);
+        const int c = GridIndex(n, x + 1, y + 1, 0), e = GridIndex(n, x, y + 1, 0);
+        simplices.push_back({a, b, c});
+        simplices.push_back({a, c, e});
+        simplices.push_back({a, b, e});
+        simplices.push_back({b, c, e});
+      }
+    }
+    return simplices;
+  }
+  for (int z = 0; z + 1 < n[2]; ++z) {
+    for (int y = 0; y + 1 < n[1]; ++y) {
+      for (int x = 0; x + 1 < n[0]; ++x) {
+        for (int corner = 0; corner < 8; ++corner) {
+          const int cx = corner & 1, cy = (corner >> 1) & 1, cz = (corner >> 2) & 1;
+          const int sx = cx ? -1 : 1, sy = cy ? -1 : 1, sz = cz ? -1 : 1;
+          simplices.push_back({GridIndex(n, x + cx, y + cy, z + cz),
+                               GridIndex(n, x + cx + sx, y + cy, z + cz),
+                               GridIndex(n, x + cx, y + cy + sy, z + cz),
+                               GridIndex(n, x + cx, y + cy, z + cz + sz)});
+        }
+      }
+    }
+  }
+  return simplices;
+}
+
+}  // namespace springfit::examples

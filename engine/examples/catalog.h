@@ -1,0 +1,55 @@
+// The built-in example scenes (`springfit example NAME`), also committed under examples/.
+//
+// Each generator builds its scene deterministically and checks that the reference stays
+// unambiguous under every load case: no cell of the mesh inverts (DESIGN.md, "paper7").
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "engine/scene.h"
+
+namespace springfit::examples {
+
+struct ExampleInfo {
+  std::string name;
+  std::string description;
+};
+
+// Names and one-line descriptions, in catalogue order.
+const std::vector<ExampleInfo>& Catalog();
+
+// Builds the named example; throws std::invalid_argument for an unknown name.
+Scene Make(const std::string& name);
+
+// Building blocks, also used by the benchmarks and tests.
+
+// A regular grid of n[0] x n[1] (x n[2]) nodes with the given spacing, numbered with x fastest.
+Vector GridNodes(const std::vector<int>& n, double spacing);
+
+// All pairs of the 8 (2D) or 26 (3D) grid neighbourhood of GridNodes(n, spacing).
+std::vector<NodePair> GridNeighbourSprings(const std::vector<int>& n);
+
+// The paper's seven load cases (DESIGN.md, "paper7") on any node set, choosing fixed and
+// loaded nodes from the bounding box: nodes within `band` (a fraction of the extent along
+// that axis; 0 = exactly on the boundary) of the minimum are fixed, those within it of the
+// maximum loaded with `magnitude` per node. 2D: bottom fixed, top loaded +y, -y, +x, -x; left
+// fixed, right loaded +x, +y, -y. 3D adds z: bottom (z) fixed, top loaded +z, -z, +x, -x, +y;
+// left (x) fixed, right loaded +x, +y, -y, +z (9 cases).
+std::vector<LoadCase> Paper7LoadCases(int dimension, const Vector& rest, double magnitude,
+                                      double band = 0.0);
+
+// Rescales every load case's forces so that the reference's largest nodal displacement in
+// the small-load (linear) limit is `strain` times the scene's extent (DESIGN.md: examples
+// keep loads at moderate strain).
+void ScaleLoadsToStrain(Scene& scene, double strain);
+
+// Throws std::logic_error when a simplex of `simplices` (triangles in 2D, tetrahedra in 3D,
+// node indices) is inverted or flattened in some reference equilibrium of `scene`.
+void CheckFoldFree(const Scene& scene, const std::vector<std::vector<int>>& simplices);
+
+// The simplices of a grid (each cell split both ways in 2D; the eight corner tetrahedra of
+// each cube in 3D), for CheckFoldFree.
+std::vector<std::vector<int>> GridSimplices(const std::vector<int>& n);
+
+}  // namespace springfit::examples

@@ -1,0 +1,184 @@
+#include "engine/problem.h"
+
+#include <algorithm>
+#include <map>
+#include <string>
+
+#include "engine/candidates.h"
+#include "engine/input_error.h"
+#include "engine/scene_validation.h"
+
+namespace springfit {
+namespace {
+
+// Reference positions of a constrained node may differ from its prescribed position by this
+// fraction of the scene's longest candidate (round-off in exported data), no more.
+constexpr double kPrescribedMismatchTolerance = 1e-9;
+
+std::string CasePath(std::size_t k) { return "load_cases[" + std::to_string(k) + "]"; }
+
+// Scatter a case's loads into flat vectors and mark the constrained nodes.
+void Flatten(const Scene& scene, const LoadCase& lc, Vector& force, Vector& prescribed,
+             std::vector<bool>& constrained) {
+  const int d = scene.dimension;
+  const int n = scene.node_count();
+  force = Vector::Zero(d * n);
+  prescribed = Vector::Zero(d * n);
+  constrained.assign(n, false);
+  for (int node : lc.fixed) constrained[node] = true;
+  for (const NodalLoad& load : lc.displacements) {
+    for (int node : load.nodes) {
+      constrained[node] = true;
+      prescribed.segment(d * node, d) = load.value;
+    }
+  }
+  for (const NodalLoad& load : lc.forces) {
+    for (int node : load.nodes) force.segment(d * node, d) += load.value;
+  }
+}
+
+}  // namespace
+
+Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
+  ValidateScene(scene);
+  Problem p;
+  p.scene_ = std::move(scene);
+  p.solver_options_ = solver_options;
+  const Scene& s = p.scene_;
+  const int d = s.dimension;
+  const int n = s.node_count();
+  p.training_stiffness_ = s.EffectiveTrainingStiffness();
+  p.candidates_ = SpringGeometry(d, s.rest, GenerateCandidates(s));
+  if (p.candidates_.size() == 0) throw InputError("candidates", "generates no candidate spring");
+
+  // Load cases and the distinct sets of free nodes they induce.
+  std::vector<bool> constrained_anywhere_never_free(n, true);
+  for (const LoadCase& lc : s.load_cases) {
+    PreparedLoadCase prepared;
+    std::vector<bool> constrained;
+    Flatten(s, lc, prepared.force, prepared.prescribed, constrained);
+    FreeNodes free = FreeNodes::FromConstrained(constrained);
+    const auto it = std::find(p.free_sets_.begin(), p.free_sets_.end(), free);
+    prepared.free_set = static_cast<int>(it - p.free_sets_.begin());
+    if (it == p.free_sets_.end()) p.free_sets_.push_back(std::move(free));
+    for (int i = 0; i < n; ++i) {
+      if (!constrained[i]) constrained_anywhere_never_free[i] = false;
+    }
+    p.load_cases_.push_back(std::move(prepared));
+  }
+
+  // Genes: candidates with at least one node free in some load case.
+  for (int c = 0; c < p.candidates_.size(); ++c) {
+    const NodePair& pair = p.candidates_.pairs[c];
+    if (constrained_anywhere_never_free[pair.first] && constrained_anywhere_never_free[pair.second]) {
+      p.unidentifiable_.push_back(c);
+    } else {
+      p.gene_candidate_.push_back(c);
+    }
+  }
+
+  // The reference's equilibria.
+  const Reference& ref = s.reference;
+  if (ref.kind == Reference::Kind::kMss) {
+    const SpringGeometry geometry(d, s.rest, ref.springs);
+    ActiveSprings springs;
+    for (int m = 0; m < geometry.size(); ++m) {
+      springs.index.push_back(m);
+      springs.stiffness.push_back(ref.stiffness.size() == 1 ? ref.stiffness[0] : ref.stiffness[m]);
+    }
+    std::vector<EquilibriumSolver> solvers;
+    for (const FreeNodes& free : p.free_sets_) solvers.emplace_back(geometry, free, solver_options);
+    for (std::size_t k = 0; k < p.load_cases_.size(); ++k) {
+      PreparedLoadCase& lc = p.load_cases_[k];
+      EquilibriumSolver& solver = solvers[lc.free_set];
+      const int modes = solver.RestMechanismModes(springs);
+      if (modes > 0) {
+        throw InputError("reference", "the reference MSS is a mechanism under " + CasePath(k) +
+                                          " (" + std::to_string(modes) +
+                                          " free modes): it cannot carry the load");
+      }
+      lc.reference = Vector::Zero(d * n);
+      const EquilibriumSummary summary = solver.Solve(springs, lc.force, lc.prescribed, lc.reference);
+      if (!summary.converged()) {
+        throw InputError("reference", "no equilibrium of the reference MSS found under " +
+                                          CasePath(k) + " (relative residual " +
+                                          std::to_string(summary.final_residual) + " after " +
+                                          std::to_string(summary.iterations) + " iterations)");
+      }
+    }
+    // The reference topology as a candidate mask.
+    std::vector<std::uint8_t> mask(p.candidates_.size(), 0);
+    for (const NodePair& spring : ref.springs) {
+      const NodePair ordered{std::min(spring.first, spring.second),
+                             std::max(spring.first, spring.second)};
+      const int c = p.CandidateIndex(ordered);
+      if (c < 0) {
+        p.reference_outside_.push_back(ordered);
+      } else {
+        mask[c] = 1;
+      }
+    }
+    if (p.reference_outside_.empty()) p.reference_mask_ = std::move(mask);
+  } else {
+    const double tol = kPrescribedMismatchTolerance * p.candidates_.MaxRestLength();
+    for (std::size_t k = 0; k < p.load_cases_.size(); ++k) {
+      PreparedLoadCase& lc = p.load_cases_[k];
+      lc.reference = ref.positions[k] - s.rest;
+      const FreeNodes& free = p.free_sets_[lc.free_set];
+      for (int i = 0; i < n; ++i) {
+        if (free.free_index[i] >= 0) continue;
+        if ((lc.reference.segment(d * i, d) - lc.prescribed.segment(d * i, d)).norm() > tol) {
+          throw InputError("reference.positions[" + std::to_string(k) + "][" + std::to_string(i) + "]",
+                           "node " + std::to_string(i) + " is constrained in " + CasePath(k) +
+                               " but its reference position differs from the prescribed one");
+        }
+        lc.reference.segment(d * i, d) = lc.prescribed.segment(d * i, d);
+      }
+    }
+  }
+
+  for (std::size_t k = 0; k < p.load_cases_.size(); ++k) {
+    PreparedLoadCase& lc = p.load_cases_[k];
+    const FreeNodes& free = p.free_sets_[lc.free_set];
+    lc.reference_norm2 = 0.0;
+    for (int i = 0; i < n; ++i) {
+      if (free.free_index[i] >= 0) lc.reference_norm2 += lc.reference.segment(d * i, d).squaredNorm();
+    }
+    p.reference_norm2_ += lc.reference_norm2;
+  }
+  if (!(p.reference_norm2_ > 0.0)) {
+    throw InputError("reference", "the reference does not move any free node: nothing to match");
+  }
+  return p;
+}
+
+int Problem::CandidateIndex(NodePair pair) const {
+  const auto it = std::lower_bound(candidates_.pairs.begin(), candidates_.pairs.end(), pair);
+  if (it == candidates_.pairs.end() || !(*it == pair)) return -1;
+  return static_cast<int>(it - candidates_.pairs.begin());
+}
+
+std::vector<std::uint8_t> Problem::MaskFromGenome(const Genome& genome) const {
+  std::vector<std::uint8_t> mask(candidates_.size(), 0);
+  for (std::size_t g = 0; g < gene_candidate_.size(); ++g) mask[gene_candidate_[g]] = genome[g];
+  return mask;
+}
+
+Genome Problem::GenomeFromMask(const std::vector<std::uint8_t>& mask) const {
+  Genome genome(gene_candidate_.size());
+  for (std::size_t g = 0; g < gene_candidate_.size(); ++g) genome[g] = mask[gene_candidate_[g]];
+  return genome;
+}
+
+ActiveSprings Problem::SpringsFromMask(const std::vector<std::uint8_t>& mask) const {
+  ActiveSprings springs;
+  for (int c = 0; c < candidates_.size(); ++c) {
+    if (mask[c]) {
+      springs.index.push_back(c);
+      springs.stiffness.push_back(training_stiffness_);
+    }
+  }
+  return springs;
+}
+
+}  // namespace springfit

@@ -1,0 +1,88 @@
+// A scene prepared for identification: everything derived from it that every evaluation of a
+// topology needs, computed once.
+//
+// - the candidate springs and their rest geometry; the genome: one gene per candidate that
+//   some load case can see (a candidate whose two nodes are constrained in every load case
+//   exerts no force on a free node: it is left out and reported as unidentifiable);
+// - per load case: which nodes are free (load cases that constrain the same nodes share one
+//   EquilibriumSolver pattern), the external forces and the prescribed displacements;
+// - the reference's equilibrium displacements u^R per load case (solved here for an MSS
+//   reference, taken from the scene otherwise) and their squared norms, which normalise the
+//   cost; the reference topology as a candidate mask when every reference spring is a
+//   candidate.
+// Immutable after Build(); safe to share between threads.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "engine/equilibrium.h"
+#include "engine/scene.h"
+#include "engine/springs.h"
+
+namespace springfit {
+
+// One bit per gene; 1 = the candidate spring is present.
+using Genome = std::vector<std::uint8_t>;
+
+struct PreparedLoadCase {
+  int free_set = 0;          // index into Problem::free_sets
+  Vector force;              // flat d*n
+  Vector prescribed;         // flat d*n, zero on free nodes
+  Vector reference;          // u^R, flat d*n
+  double reference_norm2 = 0.0;  // sum over free nodes of |u^R_i|^2
+};
+
+class Problem {
+ public:
+  // Validates `scene` (ValidateScene) and prepares it. Throws InputError when the scene is
+  // invalid or its reference MSS has no equilibrium (a mechanism, or no convergence) under
+  // some load case.
+  static Problem Build(Scene scene, EquilibriumOptions solver_options = {});
+
+  const Scene& scene() const { return scene_; }
+  int dimension() const { return scene_.dimension; }
+  const SpringGeometry& candidates() const { return candidates_; }
+  const std::vector<FreeNodes>& free_sets() const { return free_sets_; }
+  const std::vector<PreparedLoadCase>& load_cases() const { return load_cases_; }
+  const EquilibriumOptions& solver_options() const { return solver_options_; }
+
+  int gene_count() const { return static_cast<int>(gene_candidate_.size()); }
+  // The candidate index of each gene, ascending.
+  const std::vector<int>& gene_candidates() const { return gene_candidate_; }
+  // Candidates no load case can see.
+  const std::vector<int>& unidentifiable() const { return unidentifiable_; }
+  double training_stiffness() const { return training_stiffness_; }
+  // sum over load cases of reference_norm2: the normaliser of the cost.
+  double reference_norm2() const { return reference_norm2_; }
+
+  // The reference topology over the candidates, when every reference spring is a candidate
+  // (an MSS reference only).
+  const std::optional<std::vector<std::uint8_t>>& reference_mask() const { return reference_mask_; }
+  // The reference's springs that are not candidates (empty when reference_mask() exists).
+  const std::vector<NodePair>& reference_non_candidates() const { return reference_outside_; }
+
+  // Genome <-> candidate mask (unidentifiable candidates are 0 in a mask from a genome).
+  std::vector<std::uint8_t> MaskFromGenome(const Genome& genome) const;
+  Genome GenomeFromMask(const std::vector<std::uint8_t>& mask) const;
+  // The springs of a candidate mask, with the training stiffness.
+  ActiveSprings SpringsFromMask(const std::vector<std::uint8_t>& mask) const;
+  // Index of candidate (i, j), or -1.
+  int CandidateIndex(NodePair pair) const;
+
+ private:
+  Scene scene_;
+  EquilibriumOptions solver_options_;
+  SpringGeometry candidates_;
+  std::vector<FreeNodes> free_sets_;
+  std::vector<PreparedLoadCase> load_cases_;
+  std::vector<int> gene_candidate_;
+  std::vector<int> unidentifiable_;
+  double training_stiffness_ = 1.0;
+  double reference_norm2_ = 0.0;
+  std::optional<std::vector<std::uint8_t>> reference_mask_;
+  std::vector<NodePair> reference_outside_;
+};
+
+}  // namespace springfit

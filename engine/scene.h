@@ -1,0 +1,103 @@
+// A scene: everything an identification needs, as plain validated data.
+//
+// The nodes' rest positions, the candidate springs (the node pairs that may carry a spring:
+// one gene each), the reference model whose deformation the training model must reproduce,
+// the load cases, the training model's stiffness and the search settings. A Scene is what the
+// JSON scene format (proto/SCENE.md) describes; proto/scene_codec.h reads and validates it.
+// Derived quantities (candidate list, reference equilibria, scales) live in Problem
+// (problem.h), which is built from a Scene.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "engine/linalg.h"
+
+namespace springfit {
+
+// An unordered node pair, stored with first < second.
+struct NodePair {
+  int first = 0;
+  int second = 0;
+  friend bool operator==(const NodePair&, const NodePair&) = default;
+  friend auto operator<=>(const NodePair&, const NodePair&) = default;
+};
+
+// How the candidate springs are generated from the nodes.
+struct CandidateSpec {
+  enum class Kind {
+    kGrid,     // lattice neighbours: Chebyshev distance of one lattice step (8 in 2D, 26 in 3D)
+    kNearest,  // pair (i,j) if j is among the k nearest neighbours of i, or i among j's
+    kRadius,   // every pair at rest distance <= radius
+    kPairs,    // an explicit list
+  };
+  Kind kind = Kind::kGrid;
+  // kGrid: lattice step per axis; empty = inferred (the smallest positive difference between
+  // the nodes' coordinates along that axis).
+  std::vector<double> spacing;
+  int k = 8;            // kNearest
+  double radius = 0.0;  // kRadius
+  std::vector<NodePair> pairs;  // kPairs
+};
+
+// One force or prescribed displacement applied alike to one or more nodes; `value` has the
+// scene's dimension. `single` records that the scene named one "node" rather than a "nodes"
+// list, so that writing the scene back keeps its form.
+struct NodalLoad {
+  std::vector<int> nodes;
+  Vector value;
+  bool single = false;
+};
+
+struct LoadCase {
+  std::string name;
+  std::vector<int> fixed;                // nodes held at their rest position
+  std::vector<NodalLoad> forces;         // external forces on free nodes (they add up)
+  std::vector<NodalLoad> displacements;  // nodes moved by a prescribed displacement
+};
+
+struct Reference {
+  enum class Kind {
+    kMss,        // a mass-spring model: springs and their stiffness; equilibria are computed
+    kPositions,  // deformed positions given directly, one configuration per load case
+  };
+  Kind kind = Kind::kMss;
+  std::vector<NodePair> springs;  // kMss
+  std::vector<double> stiffness;  // kMss: one per spring, or a single value for all (default 1)
+  std::vector<Vector> positions;  // kPositions: per load case, flat d*n positions
+};
+
+// Settings of the topology search (DESIGN.md §1). The defaults are the paper's GA.
+struct SearchSettings {
+  std::string strategy = "default";
+  std::uint64_t seed = 1;
+  int population = 20;                 // individuals per generation, >= 2
+  double crossover_probability = 0.3;  // one-point crossover, in [0, 1]
+  double mutation_probability = 0.01;  // bit-flip probability per gene, in [0, 1]
+  int max_generations = 1000;          // >= 1
+  // The search stops when the normalised error reaches this value (0 = exact recovery,
+  // judged within the solver's relative tolerance). Unit-free, >= 0.
+  double target_normalized_error = 0.0;
+};
+
+struct Scene {
+  std::string name;
+  std::string description;
+  int dimension = 2;  // 2 or 3, inferred from the nodes
+  Vector rest;        // flat d*n rest positions
+  CandidateSpec candidates;
+  Reference reference;
+  std::vector<LoadCase> load_cases;
+  // Stiffness of every spring of the training model. nullopt = the reference's stiffness when
+  // it is one value for all springs, otherwise 1.
+  std::optional<double> training_stiffness;
+  SearchSettings search;
+
+  int node_count() const { return dimension == 0 ? 0 : static_cast<int>(rest.size()) / dimension; }
+  // The training stiffness after applying the default rule above.
+  double EffectiveTrainingStiffness() const;
+};
+
+}  // namespace springfit

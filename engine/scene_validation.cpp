@@ -1,0 +1,285 @@
+#include "engine/scene_validation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <set>
+#include <string>
+
+#include "engine/input_error.h"
+
+namespace springfit {
+namespace {
+
+// Two nodes closer than this fraction of the scene's extent are at the same position.
+constexpr double kCoincidentTolerance = 1e-9;
+
+std::string Index(const std::string& path, std::size_t i) {
+  return path + "[" + std::to_string(i) + "]";
+}
+
+void CheckNode(const Scene& s, int node, const std::string& path) {
+  if (node < 0 || node >= s.node_count()) {
+    throw InputError(path, "node index " + std::to_string(node) + " out of range [0, " +
+                               std::to_string(s.node_count()) + ")");
+  }
+}
+
+void CheckVector(const Scene& s, const Vector& v, const std::string& path) {
+  if (v.size() != s.dimension) {
+    throw InputError(path, "expected " + std::to_string(s.dimension) + " components (the scene is " +
+                               std::to_string(s.dimension) + "D), got " + std::to_string(v.size()));
+  }
+  for (Eigen::Index a = 0; a < v.size(); ++a) {
+    if (!std::isfinite(v[a])) throw InputError(Index(path, a), "not a finite number");
+  }
+}
+
+void CheckPairs(const Scene& s, const std::vector<NodePair>& pairs, const std::string& path,
+                const char* what) {
+  std::set<NodePair> seen;
+  for (std::size_t m = 0; m < pairs.size(); ++m) {
+    const std::string p = Index(path, m);
+    CheckNode(s, pairs[m].first, p + "[0]");
+    CheckNode(s, pairs[m].second, p + "[1]");
+    if (pairs[m].first == pairs[m].second) {
+      throw InputError(p, std::string("self ") + what + ": both ends are node " +
+                              std::to_string(pairs[m].first));
+    }
+    const NodePair key{std::min(pairs[m].first, pairs[m].second),
+                       std::max(pairs[m].first, pairs[m].second)};
+    if (!seen.insert(key).second) {
+      throw InputError(p, std::string("duplicate ") + what + " (" + std::to_string(key.first) +
+                              ", " + std::to_string(key.second) + ")");
+    }
+  }
+}
+
+double Extent(const Scene& s) {
+  const int d = s.dimension;
+  Vector lo = s.rest.segment(0, d), hi = lo;
+  for (int i = 1; i < s.node_count(); ++i) {
+    lo = lo.cwiseMin(s.rest.segment(d * i, d));
+    hi = hi.cwiseMax(s.rest.segment(d * i, d));
+  }
+  return (hi - lo).norm();
+}
+
+void CheckNodes(const Scene& s) {
+  if (s.dimension != 2 && s.dimension != 3) {
+    throw InputError("nodes", "dimension must be 2 or 3, got " + std::to_string(s.dimension));
+  }
+  if (s.node_count() < 2) throw InputError("nodes", "a scene needs at least two nodes");
+  for (int i = 0; i < s.rest.size(); ++i) {
+    if (!std::isfinite(s.rest[i])) {
+      throw InputError(Index(Index("nodes", i / s.dimension), i % s.dimension),
+                       "not a finite number");
+    }
+  }
+  // Sweep along x: only nodes whose x are within the tolerance can coincide.
+  const int d = s.dimension;
+  const double tol = kCoincidentTolerance * Extent(s);
+  std::vector<int> order(s.node_count());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) {
+    return s.rest[d * a] < s.rest[d * b] || (s.rest[d * a] == s.rest[d * b] && a < b);
+  });
+  for (std::size_t a = 0; a < order.size(); ++a) {
+    for (std::size_t b = a + 1; b < order.size(); ++b) {
+      const int i = order[a], j = order[b];
+      if (s.rest[d * j] - s.rest[d * i] > tol) break;
+      if ((s.rest.segment(d * i, d) - s.rest.segment(d * j, d)).norm() <= tol) {
+        throw InputError(Index("nodes", std::max(i, j)),
+                         "at the same position as nodes[" + std::to_string(std::min(i, j)) + "]");
+      }
+    }
+  }
+}
+
+void CheckCandidates(const Scene& s) {
+  const CandidateSpec& c = s.candidates;
+  switch (c.kind) {
+    case CandidateSpec::Kind::kGrid:
+      if (!c.spacing.empty()) {
+        if (static_cast<int>(c.spacing.size()) != s.dimension) {
+          throw InputError("candidates.spacing", "expected one step per axis (" +
+                                                     std::to_string(s.dimension) + ")");
+        }
+        for (std::size_t a = 0; a < c.spacing.size(); ++a) {
+          if (!(c.spacing[a] > 0.0) || !std::isfinite(c.spacing[a])) {
+            throw InputError(Index("candidates.spacing", a), "must be a finite number > 0");
+          }
+        }
+      }
+      break;
+    case CandidateSpec::Kind::kNearest:
+      if (c.k < 1) throw InputError("candidates.k", "must be >= 1, got " + std::to_string(c.k));
+      break;
+    case CandidateSpec::Kind::kRadius:
+      if (!(c.radius > 0.0) || !std::isfinite(c.radius)) {
+        throw InputError("candidates.radius", "must be a finite number > 0");
+      }
+      break;
+    case CandidateSpec::Kind::kPairs:
+      if (c.pairs.empty()) throw InputError("candidates.pairs", "must not be empty");
+      CheckPairs(s, c.pairs, "candidates.pairs", "pair");
+      break;
+  }
+}
+
+void CheckReference(const Scene& s) {
+  const Reference& r = s.reference;
+  if (r.kind == Reference::Kind::kMss) {
+    if (r.springs.empty()) throw InputError("reference.springs", "must not be empty");
+    CheckPairs(s, r.springs, "reference.springs", "spring");
+    if (r.stiffness.size() != 1 && r.stiffness.size() != r.springs.size()) {
+      throw InputError("reference.stiffness",
+                       "expected one value or one per spring (" + std::to_string(r.springs.size()) +
+                           "), got " + std::to_string(r.stiffness.size()));
+    }
+    for (std::size_t m = 0; m < r.stiffness.size(); ++m) {
+      const std::string p = r.stiffness.size() == 1 ? std::string("reference.stiffness")
+                                                    : Index("reference.stiffness", m);
+      if (!std::isfinite(r.stiffness[m])) throw InputError(p, "not a finite number");
+      if (!(r.stiffness[m] > 0.0)) {
+        throw InputError(p, "stiffness must be > 0, got " + std::to_string(r.stiffness[m]));
+      }
+    }
+    return;
+  }
+  if (r.positions.size() != s.load_cases.size()) {
+    throw InputError("reference.positions",
+                     "expected one configuration per load case (" +
+                         std::to_string(s.load_cases.size()) + "), got " +
+                         std::to_string(r.positions.size()));
+  }
+  for (std::size_t k = 0; k < r.positions.size(); ++k) {
+    const std::string p = Index("reference.positions", k);
+    if (r.positions[k].size() != s.rest.size()) {
+      throw InputError(p, "expected " + std::to_string(s.node_count()) + " nodes, got " +
+                              std::to_string(r.positions[k].size() / s.dimension));
+    }
+    for (Eigen::Index i = 0; i < r.positions[k].size(); ++i) {
+      if (!std::isfinite(r.positions[k][i])) {
+        throw InputError(Index(Index(p, i / s.dimension), i % s.dimension), "not a finite number");
+      }
+    }
+  }
+}
+
+void CheckRigidMotion(const Scene& s, const std::vector<int>& constrained, const std::string& path) {
+  const int d = s.dimension;
+  const char* rule = d == 2 ? "at least two constrained (fixed or displaced) nodes"
+                            : "at least three constrained (fixed or displaced) nodes not on one line";
+  if (static_cast<int>(constrained.size()) < d) {
+    throw InputError(path, std::string("rigid motion is left free: a load case needs ") + rule);
+  }
+  if (d == 2) return;
+  const double extent = Extent(s);
+  const Eigen::Vector3d a = s.rest.segment<3>(3 * constrained[0]);
+  const Eigen::Vector3d b = s.rest.segment<3>(3 * constrained[1]);
+  for (std::size_t m = 2; m < constrained.size(); ++m) {
+    const Eigen::Vector3d c = s.rest.segment<3>(3 * constrained[m]);
+    if ((b - a).cross(c - a).norm() > 1e-9 * extent * extent) return;
+  }
+  throw InputError(path, std::string("rigid motion is left free: a load case needs ") + rule);
+}
+
+void CheckLoads(const Scene& s, const std::vector<NodalLoad>& loads, const std::string& path,
+                const char* value_name, std::vector<int>& role, int role_id,
+                bool& nonzero) {
+  for (std::size_t m = 0; m < loads.size(); ++m) {
+    const std::string p = Index(path, m);
+    const NodalLoad& load = loads[m];
+    if (load.nodes.empty()) throw InputError(p + ".nodes", "must not be empty");
+    for (std::size_t q = 0; q < load.nodes.size(); ++q) {
+      const std::string np = load.single ? p + ".node" : Index(p + ".nodes", q);
+      CheckNode(s, load.nodes[q], np);
+      int& r = role[load.nodes[q]];
+      if (role_id == 2) {  // a force
+        if (r == 0 || r == 1) {
+          throw InputError(np, "node " + std::to_string(load.nodes[q]) +
+                                   " is constrained in this load case; forces go on free nodes");
+        }
+      } else {
+        if (r == 0 || r == 1) {
+          throw InputError(np, "node " + std::to_string(load.nodes[q]) +
+                                   " is already fixed or displaced in this load case");
+        }
+        r = role_id;
+      }
+    }
+    CheckVector(s, load.value, p + "." + value_name);
+    if (load.value.squaredNorm() > 0.0) nonzero = true;
+  }
+}
+
+void CheckLoadCases(const Scene& s) {
+  if (s.load_cases.empty()) throw InputError("load_cases", "a scene needs at least one load case");
+  for (std::size_t k = 0; k < s.load_cases.size(); ++k) {
+    const LoadCase& lc = s.load_cases[k];
+    const std::string p = Index("load_cases", k);
+    // role: -1 free, 0 fixed, 1 displaced
+    std::vector<int> role(s.node_count(), -1);
+    for (std::size_t m = 0; m < lc.fixed.size(); ++m) {
+      const std::string fp = Index(p + ".fixed", m);
+      CheckNode(s, lc.fixed[m], fp);
+      if (role[lc.fixed[m]] == 0) {
+        throw InputError(fp, "node " + std::to_string(lc.fixed[m]) + " is listed twice");
+      }
+      role[lc.fixed[m]] = 0;
+    }
+    bool nonzero = false;
+    CheckLoads(s, lc.displacements, p + ".displacements", "displacement", role, 1, nonzero);
+    CheckLoads(s, lc.forces, p + ".forces", "force", role, 2, nonzero);
+    if (!nonzero) {
+      throw InputError(p, "applies no load: it needs a nonzero force or prescribed displacement");
+    }
+    std::vector<int> constrained;
+    for (int i = 0; i < s.node_count(); ++i) {
+      if (role[i] == 0 || role[i] == 1) constrained.push_back(i);
+    }
+    CheckRigidMotion(s, constrained, p);
+    if (static_cast<int>(constrained.size()) == s.node_count()) {
+      throw InputError(p, "every node is constrained: nothing is left to deform");
+    }
+  }
+}
+
+void CheckSearch(const SearchSettings& s) {
+  if (s.population < 2) {
+    throw InputError("search.population", "must be >= 2, got " + std::to_string(s.population));
+  }
+  if (!(s.crossover_probability >= 0.0 && s.crossover_probability <= 1.0)) {
+    throw InputError("search.crossover_probability", "must be in [0, 1]");
+  }
+  if (!(s.mutation_probability >= 0.0 && s.mutation_probability <= 1.0)) {
+    throw InputError("search.mutation_probability", "must be in [0, 1]");
+  }
+  if (s.max_generations < 1) {
+    throw InputError("search.max_generations",
+                     "must be >= 1, got " + std::to_string(s.max_generations));
+  }
+  if (!(s.target_normalized_error >= 0.0) || !std::isfinite(s.target_normalized_error)) {
+    throw InputError("search.target_normalized_error", "must be a finite number >= 0");
+  }
+}
+
+}  // namespace
+
+void ValidateScene(const Scene& s) {
+  CheckNodes(s);
+  CheckCandidates(s);
+  CheckLoadCases(s);
+  CheckReference(s);
+  if (s.training_stiffness) {
+    if (!std::isfinite(*s.training_stiffness)) throw InputError("stiffness", "not a finite number");
+    if (!(*s.training_stiffness > 0.0)) {
+      throw InputError("stiffness",
+                       "stiffness must be > 0, got " + std::to_string(*s.training_stiffness));
+    }
+  }
+  CheckSearch(s.search);
+}
+
+}  // namespace springfit

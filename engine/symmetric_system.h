@@ -1,0 +1,98 @@
+// A symmetric linear system A x = b on a sparsity pattern fixed at construction, with one
+// interface over a dense and a sparse factorisation.
+//
+// Callers assemble into `values()` through slots (positions of lower-triangle entries) that they
+// look up once with Slot(); assembly then costs no search. Factorize() works on the
+// Jacobi-scaled matrix S A S (S = diag(A)^-1/2): its pivots are unit-free, so one tolerance
+// tells a healthy pivot from a mechanism whatever the stiffness scale or spread (a scene with
+// stiffness ratios of 1e8 has raw pivot ratios far below round-off of a mechanism's). The
+// sparse backend does its symbolic analysis (AMD ordering, elimination tree) once, here, and
+// reuses it for every factorisation.
+//
+// Not thread-safe; copy one per thread.
+#pragma once
+
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Cholesky>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+
+#include "engine/linalg.h"
+
+namespace springfit {
+
+class SymmetricSystem {
+ public:
+  enum class Backend { kDense, kSparse };
+
+  struct Factorization {
+    bool positive_definite = false;  // every scaled pivot > small_pivot_tolerance
+    // Scaled pivots <= small_pivot_tolerance (zero diagonals included). For a positive
+    // semi-definite A this is the dimension of its null space: the number of mechanism modes.
+    int small_pivots = 0;
+    double min_pivot = 0.0;  // smallest scaled pivot
+  };
+
+  SymmetricSystem() = default;
+  // `lower` lists the (row, col), row >= col, of every entry that may become nonzero; the
+  // diagonal is added automatically. Duplicates are allowed.
+  SymmetricSystem(int n, std::vector<std::pair<int, int>> lower, Backend backend);
+
+  int size() const { return n_; }
+  Backend backend() const { return backend_; }
+  // The slot of entry (row, col); requires row >= col and the entry in the pattern.
+  int Slot(int row, int col) const;
+  double* values() { return values_; }
+  void SetZero();
+  // The assembled (unscaled) matrix, both triangles, as a dense matrix. For tests.
+  Matrix ToDense() const;
+
+  // Factorises S A S + shift I. With `count_pivots` false the factorisation may stop at the
+  // first non-positive pivot (positive_definite false, small_pivots meaningless), which is all
+  // a Newton step needs; with it true every pivot is examined.
+  Factorization Factorize(double shift, double small_pivot_tolerance, bool count_pivots);
+  // Overwrites b with the solution of (A + shift S^-2) x = b, using the last Factorize().
+  void Solve(Vector& b) const;
+
+ private:
+  void ComputeScaling();
+
+  int n_ = 0;
+  Backend backend_ = Backend::kDense;
+  double* values_ = nullptr;  // points into dense_ or sparse_ storage
+  Vector scale_;              // S
+
+  // Dense backend: lower triangle of a column-major matrix.
+  Matrix dense_;
+  Matrix dense_work_;
+  Eigen::LLT<Matrix, Eigen::Lower> llt_;
+  Eigen::LDLT<Matrix, Eigen::Lower> ldlt_;
+  bool dense_used_ldlt_ = false;
+
+  // Sparse backend: lower triangle in compressed column storage.
+  Eigen::SparseMatrix<double> sparse_;
+  Eigen::SparseMatrix<double> sparse_work_;
+  std::vector<int> diagonal_slot_;
+  using SparseLdlt =
+      Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>>;
+  // Eigen's sparse solvers cannot be copied: a copy of the system analyses the pattern anew
+  // (once per thread, not once per solve).
+  std::unique_ptr<SparseLdlt> sldlt_;
+
+ public:
+  SymmetricSystem(const SymmetricSystem& other);
+  SymmetricSystem& operator=(const SymmetricSystem& other);
+  SymmetricSystem(SymmetricSystem&& other) noexcept;
+  SymmetricSystem& operator=(SymmetricSystem&& other) noexcept;
+
+ private:
+  // values_ points into storage owned by this object: re-aim it after a copy or move.
+  void RebindValues() {
+    values_ = backend_ == Backend::kDense ? dense_.data() : sparse_.valuePtr();
+  }
+};
+
+}  // namespace springfit

@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Installs springfit's build and test dependencies from Debian's packages.
+# Idempotent: packages already present are left alone, and apt is not touched at all
+# when everything is installed.
+set -euo pipefail
+
+packages=(
+  build-essential cmake pkg-config
+  libeigen3-dev            # linear algebra, sparse factorisation
+  libboost-dev             # Asio (header-only) for networking and thread pools
+  nlohmann-json3-dev       # JSON
+  libsqlite3-dev libsqlitecpp-dev sqlite3
+  libcli11-dev             # command line
+  libspdlog-dev libfmt-dev # logging
+  libgtest-dev libgmock-dev libbenchmark-dev
+  clang libclang-rt-14-dev # libFuzzer targets and sanitizer runtime
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+sudo=""
+[ "$(id -u)" -eq 0 ] || sudo="sudo"
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$sudo apt-get update -qq
+$sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
