@@ -1,0 +1,13 @@
+// The subcommands of the `springfit` program. Each Register function adds its subcommand to
+// the application and binds a callback that sets the exit code.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace springfit::cli {
+
+void RegisterCheck(CLI::App& app, int& exit_code);
+void RegisterEval(CLI::App& app, int& exit_code);
+void RegisterExample(CLI::App& app, int& exit_code);
+
+}  // namespace springfit::cli

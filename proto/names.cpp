@@ -1,0 +1,42 @@
+#include "proto/names.h"
+
+namespace springfit::proto {
+
+std::string_view CandidateKindName(CandidateSpec::Kind kind) {
+  switch (kind) {
+    case CandidateSpec::Kind::kGrid: return "grid";
+    case CandidateSpec::Kind::kNearest: return "nearest";
+    case CandidateSpec::Kind::kRadius: return "radius";
+    case CandidateSpec::Kind::kPairs: return "pairs";
+  }
+  return "?";
+}
+
+std::optional<CandidateSpec::Kind> ParseCandidateKind(std::string_view name) {
+  for (auto k : {CandidateSpec::Kind::kGrid, CandidateSpec::Kind::kNearest,
+                 CandidateSpec::Kind::kRadius, CandidateSpec::Kind::kPairs}) {
+    if (CandidateKindName(k) == name) return k;
+  }
+  return std::nullopt;
+}
+
+std::string_view ReferenceKindName(Reference::Kind kind) {
+  return kind == Reference::Kind::kMss ? "mss" : "positions";
+}
+
+std::optional<Reference::Kind> ParseReferenceKind(std::string_view name) {
+  if (name == "mss") return Reference::Kind::kMss;
+  if (name == "positions") return Reference::Kind::kPositions;
+  return std::nullopt;
+}
+
+std::string_view TerminationName(Termination termination) {
+  switch (termination) {
+    case Termination::kConverged: return "converged";
+    case Termination::kNotConverged: return "not_converged";
+    case Termination::kMechanism: return "mechanism";
+  }
+  return "?";
+}
+
+}  // namespace springfit::proto

@@ -1,0 +1,334 @@
+#include "proto/scene_codec.h"
+
+#include <fstream>
+#include <sstream>
+
+#include "engine/input_error.h"
+#include "engine/scene_validation.h"
+#include "proto/names.h"
+
+namespace springfit::proto {
+namespace {
+
+NodePair ReadPair(const Json& v, const std::string& path) {
+  ExpectArray(v, path);
+  if (v.size() != 2) throw InputError(path, "expected a pair [i, j], got " + std::to_string(v.size()) + " values");
+  return {ReadInt(v[0], IndexPath(path, 0)), ReadInt(v[1], IndexPath(path, 1))};
+}
+
+std::vector<NodePair> ReadPairs(const Json& v, const std::string& path) {
+  ExpectArray(v, path);
+  std::vector<NodePair> pairs;
+  pairs.reserve(v.size());
+  for (std::size_t m = 0; m < v.size(); ++m) pairs.push_back(ReadPair(v[m], IndexPath(path, m)));
+  return pairs;
+}
+
+std::vector<int> ReadIndices(const Json& v, const std::string& path) {
+  ExpectArray(v, path);
+  std::vector<int> out;
+  out.reserve(v.size());
+  for (std::size_t m = 0; m < v.size(); ++m) out.push_back(ReadInt(v[m], IndexPath(path, m)));
+  return out;
+}
+
+// A flat d*n vector from an array of n points.
+Vector ReadPoints(const Json& v, const std::string& path, int dimension) {
+  ExpectArray(v, path);
+  Vector out(dimension * static_cast<Eigen::Index>(v.size()));
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    out.segment(dimension * static_cast<Eigen::Index>(i), dimension) =
+        ReadVector(v[i], IndexPath(path, i), dimension);
+  }
+  return out;
+}
+
+void ReadNodes(const Json& v, Scene& s) {
+  ExpectArray(v, "nodes");
+  if (v.empty()) throw InputError("nodes", "must not be empty");
+  ExpectArray(v[0], "nodes[0]");
+  const int d = static_cast<int>(v[0].size());
+  if (d != 2 && d != 3) {
+    throw InputError("nodes[0]", "a node has 2 or 3 coordinates (the scene's dimension), got " +
+                                     std::to_string(d));
+  }
+  s.dimension = d;
+  s.rest = ReadPoints(v, "nodes", d);
+}
+
+void ReadCandidates(const Json& v, Scene& s) {
+  const std::string path = "candidates";
+  ExpectKeys(v, path, {"type", "spacing", "k", "radius", "pairs"});
+  if (!v.contains("type")) throw InputError(JoinPath(path, "type"), "required");
+  const std::string type = ReadString(v["type"], JoinPath(path, "type"));
+  const auto kind = ParseCandidateKind(type);
+  if (!kind) throw InputError(JoinPath(path, "type"), "unknown candidate type '" + type + "' (expected grid, nearest, radius or pairs)");
+  s.candidates.kind = *kind;
+  auto only_for = [&](const char* key, CandidateSpec::Kind k) {
+    if (v.contains(key) && *kind != k) {
+      throw InputError(JoinPath(path, key), "only applies to type " + std::string(CandidateKindName(k)));
+    }
+  };
+  only_for("spacing", CandidateSpec::Kind::kGrid);
+  only_for("k", CandidateSpec::Kind::kNearest);
+  only_for("radius", CandidateSpec::Kind::kRadius);
+  only_for("pairs", CandidateSpec::Kind::kPairs);
+  if (v.contains("spacing")) {
+    const std::string p = JoinPath(path, "spacing");
+    if (v["spacing"].is_number()) {
+      s.candidates.spacing.assign(s.dimension, ReadNumber(v["spacing"], p));
+    } else {
+      const Vector h = ReadVector(v["spacing"], p, s.dimension);
+      s.candidates.spacing.assign(h.data(), h.data() + h.size());
+    }
+  }
+  if (v.contains("k")) s.candidates.k = ReadInt(v["k"], JoinPath(path, "k"));
+  if (*kind == CandidateSpec::Kind::kRadius) {
+    if (!v.contains("radius")) throw InputError(JoinPath(path, "radius"), "required for type radius");
+    s.candidates.radius = ReadNumber(v["radius"], JoinPath(path, "radius"));
+  }
+  if (*kind == CandidateSpec::Kind::kPairs) {
+    if (!v.contains("pairs")) throw InputError(JoinPath(path, "pairs"), "required for type pairs");
+    s.candidates.pairs = ReadPairs(v["pairs"], JoinPath(path, "pairs"));
+  }
+}
+
+void ReadReference(const Json& v, Scene& s) {
+  const std::string path = "reference";
+  ExpectKeys(v, path, {"type", "springs", "stiffness", "positions"});
+  if (!v.contains("type")) throw InputError(JoinPath(path, "type"), "required");
+  const std::string type = ReadString(v["type"], JoinPath(path, "type"));
+  const auto kind = ParseReferenceKind(type);
+  if (!kind) throw InputError(JoinPath(path, "type"), "unknown reference type '" + type + "' (expected mss or positions)");
+  Reference& r = s.reference;
+  r.kind = *kind;
+  if (r.kind == Reference::Kind::kMss) {
+    if (v.contains("positions")) throw InputError(JoinPath(path, "positions"), "only applies to type positions");
+    if (!v.contains("springs")) throw InputError(JoinPath(path, "springs"), "required for type mss");
+    r.springs = ReadPairs(v["springs"], JoinPath(path, "springs"));
+    r.stiffness = {1.0};
+    if (v.contains("stiffness")) {
+      const std::string p = JoinPath(path, "stiffness");
+      if (v["stiffness"].is_array()) {
+        const Json& a = v["stiffness"];
+        r.stiffness.clear();
+        for (std::size_t m = 0; m < a.size(); ++m) r.stiffness.push_back(ReadNumber(a[m], IndexPath(p, m)));
+      } else {
+        r.stiffness = {ReadNumber(v["stiffness"], p)};
+      }
+    }
+    return;
+  }
+  for (const char* key : {"springs", "stiffness"}) {
+    if (v.contains(key)) throw InputError(JoinPath(path, key), "only applies to type mss");
+  }
+  if (!v.contains("positions")) throw InputError(JoinPath(path, "positions"), "required for type positions");
+  const std::string p = JoinPath(path, "positions");
+  ExpectArray(v["positions"], p);
+  for (std::size_t k = 0; k < v["positions"].size(); ++k) {
+    r.positions.push_back(ReadPoints(v["positions"][k], IndexPath(p, k), s.dimension));
+  }
+}
+
+std::vector<NodalLoad> ReadLoads(const Json& v, const std::string& path, const char* value_key, int d) {
+  ExpectArray(v, path);
+  std::vector<NodalLoad> loads;
+  for (std::size_t m = 0; m < v.size(); ++m) {
+    const std::string p = IndexPath(path, m);
+    ExpectKeys(v[m], p, {"node", "nodes", value_key});
+    NodalLoad load;
+    if (v[m].contains("node") == v[m].contains("nodes")) {
+      throw InputError(p, "needs exactly one of \"node\" or \"nodes\"");
+    }
+    if (v[m].contains("node")) {
+      load.single = true;
+      load.nodes = {ReadInt(v[m]["node"], JoinPath(p, "node"))};
+    } else {
+      load.nodes = ReadIndices(v[m]["nodes"], JoinPath(p, "nodes"));
+    }
+    if (!v[m].contains(value_key)) throw InputError(JoinPath(p, value_key), "required");
+    load.value = ReadVector(v[m][value_key], JoinPath(p, value_key), d);
+    loads.push_back(std::move(load));
+  }
+  return loads;
+}
+
+void ReadLoadCases(const Json& v, Scene& s) {
+  ExpectArray(v, "load_cases");
+  for (std::size_t k = 0; k < v.size(); ++k) {
+    const std::string p = IndexPath("load_cases", k);
+    ExpectKeys(v[k], p, {"name", "fixed", "forces", "displacements"});
+    LoadCase lc;
+    if (v[k].contains("name")) lc.name = ReadString(v[k]["name"], JoinPath(p, "name"));
+    if (v[k].contains("fixed")) lc.fixed = ReadIndices(v[k]["fixed"], JoinPath(p, "fixed"));
+    if (v[k].contains("forces")) lc.forces = ReadLoads(v[k]["forces"], JoinPath(p, "forces"), "force", s.dimension);
+    if (v[k].contains("displacements")) {
+      lc.displacements = ReadLoads(v[k]["displacements"], JoinPath(p, "displacements"), "displacement", s.dimension);
+    }
+    s.load_cases.push_back(std::move(lc));
+  }
+}
+
+void ReadSearch(const Json& v, SearchSettings& st) {
+  const std::string path = "search";
+  ExpectKeys(v, path, {"strategy", "seed", "population", "crossover_probability",
+                       "mutation_probability", "max_generations", "target_normalized_error"});
+  if (v.contains("strategy")) {
+    st.strategy = ReadString(v["strategy"], JoinPath(path, "strategy"));
+    bool known = false;
+    for (std::string_view name : kStrategies) known = known || name == st.strategy;
+    if (!known) throw InputError(JoinPath(path, "strategy"), "unknown strategy '" + st.strategy + "' (expected default or paper)");
+  }
+  if (v.contains("seed")) st.seed = ReadUint64(v["seed"], JoinPath(path, "seed"));
+  if (v.contains("population")) st.population = ReadInt(v["population"], JoinPath(path, "population"));
+  if (v.contains("crossover_probability")) {
+    st.crossover_probability = ReadNumber(v["crossover_probability"], JoinPath(path, "crossover_probability"));
+  }
+  if (v.contains("mutation_probability")) {
+    st.mutation_probability = ReadNumber(v["mutation_probability"], JoinPath(path, "mutation_probability"));
+  }
+  if (v.contains("max_generations")) st.max_generations = ReadInt(v["max_generations"], JoinPath(path, "max_generations"));
+  if (v.contains("target_normalized_error")) {
+    st.target_normalized_error = ReadNumber(v["target_normalized_error"], JoinPath(path, "target_normalized_error"));
+  }
+}
+
+Json PointsToJson(const Vector& flat, int d) {
+  Json a = Json::array();
+  for (Eigen::Index i = 0; i < flat.size() / d; ++i) {
+    Json p = Json::array();
+    for (int c = 0; c < d; ++c) p.push_back(flat[d * i + c]);
+    a.push_back(std::move(p));
+  }
+  return a;
+}
+
+Json VectorToJson(const Vector& v) {
+  Json a = Json::array();
+  for (Eigen::Index i = 0; i < v.size(); ++i) a.push_back(v[i]);
+  return a;
+}
+
+Json PairsToJson(const std::vector<NodePair>& pairs) {
+  Json a = Json::array();
+  for (const NodePair& p : pairs) a.push_back({p.first, p.second});
+  return a;
+}
+
+Json LoadsToJson(const std::vector<NodalLoad>& loads, const char* value_key) {
+  Json a = Json::array();
+  for (const NodalLoad& l : loads) {
+    Json o;
+    if (l.single && l.nodes.size() == 1) {
+      o["node"] = l.nodes[0];
+    } else {
+      o["nodes"] = l.nodes;
+    }
+    o[value_key] = VectorToJson(l.value);
+    a.push_back(std::move(o));
+  }
+  return a;
+}
+
+}  // namespace
+
+Scene SceneFromJson(const Json& json) {
+  ExpectKeys(json, "", {"name", "description", "nodes", "candidates", "reference", "load_cases",
+                        "stiffness", "search"});
+  Scene s;
+  if (json.contains("name")) s.name = ReadString(json["name"], "name");
+  if (json.contains("description")) s.description = ReadString(json["description"], "description");
+  for (const char* key : {"nodes", "reference", "load_cases"}) {
+    if (!json.contains(key)) throw InputError(key, "required");
+  }
+  ReadNodes(json["nodes"], s);
+  if (json.contains("candidates")) ReadCandidates(json["candidates"], s);
+  ReadLoadCases(json["load_cases"], s);
+  ReadReference(json["reference"], s);
+  if (json.contains("stiffness")) s.training_stiffness = ReadNumber(json["stiffness"], "stiffness");
+  if (json.contains("search")) ReadSearch(json["search"], s.search);
+  ValidateScene(s);
+  return s;
+}
+
+Scene SceneFromText(std::string_view text) { return SceneFromJson(ParseJson(text)); }
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError("", "cannot open '" + path + "'");
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  return buffer.str();
+}
+
+Scene LoadSceneFile(const std::string& path) { return SceneFromText(ReadFile(path)); }
+
+Json SceneToJson(const Scene& s) {
+  Json j;
+  const Scene defaults;
+  if (!s.name.empty()) j["name"] = s.name;
+  if (!s.description.empty()) j["description"] = s.description;
+  j["nodes"] = PointsToJson(s.rest, s.dimension);
+
+  const CandidateSpec& c = s.candidates;
+  if (c.kind != CandidateSpec::Kind::kGrid || !c.spacing.empty()) {
+    Json cj;
+    cj["type"] = CandidateKindName(c.kind);
+    switch (c.kind) {
+      case CandidateSpec::Kind::kGrid:
+        if (std::all_of(c.spacing.begin(), c.spacing.end(), [&](double h) { return h == c.spacing[0]; })) {
+          cj["spacing"] = c.spacing[0];
+        } else {
+          cj["spacing"] = c.spacing;
+        }
+        break;
+      case CandidateSpec::Kind::kNearest: cj["k"] = c.k; break;
+      case CandidateSpec::Kind::kRadius: cj["radius"] = c.radius; break;
+      case CandidateSpec::Kind::kPairs: cj["pairs"] = PairsToJson(c.pairs); break;
+    }
+    j["candidates"] = std::move(cj);
+  }
+
+  Json r;
+  r["type"] = ReferenceKindName(s.reference.kind);
+  if (s.reference.kind == Reference::Kind::kMss) {
+    r["springs"] = PairsToJson(s.reference.springs);
+    if (s.reference.stiffness.size() == 1) {
+      if (s.reference.stiffness[0] != 1.0) r["stiffness"] = s.reference.stiffness[0];
+    } else {
+      r["stiffness"] = s.reference.stiffness;
+    }
+  } else {
+    Json positions = Json::array();
+    for (const Vector& p : s.reference.positions) positions.push_back(PointsToJson(p, s.dimension));
+    r["positions"] = std::move(positions);
+  }
+  j["reference"] = std::move(r);
+
+  Json cases = Json::array();
+  for (const LoadCase& lc : s.load_cases) {
+    Json o = Json::object();
+    if (!lc.name.empty()) o["name"] = lc.name;
+    if (!lc.fixed.empty()) o["fixed"] = lc.fixed;
+    if (!lc.forces.empty()) o["forces"] = LoadsToJson(lc.forces, "force");
+    if (!lc.displacements.empty()) o["displacements"] = LoadsToJson(lc.displacements, "displacement");
+    cases.push_back(std::move(o));
+  }
+  j["load_cases"] = std::move(cases);
+  if (s.training_stiffness) j["stiffness"] = *s.training_stiffness;
+
+  const SearchSettings& st = s.search;
+  const SearchSettings& d = defaults.search;
+  Json sj = Json::object();
+  if (st.strategy != d.strategy) sj["strategy"] = st.strategy;
+  if (st.seed != d.seed) sj["seed"] = st.seed;
+  if (st.population != d.population) sj["population"] = st.population;
+  if (st.crossover_probability != d.crossover_probability) sj["crossover_probability"] = st.crossover_probability;
+  if (st.mutation_probability != d.mutation_probability) sj["mutation_probability"] = st.mutation_probability;
+  if (st.max_generations != d.max_generations) sj["max_generations"] = st.max_generations;
+  if (st.target_normalized_error != d.target_normalized_error) sj["target_normalized_error"] = st.target_normalized_error;
+  if (!sj.empty()) j["search"] = std::move(sj);
+  return j;
+}
+
+}  // namespace springfit::proto

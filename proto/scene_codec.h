@@ -1,0 +1,26 @@
+// The JSON scene format (proto/SCENE.md, proto/scene.schema.json): reading with full
+// validation, and writing only what differs from the defaults.
+#pragma once
+
+#include <string>
+#include <string_view>
+
+#include "engine/scene.h"
+#include "proto/json_reader.h"
+
+namespace springfit::proto {
+
+// Reads and validates a scene (types, unknown fields, then ValidateScene's rules). Throws
+// InputError naming the JSON path of the first problem.
+Scene SceneFromJson(const Json& json);
+Scene SceneFromText(std::string_view text);
+// Reads a file; a file that cannot be read is an InputError with an empty path.
+Scene LoadSceneFile(const std::string& path);
+
+// The scene as JSON: fields equal to their defaults are left out.
+Json SceneToJson(const Scene& scene);
+
+// Reads a whole file into a string; throws InputError when it cannot.
+std::string ReadFile(const std::string& path);
+
+}  // namespace springfit::proto
