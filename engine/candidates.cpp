@@ -13,8 +13,8 @@ namespace {
 
 // Nodes within this fraction of a lattice step of their lattice point count as on it.
 constexpr double kLatticeTolerance = 1e-6;
-// Two rest distances within this relative difference are equal when ranking neighbours or
-// comparing with a radius, so that round-off in generated coordinates does not decide.
+// A rest distance within this relative difference of the radius counts as on it, so that
+// round-off in generated coordinates does not decide.
 constexpr double kDistanceTolerance = 1e-9;
 
 NodePair Ordered(int a, int b) { return a < b ? NodePair{a, b} : NodePair{b, a}; }
@@ -61,7 +61,11 @@ std::vector<NodePair> GridCandidates(const Scene& scene) {
         throw InputError("candidates", "grid has more than 2^20 steps along an axis");
       }
     }
-    at.emplace(key(cell[i]), i);
+    const auto [it, inserted] = at.emplace(key(cell[i]), i);
+    if (!inserted) {
+      throw InputError("candidates", "nodes[" + std::to_string(it->second) + "] and nodes[" +
+                                         std::to_string(i) + "] fall on the same lattice point");
+    }
   }
   std::vector<NodePair> pairs;
   for (int i = 0; i < n; ++i) {
@@ -93,14 +97,8 @@ std::vector<NodePair> NearestCandidates(const Scene& scene) {
     for (int j = 0; j < n; ++j) {
       if (j != i) by_distance.emplace_back(Distance(scene, i, j), j);
     }
-    // Ties within round-off go to the lower index, so the set does not depend on it.
-    auto closer = [](const std::pair<double, int>& a, const std::pair<double, int>& b) {
-      if (std::abs(a.first - b.first) > kDistanceTolerance * std::max(a.first, b.first)) {
-        return a.first < b.first;
-      }
-      return a.second < b.second;
-    };
-    std::partial_sort(by_distance.begin(), by_distance.begin() + k, by_distance.end(), closer);
+    // Exact ties go to the lower index (pairs compare lexicographically).
+    std::partial_sort(by_distance.begin(), by_distance.begin() + k, by_distance.end());
     for (int r = 0; r < k; ++r) pairs.push_back(Ordered(i, by_distance[r].second));
   }
   return pairs;

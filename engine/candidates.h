@@ -13,8 +13,9 @@ namespace springfit {
 // distinct) and kPairs entries are in range and not self pairs.
 std::vector<NodePair> GenerateCandidates(const Scene& scene);
 
-// The per-axis lattice step of `scene`'s nodes: the smallest positive difference between node
-// coordinates along each axis (0 for an axis on which all nodes agree).
+// The per-axis lattice step of `scene`'s nodes: the smallest difference between node
+// coordinates along each axis that exceeds 1e-6 of the axis's range (0 for an axis on which
+// all nodes agree).
 std::vector<double> InferLatticeSpacing(const Scene& scene);
 
 }  // namespace springfit

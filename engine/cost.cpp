@@ -68,7 +68,8 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs, std::vector<Vect
       }
     }
     out.cost = cost;
-    out.normalized_error = cost / lc.reference_norm2;
+    // A case whose reference moves no free node is normalised by the whole reference instead.
+    out.normalized_error = cost / (lc.reference_norm2 > 0.0 ? lc.reference_norm2 : p.reference_norm2());
     stable_cost += cost;
     if (displacements) (*displacements)[k] = u_;
   }
@@ -76,7 +77,7 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs, std::vector<Vect
   // Penalties per load case, so the breakdown shows where the topology failed.
   for (std::size_t k = 0; k < p.load_cases().size(); ++k) {
     LoadCaseEvaluation& out = e.load_cases[k];
-    const double norm2 = p.load_cases()[k].reference_norm2;
+    const double norm2 = p.load_cases()[k].reference_norm2 > 0.0 ? p.load_cases()[k].reference_norm2 : p.reference_norm2();
     if (out.solve.termination == Termination::kMechanism) {
       out.normalized_error = kPenaltyBase * (1.0 + out.solve.mechanism_modes);
       out.cost = out.normalized_error * norm2;

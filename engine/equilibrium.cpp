@@ -158,6 +158,7 @@ double EquilibriumSolver::Assemble(const ActiveSprings& springs, const Vector& f
 double EquilibriumSolver::EnergyAndGradient(const ActiveSprings& springs, const Vector& force,
                                             const Vector& u, Vector* gradient, bool hessian,
                                             bool projected) {
+  if (gradient) gradient->resize(dim_ * free_.count);
   if (dim_ == 2) return Assemble<2>(springs, force, u, gradient, hessian, projected, nullptr);
   return Assemble<3>(springs, force, u, gradient, hessian, projected, nullptr);
 }
@@ -202,6 +203,10 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs,
   const double tolerance = std::max(options_.relative_force_tolerance * force_scale,
                                     options_.roundoff_force_tolerance * k_max * l_max);
 
+  double mean_length = 0.0;
+  for (int s : springs.index) mean_length += geometry_->rest_length[s];
+  const double max_step = options_.max_step * mean_length / std::max(1, springs.size());
+
   double magnitude = 0.0;
   double energy = Assemble<D>(springs, force, u, &gradient_, true, false, &magnitude);
   double residual = gradient_.template lpNorm<Eigen::Infinity>();
@@ -230,6 +235,14 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs,
     }
     step_ = -gradient_;
     system_.Solve(step_);
+    // A step that moves some node by more than a fraction of a spring length leaves the region
+    // where the quadratic model means anything; it can jump a node onto another (L = 0, where E
+    // has a cone) or across a fixed node. Shorten it; the line search does the rest.
+    double largest = 0.0;
+    for (int node = 0; node < free_.count; ++node) {
+      largest = std::max(largest, step_.template segment<D>(D * node).norm());
+    }
+    if (largest > max_step) step_ *= max_step / largest;
     const double slope = gradient_.dot(step_);
     if (!(slope < 0.0)) break;  // not a descent direction (also catches NaN)
 

@@ -34,8 +34,8 @@ struct CandidateSpec {
     kPairs,    // an explicit list
   };
   Kind kind = Kind::kGrid;
-  // kGrid: lattice step per axis; empty = inferred (the smallest positive difference between
-  // the nodes' coordinates along that axis).
+  // kGrid: lattice step per axis; empty = inferred (the smallest difference between the nodes'
+  // coordinates along that axis above 1e-6 of the axis's range).
   std::vector<double> spacing;
   int k = 8;            // kNearest
   double radius = 0.0;  // kRadius

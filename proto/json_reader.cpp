@@ -50,11 +50,16 @@ Json ParseJson(std::string_view text) {
         ++column;
       }
     }
+    // nlohmann's message repeats the position: keep what follows it.
     std::string what = e.what();
-    const std::size_t colon = what.find("parse error");
-    if (colon != std::string::npos) what = what.substr(colon);
+    const std::size_t column_at = what.find("column ");
+    const std::size_t colon = what.find(": ", column_at == std::string::npos ? 0 : column_at);
+    if (colon != std::string::npos) what = what.substr(colon + 2);
     throw InputError("", "invalid JSON at line " + std::to_string(line) + ", column " +
                              std::to_string(column) + ": " + what);
+  } catch (const Json::exception& e) {
+    // e.g. a number beyond the double range: out_of_range rather than a parse error.
+    throw InputError("", std::string("invalid JSON: ") + e.what());
   }
 }
 

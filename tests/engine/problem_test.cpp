@@ -1,0 +1,64 @@
+// Problem preparation: genes, unidentifiable candidates, reference equilibria.
+#include "engine/problem.h"
+
+#include <gtest/gtest.h>
+
+#include "engine/input_error.h"
+#include "tests/test_scenes.h"
+
+namespace springfit {
+namespace {
+
+TEST(Problem, CandidatesBetweenAlwaysConstrainedNodesAreUnidentifiable) {
+  // 3x3 grid with the bottom row fixed in every load case: the two bottom edges between fixed
+  // nodes (0,1) and (1,2) are invisible to every case.
+  Scene s = testing::GridScene(2, 3);
+  s.load_cases.resize(4);  // keep the four bottom-fixed cases
+  const Problem p = Problem::Build(s);
+  ASSERT_EQ(p.unidentifiable().size(), 2u);
+  EXPECT_EQ(p.candidates().pairs[p.unidentifiable()[0]], (NodePair{0, 1}));
+  EXPECT_EQ(p.candidates().pairs[p.unidentifiable()[1]], (NodePair{1, 2}));
+  EXPECT_EQ(p.gene_count(), p.candidates().size() - 2);
+  // With the left-fixed cases too, every candidate is seen by some case.
+  const Problem all = Problem::Build(testing::GridScene(2, 3));
+  EXPECT_TRUE(all.unidentifiable().empty());
+}
+
+TEST(Problem, GenomeAndMaskRoundTrip) {
+  const Problem p = Problem::Build(testing::GridScene(2, 4));
+  Genome g(p.gene_count());
+  for (int i = 0; i < p.gene_count(); ++i) g[i] = static_cast<std::uint8_t>((i * 7) % 3 == 0);
+  EXPECT_EQ(p.GenomeFromMask(p.MaskFromGenome(g)), g);
+}
+
+TEST(Problem, ReferenceMechanismIsRejectedNamingTheLoadCase) {
+  Scene s = testing::GridScene(2, 3);
+  s.reference.springs = {{0, 1}, {1, 2}, {3, 4}};  // most nodes float
+  try {
+    Problem::Build(s);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.path(), "reference");
+    EXPECT_NE(std::string(e.what()).find("mechanism under load_cases[0]"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Problem, PositionsReferenceMustAgreeWithPrescribedNodes) {
+  Scene s = testing::GridScene(2, 3);
+  const Problem mss = Problem::Build(s);
+  s.reference.kind = Reference::Kind::kPositions;
+  for (const PreparedLoadCase& lc : mss.load_cases()) s.reference.positions.push_back(s.rest + lc.reference);
+  const Problem positions = Problem::Build(s);
+  EXPECT_DOUBLE_EQ(positions.reference_norm2(), mss.reference_norm2());
+  EXPECT_FALSE(positions.reference_mask());
+  s.reference.positions[2][0] += 0.01;  // node 0 is fixed in load case 2
+  try {
+    Problem::Build(s);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.path(), "reference.positions[2][0]");
+  }
+}
+
+}  // namespace
+}  // namespace springfit
