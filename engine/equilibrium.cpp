@@ -203,10 +203,6 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs,
   const double tolerance = std::max(options_.relative_force_tolerance * force_scale,
                                     options_.roundoff_force_tolerance * k_max * l_max);
 
-  double mean_length = 0.0;
-  for (int s : springs.index) mean_length += geometry_->rest_length[s];
-  const double max_step = options_.max_step * mean_length / std::max(1, springs.size());
-
   double magnitude = 0.0;
   double energy = Assemble<D>(springs, force, u, &gradient_, true, false, &magnitude);
   double residual = gradient_.template lpNorm<Eigen::Infinity>();
@@ -235,14 +231,21 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs,
     }
     step_ = -gradient_;
     system_.Solve(step_);
-    // A step that moves some node by more than a fraction of a spring length leaves the region
-    // where the quadratic model means anything; it can jump a node onto another (L = 0, where E
-    // has a cone) or across a fixed node. Shorten it; the line search does the rest.
+    // A step that changes some spring's separation by more than a fraction of its length leaves
+    // the region where the quadratic model means anything: it can jump a node onto another
+    // (L = 0, where E has a cone) or across a fixed node. Shorten it; the line search does the
+    // rest. Large but smooth displacements (a long grid under stretch) are not limited.
     double largest = 0.0;
-    for (int node = 0; node < free_.count; ++node) {
-      largest = std::max(largest, step_.template segment<D>(D * node).norm());
+    for (int a = 0; a < springs.size(); ++a) {
+      const int s = springs.index[a];
+      const int fi = free_.free_index[geometry_->pairs[s].first];
+      const int fj = free_.free_index[geometry_->pairs[s].second];
+      VecD<D> change = VecD<D>::Zero();
+      if (fi >= 0) change += step_.template segment<D>(D * fi);
+      if (fj >= 0) change -= step_.template segment<D>(D * fj);
+      largest = std::max(largest, change.norm() / geometry_->rest_length[s]);
     }
-    if (largest > max_step) step_ *= max_step / largest;
+    if (largest > options_.max_step) step_ *= options_.max_step / largest;
     const double slope = gradient_.dot(step_);
     if (!(slope < 0.0)) break;  // not a descent direction (also catches NaN)
 

@@ -54,8 +54,8 @@ struct EquilibriumOptions {
   int max_iterations = 100;  // Newton iterations; the projected Hessian converges only linearly
   int max_line_search_steps = 50;  // halvings of the step before giving up
   double armijo = 1e-4;            // sufficient decrease parameter c1, in (0, 1/2)
-  // Largest displacement of any node in one Newton step, as a fraction of the mean rest length
-  // of the model's springs (> 0). Moderate loads never reach it; large ones walk.
+  // Largest change of any spring's separation X_i - X_j in one Newton step, as a fraction of
+  // its rest length (> 0). Moderate loads never reach it; large ones walk.
   double max_step = 0.5;
   // A scaled pivot at or below this marks a singular direction (unit-free: healthy 5x5 models
   // have scaled pivots >= 1e-2, mechanisms about 1e-16 plus the shift below).
