@@ -14,8 +14,8 @@
 //
 // An EquilibriumSolver is built once per spring geometry and set of constrained nodes: that
 // fixes the sparsity pattern, whose symbolic analysis is done in the constructor and reused by
-// every solve. Not thread-safe; copy one per thread (copies are cheap next to a solve and keep
-// the analysis).
+// every solve. Not thread-safe; copy one per thread (a copy of a sparse-backed solver redoes
+// the symbolic analysis once, see symmetric_system.h).
 #pragma once
 
 #include <vector>
