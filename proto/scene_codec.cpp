@@ -16,20 +16,22 @@ NodePair ReadPair(const Json& v, const std::string& path) {
   return {ReadInt(v[0], IndexPath(path, 0)), ReadInt(v[1], IndexPath(path, 1))};
 }
 
-std::vector<NodePair> ReadPairs(const Json& v, const std::string& path) {
+// An array whose elements `read_one(element, element_path)` turns into T.
+template <typename T, typename ReadOne>
+std::vector<T> ReadArray(const Json& v, const std::string& path, ReadOne read_one) {
   ExpectArray(v, path);
-  std::vector<NodePair> pairs;
-  pairs.reserve(v.size());
-  for (std::size_t m = 0; m < v.size(); ++m) pairs.push_back(ReadPair(v[m], IndexPath(path, m)));
-  return pairs;
+  std::vector<T> out;
+  out.reserve(v.size());
+  for (std::size_t m = 0; m < v.size(); ++m) out.push_back(read_one(v[m], IndexPath(path, m)));
+  return out;
+}
+
+std::vector<NodePair> ReadPairs(const Json& v, const std::string& path) {
+  return ReadArray<NodePair>(v, path, ReadPair);
 }
 
 std::vector<int> ReadIndices(const Json& v, const std::string& path) {
-  ExpectArray(v, path);
-  std::vector<int> out;
-  out.reserve(v.size());
-  for (std::size_t m = 0; m < v.size(); ++m) out.push_back(ReadInt(v[m], IndexPath(path, m)));
-  return out;
+  return ReadArray<int>(v, path, ReadInt);
 }
 
 // A flat d*n vector from an array of n points.
