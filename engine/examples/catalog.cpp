@@ -263,9 +263,9 @@ void ScaleLoadsToStrain(Scene& scene, double strain) {
     double umax = 0.0;
     const Vector& u = problem.load_cases()[k].reference;
     for (int i = 0; i < n; ++i) umax = std::max(umax, u.segment(d * i, d).norm());
-    for (NodalLoad& f : scene.load_cases[k].forces) {
-      f.value = probe.load_cases[k].forces[0].value * (strain * extent / umax);
-      (void)f;
+    std::vector<NodalLoad>& forces = scene.load_cases[k].forces;
+    for (std::size_t m = 0; m < forces.size(); ++m) {
+      forces[m].value = probe.load_cases[k].forces[m].value * (strain * extent / umax);
     }
   }
 }
