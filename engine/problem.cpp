@@ -118,7 +118,10 @@ Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
         mask[c] = 1;
       }
     }
-    if (p.reference_outside_.empty()) p.reference_mask_ = std::move(mask);
+    if (p.reference_outside_.empty()) {
+      p.reference_genome_ = p.GenomeFromMask(mask);
+      p.reference_mask_ = std::move(mask);
+    }
   } else {
     const double tol = kPrescribedMismatchTolerance * p.candidates_.MaxRestLength();
     for (std::size_t k = 0; k < p.load_cases_.size(); ++k) {
@@ -162,6 +165,24 @@ std::vector<std::uint8_t> Problem::MaskFromGenome(const Genome& genome) const {
   std::vector<std::uint8_t> mask(candidates_.size(), 0);
   for (std::size_t g = 0; g < gene_candidate_.size(); ++g) mask[gene_candidate_[g]] = genome[g];
   return mask;
+}
+
+std::optional<TopologyDifference> Problem::CompareWithReference(const Genome& genome) const {
+  if (!reference_genome_) return std::nullopt;
+  TopologyDifference diff;
+  for (std::size_t g = 0; g < gene_candidate_.size(); ++g) {
+    if (genome[g] == (*reference_genome_)[g]) continue;
+    (genome[g] ? diff.extra : diff.missing).push_back(candidates_.pairs[gene_candidate_[g]]);
+  }
+  return diff;
+}
+
+std::vector<NodePair> Problem::SpringsOfGenome(const Genome& genome) const {
+  std::vector<NodePair> springs;
+  for (std::size_t g = 0; g < gene_candidate_.size(); ++g) {
+    if (genome[g]) springs.push_back(candidates_.pairs[gene_candidate_[g]]);
+  }
+  return springs;
 }
 
 Genome Problem::GenomeFromMask(const std::vector<std::uint8_t>& mask) const {

@@ -34,6 +34,14 @@ struct PreparedLoadCase {
   double reference_norm2 = 0.0;  // sum over free nodes of |u^R_i|^2
 };
 
+// How a genome differs from the reference topology, over the genes (unidentifiable
+// candidates are not compared: no load case can tell them).
+struct TopologyDifference {
+  std::vector<NodePair> missing;  // reference springs the genome lacks
+  std::vector<NodePair> extra;    // genome springs the reference lacks
+  int hamming() const { return static_cast<int>(missing.size() + extra.size()); }
+};
+
 class Problem {
  public:
   // Validates `scene` (ValidateScene) and prepares it. Throws InputError when the scene is
@@ -63,6 +71,13 @@ class Problem {
   // The reference's springs that are not candidates (empty when reference_mask() exists).
   const std::vector<NodePair>& reference_non_candidates() const { return reference_outside_; }
 
+  // The reference topology as a genome (when reference_mask() exists).
+  const std::optional<Genome>& reference_genome() const { return reference_genome_; }
+  // nullopt when the reference topology is unknown.
+  std::optional<TopologyDifference> CompareWithReference(const Genome& genome) const;
+  // The springs a genome switches on, ascending.
+  std::vector<NodePair> SpringsOfGenome(const Genome& genome) const;
+
   // Genome <-> candidate mask (unidentifiable candidates are 0 in a mask from a genome).
   std::vector<std::uint8_t> MaskFromGenome(const Genome& genome) const;
   Genome GenomeFromMask(const std::vector<std::uint8_t>& mask) const;
@@ -82,6 +97,7 @@ class Problem {
   double training_stiffness_ = 1.0;
   double reference_norm2_ = 0.0;
   std::optional<std::vector<std::uint8_t>> reference_mask_;
+  std::optional<Genome> reference_genome_;
   std::vector<NodePair> reference_outside_;
 };
 

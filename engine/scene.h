@@ -69,14 +69,21 @@ struct Reference {
   std::vector<Vector> positions;  // kPositions: per load case, flat d*n positions
 };
 
-// Settings of the topology search (DESIGN.md §1). The defaults are the paper's GA.
+// The topology search strategies (engine/search/search_options.h has what each does).
+enum class Strategy {
+  kDefault,  // the fastest measured: a memetic GA (bench/RESULTS.md chose it)
+  kPaper,    // the paper's GA, unchanged (Bianchi et al. 2003)
+};
+
+// Settings of the topology search (DESIGN.md §1). An unset GA parameter takes the chosen
+// strategy's default (engine/search/search_options.h).
 struct SearchSettings {
-  std::string strategy = "default";
+  Strategy strategy = Strategy::kDefault;
   std::uint64_t seed = 1;
-  int population = 20;                 // individuals per generation, >= 2
-  double crossover_probability = 0.3;  // one-point crossover, in [0, 1]
-  double mutation_probability = 0.01;  // bit-flip probability per gene, in [0, 1]
-  int max_generations = 1000;          // >= 1
+  std::optional<int> population;                // individuals per generation, >= 2
+  std::optional<double> crossover_probability;  // in [0, 1]
+  std::optional<double> mutation_probability;   // bit-flip probability per gene, in [0, 1]
+  int max_generations = 1000;                   // >= 1
   // The search stops when the normalised error reaches this value (0 = exact recovery,
   // judged within the solver's relative tolerance). Unit-free, >= 0.
   double target_normalized_error = 0.0;

@@ -247,13 +247,13 @@ void CheckLoadCases(const Scene& s) {
 }
 
 void CheckSearch(const SearchSettings& s) {
-  if (s.population < 2) {
-    throw InputError("search.population", "must be >= 2, got " + std::to_string(s.population));
+  if (s.population && *s.population < 2) {
+    throw InputError("search.population", "must be >= 2, got " + std::to_string(*s.population));
   }
-  if (!(s.crossover_probability >= 0.0 && s.crossover_probability <= 1.0)) {
+  if (s.crossover_probability && !(*s.crossover_probability >= 0.0 && *s.crossover_probability <= 1.0)) {
     throw InputError("search.crossover_probability", "must be in [0, 1]");
   }
-  if (!(s.mutation_probability >= 0.0 && s.mutation_probability <= 1.0)) {
+  if (s.mutation_probability && !(*s.mutation_probability >= 0.0 && *s.mutation_probability <= 1.0)) {
     throw InputError("search.mutation_probability", "must be in [0, 1]");
   }
   if (s.max_generations < 1) {

@@ -39,4 +39,32 @@ std::string_view TerminationName(Termination termination) {
   return "?";
 }
 
+namespace {
+constexpr Strategy kAllStrategies[] = {Strategy::kDefault, Strategy::kPaper};
+}  // namespace
+
+std::string_view StrategyName(Strategy strategy) {
+  switch (strategy) {
+    case Strategy::kDefault: return "default";
+    case Strategy::kPaper: return "paper";
+  }
+  return "?";
+}
+
+std::optional<Strategy> ParseStrategy(std::string_view name) {
+  for (Strategy s : kAllStrategies) {
+    if (StrategyName(s) == name) return s;
+  }
+  return std::nullopt;
+}
+
+std::string StrategyNames() {
+  std::string out;
+  for (std::size_t i = 0; i < std::size(kAllStrategies); ++i) {
+    if (i > 0) out += i + 1 == std::size(kAllStrategies) ? " or " : ", ";
+    out += StrategyName(kAllStrategies[i]);
+  }
+  return out;
+}
+
 }  // namespace springfit::proto

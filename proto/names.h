@@ -18,7 +18,10 @@ std::optional<Reference::Kind> ParseReferenceKind(std::string_view name);
 
 std::string_view TerminationName(Termination termination);
 
-// Search strategies a scene may name (proto/SCENE.md, "search").
-inline constexpr std::string_view kStrategies[] = {"default", "paper"};
+// Search strategies (proto/SCENE.md, "search").
+std::string_view StrategyName(Strategy strategy);
+std::optional<Strategy> ParseStrategy(std::string_view name);
+// "default or paper": the accepted names, for messages.
+std::string StrategyNames();
 
 }  // namespace springfit::proto

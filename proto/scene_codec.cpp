@@ -176,10 +176,10 @@ void ReadSearch(const Json& v, SearchSettings& st) {
   ExpectKeys(v, path, {"strategy", "seed", "population", "crossover_probability",
                        "mutation_probability", "max_generations", "target_normalized_error"});
   if (v.contains("strategy")) {
-    st.strategy = ReadString(v["strategy"], JoinPath(path, "strategy"));
-    bool known = false;
-    for (std::string_view name : kStrategies) known = known || name == st.strategy;
-    if (!known) throw InputError(JoinPath(path, "strategy"), "unknown strategy '" + st.strategy + "' (expected default or paper)");
+    const std::string name = ReadString(v["strategy"], JoinPath(path, "strategy"));
+    const auto strategy = ParseStrategy(name);
+    if (!strategy) throw InputError(JoinPath(path, "strategy"), "unknown strategy '" + name + "' (expected " + StrategyNames() + ")");
+    st.strategy = *strategy;
   }
   if (v.contains("seed")) st.seed = ReadUint64(v["seed"], JoinPath(path, "seed"));
   if (v.contains("population")) st.population = ReadInt(v["population"], JoinPath(path, "population"));
@@ -322,11 +322,11 @@ Json SceneToJson(const Scene& s) {
   const SearchSettings& st = s.search;
   const SearchSettings& d = defaults.search;
   Json sj = Json::object();
-  if (st.strategy != d.strategy) sj["strategy"] = st.strategy;
+  if (st.strategy != d.strategy) sj["strategy"] = StrategyName(st.strategy);
   if (st.seed != d.seed) sj["seed"] = st.seed;
-  if (st.population != d.population) sj["population"] = st.population;
-  if (st.crossover_probability != d.crossover_probability) sj["crossover_probability"] = st.crossover_probability;
-  if (st.mutation_probability != d.mutation_probability) sj["mutation_probability"] = st.mutation_probability;
+  if (st.population) sj["population"] = *st.population;
+  if (st.crossover_probability) sj["crossover_probability"] = *st.crossover_probability;
+  if (st.mutation_probability) sj["mutation_probability"] = *st.mutation_probability;
   if (st.max_generations != d.max_generations) sj["max_generations"] = st.max_generations;
   if (st.target_normalized_error != d.target_normalized_error) sj["target_normalized_error"] = st.target_normalized_error;
   if (!sj.empty()) j["search"] = std::move(sj);

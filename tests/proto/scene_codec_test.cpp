@@ -49,7 +49,7 @@ TEST(SceneCodec, MinimalSceneReadsWithDefaults) {
   EXPECT_EQ(s.reference.stiffness, std::vector<double>{1.0});
   EXPECT_FALSE(s.training_stiffness);
   EXPECT_DOUBLE_EQ(s.EffectiveTrainingStiffness(), 1.0);
-  EXPECT_EQ(s.search.population, 20);
+  EXPECT_FALSE(s.search.population.has_value());  // the strategy's default
   EXPECT_EQ(s.load_cases[1].forces[0].nodes, std::vector<int>{8});
   EXPECT_TRUE(s.load_cases[1].forces[0].single);
 }

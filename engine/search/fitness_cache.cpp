@@ -1,0 +1,36 @@
+#include "engine/search/fitness_cache.h"
+
+namespace springfit {
+
+std::string FitnessCache::Key(const Genome& genome) {
+  std::string key((genome.size() + 7) / 8, '\0');
+  for (std::size_t i = 0; i < genome.size(); ++i) {
+    if (genome[i]) key[i / 8] = static_cast<char>(key[i / 8] | (1 << (i % 8)));
+  }
+  return key;
+}
+
+std::optional<Fitness> FitnessCache::Find(const std::string& key) const {
+  const auto it = entries_.find(key);
+  if (it == entries_.end()) return std::nullopt;
+  return it->second;
+}
+
+void FitnessCache::Insert(const std::string& key, const Fitness& fitness) {
+  if (capacity_ == 0 || entries_.contains(key)) return;
+  if (entries_.size() >= capacity_) {
+    entries_.erase(order_.front());
+    order_.pop_front();
+  }
+  entries_.emplace(key, fitness);
+  order_.push_back(key);
+}
+
+std::vector<std::pair<std::string, Fitness>> FitnessCache::Entries() const {
+  std::vector<std::pair<std::string, Fitness>> out;
+  out.reserve(order_.size());
+  for (const std::string& key : order_) out.emplace_back(key, entries_.at(key));
+  return out;
+}
+
+}  // namespace springfit

@@ -1,0 +1,48 @@
+// Genomes already evaluated, and their fitness: a genetic population repeats itself a lot
+// (unchanged parents, crossover of equal halves, no mutation), and an evaluation is pure,
+// so a repeat is looked up instead of solved.
+//
+// Bounded: beyond `capacity` entries the oldest insertion is evicted (first in, first out).
+// Eviction depends only on the order of insertions, which the search makes deterministic,
+// so hit counts are reproducible. Its contents can be listed and reloaded for a checkpoint.
+#pragma once
+
+#include <cstddef>
+#include <deque>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "engine/problem.h"
+#include "engine/search/fitness.h"
+
+namespace springfit {
+
+class FitnessCache {
+ public:
+  // About 100 bytes per entry plus the packed genome (genes / 8 bytes).
+  static constexpr std::size_t kDefaultCapacity = std::size_t{1} << 18;
+
+  explicit FitnessCache(std::size_t capacity = kDefaultCapacity) : capacity_(capacity) {}
+
+  // The genome packed 8 genes per byte: the cache key.
+  static std::string Key(const Genome& genome);
+
+  std::optional<Fitness> Find(const std::string& key) const;
+  // No-op when the key is present; evicts the oldest entry when full.
+  void Insert(const std::string& key, const Fitness& fitness);
+
+  std::size_t size() const { return entries_.size(); }
+  std::size_t capacity() const { return capacity_; }
+  // Entries oldest first: Insert()ing them in this order into an empty cache restores it.
+  std::vector<std::pair<std::string, Fitness>> Entries() const;
+
+ private:
+  std::size_t capacity_;
+  std::unordered_map<std::string, Fitness> entries_;
+  std::deque<std::string> order_;
+};
+
+}  // namespace springfit

@@ -1,0 +1,298 @@
+#include "engine/search/genetic_search.h"
+
+#include <algorithm>
+#include <numeric>
+#include <stdexcept>
+#include <utility>
+
+#include "engine/search/genetic_operators.h"
+
+namespace springfit {
+
+GeneticSearch::GeneticSearch(const Problem& problem, SearchOptions options, FitnessEvaluator& evaluator)
+    : problem_(&problem), options_(options), evaluator_(&evaluator), random_(options.seed),
+      started_(std::chrono::steady_clock::now()) {
+  if (options_.local_search && options_.local_search_swaps) {
+    swap_partners_ = SwapPartners(problem, options_.swap_radius);
+  }
+  if (options_.population < 2) throw std::invalid_argument("GeneticSearch: population must be >= 2");
+  if (options_.elites < 0 || options_.elites >= options_.population) {
+    throw std::invalid_argument("GeneticSearch: elites must be in [0, population)");
+  }
+  if (options_.local_search_batch < 1) throw std::invalid_argument("GeneticSearch: local_search_batch must be >= 1");
+}
+
+TraceRow GeneticSearch::Initialize() {
+  const int n = options_.population;
+  state_ = SearchState{};
+  state_.population.reserve(n);
+  for (int i = 0; i < n; ++i) {
+    const double density = options_.initial_density_low +
+                           (options_.initial_density_high - options_.initial_density_low) * (i + 0.5) / n;
+    state_.population.push_back(RandomGenome(problem_->gene_count(), density, random_));
+  }
+  state_.fitness = evaluator_->Evaluate(state_.population);
+  state_.best = state_.population.front();
+  state_.best_fitness = state_.fitness.front();
+  UpdateBest();
+  if (options_.local_search && !TargetReached()) LocalSearch();
+  state_.stall = 0;
+  state_.counters = evaluator_->counters();
+  return Row();
+}
+
+void GeneticSearch::Restore(const SearchState& state) {
+  state_ = state;
+  random_.RestoreState(state.random_state);
+  evaluator_->set_counters(state.counters);
+  elapsed_before_ = state.elapsed_seconds;
+  started_ = std::chrono::steady_clock::now();
+}
+
+TraceRow GeneticSearch::Step() {
+  const Fitness before = state_.best_fitness;
+  state_.population = Breed();
+  state_.fitness = evaluator_->Evaluate(state_.population);
+  ++state_.generation;
+  UpdateBest();
+  if (options_.local_search && !TargetReached()) LocalSearch();
+  state_.stall = state_.best_fitness.normalized_error < before.normalized_error ? 0 : state_.stall + 1;
+  if (options_.restart_after > 0 && state_.stall >= options_.restart_after && state_.best == state_.local_optimum) {
+    Restart();
+  }
+  state_.counters = evaluator_->counters();
+  return Row();
+}
+
+bool GeneticSearch::TargetReached() const {
+  return state_.best_fitness.normalized_error <= std::max(options_.target_normalized_error, kExactNormalizedError) &&
+         !state_.population.empty();
+}
+
+SearchState GeneticSearch::Snapshot() const {
+  SearchState s = state_;
+  s.random_state = random_.SaveState();
+  s.counters = evaluator_->counters();
+  s.elapsed_seconds = ElapsedSeconds();
+  return s;
+}
+
+std::vector<Genome> GeneticSearch::Breed() {
+  const int n = options_.population;
+  const std::vector<Fitness>& fit = state_.fitness;
+  // Roulette weights or tournament errors, both unit-free.
+  std::vector<double> key(n);
+  for (int i = 0; i < n; ++i) {
+    key[i] = options_.selection == SearchOptions::Selection::kRoulette
+                 ? 1.0 / (fit[i].normalized_error + kExactNormalizedError)
+                 : fit[i].normalized_error;
+  }
+  std::vector<Genome> next;
+  next.reserve(n);
+  if (options_.elites > 0) {
+    std::vector<int> order(n);
+    std::iota(order.begin(), order.end(), 0);
+    std::stable_sort(order.begin(), order.end(),
+                     [&](int a, int b) { return fit[a].normalized_error < fit[b].normalized_error; });
+    for (int e = 0; e < options_.elites; ++e) next.push_back(state_.population[order[e]]);
+  }
+  while (static_cast<int>(next.size()) < n) {
+    Genome a = state_.population[Select(key)];
+    Genome b = state_.population[Select(key)];
+    if (random_.Bernoulli(options_.crossover_probability)) {
+      if (options_.crossover == SearchOptions::Crossover::kOnePoint) {
+        OnePointCrossover(a, b, random_);
+      } else {
+        UniformCrossover(a, b, random_);
+      }
+    }
+    BitFlipMutation(a, options_.mutation_probability, random_);
+    BitFlipMutation(b, options_.mutation_probability, random_);
+    next.push_back(std::move(a));
+    if (static_cast<int>(next.size()) < n) next.push_back(std::move(b));
+  }
+  return next;
+}
+
+int GeneticSearch::Select(const std::vector<double>& key) {
+  return options_.selection == SearchOptions::Selection::kRoulette
+             ? RouletteSelect(key, random_)
+             : TournamentSelect(key, options_.tournament_size, random_);
+}
+
+void GeneticSearch::UpdateBest() {
+  for (std::size_t i = 0; i < state_.population.size(); ++i) {
+    if (state_.fitness[i].normalized_error < state_.best_fitness.normalized_error) {
+      state_.best = state_.population[i];
+      state_.best_fitness = state_.fitness[i];
+      state_.best_generation = state_.generation;
+    }
+  }
+}
+
+namespace {
+
+// A local-search move: flip gene `a`, and gene `b` too when b >= 0 (a swap).
+struct Move {
+  int a = 0;
+  int b = -1;
+};
+
+}  // namespace
+
+std::vector<std::vector<int>> GeneticSearch::SwapPartners(const Problem& problem, double radius) {
+  // Springs whose midpoints lie within `radius` times the shorter rest length: the two
+  // diagonals of a cell (same midpoint), a diagonal and a side of its cell. Exchanging one
+  // for the other changes the model locally; a single flip cannot (removing either alone
+  // often leaves a mechanism).
+  const SpringGeometry& c = problem.candidates();
+  const int d = problem.dimension();
+  const Vector& rest = problem.scene().rest;
+  const std::vector<int>& genes = problem.gene_candidates();
+  const int n = static_cast<int>(genes.size());
+  std::vector<Vector> mid(n);
+  for (int g = 0; g < n; ++g) {
+    const NodePair pair = c.pairs[genes[g]];
+    mid[g] = 0.5 * (rest.segment(d * pair.first, d) + rest.segment(d * pair.second, d));
+  }
+  std::vector<std::vector<int>> partners(n);
+  for (int g = 0; g < n; ++g) {
+    for (int h = g + 1; h < n; ++h) {
+      const double limit = radius * std::min(c.rest_length[genes[g]], c.rest_length[genes[h]]);
+      if ((mid[g] - mid[h]).squaredNorm() <= limit * limit) {
+        partners[g].push_back(h);
+        partners[h].push_back(g);
+      }
+    }
+  }
+  return partners;
+}
+
+void GeneticSearch::LocalSearch() {
+  // Start from the population's best (the first among equals).
+  int b = 0;
+  for (int i = 1; i < options_.population; ++i) {
+    if (state_.fitness[i].normalized_error < state_.fitness[b].normalized_error) b = i;
+  }
+  Genome genome = state_.population[b];
+  Fitness fitness = state_.fitness[b];
+  const int genes = problem_->gene_count();
+  if (genes == 0 || genome == state_.local_optimum) return;
+  const double target = std::max(options_.target_normalized_error, kExactNormalizedError);
+
+  // The moves of a phase, in a fresh random order so that repeated searches do not favour
+  // low indices: single flips, then swaps of a present spring for an absent nearby one.
+  auto moves_of = [&](bool swaps) {
+    std::vector<Move> moves;
+    for (int g = 0; g < genes; ++g) {
+      if (!swaps) {
+        moves.push_back({g, -1});
+        continue;
+      }
+      if (!genome[g]) continue;
+      for (int h : swap_partners_[g]) {
+        if (!genome[h]) moves.push_back({g, h});
+      }
+    }
+    for (int i = static_cast<int>(moves.size()) - 1; i > 0; --i) std::swap(moves[i], moves[random_.Below(i + 1)]);
+    return moves;
+  };
+
+  bool swaps = false;
+  std::vector<Move> moves = moves_of(swaps);
+  std::size_t position = 0;
+  std::size_t unimproved = 0;  // moves tried in a row without an improvement
+  bool optimum = false;
+  std::vector<Genome> neighbours;
+  for (int batches = 0; !(options_.local_search_max_batches > 0 && batches >= options_.local_search_max_batches);
+       ++batches) {
+    if (unimproved >= moves.size()) {
+      // A whole pass without improvement: single flips give way to swaps; after swaps too,
+      // the genome is a local optimum.
+      if (swaps || !options_.local_search_swaps) {
+        optimum = true;
+        break;
+      }
+      swaps = true;
+      moves = moves_of(swaps);
+      position = 0;
+      unimproved = 0;
+      if (moves.empty()) {
+        optimum = true;
+        break;
+      }
+    }
+    const std::size_t batch = std::min<std::size_t>(options_.local_search_batch, moves.size());
+    neighbours.assign(batch, genome);
+    for (std::size_t j = 0; j < batch; ++j) {
+      const Move& m = moves[(position + j) % moves.size()];
+      neighbours[j][m.a] ^= 1;
+      if (m.b >= 0) neighbours[j][m.b] ^= 1;
+    }
+    const std::vector<Fitness> results = evaluator_->Evaluate(neighbours);
+    int chosen = -1;
+    for (std::size_t j = 0; j < batch; ++j) {
+      const double best_so_far = chosen < 0 ? fitness.normalized_error : results[chosen].normalized_error;
+      if (results[j].normalized_error < best_so_far) chosen = static_cast<int>(j);
+    }
+    position = (position + batch) % moves.size();
+    if (chosen < 0) {
+      unimproved += batch;
+      continue;
+    }
+    genome = std::move(neighbours[chosen]);
+    fitness = results[chosen];
+    if (fitness.normalized_error <= target) break;
+    // After any improvement, single flips again (a swap's moves also depend on the genome).
+    const bool was_swaps = swaps;
+    swaps = false;
+    if (was_swaps) {
+      moves = moves_of(swaps);
+      position = 0;
+    }
+    unimproved = 0;
+  }
+  if (optimum) state_.local_optimum = genome;
+  state_.population[b] = std::move(genome);
+  state_.fitness[b] = fitness;
+  UpdateBest();
+}
+
+void GeneticSearch::Restart() {
+  // Keep the best; draw everyone else anew as in the initial population.
+  const int n = options_.population;
+  std::vector<Genome> fresh;
+  fresh.push_back(state_.best);
+  for (int i = 1; i < n; ++i) {
+    const double density = options_.initial_density_low +
+                           (options_.initial_density_high - options_.initial_density_low) * (i + 0.5) / n;
+    fresh.push_back(RandomGenome(problem_->gene_count(), density, random_));
+  }
+  state_.population = std::move(fresh);
+  state_.fitness = evaluator_->Evaluate(state_.population);
+  state_.stall = 0;
+}
+
+TraceRow GeneticSearch::Row() const {
+  TraceRow row;
+  row.generation = state_.generation;
+  row.wall_seconds = ElapsedSeconds();
+  row.evaluations = evaluator_->counters().evaluations;
+  row.cache_hits = evaluator_->counters().cache_hits;
+  row.best_cost = state_.best_fitness.cost;
+  row.best_normalized_error = state_.best_fitness.normalized_error;
+  double sum = 0.0;
+  for (const Fitness& f : state_.fitness) sum += f.cost;
+  row.mean_cost = sum / static_cast<double>(state_.fitness.size());
+  if (const auto diff = problem_->CompareWithReference(state_.best)) {
+    row.missing = static_cast<int>(diff->missing.size());
+    row.extra = static_cast<int>(diff->extra.size());
+  }
+  return row;
+}
+
+double GeneticSearch::ElapsedSeconds() const {
+  return elapsed_before_ + std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+}
+
+}  // namespace springfit

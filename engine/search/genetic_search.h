@@ -1,0 +1,101 @@
+// The topology search: a generational genetic algorithm, optionally memetic (search_options.h
+// says what each strategy switches on), advanced one generation at a time.
+//
+// Determinism: every random draw is made on the calling thread, in an order fixed by the
+// algorithm; only the fitness evaluations of a batch run in parallel (FitnessEvaluator), and
+// they are pure. The same problem, options and seed give the same trace (wall time aside)
+// and result with any number of threads. The whole state between generations is in
+// SearchState, so a run can be checkpointed and resumed to the same end.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "engine/problem.h"
+#include "engine/search/fitness_evaluator.h"
+#include "engine/search/random_stream.h"
+#include "engine/search/search_options.h"
+
+namespace springfit {
+
+// One row of the trace per generation (generation 0 is the initial population).
+struct TraceRow {
+  int generation = 0;
+  double wall_seconds = 0.0;       // since the search started (not reproducible)
+  std::int64_t evaluations = 0;    // genomes evaluated so far, cache hits included
+  std::int64_t cache_hits = 0;     // so far
+  double best_cost = 0.0;          // of the best genome found so far
+  double best_normalized_error = 0.0;
+  double mean_cost = 0.0;          // over the current population (penalties included)
+  int missing = -1;                // best genome against the reference topology; -1 = unknown
+  int extra = -1;
+
+  // Equal in everything but wall time.
+  bool SameSearch(const TraceRow& o) const {
+    return generation == o.generation && evaluations == o.evaluations && cache_hits == o.cache_hits &&
+           best_cost == o.best_cost && best_normalized_error == o.best_normalized_error &&
+           mean_cost == o.mean_cost && missing == o.missing && extra == o.extra;
+  }
+};
+
+// Everything a search carries from one generation to the next.
+struct SearchState {
+  int generation = 0;
+  std::string random_state;      // RandomStream::SaveState()
+  std::vector<Genome> population;
+  std::vector<Fitness> fitness;  // of population
+  Genome best;                   // best genome found so far (first found among equals)
+  Fitness best_fitness;
+  int best_generation = 0;
+  int stall = 0;                 // generations since the best last improved
+  Genome local_optimum;          // last genome the local search proved locally optimal
+  EvaluationCounters counters;
+  double elapsed_seconds = 0.0;
+};
+
+class GeneticSearch {
+ public:
+  // `evaluator` must outlive the search and belong to the same problem.
+  GeneticSearch(const Problem& problem, SearchOptions options, FitnessEvaluator& evaluator);
+
+  // Draws and evaluates the initial population (generation 0).
+  TraceRow Initialize();
+  // Continues from a saved state instead of Initialize().
+  void Restore(const SearchState& state);
+  // Breeds and evaluates one generation (and runs the local search when enabled).
+  TraceRow Step();
+
+  bool TargetReached() const;
+  bool Finished() const { return TargetReached() || state_.generation >= options_.max_generations; }
+
+  // The state between generations, random stream included (copy it for a checkpoint).
+  SearchState Snapshot() const;
+  const SearchState& state() const { return state_; }
+  const SearchOptions& options() const { return options_; }
+
+  // Per gene, the genes the local search may swap it with (search_options.h, swap_radius).
+  static std::vector<std::vector<int>> SwapPartners(const Problem& problem, double radius);
+
+ private:
+  std::vector<Genome> Breed();
+  int Select(const std::vector<double>& weights_or_errors);
+  void LocalSearch();
+  void UpdateBest();
+  void Restart();
+  TraceRow Row() const;
+  double ElapsedSeconds() const;
+
+  const Problem* problem_;
+  SearchOptions options_;
+  FitnessEvaluator* evaluator_;
+  RandomStream random_;
+  SearchState state_;
+  std::vector<std::vector<int>> swap_partners_;
+  std::chrono::steady_clock::time_point started_;
+  double elapsed_before_ = 0.0;  // wall time of the run before a Restore()
+};
+
+}  // namespace springfit

@@ -1,0 +1,47 @@
+#include "engine/search/run_search.h"
+
+#include <memory>
+
+namespace springfit {
+
+SearchResult RunSearch(const Problem& problem, const SearchOptions& options, const RunOptions& run) {
+  std::unique_ptr<WorkerPool> own_pool;
+  WorkerPool* pool = run.pool;
+  if (!pool && run.threads > 1) {
+    own_pool = std::make_unique<WorkerPool>(run.threads);
+    pool = own_pool.get();
+  }
+  FitnessEvaluator evaluator(problem, pool, options.cache_capacity, run.use_cache);
+  GeneticSearch search(problem, options, evaluator);
+
+  SearchResult result;
+  result.options = options;
+  result.trace = run.trace;
+  bool cancelled = false;
+  auto record = [&](const TraceRow& row) {
+    result.trace.push_back(row);
+    if (run.on_generation && !run.on_generation(row, search)) cancelled = true;
+  };
+  if (run.resume_from) {
+    search.Restore(*run.resume_from);
+  } else {
+    record(search.Initialize());
+  }
+  while (!cancelled && !search.Finished()) record(search.Step());
+
+  const SearchState& state = search.state();
+  result.stop = search.TargetReached() ? StopReason::kTargetReached
+                : cancelled            ? StopReason::kCancelled
+                                       : StopReason::kGenerationLimit;
+  result.best = state.best;
+  result.springs = problem.SpringsOfGenome(state.best);
+  result.evaluation = evaluator.EvaluateInDetail(state.best);
+  result.difference = problem.CompareWithReference(state.best);
+  result.generations = state.generation;
+  result.best_generation = state.best_generation;
+  result.counters = evaluator.counters();
+  result.wall_seconds = search.Snapshot().elapsed_seconds;
+  return result;
+}
+
+}  // namespace springfit

@@ -1,0 +1,80 @@
+// What a topology search does, resolved from a scene's search settings: the strategy's
+// defaults, overridden by whatever the scene (or the command line) sets.
+//
+// Strategy `paper` is the genetic algorithm of Bianchi et al. (2003) as published:
+// population 20, roulette-wheel selection, one-point crossover with probability 0.3, bit-flip
+// mutation with probability 0.01 per gene, a random initial population (each gene 1 with
+// probability 1/2), no elitism, at most 1000 generations.
+// The paper does not say how a cost becomes a roulette weight. Here the weight of an
+// individual is 1 / (e + kExactNormalizedError), e its normalised error: unit-free (scaling
+// the scene's lengths leaves e, hence every weight, unchanged), finite for an exact
+// topology, and graded among mechanisms because their penalised e grows with their modes.
+//
+// Strategy `default` is a memetic GA chosen by the experiment in bench/RESULTS.md (issue 3):
+// elitism, tournament selection, uniform crossover, mutation of about one gene per child, an
+// initial population spread in density, and a bit-flip local search on the best individual.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "engine/scene.h"
+#include "engine/search/fitness_cache.h"
+
+namespace springfit {
+
+// A normalised error at or below this counts as exact recovery (target 0). The reference
+// topology evaluates to exactly 0 (its solve starts at the reference equilibrium); one
+// wrong gene costs e >= 4e-7 on every example scene (tests/engine/search_test.cpp checks
+// the margin on a small scene).
+inline constexpr double kExactNormalizedError = 1e-12;
+
+struct SearchOptions {
+  enum class Selection { kRoulette, kTournament };
+  enum class Crossover { kOnePoint, kUniform };
+
+  Strategy strategy = Strategy::kPaper;
+  std::uint64_t seed = 1;
+  int population = 20;
+  int max_generations = 1000;           // generations bred after the initial population
+  double target_normalized_error = 0.0;  // stop at or below max(this, kExactNormalizedError)
+
+  Selection selection = Selection::kRoulette;
+  int tournament_size = 2;               // kTournament
+  Crossover crossover = Crossover::kOnePoint;
+  double crossover_probability = 0.3;    // per pair of parents
+  double mutation_probability = 0.01;    // per gene of every child
+  int elites = 0;                        // best individuals copied unchanged into the next generation
+
+  // Individual i of the initial population has genes 1 with probability
+  // low + (high - low) * (i + 1/2) / population.
+  double initial_density_low = 0.5;
+  double initial_density_high = 0.5;
+
+  // Bit-flip local search on the generation's best individual: its single-gene neighbours are
+  // evaluated `local_search_batch` at a time (a fixed number, so the run does not depend on
+  // the thread count) and the best improving one is taken, until a whole pass over the genes
+  // finds no improvement or `local_search_max_batches` batches (0 = no limit) have been spent
+  // in this generation.
+  // With `local_search_swaps`, a genome no single flip improves is then tried with swaps:
+  // one present spring removed and one absent spring added whose midpoints lie within
+  // `swap_radius` times the shorter rest length (the two diagonals of a cell; a diagonal and
+  // a side). Any improvement returns to single flips; the search ends where neither helps.
+  bool local_search = false;
+  int local_search_batch = 16;
+  int local_search_max_batches = 0;
+  bool local_search_swaps = true;
+  double swap_radius = 0.5;
+  // Generations without improvement of the best, once it is a local optimum, before every
+  // other individual is drawn anew (0 = never).
+  int restart_after = 0;
+
+  std::size_t cache_capacity = FitnessCache::kDefaultCapacity;
+};
+
+// The strategy's defaults for a genome of `genes` genes.
+SearchOptions StrategyDefaults(Strategy strategy, int genes);
+// The strategy's defaults with every field the settings set applied.
+SearchOptions ResolveSearchOptions(const SearchSettings& settings, int genes);
+
+}  // namespace springfit

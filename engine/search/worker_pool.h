@@ -1,0 +1,36 @@
+// Threads that run the fitness evaluations of a generation.
+//
+// A thin layer over boost::asio::thread_pool. Run(slots, body) calls body(slot) for every
+// slot in [0, slots) and returns when all have returned; slot 0 runs on the calling thread,
+// so a batch always makes progress even when every pool thread is busy with other work (a
+// daemon shares one pool between jobs). Which thread runs a slot is arbitrary: callers give
+// each slot its own state and make results independent of the thread that computed them.
+#pragma once
+
+#include <functional>
+#include <memory>
+
+namespace boost::asio {
+class thread_pool;
+}
+
+namespace springfit {
+
+class WorkerPool {
+ public:
+  // `threads` >= 1 threads in total, the calling thread included (threads - 1 are started).
+  explicit WorkerPool(int threads);
+  ~WorkerPool();
+  WorkerPool(const WorkerPool&) = delete;
+  WorkerPool& operator=(const WorkerPool&) = delete;
+
+  int threads() const { return threads_; }
+  // Calls body(slot) for slot in [0, slots) in parallel; rethrows the first exception.
+  void Run(int slots, const std::function<void(int slot)>& body);
+
+ private:
+  int threads_;
+  std::unique_ptr<boost::asio::thread_pool> pool_;
+};
+
+}  // namespace springfit
