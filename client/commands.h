@@ -9,5 +9,6 @@ namespace springfit::cli {
 void RegisterCheck(CLI::App& app, int& exit_code);
 void RegisterEval(CLI::App& app, int& exit_code);
 void RegisterExample(CLI::App& app, int& exit_code);
+void RegisterRun(CLI::App& app, int& exit_code);
 
 }  // namespace springfit::cli

@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   springfit::cli::RegisterCheck(app, exit_code);
   springfit::cli::RegisterEval(app, exit_code);
   springfit::cli::RegisterExample(app, exit_code);
+  springfit::cli::RegisterRun(app, exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -58,6 +58,15 @@ std::optional<Strategy> ParseStrategy(std::string_view name) {
   return std::nullopt;
 }
 
+std::string_view StopReasonName(StopReason reason) {
+  switch (reason) {
+    case StopReason::kTargetReached: return "target_reached";
+    case StopReason::kGenerationLimit: return "generation_limit";
+    case StopReason::kCancelled: return "cancelled";
+  }
+  return "?";
+}
+
 std::string StrategyNames() {
   std::string out;
   for (std::size_t i = 0; i < std::size(kAllStrategies); ++i) {

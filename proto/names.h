@@ -7,6 +7,7 @@
 
 #include "engine/equilibrium.h"
 #include "engine/scene.h"
+#include "engine/search/run_search.h"
 
 namespace springfit::proto {
 
@@ -21,6 +22,8 @@ std::string_view TerminationName(Termination termination);
 // Search strategies (proto/SCENE.md, "search").
 std::string_view StrategyName(Strategy strategy);
 std::optional<Strategy> ParseStrategy(std::string_view name);
+std::string_view StopReasonName(StopReason reason);
+
 // "default or paper": the accepted names, for messages.
 std::string StrategyNames();
 

@@ -1,0 +1,197 @@
+// springfit run SCENE [options]: a topology identification in this process (proto/RUN.md).
+#include <unistd.h>
+
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <optional>
+#include <thread>
+
+#include "client/commands.h"
+#include "client/error_reporting.h"
+#include "client/exit_codes.h"
+#include "engine/input_error.h"
+#include "engine/problem.h"
+#include "engine/search/run_search.h"
+#include "proto/names.h"
+#include "proto/scene_codec.h"
+#include "proto/search_codec.h"
+
+namespace springfit::cli {
+namespace {
+
+std::atomic<bool> g_interrupted{false};
+
+extern "C" void OnInterrupt(int) { g_interrupted.store(true); }
+
+struct RunArgs {
+  std::string scene;
+  std::optional<std::string> strategy;
+  std::optional<std::uint64_t> seed;
+  int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  std::optional<int> generations;
+  std::optional<int> population;
+  std::optional<double> crossover;
+  std::optional<double> mutation;
+  std::optional<double> target;
+  bool json = false;
+  bool quiet = false;
+  std::string trace_path;
+  std::string output_path;
+};
+
+// The live progress line on a terminal, plain periodic lines otherwise; on standard error.
+class ProgressReporter {
+ public:
+  ProgressReporter(int max_generations, bool quiet)
+      : max_generations_(max_generations), quiet_(quiet), terminal_(isatty(fileno(stderr)) != 0) {}
+
+  void Report(const TraceRow& row, bool last) {
+    if (quiet_) return;
+    const double interval = terminal_ ? 0.1 : 2.0;
+    if (!last && row.generation != 0 && row.wall_seconds - shown_at_ < interval) return;
+    shown_at_ = row.wall_seconds;
+    const double rate = row.wall_seconds > 0.0 ? static_cast<double>(row.evaluations) / row.wall_seconds : 0.0;
+    char line[256];
+    std::snprintf(line, sizeof line, "generation %d/%d  best cost %.4g  normalized error %.4g%s  %.0f eval/s  %.1f s",
+                  row.generation, max_generations_, row.best_cost, row.best_normalized_error,
+                  row.missing >= 0 ? ("  missing " + std::to_string(row.missing) + " extra " + std::to_string(row.extra)).c_str() : "",
+                  rate, row.wall_seconds);
+    if (terminal_) {
+      std::fprintf(stderr, "\r\033[K%s%s", line, last ? "\n" : "");
+    } else {
+      std::fprintf(stderr, "%s\n", line);
+    }
+    std::fflush(stderr);
+  }
+
+ private:
+  int max_generations_;
+  bool quiet_;
+  bool terminal_;
+  double shown_at_ = 0.0;
+};
+
+void PrintSummary(const Problem& problem, const SearchResult& r) {
+  std::printf("scene:             %s\n", problem.scene().name.c_str());
+  std::printf("strategy:          %s (seed %llu)\n", std::string(proto::StrategyName(r.options.strategy)).c_str(),
+              static_cast<unsigned long long>(r.options.seed));
+  std::printf("stopped:           %s after %d generations (best found in generation %d)\n",
+              std::string(proto::StopReasonName(r.stop)).c_str(), r.generations, r.best_generation);
+  std::printf("evaluations:       %lld (%lld from the cache)\n", static_cast<long long>(r.counters.evaluations),
+              static_cast<long long>(r.counters.cache_hits));
+  std::printf("wall time:         %.3f s\n", r.wall_seconds);
+  std::printf("springs:           %zu of %d genes\n", r.springs.size(), problem.gene_count());
+  std::printf("cost:              %.6g\n", r.evaluation.cost);
+  std::printf("normalized error:  %.6g%s\n", r.evaluation.normalized_error, r.evaluation.mechanism ? " (mechanism)" : "");
+  if (const auto exact = r.exact()) {
+    std::printf("reference:         %s (%zu missing, %zu extra)\n", *exact ? "recovered exactly" : "not recovered",
+                r.difference->missing.size(), r.difference->extra.size());
+    auto list = [](const char* label, const std::vector<NodePair>& pairs) {
+      if (pairs.empty()) return;
+      std::printf("  %s:", label);
+      for (const NodePair& p : pairs) std::printf(" (%d, %d)", p.first, p.second);
+      std::printf("\n");
+    };
+    list("missing", r.difference->missing);
+    list("extra", r.difference->extra);
+  } else {
+    std::printf("reference:         topology unknown (positions reference, or springs outside the candidates)\n");
+  }
+}
+
+int Run(const RunArgs& args) {
+  Scene scene = proto::LoadSceneFile(args.scene);
+  SearchSettings& st = scene.search;
+  if (args.strategy) {
+    const auto strategy = proto::ParseStrategy(*args.strategy);
+    if (!strategy) {
+      throw InputError("--strategy", "unknown strategy '" + *args.strategy + "' (expected " + proto::StrategyNames() + ")");
+    }
+    st.strategy = *strategy;
+  }
+  if (args.seed) st.seed = *args.seed;
+  if (args.generations) st.max_generations = *args.generations;
+  if (args.population) st.population = *args.population;
+  if (args.crossover) st.crossover_probability = *args.crossover;
+  if (args.mutation) st.mutation_probability = *args.mutation;
+  if (args.target) st.target_normalized_error = *args.target;
+  const Problem problem = Problem::Build(std::move(scene));
+  const SearchOptions options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
+
+  std::ofstream trace;
+  if (!args.trace_path.empty()) {
+    trace.open(args.trace_path);
+    if (!trace) throw std::runtime_error("cannot write the trace file " + args.trace_path);
+    trace << proto::TraceCsvHeader() << "\n";
+  }
+  ProgressReporter progress(options.max_generations, args.quiet);
+  g_interrupted.store(false);
+  auto previous_int = std::signal(SIGINT, OnInterrupt);
+  auto previous_term = std::signal(SIGTERM, OnInterrupt);
+
+  RunOptions run;
+  run.threads = args.threads;
+  run.on_generation = [&](const TraceRow& row, const GeneticSearch& search) {
+    if (trace.is_open()) trace << proto::TraceRowToCsv(row) << "\n";
+    progress.Report(row, search.Finished());
+    return !g_interrupted.load();
+  };
+  const SearchResult result = RunSearch(problem, options, run);
+  std::signal(SIGINT, previous_int);
+  std::signal(SIGTERM, previous_term);
+  if (result.stop == StopReason::kCancelled) progress.Report(result.trace.back(), true);
+  if (trace.is_open()) {
+    trace.close();
+    if (!trace) throw std::runtime_error("cannot write the trace file " + args.trace_path);
+  }
+
+  if (!args.output_path.empty()) {
+    std::ofstream out(args.output_path);
+    out << proto::SearchResultToJson(problem, result, true).dump(1) << "\n";
+    out.close();
+    if (!out) throw std::runtime_error("cannot write the result file " + args.output_path);
+  }
+  if (args.json) {
+    proto::Json j = proto::SearchResultToJson(problem, result, false);
+    j["threads"] = args.threads;
+    std::cout << proto::DumpCompact(j) << std::endl;
+  } else {
+    PrintSummary(problem, result);
+  }
+  return result.stop == StopReason::kCancelled ? kExitInterrupted : kExitOk;
+}
+
+}  // namespace
+
+void RegisterRun(CLI::App& app, int& exit_code) {
+  auto* cmd = app.add_subcommand("run", "Identify the topology: run a search in this process");
+  auto args = std::make_shared<RunArgs>();
+  cmd->add_option("SCENE", args->scene, "Scene file (JSON, proto/SCENE.md)")->required();
+  cmd->add_option("--strategy", args->strategy, "Search strategy: default or paper (default: the scene's)");
+  cmd->add_option("--seed", args->seed, "Random seed (default: the scene's, else 1)");
+  cmd->add_option("--threads", args->threads, "Threads for the fitness evaluations (the result does not depend on it)")
+      ->check(CLI::Range(1, 1024))
+      ->capture_default_str();
+  cmd->add_option("--generations", args->generations, "Generation limit (default: the scene's, else 1000)")
+      ->check(CLI::Range(1, 100000000));
+  cmd->add_option("--population", args->population, "Individuals per generation (default: the strategy's)")
+      ->check(CLI::Range(2, 1000000));
+  cmd->add_option("--crossover", args->crossover, "Crossover probability per pair (default: the strategy's)")
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--mutation", args->mutation, "Bit-flip probability per gene (default: the strategy's)")
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--target", args->target, "Stop at this normalized error (default 0: exact recovery)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--json", args->json, "Print one JSON object (proto/RUN.md) instead of the summary");
+  cmd->add_flag("-q,--quiet", args->quiet, "No progress lines on standard error");
+  cmd->add_option("--trace", args->trace_path, "Write the trace, one CSV row per generation (proto/RUN.md)");
+  cmd->add_option("-o,--output", args->output_path, "Write the result with its trace as JSON (proto/RUN.md)");
+  cmd->callback([args, &exit_code] {
+    exit_code = RunReportingErrors(args->scene, [&] { return Run(*args); });
+  });
+}
+
+}  // namespace springfit::cli

@@ -1,0 +1,107 @@
+#include "proto/search_codec.h"
+
+#include <cstdio>
+
+#include "proto/evaluation_codec.h"
+#include "proto/names.h"
+
+namespace springfit::proto {
+namespace {
+
+Json PairsToJson(const std::vector<NodePair>& pairs) {
+  Json a = Json::array();
+  for (const NodePair& p : pairs) a.push_back({p.first, p.second});
+  return a;
+}
+
+// -1 (unknown) becomes null.
+Json CountOrNull(int count) { return count < 0 ? Json(nullptr) : Json(count); }
+
+}  // namespace
+
+Json SearchOptionsToJson(const SearchOptions& o) {
+  Json j;
+  j["population"] = o.population;
+  j["max_generations"] = o.max_generations;
+  j["target_normalized_error"] = o.target_normalized_error;
+  j["selection"] = o.selection == SearchOptions::Selection::kRoulette ? "roulette" : "tournament";
+  if (o.selection == SearchOptions::Selection::kTournament) j["tournament_size"] = o.tournament_size;
+  j["crossover"] = o.crossover == SearchOptions::Crossover::kOnePoint ? "one_point" : "uniform";
+  j["crossover_probability"] = o.crossover_probability;
+  j["mutation_probability"] = o.mutation_probability;
+  j["elites"] = o.elites;
+  j["initial_density"] = {o.initial_density_low, o.initial_density_high};
+  j["local_search"] = o.local_search;
+  if (o.local_search) {
+    j["local_search_batch"] = o.local_search_batch;
+    j["local_search_swaps"] = o.local_search_swaps;
+    j["restart_after"] = o.restart_after;
+  }
+  return j;
+}
+
+Json TraceRowToJson(const TraceRow& r) {
+  Json j;
+  j["generation"] = r.generation;
+  j["wall_seconds"] = r.wall_seconds;
+  j["evaluations"] = r.evaluations;
+  j["cache_hits"] = r.cache_hits;
+  j["best_cost"] = r.best_cost;
+  j["best_normalized_error"] = r.best_normalized_error;
+  j["mean_cost"] = r.mean_cost;
+  j["missing"] = CountOrNull(r.missing);
+  j["extra"] = CountOrNull(r.extra);
+  return j;
+}
+
+Json SearchResultToJson(const Problem& problem, const SearchResult& r, bool with_trace) {
+  Json j;
+  j["scene"] = problem.scene().name;
+  j["strategy"] = StrategyName(r.options.strategy);
+  j["seed"] = r.options.seed;
+  j["stop"] = StopReasonName(r.stop);
+  if (const auto exact = r.exact()) {
+    j["exact"] = *exact;
+    j["hamming"] = r.difference->hamming();
+    j["missing"] = PairsToJson(r.difference->missing);
+    j["extra"] = PairsToJson(r.difference->extra);
+  } else {
+    j["exact"] = nullptr;
+    j["hamming"] = nullptr;
+    j["missing"] = nullptr;
+    j["extra"] = nullptr;
+  }
+  j["springs"] = PairsToJson(r.springs);
+  std::vector<NodePair> unidentifiable;
+  for (int c : problem.unidentifiable()) unidentifiable.push_back(problem.candidates().pairs[c]);
+  j["unidentifiable"] = PairsToJson(unidentifiable);
+  const Json evaluation = EvaluationToJson(problem, r.evaluation);
+  for (const auto& [key, value] : evaluation.items()) j[key] = value;
+  j["generations"] = r.generations;
+  j["best_generation"] = r.best_generation;
+  j["evaluations"] = r.counters.evaluations;
+  j["cache_hits"] = r.counters.cache_hits;
+  j["wall_seconds"] = r.wall_seconds;
+  j["options"] = SearchOptionsToJson(r.options);
+  if (with_trace) {
+    Json trace = Json::array();
+    for (const TraceRow& row : r.trace) trace.push_back(TraceRowToJson(row));
+    j["trace"] = std::move(trace);
+  }
+  return j;
+}
+
+std::string TraceCsvHeader() {
+  return "generation,wall_seconds,evaluations,cache_hits,best_cost,best_normalized_error,mean_cost,missing,extra";
+}
+
+std::string TraceRowToCsv(const TraceRow& r) {
+  auto count = [](int c) { return c < 0 ? std::string() : std::to_string(c); };
+  char numbers[160];
+  std::snprintf(numbers, sizeof numbers, "%.6f,%lld,%lld,%.17g,%.17g,%.17g", r.wall_seconds,
+                static_cast<long long>(r.evaluations), static_cast<long long>(r.cache_hits), r.best_cost,
+                r.best_normalized_error, r.mean_cost);
+  return std::to_string(r.generation) + "," + numbers + "," + count(r.missing) + "," + count(r.extra);
+}
+
+}  // namespace springfit::proto

@@ -1,0 +1,22 @@
+// JSON and CSV forms of a search's result and trace (`springfit run`, proto/RUN.md); the
+// daemon's job.result and job.trace use the same forms.
+#pragma once
+
+#include <string>
+
+#include "engine/problem.h"
+#include "engine/search/run_search.h"
+#include "proto/json_reader.h"
+
+namespace springfit::proto {
+
+Json SearchOptionsToJson(const SearchOptions& options);
+Json TraceRowToJson(const TraceRow& row);
+// The result object; the trace is included only when `with_trace`.
+Json SearchResultToJson(const Problem& problem, const SearchResult& result, bool with_trace);
+
+// One CSV line per trace row under a header line (no trailing newline in either).
+std::string TraceCsvHeader();
+std::string TraceRowToCsv(const TraceRow& row);
+
+}  // namespace springfit::proto
