@@ -34,6 +34,10 @@ class FitnessCache {
   // No-op when the key is present; evicts the oldest entry when full.
   void Insert(const std::string& key, const Fitness& fitness);
 
+  void Clear() {
+    entries_.clear();
+    order_.clear();
+  }
   std::size_t size() const { return entries_.size(); }
   std::size_t capacity() const { return capacity_; }
   // Entries oldest first: Insert()ing them in this order into an empty cache restores it.

@@ -45,6 +45,9 @@ void GeneticSearch::Restore(const SearchState& state) {
   state_ = state;
   random_.RestoreState(state.random_state);
   evaluator_->set_counters(state.counters);
+  evaluator_->cache().Clear();
+  for (const auto& [key, fitness] : state.cache) evaluator_->cache().Insert(key, fitness);
+  state_.cache.clear();
   elapsed_before_ = state.elapsed_seconds;
   started_ = std::chrono::steady_clock::now();
 }
@@ -73,6 +76,7 @@ SearchState GeneticSearch::Snapshot() const {
   SearchState s = state_;
   s.random_state = random_.SaveState();
   s.counters = evaluator_->counters();
+  s.cache = evaluator_->cache().Entries();
   s.elapsed_seconds = ElapsedSeconds();
   return s;
 }

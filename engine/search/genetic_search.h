@@ -53,6 +53,9 @@ struct SearchState {
   int stall = 0;                 // generations since the best last improved
   Genome local_optimum;          // last genome the local search proved locally optimal
   EvaluationCounters counters;
+  // The fitness cache, oldest entry first: restoring it keeps cache hits, hence the trace,
+  // identical to an uninterrupted run.
+  std::vector<std::pair<std::string, Fitness>> cache;
   double elapsed_seconds = 0.0;
 };
 
@@ -71,10 +74,12 @@ class GeneticSearch {
   bool TargetReached() const;
   bool Finished() const { return TargetReached() || state_.generation >= options_.max_generations; }
 
-  // The state between generations, random stream included (copy it for a checkpoint).
+  // The state between generations, random stream and cache included (for a checkpoint).
   SearchState Snapshot() const;
   const SearchState& state() const { return state_; }
   const SearchOptions& options() const { return options_; }
+  // Wall time of the run, including the time before a Restore().
+  double ElapsedSeconds() const;
 
   // Per gene, the genes the local search may swap it with (search_options.h, swap_radius).
   static std::vector<std::vector<int>> SwapPartners(const Problem& problem, double radius);
@@ -86,7 +91,6 @@ class GeneticSearch {
   void UpdateBest();
   void Restart();
   TraceRow Row() const;
-  double ElapsedSeconds() const;
 
   const Problem* problem_;
   SearchOptions options_;

@@ -40,7 +40,7 @@ SearchResult RunSearch(const Problem& problem, const SearchOptions& options, con
   result.generations = state.generation;
   result.best_generation = state.best_generation;
   result.counters = evaluator.counters();
-  result.wall_seconds = search.Snapshot().elapsed_seconds;
+  result.wall_seconds = search.ElapsedSeconds();
   return result;
 }
 

@@ -52,5 +52,34 @@ echo '{"springs": [[0, 24]]}' >"$tmp/bad-topo.json"
 expect_exit 2 "eval bad topology" "$sf" eval "$src/examples/paper-iso-5x5.json" --topology "$tmp/bad-topo.json"
 grep -q "springs\[0\]" "$tmp/err" || fail "bad topology names springs[0]: $(cat "$tmp/err")"
 
+# run: exact recovery with --json, the trace CSV and the result file; bad options.
+expect_exit 0 "run paper json" "$sf" run "$src/examples/paper-iso-5x5.json" --strategy paper --seed 1 --threads 2 --json --trace "$tmp/trace.csv" -o "$tmp/result.json"
+python3 - "$tmp/out" "$tmp/trace.csv" "$tmp/result.json" <<'PY' || fail "run --json content"
+import csv, json, sys
+j = json.load(open(sys.argv[1]))
+for key in ["strategy", "seed", "exact", "hamming", "missing", "extra", "springs", "cost",
+            "normalized_error", "generations", "evaluations", "wall_seconds"]:
+    assert key in j, key
+assert j["strategy"] == "paper" and j["seed"] == 1 and j["exact"] is True and j["hamming"] == 0, j
+assert j["stop"] == "target_reached" and len(j["springs"]) == 72 and "trace" not in j
+rows = list(csv.DictReader(open(sys.argv[2])))
+assert len(rows) == j["generations"] + 1 and rows[-1]["missing"] == "0", rows[-1]
+full = json.load(open(sys.argv[3]))
+assert len(full["trace"]) == len(rows) and full["springs"] == j["springs"]
+PY
+expect_exit 2 "run unknown strategy" "$sf" run "$src/examples/paper-iso-5x5.json" --strategy annealing
+grep -q -- "--strategy: unknown strategy 'annealing' (expected default or paper)" "$tmp/err" || fail "strategy error: $(cat "$tmp/err")"
+expect_exit 64 "run population 1" "$sf" run "$src/examples/paper-iso-5x5.json" --population 1
+expect_exit 2 "run invalid scene" "$sf" run "$src/tests/data/invalid-index.json"
+# Ctrl-C: stops, still writes the best so far, exit 130.
+"$sf" run "$src/examples/kidney-2d.json" --strategy paper --generations 100000 --threads 1 -q --json -o "$tmp/cancelled.json" >"$tmp/out" 2>"$tmp/err" &
+pid=$!
+sleep 1
+kill -INT "$pid"
+wait "$pid"
+code=$?
+[ "$code" -eq 130 ] || fail "run interrupted: exit $code, expected 130 ($(head -c 300 "$tmp/err"))"
+python3 -c "import json; j=json.load(open('$tmp/cancelled.json')); assert j['stop'] == 'cancelled' and j['generations'] < 100000 and len(j['trace']) == j['generations'] + 1" || fail "interrupted run writes its result"
+
 if [ "$failures" -eq 0 ]; then echo "cli: all checks passed"; else echo "cli: $failures failed"; fi
 [ "$failures" -eq 0 ]

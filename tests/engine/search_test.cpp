@@ -1,0 +1,202 @@
+// The topology search end to end: exact recovery, determinism across threads, scale and
+// cache, cancellation and resumption from a snapshot.
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "engine/examples/catalog.h"
+#include "engine/search/run_search.h"
+#include "tests/test_scenes.h"
+
+namespace springfit {
+namespace {
+
+// A 3x3 grid whose reference has the sides and only the '/' diagonal of each cell: exact
+// recovery must find which diagonal, which the all-candidates genome does not have.
+Scene AnisotropicGrid3() {
+  Scene s = testing::GridScene(2, 3);
+  std::vector<NodePair> kept;
+  for (const NodePair& p : s.reference.springs) {
+    const double dx = s.rest[2 * p.second] - s.rest[2 * p.first];
+    const double dy = s.rest[2 * p.second + 1] - s.rest[2 * p.first + 1];
+    if (dx * dy < 0.0) continue;  // the '\' diagonal
+    kept.push_back(p);
+  }
+  s.reference.springs = kept;
+  return s;
+}
+
+SearchOptions Options(Strategy strategy, const Problem& p, std::uint64_t seed, int generations) {
+  SearchOptions o = StrategyDefaults(strategy, p.gene_count());
+  o.seed = seed;
+  o.max_generations = generations;
+  return o;
+}
+
+void ExpectSameTrace(const std::vector<TraceRow>& a, const std::vector<TraceRow>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) EXPECT_TRUE(a[i].SameSearch(b[i])) << "generation " << i;
+}
+
+TEST(Search, BothStrategiesRecoverASmallAnisotropicGridExactly) {
+  const Problem p = Problem::Build(AnisotropicGrid3());
+  ASSERT_TRUE(p.reference_genome());
+  ASSERT_EQ(p.gene_count(), 20);
+  for (Strategy strategy : {Strategy::kPaper, Strategy::kDefault}) {
+    for (std::uint64_t seed : {1, 2, 3}) {
+      const SearchResult r = RunSearch(p, Options(strategy, p, seed, 1000));
+      EXPECT_EQ(r.stop, StopReason::kTargetReached) << "seed " << seed;
+      ASSERT_TRUE(r.exact());
+      EXPECT_TRUE(*r.exact());
+      EXPECT_EQ(r.best, *p.reference_genome());
+      EXPECT_LE(r.evaluation.normalized_error, kExactNormalizedError);
+      EXPECT_EQ(r.springs.size(), 16u);
+      // The trace ends at the result and its best error never rises.
+      ASSERT_FALSE(r.trace.empty());
+      EXPECT_EQ(r.trace.back().generation, r.generations);
+      EXPECT_EQ(r.trace.back().missing, 0);
+      EXPECT_EQ(r.trace.back().extra, 0);
+      for (std::size_t i = 1; i < r.trace.size(); ++i) {
+        EXPECT_LE(r.trace[i].best_normalized_error, r.trace[i - 1].best_normalized_error);
+        EXPECT_GE(r.trace[i].evaluations, r.trace[i - 1].evaluations);
+      }
+    }
+  }
+}
+
+TEST(Search, OneWrongGeneIsFarAboveTheExactThreshold) {
+  const Problem p = Problem::Build(AnisotropicGrid3());
+  CostFunction cost(p);
+  Genome g = *p.reference_genome();
+  for (int i = 0; i < p.gene_count(); ++i) {
+    g[i] ^= 1;
+    EXPECT_GT(cost.EvaluateGenome(g).normalized_error, 1e3 * kExactNormalizedError) << "gene " << i;
+    g[i] ^= 1;
+  }
+}
+
+TEST(Search, SameTraceAndResultWithOneOrTwoThreads) {
+  const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
+  for (Strategy strategy : {Strategy::kPaper, Strategy::kDefault}) {
+    const SearchOptions o = Options(strategy, p, 7, 15);
+    RunOptions one, two;
+    one.threads = 1;
+    two.threads = 2;
+    const SearchResult a = RunSearch(p, o, one);
+    const SearchResult b = RunSearch(p, o, two);
+    ExpectSameTrace(a.trace, b.trace);
+    EXPECT_EQ(a.best, b.best);
+    EXPECT_EQ(a.evaluation.cost, b.evaluation.cost);
+    EXPECT_EQ(a.counters, b.counters);
+  }
+}
+
+TEST(Search, ScalingTheSceneLeavesTheSearchUnchanged) {
+  const Scene base = examples::Make("paper-aniso-5x5");
+  const Problem p1 = Problem::Build(base);
+  const Problem p2 = Problem::Build(testing::ScaledScene(base, 1e3));
+  for (Strategy strategy : {Strategy::kPaper, Strategy::kDefault}) {
+    const SearchResult a = RunSearch(p1, Options(strategy, p1, 5, 8));
+    const SearchResult b = RunSearch(p2, Options(strategy, p2, 5, 8));
+    ASSERT_GT(a.trace.size(), 2u);
+    ASSERT_EQ(a.trace.size(), b.trace.size());
+    for (std::size_t i = 0; i < a.trace.size(); ++i) {
+      EXPECT_EQ(a.trace[i].evaluations, b.trace[i].evaluations);
+      EXPECT_EQ(a.trace[i].cache_hits, b.trace[i].cache_hits);
+      EXPECT_EQ(a.trace[i].missing, b.trace[i].missing);
+      EXPECT_EQ(a.trace[i].extra, b.trace[i].extra);
+      const double ea = a.trace[i].best_normalized_error, eb = b.trace[i].best_normalized_error;
+      EXPECT_LE(std::abs(ea - eb), 1e-8 * std::max(ea, 1e-12)) << "generation " << i;
+      // The cost carries the unit: length^2.
+      EXPECT_LE(std::abs(b.trace[i].best_cost - 1e6 * a.trace[i].best_cost), 1e-8 * 1e6 * a.trace[i].best_cost + 1e-20);
+    }
+    EXPECT_EQ(a.best, b.best);
+  }
+}
+
+TEST(Search, TheCacheNeverChangesResults) {
+  const Problem p = Problem::Build(examples::Make("paper-iso-5x5"));
+  for (Strategy strategy : {Strategy::kPaper, Strategy::kDefault}) {
+    const SearchOptions o = Options(strategy, p, 3, 25);
+    RunOptions cached, uncached;
+    uncached.use_cache = false;
+    const SearchResult a = RunSearch(p, o, cached);
+    const SearchResult b = RunSearch(p, o, uncached);
+    ASSERT_EQ(a.trace.size(), b.trace.size());
+    for (std::size_t i = 0; i < a.trace.size(); ++i) {
+      EXPECT_EQ(a.trace[i].evaluations, b.trace[i].evaluations);
+      EXPECT_EQ(a.trace[i].best_cost, b.trace[i].best_cost);
+      EXPECT_EQ(a.trace[i].mean_cost, b.trace[i].mean_cost);
+    }
+    EXPECT_EQ(a.best, b.best);
+    EXPECT_EQ(b.counters.cache_hits, 0);
+    if (strategy == Strategy::kPaper) {
+      EXPECT_GT(a.counters.cache_hits, 0);
+    }
+  }
+}
+
+TEST(Search, CancellationReturnsTheBestSoFar) {
+  const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
+  RunOptions run;
+  run.on_generation = [](const TraceRow& row, const GeneticSearch&) { return row.generation < 3; };
+  const SearchResult r = RunSearch(p, Options(Strategy::kPaper, p, 1, 1000), run);
+  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  EXPECT_EQ(r.generations, 3);
+  ASSERT_EQ(r.trace.size(), 4u);
+  EXPECT_EQ(r.evaluation.normalized_error, r.trace.back().best_normalized_error);
+  EXPECT_EQ(r.difference->missing.size(), static_cast<std::size_t>(r.trace.back().missing));
+}
+
+TEST(Search, ResumingFromASnapshotEndsExactlyLikeAnUninterruptedRun) {
+  const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
+  for (Strategy strategy : {Strategy::kPaper, Strategy::kDefault}) {
+    const SearchOptions o = Options(strategy, p, 9, 30);
+    const SearchResult whole = RunSearch(p, o);
+
+    std::optional<SearchState> snapshot;
+    RunOptions first;
+    first.on_generation = [&](const TraceRow& row, const GeneticSearch& search) {
+      if (row.generation < 12) return true;
+      snapshot = search.Snapshot();
+      return false;
+    };
+    const SearchResult part = RunSearch(p, o, first);
+    ASSERT_TRUE(snapshot);
+    RunOptions second;
+    second.resume_from = snapshot;
+    second.trace = part.trace;
+    const SearchResult resumed = RunSearch(p, o, second);
+    ExpectSameTrace(whole.trace, resumed.trace);
+    EXPECT_EQ(whole.best, resumed.best);
+    EXPECT_EQ(whole.counters, resumed.counters);
+    EXPECT_EQ(whole.stop, resumed.stop);
+  }
+}
+
+TEST(Search, SettingsResolveOverTheStrategyDefaults) {
+  SearchSettings st;
+  st.strategy = Strategy::kPaper;
+  SearchOptions o = ResolveSearchOptions(st, 72);
+  EXPECT_EQ(o.population, 20);
+  EXPECT_EQ(o.crossover_probability, 0.3);
+  EXPECT_EQ(o.mutation_probability, 0.01);
+  EXPECT_EQ(o.selection, SearchOptions::Selection::kRoulette);
+  EXPECT_EQ(o.crossover, SearchOptions::Crossover::kOnePoint);
+  EXPECT_EQ(o.elites, 0);
+  EXPECT_FALSE(o.local_search);
+  st.population = 50;
+  st.mutation_probability = 0.2;
+  st.seed = 99;
+  o = ResolveSearchOptions(st, 72);
+  EXPECT_EQ(o.population, 50);
+  EXPECT_EQ(o.mutation_probability, 0.2);
+  EXPECT_EQ(o.seed, 99u);
+  st = SearchSettings{};
+  o = ResolveSearchOptions(st, 72);
+  EXPECT_EQ(o.strategy, Strategy::kDefault);
+  EXPECT_TRUE(o.local_search);
+}
+
+}  // namespace
+}  // namespace springfit
