@@ -72,7 +72,9 @@ class GeneticSearch {
   TraceRow Step();
 
   bool TargetReached() const;
-  bool Finished() const { return TargetReached() || state_.generation >= options_.max_generations; }
+  bool Finished() const {
+    return (options_.stop_at_target && TargetReached()) || state_.generation >= options_.max_generations;
+  }
 
   // The state between generations, random stream and cache included (for a checkpoint).
   SearchState Snapshot() const;

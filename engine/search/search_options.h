@@ -38,6 +38,7 @@ struct SearchOptions {
   int population = 20;
   int max_generations = 1000;           // generations bred after the initial population
   double target_normalized_error = 0.0;  // stop at or below max(this, kExactNormalizedError)
+  bool stop_at_target = true;            // false: run every generation (benchmarks of a full run)
 
   Selection selection = Selection::kRoulette;
   int tournament_size = 2;               // kTournament

@@ -1,0 +1,197 @@
+// The paper's experiment, reproduced and timed: every strategy on every scene over many
+// seeds; success rate, time to exact recovery and the error reached against wall time.
+// Prints the markdown tables of bench/RESULTS.md ("Topology search", issue 3).
+//
+//   build/bench/search_experiment [--seeds N] [--threads N] [--time-limit S]
+//                                 [--scenes a,b] [--strategies paper,default]
+//   build/bench/search_experiment --full-run paper-iso-5x5   (1000 generations, no early stop)
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "engine/examples/catalog.h"
+#include "engine/search/run_search.h"
+
+namespace springfit {
+namespace {
+
+constexpr double kCheckpoints[] = {1e-3, 1e-2, 1e-1, 1.0, 10.0};
+
+struct RunRecord {
+  bool exact = false;
+  int generations = 0;
+  std::int64_t evaluations = 0;
+  double seconds = 0.0;
+  double final_error = 0.0;
+  int missing = 0;
+  int extra = 0;
+  std::vector<double> error_at;  // per checkpoint; NaN = not yet evaluated the first generation
+};
+
+std::vector<std::string> Split(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream in(s);
+  for (std::string item; std::getline(in, item, ',');) out.push_back(item);
+  return out;
+}
+
+double Quantile(std::vector<double> v, double q) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  const double pos = q * static_cast<double>(v.size() - 1);
+  const auto lo = static_cast<std::size_t>(std::floor(pos));
+  const auto hi = static_cast<std::size_t>(std::ceil(pos));
+  return v[lo] + (v[hi] - v[lo]) * (pos - static_cast<double>(lo));
+}
+
+std::string Seconds(double s) {
+  char buf[32];
+  if (std::isnan(s)) return "—";
+  if (s < 1e-3) std::snprintf(buf, sizeof buf, "%.0f µs", s * 1e6);
+  else if (s < 1.0) std::snprintf(buf, sizeof buf, "%.1f ms", s * 1e3);
+  else std::snprintf(buf, sizeof buf, "%.2f s", s);
+  return buf;
+}
+
+std::string Number(double x, const char* format = "%.3g") {
+  if (std::isnan(x)) return "—";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, format, x);
+  return buf;
+}
+
+RunRecord RunOnce(const Problem& problem, Strategy strategy, std::uint64_t seed, int threads, double time_limit) {
+  SearchOptions o = StrategyDefaults(strategy, problem.gene_count());
+  o.seed = seed;
+  RunOptions run;
+  run.threads = threads;
+  run.on_generation = [&](const TraceRow& row, const GeneticSearch&) { return row.wall_seconds < time_limit; };
+  const SearchResult r = RunSearch(problem, o, run);
+  RunRecord rec;
+  rec.exact = r.exact().value_or(false);
+  rec.generations = r.generations;
+  rec.evaluations = r.counters.evaluations;
+  rec.seconds = r.trace.back().wall_seconds;
+  rec.final_error = r.evaluation.normalized_error;
+  rec.missing = r.difference ? static_cast<int>(r.difference->missing.size()) : -1;
+  rec.extra = r.difference ? static_cast<int>(r.difference->extra.size()) : -1;
+  for (double t : kCheckpoints) {
+    double e = NAN;
+    for (const TraceRow& row : r.trace) {
+      if (row.wall_seconds > t) break;
+      e = row.best_normalized_error;
+    }
+    // A run that ended before t keeps its final error (0 when exact).
+    if (r.trace.back().wall_seconds <= t) e = r.trace.back().best_normalized_error;
+    rec.error_at.push_back(e);
+  }
+  return rec;
+}
+
+int FullRun(const std::string& scene, int threads, int repeats) {
+  const Problem problem = Problem::Build(examples::Make(scene));
+  for (Strategy strategy : {Strategy::kPaper, Strategy::kDefault}) {
+    std::vector<double> seconds;
+    std::int64_t evaluations = 0, hits = 0;
+    for (int i = 0; i < repeats; ++i) {
+      SearchOptions o = StrategyDefaults(strategy, problem.gene_count());
+      o.seed = static_cast<std::uint64_t>(i + 1);
+      o.stop_at_target = false;
+      RunOptions run;
+      run.threads = threads;
+      const SearchResult r = RunSearch(problem, o, run);
+      seconds.push_back(r.wall_seconds);
+      evaluations += r.counters.evaluations;
+      hits += r.counters.cache_hits;
+    }
+    std::printf("| %s | %s | %d | %s | %s | %.0f | %.0f%% |\n", scene.c_str(), strategy == Strategy::kPaper ? "paper" : "default",
+                threads, Seconds(Quantile(seconds, 0.5)).c_str(), Seconds(*std::max_element(seconds.begin(), seconds.end())).c_str(),
+                static_cast<double>(evaluations) / repeats, 100.0 * static_cast<double>(hits) / static_cast<double>(evaluations));
+  }
+  return 0;
+}
+
+int Main(int argc, char** argv) {
+  CLI::App app{"springfit search experiment (bench/RESULTS.md)"};
+  int seeds = 20, threads = 2, repeats = 5;
+  double time_limit = 10.0;
+  std::string scenes = "paper-iso-5x5,paper-aniso-5x5,kidney-2d,grid3d-4x4x4";
+  std::string strategies = "paper,default";
+  std::string full_run;
+  app.add_option("--seeds", seeds)->capture_default_str();
+  app.add_option("--threads", threads)->capture_default_str();
+  app.add_option("--time-limit", time_limit, "Wall-time limit per run, seconds")->capture_default_str();
+  app.add_option("--scenes", scenes)->capture_default_str();
+  app.add_option("--strategies", strategies)->capture_default_str();
+  app.add_option("--full-run", full_run, "Time full 1000-generation runs of this scene instead");
+  app.add_option("--repeats", repeats, "Runs per strategy for --full-run")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  if (!full_run.empty()) {
+    std::printf("| scene | strategy | threads | median | max | evaluations per run | cache hits |\n|---|---|---:|---:|---:|---:|---:|\n");
+    return FullRun(full_run, threads, repeats);
+  }
+
+  std::string error_table =
+      "| scene | strategy | after 1 ms | 10 ms | 100 ms | 1 s | 10 s |\n|---|---|---:|---:|---:|---:|---:|\n";
+  std::printf("| scene | strategy | exact | generations to exact (median / p90) | evaluations to exact (median / p90) | "
+              "time to exact (median / p90) | not exact: final error (median), missing + extra (median) |\n"
+              "|---|---|---:|---:|---:|---:|---|\n");
+  for (const std::string& scene : Split(scenes)) {
+    const Problem problem = Problem::Build(examples::Make(scene));
+    for (const std::string& strategy_name : Split(strategies)) {
+      const Strategy strategy = strategy_name == "paper" ? Strategy::kPaper : Strategy::kDefault;
+      std::vector<RunRecord> runs;
+      for (int s = 1; s <= seeds; ++s) {
+        runs.push_back(RunOnce(problem, strategy, static_cast<std::uint64_t>(s), threads, time_limit));
+        std::fprintf(stderr, "%s %s seed %d: exact %d, %d generations, %.3f s, e %.3g\n", scene.c_str(),
+                     strategy_name.c_str(), s, runs.back().exact, runs.back().generations, runs.back().seconds,
+                     runs.back().final_error);
+      }
+      std::vector<double> gens, evals, secs, errors, wrong;
+      int exact = 0;
+      for (const RunRecord& r : runs) {
+        if (r.exact) {
+          ++exact;
+          gens.push_back(r.generations);
+          evals.push_back(static_cast<double>(r.evaluations));
+          secs.push_back(r.seconds);
+        } else {
+          errors.push_back(r.final_error);
+          wrong.push_back(r.missing + r.extra);
+        }
+      }
+      std::printf("| %s | %s | %d / %d | %s / %s | %s / %s | %s / %s | %s |\n", scene.c_str(), strategy_name.c_str(), exact,
+                  seeds, Number(Quantile(gens, 0.5), "%.0f").c_str(), Number(Quantile(gens, 0.9), "%.0f").c_str(),
+                  Number(Quantile(evals, 0.5), "%.0f").c_str(), Number(Quantile(evals, 0.9), "%.0f").c_str(),
+                  Seconds(Quantile(secs, 0.5)).c_str(), Seconds(Quantile(secs, 0.9)).c_str(),
+                  errors.empty() ? "—"
+                                 : (Number(Quantile(errors, 0.5)) + ", " + Number(Quantile(wrong, 0.5), "%.1f")).c_str());
+      std::fflush(stdout);
+      error_table += "| " + scene + " | " + strategy_name + " |";
+      for (std::size_t c = 0; c < std::size(kCheckpoints); ++c) {
+        // A seed still on its first generation counts as worse than any error (+inf); the
+        // lower median, so that an even count needs no average with infinity.
+        std::vector<double> at;
+        for (const RunRecord& r : runs) at.push_back(std::isnan(r.error_at[c]) ? INFINITY : r.error_at[c]);
+        std::sort(at.begin(), at.end());
+        const double median = at[(at.size() - 1) / 2];
+        const std::string cell = std::isinf(median) ? "—" : Number(median);
+        error_table += " " + cell + " |";
+      }
+      error_table += "\n";
+    }
+  }
+  std::printf("\nMedian normalised error of the best genome found so far, against wall time:\n\n%s", error_table.c_str());
+  return 0;
+}
+
+}  // namespace
+}  // namespace springfit
+
+int main(int argc, char** argv) { return springfit::Main(argc, argv); }
