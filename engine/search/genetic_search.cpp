@@ -60,7 +60,7 @@ TraceRow GeneticSearch::Step() {
   UpdateBest();
   if (options_.local_search && !TargetReached()) LocalSearch();
   state_.stall = state_.best_fitness.normalized_error < before.normalized_error ? 0 : state_.stall + 1;
-  if (options_.restart_after > 0 && state_.stall >= options_.restart_after && state_.best == state_.local_optimum) {
+  if (options_.restart_after > 0 && state_.stall >= options_.restart_after) {
     Restart();
   }
   state_.counters = evaluator_->counters();
@@ -173,9 +173,11 @@ std::vector<std::vector<int>> GeneticSearch::SwapPartners(const Problem& problem
 }
 
 void GeneticSearch::LocalSearch() {
-  // Start from the population's best (the first among equals).
-  int b = 0;
-  for (int i = 1; i < options_.population; ++i) {
+  // Start from the best new individual (the first among equals): the elites are the
+  // results of earlier local searches, the children are where new optima come from.
+  const int first = state_.generation == 0 ? 0 : options_.elites;
+  int b = first;
+  for (int i = first + 1; i < options_.population; ++i) {
     if (state_.fitness[i].normalized_error < state_.fitness[b].normalized_error) b = i;
   }
   Genome genome = state_.population[b];
@@ -234,18 +236,44 @@ void GeneticSearch::LocalSearch() {
       if (m.b >= 0) neighbours[j][m.b] ^= 1;
     }
     const std::vector<Fitness> results = evaluator_->Evaluate(neighbours);
-    int chosen = -1;
+    // The improving moves of the batch, best first (ties: batch order).
+    std::vector<int> improving;
     for (std::size_t j = 0; j < batch; ++j) {
-      const double best_so_far = chosen < 0 ? fitness.normalized_error : results[chosen].normalized_error;
-      if (results[j].normalized_error < best_so_far) chosen = static_cast<int>(j);
+      if (results[j].normalized_error < fitness.normalized_error) improving.push_back(static_cast<int>(j));
     }
+    std::stable_sort(improving.begin(), improving.end(), [&](int x, int y) {
+      return results[x].normalized_error < results[y].normalized_error;
+    });
     position = (position + batch) % moves.size();
-    if (chosen < 0) {
+    if (improving.empty()) {
       unimproved += batch;
       continue;
     }
-    genome = std::move(neighbours[chosen]);
-    fitness = results[chosen];
+    Genome next = neighbours[improving.front()];
+    Fitness next_fitness = results[improving.front()];
+    if (options_.local_search_combine && improving.size() > 1) {
+      // Moves on distant springs act almost independently: try them all at once (skipping
+      // any that touches a gene an earlier one changed), and keep that if it is better still.
+      Genome combined = genome;
+      std::vector<std::uint8_t> touched(genes, 0);
+      for (int j : improving) {
+        const Move& m = moves[(position + moves.size() - batch + j) % moves.size()];
+        if (touched[m.a] || (m.b >= 0 && touched[m.b])) continue;
+        combined[m.a] ^= 1;
+        touched[m.a] = 1;
+        if (m.b >= 0) {
+          combined[m.b] ^= 1;
+          touched[m.b] = 1;
+        }
+      }
+      const Fitness combined_fitness = evaluator_->Evaluate({combined}).front();
+      if (combined_fitness.normalized_error < next_fitness.normalized_error) {
+        next = std::move(combined);
+        next_fitness = combined_fitness;
+      }
+    }
+    genome = std::move(next);
+    fitness = next_fitness;
     if (fitness.normalized_error <= target) break;
     // After any improvement, single flips again (a swap's moves also depend on the genome).
     const bool was_swaps = swaps;

@@ -17,7 +17,6 @@ SearchOptions StrategyDefaults(Strategy strategy, int genes) {
   o.initial_density_low = 0.5;
   o.initial_density_high = 1.0;
   o.local_search = true;
-  o.restart_after = 20;
   return o;
 }
 

@@ -11,8 +11,10 @@
 // topology, and graded among mechanisms because their penalised e grows with their modes.
 //
 // Strategy `default` is a memetic GA chosen by the experiment in bench/RESULTS.md (issue 3):
-// elitism, tournament selection, uniform crossover, mutation of about one gene per child, an
-// initial population spread in density, and a bit-flip local search on the best individual.
+// one elite, binary tournament selection, uniform crossover with probability 0.9, mutation of
+// one gene per child on average (1 / genes), an initial population spread in density over
+// [0.5, 1), and in every generation a local search (single flips, then swaps of nearby
+// springs) on the best new individual.
 #pragma once
 
 #include <cstddef>
@@ -52,7 +54,8 @@ struct SearchOptions {
   double initial_density_low = 0.5;
   double initial_density_high = 0.5;
 
-  // Bit-flip local search on the generation's best individual: its single-gene neighbours are
+  // Bit-flip local search on the best new individual of a generation (every individual in
+  // the initial population counts as new; elites do not): its single-gene neighbours are
   // evaluated `local_search_batch` at a time (a fixed number, so the run does not depend on
   // the thread count) and the best improving one is taken, until a whole pass over the genes
   // finds no improvement or `local_search_max_batches` batches (0 = no limit) have been spent
@@ -64,10 +67,14 @@ struct SearchOptions {
   bool local_search = false;
   int local_search_batch = 16;
   int local_search_max_batches = 0;
+  // When several moves of a batch improve, also try all of them at once (one evaluation more)
+  // and keep that when it is better than the best single move.
+  bool local_search_combine = true;
   bool local_search_swaps = true;
   double swap_radius = 0.5;
-  // Generations without improvement of the best, once it is a local optimum, before every
-  // other individual is drawn anew (0 = never).
+  // Generations without improvement of the best before every other individual is drawn
+  // anew (0 = never; restarts after 3 or 20 stalled generations measured no better on
+  // paper-aniso-5x5, bench/RESULTS.md).
   int restart_after = 0;
 
   std::size_t cache_capacity = FitnessCache::kDefaultCapacity;
