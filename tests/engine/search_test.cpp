@@ -153,11 +153,13 @@ TEST(Search, ResumingFromASnapshotEndsExactlyLikeAnUninterruptedRun) {
   for (Strategy strategy : {Strategy::kPaper, Strategy::kDefault}) {
     const SearchOptions o = Options(strategy, p, 9, 30);
     const SearchResult whole = RunSearch(p, o);
+    ASSERT_GE(whole.generations, 2);
+    const int stop_at = whole.generations / 2;
 
     std::optional<SearchState> snapshot;
     RunOptions first;
     first.on_generation = [&](const TraceRow& row, const GeneticSearch& search) {
-      if (row.generation < 12) return true;
+      if (row.generation < stop_at) return true;
       snapshot = search.Snapshot();
       return false;
     };
