@@ -24,7 +24,12 @@ namespace {
 
 std::atomic<bool> g_interrupted{false};
 
-extern "C" void OnInterrupt(int) { g_interrupted.store(true); }
+// The first signal asks the search to stop after its generation; the default action is
+// restored so that a second one ends the process at once.
+extern "C" void OnInterrupt(int signal) {
+  g_interrupted.store(true);
+  std::signal(signal, SIG_DFL);
+}
 
 struct RunArgs {
   std::string scene;
@@ -52,7 +57,9 @@ class ProgressReporter {
     if (quiet_) return;
     const double interval = terminal_ ? 0.1 : 2.0;
     if (!last && row.generation != 0 && row.wall_seconds - shown_at_ < interval) return;
+    if (last && !terminal_ && row.generation == shown_generation_) return;  // already printed
     shown_at_ = row.wall_seconds;
+    shown_generation_ = row.generation;
     const double rate = row.wall_seconds > 0.0 ? static_cast<double>(row.evaluations) / row.wall_seconds : 0.0;
     char line[256];
     std::snprintf(line, sizeof line, "generation %d/%d  best cost %.4g  normalized error %.4g%s  %.0f eval/s  %.1f s",
@@ -72,6 +79,7 @@ class ProgressReporter {
   bool quiet_;
   bool terminal_;
   double shown_at_ = 0.0;
+  int shown_generation_ = -1;
 };
 
 void PrintSummary(const Problem& problem, const SearchResult& r) {
@@ -135,7 +143,7 @@ int Run(const RunArgs& args) {
   RunOptions run;
   run.threads = args.threads;
   run.on_generation = [&](const TraceRow& row, const GeneticSearch& search) {
-    if (trace.is_open()) trace << proto::TraceRowToCsv(row) << "\n";
+    if (trace.is_open()) trace << proto::TraceRowToCsv(row) << std::endl;  // on disk as it goes
     progress.Report(row, search.Finished());
     return !g_interrupted.load();
   };

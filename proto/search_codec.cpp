@@ -34,9 +34,12 @@ Json SearchOptionsToJson(const SearchOptions& o) {
   j["local_search"] = o.local_search;
   if (o.local_search) {
     j["local_search_batch"] = o.local_search_batch;
+    j["local_search_max_batches"] = o.local_search_max_batches;
+    j["local_search_combine"] = o.local_search_combine;
     j["local_search_swaps"] = o.local_search_swaps;
-    j["restart_after"] = o.restart_after;
+    if (o.local_search_swaps) j["swap_radius"] = o.swap_radius;
   }
+  j["restart_after"] = o.restart_after;
   return j;
 }
 

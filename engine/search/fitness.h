@@ -1,6 +1,9 @@
 // What the search keeps of one evaluation: the numbers selection and the trace need.
 #pragma once
 
+#include <cmath>
+#include <limits>
+
 #include "engine/cost.h"
 
 namespace springfit {
@@ -12,7 +15,12 @@ struct Fitness {
   bool mechanism = false;
   bool converged = true;
 
+  // A non-finite error (which the cost function should never produce) becomes the worst
+  // finite value, so that comparisons stay a strict weak order.
   static Fitness From(const Evaluation& e) {
+    if (!std::isfinite(e.normalized_error) || !std::isfinite(e.cost)) {
+      return {std::numeric_limits<double>::max(), std::numeric_limits<double>::max(), e.mechanism_modes, e.mechanism, false};
+    }
     return {e.cost, e.normalized_error, e.mechanism_modes, e.mechanism, e.converged};
   }
   friend bool operator==(const Fitness&, const Fitness&) = default;

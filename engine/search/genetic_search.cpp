@@ -42,6 +42,14 @@ TraceRow GeneticSearch::Initialize() {
 }
 
 void GeneticSearch::Restore(const SearchState& state) {
+  const auto genes = static_cast<std::size_t>(problem_->gene_count());
+  bool consistent = static_cast<int>(state.population.size()) == options_.population &&
+                    state.fitness.size() == state.population.size() && state.best.size() == genes &&
+                    (state.local_optimum.empty() || state.local_optimum.size() == genes);
+  for (const Genome& g : state.population) consistent = consistent && g.size() == genes;
+  if (!consistent) {
+    throw std::invalid_argument("GeneticSearch::Restore: the state does not match this problem and options");
+  }
   state_ = state;
   random_.RestoreState(state.random_state);
   evaluator_->set_counters(state.counters);
@@ -60,7 +68,7 @@ TraceRow GeneticSearch::Step() {
   UpdateBest();
   if (options_.local_search && !TargetReached()) LocalSearch();
   state_.stall = state_.best_fitness.normalized_error < before.normalized_error ? 0 : state_.stall + 1;
-  if (options_.restart_after > 0 && state_.stall >= options_.restart_after) {
+  if (options_.restart_after > 0 && state_.stall >= options_.restart_after && !Finished()) {
     Restart();
   }
   state_.counters = evaluator_->counters();
@@ -302,6 +310,7 @@ void GeneticSearch::Restart() {
   }
   state_.population = std::move(fresh);
   state_.fitness = evaluator_->Evaluate(state_.population);
+  UpdateBest();
   state_.stall = 0;
 }
 

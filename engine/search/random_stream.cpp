@@ -1,5 +1,6 @@
 #include "engine/search/random_stream.h"
 
+#include <locale>
 #include <sstream>
 #include <stdexcept>
 
@@ -22,12 +23,14 @@ std::uint64_t RandomStream::Below(std::uint64_t n) {
 
 std::string RandomStream::SaveState() const {
   std::ostringstream out;
+  out.imbue(std::locale::classic());
   out << engine_;
   return out.str();
 }
 
 void RandomStream::RestoreState(const std::string& state) {
   std::istringstream in(state);
+  in.imbue(std::locale::classic());
   std::mt19937_64 engine;
   in >> engine;
   if (in.fail()) throw std::invalid_argument("RandomStream::RestoreState: not a saved state");

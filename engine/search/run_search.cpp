@@ -20,7 +20,7 @@ SearchResult RunSearch(const Problem& problem, const SearchOptions& options, con
   bool cancelled = false;
   auto record = [&](const TraceRow& row) {
     result.trace.push_back(row);
-    if (run.on_generation && !run.on_generation(row, search)) cancelled = true;
+    if (run.on_generation && !run.on_generation(row, search) && !search.Finished()) cancelled = true;
   };
   if (run.resume_from) {
     search.Restore(*run.resume_from);

@@ -1,7 +1,7 @@
 #include "engine/search/worker_pool.h"
 
+#include <condition_variable>
 #include <exception>
-#include <latch>
 #include <mutex>
 #include <stdexcept>
 
@@ -9,6 +9,44 @@
 #include <boost/asio/thread_pool.hpp>
 
 namespace springfit {
+namespace {
+
+// One Run(): the slots not yet claimed and the claimed ones still running. Shared with the
+// posted closures, so a closure that starts after Run() returned finds nothing left to claim
+// and touches nothing of Run()'s stack.
+struct Batch {
+  std::mutex mutex;
+  std::condition_variable finished;
+  int slots = 0;
+  int next = 0;
+  int running = 0;
+  std::exception_ptr failure;
+  const std::function<void(int)>* body = nullptr;
+
+  // Claims and runs slots until none is left.
+  void Work() {
+    for (;;) {
+      int slot = 0;
+      {
+        const std::lock_guard lock(mutex);
+        if (next >= slots) return;
+        slot = next++;
+        ++running;
+      }
+      std::exception_ptr error;
+      try {
+        (*body)(slot);
+      } catch (...) {
+        error = std::current_exception();
+      }
+      const std::lock_guard lock(mutex);
+      if (error && !failure) failure = error;
+      if (--running == 0 && next >= slots) finished.notify_all();
+    }
+  }
+};
+
+}  // namespace
 
 WorkerPool::WorkerPool(int threads) : threads_(threads) {
   if (threads < 1) throw std::invalid_argument("WorkerPool: threads must be >= 1");
@@ -21,30 +59,19 @@ WorkerPool::~WorkerPool() {
 
 void WorkerPool::Run(int slots, const std::function<void(int slot)>& body) {
   if (slots <= 0) return;
-  std::exception_ptr failure;
-  std::mutex failure_mutex;
-  auto guarded = [&](int slot) {
-    try {
-      body(slot);
-    } catch (...) {
-      const std::lock_guard lock(failure_mutex);
-      if (!failure) failure = std::current_exception();
+  auto batch = std::make_shared<Batch>();
+  batch->slots = slots;
+  batch->body = &body;
+  if (pool_) {
+    for (int helper = 1; helper < slots; ++helper) {
+      boost::asio::post(*pool_, [batch] { batch->Work(); });
     }
-  };
-  if (!pool_ || slots == 1) {
-    for (int slot = 0; slot < slots; ++slot) guarded(slot);
-  } else {
-    std::latch done(slots - 1);
-    for (int slot = 1; slot < slots; ++slot) {
-      boost::asio::post(*pool_, [&, slot] {
-        guarded(slot);
-        done.count_down();
-      });
-    }
-    guarded(0);
-    done.wait();
   }
-  if (failure) std::rethrow_exception(failure);
+  // The caller works too: when every pool thread is busy elsewhere it runs all the slots.
+  batch->Work();
+  std::unique_lock lock(batch->mutex);
+  batch->finished.wait(lock, [&] { return batch->running == 0; });
+  if (batch->failure) std::rethrow_exception(batch->failure);
 }
 
 }  // namespace springfit

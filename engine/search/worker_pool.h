@@ -1,10 +1,11 @@
 // Threads that run the fitness evaluations of a generation.
 //
-// A thin layer over boost::asio::thread_pool. Run(slots, body) calls body(slot) for every
-// slot in [0, slots) and returns when all have returned; slot 0 runs on the calling thread,
-// so a batch always makes progress even when every pool thread is busy with other work (a
-// daemon shares one pool between jobs). Which thread runs a slot is arbitrary: callers give
-// each slot its own state and make results independent of the thread that computed them.
+// A thin layer over boost::asio::thread_pool. Run(slots, body) calls body(slot) once for
+// every slot in [0, slots) and returns when all have returned. The calling thread claims
+// slots too, and waits only for slots a pool thread has actually started: a batch finishes
+// even when every pool thread is busy with other work (a daemon shares one pool between
+// jobs). Which thread runs a slot is arbitrary: callers give each slot its own state and
+// make results independent of the thread that computed them.
 #pragma once
 
 #include <functional>
