@@ -5,6 +5,7 @@
 //   build/bench/search_experiment [--seeds N] [--threads N] [--time-limit S]
 //                                 [--scenes a,b] [--strategies paper,default]
 //   build/bench/search_experiment --full-run paper-iso-5x5   (1000 generations, no early stop)
+//   build/bench/search_experiment --elites 1 ...            (a variant: strategies with N elites)
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -66,9 +67,11 @@ std::string Number(double x, const char* format = "%.3g") {
   return buf;
 }
 
-RunRecord RunOnce(const Problem& problem, Strategy strategy, std::uint64_t seed, int threads, double time_limit) {
+RunRecord RunOnce(const Problem& problem, Strategy strategy, std::uint64_t seed, int threads, double time_limit,
+                  int elites) {
   SearchOptions o = StrategyDefaults(strategy, problem.gene_count());
   o.seed = seed;
+  if (elites >= 0) o.elites = elites;
   RunOptions run;
   run.threads = threads;
   run.on_generation = [&](const TraceRow& row, const GeneticSearch&) { return row.wall_seconds < time_limit; };
@@ -119,7 +122,7 @@ int FullRun(const std::string& scene, int threads, int repeats) {
 
 int Main(int argc, char** argv) {
   CLI::App app{"springfit search experiment (bench/RESULTS.md)"};
-  int seeds = 20, threads = 2, repeats = 5;
+  int seeds = 20, threads = 2, repeats = 5, elites = -1;
   double time_limit = 10.0;
   std::string scenes = "paper-iso-5x5,paper-aniso-5x5,kidney-2d,grid3d-4x4x4";
   std::string strategies = "paper,default";
@@ -129,6 +132,7 @@ int Main(int argc, char** argv) {
   app.add_option("--time-limit", time_limit, "Wall-time limit per run, seconds")->capture_default_str();
   app.add_option("--scenes", scenes)->capture_default_str();
   app.add_option("--strategies", strategies)->capture_default_str();
+  app.add_option("--elites", elites, "Override the strategies' elite count (a variant, not the strategy)");
   app.add_option("--full-run", full_run, "Time full 1000-generation runs of this scene instead");
   app.add_option("--repeats", repeats, "Runs per strategy for --full-run")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
@@ -148,7 +152,7 @@ int Main(int argc, char** argv) {
       const Strategy strategy = strategy_name == "paper" ? Strategy::kPaper : Strategy::kDefault;
       std::vector<RunRecord> runs;
       for (int s = 1; s <= seeds; ++s) {
-        runs.push_back(RunOnce(problem, strategy, static_cast<std::uint64_t>(s), threads, time_limit));
+        runs.push_back(RunOnce(problem, strategy, static_cast<std::uint64_t>(s), threads, time_limit, elites));
         std::fprintf(stderr, "%s %s seed %d: exact %d, %d generations, %.3f s, e %.3g\n", scene.c_str(),
                      strategy_name.c_str(), s, runs.back().exact, runs.back().generations, runs.back().seconds,
                      runs.back().final_error);
