@@ -34,8 +34,7 @@ std::vector<NodePair> GridCandidates(const Scene& scene) {
   const int n = scene.node_count();
   std::vector<double> spacing = scene.candidates.spacing;
   if (spacing.empty()) spacing = InferLatticeSpacing(scene);
-  Vector lo = Vector::Constant(d, std::numeric_limits<double>::infinity());
-  for (int i = 0; i < n; ++i) lo = lo.cwiseMin(scene.rest.segment(d * i, d));
+  const Vector lo = scene.Bounds().lo;
 
   // Integer lattice coordinates, packed into one key (21 bits per axis is plenty).
   std::vector<std::array<long, 3>> cell(n, {0, 0, 0});

@@ -2,6 +2,15 @@
 
 namespace springfit {
 
+BoundingBox BoundingBox::Of(int dimension, const Vector& flat_points) {
+  BoundingBox box{flat_points.segment(0, dimension), flat_points.segment(0, dimension)};
+  for (Eigen::Index i = dimension; i < flat_points.size(); i += dimension) {
+    box.lo = box.lo.cwiseMin(flat_points.segment(i, dimension));
+    box.hi = box.hi.cwiseMax(flat_points.segment(i, dimension));
+  }
+  return box;
+}
+
 double Scene::EffectiveTrainingStiffness() const {
   if (training_stiffness) return *training_stiffness;
   if (reference.kind == Reference::Kind::kMss && reference.stiffness.size() == 1) {

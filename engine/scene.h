@@ -89,6 +89,14 @@ struct SearchSettings {
   double target_normalized_error = 0.0;
 };
 
+// The axis-aligned box around a set of points (flat, `dimension` coordinates per point).
+struct BoundingBox {
+  Vector lo;
+  Vector hi;
+  static BoundingBox Of(int dimension, const Vector& flat_points);
+  double Diagonal() const { return (hi - lo).norm(); }
+};
+
 struct Scene {
   std::string name;
   std::string description;
@@ -103,6 +111,8 @@ struct Scene {
   SearchSettings search;
 
   int node_count() const { return dimension == 0 ? 0 : static_cast<int>(rest.size()) / dimension; }
+  // The rest positions' bounding box (needs at least one node).
+  BoundingBox Bounds() const { return BoundingBox::Of(dimension, rest); }
   // The training stiffness after applying the default rule above.
   double EffectiveTrainingStiffness() const;
 };

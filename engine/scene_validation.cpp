@@ -55,15 +55,7 @@ void CheckPairs(const Scene& s, const std::vector<NodePair>& pairs, const std::s
   }
 }
 
-double Extent(const Scene& s) {
-  const int d = s.dimension;
-  Vector lo = s.rest.segment(0, d), hi = lo;
-  for (int i = 1; i < s.node_count(); ++i) {
-    lo = lo.cwiseMin(s.rest.segment(d * i, d));
-    hi = hi.cwiseMax(s.rest.segment(d * i, d));
-  }
-  return (hi - lo).norm();
-}
+double Extent(const Scene& s) { return s.Bounds().Diagonal(); }
 
 void CheckNodes(const Scene& s) {
   if (s.dimension != 2 && s.dimension != 3) {

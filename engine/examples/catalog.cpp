@@ -196,11 +196,7 @@ std::vector<NodePair> GridNeighbourSprings(const std::vector<int>& n) {
 
 std::vector<LoadCase> Paper7LoadCases(int d, const Vector& rest, double magnitude, double band) {
   const int n = static_cast<int>(rest.size()) / d;
-  Vector lo = rest.segment(0, d), hi = lo;
-  for (int i = 1; i < n; ++i) {
-    lo = lo.cwiseMin(rest.segment(d * i, d));
-    hi = hi.cwiseMax(rest.segment(d * i, d));
-  }
+  const auto [lo, hi] = BoundingBox::Of(d, rest);
   auto side = [&](int axis, bool low) {
     const double width = std::max(band * (hi[axis] - lo[axis]), 1e-9 * (hi - lo).norm());
     std::vector<int> nodes;
@@ -246,12 +242,8 @@ std::vector<LoadCase> Paper7LoadCases(int d, const Vector& rest, double magnitud
 void ScaleLoadsToStrain(Scene& scene, double strain) {
   const int d = scene.dimension;
   const int n = scene.node_count();
-  Vector lo = scene.rest.segment(0, d), hi = lo;
-  for (int i = 1; i < n; ++i) {
-    lo = lo.cwiseMin(scene.rest.segment(d * i, d));
-    hi = hi.cwiseMax(scene.rest.segment(d * i, d));
-  }
-  const double extent = (hi - lo).maxCoeff();
+  const BoundingBox box = scene.Bounds();
+  const double extent = (box.hi - box.lo).maxCoeff();
   // A load this small (relative to the reference's stiffness) is deep in the linear regime.
   constexpr double kProbe = 1e-6;
   Scene probe = scene;
