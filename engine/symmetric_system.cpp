@@ -39,9 +39,6 @@ SymmetricSystem::SymmetricSystem(const SymmetricSystem& other)
       scale_(other.scale_),
       dense_(other.dense_),
       dense_work_(other.dense_work_),
-      llt_(other.llt_),
-      ldlt_(other.ldlt_),
-      dense_used_ldlt_(other.dense_used_ldlt_),
       sparse_(other.sparse_),
       sparse_work_(other.sparse_work_),
       diagonal_slot_(other.diagonal_slot_) {
@@ -63,9 +60,6 @@ SymmetricSystem::SymmetricSystem(SymmetricSystem&& other) noexcept
       scale_(std::move(other.scale_)),
       dense_(std::move(other.dense_)),
       dense_work_(std::move(other.dense_work_)),
-      llt_(std::move(other.llt_)),
-      ldlt_(std::move(other.ldlt_)),
-      dense_used_ldlt_(other.dense_used_ldlt_),
       sparse_(std::move(other.sparse_)),
       sparse_work_(std::move(other.sparse_work_)),
       diagonal_slot_(std::move(other.diagonal_slot_)),
@@ -79,9 +73,7 @@ SymmetricSystem& SymmetricSystem::operator=(SymmetricSystem&& other) noexcept {
   scale_ = std::move(other.scale_);
   dense_ = std::move(other.dense_);
   dense_work_ = std::move(other.dense_work_);
-  llt_ = std::move(other.llt_);
-  ldlt_ = std::move(other.ldlt_);
-  dense_used_ldlt_ = other.dense_used_ldlt_;
+  dense_used_ldlt_ = false;
   sparse_ = std::move(other.sparse_);
   sparse_work_ = std::move(other.sparse_work_);
   diagonal_slot_ = std::move(other.diagonal_slot_);
