@@ -113,13 +113,7 @@ void PrintSummary(const Problem& problem, const SearchResult& r) {
 int Run(const RunArgs& args) {
   Scene scene = proto::LoadSceneFile(args.scene);
   SearchSettings& st = scene.search;
-  if (args.strategy) {
-    const auto strategy = proto::ParseStrategy(*args.strategy);
-    if (!strategy) {
-      throw InputError("--strategy", "unknown strategy '" + *args.strategy + "' (expected " + proto::StrategyNames() + ")");
-    }
-    st.strategy = *strategy;
-  }
+  if (args.strategy) st.strategy = proto::StrategyFromName(*args.strategy, "--strategy");
   if (args.seed) st.seed = *args.seed;
   if (args.generations) st.max_generations = *args.generations;
   if (args.population) st.population = *args.population;

@@ -1,5 +1,7 @@
 #include "proto/names.h"
 
+#include "engine/input_error.h"
+
 namespace springfit::proto {
 
 std::string_view CandidateKindName(CandidateSpec::Kind kind) {
@@ -56,6 +58,12 @@ std::optional<Strategy> ParseStrategy(std::string_view name) {
     if (StrategyName(s) == name) return s;
   }
   return std::nullopt;
+}
+
+Strategy StrategyFromName(const std::string& name, const std::string& path) {
+  const auto strategy = ParseStrategy(name);
+  if (!strategy) throw InputError(path, "unknown strategy '" + name + "' (expected " + StrategyNames() + ")");
+  return *strategy;
 }
 
 std::string_view StopReasonName(StopReason reason) {

@@ -22,6 +22,8 @@ std::string_view TerminationName(Termination termination);
 // Search strategies (proto/SCENE.md, "search").
 std::string_view StrategyName(Strategy strategy);
 std::optional<Strategy> ParseStrategy(std::string_view name);
+// ParseStrategy, or InputError(path, "unknown strategy 'x' (expected default or paper)").
+Strategy StrategyFromName(const std::string& name, const std::string& path);
 std::string_view StopReasonName(StopReason reason);
 
 // "default or paper": the accepted names, for messages.

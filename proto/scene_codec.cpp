@@ -176,10 +176,7 @@ void ReadSearch(const Json& v, SearchSettings& st) {
   ExpectKeys(v, path, {"strategy", "seed", "population", "crossover_probability",
                        "mutation_probability", "max_generations", "target_normalized_error"});
   if (v.contains("strategy")) {
-    const std::string name = ReadString(v["strategy"], JoinPath(path, "strategy"));
-    const auto strategy = ParseStrategy(name);
-    if (!strategy) throw InputError(JoinPath(path, "strategy"), "unknown strategy '" + name + "' (expected " + StrategyNames() + ")");
-    st.strategy = *strategy;
+    st.strategy = StrategyFromName(ReadString(v["strategy"], JoinPath(path, "strategy")), JoinPath(path, "strategy"));
   }
   if (v.contains("seed")) st.seed = ReadUint64(v["seed"], JoinPath(path, "seed"));
   if (v.contains("population")) st.population = ReadInt(v["population"], JoinPath(path, "population"));

@@ -26,19 +26,23 @@ TraceRow GeneticSearch::Initialize() {
   const int n = options_.population;
   state_ = SearchState{};
   state_.population.reserve(n);
-  for (int i = 0; i < n; ++i) {
-    const double density = options_.initial_density_low +
-                           (options_.initial_density_high - options_.initial_density_low) * (i + 0.5) / n;
-    state_.population.push_back(RandomGenome(problem_->gene_count(), density, random_));
-  }
+  for (int i = 0; i < n; ++i) state_.population.push_back(InitialGenome(i));
   state_.fitness = evaluator_->Evaluate(state_.population);
   state_.best = state_.population.front();
   state_.best_fitness = state_.fitness.front();
   UpdateBest();
   if (options_.local_search && !TargetReached()) LocalSearch();
-  state_.stall = 0;
-  state_.counters = evaluator_->counters();
   return Row();
+}
+
+Genome GeneticSearch::InitialGenome(int i) {
+  const double density = options_.initial_density_low + (options_.initial_density_high - options_.initial_density_low) *
+                                                            (i + 0.5) / options_.population;
+  return RandomGenome(problem_->gene_count(), density, random_);
+}
+
+double GeneticSearch::TargetError() const {
+  return std::max(options_.target_normalized_error, kExactNormalizedError);
 }
 
 void GeneticSearch::Restore(const SearchState& state) {
@@ -71,13 +75,11 @@ TraceRow GeneticSearch::Step() {
   if (options_.restart_after > 0 && state_.stall >= options_.restart_after && !Finished()) {
     Restart();
   }
-  state_.counters = evaluator_->counters();
   return Row();
 }
 
 bool GeneticSearch::TargetReached() const {
-  return state_.best_fitness.normalized_error <= std::max(options_.target_normalized_error, kExactNormalizedError) &&
-         !state_.population.empty();
+  return !state_.population.empty() && state_.best_fitness.normalized_error <= TargetError();
 }
 
 SearchState GeneticSearch::Snapshot() const {
@@ -192,7 +194,6 @@ void GeneticSearch::LocalSearch() {
   Fitness fitness = state_.fitness[b];
   const int genes = problem_->gene_count();
   if (genes == 0 || genome == state_.local_optimum) return;
-  const double target = std::max(options_.target_normalized_error, kExactNormalizedError);
 
   // The moves of a phase, in a fresh random order so that repeated searches do not favour
   // low indices: single flips, then swaps of a present spring for an absent nearby one.
@@ -282,7 +283,7 @@ void GeneticSearch::LocalSearch() {
     }
     genome = std::move(next);
     fitness = next_fitness;
-    if (fitness.normalized_error <= target) break;
+    if (fitness.normalized_error <= TargetError()) break;
     // After any improvement, single flips again (a swap's moves also depend on the genome).
     const bool was_swaps = swaps;
     swaps = false;
@@ -303,11 +304,7 @@ void GeneticSearch::Restart() {
   const int n = options_.population;
   std::vector<Genome> fresh;
   fresh.push_back(state_.best);
-  for (int i = 1; i < n; ++i) {
-    const double density = options_.initial_density_low +
-                           (options_.initial_density_high - options_.initial_density_low) * (i + 0.5) / n;
-    fresh.push_back(RandomGenome(problem_->gene_count(), density, random_));
-  }
+  for (int i = 1; i < n; ++i) fresh.push_back(InitialGenome(i));
   state_.population = std::move(fresh);
   state_.fitness = evaluator_->Evaluate(state_.population);
   UpdateBest();

@@ -41,7 +41,9 @@ struct TraceRow {
   }
 };
 
-// Everything a search carries from one generation to the next.
+// Everything a search carries from one generation to the next. The random stream, the
+// counters, the cache and the elapsed time live in their owners while the search runs;
+// GeneticSearch::Snapshot() copies them in.
 struct SearchState {
   int generation = 0;
   std::string random_state;      // RandomStream::SaveState()
@@ -87,6 +89,10 @@ class GeneticSearch {
   static std::vector<std::vector<int>> SwapPartners(const Problem& problem, double radius);
 
  private:
+  // Individual i of an initial (or restarted) population, drawn at its density.
+  Genome InitialGenome(int i);
+  // The normalised error at which the search has reached its target.
+  double TargetError() const;
   std::vector<Genome> Breed();
   int Select(const std::vector<double>& weights_or_errors);
   void LocalSearch();

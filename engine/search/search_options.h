@@ -27,8 +27,8 @@ namespace springfit {
 
 // A normalised error at or below this counts as exact recovery (target 0). The reference
 // topology evaluates to exactly 0 (its solve starts at the reference equilibrium); one
-// wrong gene costs e >= 4e-7 on every example scene (tests/engine/search_test.cpp checks
-// the margin on a small scene).
+// wrong gene costs far more (tests/engine/search_test.cpp checks a margin of 1e3 on a
+// small scene).
 inline constexpr double kExactNormalizedError = 1e-12;
 
 struct SearchOptions {
