@@ -36,6 +36,12 @@ std::string IndexPath(const std::string& path, std::size_t index) {
   return path + "[" + std::to_string(index) + "]";
 }
 
+const Json& RequiredMember(const Json& value, const std::string& path, std::string_view key) {
+  const auto it = value.find(std::string(key));
+  if (it == value.end()) throw InputError(JoinPath(path, key), "required");
+  return *it;
+}
+
 Json ParseJson(std::string_view text) {
   try {
     return Json::parse(text.begin(), text.end());

@@ -29,6 +29,8 @@ Json ParseJson(std::string_view text);
 // Requires `value` to be an object whose keys all appear in `allowed`.
 void ExpectKeys(const Json& value, const std::string& path,
                 std::initializer_list<std::string_view> allowed);
+// The member `key` of the object `value`; InputError("path.key", "required") when absent.
+const Json& RequiredMember(const Json& value, const std::string& path, std::string_view key);
 void ExpectArray(const Json& value, const std::string& path);
 
 double ReadNumber(const Json& value, const std::string& path);  // finite

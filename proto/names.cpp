@@ -75,6 +75,8 @@ std::string_view StopReasonName(StopReason reason) {
   return "?";
 }
 
+std::vector<Strategy> AllStrategies() { return {std::begin(kAllStrategies), std::end(kAllStrategies)}; }
+
 std::string StrategyNames() {
   std::string out;
   for (std::size_t i = 0; i < std::size(kAllStrategies); ++i) {

@@ -4,6 +4,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "engine/equilibrium.h"
 #include "engine/scene.h"
@@ -28,5 +29,6 @@ std::string_view StopReasonName(StopReason reason);
 
 // "default or paper": the accepted names, for messages.
 std::string StrategyNames();
+std::vector<Strategy> AllStrategies();
 
 }  // namespace springfit::proto

@@ -57,6 +57,24 @@ Json TraceRowToJson(const TraceRow& r) {
   return j;
 }
 
+TraceRow TraceRowFromJson(const Json& j, const std::string& path) {
+  ExpectKeys(j, path, {"generation", "wall_seconds", "evaluations", "cache_hits", "best_cost",
+                       "best_normalized_error", "mean_cost", "missing", "extra"});
+  auto at = [&](const char* key) -> const Json& { return RequiredMember(j, path, key); };
+  auto count = [&](const char* key) { return at(key).is_null() ? -1 : ReadInt(at(key), JoinPath(path, key)); };
+  TraceRow r;
+  r.generation = ReadInt(at("generation"), JoinPath(path, "generation"));
+  r.wall_seconds = ReadNumber(at("wall_seconds"), JoinPath(path, "wall_seconds"));
+  r.evaluations = static_cast<std::int64_t>(ReadUint64(at("evaluations"), JoinPath(path, "evaluations")));
+  r.cache_hits = static_cast<std::int64_t>(ReadUint64(at("cache_hits"), JoinPath(path, "cache_hits")));
+  r.best_cost = ReadNumber(at("best_cost"), JoinPath(path, "best_cost"));
+  r.best_normalized_error = ReadNumber(at("best_normalized_error"), JoinPath(path, "best_normalized_error"));
+  r.mean_cost = ReadNumber(at("mean_cost"), JoinPath(path, "mean_cost"));
+  r.missing = count("missing");
+  r.extra = count("extra");
+  return r;
+}
+
 Json SearchResultToJson(const Problem& problem, const SearchResult& r, bool with_trace) {
   Json j;
   j["scene"] = problem.scene().name;

@@ -12,6 +12,8 @@ namespace springfit::proto {
 
 Json SearchOptionsToJson(const SearchOptions& options);
 Json TraceRowToJson(const TraceRow& row);
+// Reads what TraceRowToJson wrote; throws InputError naming the path.
+TraceRow TraceRowFromJson(const Json& json, const std::string& path);
 // The result object; the trace is included only when `with_trace`.
 Json SearchResultToJson(const Problem& problem, const SearchResult& result, bool with_trace);
 

@@ -29,6 +29,8 @@ class FitnessCache {
 
   // The genome packed 8 genes per byte: the cache key.
   static std::string Key(const Genome& genome);
+  // The genome of a key (`genes` long; bits beyond the key are 0).
+  static Genome Unpack(const std::string& key, int genes);
 
   std::optional<Fitness> Find(const std::string& key) const;
   // No-op when the key is present; evicts the oldest entry when full.

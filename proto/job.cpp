@@ -1,0 +1,98 @@
+#include "proto/job.h"
+
+#include <array>
+#include <utility>
+
+#include "engine/input_error.h"
+#include "proto/search_codec.h"
+
+namespace springfit::proto {
+namespace {
+
+constexpr std::array<std::pair<JobState, std::string_view>, 5> kStateNames{{
+    {JobState::kQueued, "queued"},
+    {JobState::kRunning, "running"},
+    {JobState::kSucceeded, "succeeded"},
+    {JobState::kFailed, "failed"},
+    {JobState::kCancelled, "cancelled"},
+}};
+
+// Times of events that have not happened yet are null.
+Json TimeOrNull(double t) { return t > 0.0 ? Json(t) : Json(nullptr); }
+double ReadTime(const Json& j, const std::string& path) { return j.is_null() ? 0.0 : ReadNumber(j, path); }
+
+}  // namespace
+
+std::string_view JobStateName(JobState state) {
+  for (const auto& [s, name] : kStateNames) {
+    if (s == state) return name;
+  }
+  return "unknown";
+}
+
+std::optional<JobState> ParseJobState(std::string_view name) {
+  for (const auto& [s, n] : kStateNames) {
+    if (n == name) return s;
+  }
+  return std::nullopt;
+}
+
+Json JobToJson(const JobRecord& job) {
+  Json j;
+  j["job_id"] = job.id;
+  j["label"] = job.label;
+  j["priority"] = job.priority;
+  j["seed"] = job.seed;
+  j["idempotency_key"] = job.idempotency_key.empty() ? Json(nullptr) : Json(job.idempotency_key);
+  j["state"] = JobStateName(job.state);
+  j["error"] = job.error.empty() ? Json(nullptr) : Json(job.error);
+  j["scene"] = job.scene_name;
+  j["genes"] = job.genes;
+  j["strategy"] = job.strategy;
+  j["max_generations"] = job.max_generations;
+  j["created_at"] = TimeOrNull(job.created_at);
+  j["started_at"] = TimeOrNull(job.started_at);
+  j["finished_at"] = TimeOrNull(job.finished_at);
+  j["progress"] = job.progress ? TraceRowToJson(*job.progress) : Json(nullptr);
+  j["checkpoint_generation"] = job.checkpoint_generation >= 0 ? Json(job.checkpoint_generation) : Json(nullptr);
+  j["exact"] = job.exact ? Json(*job.exact) : Json(nullptr);
+  return j;
+}
+
+JobRecord JobFromJson(const Json& j) {
+  const std::string path = "result";
+  ExpectKeys(j, path, {"job_id", "label", "priority", "seed", "idempotency_key", "state", "error", "scene", "genes",
+                       "strategy", "max_generations", "created_at", "started_at", "finished_at", "progress",
+                       "checkpoint_generation", "exact"});
+  auto at = [&](const char* key) -> const Json& { return RequiredMember(j, path, key); };
+  auto sub = [&](const char* key) { return JoinPath(path, key); };
+  JobRecord job;
+  job.id = static_cast<std::int64_t>(ReadUint64(at("job_id"), sub("job_id")));
+  job.label = ReadString(at("label"), sub("label"));
+  job.priority = ReadInt(at("priority"), sub("priority"));
+  job.seed = ReadUint64(at("seed"), sub("seed"));
+  if (!at("idempotency_key").is_null()) job.idempotency_key = ReadString(at("idempotency_key"), sub("idempotency_key"));
+  const std::string state = ReadString(at("state"), sub("state"));
+  const auto parsed = ParseJobState(state);
+  if (!parsed) throw InputError(sub("state"), "unknown job state '" + state + "'");
+  job.state = *parsed;
+  if (!at("error").is_null()) job.error = ReadString(at("error"), sub("error"));
+  job.scene_name = ReadString(at("scene"), sub("scene"));
+  job.genes = ReadInt(at("genes"), sub("genes"));
+  job.strategy = ReadString(at("strategy"), sub("strategy"));
+  job.max_generations = ReadInt(at("max_generations"), sub("max_generations"));
+  job.created_at = ReadTime(at("created_at"), sub("created_at"));
+  job.started_at = ReadTime(at("started_at"), sub("started_at"));
+  job.finished_at = ReadTime(at("finished_at"), sub("finished_at"));
+  if (!at("progress").is_null()) job.progress = TraceRowFromJson(at("progress"), sub("progress"));
+  if (!at("checkpoint_generation").is_null()) {
+    job.checkpoint_generation = ReadInt(at("checkpoint_generation"), sub("checkpoint_generation"));
+  }
+  if (!at("exact").is_null()) {
+    if (!at("exact").is_boolean()) throw InputError(sub("exact"), "expected a boolean");
+    job.exact = at("exact").get<bool>();
+  }
+  return job;
+}
+
+}  // namespace springfit::proto

@@ -1,0 +1,44 @@
+// A job of the daemon as the store keeps it and the wire shows it (proto/RPC.md, "Job").
+#pragma once
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "engine/search/genetic_search.h"
+#include "proto/json_reader.h"
+
+namespace springfit::proto {
+
+// queued -> running -> succeeded | failed | cancelled. A running job interrupted by a
+// shutdown or a crash is running again (from its checkpoint) after the restart.
+enum class JobState { kQueued, kRunning, kSucceeded, kFailed, kCancelled };
+
+std::string_view JobStateName(JobState state);
+std::optional<JobState> ParseJobState(std::string_view name);
+inline bool IsFinal(JobState s) { return s != JobState::kQueued && s != JobState::kRunning; }
+
+struct JobRecord {
+  std::int64_t id = 0;
+  std::string label;
+  int priority = 0;              // higher runs first; equal priorities in submission order
+  std::uint64_t seed = 1;
+  std::string idempotency_key;   // empty: none
+  JobState state = JobState::kQueued;
+  std::string error;             // why it failed
+  std::string scene_name;
+  int genes = 0;
+  std::string strategy;
+  int max_generations = 0;
+  double created_at = 0.0;       // Unix time in seconds; 0 = not yet
+  double started_at = 0.0;
+  double finished_at = 0.0;
+  std::optional<TraceRow> progress;  // the last generation stored (or seen, while running)
+  int checkpoint_generation = -1;    // generation of the last checkpoint; -1 = none
+  std::optional<bool> exact;         // when finished and the reference topology is known
+};
+
+Json JobToJson(const JobRecord& job);
+JobRecord JobFromJson(const Json& json);  // the client's reading; throws InputError
+
+}  // namespace springfit::proto

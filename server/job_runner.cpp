@@ -1,0 +1,123 @@
+#include "server/job_runner.h"
+
+#include <chrono>
+#include <limits>
+
+#include <spdlog/spdlog.h>
+
+#include "engine/search/run_search.h"
+#include "proto/scene_codec.h"
+#include "proto/search_codec.h"
+#include "server/checkpoint_codec.h"
+#include "server/trace_policy.h"
+#include "server/unix_time.h"
+
+namespace springfit::server {
+namespace {
+
+double SecondsSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+}  // namespace
+
+JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job, const JobRunnerOptions& options,
+                 const JobControl& control) {
+  JobRecord record = job;
+  try {
+    const std::optional<std::string> scene = store.GetScene(job.id);
+    if (!scene) throw std::runtime_error("the job's scene is missing from the store");
+    const Problem problem = Problem::Build(proto::SceneFromText(*scene));
+    const SearchOptions search_options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
+    const int genes = problem.gene_count();
+
+    RunOptions run;
+    run.pool = &pool;
+    int resumed_at = -1;
+    if (const std::optional<std::string> bytes = store.GetCheckpoint(job.id)) {
+      try {
+        run.resume_from = DecodeCheckpoint(*bytes, genes);
+        resumed_at = run.resume_from->generation;
+      } catch (const std::exception& e) {
+        spdlog::warn("job {}: checkpoint unusable ({}); starting again from generation 0", job.id, e.what());
+      }
+    }
+    // Rows and improvements after the checkpoint are about to be produced again.
+    store.RewindTo(job.id, resumed_at);
+    if (record.started_at == 0.0) record.started_at = UnixNow();
+    record.state = JobState::kRunning;
+    store.MarkRunning(job.id, record.started_at);
+    if (resumed_at >= 0) {
+      spdlog::info("job {} running, resumed from its checkpoint at generation {}", job.id, resumed_at);
+    } else {
+      spdlog::info("job {} running ({}, {} genes, strategy {}, seed {})", job.id, record.scene_name, genes,
+                   record.strategy, record.seed);
+    }
+
+    ProgressBatch batch;
+    auto last_flush = std::chrono::steady_clock::now();
+    auto last_checkpoint = last_flush;
+    double best_error = run.resume_from ? run.resume_from->best_fitness.normalized_error
+                                        : std::numeric_limits<double>::infinity();
+    bool interrupted = false;
+    run.on_generation = [&](const TraceRow& row, const GeneticSearch& search) {
+      const bool improved = row.best_normalized_error < best_error;
+      if (improved) {
+        best_error = row.best_normalized_error;
+        batch.improvements.push_back({row.generation, row.wall_seconds, row.best_cost, row.best_normalized_error,
+                                      row.missing, row.extra, search.state().best});
+      }
+      const bool finished = search.Finished();
+      const bool cancel = control.cancel && control.cancel->load();
+      const bool shutdown = !finished && !cancel && control.shutdown && control.shutdown->load();
+      // A cancelled job's last row is kept; a shut-down job's is not special: it will be
+      // produced again, and kept or not by the same rule, when the job resumes.
+      if (KeepTraceRow(row.generation, improved, finished || cancel)) batch.trace.push_back(row);
+      batch.latest = row;
+      if (control.on_generation) control.on_generation(row);
+      if (shutdown || (!finished && !cancel && SecondsSince(last_checkpoint) >= options.checkpoint_seconds)) {
+        batch.checkpoint = EncodeCheckpoint(search.Snapshot(), genes);
+        batch.checkpoint_generation = row.generation;
+        record.checkpoint_generation = row.generation;
+        last_checkpoint = std::chrono::steady_clock::now();
+      }
+      if (batch.checkpoint || finished || cancel || SecondsSince(last_flush) >= options.flush_seconds) {
+        store.SaveProgress(job.id, batch);
+        batch = ProgressBatch{};
+        last_flush = std::chrono::steady_clock::now();
+      }
+      record.progress = row;
+      interrupted = shutdown;
+      return !cancel && !shutdown;
+    };
+    const SearchResult result = RunSearch(problem, search_options, run);
+    if (interrupted && result.stop == StopReason::kCancelled) {
+      spdlog::info("job {} interrupted by the shutdown at generation {}; it resumes from there at the next start",
+                   job.id, result.generations);
+      return record;
+    }
+    proto::Json json = proto::SearchResultToJson(problem, result, false);
+    json["job_id"] = job.id;
+    record.state = result.stop == StopReason::kCancelled ? JobState::kCancelled : JobState::kSucceeded;
+    record.exact = result.exact();
+    record.finished_at = UnixNow();
+    store.MarkFinished(job.id, record.state, "", json.dump(), record.exact, record.finished_at);
+    spdlog::info("job {} {} after {} generations, {:.3f} s, normalized error {:.3g}{}", job.id,
+                 proto::JobStateName(record.state), result.generations, result.wall_seconds,
+                 result.evaluation.normalized_error,
+                 record.exact ? (*record.exact ? ", exact" : ", not exact") : "");
+  } catch (const std::exception& e) {
+    record.state = JobState::kFailed;
+    record.error = e.what();
+    record.finished_at = UnixNow();
+    spdlog::error("job {} failed: {}", job.id, record.error);
+    try {
+      store.MarkFinished(job.id, record.state, record.error, "", std::nullopt, record.finished_at);
+    } catch (const std::exception& e2) {
+      spdlog::error("job {}: cannot record the failure: {}", job.id, e2.what());
+    }
+  }
+  return record;
+}
+
+}  // namespace springfit::server

@@ -1,0 +1,30 @@
+// Runs one job of the daemon: builds its problem from the stored scene, resumes from its
+// checkpoint when it has one, searches, and records trace, improvements, checkpoints and the
+// result in the store as it goes.
+#pragma once
+#include <atomic>
+#include <functional>
+
+#include "engine/search/worker_pool.h"
+#include "server/job_store.h"
+
+namespace springfit::server {
+
+struct JobRunnerOptions {
+  double flush_seconds = 1.0;        // trace rows and progress reach the store at least this often
+  double checkpoint_seconds = 10.0;  // a checkpoint at least this often (and at a shutdown)
+};
+
+struct JobControl {
+  const std::atomic<bool>* cancel = nullptr;    // job.cancel: stop, keep the best so far
+  const std::atomic<bool>* shutdown = nullptr;  // the daemon stops: checkpoint, stay running
+  // Every generation, on the job's thread (throttling is the listener's business).
+  std::function<void(const TraceRow&)> on_generation;
+};
+
+// The job's record after the run: finished (succeeded, failed, cancelled), or still running
+// when a shutdown interrupted it (it resumes from its checkpoint at the next start).
+JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job, const JobRunnerOptions& options,
+                 const JobControl& control);
+
+}  // namespace springfit::server

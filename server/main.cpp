@@ -1,0 +1,183 @@
+// springfitd: the identification daemon (README.md, "The daemon"; proto/RPC.md).
+#include <unistd.h>
+
+#include <algorithm>
+#include <csignal>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <thread>
+
+#include <CLI/CLI.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/address.hpp>
+#include <boost/asio/signal_set.hpp>
+#include <spdlog/spdlog.h>
+
+#include "proto/scene_codec.h"
+#include "proto/server_address.h"
+#include "server/rpc_service.h"
+#include "server/scheduler.h"
+#include "server/sqlite_store.h"
+#include "server/tcp_server.h"
+
+namespace {
+
+namespace sf = springfit::server;
+
+struct DaemonArgs {
+  std::string listen = "127.0.0.1:7117";
+  std::string db = "springfit.db";
+  int workers = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  std::optional<int> max_running;
+  std::string token_file;
+  std::string port_file;
+  std::string log_level = "info";
+  double checkpoint_seconds = 10.0;
+  double idle_seconds = 300.0;
+  double shutdown_seconds = 10.0;
+  sf::ServiceLimits limits;
+  int max_connections = 256;
+  std::size_t max_message_bytes = std::size_t{16} << 20;
+};
+
+std::string ReadToken(const std::string& path) {
+  std::string token = springfit::proto::ReadFile(path);
+  while (!token.empty() && std::isspace(static_cast<unsigned char>(token.back()))) token.pop_back();
+  if (token.empty()) throw std::runtime_error("the token file " + path + " is empty");
+  if (token.size() < 16) throw std::runtime_error("the token in " + path + " is shorter than 16 characters");
+  return token;
+}
+
+int RunDaemon(const DaemonArgs& args) {
+  const auto level = spdlog::level::from_str(args.log_level);
+  spdlog::set_level(level);
+  spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
+
+  const springfit::proto::ServerAddress address = springfit::proto::ParseServerAddress(args.listen, "--listen");
+  const std::string token = args.token_file.empty() ? std::string() : ReadToken(args.token_file);
+  boost::system::error_code ec;
+  const auto ip = boost::asio::ip::make_address(address.host, ec);
+  if (ec) throw std::runtime_error("--listen: '" + address.host + "' is not an IP address");
+  if (!ip.is_loopback() && token.empty()) {
+    throw std::runtime_error("refusing to listen on " + args.listen +
+                             " without a token: other hosts could submit and delete jobs (--token-file FILE)");
+  }
+
+  sf::SqliteStore store(args.db);
+  sf::SchedulerOptions scheduler_options;
+  scheduler_options.workers = args.workers;
+  scheduler_options.max_running = args.max_running.value_or(args.workers);
+  scheduler_options.runner.checkpoint_seconds = args.checkpoint_seconds;
+  sf::Scheduler scheduler(store, scheduler_options);
+
+  sf::ServiceOptions service_options;
+  service_options.token = token;
+  service_options.limits = args.limits;
+  service_options.workers = scheduler_options.workers;
+  service_options.max_running = scheduler_options.max_running;
+  sf::RpcService service(store, scheduler, service_options);
+
+  boost::asio::io_context io;
+  sf::TcpServerOptions net;
+  net.host = address.host;
+  net.port = address.port;
+  net.max_connections = args.max_connections;
+  net.max_message_bytes = args.max_message_bytes;
+  net.idle_seconds = args.idle_seconds;
+  sf::TcpServer server(io, service, net);
+  server.Start();
+
+  const auto unfinished = store.UnfinishedJobs().size();
+  scheduler.Start();
+  spdlog::info("springfitd listening on {}:{} (database {}, {} workers, {} jobs at once{}{})", address.host,
+               server.port(), args.db, scheduler_options.workers, scheduler_options.max_running,
+               token.empty() ? "" : ", token required",
+               unfinished ? ", " + std::to_string(unfinished) + " unfinished jobs queued" : "");
+  if (!args.port_file.empty()) {
+    const std::string tmp = args.port_file + ".tmp";
+    std::ofstream(tmp) << server.port() << "\n";
+    std::rename(tmp.c_str(), args.port_file.c_str());  // readers never see a half-written file
+  }
+
+  boost::asio::signal_set signals(io, SIGINT, SIGTERM);
+  signals.async_wait([&](const boost::system::error_code& error, int signal) {
+    if (error) return;
+    spdlog::info("signal {}: stopping (running jobs checkpoint and resume at the next start)", signal);
+    service.set_stopping();
+    server.Stop();
+    const auto timeout = std::chrono::milliseconds(static_cast<long long>(args.shutdown_seconds * 1000));
+    if (!scheduler.Stop(timeout)) {
+      // A job in a long generation: leave it as a crash would, to resume from its last checkpoint.
+      spdlog::warn("jobs still running after {:.1f} s; exiting, they resume from their last checkpoint",
+                   args.shutdown_seconds);
+      spdlog::shutdown();
+      std::_Exit(0);
+    }
+    io.stop();
+  });
+  std::signal(SIGPIPE, SIG_IGN);
+  io.run();
+  spdlog::info("springfitd stopped");
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"springfitd: the springfit identification daemon (JSON-RPC over TCP, proto/RPC.md)"};
+  app.set_version_flag("--version", "springfitd 0.1.0");
+  DaemonArgs args;
+  app.add_option("--listen", args.listen, "Address to listen on, HOST:PORT (port 0: any free port)")->capture_default_str();
+  app.add_option("--db", args.db, "SQLite database file (created when missing)")->capture_default_str();
+  app.add_option("--workers", args.workers, "Threads for fitness evaluations, all jobs together")
+      ->check(CLI::Range(1, 1024))
+      ->capture_default_str();
+  app.add_option("--jobs", args.max_running, "Jobs run at once (default: --workers)")->check(CLI::Range(1, 1024));
+  app.add_option("--token-file", args.token_file, "File holding the token clients must present (session.auth)");
+  app.add_option("--port-file", args.port_file, "Write the port listened on to this file once listening");
+  app.add_option("--log-level", args.log_level, "trace, debug, info, warn, error or off")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}))
+      ->capture_default_str();
+  app.add_option("--checkpoint-seconds", args.checkpoint_seconds, "Checkpoint running jobs at least this often")
+      ->check(CLI::Range(0.0, 86400.0))
+      ->capture_default_str();
+  app.add_option("--idle-seconds", args.idle_seconds, "Close connections idle this long (not while watching a job)")
+      ->check(CLI::Range(1.0, 86400.0))
+      ->capture_default_str();
+  app.add_option("--shutdown-seconds", args.shutdown_seconds,
+                 "On SIGTERM, wait this long for running jobs to checkpoint")
+      ->check(CLI::Range(0.0, 3600.0))
+      ->capture_default_str();
+  app.add_option("--max-queued", args.limits.max_queued, "Queued jobs, all clients together")
+      ->check(CLI::Range(1, 100000000))
+      ->capture_default_str();
+  app.add_option("--max-connections", args.max_connections, "Open connections")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  app.add_option("--max-message-bytes", args.max_message_bytes, "Bytes in one JSON-RPC message")
+      ->check(CLI::Range(std::size_t{1024}, std::size_t{1} << 30))
+      ->capture_default_str();
+  app.add_option("--max-nodes", args.limits.max_nodes, "Nodes in a submitted scene")
+      ->check(CLI::Range(2, 100000000))
+      ->capture_default_str();
+  app.add_option("--max-genes", args.limits.max_genes, "Candidate springs in a submitted scene")
+      ->check(CLI::Range(1, 100000000))
+      ->capture_default_str();
+  app.add_option("--max-generations", args.limits.max_generations, "Generation limit of a submitted job")
+      ->check(CLI::Range(1, 1000000000))
+      ->capture_default_str();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? 0 : 64;
+  }
+  try {
+    return RunDaemon(args);
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    std::cerr << "springfitd: " << e.what() << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,431 @@
+#include "server/rpc_service.h"
+
+#include <algorithm>
+#include <limits>
+#include <memory>
+
+#include <spdlog/spdlog.h>
+
+#include "engine/input_error.h"
+#include "engine/problem.h"
+#include "engine/search/search_options.h"
+#include "proto/names.h"
+#include "proto/rpc.h"
+#include "proto/scene_codec.h"
+#include "proto/search_codec.h"
+#include "server/unix_time.h"
+
+namespace springfit::server {
+namespace rpc = proto::rpc;
+using proto::Json;
+
+namespace {
+
+constexpr const char* kVersion = "0.1.0";
+constexpr int kProtocolVersion = 1;
+constexpr std::size_t kMaxLabelBytes = 200;
+
+// Takes a time that depends only on the length of the token given, not on how much of it
+// is right.
+bool SameToken(const std::string& expected, const std::string& given) {
+  std::size_t diff = expected.size() ^ given.size();
+  for (std::size_t i = 0; i < given.size(); ++i) {
+    const auto e = static_cast<unsigned char>(i < expected.size() ? expected[i] : 0);
+    diff |= static_cast<unsigned char>(e ^ static_cast<unsigned char>(given[i]));
+  }
+  return diff == 0;
+}
+
+std::string ParamPath(std::string_view key) { return proto::JoinPath("params", key); }
+
+const Json* Optional(const Json& params, const char* key) {
+  const auto it = params.find(key);
+  return it == params.end() || it->is_null() ? nullptr : &*it;
+}
+
+std::string ReadBoundedString(const Json& v, const std::string& path) {
+  std::string s = proto::ReadString(v, path);
+  if (s.size() > kMaxLabelBytes) throw InputError(path, "longer than " + std::to_string(kMaxLabelBytes) + " bytes");
+  return s;
+}
+
+int ReadPageLimit(const Json& params, int default_limit, int max) {
+  const Json* v = Optional(params, "limit");
+  if (!v) return default_limit;
+  const int limit = proto::ReadInt(*v, ParamPath("limit"));
+  if (limit < 1 || limit > max) {
+    throw InputError(ParamPath("limit"), "must be in [1, " + std::to_string(max) + "]");
+  }
+  return limit;
+}
+
+[[noreturn]] void LimitExceeded(const std::string& what, std::int64_t value, std::int64_t max) {
+  Json data;
+  data["limit"] = what;
+  data["value"] = value;
+  data["max"] = max;
+  throw rpc::RpcError(rpc::kLimitExceeded,
+                      what + " " + std::to_string(value) + " exceeds this server's limit of " + std::to_string(max), data);
+}
+
+bool IsValidId(const Json& id) { return id.is_null() || id.is_string() || id.is_number(); }
+
+}  // namespace
+
+RpcService::RpcService(JobStore& store, Scheduler& scheduler, ServiceOptions options)
+    : store_(store), scheduler_(scheduler), options_(std::move(options)) {}
+
+std::string RpcService::HandleMessage(std::string_view text, SessionContext& session) {
+  Json message;
+  try {
+    message = proto::ParseJson(text);
+  } catch (const InputError& e) {
+    return rpc::Serialize(rpc::Error(nullptr, rpc::kParseError, std::string("parse error: ") + e.what()));
+  }
+  const Json response = HandleJson(message, session);
+  return response.is_null() ? std::string() : rpc::Serialize(response);
+}
+
+Json RpcService::HandleJson(const Json& message, SessionContext& session) {
+  if (!message.is_array()) return HandleRequest(message, session);
+  if (message.empty()) return rpc::Error(nullptr, rpc::kInvalidRequest, "invalid request: an empty batch");
+  if (static_cast<int>(message.size()) > options_.limits.max_batch) {
+    Json data;
+    data["limit"] = "max_batch";
+    data["value"] = message.size();
+    data["max"] = options_.limits.max_batch;
+    return rpc::Error(nullptr, rpc::kLimitExceeded,
+                      "a batch of " + std::to_string(message.size()) + " requests exceeds this server's limit of " +
+                          std::to_string(options_.limits.max_batch),
+                      data);
+  }
+  Json responses = Json::array();
+  for (const Json& request : message) {
+    Json response = HandleRequest(request, session);
+    if (!response.is_null()) responses.push_back(std::move(response));
+  }
+  return responses.empty() ? Json(nullptr) : responses;
+}
+
+void RpcService::EndSession(SessionContext& session) {
+  for (std::uint64_t token : session.watches) scheduler_.Unwatch(token);
+  session.watches.clear();
+}
+
+Json RpcService::HandleRequest(const Json& request, SessionContext& session) {
+  if (!request.is_object()) return rpc::Error(nullptr, rpc::kInvalidRequest, "invalid request: not an object");
+  const auto id_it = request.find("id");
+  const bool is_notification = id_it == request.end();
+  const Json id = is_notification || !IsValidId(*id_it) ? Json(nullptr) : *id_it;
+  auto invalid = [&](const std::string& why) { return rpc::Error(id, rpc::kInvalidRequest, "invalid request: " + why); };
+  if (!is_notification && !IsValidId(*id_it)) return invalid("id must be a string, a number or null");
+  const auto version = request.find("jsonrpc");
+  if (version == request.end() || *version != "2.0") return invalid("jsonrpc must be \"2.0\"");
+  const auto method = request.find("method");
+  if (method == request.end() || !method->is_string()) return invalid("method must be a string");
+  for (const auto& [key, value] : request.items()) {
+    if (key != "jsonrpc" && key != "id" && key != "method" && key != "params") return invalid("unknown member '" + key + "'");
+  }
+  Json params = Json::object();
+  if (const auto p = request.find("params"); p != request.end()) {
+    if (p->is_array()) {
+      return rpc::Error(id, rpc::kInvalidParams, "invalid params: springfit methods take named params (an object)");
+    }
+    if (!p->is_object()) return invalid("params must be an object");
+    params = *p;
+  }
+  Json response;
+  try {
+    response = rpc::Result(id, Dispatch(method->get<std::string>(), params, session));
+  } catch (const rpc::RpcError& e) {
+    response = rpc::Error(id, e.code(), e.what(), e.data());
+  } catch (const InputError& e) {
+    Json data;
+    data["path"] = e.path();
+    response = rpc::Error(id, rpc::kInvalidParams, std::string("invalid params: ") + e.what(), data);
+  } catch (const std::exception& e) {
+    spdlog::error("{}: internal error: {}", method->get<std::string>(), e.what());
+    response = rpc::Error(id, rpc::kInternalError, std::string("internal error: ") + e.what());
+  }
+  return is_notification ? Json(nullptr) : response;
+}
+
+Json RpcService::Dispatch(const std::string& method, const Json& params, SessionContext& session) {
+  if (method == "server.info") return ServerInfo();
+  if (method == "session.auth") return SessionAuth(params, session);
+  using Handler = Json (RpcService::*)(const Json&);
+  static const std::pair<const char*, Handler> kJobMethods[] = {
+      {"job.submit", &RpcService::JobSubmit}, {"job.get", &RpcService::JobGet},
+      {"job.result", &RpcService::JobResult}, {"job.trace", &RpcService::JobTrace},
+      {"job.list", &RpcService::JobList},     {"job.cancel", &RpcService::JobCancel},
+      {"job.delete", &RpcService::JobDelete},
+  };
+  const bool known = method == "job.watch" || std::any_of(std::begin(kJobMethods), std::end(kJobMethods),
+                                                          [&](const auto& m) { return method == m.first; });
+  if (!known) throw rpc::RpcError(rpc::kMethodNotFound, "method not found: " + method);
+  if (!options_.token.empty() && !session.authenticated) {
+    throw rpc::RpcError(rpc::kUnauthorized, "unauthorized: call session.auth with the server's token first");
+  }
+  if (method == "job.watch") return JobWatch(params, session);
+  for (const auto& [name, handler] : kJobMethods) {
+    if (method == name) return (this->*handler)(params);
+  }
+  throw rpc::RpcError(rpc::kMethodNotFound, "method not found: " + method);
+}
+
+Json RpcService::ServerInfo() {
+  Json j;
+  j["name"] = "springfitd";
+  j["version"] = kVersion;
+  j["protocol"] = kProtocolVersion;
+  j["auth_required"] = !options_.token.empty();
+  j["workers"] = options_.workers;
+  j["max_running"] = options_.max_running;
+  j["running"] = scheduler_.running();
+  j["queued"] = scheduler_.queued();
+  Json strategies = Json::array();
+  for (Strategy s : proto::AllStrategies()) strategies.push_back(proto::StrategyName(s));
+  j["strategies"] = std::move(strategies);
+  Json limits;
+  limits["max_nodes"] = options_.limits.max_nodes;
+  limits["max_genes"] = options_.limits.max_genes;
+  limits["max_generations"] = options_.limits.max_generations;
+  limits["max_queued"] = options_.limits.max_queued;
+  limits["max_batch"] = options_.limits.max_batch;
+  limits["max_page"] = options_.limits.max_page;
+  j["limits"] = limits;
+  return j;
+}
+
+Json RpcService::SessionAuth(const Json& params, SessionContext& session) {
+  proto::ExpectKeys(params, "params", {"token"});
+  const std::string token = proto::ReadString(proto::RequiredMember(params, "params", "token"), ParamPath("token"));
+  if (options_.token.empty()) {
+    session.authenticated = true;
+  } else if (SameToken(options_.token, token)) {
+    session.authenticated = true;
+  } else {
+    session.authenticated = false;
+    spdlog::warn("session.auth: wrong token");
+    throw rpc::RpcError(rpc::kUnauthorized, "unauthorized: wrong token");
+  }
+  Json j;
+  j["authenticated"] = true;
+  return j;
+}
+
+Json RpcService::JobSubmit(const Json& params) {
+  proto::ExpectKeys(params, "params", {"scene", "label", "priority", "seed", "idempotency_key"});
+  if (stopping()) throw rpc::RpcError(rpc::kBusy, "busy: the server is shutting down");
+  NewJob job;
+  JobRecord& r = job.record;
+  if (const Json* v = Optional(params, "label")) r.label = ReadBoundedString(*v, ParamPath("label"));
+  if (const Json* v = Optional(params, "priority")) {
+    r.priority = proto::ReadInt(*v, ParamPath("priority"));
+    if (r.priority < -1000 || r.priority > 1000) throw InputError(ParamPath("priority"), "must be in [-1000, 1000]");
+  }
+  if (const Json* v = Optional(params, "idempotency_key")) {
+    r.idempotency_key = ReadBoundedString(*v, ParamPath("idempotency_key"));
+    if (r.idempotency_key.empty()) throw InputError(ParamPath("idempotency_key"), "must not be empty");
+  }
+  std::optional<std::uint64_t> seed;
+  if (const Json* v = Optional(params, "seed")) seed = proto::ReadUint64(*v, ParamPath("seed"));
+  const Json& scene_json = proto::RequiredMember(params, "params", "scene");
+  if (!scene_json.is_object()) throw InputError(ParamPath("scene"), "expected a scene object (proto/SCENE.md)");
+
+  // The scene is validated in full here, so that a bad one is refused at the door rather
+  // than failing later as a job.
+  std::optional<Problem> problem;
+  try {
+    Scene scene = proto::SceneFromJson(scene_json);
+    if (scene.node_count() > options_.limits.max_nodes) {
+      LimitExceeded("max_nodes", scene.node_count(), options_.limits.max_nodes);
+    }
+    if (scene.search.max_generations > options_.limits.max_generations) {
+      LimitExceeded("max_generations", scene.search.max_generations, options_.limits.max_generations);
+    }
+    if (seed) scene.search.seed = *seed;
+    problem = Problem::Build(std::move(scene));
+  } catch (const InputError& e) {
+    Json data;
+    data["path"] = e.path();
+    throw rpc::RpcError(rpc::kInvalidScene, std::string("invalid scene: ") + e.what(), data);
+  }
+  if (problem->gene_count() > options_.limits.max_genes) {
+    LimitExceeded("max_genes", problem->gene_count(), options_.limits.max_genes);
+  }
+  const Scene& scene = problem->scene();
+  const SearchOptions options = ResolveSearchOptions(scene.search, problem->gene_count());
+  r.seed = scene.search.seed;
+  r.scene_name = scene.name;
+  r.genes = problem->gene_count();
+  r.strategy = proto::StrategyName(scene.search.strategy);
+  r.max_generations = options.max_generations;
+  r.created_at = UnixNow();
+  job.scene_json = proto::SceneToJson(scene).dump();
+  if (store_.CountQueued() >= options_.limits.max_queued) {
+    throw rpc::RpcError(rpc::kBusy, "busy: " + std::to_string(options_.limits.max_queued) + " jobs are queued already");
+  }
+  const JobStore::Created created = store_.CreateJob(job);
+  if (created.created) {
+    spdlog::info("job {} queued ({}, label '{}', priority {}, seed {})", created.job.id, r.scene_name, r.label,
+                 r.priority, r.seed);
+    scheduler_.Enqueue(created.job);
+  }
+  Json j;
+  j["created"] = created.created;
+  j["job"] = proto::JobToJson(created.job);
+  return j;
+}
+
+JobRecord RpcService::RequireJob(const Json& params) {
+  const Json& id_json = proto::RequiredMember(params, "params", "job_id");
+  const std::uint64_t id = proto::ReadUint64(id_json, ParamPath("job_id"));
+  std::optional<JobRecord> job;
+  if (id <= static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max())) {
+    job = store_.GetJob(static_cast<std::int64_t>(id));
+  }
+  if (!job) {
+    Json data;
+    data["job_id"] = id;
+    throw rpc::RpcError(rpc::kNoSuchJob, "no such job: " + std::to_string(id), data);
+  }
+  if (job->state == JobState::kRunning) {
+    if (auto live = scheduler_.LiveProgress(job->id)) job->progress = live;
+  }
+  return *job;
+}
+
+Json RpcService::JobGet(const Json& params) {
+  proto::ExpectKeys(params, "params", {"job_id"});
+  return proto::JobToJson(RequireJob(params));
+}
+
+Json RpcService::JobResult(const Json& params) {
+  proto::ExpectKeys(params, "params", {"job_id"});
+  const JobRecord job = RequireJob(params);
+  const std::optional<std::string> result = store_.GetResult(job.id);
+  if (!result) {
+    Json data;
+    data["state"] = proto::JobStateName(job.state);
+    std::string why = job.state == JobState::kFailed ? "job " + std::to_string(job.id) + " failed: " + job.error
+                      : proto::IsFinal(job.state)     ? "job " + std::to_string(job.id) + " was cancelled before it ran"
+                                                      : "job " + std::to_string(job.id) + " is " +
+                                                            std::string(proto::JobStateName(job.state)) + "; no result yet";
+    throw rpc::RpcError(rpc::kWrongState, why, data);
+  }
+  Json j = proto::ParseJson(*result);
+  j["state"] = proto::JobStateName(job.state);
+  return j;
+}
+
+Json RpcService::JobTrace(const Json& params) {
+  proto::ExpectKeys(params, "params", {"job_id", "after", "limit"});
+  const JobRecord job = RequireJob(params);
+  int after = -1;
+  if (const Json* v = Optional(params, "after")) after = proto::ReadInt(*v, ParamPath("after"));
+  const int limit = ReadPageLimit(params, 1000, options_.limits.max_page);
+  const std::vector<TraceRow> rows = store_.GetTrace(job.id, after, limit);
+  Json j;
+  j["job_id"] = job.id;
+  Json list = Json::array();
+  for (const TraceRow& row : rows) list.push_back(proto::TraceRowToJson(row));
+  j["rows"] = std::move(list);
+  j["next_after"] = static_cast<int>(rows.size()) == limit ? Json(rows.back().generation) : Json(nullptr);
+  return j;
+}
+
+Json RpcService::JobList(const Json& params) {
+  proto::ExpectKeys(params, "params", {"state", "label", "limit", "cursor"});
+  JobFilter filter;
+  if (const Json* v = Optional(params, "state")) {
+    const std::string name = proto::ReadString(*v, ParamPath("state"));
+    filter.state = proto::ParseJobState(name);
+    if (!filter.state) {
+      throw InputError(ParamPath("state"),
+                       "unknown state '" + name + "' (expected queued, running, succeeded, failed or cancelled)");
+    }
+  }
+  if (const Json* v = Optional(params, "label")) filter.label = ReadBoundedString(*v, ParamPath("label"));
+  filter.limit = ReadPageLimit(params, 100, options_.limits.max_page);
+  if (const Json* v = Optional(params, "cursor")) {
+    const std::uint64_t cursor = proto::ReadUint64(*v, ParamPath("cursor"));
+    if (cursor > static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max())) {
+      throw InputError(ParamPath("cursor"), "out of range");
+    }
+    filter.after_id = static_cast<std::int64_t>(cursor);
+  }
+  const JobPage page = store_.ListJobs(filter);
+  Json j;
+  Json jobs = Json::array();
+  for (JobRecord job : page.jobs) {
+    if (job.state == JobState::kRunning) {
+      if (auto live = scheduler_.LiveProgress(job.id)) job.progress = live;
+    }
+    jobs.push_back(proto::JobToJson(job));
+  }
+  j["jobs"] = std::move(jobs);
+  j["next_cursor"] = page.next_cursor ? Json(*page.next_cursor) : Json(nullptr);
+  return j;
+}
+
+Json RpcService::JobCancel(const Json& params) {
+  proto::ExpectKeys(params, "params", {"job_id"});
+  const JobRecord job = RequireJob(params);
+  const Scheduler::CancelOutcome outcome = scheduler_.Cancel(job.id);
+  if (outcome == Scheduler::CancelOutcome::kNotActive) {
+    Json data;
+    data["state"] = proto::JobStateName(job.state);
+    throw rpc::RpcError(rpc::kWrongState,
+                        "job " + std::to_string(job.id) + " is " + std::string(proto::JobStateName(job.state)) +
+                            "; only a queued or running job can be cancelled",
+                        data);
+  }
+  Json j;
+  j["job_id"] = job.id;
+  j["state"] = outcome == Scheduler::CancelOutcome::kCancelled ? "cancelled" : "cancelling";
+  return j;
+}
+
+Json RpcService::JobDelete(const Json& params) {
+  proto::ExpectKeys(params, "params", {"job_id"});
+  const JobRecord job = RequireJob(params);
+  if (!proto::IsFinal(job.state) || scheduler_.IsActive(job.id)) {
+    Json data;
+    data["state"] = proto::JobStateName(job.state);
+    throw rpc::RpcError(rpc::kWrongState,
+                        "job " + std::to_string(job.id) + " is " + std::string(proto::JobStateName(job.state)) +
+                            "; cancel it before deleting it",
+                        data);
+  }
+  store_.DeleteJob(job.id);
+  spdlog::info("job {} deleted", job.id);
+  Json j;
+  j["job_id"] = job.id;
+  j["deleted"] = true;
+  return j;
+}
+
+Json RpcService::JobWatch(const Json& params, SessionContext& session) {
+  proto::ExpectKeys(params, "params", {"job_id"});
+  const JobRecord before = RequireJob(params);
+  // job.finished at most once on this connection, whether the job's runner or this handler
+  // (for a job already finished) sends it.
+  auto finished_sent = std::make_shared<std::atomic<bool>>(false);
+  auto notify = session.notify;
+  if (notify) {
+    const std::uint64_t token = scheduler_.Watch(before.id, [notify, finished_sent](const Json& n) {
+      if (n.value("method", "") == "job.finished" && finished_sent->exchange(true)) return;
+      notify(n);
+    });
+    session.watches.push_back(token);
+  }
+  // Read again after registering: a job that finished in between is not missed.
+  const JobRecord job = RequireJob(params);
+  if (proto::IsFinal(job.state) && notify && !finished_sent->exchange(true)) {
+    notify(rpc::Notification("job.finished", proto::JobToJson(job)));
+  }
+  return proto::JobToJson(job);
+}
+
+}  // namespace springfit::server

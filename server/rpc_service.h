@@ -1,0 +1,82 @@
+// The daemon's JSON-RPC methods (proto/RPC.md): request validation, authentication, the
+// method table and every handler. No sockets: a network session hands it whole messages
+// and sends back what it returns, and the tests call it directly.
+#pragma once
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "proto/json_reader.h"
+#include "server/job_store.h"
+#include "server/scheduler.h"
+
+namespace springfit::server {
+
+struct ServiceLimits {
+  int max_nodes = 100000;           // nodes per scene
+  int max_genes = 2000000;          // candidate springs per scene
+  int max_generations = 100000000;  // a job's generation limit
+  int max_queued = 10000;           // queued jobs, all clients together
+  int max_batch = 100;              // requests in one JSON-RPC batch
+  int max_page = 10000;             // rows or jobs in one job.trace / job.list answer
+};
+
+struct ServiceOptions {
+  std::string token;  // empty: no authentication
+  ServiceLimits limits;
+  int workers = 1;      // for server.info
+  int max_running = 1;  // for server.info
+};
+
+// What the service knows of one connection.
+struct SessionContext {
+  bool authenticated = false;
+  // Sends a notification on this connection after any response being written (posts; must
+  // not block). Unset: notifications are dropped.
+  std::function<void(const proto::Json&)> notify;
+  std::vector<std::uint64_t> watches;
+};
+
+class RpcService {
+ public:
+  RpcService(JobStore& store, Scheduler& scheduler, ServiceOptions options);
+
+  // One framed message (a request, a notification or a batch) to the response text ("" when
+  // there is none: notifications only). Never throws.
+  std::string HandleMessage(std::string_view text, SessionContext& session);
+  // The same for a parsed message; null when there is no response.
+  proto::Json HandleJson(const proto::Json& message, SessionContext& session);
+  // The connection closed: its watches end.
+  void EndSession(SessionContext& session);
+
+  bool stopping() const { return stopping_.load(); }
+  void set_stopping() { stopping_.store(true); }
+
+ private:
+  proto::Json HandleRequest(const proto::Json& request, SessionContext& session);
+  proto::Json Dispatch(const std::string& method, const proto::Json& params, SessionContext& session);
+
+  proto::Json ServerInfo();
+  proto::Json SessionAuth(const proto::Json& params, SessionContext& session);
+  proto::Json JobSubmit(const proto::Json& params);
+  proto::Json JobGet(const proto::Json& params);
+  proto::Json JobResult(const proto::Json& params);
+  proto::Json JobTrace(const proto::Json& params);
+  proto::Json JobList(const proto::Json& params);
+  proto::Json JobCancel(const proto::Json& params);
+  proto::Json JobDelete(const proto::Json& params);
+  proto::Json JobWatch(const proto::Json& params, SessionContext& session);
+
+  // The job of params.job_id with its live progress, or kNoSuchJob.
+  JobRecord RequireJob(const proto::Json& params);
+
+  JobStore& store_;
+  Scheduler& scheduler_;
+  ServiceOptions options_;
+  std::atomic<bool> stopping_{false};
+};
+
+}  // namespace springfit::server

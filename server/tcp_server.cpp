@@ -1,0 +1,297 @@
+#include "server/tcp_server.h"
+
+#include <array>
+#include <chrono>
+#include <deque>
+#include <optional>
+#include <vector>
+
+#include <boost/asio/post.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/asio/write.hpp>
+#include <spdlog/spdlog.h>
+
+#include "proto/json_framer.h"
+#include "proto/rpc.h"
+
+namespace springfit::server {
+namespace asio = boost::asio;
+using asio::ip::tcp;
+namespace rpc = proto::rpc;
+
+class Session : public std::enable_shared_from_this<Session> {
+ public:
+  Session(TcpServer& server, tcp::socket socket)
+      : server_(server),
+        socket_(std::move(socket)),
+        idle_timer_(server.io_),
+        framer_(proto::JsonFramer::Options{server.options_.max_message_bytes, 64}) {
+    boost::system::error_code ec;
+    const auto remote = socket_.remote_endpoint(ec);
+    peer_ = ec ? std::string("?") : remote.address().to_string() + ":" + std::to_string(remote.port());
+  }
+
+  void Start() {
+    std::weak_ptr<Session> weak = weak_from_this();
+    asio::io_context& io = server_.io_;
+    context_.notify = [weak, &io](const proto::Json& notification) {
+      asio::post(io, [weak, notification] {
+        if (auto self = weak.lock()) self->Notify(notification);
+      });
+    };
+    ArmIdleTimer();
+    Read();
+  }
+
+  // Sends `text` and closes once everything queued is written.
+  void SendAndClose(std::string text) {
+    Send(std::move(text));
+    close_after_write_ = true;
+    if (!writing_) Close();
+  }
+
+  void Close() {
+    if (closed_) return;
+    closed_ = true;
+    boost::system::error_code ignored;
+    socket_.shutdown(tcp::socket::shutdown_both, ignored);
+    socket_.close(ignored);
+    idle_timer_.cancel();
+    // A handler still running owns the context; OnHandled ends the session then.
+    if (!handling_) server_.service_.EndSession(context_);
+    server_.Remove(shared_from_this());
+  }
+
+ private:
+  // Reads unless a read is outstanding, the connection is ending, or many messages wait:
+  // one client cannot queue unbounded work.
+  void Read() {
+    if (reading_ || closed_ || close_after_write_ || too_large_ || inbox_.size() >= 64) return;
+    reading_ = true;
+    socket_.async_read_some(asio::buffer(buffer_), [self = shared_from_this()](boost::system::error_code ec, std::size_t n) {
+      self->OnRead(ec, n);
+    });
+  }
+
+  void OnRead(boost::system::error_code ec, std::size_t n) {
+    reading_ = false;
+    if (closed_) return;
+    if (ec) {
+      if (ec != asio::error::eof && ec != asio::error::operation_aborted) {
+        spdlog::info("connection {}: read error: {}", peer_, ec.message());
+      }
+      if (!framer_.at_boundary()) spdlog::info("connection {}: closed in the middle of a message", peer_);
+      Close();
+      return;
+    }
+    last_activity_ = std::chrono::steady_clock::now();
+    for (proto::JsonFramer::Frame& frame : framer_.Feed(std::string_view(buffer_.data(), n))) {
+      switch (frame.kind) {
+        case proto::JsonFramer::Frame::Kind::kMessage:
+          inbox_.push_back(std::move(frame.text));
+          break;
+        case proto::JsonFramer::Frame::Kind::kMalformed:
+          spdlog::info("connection {}: malformed message: {}", peer_, frame.error);
+          inbox_.push_back({});  // answered in order with the requests around it
+          errors_.push_back(rpc::Serialize(rpc::Error(nullptr, rpc::kParseError, "parse error: " + frame.error)));
+          break;
+        case proto::JsonFramer::Frame::Kind::kTooLarge: {
+          spdlog::warn("connection {}: {}; closing", peer_, frame.error);
+          proto::Json data;
+          data["limit"] = "max_message_bytes";
+          data["max"] = server_.options_.max_message_bytes;
+          too_large_ = rpc::Serialize(rpc::Error(nullptr, rpc::kLimitExceeded, frame.error, data));
+          break;
+        }
+      }
+    }
+    HandleNext();
+    Read();
+  }
+
+  // Hands the next waiting message to the handler pool; one at a time per connection, so
+  // that answers come back in the order of the requests.
+  void HandleNext() {
+    if (closed_ || handling_) return;
+    if (inbox_.empty()) {
+      if (too_large_) SendAndClose(std::move(*too_large_));
+      return;
+    }
+    std::string text = std::move(inbox_.front());
+    inbox_.pop_front();
+    if (text.empty()) {  // a malformed frame
+      Send(std::move(errors_.front()));
+      errors_.pop_front();
+      HandleNext();
+      Read();
+      return;
+    }
+    handling_ = true;
+    asio::post(server_.handlers_, [self = shared_from_this(), text = std::move(text)] {
+      std::string answer = self->server_.service_.HandleMessage(text, self->context_);
+      asio::post(self->server_.io_, [self, answer = std::move(answer)]() mutable { self->OnHandled(std::move(answer)); });
+    });
+  }
+
+  void OnHandled(std::string answer) {
+    handling_ = false;
+    if (closed_) {
+      server_.service_.EndSession(context_);
+      return;
+    }
+    if (!answer.empty()) Send(std::move(answer));
+    for (proto::Json& n : deferred_) SendNotification(n);
+    deferred_.clear();
+    HandleNext();
+    Read();
+  }
+
+  void Notify(const proto::Json& notification) {
+    if (closed_) return;
+    if (handling_) {
+      deferred_.push_back(notification);  // after the answer being prepared
+    } else {
+      SendNotification(notification);
+    }
+  }
+
+  void SendNotification(const proto::Json& notification) {
+    if (notification.value("method", "") == "job.finished") ++finished_sent_;
+    Send(rpc::Serialize(notification));
+  }
+
+  void Send(std::string text) {
+    if (closed_) return;
+    pending_output_ += text.size();
+    if (pending_output_ > server_.options_.max_pending_output) {
+      spdlog::warn("connection {}: {} bytes unread by the client; closing", peer_, pending_output_);
+      Close();
+      return;
+    }
+    outbox_.push_back(std::move(text));
+    if (!writing_) WriteNext();
+  }
+
+  void WriteNext() {
+    writing_ = true;
+    asio::async_write(socket_, asio::buffer(outbox_.front()),
+                      [self = shared_from_this()](boost::system::error_code ec, std::size_t) {
+                        self->OnWritten(ec);
+                      });
+  }
+
+  void OnWritten(boost::system::error_code ec) {
+    if (closed_) return;
+    pending_output_ -= outbox_.front().size();
+    outbox_.pop_front();
+    last_activity_ = std::chrono::steady_clock::now();
+    if (ec) {
+      spdlog::info("connection {}: write error: {}", peer_, ec.message());
+      Close();
+      return;
+    }
+    if (!outbox_.empty()) {
+      WriteNext();
+      return;
+    }
+    writing_ = false;
+    if (close_after_write_) Close();
+  }
+
+  void ArmIdleTimer() {
+    const auto idle = std::chrono::duration<double>(server_.options_.idle_seconds);
+    idle_timer_.expires_at(last_activity_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(idle));
+    idle_timer_.async_wait([self = shared_from_this(), idle](boost::system::error_code ec) {
+      if (ec || self->closed_) return;
+      // Not idle: a request being handled, or a watched job that has not finished.
+      const bool watching = !self->handling_ && self->finished_sent_ < self->context_.watches.size();
+      if (!watching && !self->handling_ && std::chrono::steady_clock::now() - self->last_activity_ >= idle) {
+        spdlog::info("connection {}: idle for {:.0f} s; closing", self->peer_, idle.count());
+        self->Close();
+        return;
+      }
+      if (watching) self->last_activity_ = std::chrono::steady_clock::now();
+      self->ArmIdleTimer();
+    });
+  }
+
+  TcpServer& server_;
+  tcp::socket socket_;
+  asio::steady_timer idle_timer_;
+  proto::JsonFramer framer_;
+  SessionContext context_;
+  std::string peer_;
+  std::array<char, 65536> buffer_{};
+  std::deque<std::string> inbox_;   // framed messages; "" marks a malformed one
+  std::deque<std::string> errors_;  // the answers of the malformed ones, in order
+  std::optional<std::string> too_large_;
+  std::deque<std::string> outbox_;
+  std::vector<proto::Json> deferred_;
+  std::size_t pending_output_ = 0;
+  std::size_t finished_sent_ = 0;  // job.finished notifications: a watch is open until its own
+  bool reading_ = false;
+  bool handling_ = false;
+  bool writing_ = false;
+  bool close_after_write_ = false;
+  bool closed_ = false;
+  std::chrono::steady_clock::time_point last_activity_ = std::chrono::steady_clock::now();
+};
+
+TcpServer::TcpServer(asio::io_context& io, RpcService& service, TcpServerOptions options)
+    : io_(io),
+      service_(service),
+      options_(std::move(options)),
+      acceptor_(io),
+      handlers_(static_cast<std::size_t>(std::max(1, options_.handler_threads))) {}
+
+TcpServer::~TcpServer() { handlers_.join(); }
+
+void TcpServer::Start() {
+  boost::system::error_code ec;
+  const auto address = asio::ip::make_address(options_.host, ec);
+  if (ec) throw std::runtime_error("cannot listen on '" + options_.host + "': not an IP address");
+  const tcp::endpoint endpoint(address, options_.port);
+  const std::string where = options_.host + ":" + std::to_string(options_.port);
+  acceptor_.open(endpoint.protocol(), ec);
+  if (!ec) acceptor_.set_option(asio::socket_base::reuse_address(true), ec);
+  if (!ec) acceptor_.bind(endpoint, ec);
+  if (!ec) acceptor_.listen(asio::socket_base::max_listen_connections, ec);
+  if (ec) throw std::runtime_error("cannot listen on " + where + ": " + ec.message());
+  port_ = acceptor_.local_endpoint().port();
+  Accept();
+}
+
+void TcpServer::Accept() {
+  acceptor_.async_accept([this](boost::system::error_code ec, tcp::socket socket) {
+    if (ec) {
+      if (ec != asio::error::operation_aborted) {
+        spdlog::warn("accept: {}", ec.message());
+        Accept();
+      }
+      return;
+    }
+    auto session = std::make_shared<Session>(*this, std::move(socket));
+    sessions_.insert(session);
+    if (static_cast<int>(sessions_.size()) > options_.max_connections) {
+      spdlog::warn("refusing a connection: {} connections open", options_.max_connections);
+      session->SendAndClose(rpc::Serialize(rpc::Error(
+          nullptr, rpc::kBusy, "busy: " + std::to_string(options_.max_connections) + " connections are open")));
+    } else {
+      session->Start();
+    }
+    Accept();
+  });
+}
+
+void TcpServer::Remove(const std::shared_ptr<Session>& session) { sessions_.erase(session); }
+
+void TcpServer::Stop() {
+  asio::post(io_, [this] {
+    boost::system::error_code ignored;
+    acceptor_.close(ignored);
+    const auto open = sessions_;  // Close() removes from sessions_
+    for (const auto& s : open) s->Close();
+  });
+}
+
+}  // namespace springfit::server

@@ -1,0 +1,63 @@
+// The daemon's network side: a Boost.Asio acceptor and one session per connection, all on
+// one I/O thread; requests are handled on a small pool so that a slow request (a large
+// scene's validation) never stalls other connections.
+//
+// A session reads bytes, frames them into JSON messages (proto/json_framer.h), hands them
+// one at a time to the RpcService, and writes each answer as one line. Notifications that
+// job threads send (job.watch) are posted to the I/O thread and written after any answer
+// in flight. Bounds, each ending only the offending connection: message size (error, then
+// close), nesting depth and garbage (error, resynchronised at the next newline), unwritten
+// output of a slow reader (close), idle time without a watched job (close), and the number
+// of connections (refused with an error).
+#pragma once
+#include <cstddef>
+#include <memory>
+#include <set>
+#include <string>
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/thread_pool.hpp>
+
+#include "server/rpc_service.h"
+
+namespace springfit::server {
+
+struct TcpServerOptions {
+  std::string host = "127.0.0.1";
+  unsigned short port = 7117;  // 0: an ephemeral port (see TcpServer::port)
+  int max_connections = 256;
+  std::size_t max_message_bytes = std::size_t{16} << 20;
+  std::size_t max_pending_output = std::size_t{64} << 20;  // unread answers before a slow reader is dropped
+  double idle_seconds = 300.0;
+  int handler_threads = 2;
+};
+
+class Session;
+
+class TcpServer {
+ public:
+  TcpServer(boost::asio::io_context& io, RpcService& service, TcpServerOptions options);
+  ~TcpServer();
+
+  // Binds and listens; throws std::runtime_error naming the address when it cannot.
+  void Start();
+  unsigned short port() const { return port_; }
+  // Stops accepting and closes every connection (on the I/O thread).
+  void Stop();
+
+ private:
+  friend class Session;
+  void Accept();
+  void Remove(const std::shared_ptr<Session>& session);
+
+  boost::asio::io_context& io_;
+  RpcService& service_;
+  TcpServerOptions options_;
+  boost::asio::ip::tcp::acceptor acceptor_;
+  boost::asio::thread_pool handlers_;
+  std::set<std::shared_ptr<Session>> sessions_;
+  unsigned short port_ = 0;
+};
+
+}  // namespace springfit::server
