@@ -10,5 +10,7 @@ void RegisterCheck(CLI::App& app, int& exit_code);
 void RegisterEval(CLI::App& app, int& exit_code);
 void RegisterExample(CLI::App& app, int& exit_code);
 void RegisterRun(CLI::App& app, int& exit_code);
+void RegisterSubmit(CLI::App& app, int& exit_code);
+void RegisterJobCommands(CLI::App& app, int& exit_code);  // status, watch, result, trace, cancel, delete, list, info
 
 }  // namespace springfit::cli

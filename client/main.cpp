@@ -15,6 +15,8 @@ int main(int argc, char** argv) {
   springfit::cli::RegisterEval(app, exit_code);
   springfit::cli::RegisterExample(app, exit_code);
   springfit::cli::RegisterRun(app, exit_code);
+  springfit::cli::RegisterSubmit(app, exit_code);
+  springfit::cli::RegisterJobCommands(app, exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

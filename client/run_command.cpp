@@ -1,5 +1,4 @@
 // springfit run SCENE [options]: a topology identification in this process (proto/RUN.md).
-#include <unistd.h>
 
 #include <atomic>
 #include <csignal>
@@ -12,6 +11,8 @@
 #include "client/commands.h"
 #include "client/error_reporting.h"
 #include "client/exit_codes.h"
+#include "client/progress_line.h"
+#include "client/result_summary.h"
 #include "engine/input_error.h"
 #include "engine/problem.h"
 #include "engine/search/run_search.h"
@@ -47,69 +48,6 @@ struct RunArgs {
   std::string output_path;
 };
 
-// The live progress line on a terminal, plain periodic lines otherwise; on standard error.
-class ProgressReporter {
- public:
-  ProgressReporter(int max_generations, bool quiet)
-      : max_generations_(max_generations), quiet_(quiet), terminal_(isatty(fileno(stderr)) != 0) {}
-
-  void Report(const TraceRow& row, bool last) {
-    if (quiet_) return;
-    const double interval = terminal_ ? 0.1 : 2.0;
-    if (!last && row.generation != 0 && row.wall_seconds - shown_at_ < interval) return;
-    if (last && !terminal_ && row.generation == shown_generation_) return;  // already printed
-    shown_at_ = row.wall_seconds;
-    shown_generation_ = row.generation;
-    const double rate = row.wall_seconds > 0.0 ? static_cast<double>(row.evaluations) / row.wall_seconds : 0.0;
-    char line[256];
-    std::snprintf(line, sizeof line, "generation %d/%d  best cost %.4g  normalized error %.4g%s  %.0f eval/s  %.1f s",
-                  row.generation, max_generations_, row.best_cost, row.best_normalized_error,
-                  row.missing >= 0 ? ("  missing " + std::to_string(row.missing) + " extra " + std::to_string(row.extra)).c_str() : "",
-                  rate, row.wall_seconds);
-    if (terminal_) {
-      std::fprintf(stderr, "\r\033[K%s%s", line, last ? "\n" : "");
-    } else {
-      std::fprintf(stderr, "%s\n", line);
-    }
-    std::fflush(stderr);
-  }
-
- private:
-  int max_generations_;
-  bool quiet_;
-  bool terminal_;
-  double shown_at_ = 0.0;
-  int shown_generation_ = -1;
-};
-
-void PrintSummary(const Problem& problem, const SearchResult& r) {
-  std::printf("scene:             %s\n", problem.scene().name.c_str());
-  std::printf("strategy:          %s (seed %llu)\n", std::string(proto::StrategyName(r.options.strategy)).c_str(),
-              static_cast<unsigned long long>(r.options.seed));
-  std::printf("stopped:           %s after %d generations (best found in generation %d)\n",
-              std::string(proto::StopReasonName(r.stop)).c_str(), r.generations, r.best_generation);
-  std::printf("evaluations:       %lld (%lld from the cache)\n", static_cast<long long>(r.counters.evaluations),
-              static_cast<long long>(r.counters.cache_hits));
-  std::printf("wall time:         %.3f s\n", r.wall_seconds);
-  std::printf("springs:           %zu of %d genes\n", r.springs.size(), problem.gene_count());
-  std::printf("cost:              %.6g\n", r.evaluation.cost);
-  std::printf("normalized error:  %.6g%s\n", r.evaluation.normalized_error, r.evaluation.mechanism ? " (mechanism)" : "");
-  if (const auto exact = r.exact()) {
-    std::printf("reference:         %s (%zu missing, %zu extra)\n", *exact ? "recovered exactly" : "not recovered",
-                r.difference->missing.size(), r.difference->extra.size());
-    auto list = [](const char* label, const std::vector<NodePair>& pairs) {
-      if (pairs.empty()) return;
-      std::printf("  %s:", label);
-      for (const NodePair& p : pairs) std::printf(" (%d, %d)", p.first, p.second);
-      std::printf("\n");
-    };
-    list("missing", r.difference->missing);
-    list("extra", r.difference->extra);
-  } else {
-    std::printf("reference:         topology unknown (positions reference, or springs outside the candidates)\n");
-  }
-}
-
 int Run(const RunArgs& args) {
   Scene scene = proto::LoadSceneFile(args.scene);
   SearchSettings& st = scene.search;
@@ -129,7 +67,7 @@ int Run(const RunArgs& args) {
     if (!trace) throw std::runtime_error("cannot write the trace file " + args.trace_path);
     trace << proto::TraceCsvHeader() << "\n";
   }
-  ProgressReporter progress(options.max_generations, args.quiet);
+  ProgressLine progress(options.max_generations, args.quiet);
   g_interrupted.store(false);
   auto previous_int = std::signal(SIGINT, OnInterrupt);
   auto previous_term = std::signal(SIGTERM, OnInterrupt);
@@ -156,12 +94,12 @@ int Run(const RunArgs& args) {
     out.close();
     if (!out) throw std::runtime_error("cannot write the result file " + args.output_path);
   }
+  proto::Json j = proto::SearchResultToJson(problem, result, false);
   if (args.json) {
-    proto::Json j = proto::SearchResultToJson(problem, result, false);
     j["threads"] = args.threads;
     std::cout << proto::DumpCompact(j) << std::endl;
   } else {
-    PrintSummary(problem, result);
+    PrintResultSummary(j, std::cout);
   }
   return result.stop == StopReason::kCancelled ? kExitInterrupted : kExitOk;
 }

@@ -92,6 +92,7 @@ Json SearchResultToJson(const Problem& problem, const SearchResult& r, bool with
     j["missing"] = nullptr;
     j["extra"] = nullptr;
   }
+  j["genes"] = problem.gene_count();
   j["springs"] = PairsToJson(r.springs);
   std::vector<NodePair> unidentifiable;
   for (int c : problem.unidentifiable()) unidentifiable.push_back(problem.candidates().pairs[c]);

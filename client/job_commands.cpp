@@ -1,0 +1,262 @@
+// springfit status | watch | result | trace | cancel | delete | list | info: reading and
+// managing springfitd's jobs (README.md, "The daemon"; proto/RPC.md).
+#include <cstdio>
+#include <ctime>
+#include <fstream>
+#include <iostream>
+#include <optional>
+
+#include "client/commands.h"
+#include "client/error_reporting.h"
+#include "client/exit_codes.h"
+#include "client/remote_job.h"
+#include "client/result_summary.h"
+#include "proto/job.h"
+#include "proto/search_codec.h"
+
+namespace springfit::cli {
+namespace {
+using proto::Json;
+
+struct JobArgs {
+  ServerOptions server;
+  std::int64_t job_id = 0;
+  bool json = false;
+  bool csv = false;
+  bool quiet = false;
+  std::string output_path;
+  std::optional<std::string> state;
+  std::optional<std::string> label;
+  int limit = 100;
+};
+
+Json IdParams(std::int64_t id) {
+  Json p;
+  p["job_id"] = id;
+  return p;
+}
+
+std::string LocalTime(double unix_seconds) {
+  if (unix_seconds <= 0.0) return "-";
+  const auto t = static_cast<std::time_t>(unix_seconds);
+  std::tm tm{};
+  localtime_r(&t, &tm);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%d %H:%M:%S", &tm);
+  return text;
+}
+
+std::string ErrorText(double e) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.3g", e);
+  return text;
+}
+
+void PrintJob(const proto::JobRecord& j) {
+  std::cout << "job:               " << j.id << (j.label.empty() ? "" : " (" + j.label + ")") << "\n"
+            << "state:             " << proto::JobStateName(j.state) << "\n";
+  if (!j.error.empty()) std::cout << "error:             " << j.error << "\n";
+  std::cout << "scene:             " << j.scene_name << " (" << j.genes << " genes)\n"
+            << "strategy:          " << j.strategy << " (seed " << j.seed << ", priority " << j.priority << ")\n"
+            << "created:           " << LocalTime(j.created_at) << "\n"
+            << "started:           " << LocalTime(j.started_at) << "\n"
+            << "finished:          " << LocalTime(j.finished_at) << "\n";
+  if (j.progress) {
+    const TraceRow& p = *j.progress;
+    std::cout << "generation:        " << p.generation << " of " << j.max_generations << "\n"
+              << "normalized error:  " << ErrorText(p.best_normalized_error) << "\n"
+              << "evaluations:       " << p.evaluations << "\n";
+    if (p.missing >= 0) std::cout << "against reference: " << p.missing << " missing, " << p.extra << " extra\n";
+  }
+  if (j.checkpoint_generation >= 0 && !proto::IsFinal(j.state)) {
+    std::cout << "checkpoint:        generation " << j.checkpoint_generation << "\n";
+  }
+  if (j.exact) std::cout << "exact:             " << (*j.exact ? "yes" : "no") << "\n";
+}
+
+int Status(const JobArgs& a) {
+  RpcClient client(a.server);
+  const Json job = client.Call("job.get", IdParams(a.job_id));
+  if (a.json) {
+    std::cout << job.dump() << std::endl;
+  } else {
+    PrintJob(proto::JobFromJson(job));
+  }
+  return kExitOk;
+}
+
+int Watch(const JobArgs& a) {
+  RpcClient client(a.server);
+  const Json finished = WatchJob(client, a.job_id, a.quiet);
+  if (a.json) {
+    std::cout << finished.dump() << std::endl;
+  } else {
+    PrintJob(proto::JobFromJson(finished));
+  }
+  return ExitCodeOfJobState(finished["state"].get<std::string>());
+}
+
+int Result(const JobArgs& a) {
+  RpcClient client(a.server);
+  const Json result = client.Call("job.result", IdParams(a.job_id));
+  if (!a.output_path.empty()) {
+    Json with_trace = result;
+    Json trace = Json::array();
+    for (const TraceRow& row : FetchTrace(client, a.job_id)) trace.push_back(proto::TraceRowToJson(row));
+    with_trace["trace"] = std::move(trace);
+    std::ofstream out(a.output_path);
+    out << with_trace.dump(1) << "\n";
+    out.close();
+    if (!out) throw std::runtime_error("cannot write the result file " + a.output_path);
+  }
+  if (a.json) {
+    std::cout << proto::DumpCompact(result) << std::endl;
+  } else {
+    PrintResultSummary(result, std::cout);
+  }
+  return ExitCodeOfJobState(result.value("state", std::string("succeeded")));
+}
+
+int Trace(const JobArgs& a) {
+  RpcClient client(a.server);
+  const std::vector<TraceRow> rows = FetchTrace(client, a.job_id);
+  if (a.json) {
+    Json list = Json::array();
+    for (const TraceRow& r : rows) list.push_back(proto::TraceRowToJson(r));
+    std::cout << list.dump() << std::endl;
+  } else if (a.csv) {
+    std::cout << proto::TraceCsvHeader() << "\n";
+    for (const TraceRow& r : rows) std::cout << proto::TraceRowToCsv(r) << "\n";
+  } else {
+    std::printf("%10s %10s %12s %14s %14s %8s %6s\n", "generation", "seconds", "evaluations", "best cost",
+                "norm. error", "missing", "extra");
+    for (const TraceRow& r : rows) {
+      std::printf("%10d %10.3f %12lld %14.6g %14.6g %8s %6s\n", r.generation, r.wall_seconds,
+                  static_cast<long long>(r.evaluations), r.best_cost, r.best_normalized_error,
+                  r.missing < 0 ? "-" : std::to_string(r.missing).c_str(),
+                  r.extra < 0 ? "-" : std::to_string(r.extra).c_str());
+    }
+  }
+  return kExitOk;
+}
+
+int Cancel(const JobArgs& a) {
+  RpcClient client(a.server);
+  const Json r = client.Call("job.cancel", IdParams(a.job_id));
+  if (a.json) {
+    std::cout << r.dump() << std::endl;
+  } else {
+    std::cout << "job " << a.job_id << " " << r["state"].get<std::string>() << "\n";
+  }
+  return kExitOk;
+}
+
+int Delete(const JobArgs& a) {
+  RpcClient client(a.server);
+  const Json r = client.Call("job.delete", IdParams(a.job_id));
+  if (a.json) {
+    std::cout << r.dump() << std::endl;
+  } else {
+    std::cout << "job " << a.job_id << " deleted\n";
+  }
+  return kExitOk;
+}
+
+int List(const JobArgs& a) {
+  RpcClient client(a.server);
+  Json params;
+  if (a.state) params["state"] = *a.state;
+  if (a.label) params["label"] = *a.label;
+  Json jobs = Json::array();
+  while (static_cast<int>(jobs.size()) < a.limit) {
+    params["limit"] = std::min(1000, a.limit - static_cast<int>(jobs.size()));
+    const Json page = client.Call("job.list", params);
+    for (const Json& j : page["jobs"]) jobs.push_back(j);
+    if (page["next_cursor"].is_null()) break;
+    params["cursor"] = page["next_cursor"];
+  }
+  if (a.json) {
+    std::cout << jobs.dump() << std::endl;
+    return kExitOk;
+  }
+  std::printf("%6s  %-9s  %-16s  %-20s  %-8s  %15s  %11s  %s\n", "id", "state", "label", "scene", "strategy",
+              "generation", "norm. error", "exact");
+  for (const Json& j : jobs) {
+    const proto::JobRecord r = proto::JobFromJson(j);
+    const std::string generation =
+        r.progress ? std::to_string(r.progress->generation) + "/" + std::to_string(r.max_generations) : "-";
+    std::printf("%6lld  %-9s  %-16s  %-20s  %-8s  %15s  %11s  %s\n", static_cast<long long>(r.id),
+                std::string(proto::JobStateName(r.state)).c_str(), r.label.c_str(), r.scene_name.c_str(),
+                r.strategy.c_str(), generation.c_str(),
+                r.progress ? ErrorText(r.progress->best_normalized_error).c_str() : "-",
+                r.exact ? (*r.exact ? "yes" : "no") : "-");
+  }
+  return kExitOk;
+}
+
+int Info(const JobArgs& a) {
+  RpcClient client(a.server);
+  const Json info = client.Call("server.info");
+  if (a.json) {
+    std::cout << info.dump() << std::endl;
+    return kExitOk;
+  }
+  std::cout << info["name"].get<std::string>() << " " << info["version"].get<std::string>() << " (protocol "
+            << info["protocol"] << ")\n"
+            << "workers:           " << info["workers"] << " (" << info["max_running"] << " jobs at once)\n"
+            << "jobs:              " << info["running"] << " running, " << info["queued"] << " queued\n"
+            << "token required:    " << (info["auth_required"].get<bool>() ? "yes" : "no") << "\n"
+            << "limits:            " << info["limits"].dump() << "\n";
+  return kExitOk;
+}
+
+CLI::App* AddJobCommand(CLI::App& app, const char* name, const char* help, int& exit_code, int (*body)(const JobArgs&),
+                        std::shared_ptr<JobArgs> args, bool takes_id) {
+  auto* cmd = app.add_subcommand(name, help);
+  if (takes_id) cmd->add_option("ID", args->job_id, "Job id (springfit submit prints it)")->required();
+  cmd->add_flag("--json", args->json, "Print JSON (proto/RPC.md) instead of text");
+  AddServerFlags(cmd, args->server);
+  const std::string context = name;
+  cmd->callback([args, body, context, &exit_code] {
+    exit_code = RunReportingErrors(context, [&] { return body(*args); });
+  });
+  return cmd;
+}
+
+}  // namespace
+
+void RegisterJobCommands(CLI::App& app, int& exit_code) {
+  AddJobCommand(app, "status", "Show a job's state and progress", exit_code, Status, std::make_shared<JobArgs>(), true);
+  {
+    auto args = std::make_shared<JobArgs>();
+    auto* cmd = AddJobCommand(app, "watch", "Follow a job's progress until it finishes", exit_code, Watch, args, true);
+    cmd->add_flag("-q,--quiet", args->quiet, "No progress line");
+  }
+  {
+    auto args = std::make_shared<JobArgs>();
+    auto* cmd = AddJobCommand(app, "result", "Print a finished job's result", exit_code, Result, args, true);
+    cmd->add_option("-o,--output", args->output_path, "Also write the result with its trace as JSON");
+  }
+  {
+    auto args = std::make_shared<JobArgs>();
+    auto* cmd = AddJobCommand(app, "trace", "Print a job's trace (one row per stored generation)", exit_code, Trace,
+                              args, true);
+    cmd->add_flag("--csv", args->csv, "CSV as `springfit run --trace` writes it");
+  }
+  AddJobCommand(app, "cancel", "Cancel a queued or running job (it keeps its best so far)", exit_code, Cancel,
+                std::make_shared<JobArgs>(), true);
+  AddJobCommand(app, "delete", "Delete a finished job and everything stored with it", exit_code, Delete,
+                std::make_shared<JobArgs>(), true);
+  {
+    auto args = std::make_shared<JobArgs>();
+    auto* cmd = AddJobCommand(app, "list", "List jobs, oldest first", exit_code, List, args, false);
+    cmd->add_option("--state", args->state, "Only jobs in this state")
+        ->check(CLI::IsMember({"queued", "running", "succeeded", "failed", "cancelled"}));
+    cmd->add_option("--label", args->label, "Only jobs with this label");
+    cmd->add_option("--limit", args->limit, "At most this many jobs")->check(CLI::Range(1, 1000000))->capture_default_str();
+  }
+  AddJobCommand(app, "info", "Show the server's version, workers, jobs and limits", exit_code, Info,
+                std::make_shared<JobArgs>(), false);
+}
+
+}  // namespace springfit::cli

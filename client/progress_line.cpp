@@ -1,0 +1,43 @@
+#include "client/progress_line.h"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <string>
+
+namespace springfit::cli {
+
+ProgressLine::ProgressLine(int max_generations, bool quiet)
+    : max_generations_(max_generations), quiet_(quiet), terminal_(isatty(fileno(stderr)) != 0) {}
+
+void ProgressLine::Report(const TraceRow& row, bool last) {
+  if (quiet_) return;
+  const double interval = terminal_ ? 0.1 : 2.0;
+  if (!last && row.generation != 0 && row.wall_seconds - shown_at_ < interval) return;
+  if (last && !terminal_ && row.generation == shown_generation_) return;  // already printed
+  shown_at_ = row.wall_seconds;
+  shown_generation_ = row.generation;
+  const double rate = row.wall_seconds > 0.0 ? static_cast<double>(row.evaluations) / row.wall_seconds : 0.0;
+  std::string topology;
+  if (row.missing >= 0) topology = "  missing " + std::to_string(row.missing) + " extra " + std::to_string(row.extra);
+  // The generation limit's ETA: an upper bound, since reaching the target stops sooner.
+  std::string eta;
+  if (!last && row.generation > 0 && row.generation < max_generations_) {
+    char text[48];
+    std::snprintf(text, sizeof text, "  ETA <= %.0f s",
+                  row.wall_seconds / row.generation * (max_generations_ - row.generation));
+    eta = text;
+  }
+  char line[320];
+  std::snprintf(line, sizeof line, "generation %d/%d  best cost %.4g  normalized error %.4g%s  %.0f eval/s  %.1f s%s",
+                row.generation, max_generations_, row.best_cost, row.best_normalized_error, topology.c_str(), rate,
+                row.wall_seconds, eta.c_str());
+  if (terminal_) {
+    std::fprintf(stderr, "\r\033[K%s%s", line, last ? "\n" : "");
+  } else {
+    std::fprintf(stderr, "%s\n", line);
+  }
+  std::fflush(stderr);
+}
+
+}  // namespace springfit::cli

@@ -1,0 +1,47 @@
+#include "client/result_summary.h"
+
+#include <cstdio>
+#include <string>
+
+namespace springfit::cli {
+namespace {
+
+std::string Format(const char* format, double value) {
+  char text[64];
+  std::snprintf(text, sizeof text, format, value);
+  return text;
+}
+
+void PrintPairs(std::ostream& out, const char* label, const proto::Json& pairs) {
+  if (!pairs.is_array() || pairs.empty()) return;
+  out << "  " << label << ":";
+  for (const proto::Json& p : pairs) out << " (" << p[0].get<long long>() << ", " << p[1].get<long long>() << ")";
+  out << "\n";
+}
+
+}  // namespace
+
+void PrintResultSummary(const proto::Json& r, std::ostream& out) {
+  out << "scene:             " << r.value("scene", std::string()) << "\n";
+  if (r.contains("job_id")) out << "job:               " << r["job_id"].get<long long>() << " (" << r.value("state", std::string()) << ")\n";
+  out << "strategy:          " << r.value("strategy", std::string()) << " (seed " << r.value("seed", std::uint64_t{0}) << ")\n";
+  out << "stopped:           " << r.value("stop", std::string()) << " after " << r.value("generations", 0)
+      << " generations (best found in generation " << r.value("best_generation", 0) << ")\n";
+  out << "evaluations:       " << r.value("evaluations", 0LL) << " (" << r.value("cache_hits", 0LL) << " from the cache)\n";
+  out << "wall time:         " << Format("%.3f", r.value("wall_seconds", 0.0)) << " s\n";
+  out << "springs:           " << r.value("springs", proto::Json::array()).size() << " of " << r.value("genes", 0)
+      << " genes\n";
+  out << "cost:              " << Format("%.6g", r.value("cost", 0.0)) << "\n";
+  out << "normalized error:  " << Format("%.6g", r.value("normalized_error", 0.0))
+      << (r.value("mechanism", false) ? " (mechanism)" : "") << "\n";
+  if (r.contains("exact") && r["exact"].is_boolean()) {
+    out << "reference:         " << (r["exact"].get<bool>() ? "recovered exactly" : "not recovered") << " ("
+        << r["missing"].size() << " missing, " << r["extra"].size() << " extra)\n";
+    PrintPairs(out, "missing", r["missing"]);
+    PrintPairs(out, "extra", r["extra"]);
+  } else {
+    out << "reference:         topology unknown (positions reference, or springs outside the candidates)\n";
+  }
+}
+
+}  // namespace springfit::cli

@@ -1,0 +1,105 @@
+// springfit submit SCENE: queue an identification job on springfitd (README.md, "The daemon").
+#include <iostream>
+#include <optional>
+
+#include "client/commands.h"
+#include "client/error_reporting.h"
+#include "client/exit_codes.h"
+#include "client/remote_job.h"
+#include "client/result_summary.h"
+#include "engine/input_error.h"
+#include "proto/names.h"
+#include "proto/scene_codec.h"
+
+namespace springfit::cli {
+namespace {
+using proto::Json;
+
+struct SubmitArgs {
+  ServerOptions server;
+  std::string scene;
+  std::string label;
+  int priority = 0;
+  std::optional<std::uint64_t> seed;
+  std::optional<std::string> strategy;
+  std::optional<int> generations;
+  std::string idempotency_key;
+  bool wait = false;
+  bool watch = false;
+  bool json = false;
+};
+
+int Submit(const SubmitArgs& args) {
+  Json scene = proto::ParseJson(proto::ReadFile(args.scene));
+  if (!scene.is_object()) throw InputError("", "a scene is a JSON object (proto/SCENE.md)");
+  if (args.strategy || args.generations) {
+    Json& search = scene["search"];
+    if (search.is_null()) search = Json::object();
+    if (args.strategy) search["strategy"] = proto::StrategyName(proto::StrategyFromName(*args.strategy, "--strategy"));
+    if (args.generations) search["max_generations"] = *args.generations;
+  }
+  Json params;
+  params["scene"] = std::move(scene);
+  if (!args.label.empty()) params["label"] = args.label;
+  if (args.priority != 0) params["priority"] = args.priority;
+  if (args.seed) params["seed"] = *args.seed;
+  if (!args.idempotency_key.empty()) params["idempotency_key"] = args.idempotency_key;
+
+  RpcClient client(args.server);
+  const Json submitted = client.Call("job.submit", params);
+  const Json& job = submitted["job"];
+  const std::int64_t id = job["job_id"].get<std::int64_t>();
+  if (!args.wait && !args.watch) {
+    if (args.json) {
+      std::cout << submitted.dump() << std::endl;
+    } else {
+      std::cout << id << std::endl;
+    }
+    std::cerr << "job " << id << (submitted["created"].get<bool>() ? " queued" : " already submitted with this key")
+              << " (" << job["scene"].get<std::string>() << ", " << job["genes"].get<int>() << " genes, strategy "
+              << job["strategy"].get<std::string>() << ", seed " << job["seed"].get<std::uint64_t>() << ")\n";
+    return kExitOk;
+  }
+  const Json finished = WatchJob(client, id, !args.watch);
+  const std::string state = finished["state"].get<std::string>();
+  if (state == "failed") {
+    std::cerr << "springfit: job " << id << " failed: " << finished.value("error", Json("")).get<std::string>() << "\n";
+    return kExitJobFailed;
+  }
+  Json result_params;
+  result_params["job_id"] = id;
+  try {
+    const Json result = client.Call("job.result", result_params);
+    if (args.json) {
+      std::cout << proto::DumpCompact(result) << std::endl;
+    } else {
+      PrintResultSummary(result, std::cout);
+    }
+  } catch (const RemoteError&) {
+    std::cerr << "springfit: job " << id << " " << state << " before it ran\n";
+  }
+  return ExitCodeOfJobState(state);
+}
+
+}  // namespace
+
+void RegisterSubmit(CLI::App& app, int& exit_code) {
+  auto* cmd = app.add_subcommand("submit", "Queue an identification job on springfitd; prints its id");
+  auto args = std::make_shared<SubmitArgs>();
+  cmd->add_option("SCENE", args->scene, "Scene file (JSON, proto/SCENE.md)")->required();
+  cmd->add_option("--label", args->label, "A label to find the job by (job.list --label)");
+  cmd->add_option("--priority", args->priority, "Higher runs first (default 0)")->check(CLI::Range(-1000, 1000));
+  cmd->add_option("--seed", args->seed, "Random seed (default: the scene's, else 1)");
+  cmd->add_option("--strategy", args->strategy, "Search strategy (default: the scene's)");
+  cmd->add_option("--generations", args->generations, "Generation limit (default: the scene's, else 1000)")
+      ->check(CLI::Range(1, 100000000));
+  cmd->add_option("--idempotency-key", args->idempotency_key,
+                  "Submitting again with the same key returns the same job instead of a new one");
+  auto* wait = cmd->add_flag("--wait", args->wait, "Wait for the job to finish, then print its result");
+  cmd->add_flag("--watch", args->watch, "Show its progress until it finishes, then print its result")->excludes(wait);
+  cmd->add_flag("--json", args->json, "Print JSON: the job (or, with --wait/--watch, the result)");
+  AddServerFlags(cmd, args->server);
+  cmd->callback([args, &exit_code] { exit_code = RunReportingErrors(args->scene, [&] { return Submit(*args); }); });
+}
+
+}  // namespace springfit::cli
