@@ -1,0 +1,93 @@
+#include "server/checkpoint_codec.h"
+
+#include <gtest/gtest.h>
+
+#include "engine/examples/catalog.h"
+#include "engine/search/run_search.h"
+
+namespace springfit::server {
+namespace {
+
+SearchOptions PaperOptions(const Problem& p, std::uint64_t seed, int generations) {
+  SearchSettings st;
+  st.strategy = Strategy::kPaper;
+  st.seed = seed;
+  st.max_generations = generations;
+  return ResolveSearchOptions(st, p.gene_count());
+}
+
+TEST(CheckpointCodec, ResumingFromDecodedBytesEndsExactlyLikeAnUninterruptedRun) {
+  const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
+  const SearchOptions o = PaperOptions(p, 4, 40);
+  const SearchResult whole = RunSearch(p, o);
+  ASSERT_EQ(whole.generations, 40);
+
+  std::string bytes;
+  RunOptions first;
+  first.on_generation = [&](const TraceRow& row, const GeneticSearch& search) {
+    if (row.generation < 17) return true;
+    bytes = EncodeCheckpoint(search.Snapshot(), p.gene_count());
+    return false;
+  };
+  const SearchResult part = RunSearch(p, o, first);
+  ASSERT_FALSE(bytes.empty());
+
+  const SearchState state = DecodeCheckpoint(bytes, p.gene_count());
+  EXPECT_EQ(state.generation, 17);
+  EXPECT_FALSE(state.cache.empty());
+  RunOptions second;
+  second.resume_from = state;
+  second.trace = part.trace;
+  const SearchResult resumed = RunSearch(p, o, second);
+  ASSERT_EQ(resumed.trace.size(), whole.trace.size());
+  for (std::size_t i = 0; i < whole.trace.size(); ++i) EXPECT_TRUE(whole.trace[i].SameSearch(resumed.trace[i])) << i;
+  EXPECT_EQ(resumed.best, whole.best);
+  EXPECT_EQ(resumed.counters, whole.counters);
+  EXPECT_EQ(resumed.evaluation.cost, whole.evaluation.cost);
+}
+
+TEST(CheckpointCodec, RoundTripKeepsEveryField) {
+  SearchState s;
+  s.generation = 7;
+  s.random_state = "1 2 3";
+  s.population = {{1, 0, 1}, {0, 0, 1}};
+  s.fitness = {{0.5, 1e-300, 2, true, false}, {std::numeric_limits<double>::max(), 0.1, 0, false, true}};
+  s.best = {1, 1, 1};
+  s.best_fitness = {0.25, 0.125, 0, false, true};
+  s.best_generation = 3;
+  s.stall = 4;
+  s.counters = {100, 40};
+  s.cache = {{std::string(1, '\x05'), {1.0, 2.0, 0, false, true}}};
+  s.elapsed_seconds = 1.5;
+  const SearchState d = DecodeCheckpoint(EncodeCheckpoint(s, 3), 3);
+  EXPECT_EQ(d.generation, 7);
+  EXPECT_EQ(d.random_state, s.random_state);
+  EXPECT_EQ(d.population, s.population);
+  EXPECT_EQ(d.fitness, s.fitness);
+  EXPECT_EQ(d.best, s.best);
+  EXPECT_EQ(d.best_fitness, s.best_fitness);
+  EXPECT_EQ(d.best_generation, 3);
+  EXPECT_EQ(d.stall, 4);
+  EXPECT_TRUE(d.local_optimum.empty());
+  EXPECT_EQ(d.counters, s.counters);
+  EXPECT_EQ(d.cache, s.cache);
+  EXPECT_EQ(d.elapsed_seconds, 1.5);
+}
+
+TEST(CheckpointCodec, CorruptOrForeignBytesAreRefused) {
+  SearchState s;
+  s.population = {{1, 0, 1}};
+  s.fitness = {{}};
+  s.best = {1, 0, 1};
+  const std::string bytes = EncodeCheckpoint(s, 3);
+  EXPECT_THROW(DecodeCheckpoint(bytes, 4), std::runtime_error);  // another problem
+  EXPECT_THROW(DecodeCheckpoint(bytes.substr(0, bytes.size() - 1), 3), std::runtime_error);
+  EXPECT_THROW(DecodeCheckpoint(bytes + "x", 3), std::runtime_error);
+  EXPECT_THROW(DecodeCheckpoint("not a checkpoint", 3), std::runtime_error);
+  std::string huge_count = bytes;
+  huge_count[8 + 4 + 4 + 4 + 8 + 5] = '\x7f';  // inside the population count: no giant allocation
+  EXPECT_THROW(DecodeCheckpoint(huge_count, 3), std::runtime_error);
+}
+
+}  // namespace
+}  // namespace springfit::server

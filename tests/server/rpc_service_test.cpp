@@ -1,0 +1,280 @@
+// The daemon's methods without sockets: RpcService over a real SQLite store and scheduler.
+#include "server/rpc_service.h"
+
+#include <chrono>
+#include <condition_variable>
+#include <filesystem>
+#include <mutex>
+
+#include <gtest/gtest.h>
+
+#include "engine/examples/catalog.h"
+#include "proto/rpc.h"
+#include "proto/scene_codec.h"
+#include "server/sqlite_store.h"
+
+namespace springfit::server {
+namespace {
+using proto::Json;
+namespace rpc = proto::rpc;
+
+// Collects notifications sent to a session, from any thread.
+class Inbox {
+ public:
+  void Push(const Json& n) {
+    std::lock_guard lock(mutex_);
+    messages_.push_back(n);
+    cv_.notify_all();
+  }
+  // Waits (at most 60 s) for a notification of `method`; null when none came.
+  Json WaitFor(const std::string& method) {
+    std::unique_lock lock(mutex_);
+    Json found;
+    cv_.wait_for(lock, std::chrono::seconds(60), [&] {
+      for (const Json& m : messages_) {
+        if (m["method"] == method) {
+          found = m;
+          return true;
+        }
+      }
+      return false;
+    });
+    return found;
+  }
+  std::vector<Json> All() {
+    std::lock_guard lock(mutex_);
+    return messages_;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::vector<Json> messages_;
+};
+
+class RpcServiceTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           (std::string("springfit-rpc-") + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::remove_all(dir_);
+    std::filesystem::create_directories(dir_);
+    store_ = std::make_unique<SqliteStore>((dir_ / "jobs.db").string());
+    session_.notify = [this](const Json& n) { inbox_.Push(n); };
+  }
+  void TearDown() override {
+    service_.reset();
+    scheduler_.reset();
+    store_.reset();
+    std::filesystem::remove_all(dir_);
+  }
+  // `start` = false leaves every job queued (no runner threads).
+  void MakeService(bool start, ServiceOptions options = {}) {
+    SchedulerOptions so;
+    so.workers = 2;
+    so.max_running = 1;
+    scheduler_ = std::make_unique<Scheduler>(*store_, so);
+    if (start) scheduler_->Start();
+    service_ = std::make_unique<RpcService>(*store_, *scheduler_, options);
+  }
+  Json Call(const std::string& method, Json params = Json::object()) {
+    const std::string text = rpc::Serialize(rpc::Request(++id_, method, std::move(params)));
+    return proto::ParseJson(service_->HandleMessage(text, session_));
+  }
+  static int Code(const Json& response) { return response.at("error").at("code").get<int>(); }
+  static Json Scene(const std::string& name) { return proto::SceneToJson(examples::Make(name)); }
+  Json Submit(const std::string& name, Json extra = Json::object()) {
+    Json params = std::move(extra);
+    params["scene"] = Scene(name);
+    return Call("job.submit", params);
+  }
+
+  std::filesystem::path dir_;
+  std::unique_ptr<SqliteStore> store_;
+  std::unique_ptr<Scheduler> scheduler_;
+  std::unique_ptr<RpcService> service_;
+  SessionContext session_;
+  Inbox inbox_;
+  std::int64_t id_ = 0;
+};
+
+TEST_F(RpcServiceTest, StandardErrors) {
+  MakeService(false);
+  auto raw = [&](const std::string& text) { return proto::ParseJson(service_->HandleMessage(text, session_)); };
+  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"server.info\"")), rpc::kParseError);
+  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"x\xff\"}")), rpc::kParseError);  // not UTF-8
+  EXPECT_EQ(Code(raw("{\"id\":1,\"method\":\"server.info\"}")), rpc::kInvalidRequest);
+  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":7}")), rpc::kInvalidRequest);
+  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":{},\"method\":\"server.info\"}")), rpc::kInvalidRequest);
+  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"server.info\",\"extra\":1}")), rpc::kInvalidRequest);
+  EXPECT_EQ(Code(raw("[]")), rpc::kInvalidRequest);
+  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"job.nope\"}")), rpc::kMethodNotFound);
+  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"job.get\",\"params\":[1]}")), rpc::kInvalidParams);
+  const Json wrong_type = Call("job.get", {{"job_id", "12"}});
+  EXPECT_EQ(Code(wrong_type), rpc::kInvalidParams);
+  EXPECT_EQ(wrong_type["error"]["data"]["path"], "params.job_id");
+  EXPECT_EQ(Call("job.get", Json::object())["error"]["data"]["path"], "params.job_id");
+  EXPECT_EQ(Call("job.get", {{"job_id", 1}, {"jobid", 1}})["error"]["data"]["path"], "params.jobid");
+  const Json missing = Call("job.get", {{"job_id", 404}});
+  EXPECT_EQ(Code(missing), rpc::kNoSuchJob);
+  EXPECT_EQ(missing["error"]["data"]["job_id"], 404);
+  EXPECT_EQ(Code(Call("job.get", {{"job_id", 1e300}})), rpc::kInvalidParams);
+  // The id comes back as sent, string ids included.
+  EXPECT_EQ(raw("{\"jsonrpc\":\"2.0\",\"id\":\"abc\",\"method\":\"server.info\"}")["id"], "abc");
+}
+
+TEST_F(RpcServiceTest, NotificationsAndBatches) {
+  MakeService(false);
+  EXPECT_EQ(service_->HandleMessage("{\"jsonrpc\":\"2.0\",\"method\":\"server.info\"}", session_), "");
+  EXPECT_EQ(service_->HandleMessage("[{\"jsonrpc\":\"2.0\",\"method\":\"server.info\"}]", session_), "");
+  const Json batch = proto::ParseJson(service_->HandleMessage(
+      "[{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"server.info\"}, 5, {\"jsonrpc\":\"2.0\",\"method\":\"job.list\"},"
+      "{\"jsonrpc\":\"2.0\",\"id\":2,\"method\":\"job.get\",\"params\":{\"job_id\":9}}]",
+      session_));
+  ASSERT_TRUE(batch.is_array());
+  ASSERT_EQ(batch.size(), 3u);
+  EXPECT_EQ(batch[0]["result"]["name"], "springfitd");
+  EXPECT_EQ(Code(batch[1]), rpc::kInvalidRequest);
+  EXPECT_EQ(Code(batch[2]), rpc::kNoSuchJob);
+  std::string big = "[";
+  for (int i = 0; i < 101; ++i) big += std::string(i ? "," : "") + "{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"server.info\"}";
+  const Json too_big = proto::ParseJson(service_->HandleMessage(big + "]", session_));
+  EXPECT_EQ(Code(too_big), rpc::kLimitExceeded);
+  EXPECT_EQ(too_big["error"]["data"]["limit"], "max_batch");
+}
+
+TEST_F(RpcServiceTest, TokenIsRequiredForJobMethods) {
+  ServiceOptions o;
+  o.token = "0123456789abcdef0123456789abcdef";
+  MakeService(false, o);
+  EXPECT_TRUE(Call("server.info")["result"]["auth_required"].get<bool>());
+  EXPECT_EQ(Code(Call("job.list")), rpc::kUnauthorized);
+  EXPECT_EQ(Code(Call("session.auth", {{"token", "0123456789abcdef0123456789abcdeX"}})), rpc::kUnauthorized);
+  EXPECT_EQ(Code(Call("session.auth", {{"token", "0123456789abcdef"}})), rpc::kUnauthorized);
+  EXPECT_EQ(Code(Call("job.list")), rpc::kUnauthorized);
+  EXPECT_TRUE(Call("session.auth", {{"token", o.token}})["result"]["authenticated"].get<bool>());
+  EXPECT_TRUE(Call("job.list")["result"]["jobs"].is_array());
+}
+
+TEST_F(RpcServiceTest, BadScenesAndLimitsAreRefusedAtSubmission) {
+  ServiceOptions o;
+  o.limits.max_nodes = 20;
+  o.limits.max_queued = 2;
+  MakeService(false, o);
+  Json scene = Scene("paper-iso-5x5");
+  const Json too_many = Call("job.submit", {{"scene", scene}});
+  EXPECT_EQ(Code(too_many), rpc::kLimitExceeded);
+  EXPECT_EQ(too_many["error"]["data"]["limit"], "max_nodes");
+  EXPECT_EQ(too_many["error"]["data"]["value"], 25);
+
+  Json small = Scene("paper-iso-5x5");
+  small["nodes"] = Json::array({{0.0, 0.0}, {1.0, 0.0}});
+  const Json bad = Call("job.submit", {{"scene", small}});
+  EXPECT_EQ(Code(bad), rpc::kInvalidScene);
+  EXPECT_FALSE(bad["error"]["data"]["path"].get<std::string>().empty());
+  EXPECT_EQ(Code(Call("job.submit", {{"scene", "file.json"}})), rpc::kInvalidParams);
+  EXPECT_EQ(Code(Call("job.submit", {{"scene", Json::object()}, {"label", 3}})), rpc::kInvalidParams);
+  EXPECT_EQ(Code(Call("job.submit", {{"scene", Json::object()}, {"priority", 5000}})), rpc::kInvalidParams);
+  EXPECT_EQ(store_->ListJobs({}).jobs.size(), 0u);  // nothing stored
+
+  ServiceOptions roomy;
+  roomy.limits.max_queued = 2;
+  MakeService(false, roomy);
+  EXPECT_TRUE(Submit("paper-iso-5x5")["result"]["created"].get<bool>());
+  EXPECT_TRUE(Submit("paper-iso-5x5")["result"]["created"].get<bool>());
+  EXPECT_EQ(Code(Submit("paper-iso-5x5")), rpc::kBusy);
+}
+
+TEST_F(RpcServiceTest, QueuedJobsCancelAndRefuseResultAndDelete) {
+  MakeService(false);
+  const Json submitted = Submit("paper-iso-5x5", {{"label", "x"}, {"seed", 42}, {"priority", 3}});
+  const Json job = submitted["result"]["job"];
+  const std::int64_t id = job["job_id"].get<std::int64_t>();
+  EXPECT_EQ(job["state"], "queued");
+  EXPECT_EQ(job["seed"], 42);
+  EXPECT_EQ(job["genes"], 72);
+  const Json early = Call("job.result", {{"job_id", id}});
+  EXPECT_EQ(Code(early), rpc::kWrongState);
+  EXPECT_EQ(early["error"]["data"]["state"], "queued");
+  EXPECT_EQ(Code(Call("job.delete", {{"job_id", id}})), rpc::kWrongState);
+  EXPECT_EQ(Call("job.cancel", {{"job_id", id}})["result"]["state"], "cancelled");
+  EXPECT_EQ(Call("job.get", {{"job_id", id}})["result"]["state"], "cancelled");
+  EXPECT_EQ(Code(Call("job.cancel", {{"job_id", id}})), rpc::kWrongState);
+  EXPECT_EQ(Code(Call("job.result", {{"job_id", id}})), rpc::kWrongState);
+  EXPECT_TRUE(Call("job.delete", {{"job_id", id}})["result"]["deleted"].get<bool>());
+  EXPECT_EQ(Code(Call("job.get", {{"job_id", id}})), rpc::kNoSuchJob);
+}
+
+TEST_F(RpcServiceTest, SubmitWatchResultTraceListAndIdempotency) {
+  MakeService(true);
+  const Json first = Submit("paper-aniso-5x5", {{"idempotency_key", "ci-1"}, {"label", "nightly"}});
+  ASSERT_TRUE(first.contains("result")) << first.dump();
+  const std::int64_t id = first["result"]["job"]["job_id"].get<std::int64_t>();
+  const Json watched = Call("job.watch", {{"job_id", id}});
+  ASSERT_TRUE(watched.contains("result"));
+  const Json finished = inbox_.WaitFor("job.finished");
+  ASSERT_FALSE(finished.is_null()) << "no job.finished within 60 s";
+  EXPECT_EQ(finished["params"]["job_id"], id);
+  EXPECT_EQ(finished["params"]["state"], "succeeded");
+  EXPECT_EQ(finished["params"]["exact"], true);
+  EXPECT_FALSE(inbox_.WaitFor("job.progress").is_null());  // generation 0 is always sent
+
+  const Json retry = Submit("paper-aniso-5x5", {{"idempotency_key", "ci-1"}});
+  EXPECT_FALSE(retry["result"]["created"].get<bool>());
+  EXPECT_EQ(retry["result"]["job"]["job_id"], id);
+
+  const Json result = Call("job.result", {{"job_id", id}})["result"];
+  EXPECT_EQ(result["exact"], true);
+  EXPECT_EQ(result["job_id"], id);
+  EXPECT_EQ(result["state"], "succeeded");
+  EXPECT_EQ(result["hamming"], 0);
+
+  const int generations = result["generations"].get<int>();
+  Json params = {{"job_id", id}, {"limit", 1}};
+  int rows = 0;
+  for (int page = 0; page < 10000; ++page) {
+    const Json t = Call("job.trace", params)["result"];
+    rows += static_cast<int>(t["rows"].size());
+    if (t["next_after"].is_null()) break;
+    params["after"] = t["next_after"];
+  }
+  EXPECT_EQ(rows, generations + 1);  // every generation below 10,000 is kept
+
+  const Json list = Call("job.list", {{"label", "nightly"}})["result"];
+  ASSERT_EQ(list["jobs"].size(), 1u);
+  EXPECT_EQ(list["jobs"][0]["job_id"], id);
+  EXPECT_EQ(Code(Call("job.list", {{"state", "done"}})), rpc::kInvalidParams);
+
+  // Watching a finished job: job.finished follows at once, and only once.
+  SessionContext other;
+  Inbox other_inbox;
+  other.notify = [&](const Json& n) { other_inbox.Push(n); };
+  service_->HandleMessage(rpc::Serialize(rpc::Request(1, "job.watch", {{"job_id", id}})), other);
+  EXPECT_EQ(other_inbox.All().size(), 1u);
+  EXPECT_EQ(other_inbox.All()[0]["method"], "job.finished");
+  service_->EndSession(other);
+  service_->EndSession(session_);
+}
+
+TEST_F(RpcServiceTest, RunningJobCancelsWithinAGenerationAndKeepsItsBest) {
+  MakeService(true);
+  Json scene = Scene("kidney-2d");
+  scene["search"] = {{"strategy", "paper"}, {"max_generations", 100000}};
+  const Json submitted = Call("job.submit", {{"scene", scene}});
+  const std::int64_t id = submitted["result"]["job"]["job_id"].get<std::int64_t>();
+  Call("job.watch", {{"job_id", id}});
+  ASSERT_FALSE(inbox_.WaitFor("job.progress").is_null());
+  EXPECT_EQ(Code(Call("job.delete", {{"job_id", id}})), rpc::kWrongState);
+  EXPECT_EQ(Call("job.cancel", {{"job_id", id}})["result"]["state"], "cancelling");
+  const Json finished = inbox_.WaitFor("job.finished");
+  ASSERT_FALSE(finished.is_null());
+  EXPECT_EQ(finished["params"]["state"], "cancelled");
+  const Json result = Call("job.result", {{"job_id", id}})["result"];
+  EXPECT_EQ(result["stop"], "cancelled");
+  EXPECT_EQ(result["state"], "cancelled");
+  EXPECT_LT(result["generations"].get<int>(), 100000);
+  service_->EndSession(session_);
+}
+
+}  // namespace
+}  // namespace springfit::server
