@@ -1,0 +1,119 @@
+#!/usr/bin/env bash
+# springfitd end to end, on loopback: submit/watch/result through the CLI, and jobs that
+# survive kill -9 and a graceful stop, resuming to exactly the result and trace of an
+# uninterrupted local run with the same seed.
+# Usage: daemon_test.sh SPRINGFITD SPRINGFIT SOURCE_DIR
+set -u
+daemon_bin=$1
+sf=$2
+src=$3
+tmp=$(mktemp -d)
+pid=""
+cleanup() { [ -n "$pid" ] && kill -9 "$pid" 2>/dev/null; rm -rf "$tmp"; }
+trap cleanup EXIT
+failures=0
+fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
+
+start_daemon() {  # extra flags...
+  rm -f "$tmp/port"
+  "$daemon_bin" --listen 127.0.0.1:0 --db "$tmp/jobs.db" --port-file "$tmp/port" --workers 2 \
+    --checkpoint-seconds 0.2 "$@" >>"$tmp/daemon.log" 2>&1 &
+  pid=$!
+  for _ in $(seq 100); do [ -s "$tmp/port" ] && break; sleep 0.05; done
+  [ -s "$tmp/port" ] || { fail "daemon did not start: $(tail -3 "$tmp/daemon.log")"; exit 1; }
+  export SPRINGFIT_SERVER=127.0.0.1:$(cat "$tmp/port")
+}
+
+json_field() {  # file field
+  python3 -c "import json,sys; v=json.load(open(sys.argv[1]))[sys.argv[2]]; print('' if v is None else v)" "$1" "$2"
+}
+
+# Waits (at most 30 s) until job $1 has a checkpoint at generation >= $2.
+wait_for_checkpoint() {
+  for _ in $(seq 300); do
+    "$sf" status "$1" --json >"$tmp/status.json" 2>/dev/null || true
+    local c
+    c=$(json_field "$tmp/status.json" checkpoint_generation 2>/dev/null)
+    [ -n "$c" ] && [ "$c" -ge "$2" ] && return 0
+    sleep 0.1
+  done
+  fail "job $1 reached no checkpoint at generation $2"
+  return 1
+}
+
+# The daemon's result and trace of job $1 equal a local run of scene $2 with the flags after it.
+expect_same_as_local() {
+  local id=$1 scene=$2; shift 2
+  "$sf" result "$id" --json >"$tmp/daemon.json" || fail "result $id"
+  "$sf" trace "$id" --csv | cut -d, -f1,3- >"$tmp/daemon.csv"
+  "$sf" run "$scene" "$@" --json -q --threads 1 --trace "$tmp/local_full.csv" >"$tmp/local.json"
+  cut -d, -f1,3- "$tmp/local_full.csv" >"$tmp/local.csv"  # wall time aside
+  cmp -s "$tmp/daemon.csv" "$tmp/local.csv" || fail "job $id: trace differs from an uninterrupted local run"
+  python3 - "$tmp/daemon.json" "$tmp/local.json" <<'PY' || fail "job $id: result differs from an uninterrupted local run"
+import json, sys
+daemon, local = (json.load(open(p)) for p in sys.argv[1:])
+diff = [k for k in local if k not in ("wall_seconds", "threads") and daemon.get(k) != local[k]]
+if diff:
+    print("differing fields:", diff)
+    sys.exit(1)
+PY
+}
+
+kidney="$src/examples/kidney-2d.json"
+run_flags=(--strategy paper --generations 60)
+
+start_daemon
+# A finished job, to find intact after the crash.
+"$sf" submit "$src/examples/paper-iso-5x5.json" --label kept --wait >"$tmp/kept.txt" || fail "submit --wait: exit $?"
+grep -q "recovered exactly" "$tmp/kept.txt" || fail "submit --wait prints the result: $(cat "$tmp/kept.txt")"
+kept_id=$("$sf" list --label kept --json | python3 -c "import json,sys; print(json.load(sys.stdin)[0]['job_id'])")
+"$sf" result "$kept_id" --json >"$tmp/kept_before.json"
+
+# kill -9 in the middle of a job; the restart resumes it from its checkpoint.
+id=$("$sf" submit "$kidney" "${run_flags[@]}" --seed 5 2>/dev/null) || fail "submit"
+wait_for_checkpoint "$id" 5
+kill -9 "$pid"
+wait "$pid" 2>/dev/null
+start_daemon
+grep -q "resumed from its checkpoint" "$tmp/daemon.log" || fail "the restart did not resume job $id from a checkpoint"
+"$sf" watch "$id" -q >/dev/null || fail "watch $id after the restart: exit $?"
+expect_same_as_local "$id" "$kidney" "${run_flags[@]}" --seed 5
+"$sf" result "$kept_id" --json >"$tmp/kept_after.json"
+cmp -s "$tmp/kept_before.json" "$tmp/kept_after.json" || fail "a finished job changed across the crash"
+
+# SIGTERM with a job running: the daemon checkpoints it, exits, and the next start finishes it.
+id2=$("$sf" submit "$kidney" "${run_flags[@]}" --seed 6 2>/dev/null) || fail "submit"
+wait_for_checkpoint "$id2" 3
+kill -TERM "$pid"
+for _ in $(seq 200); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
+if kill -0 "$pid" 2>/dev/null; then fail "the daemon did not stop within 20 s of SIGTERM"; fi
+wait "$pid"
+[ $? -eq 0 ] || fail "graceful stop: non-zero exit"
+grep -q "interrupted by the shutdown" "$tmp/daemon.log" || fail "job $id2 was not checkpointed at the shutdown"
+start_daemon
+"$sf" status "$id2" --json >"$tmp/s2.json"
+state=$(json_field "$tmp/s2.json" state)
+[ "$state" = running ] || [ "$state" = queued ] || [ "$state" = succeeded ] || fail "job $id2 after the restart: $state"
+"$sf" watch "$id2" -q >/dev/null || fail "watch $id2: exit $?"
+expect_same_as_local "$id2" "$kidney" "${run_flags[@]}" --seed 6
+
+# result -o carries the trace; exit codes of a cancelled job and of a job not found.
+"$sf" result "$id2" -o "$tmp/r.json" >/dev/null || fail "result -o"
+python3 -c "import json,sys; r=json.load(open(sys.argv[1])); assert len(r['trace'])==r['generations']+1" "$tmp/r.json" \
+  || fail "result -o: the trace has one row per generation"
+id3=$("$sf" submit "$kidney" --strategy paper --generations 100000 2>/dev/null)
+"$sf" cancel "$id3" >/dev/null || fail "cancel"
+"$sf" watch "$id3" -q >/dev/null
+[ $? -eq 7 ] || fail "watch of a cancelled job exits 7"
+"$sf" status 123456 >/dev/null 2>&1
+[ $? -eq 4 ] || fail "status of an unknown job exits 4"
+
+kill -TERM "$pid"
+wait "$pid"
+pid=""
+if [ "$failures" -ne 0 ]; then
+  echo "--- daemon log"; tail -30 "$tmp/daemon.log"
+  echo "$failures failure(s)"
+  exit 1
+fi
+echo "daemon tests passed"
