@@ -14,6 +14,7 @@ packages=(
   libspdlog-dev libfmt-dev # logging
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev # libFuzzer targets and sanitizer runtime
+  python3                  # the end-to-end tests drive the CLI and the daemon with it
 )
 
 missing=()
