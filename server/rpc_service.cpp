@@ -129,7 +129,9 @@ Json RpcService::HandleRequest(const Json& request, SessionContext& session) {
   Json params = Json::object();
   if (const auto p = request.find("params"); p != request.end()) {
     if (p->is_array()) {
-      return rpc::Error(id, rpc::kInvalidParams, "invalid params: springfit methods take named params (an object)");
+      Json data;
+      data["path"] = "params";
+      return rpc::Error(id, rpc::kInvalidParams, "invalid params: springfit methods take named params (an object)", data);
     }
     if (!p->is_object()) return invalid("params must be an object");
     params = *p;
@@ -151,7 +153,10 @@ Json RpcService::HandleRequest(const Json& request, SessionContext& session) {
 }
 
 Json RpcService::Dispatch(const std::string& method, const Json& params, SessionContext& session) {
-  if (method == "server.info") return ServerInfo();
+  if (method == "server.info") {
+    proto::ExpectKeys(params, "params", {});
+    return ServerInfo();
+  }
   if (method == "session.auth") return SessionAuth(params, session);
   using Handler = Json (RpcService::*)(const Json&);
   static const std::pair<const char*, Handler> kJobMethods[] = {

@@ -351,6 +351,14 @@ def test_setup(ctx):
         job_id = sub["job"]["job_id"]
         job = wait_state(c, job_id, ("succeeded", "failed", "cancelled"), 15)
         require(job["state"] == "succeeded", f"job {job_id} before the corpus: {short(job)}")
+        fields = {"job_id", "label", "priority", "seed", "idempotency_key", "state", "error", "scene", "genes",
+                  "strategy", "max_generations", "created_at", "started_at", "finished_at", "progress",
+                  "checkpoint_generation", "exact"}
+        R.expect(fields <= set(job), f"job.get lacks documented fields {sorted(fields - set(job))}")
+        R.expect(job.get("label") == "before-corpus" and job.get("seed") == 3 and job.get("priority") == 0 and
+                 job.get("scene") == "paper-iso-5x5" and job.get("idempotency_key") is None and
+                 job.get("error") is None and isinstance(job.get("exact"), bool),
+                 f"job.get of a finished job: {short(job, 600)}")
         result = c.result("job.result", {"job_id": job_id})
         require("springs" in result and "cost" in result, f"job.result lacks springs/cost: {short(result)}")
         R.expect(result.get("job_id") == job_id and result.get("state") == "succeeded",
@@ -447,6 +455,8 @@ def test_corpus(ctx):
     # An expected answer of ("batch", ...) is checked by a function instead.
     cases = [
         ("garbage line", b"hello world\n", [(-32700, None, {})]),
+        ("garbage before a request on one line (the rest of the line is dropped)",
+         b'hello {"jsonrpc":"2.0","id":"hidden","method":"server.info"}\n', [(-32700, None, {})]),
         ("{{ line", b"{{\n", [(-32700, None, {})]),
         ("truncated JSON", b'{"jsonrpc":"2.0",]\n', [(-32700, None, {})]),
         ("truncated inside a string (raw newline)", b'{"jsonrpc":"2.0","id":1,"meth\n',
@@ -475,6 +485,7 @@ def test_corpus(ctx):
         ("unknown member", b'{"jsonrpc":"2.0","id":15,"method":"server.info","x":1}\n',
          [(-32600, 15, {})]),
         ("not an object", b'"hello"\n', [(-32700, None, {})]),
+        ("id an object", b'{"jsonrpc":"2.0","id":{"a":1},"method":"server.info"}\n', [(-32600, None, {})]),
         ("empty batch", b"[]\n", [(-32600, None, {})]),
         ("NaN in a scene",
          b'{"jsonrpc":"2.0","id":16,"method":"job.submit","params":{"scene":' + nan_scene + b"}}\n",
@@ -551,6 +562,19 @@ def test_corpus(ctx):
         resp = c.read()
         R.expect(resp.get("id") == "probe-batch", f"after the batch: {short(resp)}")
 
+        # Members of a batch that are not objects: one -32600 each.
+        R.current = "corpus: batch of non-objects"
+        c.send(b'[1,"x"]\n')
+        resp = c.read()
+        if R.expect(isinstance(resp, list) and len(resp) == 2, f"[1,\"x\"]: expected 2 answers, got {short(resp)}"):
+            for a in resp:
+                expect_error(a, -32600, "[1,\"x\"] member", None)
+        # id null is a request (RPC.md: id a string, a number or null), not a notification.
+        R.current = "corpus: id null"
+        c.send(b'{"jsonrpc":"2.0","id":null,"method":"server.info"}\n')
+        resp = c.read(what="the answer to a request with id null")
+        R.expect(resp.get("id", "absent") is None and "result" in resp, f"id null: {short(resp)}")
+
         # Batch limit (server.info limits.max_batch = 100): 101 members -> -32004 max_batch.
         R.current = "corpus: batch limit"
         batch = "[" + ",".join('{"jsonrpc":"2.0","id":%d,"method":"server.info"}' % i
@@ -587,6 +611,16 @@ def test_after_corpus(ctx):
         after = c.result("job.result", {"job_id": job_id})
         R.expect(after.get("springs") == before["springs"] and after.get("cost") == before["cost"],
                  f"job {job_id}'s result changed: {short(before)} -> {short(after)}")
+        # job.watch of a finished job: the job, then job.finished at once.
+        watched = c.result("job.watch", {"job_id": job_id})
+        R.expect(watched.get("job_id") == job_id and watched.get("state") == "succeeded",
+                 f"job.watch of a finished job: {short(watched)}")
+        note = c.read(what="job.finished")
+        R.expect(note.get("method") == "job.finished" and "id" not in note and
+                 note.get("params", {}).get("job_id") == job_id and
+                 note.get("params", {}).get("state") == "succeeded",
+                 f"job.watch of a finished job: expected a job.finished notification, got {short(note)}")
+        R.expect(c.silent(0.2), f"job.watch of a finished job: more output: {short(c.buf)}")
 
 
 def test_oversize(ctx):
@@ -606,7 +640,8 @@ def test_oversize(ctx):
         R.expect(error_data(err).get("max") == 4096, f"10 kB message: expected data.max 4096: {short(resp)}")
         R.expect(c.wait_closed(IO_TIMEOUT), "the server did not close the connection after -32004")
         # The other connection goes on, with a message just under the limit (whitespace counts).
-        near = b'{"jsonrpc":"2.0","id":"near","method":"server.info"' + b" " * 3900 + b"}\n"
+        head = b'{"jsonrpc":"2.0","id":"near","method":"server.info"'
+        near = head + b" " * (4060 - len(head) - 2) + b"}\n"
         require(4000 < len(near) < 4096, "a message just under the limit")
         other.send(near)
         r = other.read()
@@ -787,6 +822,38 @@ def test_load(ctx):
              "job.list label=load: every job has label load and succeeded")
 
 
+def test_idempotency_race(ctx):
+    """The same idempotency key from several connections at once creates exactly one job."""
+    port = ctx.main.port
+    nonce = f"{os.getpid()}-{time.time_ns()}"
+    keys = [f"race-{nonce}-{k}" for k in range(5)]
+    answers = {k: [] for k in keys}
+    lock = threading.Lock()
+
+    def submit(key, barrier):
+        try:
+            with Conn(port) as c:
+                barrier.wait()
+                r = c.result("job.submit", {"scene": ctx.small_scene, "label": "race", "idempotency_key": key})
+                with lock:
+                    answers[key].append((r.get("created"), r["job"].get("job_id")))
+        except Exception as e:
+            with lock:
+                answers[key].append(("error", f"{type(e).__name__}: {short(str(e))}"))
+
+    for key in keys:
+        barrier = threading.Barrier(6, timeout=IO_TIMEOUT)
+        threads = [threading.Thread(target=submit, args=(key, barrier), daemon=True) for _ in range(6)]
+        for th in threads:
+            th.start()
+        for th in threads:
+            th.join(IO_TIMEOUT * 2)
+        got = answers[key]
+        R.expect(len(got) == 6 and sum(1 for c, _ in got if c is True) == 1 and
+                 sum(1 for c, _ in got if c is False) == 5 and len({j for _, j in got}) == 1,
+                 f"key {key} submitted 6 times at once: expected one created=true and one job id, got {got}")
+
+
 def run_cli(ctx, *args):
     env = {k: v for k, v in os.environ.items() if not k.startswith("SPRINGFIT_")}
     try:
@@ -838,6 +905,7 @@ def main(argv):
         ("over-size", test_oversize, False),
         ("auth", test_auth, False),
         ("connection limit", test_connection_limit, False),
+        ("idempotency race", test_idempotency_race, False),
         ("load", test_load, False),
         ("cli", test_cli, False),
     ]
