@@ -101,23 +101,40 @@ int RunDaemon(const DaemonArgs& args) {
   }
 
   boost::asio::signal_set signals(io, SIGINT, SIGTERM);
+  std::thread stopper;
   signals.async_wait([&](const boost::system::error_code& error, int signal) {
     if (error) return;
     spdlog::info("signal {}: stopping (running jobs checkpoint and resume at the next start)", signal);
     service.set_stopping();
-    server.Stop();
-    const auto timeout = std::chrono::milliseconds(static_cast<long long>(args.shutdown_seconds * 1000));
-    if (!scheduler.Stop(timeout)) {
-      // A job in a long generation: leave it as a crash would, to resume from its last checkpoint.
-      spdlog::warn("jobs still running after {:.1f} s; exiting, they resume from their last checkpoint",
-                   args.shutdown_seconds);
+    server.StopAccepting();
+    // A second signal does not wait for the jobs.
+    signals.async_wait([](const boost::system::error_code& again, int) {
+      if (again) return;
+      spdlog::warn("second signal: exiting now; running jobs resume from their last checkpoint");
       spdlog::shutdown();
-      std::_Exit(0);
-    }
-    io.stop();
+      std::_Exit(1);
+    });
+    // The jobs are waited for off the I/O thread, so that answers and job.finished
+    // notifications of the last moments still reach their connections.
+    stopper = std::thread([&] {
+      const auto timeout = std::chrono::milliseconds(static_cast<long long>(args.shutdown_seconds * 1000));
+      if (!scheduler.Stop(timeout)) {
+        // A job in a long generation: leave it as a crash would, to resume from its last checkpoint.
+        spdlog::warn("jobs still running after {:.1f} s; exiting, they resume from their last checkpoint",
+                     args.shutdown_seconds);
+        spdlog::shutdown();
+        std::_Exit(1);
+      }
+      server.Stop();
+      boost::asio::post(io, [&] {
+        signals.cancel();
+        io.stop();
+      });
+    });
   });
   std::signal(SIGPIPE, SIG_IGN);
   io.run();
+  if (stopper.joinable()) stopper.join();
   spdlog::info("springfitd stopped");
   return 0;
 }

@@ -418,15 +418,22 @@ Json RpcService::JobWatch(const Json& params, SessionContext& session) {
   // (for a job already finished) sends it.
   auto finished_sent = std::make_shared<std::atomic<bool>>(false);
   auto notify = session.notify;
+  std::optional<std::uint64_t> token;
   if (notify) {
-    const std::uint64_t token = scheduler_.Watch(before.id, [notify, finished_sent](const Json& n) {
+    token = scheduler_.Watch(before.id, [notify, finished_sent](const Json& n) {
       if (n.value("method", "") == "job.finished" && finished_sent->exchange(true)) return;
       notify(n);
     });
-    session.watches.push_back(token);
   }
   // Read again after registering: a job that finished in between is not missed.
-  const JobRecord job = RequireJob(params);
+  JobRecord job;
+  try {
+    job = RequireJob(params);
+  } catch (...) {
+    if (token) scheduler_.Unwatch(*token);  // deleted in between: no job.finished will come
+    throw;
+  }
+  if (token) session.watches.push_back(*token);
   if (proto::IsFinal(job.state) && notify && !finished_sent->exchange(true)) {
     notify(rpc::Notification("job.finished", proto::JobToJson(job)));
   }

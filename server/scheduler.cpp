@@ -101,7 +101,11 @@ void Scheduler::Publish(std::int64_t id, const proto::Json& notification) {
 }
 
 bool Scheduler::Stop(std::chrono::milliseconds timeout) {
-  stopping_.store(true);
+  {
+    // Under the mutex: a runner between its check and its wait would miss the wake-up.
+    std::lock_guard lock(mutex_);
+    stopping_.store(true);
+  }
   wake_.notify_all();
   std::unique_lock lock(mutex_);
   const bool stopped = runners_done_.wait_for(lock, timeout, [this] { return runners_alive_ == 0; });
@@ -150,7 +154,17 @@ void Scheduler::RunnerLoop() {
     try {
       stored = store_.GetJob(job.id);
     } catch (const std::exception& e) {
-      spdlog::error("job {}: cannot read it from the store: {}", job.id, e.what());
+      // Failed rather than forgotten: a job left queued would hold its watchers forever.
+      spdlog::error("job {} failed: cannot read it from the store: {}", job.id, e.what());
+      try {
+        store_.MarkFinished(job.id, JobState::kFailed, std::string("cannot read the job: ") + e.what(), "",
+                            std::nullopt, UnixNow());
+        if (const auto failed = store_.GetJob(job.id)) {
+          Publish(job.id, proto::rpc::Notification("job.finished", proto::JobToJson(*failed)));
+        }
+      } catch (const std::exception& e2) {
+        spdlog::error("job {}: cannot record the failure: {}", job.id, e2.what());
+      }
     }
     if (stored && !proto::IsFinal(stored->state)) {
       JobControl control;

@@ -285,6 +285,13 @@ void TcpServer::Accept() {
 
 void TcpServer::Remove(const std::shared_ptr<Session>& session) { sessions_.erase(session); }
 
+void TcpServer::StopAccepting() {
+  asio::post(io_, [this] {
+    boost::system::error_code ignored;
+    acceptor_.close(ignored);
+  });
+}
+
 void TcpServer::Stop() {
   asio::post(io_, [this] {
     boost::system::error_code ignored;

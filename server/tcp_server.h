@@ -43,6 +43,8 @@ class TcpServer {
   // Binds and listens; throws std::runtime_error naming the address when it cannot.
   void Start();
   unsigned short port() const { return port_; }
+  // Stops accepting new connections (on the I/O thread); open ones carry on.
+  void StopAccepting();
   // Stops accepting and closes every connection (on the I/O thread).
   void Stop();
 
