@@ -2,7 +2,6 @@
 // managing springfitd's jobs (README.md, "The daemon"; proto/RPC.md).
 #include <cstdio>
 #include <ctime>
-#include <fstream>
 #include <iostream>
 #include <optional>
 
@@ -104,16 +103,9 @@ int Result(const JobArgs& a) {
     Json trace = Json::array();
     for (const TraceRow& row : FetchTrace(client, a.job_id)) trace.push_back(proto::TraceRowToJson(row));
     with_trace["trace"] = std::move(trace);
-    std::ofstream out(a.output_path);
-    out << with_trace.dump(1) << "\n";
-    out.close();
-    if (!out) throw std::runtime_error("cannot write the result file " + a.output_path);
+    WriteResultFile(a.output_path, with_trace);
   }
-  if (a.json) {
-    std::cout << proto::DumpCompact(result) << std::endl;
-  } else {
-    PrintResultSummary(result, std::cout);
-  }
+  PrintResult(result, a.json);
   return ExitCodeOfJobState(result.value("state", std::string("succeeded")));
 }
 
@@ -140,27 +132,20 @@ int Trace(const JobArgs& a) {
   return kExitOk;
 }
 
-int Cancel(const JobArgs& a) {
+// job.cancel and job.delete: the answer as JSON, or "job N <state>".
+int ChangeJob(const JobArgs& a, const char* method) {
   RpcClient client(a.server);
-  const Json r = client.Call("job.cancel", IdParams(a.job_id));
+  const Json r = client.Call(method, IdParams(a.job_id));
   if (a.json) {
     std::cout << r.dump() << std::endl;
   } else {
-    std::cout << "job " << a.job_id << " " << r["state"].get<std::string>() << "\n";
+    std::cout << "job " << a.job_id << " " << r.value("state", std::string("deleted")) << "\n";
   }
   return kExitOk;
 }
 
-int Delete(const JobArgs& a) {
-  RpcClient client(a.server);
-  const Json r = client.Call("job.delete", IdParams(a.job_id));
-  if (a.json) {
-    std::cout << r.dump() << std::endl;
-  } else {
-    std::cout << "job " << a.job_id << " deleted\n";
-  }
-  return kExitOk;
-}
+int Cancel(const JobArgs& a) { return ChangeJob(a, "job.cancel"); }
+int Delete(const JobArgs& a) { return ChangeJob(a, "job.delete"); }
 
 int List(const JobArgs& a) {
   RpcClient client(a.server);

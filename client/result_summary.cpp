@@ -1,6 +1,9 @@
 #include "client/result_summary.h"
 
 #include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <stdexcept>
 #include <string>
 
 namespace springfit::cli {
@@ -42,6 +45,21 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
   } else {
     out << "reference:         topology unknown (positions reference, or springs outside the candidates)\n";
   }
+}
+
+void PrintResult(const proto::Json& result, bool as_json) {
+  if (as_json) {
+    std::cout << proto::DumpCompact(result) << std::endl;
+  } else {
+    PrintResultSummary(result, std::cout);
+  }
+}
+
+void WriteResultFile(const std::string& path, const proto::Json& result) {
+  std::ofstream out(path);
+  out << result.dump(1) << "\n";
+  out.close();
+  if (!out) throw std::runtime_error("cannot write the result file " + path);
 }
 
 }  // namespace springfit::cli

@@ -88,19 +88,10 @@ int Run(const RunArgs& args) {
     if (!trace) throw std::runtime_error("cannot write the trace file " + args.trace_path);
   }
 
-  if (!args.output_path.empty()) {
-    std::ofstream out(args.output_path);
-    out << proto::SearchResultToJson(problem, result, true).dump(1) << "\n";
-    out.close();
-    if (!out) throw std::runtime_error("cannot write the result file " + args.output_path);
-  }
+  if (!args.output_path.empty()) WriteResultFile(args.output_path, proto::SearchResultToJson(problem, result, true));
   proto::Json j = proto::SearchResultToJson(problem, result, false);
-  if (args.json) {
-    j["threads"] = args.threads;
-    std::cout << proto::DumpCompact(j) << std::endl;
-  } else {
-    PrintResultSummary(j, std::cout);
-  }
+  if (args.json) j["threads"] = args.threads;
+  PrintResult(j, args.json);
   return result.stop == StopReason::kCancelled ? kExitInterrupted : kExitOk;
 }
 

@@ -69,12 +69,7 @@ int Submit(const SubmitArgs& args) {
   Json result_params;
   result_params["job_id"] = id;
   try {
-    const Json result = client.Call("job.result", result_params);
-    if (args.json) {
-      std::cout << proto::DumpCompact(result) << std::endl;
-    } else {
-      PrintResultSummary(result, std::cout);
-    }
+    PrintResult(client.Call("job.result", result_params), args.json);
   } catch (const RemoteError&) {
     std::cerr << "springfit: job " << id << " " << state << " before it ran\n";
   }
