@@ -196,7 +196,9 @@ std::vector<NodePair> GridNeighbourSprings(const std::vector<int>& n) {
 
 std::vector<LoadCase> Paper7LoadCases(int d, const Vector& rest, double magnitude, double band) {
   const int n = static_cast<int>(rest.size()) / d;
-  const auto [lo, hi] = BoundingBox::Of(d, rest);
+  const auto box = BoundingBox::Of(d, rest);
+  const Vector& lo = box.lo;  // references, not a structured binding: clang 14 cannot capture those
+  const Vector& hi = box.hi;
   auto side = [&](int axis, bool low) {
     const double width = std::max(band * (hi[axis] - lo[axis]), 1e-9 * (hi - lo).norm());
     std::vector<int> nodes;

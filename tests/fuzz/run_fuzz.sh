@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets with clang (a second build tree, instrumented with
+# AddressSanitizer and UndefinedBehaviorSanitizer) and runs each for a bounded time from its
+# seed corpus. Any crash, sanitizer report, leak, timeout or failed check fails the test;
+# libFuzzer writes the offending input to the build tree and its path is printed.
+#
+# usage: run_fuzz.sh SOURCE_DIR FUZZ_BUILD_DIR [SECONDS_PER_TARGET]
+set -euo pipefail
+src=$1
+build=$2
+seconds=${3:-${SPRINGFIT_FUZZ_SECONDS:-20}}
+
+CXX=clang++ cmake -S "$src" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSPRINGFIT_FUZZ=ON \
+  -DSPRINGFIT_BUILD_TESTS=OFF -DSPRINGFIT_BUILD_BENCHMARKS=OFF >"$build.configure.log" 2>&1 ||
+  { cat "$build.configure.log"; exit 1; }
+cmake --build "$build" -j2 --target framer_fuzz scene_fuzz >"$build.build.log" 2>&1 ||
+  { tail -50 "$build.build.log"; exit 1; }
+
+# A libFuzzer dictionary of the scene format's keys and enumerated values, from the schema,
+# so that mutations produce scenes that get past the unknown-field check.
+scene_dict="$build/scene.dict"
+python3 - "$src/proto/scene.schema.json" >"$scene_dict" <<'PY'
+import json, sys
+words = set()
+def walk(node):
+    if isinstance(node, dict):
+        words.update(node.get("properties", {}).keys())
+        words.update(v for v in node.get("enum", []) if isinstance(v, str))
+        for value in node.values():
+            walk(value)
+    elif isinstance(node, list):
+        for value in node:
+            walk(value)
+walk(json.load(open(sys.argv[1])))
+for word in sorted(words):
+    print(json.dumps(json.dumps(word)))
+PY
+
+run() {
+  local target=$1
+  local options=$2
+  shift 2
+  local work="$build/run-$target"
+  rm -rf "$work"
+  mkdir -p "$work/corpus"
+  cp "$@" "$work/corpus/"
+  echo "== $target: ${seconds}s from $(ls "$work/corpus" | wc -l) seeds"
+  # -timeout: one input taking over 10 s is a hang; -rss_limit_mb bounds memory per input.
+  (cd "$work" && "$build/tests/fuzz/$target" -max_total_time="$seconds" -timeout=10 \
+     -rss_limit_mb=2048 -max_len=8192 -print_final_stats=1 $options corpus 2>"$work/log") || {
+    tail -60 "$work/log"
+    echo "$target failed; the input is in $work (crash-*, timeout-*, leak-*, oom-*)"
+    exit 1
+  }
+  grep -E '^stat::(number_of_executed_units|new_units_added)' "$work/log" || true
+}
+
+run framer_fuzz "" "$src"/tests/fuzz/corpus/framer/*
+run scene_fuzz "-dict=$scene_dict" "$src"/examples/*.json "$src"/tests/data/*.json
