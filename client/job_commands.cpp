@@ -29,12 +29,6 @@ struct JobArgs {
   int limit = 100;
 };
 
-Json IdParams(std::int64_t id) {
-  Json p;
-  p["job_id"] = id;
-  return p;
-}
-
 std::string LocalTime(double unix_seconds) {
   if (unix_seconds <= 0.0) return "-";
   const auto t = static_cast<std::time_t>(unix_seconds);
@@ -75,7 +69,7 @@ void PrintJob(const proto::JobRecord& j) {
 
 int Status(const JobArgs& a) {
   RpcClient client(a.server);
-  const Json job = client.Call("job.get", IdParams(a.job_id));
+  const Json job = client.Call("job.get", JobIdParams(a.job_id));
   if (a.json) {
     std::cout << job.dump() << std::endl;
   } else {
@@ -97,13 +91,13 @@ int Watch(const JobArgs& a) {
 
 int Result(const JobArgs& a) {
   RpcClient client(a.server);
-  const Json result = client.Call("job.result", IdParams(a.job_id));
+  const Json result = client.Call("job.result", JobIdParams(a.job_id));
   if (!a.output_path.empty()) {
     Json with_trace = result;
     Json trace = Json::array();
     for (const TraceRow& row : FetchTrace(client, a.job_id)) trace.push_back(proto::TraceRowToJson(row));
     with_trace["trace"] = std::move(trace);
-    WriteResultFile(a.output_path, with_trace);
+    WriteResultFile(a.output_path, with_trace, client.Call("job.scene", JobIdParams(a.job_id))["scene"]);
   }
   PrintResult(result, a.json);
   return ExitCodeOfJobState(result.value("state", std::string("succeeded")));
@@ -135,7 +129,7 @@ int Trace(const JobArgs& a) {
 // job.cancel and job.delete: the answer as JSON, or "job N <state>".
 int ChangeJob(const JobArgs& a, const char* method) {
   RpcClient client(a.server);
-  const Json r = client.Call(method, IdParams(a.job_id));
+  const Json r = client.Call(method, JobIdParams(a.job_id));
   if (a.json) {
     std::cout << r.dump() << std::endl;
   } else {

@@ -9,15 +9,19 @@
 namespace springfit::cli {
 using proto::Json;
 
+Json JobIdParams(std::int64_t job_id) {
+  Json params;
+  params["job_id"] = job_id;
+  return params;
+}
+
 void AddServerFlags(CLI::App* command, ServerOptions& options) {
   command->add_option("--server", options.server, "springfitd address HOST:PORT (default: $SPRINGFIT_SERVER, else 127.0.0.1:7117)");
   command->add_option("--token-file", options.token_file, "File holding the server's token (default: $SPRINGFIT_TOKEN)");
 }
 
 Json WatchJob(RpcClient& client, std::int64_t job_id, bool quiet) {
-  Json params;
-  params["job_id"] = job_id;
-  const Json job = client.Call("job.watch", params);
+  const Json job = client.Call("job.watch", JobIdParams(job_id));
   ProgressLine progress(job.value("max_generations", 0), quiet);
   while (true) {
     const Json n = client.NextNotification();
@@ -37,8 +41,7 @@ Json WatchJob(RpcClient& client, std::int64_t job_id, bool quiet) {
 
 std::vector<TraceRow> FetchTrace(RpcClient& client, std::int64_t job_id) {
   std::vector<TraceRow> rows;
-  Json params;
-  params["job_id"] = job_id;
+  Json params = JobIdParams(job_id);
   params["limit"] = 10000;
   params["after"] = -1;
   while (true) {

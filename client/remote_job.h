@@ -12,6 +12,9 @@
 
 namespace springfit::cli {
 
+// {"job_id": id}: the params of every method that names one job.
+proto::Json JobIdParams(std::int64_t job_id);
+
 // --server HOST:PORT and --token-file FILE (README.md, "The daemon").
 void AddServerFlags(CLI::App* command, ServerOptions& options);
 

@@ -55,9 +55,11 @@ void PrintResult(const proto::Json& result, bool as_json) {
   }
 }
 
-void WriteResultFile(const std::string& path, const proto::Json& result) {
+void WriteResultFile(const std::string& path, const proto::Json& result, const proto::Json& scene) {
+  proto::Json file = result;
+  file["scene_definition"] = scene;
   std::ofstream out(path);
-  out << result.dump(1) << "\n";
+  out << file.dump(1) << "\n";
   out.close();
   if (!out) throw std::runtime_error("cannot write the result file " + path);
 }

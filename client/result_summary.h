@@ -13,7 +13,9 @@ void PrintResultSummary(const proto::Json& result, std::ostream& out);
 // On standard output: one compact JSON object (`--json`), or the summary.
 void PrintResult(const proto::Json& result, bool as_json);
 
-// The result (with its trace, for -o) as an indented JSON file; throws when it cannot.
-void WriteResultFile(const std::string& path, const proto::Json& result);
+// The result file of `-o` (proto/RUN.md): the result with its trace, and the scene it was
+// found on as `scene_definition`, so that `springfit render FILE` needs nothing else.
+// Indented JSON; throws when it cannot be written.
+void WriteResultFile(const std::string& path, const proto::Json& result, const proto::Json& scene);
 
 }  // namespace springfit::cli

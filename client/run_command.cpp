@@ -88,7 +88,10 @@ int Run(const RunArgs& args) {
     if (!trace) throw std::runtime_error("cannot write the trace file " + args.trace_path);
   }
 
-  if (!args.output_path.empty()) WriteResultFile(args.output_path, proto::SearchResultToJson(problem, result, true));
+  if (!args.output_path.empty()) {
+    WriteResultFile(args.output_path, proto::SearchResultToJson(problem, result, true),
+                    proto::SceneToJson(problem.scene()));
+  }
   proto::Json j = proto::SearchResultToJson(problem, result, false);
   if (args.json) j["threads"] = args.threads;
   PrintResult(j, args.json);

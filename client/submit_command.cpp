@@ -66,10 +66,8 @@ int Submit(const SubmitArgs& args) {
     std::cerr << "springfit: job " << id << " failed: " << finished.value("error", Json("")).get<std::string>() << "\n";
     return kExitJobFailed;
   }
-  Json result_params;
-  result_params["job_id"] = id;
   try {
-    PrintResult(client.Call("job.result", result_params), args.json);
+    PrintResult(client.Call("job.result", JobIdParams(id)), args.json);
   } catch (const RemoteError&) {
     std::cerr << "springfit: job " << id << " " << state << " before it ran\n";
   }

@@ -26,10 +26,6 @@ std::vector<T> ReadArray(const Json& v, const std::string& path, ReadOne read_on
   return out;
 }
 
-std::vector<NodePair> ReadPairs(const Json& v, const std::string& path) {
-  return ReadArray<NodePair>(v, path, ReadPair);
-}
-
 std::vector<int> ReadIndices(const Json& v, const std::string& path) {
   return ReadArray<int>(v, path, ReadInt);
 }
@@ -91,7 +87,7 @@ void ReadCandidates(const Json& v, Scene& s) {
   }
   if (*kind == CandidateSpec::Kind::kPairs) {
     if (!v.contains("pairs")) throw InputError(JoinPath(path, "pairs"), "required for type pairs");
-    s.candidates.pairs = ReadPairs(v["pairs"], JoinPath(path, "pairs"));
+    s.candidates.pairs = ReadNodePairs(v["pairs"], JoinPath(path, "pairs"));
   }
 }
 
@@ -107,7 +103,7 @@ void ReadReference(const Json& v, Scene& s) {
   if (r.kind == Reference::Kind::kMss) {
     if (v.contains("positions")) throw InputError(JoinPath(path, "positions"), "only applies to type positions");
     if (!v.contains("springs")) throw InputError(JoinPath(path, "springs"), "required for type mss");
-    r.springs = ReadPairs(v["springs"], JoinPath(path, "springs"));
+    r.springs = ReadNodePairs(v["springs"], JoinPath(path, "springs"));
     r.stiffness = {1.0};
     if (v.contains("stiffness")) {
       const std::string p = JoinPath(path, "stiffness");
@@ -230,6 +226,10 @@ Json LoadsToJson(const std::vector<NodalLoad>& loads, const char* value_key) {
 }
 
 }  // namespace
+
+std::vector<NodePair> ReadNodePairs(const Json& v, const std::string& path) {
+  return ReadArray<NodePair>(v, path, ReadPair);
+}
 
 Scene SceneFromJson(const Json& json) {
   ExpectKeys(json, "", {"name", "description", "nodes", "candidates", "reference", "load_cases",

@@ -163,7 +163,8 @@ Json RpcService::Dispatch(const std::string& method, const Json& params, Session
       {"job.submit", &RpcService::JobSubmit}, {"job.get", &RpcService::JobGet},
       {"job.result", &RpcService::JobResult}, {"job.trace", &RpcService::JobTrace},
       {"job.list", &RpcService::JobList},     {"job.cancel", &RpcService::JobCancel},
-      {"job.delete", &RpcService::JobDelete},
+      {"job.delete", &RpcService::JobDelete},   {"job.scene", &RpcService::JobScene},
+      {"job.improvements", &RpcService::JobImprovements},
   };
   const bool known = method == "job.watch" || std::any_of(std::begin(kJobMethods), std::end(kJobMethods),
                                                           [&](const auto& m) { return method == m.first; });
@@ -337,6 +338,42 @@ Json RpcService::JobTrace(const Json& params) {
   for (const TraceRow& row : rows) list.push_back(proto::TraceRowToJson(row));
   j["rows"] = std::move(list);
   j["next_after"] = static_cast<int>(rows.size()) == limit ? Json(rows.back().generation) : Json(nullptr);
+  return j;
+}
+
+Json RpcService::JobScene(const Json& params) {
+  proto::ExpectKeys(params, "params", {"job_id"});
+  const JobRecord job = RequireJob(params);
+  const std::optional<std::string> scene = store_.GetScene(job.id);
+  if (!scene) throw std::runtime_error("job " + std::to_string(job.id) + " has no stored scene");
+  Json j;
+  j["job_id"] = job.id;
+  j["scene"] = proto::ParseJson(*scene);
+  return j;
+}
+
+Json RpcService::JobImprovements(const Json& params) {
+  proto::ExpectKeys(params, "params", {"job_id"});
+  const JobRecord job = RequireJob(params);
+  Json list = Json::array();
+  for (const Improvement& improvement : store_.GetImprovements(job.id)) {
+    Json row;
+    row["generation"] = improvement.generation;
+    row["wall_seconds"] = improvement.wall_seconds;
+    row["cost"] = improvement.cost;
+    row["normalized_error"] = improvement.normalized_error;
+    row["missing"] = improvement.missing >= 0 ? Json(improvement.missing) : Json(nullptr);
+    row["extra"] = improvement.extra >= 0 ? Json(improvement.extra) : Json(nullptr);
+    std::string genome(improvement.genome.size(), '0');
+    for (std::size_t g = 0; g < genome.size(); ++g) {
+      if (improvement.genome[g] != 0) genome[g] = '1';
+    }
+    row["genome"] = std::move(genome);
+    list.push_back(std::move(row));
+  }
+  Json j;
+  j["job_id"] = job.id;
+  j["improvements"] = std::move(list);
   return j;
 }
 

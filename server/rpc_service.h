@@ -65,6 +65,8 @@ class RpcService {
   proto::Json JobGet(const proto::Json& params);
   proto::Json JobResult(const proto::Json& params);
   proto::Json JobTrace(const proto::Json& params);
+  proto::Json JobScene(const proto::Json& params);
+  proto::Json JobImprovements(const proto::Json& params);
   proto::Json JobList(const proto::Json& params);
   proto::Json JobCancel(const proto::Json& params);
   proto::Json JobDelete(const proto::Json& params);

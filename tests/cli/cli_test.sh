@@ -81,5 +81,34 @@ code=$?
 [ "$code" -eq 130 ] || fail "run interrupted: exit $code, expected 130 ($(head -c 300 "$tmp/err"))"
 python3 -c "import json; j=json.load(open('$tmp/cancelled.json')); assert j['stop'] == 'cancelled' and j['generations'] < 100000 and len(j['trace']) == j['generations'] + 1" || fail "interrupted run writes its result"
 
+# render and plot: SVG files from result files; the wrong springs are drawn one line each.
+expect_exit 0 "render exact" "$sf" render "$tmp/result.json" -o "$tmp/exact.svg"
+"$sf" run "$src/examples/paper-iso-5x5.json" --strategy paper --generations 5 -q -o "$tmp/short.json" >/dev/null
+expect_exit 0 "render short" "$sf" render "$tmp/short.json" --case 1 -o "$tmp/short.svg"
+expect_exit 0 "plot" "$sf" plot "$tmp/result.json" "$tmp/short.json" -o "$tmp/plot.svg" --title "iso"
+python3 - "$tmp/exact.svg" "$tmp/short.svg" "$tmp/short.json" "$tmp/plot.svg" <<'PY' || fail "render/plot content"
+import json, sys, xml.etree.ElementTree as ET
+ns = "{http://www.w3.org/2000/svg}"
+def lines(path, cls):  # shapes of a class, the legend sample excluded
+    return sum(1 for e in ET.parse(path).iter() if e.get("class") == cls) - 1
+assert lines(sys.argv[1], "missing") == 0 and lines(sys.argv[1], "extra") == 0
+short = json.load(open(sys.argv[3]))
+assert short["hamming"] > 0, short["hamming"]
+assert lines(sys.argv[2], "missing") == len(short["missing"]), "one load case: one line per missing spring"
+assert lines(sys.argv[2], "extra") == len(short["extra"])
+plot = ET.parse(sys.argv[4])
+assert sum(1 for e in plot.iter(ns + "polyline")) == 2
+assert sum(1 for e in plot.iter(ns + "circle") if e.get("class") == "exact0") == 1  # the exact run's marker
+PY
+expect_exit 2 "render missing file" "$sf" render "$tmp/nope.json" -o "$tmp/x.svg"
+expect_exit 2 "render load case out of range" "$sf" render "$tmp/short.json" --case 7 -o "$tmp/x.svg"
+grep -q "load case 7 out of range" "$tmp/err" || fail "render names the load case: $(cat "$tmp/err")"
+"$sf" run "$src/examples/paper-iso-5x5.json" -q --json >"$tmp/stdout-result.json"
+expect_exit 2 "render without a scene" "$sf" render "$tmp/stdout-result.json" -o "$tmp/x.svg"
+grep -q -- "--scene" "$tmp/err" || fail "render asks for --scene: $(cat "$tmp/err")"
+expect_exit 0 "render with --scene" "$sf" render "$tmp/stdout-result.json" --scene "$src/examples/paper-iso-5x5.json" -o "$tmp/x.svg"
+expect_exit 2 "plot without a trace" "$sf" plot "$tmp/stdout-result.json" -o "$tmp/x.svg"
+expect_exit 64 "render without -o" "$sf" render "$tmp/short.json"
+
 if [ "$failures" -eq 0 ]; then echo "cli: all checks passed"; else echo "cli: $failures failed"; fi
 [ "$failures" -eq 0 ]

@@ -101,6 +101,14 @@ expect_same_as_local "$id2" "$kidney" "${run_flags[@]}" --seed 6
 "$sf" result "$id2" -o "$tmp/r.json" >/dev/null || fail "result -o"
 python3 -c "import json,sys; r=json.load(open(sys.argv[1])); assert len(r['trace'])==r['generations']+1" "$tmp/r.json" \
   || fail "result -o: the trace has one row per generation"
+# render and plot by job id; result -o carries the scene, so its file renders offline too.
+"$sf" render "$id2" -o "$tmp/r-id.svg" || fail "render by job id"
+"$sf" render "$tmp/r.json" -o "$tmp/r-file.svg" || fail "render the result file"
+cmp -s <(sed 1,2d "$tmp/r-id.svg" | grep -v '^<text class="title"') <(sed 1,2d "$tmp/r-file.svg" | grep -v '^<text class="title"') \
+  || fail "render by id and of result -o draw the same figure"
+"$sf" plot "$id2" "$tmp/r.json" -o "$tmp/p.svg" || fail "plot by job id"
+"$sf" render 123456 -o "$tmp/none.svg" 2>/dev/null
+[ $? -eq 4 ] || fail "render of an unknown job exits 4"
 id3=$("$sf" submit "$kidney" --strategy paper --generations 100000 2>/dev/null)
 "$sf" cancel "$id3" >/dev/null || fail "cancel"
 "$sf" watch "$id3" -q >/dev/null

@@ -46,7 +46,9 @@ run() {
   cp "$@" "$work/corpus/"
   echo "== $target: ${seconds}s from $(ls "$work/corpus" | wc -l) seeds"
   # -timeout: one input taking over 10 s is a hang; -rss_limit_mb bounds memory per input.
-  (cd "$work" && "$build/tests/fuzz/$target" -max_total_time="$seconds" -timeout=10 \
+  # -seed: the same mutations on every run, so a CI failure reproduces (SPRINGFIT_FUZZ_SEED=0:
+  # a new seed each run, for longer local campaigns).
+  (cd "$work" && "$build/tests/fuzz/$target" -max_total_time="$seconds" -timeout=10 -seed="${SPRINGFIT_FUZZ_SEED:-1}" \
      -rss_limit_mb=2048 -max_len=8192 -print_final_stats=1 $options corpus 2>"$work/log") || {
     tail -60 "$work/log"
     echo "$target failed; the input is in $work (crash-*, timeout-*, leak-*, oom-*)"

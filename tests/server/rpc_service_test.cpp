@@ -1,6 +1,7 @@
 // The daemon's methods without sockets: RpcService over a real SQLite store and scheduler.
 #include "server/rpc_service.h"
 
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <filesystem>
@@ -239,6 +240,28 @@ TEST_F(RpcServiceTest, SubmitWatchResultTraceListAndIdempotency) {
     params["after"] = t["next_after"];
   }
   EXPECT_EQ(rows, generations + 1);  // every generation below 10,000 is kept
+
+  // The stored scene reproduces the job: the submitted one with the job's seed written in.
+  const Json stored = Call("job.scene", {{"job_id", id}})["result"];
+  EXPECT_EQ(stored["job_id"], id);
+  EXPECT_EQ(proto::SceneFromJson(stored["scene"]).search.seed, result["seed"].get<std::uint64_t>());
+  EXPECT_EQ(stored["scene"]["nodes"], Scene("paper-aniso-5x5")["nodes"]);
+
+  // Improvements: strictly better each time, ending at the result's topology.
+  const Json improvements = Call("job.improvements", {{"job_id", id}})["result"]["improvements"];
+  ASSERT_FALSE(improvements.empty());
+  for (std::size_t i = 1; i < improvements.size(); ++i) {
+    EXPECT_LT(improvements[i]["cost"].get<double>(), improvements[i - 1]["cost"].get<double>());
+    EXPECT_GT(improvements[i]["generation"].get<int>(), improvements[i - 1]["generation"].get<int>());
+  }
+  const Json& last = improvements.back();
+  EXPECT_EQ(last["cost"], result["cost"]);
+  EXPECT_EQ(last["missing"], 0);
+  const std::string genome = last["genome"].get<std::string>();
+  EXPECT_EQ(genome.size(), result["genes"].get<std::size_t>());
+  EXPECT_EQ(std::count(genome.begin(), genome.end(), '1'), static_cast<std::ptrdiff_t>(result["springs"].size()));
+  EXPECT_EQ(Code(Call("job.scene", {{"job_id", id + 100}})), rpc::kNoSuchJob);
+  EXPECT_EQ(Code(Call("job.improvements", {{"job_id", id}, {"after", 3}})), rpc::kInvalidParams);
 
   const Json list = Call("job.list", {{"label", "nightly"}})["result"];
   ASSERT_EQ(list["jobs"].size(), 1u);

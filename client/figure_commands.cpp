@@ -1,0 +1,229 @@
+// springfit render | plot: figures of a result, from a result file (`run -o`, `result -o`)
+// or from a daemon's job (README.md, "Figures").
+#include <cctype>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+#include "client/commands.h"
+#include "client/error_reporting.h"
+#include "client/exit_codes.h"
+#include "client/figures/error_plot.h"
+#include "client/figures/topology_figure.h"
+#include "client/remote_job.h"
+#include "engine/input_error.h"
+#include "engine/search/search_options.h"
+#include "proto/scene_codec.h"
+#include "proto/search_codec.h"
+
+namespace springfit::cli {
+namespace {
+using proto::Json;
+
+// A result to draw: a file, or a job of the daemon.
+struct Source {
+  std::string name;  // as given
+  std::optional<std::int64_t> job_id;
+};
+
+// An existing file wins over a job id, so that a file named "12" can still be drawn.
+Source ParseSource(const std::string& text) {
+  Source s{text, std::nullopt};
+  if (std::filesystem::exists(text)) return s;
+  const bool digits = !text.empty() && text.size() < 19 &&
+                      std::all_of(text.begin(), text.end(), [](unsigned char c) { return std::isdigit(c) != 0; });
+  if (!digits) throw InputError("", text + ": no such file (and not a job id)");
+  s.job_id = std::stoll(text);
+  return s;
+}
+
+Json ReadResultFile(const std::string& path) {
+  Json j;
+  try {
+    j = proto::ParseJson(proto::ReadFile(path));
+  } catch (const InputError& e) {
+    throw InputError("", path + ": " + e.what());
+  }
+  if (!j.is_object() || !j.contains("springs") || !j.contains("strategy")) {
+    throw InputError("", path + ": not a result file (springfit run -o, springfit result -o)");
+  }
+  return j;
+}
+
+std::string Describe(const Json& result) {
+  std::string s = result.value("scene", std::string("?")) + ", strategy " + result.value("strategy", std::string("?"));
+  if (result.contains("seed")) s += ", seed " + result["seed"].dump();
+  return s;
+}
+
+std::optional<std::vector<NodePair>> OptionalPairs(const Json& result, const char* key) {
+  if (!result.contains(key) || result[key].is_null()) return std::nullopt;
+  return proto::ReadNodePairs(result[key], key);
+}
+
+std::vector<NodePair> Ordered(std::vector<NodePair> pairs) {
+  for (NodePair& p : pairs) {
+    if (p.first > p.second) std::swap(p.first, p.second);
+  }
+  return pairs;
+}
+
+void WriteSvg(const std::string& path, const std::string& svg) {
+  std::ofstream out(path);
+  out << svg;
+  out.close();
+  if (!out) throw std::runtime_error("cannot write " + path);
+}
+
+struct RenderArgs {
+  ServerOptions server;
+  std::string source;
+  std::string output;
+  std::string scene_path;
+  std::vector<int> load_cases;
+  double magnify = 0.0;
+};
+
+int Render(const RenderArgs& a) {
+  const Source source = ParseSource(a.source);
+  Json result;
+  Json scene_json;
+  std::string where;
+  if (source.job_id) {
+    RpcClient client(a.server);
+    result = client.Call("job.result", JobIdParams(*source.job_id));
+    if (a.scene_path.empty()) scene_json = client.Call("job.scene", JobIdParams(*source.job_id))["scene"];
+    where = "job " + std::to_string(*source.job_id);
+  } else {
+    result = ReadResultFile(source.name);
+    if (a.scene_path.empty()) {
+      if (!result.contains("scene_definition")) {
+        throw InputError("", source.name + " does not contain its scene (it was written by an older springfit or by "
+                                           "--json): pass --scene SCENE.json");
+      }
+      scene_json = result["scene_definition"];
+    }
+    where = std::filesystem::path(source.name).filename().string();
+  }
+  Scene scene = a.scene_path.empty() ? proto::SceneFromJson(scene_json) : proto::LoadSceneFile(a.scene_path);
+  if (!a.scene_path.empty() && scene.name != result.value("scene", scene.name)) {
+    std::cerr << "springfit: render: warning: the result is of scene '" << result.value("scene", std::string())
+              << "', --scene is '" << scene.name << "'\n";
+  }
+  const Problem problem = Problem::Build(std::move(scene));
+
+  TopologyFigureInput input;
+  input.title = Describe(result) + " (" + where + ")";
+  input.springs = Ordered(proto::ReadNodePairs(result.at("springs"), "springs"));
+  input.missing = OptionalPairs(result, "missing");
+  input.extra = OptionalPairs(result, "extra");
+  std::string error = "?";
+  if (result.contains("normalized_error") && result["normalized_error"].is_number()) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.3g", result["normalized_error"].get<double>());
+    error = text;
+  }
+  if (input.missing && input.extra) {
+    const bool exact = input.missing->empty() && input.extra->empty();
+    input.subtitle = (exact ? "exact recovery" : "not exact: " + std::to_string(input.missing->size()) +
+                                                     " missing, " + std::to_string(input.extra->size()) + " extra") +
+                     "; " + std::to_string(input.springs.size()) + " springs; normalized error " + error;
+  } else {
+    input.subtitle = "reference topology unknown; " + std::to_string(input.springs.size()) +
+                     " springs; normalized error " + error;
+  }
+  TopologyFigureOptions options;
+  options.load_cases = a.load_cases;
+  options.magnify = a.magnify;
+  WriteSvg(a.output, RenderTopologyFigure(problem, input, options));
+  return kExitOk;
+}
+
+struct PlotArgs {
+  ServerOptions server;
+  std::vector<std::string> sources;
+  std::string output;
+  std::string title;
+};
+
+ErrorCurve CurveOf(const std::vector<TraceRow>& rows, std::string label) {
+  ErrorCurve curve;
+  curve.label = std::move(label);
+  double best = std::numeric_limits<double>::infinity();
+  for (const TraceRow& row : rows) {
+    // Exact recovery as the search counts it (proto/RUN.md), drawn as 0.
+    const double e = row.best_normalized_error <= kExactNormalizedError ? 0.0 : row.best_normalized_error;
+    if (e < best || curve.points.empty()) curve.points.emplace_back(row.wall_seconds, e);
+    best = std::min(best, e);
+  }
+  // The last row too, so that a curve runs to the end of its run.
+  if (!rows.empty() && curve.points.back().first < rows.back().wall_seconds) {
+    curve.points.emplace_back(rows.back().wall_seconds, best);
+  }
+  return curve;
+}
+
+int Plot(const PlotArgs& a) {
+  std::vector<ErrorCurve> curves;
+  std::unique_ptr<RpcClient> client;
+  for (const std::string& text : a.sources) {
+    const Source source = ParseSource(text);
+    std::vector<TraceRow> rows;
+    std::string label;
+    if (source.job_id) {
+      if (!client) client = std::make_unique<RpcClient>(a.server);
+      const Json job = client->Call("job.get", JobIdParams(*source.job_id));
+      rows = FetchTrace(*client, *source.job_id);
+      label = "job " + std::to_string(*source.job_id) + ": " + job.value("scene", std::string("?")) + ", strategy " +
+              job.value("strategy", std::string("?")) + ", seed " + job["seed"].dump();
+    } else {
+      const Json result = ReadResultFile(source.name);
+      if (!result.contains("trace")) {
+        throw InputError("", source.name + " has no trace: write the result with -o (springfit run -o, result -o)");
+      }
+      const Json& trace = result["trace"];
+      proto::ExpectArray(trace, "trace");
+      for (std::size_t i = 0; i < trace.size(); ++i) {
+        rows.push_back(proto::TraceRowFromJson(trace[i], "trace[" + std::to_string(i) + "]"));
+      }
+      label = std::filesystem::path(source.name).filename().string() + ": " + Describe(result);
+    }
+    if (rows.empty()) throw InputError("", text + ": no trace rows yet");
+    curves.push_back(CurveOf(rows, std::move(label)));
+  }
+  const std::string title = a.title.empty() ? "Normalized error against wall time" : a.title;
+  WriteSvg(a.output, RenderErrorPlot(curves, title));
+  return kExitOk;
+}
+
+}  // namespace
+
+void RegisterFigureCommands(CLI::App& app, int& exit_code) {
+  {
+    auto args = std::make_shared<RenderArgs>();
+    auto* cmd = app.add_subcommand(
+        "render", "Draw the reference and the identified topology under each load case (SVG)");
+    cmd->add_option("RESULT_OR_ID", args->source, "A result file (run -o, result -o) or a job id")->required();
+    cmd->add_option("-o,--output", args->output, "The SVG file to write")->required();
+    cmd->add_option("--scene", args->scene_path, "The scene, for a result file that does not carry it");
+    cmd->add_option("--case", args->load_cases, "Only this load case (repeatable; default: all)");
+    cmd->add_option("--magnify", args->magnify, "Draw displacements this many times their size (default: automatic)")
+        ->check(CLI::PositiveNumber);
+    AddServerFlags(cmd, args->server);
+    cmd->callback([args, &exit_code] { exit_code = RunReportingErrors("render", [&] { return Render(*args); }); });
+  }
+  {
+    auto args = std::make_shared<PlotArgs>();
+    auto* cmd = app.add_subcommand("plot", "Draw normalized error against wall time, log scales (SVG)");
+    cmd->add_option("RESULT_OR_ID", args->sources, "Result files (run -o, result -o) or job ids, one curve each")
+        ->required();
+    cmd->add_option("-o,--output", args->output, "The SVG file to write")->required();
+    cmd->add_option("--title", args->title, "The plot's title");
+    AddServerFlags(cmd, args->server);
+    cmd->callback([args, &exit_code] { exit_code = RunReportingErrors("plot", [&] { return Plot(*args); }); });
+  }
+}
+
+}  // namespace springfit::cli

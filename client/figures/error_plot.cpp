@@ -1,0 +1,141 @@
+#include "client/figures/error_plot.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <stdexcept>
+
+#include "client/figures/svg_document.h"
+
+namespace springfit::cli {
+namespace {
+
+constexpr double kLeft = 78.0, kRight = 24.0, kTop = 48.0, kBottom = 56.0;
+constexpr double kLegendRow = 18.0;
+
+// Eight colours that stay apart for colour-blind readers (Okabe and Ito).
+constexpr const char* kColours[] = {"#0072b2", "#d55e00", "#009e73", "#cc79a7",
+                                    "#e69f00", "#56b4e9", "#000000", "#f0e442"};
+
+std::string Css(std::size_t curves) {
+  std::string css =
+      "text{font-family:sans-serif;font-size:12px;fill:#222}\n"
+      ".title{font-size:15px;font-weight:bold}\n"
+      ".axis{stroke:#222;stroke-width:1}\n"
+      ".grid{stroke:#e6e6e6;stroke-width:1}\n"
+      ".legend-box{fill:white;fill-opacity:0.85;stroke:#ccc}\n";
+  for (std::size_t i = 0; i < curves; ++i) {
+    const char* c = kColours[i % std::size(kColours)];
+    css += ".curve" + std::to_string(i) + "{fill:none;stroke:" + c + ";stroke-width:1.8}\n";
+    css += ".exact" + std::to_string(i) + "{fill:" + c + "}\n";
+  }
+  return css;
+}
+
+std::string Decade(int exponent) {
+  if (exponent == 0) return "1";
+  if (exponent == 1) return "10";
+  return "1e" + std::to_string(exponent);
+}
+
+struct LogAxis {
+  int lo = 0, hi = 1;  // decades
+  double Fraction(double v) const { return (std::log10(v) - lo) / (hi - lo); }
+};
+
+LogAxis AxisOver(double lo, double hi) {
+  LogAxis axis;
+  axis.lo = static_cast<int>(std::floor(std::log10(lo)));
+  axis.hi = static_cast<int>(std::ceil(std::log10(hi)));
+  if (axis.hi <= axis.lo) axis.hi = axis.lo + 1;
+  return axis;
+}
+
+}  // namespace
+
+std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::string& title,
+                            const ErrorPlotOptions& options) {
+  // The axes' ranges: every positive time and error. A time of 0 (a trace's very first row
+  // can be stamped before the clock moved) and an error of 0 (exact) sit on the axes' floors.
+  double t_lo = std::numeric_limits<double>::infinity(), t_hi = 0.0;
+  double e_lo = std::numeric_limits<double>::infinity(), e_hi = 0.0;
+  bool any = false;
+  for (const ErrorCurve& c : curves) {
+    for (const auto& [t, e] : c.points) {
+      any = true;
+      if (t > 0.0) t_lo = std::min(t_lo, t), t_hi = std::max(t_hi, t);
+      if (e > 0.0) e_lo = std::min(e_lo, e), e_hi = std::max(e_hi, e);
+    }
+  }
+  if (!any) throw std::invalid_argument("nothing to plot: no trace rows");
+  if (!(t_hi > 0.0)) t_lo = 1e-3, t_hi = 1.0;
+  if (!(e_hi > 0.0)) e_lo = 1e-12, e_hi = 1.0;
+  const LogAxis x_axis = AxisOver(t_lo, t_hi);
+  // One decade of room below the smallest error for exact recoveries.
+  LogAxis y_axis = AxisOver(e_lo, e_hi);
+  y_axis.lo -= 1;
+
+  const double legend_height = kLegendRow * static_cast<double>(curves.size()) + 10;
+  const double plot_w = options.width - kLeft - kRight;
+  const double plot_h = options.height - kTop - kBottom;
+  auto px = [&](double t) { return kLeft + plot_w * std::clamp(x_axis.Fraction(std::max(t, std::pow(10.0, x_axis.lo))), 0.0, 1.0); };
+  auto py = [&](double e) {
+    const double floor = std::pow(10.0, y_axis.lo);
+    return kTop + plot_h * (1.0 - std::clamp(y_axis.Fraction(std::max(e, floor)), 0.0, 1.0));
+  };
+
+  SvgDocument svg(options.width, options.height + legend_height);
+  svg.Style(Css(curves.size()));
+  svg.Text({kLeft, 26}, title, "title");
+
+  for (int d = x_axis.lo; d <= x_axis.hi; ++d) {
+    const double x = px(std::pow(10.0, d));
+    svg.Line({x, kTop}, {x, kTop + plot_h}, "grid");
+    svg.Text({x, kTop + plot_h + 18}, Decade(d), "", SvgDocument::Anchor::kMiddle);
+  }
+  for (int d = y_axis.lo; d <= y_axis.hi; ++d) {
+    const double y = py(std::pow(10.0, d));
+    svg.Line({kLeft, y}, {kLeft + plot_w, y}, "grid");
+    svg.Text({kLeft - 8, y + 4}, d == y_axis.lo ? "exact" : Decade(d), "", SvgDocument::Anchor::kEnd);
+  }
+  svg.Rect({kLeft, kTop}, plot_w, plot_h, "axis legend-box");
+  svg.Text({kLeft + plot_w / 2, kTop + plot_h + 40}, "wall time (s)", "", SvgDocument::Anchor::kMiddle);
+  svg.VerticalText({22, kTop + plot_h / 2}, "best normalized error", "");
+
+  for (std::size_t i = 0; i < curves.size(); ++i) {
+    const ErrorCurve& c = curves[i];
+    if (c.points.empty()) continue;
+    // Steps: the best error holds until the next improvement.
+    std::vector<Point2> line;
+    for (const auto& [t, e] : c.points) {
+      const Point2 p{px(t), py(e)};
+      if (!line.empty()) line.push_back({p.x, line.back().y});
+      line.push_back(p);
+    }
+    const std::string cls = std::to_string(i);
+    svg.Polyline(line, "curve" + cls);
+    if (c.points.back().second <= 0.0) svg.Circle(line.back(), 4.5, "exact" + cls);
+  }
+
+  const double legend_top = options.height;
+  for (std::size_t i = 0; i < curves.size(); ++i) {
+    const double y = legend_top + kLegendRow * static_cast<double>(i);
+    svg.Line({kLeft, y - 4}, {kLeft + 26, y - 4}, "curve" + std::to_string(i));
+    std::string label = curves[i].label;
+    if (!curves[i].points.empty()) {
+      const auto& [t, e] = curves[i].points.back();
+      char tail[96];
+      if (e <= 0.0) {
+        std::snprintf(tail, sizeof tail, "  (exact at %.3g s)", t);
+      } else {
+        std::snprintf(tail, sizeof tail, "  (error %.3g at %.3g s)", e, t);
+      }
+      label += tail;
+    }
+    svg.Text({kLeft + 32, y}, label, "");
+  }
+  return svg.str();
+}
+
+}  // namespace springfit::cli

@@ -1,0 +1,25 @@
+// Normalised error against wall time on log-log axes, one curve per run: the data of
+// Bianchi et al.'s Figure 2 on a time axis, drawn by `springfit plot` (README.md, "Figures").
+#pragma once
+#include <string>
+#include <vector>
+
+namespace springfit::cli {
+
+struct ErrorCurve {
+  std::string label;
+  // (wall seconds, best normalised error so far), in the order of the trace. The best error
+  // never rises; an error of 0 is exact recovery, drawn on the bottom axis with a marker.
+  std::vector<std::pair<double, double>> points;
+};
+
+struct ErrorPlotOptions {
+  double width = 760.0;
+  double height = 480.0;
+};
+
+// Throws std::invalid_argument when no curve has a point.
+std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::string& title,
+                            const ErrorPlotOptions& options = {});
+
+}  // namespace springfit::cli

@@ -1,0 +1,341 @@
+#include "client/figures/topology_figure.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numbers>
+
+#include "client/figures/svg_document.h"
+#include "engine/cost.h"
+#include "engine/input_error.h"
+
+namespace springfit::cli {
+namespace {
+
+constexpr double kMargin = 20.0;
+constexpr double kHeading = 78.0;   // title, subtitle, legend
+constexpr double kCaption = 34.0;   // under each row of panels
+constexpr double kGap = 24.0;       // between the two columns
+constexpr double kPanelPad = 14.0;  // inside a panel, around the drawing
+constexpr double kArrowFraction = 0.08;  // the largest force arrow, of a panel's size
+
+constexpr std::string_view kCss =
+    "text{font-family:sans-serif;font-size:12px;fill:#222}\n"
+    ".title{font-size:15px;font-weight:bold}\n"
+    ".warn{fill:#c62828}\n"
+    ".panel{fill:none;stroke:#ddd}\n"
+    ".rest{stroke:#c8c8c8;stroke-width:0.8}\n"
+    ".spring{stroke:#37474f;stroke-width:1.1}\n"
+    ".missing{stroke:#d32f2f;stroke-width:2;stroke-dasharray:5 3}\n"
+    ".extra{stroke:#1e88e5;stroke-width:2.2}\n"
+    ".node{fill:#37474f}\n"
+    ".rest-node{fill:none;stroke:#b0b0b0}\n"
+    ".fixed{fill:#222}\n"
+    ".prescribed{fill:#8e24aa}\n"
+    ".force{stroke:#2e7d32;stroke-width:1.4}\n"
+    ".force-head{fill:#2e7d32}\n";
+
+std::string Format(const char* format, double value) {
+  char text[64];
+  std::snprintf(text, sizeof text, format, value);
+  return text;
+}
+
+// Projects the scene's points onto the page: 2D as they are; 3D in an orthographic view.
+// Page coordinates grow downwards, so y is flipped at the very end (in Frame).
+class Projection {
+ public:
+  Projection(int dimension, double azimuth_deg, double elevation_deg) : d_(dimension) {
+    const double deg = std::numbers::pi / 180.0;
+    ca_ = std::cos(azimuth_deg * deg);
+    sa_ = std::sin(azimuth_deg * deg);
+    ce_ = std::cos(elevation_deg * deg);
+    se_ = std::sin(elevation_deg * deg);
+  }
+  // Node `node` of flat d*n coordinates (positions, or forces: the map is linear).
+  Point2 operator()(const Vector& flat, int node) const {
+    const Eigen::Index at = static_cast<Eigen::Index>(d_) * node;
+    if (d_ == 2) return {flat(at), flat(at + 1)};
+    const double x = ca_ * flat(at) - sa_ * flat(at + 1);
+    const double depth = sa_ * flat(at) + ca_ * flat(at + 1);
+    return {x, ce_ * flat(at + 2) - se_ * depth};
+  }
+
+ private:
+  int d_;
+  double ca_, sa_, ce_, se_;
+};
+
+// Maps projected scene coordinates into one panel, the same scale for every panel so that
+// deformations compare across load cases.
+struct Frame {
+  double scale = 1.0;
+  Point2 center;  // of the scene's drawing, in projected coordinates
+  Point2 origin;  // the panel's centre on the page
+  Point2 operator()(Point2 p) const {
+    return {origin.x + scale * (p.x - center.x), origin.y - scale * (p.y - center.y)};
+  }
+};
+
+struct Extent {
+  double lo_x = std::numeric_limits<double>::infinity(), lo_y = lo_x;
+  double hi_x = -std::numeric_limits<double>::infinity(), hi_y = hi_x;
+  void Add(Point2 p) {
+    lo_x = std::min(lo_x, p.x);
+    lo_y = std::min(lo_y, p.y);
+    hi_x = std::max(hi_x, p.x);
+    hi_y = std::max(hi_y, p.y);
+  }
+};
+
+double MaxNodeNorm(const Vector& flat, int d) {
+  double m = 0.0;
+  for (Eigen::Index i = 0; i + d <= flat.size(); i += d) m = std::max(m, flat.segment(i, d).norm());
+  return m;
+}
+
+struct PanelContent {
+  const Vector* positions = nullptr;        // deformed (or rest, when there is no equilibrium)
+  const std::vector<NodePair>* springs = nullptr;  // drawn at rest and deformed; null = nodes only
+  const std::vector<NodePair>* missing = nullptr;
+  const std::vector<NodePair>* extra = nullptr;
+};
+
+class FigureWriter {
+ public:
+  FigureWriter(const Problem& problem, const TopologyFigureOptions& options)
+      : problem_(problem), options_(options), d_(problem.dimension()),
+        projection_(d_, options.azimuth, options.elevation) {}
+
+  std::string Write(const TopologyFigureInput& input) {
+    const std::vector<int> cases = SelectedCases();
+    Evaluate(input.springs);
+    const double magnify = Magnification();
+    for (const int k : cases) {
+      reference_positions_.push_back(problem_.scene().rest + magnify * problem_.load_cases()[k].reference);
+      identified_positions_.push_back(identified_u_[k].size() > 0
+                                          ? Vector(problem_.scene().rest + magnify * identified_u_[k])
+                                          : problem_.scene().rest);
+    }
+    FitFrames();
+
+    const double p = options_.panel_size;
+    const double width = 2 * kMargin + 2 * p + kGap;
+    const double height = kMargin + kHeading + static_cast<double>(cases.size()) * (p + kCaption) + kMargin;
+    SvgDocument svg(width, height);
+    svg.Style(kCss);
+    Heading(svg, input, magnify, width);
+
+    const Scene& scene = problem_.scene();
+    const bool mss = scene.reference.kind == Reference::Kind::kMss;
+    for (std::size_t row = 0; row < cases.size(); ++row) {
+      const int k = cases[row];
+      const double top = kMargin + kHeading + static_cast<double>(row) * (p + kCaption);
+      const Point2 left{kMargin, top};
+      const Point2 right{kMargin + p + kGap, top};
+      const std::string name = scene.load_cases[k].name.empty() ? "load case " + std::to_string(k)
+                                                                : "load case " + std::to_string(k) + " '" +
+                                                                      scene.load_cases[k].name + "'";
+      PanelContent reference{&reference_positions_[row], mss ? &scene.reference.springs : nullptr};
+      Panel(svg, left, k, reference, "reference, " + name);
+
+      PanelContent identified{&identified_positions_[row], &input.springs,
+                              input.missing ? &*input.missing : nullptr, input.extra ? &*input.extra : nullptr};
+      const LoadCaseEvaluation& eval = evaluation_.load_cases[k];
+      std::string caption = "identified: normalized error " + Format("%.3g", eval.normalized_error);
+      bool warn = false;
+      if (eval.solve.termination == Termination::kMechanism) {
+        caption = "identified: no equilibrium, a mechanism (" + std::to_string(eval.solve.mechanism_modes) +
+                  " free modes); drawn at rest";
+        warn = true;
+      } else if (!eval.solve.converged()) {
+        caption = "identified: the solver did not converge; drawn at rest";
+        warn = true;
+      }
+      Panel(svg, right, k, identified, caption, warn);
+    }
+    return svg.str();
+  }
+
+ private:
+  std::vector<int> SelectedCases() const {
+    const int count = static_cast<int>(problem_.load_cases().size());
+    if (options_.load_cases.empty()) {
+      std::vector<int> all(count);
+      for (int k = 0; k < count; ++k) all[k] = k;
+      return all;
+    }
+    for (std::size_t i = 0; i < options_.load_cases.size(); ++i) {
+      const int k = options_.load_cases[i];
+      if (k < 0 || k >= count) {
+        throw InputError("load_cases[" + std::to_string(i) + "]",
+                         "load case " + std::to_string(k) + " out of range: the scene has " + std::to_string(count));
+      }
+    }
+    return options_.load_cases;
+  }
+
+  void Evaluate(const std::vector<NodePair>& springs) {
+    std::vector<std::uint8_t> mask(problem_.candidates().size(), 0);
+    for (std::size_t s = 0; s < springs.size(); ++s) {
+      const int c = problem_.CandidateIndex(springs[s]);
+      if (c < 0) {
+        throw InputError("springs[" + std::to_string(s) + "]",
+                         "[" + std::to_string(springs[s].first) + ", " + std::to_string(springs[s].second) +
+                             "] is not a candidate spring of the scene");
+      }
+      mask[c] = 1;
+    }
+    CostFunction cost(problem_);
+    evaluation_ = cost.Evaluate(problem_.SpringsFromMask(mask), &identified_u_);
+  }
+
+  double Magnification() const {
+    if (options_.magnify > 0.0) return options_.magnify;
+    double largest = 0.0;
+    for (const PreparedLoadCase& lc : problem_.load_cases()) largest = std::max(largest, MaxNodeNorm(lc.reference, d_));
+    const double diagonal = problem_.scene().Bounds().Diagonal();
+    if (largest <= 0.0 || largest >= 0.05 * diagonal) return 1.0;
+    return 0.1 * diagonal / largest;
+  }
+
+  // One scale for all panels, from the rest shape and the reference's deformed shapes. The
+  // identified model's shapes are not included: a nearly-unstable topology may move a node
+  // far away, and is clipped to its panel instead of shrinking every drawing.
+  void FitFrames() {
+    Extent e;
+    const int n = problem_.scene().node_count();
+    for (int i = 0; i < n; ++i) e.Add(projection_(problem_.scene().rest, i));
+    for (const Vector& x : reference_positions_) {
+      for (int i = 0; i < n; ++i) e.Add(projection_(x, i));
+    }
+    // Force arrows: the largest is 8% of a panel, and the drawing leaves room for it.
+    double largest_force = 0.0;
+    for (const PreparedLoadCase& lc : problem_.load_cases()) largest_force = std::max(largest_force, MaxNodeNorm(lc.force, d_));
+    const double arrow = largest_force > 0.0 ? kArrowFraction * options_.panel_size : 0.0;
+    force_scale_ = largest_force > 0.0 ? arrow / largest_force : 0.0;
+    const double inner = options_.panel_size - 2 * (kPanelPad + arrow);
+    const double span = std::max({e.hi_x - e.lo_x, e.hi_y - e.lo_y, 1e-300});
+    frame_.scale = inner / span;
+    frame_.center = {0.5 * (e.lo_x + e.hi_x), 0.5 * (e.lo_y + e.hi_y)};
+  }
+
+  void Heading(SvgDocument& svg, const TopologyFigureInput& input, double magnify, double width) {
+    svg.Text({kMargin, kMargin + 14}, input.title, "title");
+    svg.Text({kMargin, kMargin + 32}, input.subtitle, "");
+    const double y = kMargin + 56;
+    double x = kMargin;
+    auto sample = [&](std::string_view cls, const std::string& label) {
+      svg.Line({x, y - 4}, {x + 22, y - 4}, cls);
+      svg.Text({x + 27, y}, label, "");
+      x += 27 + 7.0 * static_cast<double>(label.size()) + 16;
+    };
+    sample("rest", "rest");
+    sample("spring", "deformed");
+    if (input.missing) sample("missing", "missing: " + std::to_string(input.missing->size()));
+    if (input.extra) sample("extra", "extra: " + std::to_string(input.extra->size()));
+    svg.Rect({x, y - 8}, 7, 7, "fixed");
+    svg.Text({x + 11, y}, "fixed", "");
+    x += 56;
+    svg.Polygon({{x, y}, {x + 8, y}, {x + 4, y - 8}}, "prescribed");
+    svg.Text({x + 12, y}, "prescribed", "");
+    x += 90;
+    svg.Line({x, y - 4}, {x + 18, y - 4}, "force");
+    svg.Polygon({{x + 22, y - 4}, {x + 15, y - 7.5}, {x + 15, y - 0.5}}, "force-head");
+    svg.Text({x + 27, y}, "force", "");
+    const std::string scale = magnify == 1.0 ? "displacements true size" : "displacements x" + Format("%.3g", magnify);
+    svg.Text({width - kMargin, kMargin + 14}, scale, "", SvgDocument::Anchor::kEnd);
+  }
+
+  void Panel(SvgDocument& svg, Point2 corner, int k, const PanelContent& content, const std::string& caption,
+             bool warn = false) {
+    const double p = options_.panel_size;
+    Frame frame = frame_;
+    frame.origin = {corner.x + p / 2, corner.y + p / 2};
+    const Vector& rest = problem_.scene().rest;
+    const Vector& x = *content.positions;
+    auto at = [&](const Vector& flat, int node) { return frame(projection_(flat, node)); };
+
+    svg.Rect(corner, p, p, "panel");
+    svg.BeginClippedGroup(corner, p, p);
+    const int n = problem_.scene().node_count();
+    if (content.springs) {
+      svg.BeginGroup("rest");
+      for (const NodePair& s : *content.springs) svg.Line(at(rest, s.first), at(rest, s.second), "");
+      svg.EndGroup();
+      svg.BeginGroup("spring");
+      for (const NodePair& s : *content.springs) svg.Line(at(x, s.first), at(x, s.second), "");
+      svg.EndGroup();
+    } else {
+      // A positions reference: no springs, so show where each node went.
+      for (int i = 0; i < n; ++i) {
+        svg.Circle(at(rest, i), 2.0, "rest-node");
+        svg.Line(at(rest, i), at(x, i), "rest");
+      }
+    }
+    // Wrong springs last, over the others; one shape each so they can be counted.
+    if (content.missing) {
+      for (const NodePair& s : *content.missing) svg.Line(at(x, s.first), at(x, s.second), "missing");
+    }
+    if (content.extra) {
+      for (const NodePair& s : *content.extra) svg.Line(at(x, s.first), at(x, s.second), "extra");
+    }
+    for (int i = 0; i < n; ++i) svg.Circle(at(x, i), n > 400 ? 0.8 : 1.6, "node");
+
+    const LoadCase& lc = problem_.scene().load_cases[k];
+    for (const int i : lc.fixed) {
+      const Point2 c = at(x, i);
+      svg.Rect({c.x - 3, c.y - 3}, 6, 6, "fixed");
+    }
+    for (const NodalLoad& load : lc.displacements) {
+      for (const int i : load.nodes) {
+        const Point2 c = at(x, i);
+        svg.Polygon({{c.x - 4, c.y + 3}, {c.x + 4, c.y + 3}, {c.x, c.y - 4}}, "prescribed");
+      }
+    }
+    if (force_scale_ > 0.0) {
+      const Vector& force = problem_.load_cases()[k].force;
+      for (int i = 0; i < n; ++i) {
+        if (force.segment(d_ * i, d_).squaredNorm() == 0.0) continue;
+        const Point2 dir = projection_(force, i);
+        Arrow(svg, at(x, i), {force_scale_ * dir.x, -force_scale_ * dir.y});
+      }
+    }
+    svg.EndGroup();
+    svg.Text({corner.x, corner.y + p + 18}, caption, warn ? "warn" : "");
+  }
+
+  static void Arrow(SvgDocument& svg, Point2 from, Point2 delta) {
+    const double length = std::hypot(delta.x, delta.y);
+    if (length < 1.0) return;  // a force seen end-on in a 3D view
+    const Point2 tip{from.x + delta.x, from.y + delta.y};
+    const Point2 u{delta.x / length, delta.y / length};
+    const double head = std::min(7.0, 0.4 * length);
+    svg.Line(from, {tip.x - head * u.x, tip.y - head * u.y}, "force");
+    svg.Polygon({tip,
+                 {tip.x - head * u.x - 0.5 * head * u.y, tip.y - head * u.y + 0.5 * head * u.x},
+                 {tip.x - head * u.x + 0.5 * head * u.y, tip.y - head * u.y - 0.5 * head * u.x}},
+                "force-head");
+  }
+
+  const Problem& problem_;
+  const TopologyFigureOptions& options_;
+  int d_;
+  Projection projection_;
+  Evaluation evaluation_;
+  std::vector<Vector> identified_u_;
+  std::vector<Vector> reference_positions_;
+  std::vector<Vector> identified_positions_;
+  Frame frame_;
+  double force_scale_ = 0.0;
+};
+
+}  // namespace
+
+std::string RenderTopologyFigure(const Problem& problem, const TopologyFigureInput& input,
+                                 const TopologyFigureOptions& options) {
+  return FigureWriter(problem, options).Write(input);
+}
+
+}  // namespace springfit::cli

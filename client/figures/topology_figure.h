@@ -1,0 +1,40 @@
+// The reference and the identified topology side by side under each load case, at rest and
+// deformed, wrong springs marked: the figure of Bianchi et al.'s Figures 1 and 3, drawn by
+// `springfit render` (README.md, "Figures").
+#pragma once
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "engine/problem.h"
+
+namespace springfit::cli {
+
+struct TopologyFigureInput {
+  std::string title;                  // first heading line (scene, strategy, seed)
+  std::string subtitle;               // second line (outcome)
+  std::vector<NodePair> springs;      // the identified topology; every pair a candidate
+  // Against the reference, as the result reports them (unidentifiable candidates are not
+  // compared); nullopt when the reference topology is unknown.
+  std::optional<std::vector<NodePair>> missing;
+  std::optional<std::vector<NodePair>> extra;
+};
+
+struct TopologyFigureOptions {
+  std::vector<int> load_cases;  // which load cases, in this order; empty = all
+  // Displacements are drawn this many times their size. 0 = automatic: true size when the
+  // largest displacement is at least 5% of the scene's diagonal, otherwise enlarged to 10%
+  // of it (small-strain scenes would look undeformed). The heading states the factor.
+  double magnify = 0.0;
+  double panel_size = 340.0;    // pixels, each panel square
+  // 3D scenes are drawn in an orthographic view turned by these angles (degrees).
+  double azimuth = -35.0;
+  double elevation = 25.0;
+};
+
+// The figure as an SVG document. Throws InputError for a spring that is not a candidate or
+// a load case index out of range.
+std::string RenderTopologyFigure(const Problem& problem, const TopologyFigureInput& input,
+                                 const TopologyFigureOptions& options = {});
+
+}  // namespace springfit::cli
