@@ -129,7 +129,73 @@ Scene Kidney2d() {
   return s;
 }
 
+// SplitMix64: a fixed hash, so that which springs a ThinnedGrid keeps depends only on the
+// seed and the pair, not on a library's random engine.
+std::uint64_t Mix(std::uint64_t x) {
+  x += 0x9e3779b97f4a7c15ULL;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+
+double UnitHash(std::uint64_t seed, std::uint64_t a, std::uint64_t b) {
+  return static_cast<double>(Mix(Mix(Mix(seed) ^ a) ^ b) >> 11) * (1.0 / 9007199254740992.0);
+}
+
 }  // namespace
+
+Scene ThinnedGrid(const std::vector<int>& n, std::uint64_t seed, double stiffness_decades) {
+  Scene s;
+  const int d = static_cast<int>(n.size());
+  s.dimension = d;
+  s.name = "thinned-grid";
+  for (std::size_t a = 0; a < n.size(); ++a) s.name += (a ? "x" : "-") + std::to_string(n[a]);
+  s.description = "grid with a thinned, varied-stiffness reference (examples::ThinnedGrid, seed " +
+                  std::to_string(seed) + ")";
+  s.rest = GridNodes(n, 1.0);
+  s.candidates.kind = CandidateSpec::Kind::kGrid;
+  auto coords = [&](int node) {
+    std::vector<int> c(d);
+    for (int a = 0; a < d; ++a) {
+      c[a] = node % n[a];
+      node /= n[a];
+    }
+    return c;
+  };
+  auto index = [&](const std::vector<int>& c) {
+    int node = 0;
+    for (int a = d - 1; a >= 0; --a) node = node * n[a] + c[a];
+    return node;
+  };
+  for (const NodePair& p : GridNeighbourSprings(n)) {
+    const std::vector<int> ci = coords(p.first), cj = coords(p.second);
+    int moved = 0;
+    for (int a = 0; a < d; ++a) moved += ci[a] != cj[a];
+    bool keep = true;
+    if (moved == 2) {
+      // A face diagonal: the face is named by its lowest corner and its two axes; one of its
+      // two diagonals is always kept, the other with probability 1/2.
+      std::vector<int> corner(d);
+      for (int a = 0; a < d; ++a) corner[a] = std::min(ci[a], cj[a]);
+      const int face = index(corner);
+      std::uint64_t axes = 0;
+      for (int a = 0; a < d; ++a) axes |= static_cast<std::uint64_t>(ci[a] != cj[a]) << a;
+      const bool through_corner = index(ci) == face || index(cj) == face;
+      const bool always = UnitHash(seed, static_cast<std::uint64_t>(face), axes) < 0.5;
+      keep = through_corner == always || UnitHash(seed, static_cast<std::uint64_t>(p.first), static_cast<std::uint64_t>(p.second)) < 0.5;
+    } else if (moved == 3) {
+      keep = UnitHash(seed, static_cast<std::uint64_t>(p.first), static_cast<std::uint64_t>(p.second)) < 0.5;
+    }
+    if (!keep) continue;
+    s.reference.springs.push_back(p);
+    const double u = UnitHash(seed + 1, static_cast<std::uint64_t>(p.first), static_cast<std::uint64_t>(p.second));
+    s.reference.stiffness.push_back(std::pow(10.0, stiffness_decades * (u - 0.5)));
+  }
+  s.training_stiffness = 1.0;
+  s.load_cases = Paper7LoadCases(d, s.rest, 1.0);
+  ScaleLoadsToStrain(s, 0.05);
+  return s;
+}
 
 const std::vector<ExampleInfo>& Catalog() {
   static const std::vector<ExampleInfo> catalog = [] {

@@ -4,6 +4,7 @@
 // unambiguous under every load case: no cell of the mesh inverts (DESIGN.md, "paper7").
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -47,6 +48,13 @@ void ScaleLoadsToStrain(Scene& scene, double strain);
 // Throws std::logic_error when a simplex of `simplices` (triangles in 2D, tetrahedra in 3D,
 // node indices) is inverted or flattened in some reference equilibrium of `scene`.
 void CheckFoldFree(const Scene& scene, const std::vector<std::vector<int>>& simplices);
+
+// A grid whose reference keeps only part of the grid neighbourhood, with varied stiffness:
+// every axis-parallel spring; on every square face one diagonal, and the other with
+// probability 1/2; in 3D every body diagonal with probability 1/2 (triangulated faces keep
+// each cell rigid). Stiffness log-uniform over `stiffness_decades` decades around 1. Loads:
+// paper7 at 5% strain. Deterministic in `seed`; for tests and benchmarks at any size.
+Scene ThinnedGrid(const std::vector<int>& n, std::uint64_t seed, double stiffness_decades);
 
 // The simplices of a grid (each cell split both ways in 2D; the eight corner tetrahedra of
 // each cube in 3D), for CheckFoldFree.

@@ -1,0 +1,113 @@
+// Strategy `direct` on the MSS-reference examples and on thinned grids of growing size:
+// exact topology recovery, stiffness error, time per phase (bench/RESULTS.md, "Direct").
+//
+//   build/bench/direct_bench                  # examples, then the size table
+//   build/bench/direct_bench --sizes 5,10,20  # 2D n x n and 3D grids of these sizes
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "engine/direct/direct_identification.h"
+#include "engine/examples/catalog.h"
+#include "engine/problem.h"
+
+using namespace springfit;
+
+namespace {
+
+struct Row {
+  std::string scene;
+  int nodes = 0;
+  int genes = 0;
+  bool exact = false;
+  int missing = 0, extra = 0;
+  double stiffness_error = 0.0;  // max over reference springs of |w - k| / k
+  double normalized_error = 0.0;
+  double assemble = 0.0, solve = 0.0, evaluate = 0.0, build = 0.0;
+  int iterations = 0;
+  double smallest_true = 0.0, largest_absent = 0.0;
+};
+
+Row Measure(Scene scene, int repeats) {
+  Row row;
+  row.scene = scene.name;
+  const auto t0 = std::chrono::steady_clock::now();
+  const Problem problem = Problem::Build(std::move(scene));
+  row.build = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  row.nodes = problem.scene().node_count();
+  row.genes = problem.gene_count();
+  DirectResult best;
+  for (int r = 0; r < repeats; ++r) {
+    DirectResult d = IdentifyDirect(problem);
+    if (r == 0 || d.assemble_seconds + d.solve_seconds < best.assemble_seconds + best.solve_seconds) best = std::move(d);
+  }
+  const auto difference = problem.CompareWithReference(best.genome);
+  row.missing = difference ? static_cast<int>(difference->missing.size()) : -1;
+  row.extra = difference ? static_cast<int>(difference->extra.size()) : -1;
+  row.exact = difference && difference->hamming() == 0;
+  const Reference& ref = problem.scene().reference;
+  for (std::size_t s = 0; s < ref.springs.size(); ++s) {
+    const double k = ref.stiffness.size() == 1 ? ref.stiffness[0] : ref.stiffness[s];
+    const int c = problem.CandidateIndex(ref.springs[s]);
+    const auto& genes = problem.gene_candidates();
+    const auto it = std::lower_bound(genes.begin(), genes.end(), c);
+    if (it == genes.end() || *it != c) continue;  // unidentifiable
+    const double w = best.weights[static_cast<std::size_t>(it - genes.begin())];
+    row.stiffness_error = std::max(row.stiffness_error, std::abs(w - k) / k);
+  }
+  // Diagnostic: the smallest true weight and the largest weight of an absent spring, relative
+  // to the largest weight: the room the topology threshold has.
+  if (const auto& mask = problem.reference_genome()) {
+    double lo = 1e300, hi = 0.0, top = 0.0;
+    for (double w : best.weights) top = std::max(top, w);
+    for (std::size_t g = 0; g < best.weights.size(); ++g) {
+      if ((*mask)[g]) lo = std::min(lo, best.weights[g] / top); else hi = std::max(hi, best.weights[g] / top);
+    }
+    row.smallest_true = lo;
+    row.largest_absent = hi;
+  }
+  row.normalized_error = best.evaluation.normalized_error;
+  row.assemble = best.assemble_seconds;
+  row.solve = best.solve_seconds;
+  row.evaluate = best.evaluate_seconds;
+  row.iterations = best.nnls.iterations;
+  return row;
+}
+
+void Print(const Row& r) {
+  std::printf("| %s | %d | %d | %s | %d / %d | %.1e | %.1e | %.2f | %.2f | %.2f | %d | %.2f |\n", r.scene.c_str(),
+              r.nodes, r.genes, r.exact ? "yes" : "no", r.missing, r.extra, r.stiffness_error, r.normalized_error,
+              1e3 * r.assemble, 1e3 * r.solve, 1e3 * (r.assemble + r.solve), r.iterations, r.evaluate);
+  std::fprintf(stderr, "%s: smallest true weight %.2e, largest absent %.2e (of the largest)\n", r.scene.c_str(),
+               r.smallest_true, r.largest_absent);
+  std::fflush(stdout);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"direct_bench: strategy direct, exactness, stiffness error and time"};
+  std::vector<int> sizes2{5, 10, 20, 40, 70, 100};
+  std::vector<int> sizes3{4, 6, 8, 10, 12};
+  int repeats = 5;
+  bool examples_only = false;
+  app.add_option("--sizes2", sizes2, "2D grid sizes n (n x n nodes)")->delimiter(',');
+  app.add_option("--sizes3", sizes3, "3D grid sizes n (n^3 nodes)")->delimiter(',');
+  app.add_option("--repeats", repeats, "Runs per scene; the fastest is reported")->check(CLI::PositiveNumber);
+  app.add_flag("--examples-only", examples_only, "Only the example scenes");
+  CLI11_PARSE(app, argc, argv);
+
+  std::printf("| scene | nodes | genes | exact | missing / extra | stiffness rel. error | normalized error | "
+              "assemble ms | NNLS ms | direct ms | pivots | evaluate s |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d"}) {
+    Print(Measure(examples::Make(name), repeats));
+  }
+  if (examples_only) return 0;
+  for (const int n : sizes2) Print(Measure(examples::ThinnedGrid({n, n}, 1, 2.0), n >= 40 ? 1 : repeats));
+  for (const int n : sizes3) Print(Measure(examples::ThinnedGrid({n, n, n}, 1, 2.0), n >= 8 ? 1 : repeats));
+  return 0;
+}

@@ -1,0 +1,59 @@
+#include "engine/direct/force_balance.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace springfit {
+
+ForceBalance AssembleForceBalance(const Problem& problem) {
+  const int d = problem.dimension();
+  const int genes = problem.gene_count();
+  const SpringGeometry& geometry = problem.candidates();
+  const Vector& rest = problem.scene().rest;
+
+  // Row offsets: each load case's free coordinates, in node order.
+  std::vector<Eigen::Index> row_offset;
+  Eigen::Index rows = 0;
+  for (const PreparedLoadCase& lc : problem.load_cases()) {
+    row_offset.push_back(rows);
+    rows += static_cast<Eigen::Index>(d) * problem.free_sets()[lc.free_set].count;
+  }
+
+  ForceBalance fb;
+  fb.b = Vector::Zero(rows);
+  fb.strain.assign(genes, 0.0);
+  std::vector<Eigen::Triplet<double>> entries;
+  entries.reserve(static_cast<std::size_t>(genes) * problem.load_cases().size() * 2 * d);
+  for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
+    const PreparedLoadCase& lc = problem.load_cases()[k];
+    const FreeNodes& free = problem.free_sets()[lc.free_set];
+    const Vector x = rest + lc.reference;
+    for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
+      const int f = free.free_index[i];
+      if (f < 0) continue;
+      fb.b.segment(row_offset[k] + d * f, d) = -lc.force.segment(d * i, d);
+    }
+    for (int g = 0; g < genes; ++g) {
+      const int c = problem.gene_candidates()[g];
+      const NodePair pair = geometry.pairs[c];
+      const Vector sep = x.segment(d * pair.first, d) - x.segment(d * pair.second, d);
+      const double length = sep.norm();
+      const double stretch = length - geometry.rest_length[c];
+      fb.strain[g] = std::max(fb.strain[g], std::abs(stretch) / geometry.rest_length[c]);
+      if (stretch == 0.0 || length == 0.0) continue;
+      const Vector force_on_first = (-stretch / length) * sep;  // per unit stiffness
+      const int fi = free.free_index[pair.first];
+      const int fj = free.free_index[pair.second];
+      for (int a = 0; a < d; ++a) {
+        if (fi >= 0) entries.emplace_back(row_offset[k] + d * fi + a, g, force_on_first[a]);
+        if (fj >= 0) entries.emplace_back(row_offset[k] + d * fj + a, g, -force_on_first[a]);
+      }
+    }
+  }
+  fb.a.resize(rows, genes);
+  fb.a.setFromTriplets(entries.begin(), entries.end());
+  fb.a.makeCompressed();
+  return fb;
+}
+
+}  // namespace springfit

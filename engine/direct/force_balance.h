@@ -1,0 +1,30 @@
+// The equilibrium equations of the training model, written at the reference's equilibrium
+// positions, as a linear system in the spring weights (DESIGN.md §1, issue 4):
+//
+//   for load case k and free node i:   sum_j w_ij g_ij(X^R_k) = -F_ext,i,k
+//   g_ij(X) = -(|X_i - X_j| - l_ij) (X_i - X_j) / |X_i - X_j|
+//
+// w_ij >= 0 is the stiffness of spring (i, j), 0 when absent. One row per coordinate of a
+// free node per load case, one column per gene. For an MSS reference whose springs are all
+// candidates, A w = b holds exactly at the reference's stiffness.
+#pragma once
+#include <Eigen/SparseCore>
+#include <vector>
+
+#include "engine/problem.h"
+
+namespace springfit {
+
+using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor>;
+
+struct ForceBalance {
+  SparseMatrix a;  // rows: (load case, free node, coordinate); columns: genes
+  Vector b;        // -F_ext
+  // Per gene: the largest length change of its spring over the load cases, relative to its
+  // rest length. 0 = no load case stretches or compresses it: its weight is not seen.
+  std::vector<double> strain;
+};
+
+ForceBalance AssembleForceBalance(const Problem& problem);
+
+}  // namespace springfit

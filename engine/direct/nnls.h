@@ -1,0 +1,46 @@
+// Non-negative least squares on a sparse matrix: min |A x - b|  subject to  x >= 0.
+//
+// Eigen 3.4 (Debian 12) has no NNLS and a dense one would not hold the 40,000 columns of a
+// 100x100 grid, so this is the block principal pivoting method of Kim and Park (SIAM J. Sci.
+// Comput. 33(6), 2011): guess the set F of positive variables, solve the unconstrained
+// problem on F, and exchange every variable that breaks the optimality conditions at once;
+// when exchanges stop reducing the number of violations, Murty's rule (exchange only the
+// violating variable of largest index) guarantees termination. Identifying a spring network
+// from exact data needs one solve: the true weights are positive where springs are, and the
+// optimality conditions hold at once.
+//
+// Each solve on F uses the normal equations of the column-scaled matrix with a sparse LDLT
+// (Eigen's SimplicialLDLT, AMD ordering), then iterative refinement on the residual, which
+// recovers the accuracy the normal equations' squared condition number costs.
+#pragma once
+#include <vector>
+
+#include "engine/direct/force_balance.h"
+
+namespace springfit {
+
+struct NnlsOptions {
+  // Pivoting rounds before giving up (the last feasible solution is returned). 0 = 10 + 3n.
+  int max_iterations = 0;
+  // A variable counts as negative below -tolerance * (its scale), a gradient component as
+  // negative below -tolerance * |A^T b|_inf: relative, so that units do not matter.
+  double tolerance = 1e-10;
+  // Refinement steps after each normal-equations solve.
+  int refinement_steps = 2;
+  // Rounds of exchanging whole violating sets before falling back to single exchanges.
+  int full_exchange_budget = 3;
+};
+
+struct NnlsResult {
+  Vector x;                    // >= 0; 0 on columns not usable
+  bool converged = false;      // the optimality conditions hold within the tolerance
+  int iterations = 0;          // pivoting rounds
+  int factorizations = 0;
+  double residual_norm = 0.0;  // |A x - b|
+};
+
+// Columns with `usable[j]` false are held at 0 (e.g. zero columns).
+NnlsResult SolveNnls(const SparseMatrix& a, const Vector& b, const std::vector<bool>& usable,
+                     const NnlsOptions& options = {});
+
+}  // namespace springfit
