@@ -15,6 +15,7 @@
 #include "client/remote_job.h"
 #include "engine/input_error.h"
 #include "engine/search/search_options.h"
+#include "proto/rpc.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
 
@@ -56,11 +57,6 @@ std::string Describe(const Json& result) {
   std::string s = result.value("scene", std::string("?")) + ", strategy " + result.value("strategy", std::string("?"));
   if (result.contains("seed")) s += ", seed " + result["seed"].dump();
   return s;
-}
-
-std::optional<std::vector<NodePair>> OptionalPairs(const Json& result, const char* key) {
-  if (!result.contains(key) || result[key].is_null()) return std::nullopt;
-  return proto::ReadNodePairs(result[key], key);
 }
 
 std::vector<NodePair> Ordered(std::vector<NodePair> pairs) {
@@ -108,32 +104,26 @@ int Render(const RenderArgs& a) {
     where = std::filesystem::path(source.name).filename().string();
   }
   Scene scene = a.scene_path.empty() ? proto::SceneFromJson(scene_json) : proto::LoadSceneFile(a.scene_path);
-  if (!a.scene_path.empty() && scene.name != result.value("scene", scene.name)) {
-    std::cerr << "springfit: render: warning: the result is of scene '" << result.value("scene", std::string())
-              << "', --scene is '" << scene.name << "'\n";
-  }
   const Problem problem = Problem::Build(std::move(scene));
+  // A result of another scene could still name valid node pairs: refuse what is detectable.
+  const std::string result_scene = result.value("scene", problem.scene().name);
+  const int result_genes = result.contains("genes") && result["genes"].is_number_integer() ? result["genes"].get<int>() : -1;
+  if (result_scene != problem.scene().name || (result_genes >= 0 && result_genes != problem.gene_count())) {
+    throw InputError("", "the result is of scene '" + result_scene + "' (" + std::to_string(result_genes) +
+                             " genes), the scene given is '" + problem.scene().name + "' (" +
+                             std::to_string(problem.gene_count()) + " genes)");
+  }
 
   TopologyFigureInput input;
   input.title = Describe(result) + " (" + where + ")";
   input.springs = Ordered(proto::ReadNodePairs(result.at("springs"), "springs"));
-  input.missing = OptionalPairs(result, "missing");
-  input.extra = OptionalPairs(result, "extra");
-  std::string error = "?";
-  if (result.contains("normalized_error") && result["normalized_error"].is_number()) {
-    char text[32];
-    std::snprintf(text, sizeof text, "%.3g", result["normalized_error"].get<double>());
-    error = text;
+  if (result.contains("stiffness")) {
+    proto::ExpectArray(result["stiffness"], "stiffness");
+    for (std::size_t s = 0; s < result["stiffness"].size(); ++s) {
+      input.stiffness.push_back(proto::ReadNumber(result["stiffness"][s], "stiffness[" + std::to_string(s) + "]"));
+    }
   }
-  if (input.missing && input.extra) {
-    const bool exact = input.missing->empty() && input.extra->empty();
-    input.subtitle = (exact ? "exact recovery" : "not exact: " + std::to_string(input.missing->size()) +
-                                                     " missing, " + std::to_string(input.extra->size()) + " extra") +
-                     "; " + std::to_string(input.springs.size()) + " springs; normalized error " + error;
-  } else {
-    input.subtitle = "reference topology unknown; " + std::to_string(input.springs.size()) +
-                     " springs; normalized error " + error;
-  }
+  if (result.value("stop", std::string()) == "cancelled") input.note = "cancelled: the best topology so far";
   TopologyFigureOptions options;
   options.load_cases = a.load_cases;
   options.magnify = a.magnify;
@@ -190,7 +180,10 @@ int Plot(const PlotArgs& a) {
       }
       label = std::filesystem::path(source.name).filename().string() + ": " + Describe(result);
     }
-    if (rows.empty()) throw InputError("", text + ": no trace rows yet");
+    if (rows.empty() && source.job_id) {
+      throw RemoteError(proto::rpc::kWrongState, "job " + text + " has no trace rows yet (queued)", nullptr);
+    }
+    if (rows.empty()) throw InputError("trace", source.name + ": the trace is empty");
     curves.push_back(CurveOf(rows, std::move(label)));
   }
   const std::string title = a.title.empty() ? "Normalized error against wall time" : a.title;

@@ -41,17 +41,18 @@ std::vector<JsonFramer::Frame> JsonFramer::Feed(std::string_view bytes) {
       state_ = c == '\n' ? State::kTop : State::kSkipLine;
       continue;
     }
-    if (complete_) {
-      frames.push_back({Frame::Kind::kMessage, std::move(message_), {}});
-      message_.clear();
-      complete_ = false;
-    } else if (message_.size() > options_.max_message_bytes) {
+    // The size first: a message that completes one byte over the limit is still too large.
+    if (message_.size() > options_.max_message_bytes) {
       frames.push_back({Frame::Kind::kTooLarge, {},
                         "message longer than " + std::to_string(options_.max_message_bytes) + " bytes"});
       message_.clear();
       message_.shrink_to_fit();
       stack_.clear();
       state_ = State::kClosed;
+    } else if (complete_) {
+      frames.push_back({Frame::Kind::kMessage, std::move(message_), {}});
+      message_.clear();
+      complete_ = false;
     }
   }
   return frames;

@@ -22,9 +22,8 @@ std::string Css(std::size_t curves) {
   std::string css =
       "text{font-family:sans-serif;font-size:12px;fill:#222}\n"
       ".title{font-size:15px;font-weight:bold}\n"
-      ".axis{stroke:#222;stroke-width:1}\n"
       ".grid{stroke:#e6e6e6;stroke-width:1}\n"
-      ".legend-box{fill:white;fill-opacity:0.85;stroke:#ccc}\n";
+      ".frame{fill:none;stroke:#222;stroke-width:1}\n";
   for (std::size_t i = 0; i < curves; ++i) {
     const char* c = kColours[i % std::size(kColours)];
     css += ".curve" + std::to_string(i) + "{fill:none;stroke:" + c + ";stroke-width:1.8}\n";
@@ -99,7 +98,7 @@ std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::st
     svg.Line({kLeft, y}, {kLeft + plot_w, y}, "grid");
     svg.Text({kLeft - 8, y + 4}, d == y_axis.lo ? "exact" : Decade(d), "", SvgDocument::Anchor::kEnd);
   }
-  svg.Rect({kLeft, kTop}, plot_w, plot_h, "axis legend-box");
+  svg.Rect({kLeft, kTop}, plot_w, plot_h, "frame");
   svg.Text({kLeft + plot_w / 2, kTop + plot_h + 40}, "wall time (s)", "", SvgDocument::Anchor::kMiddle);
   svg.VerticalText({22, kTop + plot_h / 2}, "best normalized error", "");
 

@@ -46,25 +46,19 @@ std::string Format(const char* format, double value) {
 // Page coordinates grow downwards, so y is flipped at the very end (in Frame).
 class Projection {
  public:
-  Projection(int dimension, double azimuth_deg, double elevation_deg) : d_(dimension) {
-    const double deg = std::numbers::pi / 180.0;
-    ca_ = std::cos(azimuth_deg * deg);
-    sa_ = std::sin(azimuth_deg * deg);
-    ce_ = std::cos(elevation_deg * deg);
-    se_ = std::sin(elevation_deg * deg);
-  }
+  Projection(int dimension, double azimuth_deg, double elevation_deg)
+      : d_(dimension), azimuth_(azimuth_deg), elevation_(elevation_deg) {}
   // Node `node` of flat d*n coordinates (positions, or forces: the map is linear).
   Point2 operator()(const Vector& flat, int node) const {
     const Eigen::Index at = static_cast<Eigen::Index>(d_) * node;
     if (d_ == 2) return {flat(at), flat(at + 1)};
-    const double x = ca_ * flat(at) - sa_ * flat(at + 1);
-    const double depth = sa_ * flat(at) + ca_ * flat(at + 1);
-    return {x, ce_ * flat(at + 2) - se_ * depth};
+    const ViewPoint p = ProjectView(flat(at), flat(at + 1), flat(at + 2), azimuth_, elevation_);
+    return {p.x, p.y};
   }
 
  private:
   int d_;
-  double ca_, sa_, ce_, se_;
+  double azimuth_, elevation_;
 };
 
 // Maps projected scene coordinates into one panel, the same scale for every panel so that
@@ -110,7 +104,7 @@ class FigureWriter {
 
   std::string Write(const TopologyFigureInput& input) {
     const std::vector<int> cases = SelectedCases();
-    Evaluate(input.springs);
+    Evaluate(input);
     const double magnify = Magnification();
     for (const int k : cases) {
       reference_positions_.push_back(problem_.scene().rest + magnify * problem_.load_cases()[k].reference);
@@ -141,16 +135,15 @@ class FigureWriter {
       Panel(svg, left, k, reference, "reference, " + name);
 
       PanelContent identified{&identified_positions_[row], &input.springs,
-                              input.missing ? &*input.missing : nullptr, input.extra ? &*input.extra : nullptr};
+                              difference_ ? &difference_->missing : nullptr, difference_ ? &difference_->extra : nullptr};
       const LoadCaseEvaluation& eval = evaluation_.load_cases[k];
       std::string caption = "identified: normalized error " + Format("%.3g", eval.normalized_error);
       bool warn = false;
       if (eval.solve.termination == Termination::kMechanism) {
-        caption = "identified: no equilibrium, a mechanism (" + std::to_string(eval.solve.mechanism_modes) +
-                  " free modes); drawn at rest";
+        caption = "identified: a mechanism (" + std::to_string(eval.solve.mechanism_modes) + " modes), at rest";
         warn = true;
       } else if (!eval.solve.converged()) {
-        caption = "identified: the solver did not converge; drawn at rest";
+        caption = "identified: no convergence, at rest";
         warn = true;
       }
       Panel(svg, right, k, identified, caption, warn);
@@ -176,19 +169,46 @@ class FigureWriter {
     return options_.load_cases;
   }
 
-  void Evaluate(const std::vector<NodePair>& springs) {
+  void Evaluate(const TopologyFigureInput& input) {
+    const std::vector<NodePair>& springs = input.springs;
+    if (!input.stiffness.empty() && input.stiffness.size() != springs.size()) {
+      throw InputError("stiffness", std::to_string(input.stiffness.size()) + " values for " +
+                                        std::to_string(springs.size()) + " springs");
+    }
     std::vector<std::uint8_t> mask(problem_.candidates().size(), 0);
+    ActiveSprings model;
     for (std::size_t s = 0; s < springs.size(); ++s) {
+      const std::string path = "springs[" + std::to_string(s) + "]";
       const int c = problem_.CandidateIndex(springs[s]);
       if (c < 0) {
-        throw InputError("springs[" + std::to_string(s) + "]",
-                         "[" + std::to_string(springs[s].first) + ", " + std::to_string(springs[s].second) +
-                             "] is not a candidate spring of the scene");
+        throw InputError(path, "[" + std::to_string(springs[s].first) + ", " + std::to_string(springs[s].second) +
+                                   "] is not a candidate spring of the scene");
       }
+      if (mask[c]) throw InputError(path, "given twice");
       mask[c] = 1;
+      const double k = input.stiffness.empty() ? problem_.training_stiffness() : input.stiffness[s];
+      if (!(k > 0.0) || !std::isfinite(k)) {
+        throw InputError("stiffness[" + std::to_string(s) + "]", "must be a finite number > 0");
+      }
+      model.index.push_back(c);
+      model.stiffness.push_back(k);
     }
+    difference_ = problem_.CompareWithReference(problem_.GenomeFromMask(mask));
     CostFunction cost(problem_);
-    evaluation_ = cost.Evaluate(problem_.SpringsFromMask(mask), &identified_u_);
+    evaluation_ = cost.Evaluate(model, &identified_u_);
+  }
+
+  std::string Subtitle(const TopologyFigureInput& input) const {
+    std::string s = input.note.empty() ? "" : input.note + "; ";
+    if (difference_) {
+      s += difference_->hamming() == 0 ? "exact recovery"
+                                       : "not exact: " + std::to_string(difference_->missing.size()) + " missing, " +
+                                             std::to_string(difference_->extra.size()) + " extra";
+    } else {
+      s += "reference topology unknown";
+    }
+    return s + "; " + std::to_string(input.springs.size()) + " springs; normalized error " +
+           Format("%.3g", evaluation_.normalized_error);
   }
 
   double Magnification() const {
@@ -223,7 +243,7 @@ class FigureWriter {
 
   void Heading(SvgDocument& svg, const TopologyFigureInput& input, double magnify, double width) {
     svg.Text({kMargin, kMargin + 14}, input.title, "title");
-    svg.Text({kMargin, kMargin + 32}, input.subtitle, "");
+    svg.Text({kMargin, kMargin + 32}, Subtitle(input), "");
     const double y = kMargin + 56;
     double x = kMargin;
     auto sample = [&](std::string_view cls, const std::string& label) {
@@ -233,8 +253,10 @@ class FigureWriter {
     };
     sample("rest", "rest");
     sample("spring", "deformed");
-    if (input.missing) sample("missing", "missing: " + std::to_string(input.missing->size()));
-    if (input.extra) sample("extra", "extra: " + std::to_string(input.extra->size()));
+    if (difference_) {
+      sample("missing", "missing: " + std::to_string(difference_->missing.size()));
+      sample("extra", "extra: " + std::to_string(difference_->extra.size()));
+    }
     svg.Rect({x, y - 8}, 7, 7, "fixed");
     svg.Text({x + 11, y}, "fixed", "");
     x += 56;
@@ -324,6 +346,7 @@ class FigureWriter {
   int d_;
   Projection projection_;
   Evaluation evaluation_;
+  std::optional<TopologyDifference> difference_;
   std::vector<Vector> identified_u_;
   std::vector<Vector> reference_positions_;
   std::vector<Vector> identified_positions_;
@@ -332,6 +355,17 @@ class FigureWriter {
 };
 
 }  // namespace
+
+ViewPoint ProjectView(double x, double y, double z, double azimuth, double elevation) {
+  const double deg = std::numbers::pi / 180.0;
+  const double ca = std::cos(azimuth * deg), sa = std::sin(azimuth * deg);
+  const double ce = std::cos(elevation * deg), se = std::sin(elevation * deg);
+  // Turn about z, then look along the turned y axis from above: x right, depth away from the
+  // viewer, z up; points further away sit higher on the page (a right-handed view).
+  const double right = ca * x - sa * y;
+  const double depth = sa * x + ca * y;
+  return {right, ce * z + se * depth};
+}
 
 std::string RenderTopologyFigure(const Problem& problem, const TopologyFigureInput& input,
                                  const TopologyFigureOptions& options) {

@@ -11,13 +11,12 @@
 namespace springfit::cli {
 
 struct TopologyFigureInput {
-  std::string title;                  // first heading line (scene, strategy, seed)
-  std::string subtitle;               // second line (outcome)
-  std::vector<NodePair> springs;      // the identified topology; every pair a candidate
-  // Against the reference, as the result reports them (unidentifiable candidates are not
-  // compared); nullopt when the reference topology is unknown.
-  std::optional<std::vector<NodePair>> missing;
-  std::optional<std::vector<NodePair>> extra;
+  std::string title;              // first heading line (scene, strategy, seed)
+  std::string note;               // starts the second line, e.g. "cancelled, best so far"
+  std::vector<NodePair> springs;  // the identified topology; every pair a candidate
+  // Per spring of `springs` (strategy direct identifies it); empty = the scene's training
+  // stiffness for every spring.
+  std::vector<double> stiffness;
 };
 
 struct TopologyFigureOptions {
@@ -32,8 +31,18 @@ struct TopologyFigureOptions {
   double elevation = 25.0;
 };
 
-// The figure as an SVG document. Throws InputError for a spring that is not a candidate or
-// a load case index out of range.
+// A 3D point on the page before scaling (y up): an orthographic view turned by `azimuth`
+// about the vertical (z) axis and seen from `elevation` degrees above the horizon.
+struct ViewPoint {
+  double x = 0.0;
+  double y = 0.0;
+};
+ViewPoint ProjectView(double x, double y, double z, double azimuth, double elevation);
+
+// The figure as an SVG document. Missing and extra springs, the normalised error and the
+// deformed shapes are computed here from the problem, never taken from a file. Throws
+// InputError for a spring that is not a candidate (or given twice), a stiffness list of the
+// wrong length or not positive, or a load case index out of range.
 std::string RenderTopologyFigure(const Problem& problem, const TopologyFigureInput& input,
                                  const TopologyFigureOptions& options = {});
 

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "client/figures/error_plot.h"
+#include "client/figures/svg_document.h"
 #include "client/figures/topology_figure.h"
 #include "engine/input_error.h"
 #include "tests/test_scenes.h"
@@ -24,10 +25,7 @@ TEST(TopologyFigure, MarksEachWrongSpringInEachPanel) {
   const Problem problem = GridProblem(2);
   TopologyFigureInput input;
   input.springs = problem.scene().reference.springs;
-  const NodePair dropped = input.springs.back();
-  input.springs.pop_back();
-  input.missing = std::vector<NodePair>{dropped};
-  input.extra = std::vector<NodePair>{};
+  input.springs.pop_back();  // one missing spring, found by the figure itself
   const std::string svg = RenderTopologyFigure(problem, input);
   const int cases = static_cast<int>(problem.load_cases().size());
   EXPECT_EQ(Count(svg, "class=\"missing\""), cases + 1);  // one per identified panel, one in the legend
@@ -35,6 +33,9 @@ TEST(TopologyFigure, MarksEachWrongSpringInEachPanel) {
   EXPECT_EQ(Count(svg, "class=\"panel\""), 2 * cases);
   EXPECT_EQ(Count(svg, "<clipPath"), 2 * cases);
   EXPECT_EQ(Count(svg, "</svg>"), 1);
+  EXPECT_EQ(Count(svg, "not exact: 1 missing, 0 extra"), 1);
+  EXPECT_EQ(Count(svg, "nan"), 0);
+  EXPECT_EQ(Count(svg, "inf"), 0);
 
   TopologyFigureOptions only;
   only.load_cases = {2, 0};
@@ -44,12 +45,12 @@ TEST(TopologyFigure, MarksEachWrongSpringInEachPanel) {
 TEST(TopologyFigure, AMechanismIsDrawnAtRestAndSaidSo) {
   const Problem problem = GridProblem(3);
   TopologyFigureInput input;  // no springs at all
-  input.missing = problem.scene().reference.springs;
-  input.extra = std::vector<NodePair>{};
   const std::string svg = RenderTopologyFigure(problem, input);
-  EXPECT_EQ(Count(svg, "no equilibrium, a mechanism"), static_cast<int>(problem.load_cases().size()));
-  EXPECT_EQ(Count(svg, "class=\"missing\""),
-            static_cast<int>(problem.load_cases().size() * input.missing->size()) + 1);
+  EXPECT_EQ(Count(svg, "identified: a mechanism"), static_cast<int>(problem.load_cases().size()));
+  // Every reference spring the genome can hold is missing, in every identified panel.
+  const int missing = problem.CompareWithReference(Genome(problem.gene_count(), 0))->hamming();
+  EXPECT_GT(missing, 0);
+  EXPECT_EQ(Count(svg, "class=\"missing\""), static_cast<int>(problem.load_cases().size()) * missing + 1);
 }
 
 TEST(TopologyFigure, SmallDisplacementsAreMagnifiedAndTheFactorStated) {
@@ -73,7 +74,19 @@ TEST(TopologyFigure, RefusesSpringsThatAreNotCandidatesAndUnknownLoadCases) {
   } catch (const InputError& e) {
     EXPECT_EQ(e.path(), "springs[1]");
   }
+  input.springs = {{0, 1}, {0, 1}};
+  try {
+    RenderTopologyFigure(problem, input);
+    FAIL() << "a spring given twice was drawn";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.path(), "springs[1]");
+  }
   input.springs = {{0, 1}};
+  input.stiffness = {1.0, 2.0};
+  EXPECT_THROW(RenderTopologyFigure(problem, input), InputError);
+  input.stiffness = {-1.0};
+  EXPECT_THROW(RenderTopologyFigure(problem, input), InputError);
+  input.stiffness.clear();
   TopologyFigureOptions options;
   options.load_cases = {0, 99};
   try {
@@ -82,6 +95,28 @@ TEST(TopologyFigure, RefusesSpringsThatAreNotCandidatesAndUnknownLoadCases) {
   } catch (const InputError& e) {
     EXPECT_EQ(e.path(), "load_cases[1]");
   }
+}
+
+TEST(TopologyFigure, ThreeDimensionalViewIsFromAboveAndRightHanded) {
+  // Straight on (azimuth 0): x to the right, z up, and y (away) higher as seen from above.
+  EXPECT_GT(ProjectView(1, 0, 0, 0, 25).x, 0.9);
+  EXPECT_NEAR(ProjectView(1, 0, 0, 0, 25).y, 0.0, 1e-12);
+  EXPECT_GT(ProjectView(0, 0, 1, 0, 25).y, 0.9);
+  EXPECT_GT(ProjectView(0, 1, 0, 0, 25).y, 0.4);
+  // Turned by -35 degrees: the y axis comes a little to the right, still receding upwards.
+  const ViewPoint y_axis = ProjectView(0, 1, 0, -35, 25);
+  EXPECT_GT(y_axis.x, 0.5);
+  EXPECT_GT(y_axis.y, 0.3);
+}
+
+TEST(SvgText, EscapesMarkupAndReplacesWhatXmlForbids) {
+  EXPECT_EQ(XmlEscape("a<b>&\"c\""), "a&lt;b&gt;&amp;&quot;c&quot;");
+  EXPECT_EQ(XmlEscape("tab\tok"), "tab\tok");
+  EXPECT_EQ(XmlEscape(std::string("x\x01y")), "x\xEF\xBF\xBDy");
+  EXPECT_EQ(XmlEscape("caf\xC3\xA9"), "caf\xC3\xA9");           // valid UTF-8 kept
+  EXPECT_EQ(XmlEscape("bad\xC3"), "bad\xEF\xBF\xBD");          // truncated sequence
+  EXPECT_EQ(XmlEscape("\xC0\xAF"), "\xEF\xBF\xBD\xEF\xBF\xBD");  // overlong form
+  EXPECT_EQ(XmlEscape("\xED\xA0\x80"), "\xEF\xBF\xBD\xEF\xBF\xBD\xEF\xBF\xBD");  // a surrogate
 }
 
 TEST(ErrorPlot, StepsPerCurveAndAMarkerForExactRecovery) {

@@ -5,7 +5,10 @@
 //    chunks (sizes taken from the input itself) gives the same frames;
 //  - a message frame is one JSON object or array, and parses as JSON when its bytes are
 //    valid UTF-8 (the framer leaves UTF-8 to the parser);
-//  - a message frame respects the size limit.
+//  - a message frame respects the size limit;
+//  - and the other way round: a stream that is one JSON object or array, well inside the
+//    size and depth limits, comes out as exactly that one message.
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -73,10 +76,34 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       (void)nlohmann::json::parse(frame.text);
     } catch (const nlohmann::json::parse_error& e) {
       const std::string_view what = e.what();
-      Check(e.id == 101 && (what.find("UTF-8") != what.npos || what.find("surrogate") != what.npos));
+      Check(e.id == 101 && (what.find("invalid string: ill-formed UTF-8") != what.npos ||
+                            what.find("invalid string: surrogate") != what.npos));
     } catch (const nlohmann::json::out_of_range& e) {
       Check(e.id == 406);  // number overflow
     }
   }
+
+  // The reverse: a single valid object or array must be framed as one message.
+  const std::size_t first = stream.find_first_not_of(" \t\r\n");
+  if (first == std::string_view::npos || (stream[first] != '{' && stream[first] != '[')) return 0;
+  const std::size_t last = stream.find_last_not_of(" \t\r\n");
+  const std::string_view value = stream.substr(first, last - first + 1);
+  // nlohmann's parser takes a NUL byte for the end of its input: no reference there.
+  if (value.size() > FuzzOptions().max_message_bytes || value.find('\0') != value.npos) return 0;
+  int depth = 0;
+  bool valid = true;
+  try {
+    // Iterators, not the view itself: a string_view could be read as a C string, up to a NUL.
+    (void)nlohmann::json::parse(value.begin(), value.end(), [&](int d, nlohmann::json::parse_event_t, nlohmann::json&) {
+      depth = std::max(depth, d);
+      return true;
+    });
+  } catch (const nlohmann::json::exception&) {
+    valid = false;
+  }
+  // Two levels of margin below the framer's depth limit, so that the two depth counts need
+  // not agree on where nesting starts.
+  if (!valid || depth > FuzzOptions().max_depth - 2) return 0;
+  Check(frames.size() == 1 && frames[0].kind == JsonFramer::Frame::Kind::kMessage && frames[0].text == value);
   return 0;
 }

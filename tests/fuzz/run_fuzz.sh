@@ -4,11 +4,17 @@
 # seed corpus. Any crash, sanitizer report, leak, timeout or failed check fails the test;
 # libFuzzer writes the offending input to the build tree and its path is printed.
 #
-# usage: run_fuzz.sh SOURCE_DIR FUZZ_BUILD_DIR [SECONDS_PER_TARGET]
+# Reproducible: a fixed seed and a fixed number of inputs per target (SPRINGFIT_FUZZ_RUNS
+# scales them), so every machine tries the same inputs; a time bound stops a slow machine.
+# For a longer local campaign: SPRINGFIT_FUZZ_SEED=0 (a new seed each run) and a larger
+# SPRINGFIT_FUZZ_RUNS or SPRINGFIT_FUZZ_SECONDS.
+#
+# usage: run_fuzz.sh SOURCE_DIR FUZZ_BUILD_DIR
 set -euo pipefail
 src=$1
 build=$2
-seconds=${3:-${SPRINGFIT_FUZZ_SECONDS:-20}}
+seconds=${SPRINGFIT_FUZZ_SECONDS:-60}
+runs_scale=${SPRINGFIT_FUZZ_RUNS:-1}
 
 CXX=clang++ cmake -S "$src" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSPRINGFIT_FUZZ=ON \
   -DSPRINGFIT_BUILD_TESTS=OFF -DSPRINGFIT_BUILD_BENCHMARKS=OFF >"$build.configure.log" 2>&1 ||
@@ -38,18 +44,20 @@ PY
 
 run() {
   local target=$1
-  local options=$2
-  shift 2
+  local runs=$(( $2 * runs_scale ))
+  local options=$3
+  shift 3
   local work="$build/run-$target"
   rm -rf "$work"
   mkdir -p "$work/corpus"
   cp "$@" "$work/corpus/"
-  echo "== $target: ${seconds}s from $(ls "$work/corpus" | wc -l) seeds"
-  # -timeout: one input taking over 10 s is a hang; -rss_limit_mb bounds memory per input.
+  echo "== $target: $runs inputs (at most ${seconds}s) from $(ls "$work/corpus" | wc -l) seeds"
+  # -timeout: one input taking over 10 s is a hang; -rss_limit_mb bounds memory per input;
+  # -max_len holds the largest example scene whole.
   # -seed: the same mutations on every run, so a CI failure reproduces (SPRINGFIT_FUZZ_SEED=0:
   # a new seed each run, for longer local campaigns).
-  (cd "$work" && "$build/tests/fuzz/$target" -max_total_time="$seconds" -timeout=10 -seed="${SPRINGFIT_FUZZ_SEED:-1}" \
-     -rss_limit_mb=2048 -max_len=8192 -print_final_stats=1 $options corpus 2>"$work/log") || {
+  (cd "$work" && "$build/tests/fuzz/$target" -runs="$runs" -max_total_time="$seconds" -timeout=10 -seed="${SPRINGFIT_FUZZ_SEED:-1}" \
+     -rss_limit_mb=2048 -max_len=16384 -print_final_stats=1 $options corpus 2>"$work/log") || {
     tail -60 "$work/log"
     echo "$target failed; the input is in $work (crash-*, timeout-*, leak-*, oom-*)"
     exit 1
@@ -57,5 +65,5 @@ run() {
   grep -E '^stat::(number_of_executed_units|new_units_added)' "$work/log" || true
 }
 
-run framer_fuzz "" "$src"/tests/fuzz/corpus/framer/*
-run scene_fuzz "-dict=$scene_dict" "$src"/examples/*.json "$src"/tests/data/*.json
+run framer_fuzz 400000 "" "$src"/tests/fuzz/corpus/framer/*
+run scene_fuzz 100000 "-dict=$scene_dict" "$src"/examples/*.json "$src"/tests/data/*.json

@@ -97,6 +97,18 @@ TEST(JsonFramer, TooLargeEndsTheStream) {
   EXPECT_TRUE(f.Feed("{}").empty());
 }
 
+TEST(JsonFramer, TheLimitIsInclusive) {
+  const std::string at_limit = "{\"a\":\"01234567\"}";  // 16 bytes
+  ASSERT_EQ(at_limit.size(), 16u);
+  JsonFramer exact(JsonFramer::Options{16, 64});
+  EXPECT_EQ(exact.Feed(at_limit).at(0).kind, Kind::kMessage);
+  // One byte more, completing on that byte: too large, not a message.
+  JsonFramer over(JsonFramer::Options{16, 64});
+  const auto frames = over.Feed("{\"a\":\"012345678\"}");
+  ASSERT_EQ(frames.size(), 1u);
+  EXPECT_EQ(frames[0].kind, Kind::kTooLarge);
+}
+
 TEST(JsonFramer, UnfinishedMessageIsHeld) {
   JsonFramer f;
   EXPECT_TRUE(f.Feed("{\"a\": [1, 2").empty());
