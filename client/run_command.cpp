@@ -15,6 +15,7 @@
 #include "client/result_summary.h"
 #include "engine/input_error.h"
 #include "engine/problem.h"
+#include "engine/direct/run_direct.h"
 #include "engine/search/run_search.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
@@ -48,6 +49,25 @@ struct RunArgs {
   std::string output_path;
 };
 
+// Strategy direct: one least-squares solve, no generations, so no progress line and nothing
+// for Ctrl-C to stop.
+int RunDirectStrategy(const RunArgs& args, const Problem& problem, const SearchOptions& options) {
+  const DirectRun run = RunDirect(problem, options);
+  if (!args.trace_path.empty()) {
+    std::ofstream trace(args.trace_path);
+    trace << proto::TraceCsvHeader() << "\n" << proto::TraceRowToCsv(run.search.trace.front()) << "\n";
+    trace.close();
+    if (!trace) throw std::runtime_error("cannot write the trace file " + args.trace_path);
+  }
+  if (!args.output_path.empty()) {
+    WriteResultFile(args.output_path, proto::DirectRunToJson(problem, run, true), proto::SceneToJson(problem.scene()));
+  }
+  proto::Json j = proto::DirectRunToJson(problem, run, false);
+  if (args.json) j["threads"] = 1;
+  PrintResult(j, args.json);
+  return kExitOk;
+}
+
 int Run(const RunArgs& args) {
   Scene scene = proto::LoadSceneFile(args.scene);
   SearchSettings& st = scene.search;
@@ -60,6 +80,7 @@ int Run(const RunArgs& args) {
   if (args.target) st.target_normalized_error = *args.target;
   const Problem problem = Problem::Build(std::move(scene));
   const SearchOptions options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
+  if (options.strategy == Strategy::kDirect) return RunDirectStrategy(args, problem, options);
 
   std::ofstream trace;
   if (!args.trace_path.empty()) {
@@ -104,7 +125,7 @@ void RegisterRun(CLI::App& app, int& exit_code) {
   auto* cmd = app.add_subcommand("run", "Identify the topology: run a search in this process");
   auto args = std::make_shared<RunArgs>();
   cmd->add_option("SCENE", args->scene, "Scene file (JSON, proto/SCENE.md)")->required();
-  cmd->add_option("--strategy", args->strategy, "Search strategy: default or paper (default: the scene's)");
+  cmd->add_option("--strategy", args->strategy, "Search strategy: default, paper or direct (default: the scene's)");
   cmd->add_option("--seed", args->seed, "Random seed (default: the scene's, else 1)");
   cmd->add_option("--threads", args->threads, "Threads for the fitness evaluations (the result does not depend on it)")
       ->check(CLI::Range(1, 1024))

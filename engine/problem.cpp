@@ -88,6 +88,17 @@ Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
     }
     std::vector<EquilibriumSolver> solvers;
     for (const FreeNodes& free : p.free_sets_) solvers.emplace_back(geometry, free, solver_options);
+    // The reference's equilibria are data: every identification compares against them, and
+    // strategy direct reads stiffness off their force balance, where a soft spring's force
+    // can be 1e-8 of a stiff one's. So after the ordinary solve, Newton steps continue down
+    // to round-off (a few more iterations, once per scene); a polished solution is kept only
+    // where it balances the forces better.
+    EquilibriumOptions polish_options = solver_options;
+    polish_options.relative_force_tolerance = 0.0;
+    polish_options.roundoff_force_tolerance = 1e-16;
+    polish_options.max_iterations = 4;
+    std::vector<EquilibriumSolver> polishers;
+    for (const FreeNodes& free : p.free_sets_) polishers.emplace_back(geometry, free, polish_options);
     for (std::size_t k = 0; k < p.load_cases_.size(); ++k) {
       PreparedLoadCase& lc = p.load_cases_[k];
       EquilibriumSolver& solver = solvers[lc.free_set];
@@ -105,6 +116,9 @@ Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
                                           std::to_string(summary.final_residual) + " after " +
                                           std::to_string(summary.iterations) + " iterations)");
       }
+      Vector polished = lc.reference;
+      const EquilibriumSummary polish = polishers[lc.free_set].Solve(springs, lc.force, lc.prescribed, polished);
+      if (polish.final_residual < summary.final_residual) lc.reference = std::move(polished);
     }
     // The reference topology as a candidate mask.
     std::vector<std::uint8_t> mask(p.candidates_.size(), 0);

@@ -42,13 +42,14 @@ std::string_view TerminationName(Termination termination) {
 }
 
 namespace {
-constexpr Strategy kAllStrategies[] = {Strategy::kDefault, Strategy::kPaper};
+constexpr Strategy kAllStrategies[] = {Strategy::kDefault, Strategy::kPaper, Strategy::kDirect};
 }  // namespace
 
 std::string_view StrategyName(Strategy strategy) {
   switch (strategy) {
     case Strategy::kDefault: return "default";
     case Strategy::kPaper: return "paper";
+    case Strategy::kDirect: return "direct";
   }
   return "?";
 }
@@ -70,6 +71,7 @@ std::string_view StopReasonName(StopReason reason) {
   switch (reason) {
     case StopReason::kTargetReached: return "target_reached";
     case StopReason::kGenerationLimit: return "generation_limit";
+    case StopReason::kCompleted: return "completed";
     case StopReason::kCancelled: return "cancelled";
   }
   return "?";

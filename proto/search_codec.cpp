@@ -113,6 +113,29 @@ Json SearchResultToJson(const Problem& problem, const SearchResult& r, bool with
   return j;
 }
 
+Json DirectRunToJson(const Problem& problem, const DirectRun& run, bool with_trace) {
+  Json j = SearchResultToJson(problem, run.search, with_trace);
+  Json trace;
+  if (with_trace) {
+    trace = std::move(j["trace"]);
+    j.erase("trace");
+  }
+  j["stiffness"] = run.direct.springs.stiffness;  // parallel to springs: both in candidate order
+  const DirectResult& d = run.direct;
+  Json direct;
+  direct["force_residual"] = d.force_residual;
+  direct["nnls_residual"] = d.nnls_residual;
+  direct["nnls_converged"] = d.nnls.converged;
+  direct["nnls_pivots"] = d.nnls.iterations;
+  std::vector<NodePair> unseen;
+  for (const int g : d.unseen) unseen.push_back(problem.candidates().pairs[problem.gene_candidates()[g]]);
+  direct["unseen"] = PairsToJson(unseen);
+  direct["seconds"] = {{"assemble", d.assemble_seconds}, {"solve", d.solve_seconds}, {"evaluate", d.evaluate_seconds}};
+  j["direct"] = std::move(direct);
+  if (with_trace) j["trace"] = std::move(trace);
+  return j;
+}
+
 std::string TraceCsvHeader() {
   return "generation,wall_seconds,evaluations,cache_hits,best_cost,best_normalized_error,mean_cost,missing,extra";
 }

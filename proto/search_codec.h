@@ -5,6 +5,7 @@
 #include <string>
 
 #include "engine/problem.h"
+#include "engine/direct/run_direct.h"
 #include "engine/search/run_search.h"
 #include "proto/json_reader.h"
 
@@ -16,6 +17,9 @@ Json TraceRowToJson(const TraceRow& row);
 TraceRow TraceRowFromJson(const Json& json, const std::string& path);
 // The result object; the trace is included only when `with_trace`.
 Json SearchResultToJson(const Problem& problem, const SearchResult& result, bool with_trace);
+// Strategy direct: the search result's fields plus `stiffness` (per spring of `springs`) and
+// `direct` (proto/RUN.md).
+Json DirectRunToJson(const Problem& problem, const DirectRun& run, bool with_trace);
 
 // One CSV line per trace row under a header line (no trailing newline in either).
 std::string TraceCsvHeader();

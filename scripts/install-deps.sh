@@ -7,6 +7,7 @@ set -euo pipefail
 packages=(
   build-essential cmake pkg-config
   libeigen3-dev            # linear algebra, sparse factorisation
+  libsuitesparse-dev       # CHOLMOD: supernodal sparse Cholesky (strategy direct at scale)
   libboost-dev             # Asio (header-only) for networking and thread pools
   nlohmann-json3-dev       # JSON
   libsqlite3-dev libsqlitecpp-dev sqlite3

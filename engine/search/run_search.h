@@ -15,7 +15,8 @@
 
 namespace springfit {
 
-enum class StopReason { kTargetReached, kGenerationLimit, kCancelled };
+// kCompleted: a single-shot strategy (direct) ran to its end without reaching the target.
+enum class StopReason { kTargetReached, kGenerationLimit, kCancelled, kCompleted };
 
 struct SearchResult {
   SearchOptions options;

@@ -1,7 +1,6 @@
 // The daemon's methods without sockets: RpcService over a real SQLite store and scheduler.
 #include "server/rpc_service.h"
 
-#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <filesystem>
@@ -241,28 +240,6 @@ TEST_F(RpcServiceTest, SubmitWatchResultTraceListAndIdempotency) {
   }
   EXPECT_EQ(rows, generations + 1);  // every generation below 10,000 is kept
 
-  // The stored scene reproduces the job: the submitted one with the job's seed written in.
-  const Json stored = Call("job.scene", {{"job_id", id}})["result"];
-  EXPECT_EQ(stored["job_id"], id);
-  EXPECT_EQ(proto::SceneFromJson(stored["scene"]).search.seed, result["seed"].get<std::uint64_t>());
-  EXPECT_EQ(stored["scene"]["nodes"], Scene("paper-aniso-5x5")["nodes"]);
-
-  // Improvements: strictly better each time, ending at the result's topology.
-  const Json improvements = Call("job.improvements", {{"job_id", id}})["result"]["improvements"];
-  ASSERT_FALSE(improvements.empty());
-  for (std::size_t i = 1; i < improvements.size(); ++i) {
-    EXPECT_LT(improvements[i]["cost"].get<double>(), improvements[i - 1]["cost"].get<double>());
-    EXPECT_GT(improvements[i]["generation"].get<int>(), improvements[i - 1]["generation"].get<int>());
-  }
-  const Json& last = improvements.back();
-  EXPECT_EQ(last["cost"], result["cost"]);
-  EXPECT_EQ(last["missing"], 0);
-  const std::string genome = last["genome"].get<std::string>();
-  EXPECT_EQ(genome.size(), result["genes"].get<std::size_t>());
-  EXPECT_EQ(std::count(genome.begin(), genome.end(), '1'), static_cast<std::ptrdiff_t>(result["springs"].size()));
-  EXPECT_EQ(Code(Call("job.scene", {{"job_id", id + 100}})), rpc::kNoSuchJob);
-  EXPECT_EQ(Code(Call("job.improvements", {{"job_id", id}, {"after", 3}})), rpc::kInvalidParams);
-
   const Json list = Call("job.list", {{"label", "nightly"}})["result"];
   ASSERT_EQ(list["jobs"].size(), 1u);
   EXPECT_EQ(list["jobs"][0]["job_id"], id);
@@ -277,6 +254,61 @@ TEST_F(RpcServiceTest, SubmitWatchResultTraceListAndIdempotency) {
   EXPECT_EQ(other_inbox.All()[0]["method"], "job.finished");
   service_->EndSession(other);
   service_->EndSession(session_);
+}
+
+TEST_F(RpcServiceTest, SceneAndImprovementsOfAFinishedJob) {
+  MakeService(true);
+  Json scene = Scene("paper-iso-5x5");
+  scene["search"] = {{"strategy", "paper"}, {"max_generations", 40}};
+  const Json submitted = Call("job.submit", {{"scene", scene}, {"seed", 42}});
+  ASSERT_TRUE(submitted.contains("result")) << submitted.dump();
+  const std::int64_t id = submitted["result"]["job"]["job_id"].get<std::int64_t>();
+  Call("job.watch", {{"job_id", id}});
+  ASSERT_FALSE(inbox_.WaitFor("job.finished").is_null()) << "no job.finished within 60 s";
+  const Json result = Call("job.result", {{"job_id", id}})["result"];
+
+  // The stored scene is the submitted one with the job's seed written in.
+  const Json stored = Call("job.scene", {{"job_id", id}})["result"];
+  EXPECT_EQ(stored["job_id"], id);
+  const springfit::Scene read = proto::SceneFromJson(stored["scene"]);
+  EXPECT_EQ(read.search.seed, 42u);
+  EXPECT_EQ(read.search.strategy, Strategy::kPaper);
+  EXPECT_EQ(stored["scene"]["nodes"], scene["nodes"]);
+
+  // Improvements: strictly better, generation after generation, ending at the result.
+  const Json improvements = Call("job.improvements", {{"job_id", id}})["result"]["improvements"];
+  ASSERT_GE(improvements.size(), 2u) << "the paper GA improves more than once in 40 generations";
+  for (std::size_t i = 1; i < improvements.size(); ++i) {
+    EXPECT_LT(improvements[i]["cost"].get<double>(), improvements[i - 1]["cost"].get<double>());
+    EXPECT_GT(improvements[i]["generation"].get<int>(), improvements[i - 1]["generation"].get<int>());
+  }
+  const Json& last = improvements.back();
+  EXPECT_EQ(last["cost"], result["cost"]);
+  EXPECT_EQ(last["generation"], result["best_generation"]);
+  const std::string genome = last["genome"].get<std::string>();
+  const Problem problem = Problem::Build(read);
+  ASSERT_EQ(static_cast<int>(genome.size()), problem.gene_count());
+  Json springs = Json::array();
+  for (int g = 0; g < problem.gene_count(); ++g) {
+    if (genome[g] == '1') {
+      const NodePair p = problem.candidates().pairs[problem.gene_candidates()[g]];
+      springs.push_back({p.first, p.second});
+    }
+  }
+  EXPECT_EQ(springs, result["springs"]);
+  EXPECT_EQ(Code(Call("job.scene", {{"job_id", id + 100}})), rpc::kNoSuchJob);
+  EXPECT_EQ(Code(Call("job.improvements", {{"job_id", id}, {"after", 3}})), rpc::kInvalidParams);
+  service_->EndSession(session_);
+}
+
+TEST_F(RpcServiceTest, StrategyDirectIsRefusedWithItsPath) {
+  MakeService(false);
+  Json scene = Scene("paper-iso-5x5");
+  scene["search"] = {{"strategy", "direct"}};
+  const Json refused = Call("job.submit", {{"scene", scene}});
+  EXPECT_EQ(Code(refused), rpc::kInvalidScene);
+  EXPECT_EQ(refused["error"]["data"]["path"], "search.strategy");
+  EXPECT_EQ(store_->ListJobs({}).jobs.size(), 0u);
 }
 
 TEST_F(RpcServiceTest, RunningJobCancelsWithinAGenerationAndKeepsItsBest) {

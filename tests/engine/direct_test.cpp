@@ -1,0 +1,150 @@
+// Strategy direct: the force balance, the NNLS solver and exact identification of topology and
+// stiffness from an MSS reference.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "engine/direct/direct_identification.h"
+#include "engine/direct/force_balance.h"
+#include "engine/direct/nnls.h"
+#include "engine/direct/run_direct.h"
+#include "engine/examples/catalog.h"
+#include "tests/test_scenes.h"
+
+namespace springfit {
+namespace {
+
+// Per gene, the reference stiffness (0 for a spring the reference lacks).
+std::vector<double> ReferenceWeights(const Problem& problem) {
+  std::vector<double> w(problem.gene_count(), 0.0);
+  const Reference& ref = problem.scene().reference;
+  const auto& genes = problem.gene_candidates();
+  for (std::size_t s = 0; s < ref.springs.size(); ++s) {
+    const int c = problem.CandidateIndex(ref.springs[s]);
+    const auto it = std::lower_bound(genes.begin(), genes.end(), c);
+    if (it != genes.end() && *it == c) {
+      w[static_cast<std::size_t>(it - genes.begin())] = ref.stiffness.size() == 1 ? ref.stiffness[0] : ref.stiffness[s];
+    }
+  }
+  return w;
+}
+
+double MaxRelativeStiffnessError(const Problem& problem, const DirectResult& r) {
+  const std::vector<double> truth = ReferenceWeights(problem);
+  double worst = 0.0;
+  for (std::size_t g = 0; g < truth.size(); ++g) {
+    if (truth[g] > 0.0) worst = std::max(worst, std::abs(r.weights[g] - truth[g]) / truth[g]);
+  }
+  return worst;
+}
+
+TEST(ForceBalance, TheReferenceStiffnessSolvesItExactly) {
+  const Problem problem = Problem::Build(examples::ThinnedGrid({4, 4}, 3, 2.0));
+  const ForceBalance fb = AssembleForceBalance(problem);
+  const std::vector<double> truth = ReferenceWeights(problem);
+  const Vector w = Eigen::Map<const Vector>(truth.data(), static_cast<Eigen::Index>(truth.size()));
+  // A w = b up to the reference equilibrium's own tolerance (relative to the loads).
+  EXPECT_LT((fb.a * w - fb.b).norm(), 1e-9 * fb.b.norm());
+  EXPECT_EQ(fb.a.cols(), problem.gene_count());
+  // One row per free coordinate per load case.
+  Eigen::Index rows = 0;
+  for (const PreparedLoadCase& lc : problem.load_cases()) rows += 2 * problem.free_sets()[lc.free_set].count;
+  EXPECT_EQ(fb.a.rows(), rows);
+}
+
+TEST(Nnls, MatchesTheBestActiveSetOfASmallDenseProblem) {
+  // Random 12 x 6 problems whose unconstrained solution has negative components: the NNLS
+  // answer must equal the best of all 64 choices of positive set (brute force).
+  testing::TestRandom random(7);
+  for (int trial = 0; trial < 20; ++trial) {
+    Eigen::MatrixXd dense(12, 6);
+    Vector b(12);
+    for (Eigen::Index i = 0; i < dense.size(); ++i) dense.data()[i] = 2.0 * random.Uniform() - 1.0;
+    for (Eigen::Index i = 0; i < b.size(); ++i) b[i] = 2.0 * random.Uniform() - 1.0;
+    const SparseMatrix a = dense.sparseView();
+    const NnlsResult r = SolveNnls(a, b, std::vector<bool>(6, true));
+    ASSERT_TRUE(r.converged);
+    EXPECT_GE(r.x.minCoeff(), 0.0);
+    double best = (b).norm();
+    for (int set = 1; set < 64; ++set) {
+      std::vector<int> cols;
+      for (int j = 0; j < 6; ++j) {
+        if (set & (1 << j)) cols.push_back(j);
+      }
+      Eigen::MatrixXd sub(12, static_cast<Eigen::Index>(cols.size()));
+      for (std::size_t c = 0; c < cols.size(); ++c) sub.col(static_cast<Eigen::Index>(c)) = dense.col(cols[c]);
+      const Vector z = sub.colPivHouseholderQr().solve(b);
+      if (z.minCoeff() < 0.0) continue;
+      best = std::min(best, (sub * z - b).norm());
+    }
+    EXPECT_NEAR((dense * r.x - b).norm(), best, 1e-12 * (1.0 + best)) << "trial " << trial;
+  }
+}
+
+TEST(Nnls, HoldsUnusableColumnsAtZero) {
+  Eigen::MatrixXd dense(3, 2);
+  dense << 1, 0, 0, 1, 0, 0;
+  const Vector b = Vector::Ones(3);
+  const NnlsResult r = SolveNnls(dense.sparseView(), b, {true, false});
+  EXPECT_DOUBLE_EQ(r.x[1], 0.0);
+  EXPECT_NEAR(r.x[0], 1.0, 1e-14);
+}
+
+struct DirectCase {
+  std::vector<int> grid;
+  std::uint64_t seed;
+};
+
+class DirectRecovery : public ::testing::TestWithParam<DirectCase> {};
+
+TEST_P(DirectRecovery, TopologyExactlyAndStiffnessTo1e8) {
+  // Stiffness over three decades, so that a uniform guess could not pass.
+  const Problem problem = Problem::Build(examples::ThinnedGrid(GetParam().grid, GetParam().seed, 3.0));
+  const DirectResult r = IdentifyDirect(problem);
+  const auto difference = problem.CompareWithReference(r.genome);
+  ASSERT_TRUE(difference);
+  EXPECT_EQ(difference->hamming(), 0);
+  EXPECT_TRUE(r.nnls.converged);
+  EXPECT_LE(MaxRelativeStiffnessError(problem, r), 1e-8);
+  EXPECT_LT(r.force_residual, 1e-9);
+  EXPECT_TRUE(r.unseen.empty());
+  // Judged by the displacement cost like every strategy: the identified model is the reference.
+  EXPECT_LE(r.evaluation.normalized_error, 1e-12);
+}
+
+INSTANTIATE_TEST_SUITE_P(Grids, DirectRecovery,
+                         ::testing::Values(DirectCase{{5, 5}, 1}, DirectCase{{6, 4}, 2}, DirectCase{{3, 3, 3}, 1},
+                                           DirectCase{{4, 3, 3}, 5}));
+
+TEST(Direct, RecoversEveryMssExampleTopologyExactly) {
+  for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d"}) {
+    const Problem problem = Problem::Build(examples::Make(name));
+    const DirectResult r = IdentifyDirect(problem);
+    EXPECT_EQ(problem.CompareWithReference(r.genome)->hamming(), 0) << name;
+    EXPECT_LE(r.evaluation.normalized_error, 1e-12) << name;
+  }
+}
+
+TEST(Direct, ScalingLengthsAndForcesChangesNothing) {
+  const Scene scene = examples::ThinnedGrid({4, 4}, 9, 2.0);
+  const DirectResult a = IdentifyDirect(Problem::Build(scene));
+  const DirectResult b = IdentifyDirect(Problem::Build(testing::ScaledScene(scene, 1e-3)));
+  EXPECT_EQ(a.genome, b.genome);
+  for (std::size_t g = 0; g < a.weights.size(); ++g) {
+    EXPECT_NEAR(a.weights[g], b.weights[g], 1e-8 * (1.0 + a.weights[g])) << g;
+  }
+}
+
+TEST(Direct, RunDirectHasTheShapeOfASearchResult) {
+  const Problem problem = Problem::Build(examples::Make("paper-aniso-5x5"));
+  const DirectRun run = RunDirect(problem, ResolveSearchOptions(problem.scene().search, problem.gene_count()));
+  EXPECT_EQ(run.search.stop, StopReason::kTargetReached);
+  EXPECT_EQ(run.search.exact(), true);
+  ASSERT_EQ(run.search.trace.size(), 1u);
+  EXPECT_EQ(run.search.trace[0].missing, 0);
+  EXPECT_EQ(run.search.springs.size(), run.direct.springs.stiffness.size());
+  EXPECT_EQ(run.search.generations, 0);
+}
+
+}  // namespace
+}  // namespace springfit
