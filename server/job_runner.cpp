@@ -5,6 +5,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "engine/direct/run_direct.h"
 #include "engine/search/run_search.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
@@ -17,6 +18,47 @@ namespace {
 
 double SecondsSince(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+// A finished run: the result, and its JSON as job.result answers it.
+struct FinishedRun {
+  SearchResult result;
+  proto::Json json;
+};
+
+JobRecord FinishJob(JobStore& store, JobRecord& record, FinishedRun finished) {
+  const SearchResult& result = finished.result;
+  finished.json["job_id"] = record.id;
+  record.state = result.stop == StopReason::kCancelled ? JobState::kCancelled : JobState::kSucceeded;
+  record.exact = result.exact();
+  record.finished_at = UnixNow();
+  store.MarkFinished(record.id, record.state, "", finished.json.dump(), record.exact, record.finished_at);
+  spdlog::info("job {} {} after {} generations, {:.3f} s, normalized error {:.3g}{}", record.id,
+               proto::JobStateName(record.state), result.generations, result.wall_seconds,
+               result.evaluation.normalized_error, record.exact ? (*record.exact ? ", exact" : ", not exact") : "");
+  return record;
+}
+
+// Strategy direct: one solve, no generations, so nothing to checkpoint; its single trace row
+// and improvement are stored like a GA's, so job.trace, job.improvements and job.watch
+// behave the same. A cancel asked during the solve takes effect when it returns.
+FinishedRun RunDirectJob(JobStore& store, const Problem& problem, const SearchOptions& options, std::int64_t id,
+                         JobRecord& record, const JobControl& control) {
+  DirectRun run = RunDirect(problem, options);
+  const TraceRow& row = run.search.trace.front();
+  ProgressBatch batch;
+  batch.trace.push_back(row);
+  batch.improvements.push_back({row.generation, row.wall_seconds, row.best_cost, row.best_normalized_error,
+                                row.missing, row.extra, run.search.best});
+  batch.latest = row;
+  store.SaveProgress(id, batch);
+  record.progress = row;
+  if (control.on_generation) control.on_generation(row);
+  if (control.cancel && control.cancel->load() && run.search.stop != StopReason::kTargetReached) {
+    run.search.stop = StopReason::kCancelled;
+  }
+  proto::Json json = proto::DirectRunToJson(problem, run, false);
+  return {std::move(run.search), std::move(json)};
 }
 
 }  // namespace
@@ -52,6 +94,10 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job, const 
     } else {
       spdlog::info("job {} running ({}, {} genes, strategy {}, seed {})", job.id, record.scene_name, genes,
                    record.strategy, record.seed);
+    }
+
+    if (search_options.strategy == Strategy::kDirect) {
+      return FinishJob(store, record, RunDirectJob(store, problem, search_options, job.id, record, control));
     }
 
     ProgressBatch batch;
@@ -96,16 +142,7 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job, const 
                    job.id, result.generations);
       return record;
     }
-    proto::Json json = proto::SearchResultToJson(problem, result, false);
-    json["job_id"] = job.id;
-    record.state = result.stop == StopReason::kCancelled ? JobState::kCancelled : JobState::kSucceeded;
-    record.exact = result.exact();
-    record.finished_at = UnixNow();
-    store.MarkFinished(job.id, record.state, "", json.dump(), record.exact, record.finished_at);
-    spdlog::info("job {} {} after {} generations, {:.3f} s, normalized error {:.3g}{}", job.id,
-                 proto::JobStateName(record.state), result.generations, result.wall_seconds,
-                 result.evaluation.normalized_error,
-                 record.exact ? (*record.exact ? ", exact" : ", not exact") : "");
+    return FinishJob(store, record, {result, proto::SearchResultToJson(problem, result, false)});
   } catch (const std::exception& e) {
     record.state = JobState::kFailed;
     record.error = e.what();

@@ -190,9 +190,7 @@ Json RpcService::ServerInfo() {
   j["running"] = scheduler_.running();
   j["queued"] = scheduler_.queued();
   Json strategies = Json::array();
-  for (Strategy s : proto::AllStrategies()) {
-    if (s != Strategy::kDirect) strategies.push_back(proto::StrategyName(s));
-  }
+  for (Strategy s : proto::AllStrategies()) strategies.push_back(proto::StrategyName(s));
   j["strategies"] = std::move(strategies);
   Json limits;
   limits["max_nodes"] = options_.limits.max_nodes;
@@ -246,11 +244,6 @@ Json RpcService::JobSubmit(const Json& params) {
   std::optional<Problem> problem;
   try {
     Scene scene = proto::SceneFromJson(scene_json);
-    if (scene.search.strategy == Strategy::kDirect) {
-      // Its runs take milliseconds to seconds and have no generations to checkpoint; the job
-      // runner does not drive it yet (issue 4).
-      throw InputError("search.strategy", "strategy direct is not run by springfitd yet: use springfit run");
-    }
     if (scene.node_count() > options_.limits.max_nodes) {
       LimitExceeded("max_nodes", scene.node_count(), options_.limits.max_nodes);
     }

@@ -81,6 +81,22 @@ code=$?
 [ "$code" -eq 130 ] || fail "run interrupted: exit $code, expected 130 ($(head -c 300 "$tmp/err"))"
 python3 -c "import json; j=json.load(open('$tmp/cancelled.json')); assert j['stop'] == 'cancelled' and j['generations'] < 100000 and len(j['trace']) == j['generations'] + 1" || fail "interrupted run writes its result"
 
+# run --strategy direct: topology and stiffness of stiff-2d (1e-4..1e4) from one solve.
+expect_exit 0 "run direct" "$sf" run "$src/examples/stiff-2d.json" --strategy direct --json -o "$tmp/direct.json"
+python3 - "$tmp/out" "$src/examples/stiff-2d.json" <<'PY' || fail "run direct content"
+import json, sys
+r = json.load(open(sys.argv[1]))
+scene = json.load(open(sys.argv[2]))
+assert r["strategy"] == "direct" and r["exact"] is True and r["stop"] == "target_reached", r["stop"]
+truth = {tuple(p): k for p, k in zip(scene["reference"]["springs"], scene["reference"]["stiffness"])}
+assert len(r["stiffness"]) == len(r["springs"]) == 72
+worst = max(abs(k - truth[tuple(p)]) / truth[tuple(p)] for p, k in zip(r["springs"], r["stiffness"]))
+assert worst < 1e-6, worst
+assert r["direct"]["force_residual"] < 1e-9 and r["direct"]["unseen"] == [], r["direct"]
+PY
+expect_exit 0 "render direct" "$sf" render "$tmp/direct.json" -o "$tmp/direct.svg"
+grep -q "exact recovery; 72 springs; normalized error 0<" "$tmp/direct.svg" || fail "render draws a direct result with its own stiffness (error 0, not that of stiffness 1)"
+
 # render and plot: SVG files from result files; the wrong springs are drawn one line each.
 expect_exit 0 "render exact" "$sf" render "$tmp/result.json" -o "$tmp/exact.svg"
 "$sf" run "$src/examples/paper-iso-5x5.json" --strategy paper --generations 5 -q -o "$tmp/short.json" >/dev/null

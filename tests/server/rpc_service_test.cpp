@@ -1,6 +1,7 @@
 // The daemon's methods without sockets: RpcService over a real SQLite store and scheduler.
 #include "server/rpc_service.h"
 
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <filesystem>
@@ -301,14 +302,30 @@ TEST_F(RpcServiceTest, SceneAndImprovementsOfAFinishedJob) {
   service_->EndSession(session_);
 }
 
-TEST_F(RpcServiceTest, StrategyDirectIsRefusedWithItsPath) {
-  MakeService(false);
-  Json scene = Scene("paper-iso-5x5");
+TEST_F(RpcServiceTest, StrategyDirectRunsAsAJobWithOneTraceRow) {
+  MakeService(true);
+  Json scene = Scene("stiff-2d");
   scene["search"] = {{"strategy", "direct"}};
-  const Json refused = Call("job.submit", {{"scene", scene}});
-  EXPECT_EQ(Code(refused), rpc::kInvalidScene);
-  EXPECT_EQ(refused["error"]["data"]["path"], "search.strategy");
-  EXPECT_EQ(store_->ListJobs({}).jobs.size(), 0u);
+  const Json submitted = Call("job.submit", {{"scene", scene}});
+  ASSERT_TRUE(submitted.contains("result")) << submitted.dump();
+  const std::int64_t id = submitted["result"]["job"]["job_id"].get<std::int64_t>();
+  EXPECT_EQ(submitted["result"]["job"]["strategy"], "direct");
+  Call("job.watch", {{"job_id", id}});
+  const Json finished = inbox_.WaitFor("job.finished");
+  ASSERT_FALSE(finished.is_null());
+  EXPECT_EQ(finished["params"]["state"], "succeeded");
+  EXPECT_EQ(finished["params"]["exact"], true);
+  const Json result = Call("job.result", {{"job_id", id}})["result"];
+  EXPECT_EQ(result["strategy"], "direct");
+  EXPECT_EQ(result["stop"], "target_reached");
+  ASSERT_EQ(result["stiffness"].size(), result["springs"].size());
+  // stiff-2d's stiffness spans 1e-4..1e4: the identified values are the reference's.
+  const auto [lo, hi] = std::minmax_element(result["stiffness"].begin(), result["stiffness"].end());
+  EXPECT_NEAR(lo->get<double>(), 1e-4, 1e-6 * 1e-4);  // the softest: round-off of the stiff springs' forces
+  EXPECT_NEAR(hi->get<double>(), 1e4, 1e-8 * 1e4);
+  EXPECT_EQ(Call("job.trace", {{"job_id", id}})["result"]["rows"].size(), 1u);
+  EXPECT_EQ(Call("job.improvements", {{"job_id", id}})["result"]["improvements"].size(), 1u);
+  service_->EndSession(session_);
 }
 
 TEST_F(RpcServiceTest, RunningJobCancelsWithinAGenerationAndKeepsItsBest) {
