@@ -107,7 +107,28 @@ int main(int argc, char** argv) {
     Print(Measure(examples::Make(name), repeats));
   }
   if (examples_only) return 0;
-  for (const int n : sizes2) Print(Measure(examples::ThinnedGrid({n, n}, 1, 2.0), n >= 40 ? 1 : repeats));
-  for (const int n : sizes3) Print(Measure(examples::ThinnedGrid({n, n, n}, 1, 2.0), n >= 8 ? 1 : repeats));
+  // Growth: the least-squares slope of log(direct time) against log(genes), over scenes of at
+  // least 1000 genes (below that, fixed costs dominate).
+  auto exponent = [](const std::vector<Row>& rows) {
+    double sx = 0, sy = 0, sxx = 0, sxy = 0;
+    int m = 0;
+    for (const Row& r : rows) {
+      if (r.genes < 1000) continue;
+      const double x = std::log(r.genes), y = std::log(r.assemble + r.solve);
+      sx += x, sy += y, sxx += x * x, sxy += x * y, ++m;
+    }
+    return m < 2 ? std::nan("") : (m * sxy - sx * sy) / (m * sxx - sx * sx);
+  };
+  std::vector<Row> rows2, rows3;
+  for (const int n : sizes2) {
+    rows2.push_back(Measure(examples::ThinnedGrid({n, n}, 1, 2.0), n >= 40 ? 1 : repeats));
+    Print(rows2.back());
+  }
+  for (const int n : sizes3) {
+    rows3.push_back(Measure(examples::ThinnedGrid({n, n, n}, 1, 2.0), n >= 8 ? 1 : repeats));
+    Print(rows3.back());
+  }
+  std::printf("\ngrowth exponent of direct time in genes (scenes of >= 1000 genes): 2D %.2f, 3D %.2f\n",
+              exponent(rows2), exponent(rows3));
   return 0;
 }
