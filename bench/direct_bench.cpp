@@ -3,6 +3,7 @@
 //
 //   build/bench/direct_bench                  # examples, then the size table
 //   build/bench/direct_bench --sizes 5,10,20  # 2D n x n and 3D grids of these sizes
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -87,6 +88,27 @@ void Print(const Row& r) {
   std::fflush(stdout);
 }
 
+// Noise: `draws` noisy copies of an MSS example; how often direct finds the true topology.
+void MeasureNoise(const std::string& name, double fraction, int draws, const DirectOptions& options) {
+  const Scene clean = examples::Make(name);
+  const Problem truth = Problem::Build(clean);
+  int exact = 0;
+  std::vector<int> wrong;
+  double worst_error = 0.0;
+  for (int draw = 1; draw <= draws; ++draw) {
+    const Problem noisy = Problem::Build(examples::WithMeasurementNoise(clean, fraction, static_cast<std::uint64_t>(draw)));
+    const DirectResult r = IdentifyDirect(noisy, options);
+    const auto difference = truth.CompareWithReference(r.genome);
+    exact += difference->hamming() == 0;
+    wrong.push_back(difference->hamming());
+    worst_error = std::max(worst_error, r.evaluation.normalized_error);
+  }
+  std::sort(wrong.begin(), wrong.end());
+  std::printf("| %s | %g | %d / %d | %d | %d | %.2g |\n", name.c_str(), fraction, exact, draws, wrong[wrong.size() / 2],
+              wrong.back(), worst_error);
+  std::fflush(stdout);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -95,11 +117,24 @@ int main(int argc, char** argv) {
   std::vector<int> sizes3{4, 6, 8, 10, 12};
   int repeats = 5;
   bool examples_only = false;
+  std::vector<double> noise;
+  int draws = 20;
   app.add_option("--sizes2", sizes2, "2D grid sizes n (n x n nodes)")->delimiter(',');
   app.add_option("--sizes3", sizes3, "3D grid sizes n (n^3 nodes)")->delimiter(',');
   app.add_option("--repeats", repeats, "Runs per scene; the fastest is reported")->check(CLI::PositiveNumber);
   app.add_flag("--examples-only", examples_only, "Only the example scenes");
+  app.add_option("--noise", noise, "Only the noise table, at these fractions (e.g. 0.001,0.01)")->delimiter(',');
+  app.add_option("--draws", draws, "Noise draws per scene and fraction")->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
+
+  if (!noise.empty()) {
+    std::printf("| scene | noise | exact topology | median wrong springs | worst | worst normalized error |\n"
+                "|---|---|---|---|---|---|\n");
+    for (const double f : noise) {
+      for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5"}) MeasureNoise(name, f, draws, DirectOptions{});
+    }
+    return 0;
+  }
 
   std::printf("| scene | nodes | genes | exact | missing / extra | stiffness rel. error | normalized error | "
               "assemble ms | NNLS ms | direct ms | pivots | evaluate s |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");

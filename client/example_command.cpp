@@ -16,6 +16,8 @@ struct ExampleArgs {
   std::string name;
   std::string output;
   bool list = false;
+  double noise = 0.0;
+  std::uint64_t noise_seed = 1;
 };
 
 int Example(const ExampleArgs& args) {
@@ -28,7 +30,9 @@ int Example(const ExampleArgs& args) {
   bool known = false;
   for (const examples::ExampleInfo& e : examples::Catalog()) known = known || e.name == args.name;
   if (!known) throw InputError("NAME", "unknown example '" + args.name + "' (springfit example --list)");
-  const std::string text = proto::DumpCompact(proto::SceneToJson(examples::Make(args.name)));
+  Scene scene = examples::Make(args.name);
+  if (args.noise > 0.0) scene = examples::WithMeasurementNoise(scene, args.noise, args.noise_seed);
+  const std::string text = proto::DumpCompact(proto::SceneToJson(scene));
   if (args.output.empty() || args.output == "-") {
     std::cout << text;
     return kExitOk;
@@ -47,6 +51,11 @@ void RegisterExample(CLI::App& app, int& exit_code) {
   cmd->add_option("NAME", args->name, "Example name");
   cmd->add_option("-o,--output", args->output, "Output file (default: standard output)");
   cmd->add_flag("--list", args->list, "List the examples");
+  cmd->add_option("--noise", args->noise,
+                  "Replace the reference by its equilibrium positions with Gaussian noise of this fraction of "
+                  "each load case's RMS displacement (e.g. 0.001)")
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--noise-seed", args->noise_seed, "Seed of the noise (default 1)");
   cmd->callback([args, &exit_code] {
     exit_code = RunReportingErrors("example", [&] { return Example(*args); });
   });

@@ -1,5 +1,6 @@
 #include "proto/search_codec.h"
 
+#include <cmath>
 #include <cstdio>
 
 #include "proto/evaluation_codec.h"
@@ -122,6 +123,21 @@ Json DirectRunToJson(const Problem& problem, const DirectRun& run, bool with_tra
   }
   j["stiffness"] = run.direct.springs.stiffness;  // parallel to springs: both in candidate order
   const DirectResult& d = run.direct;
+  // Confidence of each identified spring, and the absent ones closest to being present.
+  Json confidence = nullptr;
+  Json near = Json::array();
+  if (!d.confidence.empty()) {
+    confidence = Json::array();
+    for (int g = 0; g < static_cast<int>(d.genome.size()); ++g) {
+      const NodePair pair = problem.candidates().pairs[problem.gene_candidates()[g]];
+      if (d.genome[g]) {
+        confidence.push_back(d.confidence[g]);
+      } else if (std::isfinite(d.confidence[g]) && d.confidence[g] > -2.0) {
+        near.push_back({{"spring", {pair.first, pair.second}}, {"weight", d.weights[g]}, {"confidence", d.confidence[g]}});
+      }
+    }
+  }
+  j["confidence"] = std::move(confidence);
   Json direct;
   direct["force_residual"] = d.force_residual;
   direct["nnls_residual"] = d.nnls_residual;
@@ -130,6 +146,7 @@ Json DirectRunToJson(const Problem& problem, const DirectRun& run, bool with_tra
   std::vector<NodePair> unseen;
   for (const int g : d.unseen) unseen.push_back(problem.candidates().pairs[problem.gene_candidates()[g]]);
   direct["unseen"] = PairsToJson(unseen);
+  direct["absent_near_threshold"] = std::move(near);
   direct["seconds"] = {{"assemble", d.assemble_seconds}, {"solve", d.solve_seconds}, {"evaluate", d.evaluate_seconds}};
   j["direct"] = std::move(direct);
   if (with_trace) j["trace"] = std::move(trace);

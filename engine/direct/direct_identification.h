@@ -2,12 +2,20 @@
 // reference's equilibria (force_balance.h), by non-negative least squares (nnls.h), judged
 // afterwards by the same displacement cost as every other strategy.
 //
-// The topology is the set of springs whose weight exceeds `relative_threshold` times the
-// largest weight: an MSS reference gives the true weights up to rounding (about 1e-12 of the
-// largest), absent springs 0 up to rounding, so any threshold between those works; 1e-4
-// leaves room for stiffness spread over four decades. A spring no load case stretches or
-// compresses (strain below `unseen_strain` in every case) has a zero column: its weight is
-// not determined, it is left out and reported.
+// A spring is in the identified topology when its weight w_j exceeds its threshold
+//   t_j = max(relative_threshold * (largest weight), significance * sigma_j),
+// sigma_j the weight's standard error (weight_uncertainty.h). The first term is for exact
+// data (an MSS reference): absent springs then come out at round-off, below 1e-11 of the
+// largest weight in bench/direct_bench, true ones at their stiffness, 1e-8 of the largest on
+// stiff-2d. The second is for noisy data (measured positions): an absent spring's weight is
+// then noise of about sigma_j, and `significance` standard errors keep it out. Its confidence
+// is (w_j - t_j) / sigma_j: how many standard errors it sits above (present) or below
+// (absent) its threshold. sigma_j is computed for scenes of up to `uncertainty_max_genes`
+// genes (one solve per gene) whose data is not exact; for exact data, beyond that size, or
+// when columns are dependent, only the first term applies and confidences are unknown.
+//
+// A spring no load case stretches or compresses (strain below `unseen_strain` in every case)
+// has a zero column: its weight is not determined, it is left out and reported.
 #pragma once
 #include <vector>
 
@@ -19,6 +27,11 @@ namespace springfit {
 
 struct DirectOptions {
   double relative_threshold = 1e-10;  // of the largest weight; in (0, 1)
+  double significance = 3.0;          // standard errors; >= 0
+  int uncertainty_max_genes = 5000;
+  // Data whose force balance the NNLS solution meets to this relative residual is exact
+  // (an MSS reference): no standard errors, no confidences, the relative floor alone.
+  double exact_data_residual = 1e-9;
   double unseen_strain = 1e-12;      // relative length change below which a spring is unseen
   NnlsOptions nnls;
 };
@@ -27,6 +40,10 @@ struct DirectResult {
   std::vector<double> weights;  // per gene, >= 0; 0 for unseen genes
   Genome genome;                // genes whose weight is above the threshold
   std::vector<int> unseen;      // genes no load case can see
+  // Per gene (empty when not computed): the weight's standard error, and its confidence
+  // (w - threshold) / sigma; NaN for unseen genes.
+  std::vector<double> sigma;
+  std::vector<double> confidence;
   ActiveSprings springs;        // the identified model: candidate indices and stiffness (= weight)
   // |A w - b| / |b| for the identified model's weights (thresholded), and of the NNLS
   // solution itself: how well the force balance holds.

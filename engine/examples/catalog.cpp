@@ -2,9 +2,12 @@
 
 #include <array>
 #include <cmath>
+#include <cstdio>
+#include <numbers>
 #include <stdexcept>
 
 #include "engine/problem.h"
+#include "engine/search/random_stream.h"
 
 namespace springfit::examples {
 namespace {
@@ -195,6 +198,42 @@ Scene ThinnedGrid(const std::vector<int>& n, std::uint64_t seed, double stiffnes
   s.load_cases = Paper7LoadCases(d, s.rest, 1.0);
   ScaleLoadsToStrain(s, 0.05);
   return s;
+}
+
+Scene WithMeasurementNoise(const Scene& scene, double fraction, std::uint64_t seed) {
+  const Problem problem = Problem::Build(scene);
+  const int d = problem.dimension();
+  const int n = scene.node_count();
+  RandomStream random(seed);
+  auto gaussian = [&random] {
+    // Box-Muller; 1 - Uniform() is in (0, 1], so the logarithm is finite.
+    const double radius = std::sqrt(-2.0 * std::log(1.0 - random.Uniform()));
+    return radius * std::cos(2.0 * std::numbers::pi * random.Uniform());
+  };
+  Scene noisy = scene;
+  char tag[64];
+  std::snprintf(tag, sizeof tag, "-noise%g-s%llu", fraction, static_cast<unsigned long long>(seed));
+  noisy.name += tag;
+  noisy.description = scene.description + "; reference positions with Gaussian noise of " +
+                      std::to_string(fraction) + " x the RMS displacement (seed " + std::to_string(seed) + ")";
+  noisy.training_stiffness = problem.training_stiffness();
+  noisy.reference = Reference{};
+  noisy.reference.kind = Reference::Kind::kPositions;
+  for (const PreparedLoadCase& lc : problem.load_cases()) {
+    const FreeNodes& free = problem.free_sets()[lc.free_set];
+    double sum = 0.0;
+    for (int i = 0; i < n; ++i) {
+      if (free.free_index[i] >= 0) sum += lc.reference.segment(d * i, d).squaredNorm();
+    }
+    const double sigma = fraction * std::sqrt(sum / std::max(free.count, 1));
+    Vector positions = scene.rest + lc.reference;
+    for (int i = 0; i < n; ++i) {
+      if (free.free_index[i] < 0) continue;
+      for (int a = 0; a < d; ++a) positions[d * i + a] += sigma * gaussian();
+    }
+    noisy.reference.positions.push_back(std::move(positions));
+  }
+  return noisy;
 }
 
 const std::vector<ExampleInfo>& Catalog() {

@@ -56,6 +56,13 @@ void CheckFoldFree(const Scene& scene, const std::vector<std::vector<int>>& simp
 // paper7 at 5% strain. Deterministic in `seed`; for tests and benchmarks at any size.
 Scene ThinnedGrid(const std::vector<int>& n, std::uint64_t seed, double stiffness_decades);
 
+// The scene with its reference replaced by measured positions: the reference's equilibrium
+// positions under each load case, each coordinate of every free node perturbed by Gaussian
+// noise of standard deviation `fraction` times that load case's RMS nodal displacement (over
+// its free nodes). Constrained nodes keep their exact positions. Deterministic in `seed`
+// (Box-Muller on the project's own random stream, so every platform draws the same noise).
+Scene WithMeasurementNoise(const Scene& scene, double fraction, std::uint64_t seed);
+
 // The simplices of a grid (each cell split both ways in 2D; the eight corner tetrahedra of
 // each cube in 3D), for CheckFoldFree.
 std::vector<std::vector<int>> GridSimplices(const std::vector<int>& n);

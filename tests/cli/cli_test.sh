@@ -97,6 +97,20 @@ PY
 expect_exit 0 "render direct" "$sf" render "$tmp/direct.json" -o "$tmp/direct.svg"
 grep -q "exact recovery; 72 springs; normalized error 0<" "$tmp/direct.svg" || fail "render draws a direct result with its own stiffness (error 0, not that of stiffness 1)"
 
+# example --noise: a positions reference; direct on it carries confidences.
+expect_exit 0 "example noise" "$sf" example paper-aniso-5x5 --noise 0.001 --noise-seed 3 -o "$tmp/noisy.json"
+expect_exit 0 "run direct noisy" "$sf" run "$tmp/noisy.json" --strategy direct --json
+python3 - "$tmp/noisy.json" "$tmp/out" <<'PY' || fail "noisy example and its direct result"
+import json, sys
+scene = json.load(open(sys.argv[1]))
+r = json.load(open(sys.argv[2]))
+assert scene["reference"]["type"] == "positions" and len(scene["reference"]["positions"]) == 7
+assert scene["name"] == "paper-aniso-5x5-noise0.001-s3", scene["name"]
+assert r["exact"] is None  # a positions reference has no known topology
+assert len(r["confidence"]) == len(r["springs"]) and min(r["confidence"]) > 0, r["confidence"]
+PY
+expect_exit 64 "example noise out of range" "$sf" example paper-iso-5x5 --noise 2
+
 # render and plot: SVG files from result files; the wrong springs are drawn one line each.
 expect_exit 0 "render exact" "$sf" render "$tmp/result.json" -o "$tmp/exact.svg"
 "$sf" run "$src/examples/paper-iso-5x5.json" --strategy paper --generations 5 -q -o "$tmp/short.json" >/dev/null

@@ -135,6 +135,35 @@ TEST(Direct, ScalingLengthsAndForcesChangesNothing) {
   }
 }
 
+TEST(Direct, NoisyPositionsGetStandardErrorsAndConfidences) {
+  const Scene clean = examples::Make("paper-iso-5x5");
+  const Scene noisy = examples::WithMeasurementNoise(clean, 1e-3, 4);
+  EXPECT_EQ(noisy.reference.kind, Reference::Kind::kPositions);
+  // The same seed draws the same noise; another seed, other noise.
+  EXPECT_EQ(noisy.reference.positions[2], examples::WithMeasurementNoise(clean, 1e-3, 4).reference.positions[2]);
+  EXPECT_NE(noisy.reference.positions[2], examples::WithMeasurementNoise(clean, 1e-3, 5).reference.positions[2]);
+  const Problem truth = Problem::Build(clean);
+  const Problem problem = Problem::Build(noisy);
+  // The noise has the size asked for: 1e-3 of the RMS displacement per coordinate.
+  const Vector delta = problem.load_cases()[0].reference - truth.load_cases()[0].reference;
+  const double rms_u = std::sqrt(truth.load_cases()[0].reference_norm2 / problem.free_sets()[problem.load_cases()[0].free_set].count);
+  const double rms_noise = delta.norm() / std::sqrt(2.0 * problem.free_sets()[problem.load_cases()[0].free_set].count);
+  EXPECT_NEAR(rms_noise / rms_u, 1e-3, 0.4e-3);
+
+  const DirectResult r = IdentifyDirect(problem);
+  ASSERT_EQ(r.sigma.size(), static_cast<std::size_t>(problem.gene_count()));
+  EXPECT_EQ(truth.CompareWithReference(r.genome)->hamming(), 0);
+  for (int g = 0; g < problem.gene_count(); ++g) {
+    EXPECT_GT(r.sigma[g], 0.0);
+    EXPECT_LT(r.sigma[g], 0.1);  // stiffness 1, noise 1e-3
+    if (r.genome[g]) {
+      EXPECT_GT(r.confidence[g], 0.0);
+    }
+  }
+  // An MSS reference is exact data: no standard errors.
+  EXPECT_TRUE(IdentifyDirect(truth).sigma.empty());
+}
+
 TEST(Direct, RunDirectHasTheShapeOfASearchResult) {
   const Problem problem = Problem::Build(examples::Make("paper-aniso-5x5"));
   const DirectRun run = RunDirect(problem, ResolveSearchOptions(problem.scene().search, problem.gene_count()));

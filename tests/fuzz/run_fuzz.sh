@@ -65,5 +65,5 @@ run() {
   grep -E '^stat::(number_of_executed_units|new_units_added)' "$work/log" || true
 }
 
-run framer_fuzz 400000 "" "$src"/tests/fuzz/corpus/framer/*
-run scene_fuzz 100000 "-dict=$scene_dict" "$src"/examples/*.json "$src"/tests/data/*.json
+run framer_fuzz 200000 "" "$src"/tests/fuzz/corpus/framer/*
+run scene_fuzz 50000 "-dict=$scene_dict" "$src"/examples/*.json "$src"/tests/data/*.json
