@@ -163,6 +163,21 @@ double EquilibriumSolver::EnergyAndGradient(const ActiveSprings& springs, const 
   return Assemble<3>(springs, force, u, gradient, hessian, projected, nullptr);
 }
 
+bool EquilibriumSolver::SolveWithTangent(const ActiveSprings& springs, const Vector& force, const Vector& u,
+                                         Matrix& rhs) {
+  if (free_.count == 0) return true;
+  EnergyAndGradient(springs, force, u, nullptr, true, false);
+  const SymmetricSystem::Factorization f = system_.Factorize(0.0, options_.pivot_tolerance, false);
+  if (!f.positive_definite) return false;
+  Vector column(rhs.rows());
+  for (Eigen::Index c = 0; c < rhs.cols(); ++c) {
+    column = rhs.col(c);
+    system_.Solve(column);
+    rhs.col(c) = column;
+  }
+  return true;
+}
+
 Matrix EquilibriumSolver::AssembledHessian() const { return system_.ToDense(); }
 
 int EquilibriumSolver::RestMechanismModes(const ActiveSprings& springs) {

@@ -103,6 +103,12 @@ class EquilibriumSolver {
   EquilibriumSummary Solve(const ActiveSprings& springs, const Vector& force,
                            const Vector& prescribed, Vector& u);
 
+  // Solves H x = b for every column b of `rhs` (free degrees of freedom, free-node order), H
+  // the exact Hessian of E at `u` (an equilibrium from Solve): one factorisation, then one
+  // solve per column. The sensitivity of an equilibrium to the stiffness is such a solve.
+  // Returns false, leaving `rhs` unspecified, when H is not positive definite there.
+  bool SolveWithTangent(const ActiveSprings& springs, const Vector& force, const Vector& u, Matrix& rhs);
+
   // E(u) and its gradient on the free degrees of freedom (flat, free-node order). Exposed for
   // tests; `hessian` true also assembles the Hessian into the system (`projected` clamps it).
   double EnergyAndGradient(const ActiveSprings& springs, const Vector& force, const Vector& u,

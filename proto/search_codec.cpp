@@ -143,6 +143,8 @@ Json DirectRunToJson(const Problem& problem, const DirectRun& run, bool with_tra
   direct["nnls_residual"] = d.nnls_residual;
   direct["nnls_converged"] = d.nnls.converged;
   direct["nnls_pivots"] = d.nnls.iterations;
+  direct["refined"] = d.refined;
+  direct["refinement_iterations"] = d.refinement_iterations;
   std::vector<NodePair> unseen;
   for (const int g : d.unseen) unseen.push_back(problem.candidates().pairs[problem.gene_candidates()[g]]);
   direct["unseen"] = PairsToJson(unseen);

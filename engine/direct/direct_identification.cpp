@@ -33,7 +33,6 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
   start = std::chrono::steady_clock::now();
   r.nnls = SolveNnls(fb.a, fb.b, usable, options.nnls);
   r.weights.assign(r.nnls.x.data(), r.nnls.x.data() + r.nnls.x.size());
-  const double largest = r.nnls.x.size() > 0 ? r.nnls.x.maxCoeff() : 0.0;
   // The residual variance over the degrees of freedom left by the positive weights.
   int positive = 0;
   for (int g = 0; g < genes; ++g) positive += r.weights[g] > 0.0;
@@ -44,8 +43,18 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
   // one solve per gene, several times the identification itself.
   const double b_norm = std::max(fb.b.norm(), 1e-300);
   const bool exact_data = (fb.a * r.nnls.x - fb.b).norm() <= options.exact_data_residual * b_norm;
-  const std::optional<Vector> sigma =
-      exact_data ? std::nullopt : WeightStandardErrors(fb.a, usable, variance, options.uncertainty_max_genes);
+  std::optional<Vector> sigma;
+  if (!exact_data && options.refine) {
+    const RefinementResult refinement = RefineWeights(problem, r.weights, usable, options.refinement);
+    if (refinement.refined) {
+      r.refined = true;
+      r.refinement_iterations = refinement.iterations;
+      r.weights = refinement.weights;
+      if (!refinement.sigma.empty()) sigma = Eigen::Map<const Vector>(refinement.sigma.data(), genes);
+    }
+  }
+  if (!exact_data && !r.refined) sigma = WeightStandardErrors(fb.a, usable, variance, options.uncertainty_max_genes);
+  const double largest = genes > 0 ? *std::max_element(r.weights.begin(), r.weights.end()) : 0.0;
   const double floor = options.relative_threshold * largest;
   if (sigma) {
     r.sigma.assign(sigma->data(), sigma->data() + sigma->size());

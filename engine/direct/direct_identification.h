@@ -21,6 +21,7 @@
 
 #include "engine/cost.h"
 #include "engine/direct/nnls.h"
+#include "engine/direct/stiffness_refinement.h"
 #include "engine/problem.h"
 
 namespace springfit {
@@ -32,6 +33,10 @@ struct DirectOptions {
   // Data whose force balance the NNLS solution meets to this relative residual is exact
   // (an MSS reference): no standard errors, no confidences, the relative floor alone.
   double exact_data_residual = 1e-9;
+  // Noisy data: refine the weights by the displacement cost (stiffness_refinement.h) before
+  // the threshold; its standard errors replace the force balance's.
+  bool refine = true;
+  RefinementOptions refinement;
   double unseen_strain = 1e-12;      // relative length change below which a spring is unseen
   NnlsOptions nnls;
 };
@@ -50,6 +55,8 @@ struct DirectResult {
   double force_residual = 0.0;
   double nnls_residual = 0.0;
   NnlsResult nnls;
+  bool refined = false;         // the weights are the displacement-cost fit's
+  int refinement_iterations = 0;
   Evaluation evaluation;        // the identified model's equilibria against the reference
   double assemble_seconds = 0.0;
   double solve_seconds = 0.0;

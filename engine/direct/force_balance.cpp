@@ -5,7 +5,7 @@
 
 namespace springfit {
 
-ForceBalance AssembleForceBalance(const Problem& problem) {
+ForceBalance AssembleForceBalance(const Problem& problem, const std::vector<Vector>* displacements) {
   const int d = problem.dimension();
   const int genes = problem.gene_count();
   const SpringGeometry& geometry = problem.candidates();
@@ -18,6 +18,7 @@ ForceBalance AssembleForceBalance(const Problem& problem) {
     row_offset.push_back(rows);
     rows += static_cast<Eigen::Index>(d) * problem.free_sets()[lc.free_set].count;
   }
+  row_offset.push_back(rows);
 
   ForceBalance fb;
   fb.b = Vector::Zero(rows);
@@ -27,7 +28,7 @@ ForceBalance AssembleForceBalance(const Problem& problem) {
   for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
     const PreparedLoadCase& lc = problem.load_cases()[k];
     const FreeNodes& free = problem.free_sets()[lc.free_set];
-    const Vector x = rest + lc.reference;
+    const Vector x = rest + (displacements ? (*displacements)[k] : lc.reference);
     for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
       const int f = free.free_index[i];
       if (f < 0) continue;
@@ -53,6 +54,7 @@ ForceBalance AssembleForceBalance(const Problem& problem) {
   fb.a.resize(rows, genes);
   fb.a.setFromTriplets(entries.begin(), entries.end());
   fb.a.makeCompressed();
+  fb.row_offset = std::move(row_offset);
   return fb;
 }
 

@@ -23,8 +23,14 @@ struct ForceBalance {
   // Per gene: the largest length change of its spring over the load cases, relative to its
   // rest length. 0 = no load case stretches or compresses it: its weight is not seen.
   std::vector<double> strain;
+  // The first row of each load case's block (its free coordinates in free-node order), and
+  // one past the last block.
+  std::vector<Eigen::Index> row_offset;
 };
 
-ForceBalance AssembleForceBalance(const Problem& problem);
+// At the reference's equilibria, or at the configurations rest + `displacements[k]` (a
+// model's equilibria: then column g of case k's block is the force the gene's spring exerts
+// per unit stiffness there, what the equilibrium's sensitivity to that stiffness needs).
+ForceBalance AssembleForceBalance(const Problem& problem, const std::vector<Vector>* displacements = nullptr);
 
 }  // namespace springfit

@@ -164,6 +164,33 @@ TEST(Direct, NoisyPositionsGetStandardErrorsAndConfidences) {
   EXPECT_TRUE(IdentifyDirect(truth).sigma.empty());
 }
 
+TEST(Direct, RefinementByTheDisplacementCostUndoesTheNoiseShrinkage) {
+  const Scene clean = examples::Make("paper-aniso-5x5");
+  const Problem truth = Problem::Build(clean);
+  const Problem problem = Problem::Build(examples::WithMeasurementNoise(clean, 3e-3, 2));
+  DirectOptions plain;
+  plain.refine = false;
+  const DirectResult nnls = IdentifyDirect(problem, plain);
+  const DirectResult refined = IdentifyDirect(problem);
+  ASSERT_TRUE(refined.refined);
+  EXPECT_FALSE(nnls.refined);
+  EXPECT_GT(refined.refinement_iterations, 0);
+  // Reference stiffness 1: the refined weights of the true springs sit closer to it.
+  const auto& mask = *truth.reference_genome();
+  double nnls_error = 0.0, refined_error = 0.0;
+  for (int g = 0; g < problem.gene_count(); ++g) {
+    if (!mask[g]) continue;
+    nnls_error += std::abs(nnls.weights[g] - 1.0);
+    refined_error += std::abs(refined.weights[g] - 1.0);
+  }
+  EXPECT_LT(refined_error, 0.5 * nnls_error);
+  EXPECT_EQ(truth.CompareWithReference(refined.genome)->hamming(), 0);
+  // The displacement cost is what it minimised.
+  EXPECT_LT(refined.evaluation.cost, nnls.evaluation.cost);
+  // Exact data is not refined.
+  EXPECT_FALSE(IdentifyDirect(truth).refined);
+}
+
 TEST(Direct, RunDirectHasTheShapeOfASearchResult) {
   const Problem problem = Problem::Build(examples::Make("paper-aniso-5x5"));
   const DirectRun run = RunDirect(problem, ResolveSearchOptions(problem.scene().search, problem.gene_count()));

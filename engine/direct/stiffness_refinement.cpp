@@ -1,0 +1,155 @@
+#include "engine/direct/stiffness_refinement.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "engine/direct/force_balance.h"
+#include "engine/direct/nnls.h"
+
+namespace springfit {
+namespace {
+
+ActiveSprings ModelOf(const Problem& problem, const std::vector<double>& w) {
+  ActiveSprings springs;
+  for (std::size_t g = 0; g < w.size(); ++g) {
+    if (w[g] > 0.0) {
+      springs.index.push_back(problem.gene_candidates()[g]);
+      springs.stiffness.push_back(w[g]);
+    }
+  }
+  return springs;
+}
+
+// The model's equilibria, its residual r = u^M - u^R on the free coordinates (stacked by
+// load case, free-node order), and the Jacobian dr/dw. False when some load case has no
+// equilibrium or no positive definite tangent there.
+bool Linearise(const Problem& problem, const std::vector<double>& w, std::vector<EquilibriumSolver>& solvers,
+               std::vector<Vector>& u, Vector& r, Matrix& jacobian) {
+  const int d = problem.dimension();
+  const ActiveSprings springs = ModelOf(problem, w);
+  for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
+    const PreparedLoadCase& lc = problem.load_cases()[k];
+    EquilibriumSolver& solver = solvers[lc.free_set];
+    if (solver.RestMechanismModes(springs) > 0) return false;
+    if (u[k].size() == 0) u[k] = lc.reference;  // warm start at the reference's equilibrium
+    if (!solver.Solve(springs, lc.force, lc.prescribed, u[k]).converged()) return false;
+  }
+  const ForceBalance fb = AssembleForceBalance(problem, &u);
+  const Eigen::Index rows = fb.row_offset.back();
+  r.resize(rows);
+  jacobian = Matrix(fb.a);  // g_j per case; turned into H^-1 g_j block by block below
+  for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
+    const PreparedLoadCase& lc = problem.load_cases()[k];
+    const FreeNodes& free = problem.free_sets()[lc.free_set];
+    const Eigen::Index begin = fb.row_offset[k];
+    const Eigen::Index size = fb.row_offset[k + 1] - begin;
+    for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
+      const int f = free.free_index[i];
+      if (f >= 0) r.segment(begin + d * f, d) = u[k].segment(d * i, d) - lc.reference.segment(d * i, d);
+    }
+    Matrix block = jacobian.middleRows(begin, size);
+    if (!solvers[lc.free_set].SolveWithTangent(springs, lc.force, u[k], block)) return false;
+    jacobian.middleRows(begin, size) = block;
+  }
+  return true;
+}
+
+}  // namespace
+
+RefinementResult RefineWeights(const Problem& problem, const std::vector<double>& start,
+                               const std::vector<bool>& usable, const RefinementOptions& options) {
+  RefinementResult result;
+  result.weights = start;
+  const int genes = problem.gene_count();
+  if (genes == 0 || genes > options.max_genes) return result;
+  std::vector<EquilibriumSolver> solvers;
+  for (const FreeNodes& free : problem.free_sets()) {
+    solvers.emplace_back(problem.candidates(), free, problem.solver_options());
+  }
+  CostFunction cost(problem);
+
+  std::vector<double> w = start;
+  std::vector<Vector> u(problem.load_cases().size());
+  Vector r;
+  Matrix jacobian;
+  if (!Linearise(problem, w, solvers, u, r, jacobian)) return result;
+  double f = r.squaredNorm();
+  result.initial_cost = f;
+  double lambda = options.initial_damping;
+
+  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    const Vector wv = Eigen::Map<const Vector>(w.data(), genes);
+    // Marquardt's scaling, with a floor so that a gene no load case moves still gets damped.
+    Vector d2(genes);
+    double sum_d2 = 0.0;
+    for (int j = 0; j < genes; ++j) sum_d2 += d2[j] = jacobian.col(j).squaredNorm();
+    const double floor_d2 = 1e-12 * std::max(sum_d2 / genes, 1e-300);
+    for (int j = 0; j < genes; ++j) d2[j] = std::max(d2[j], floor_d2);
+    const Vector target = jacobian * wv - r;
+    bool accepted = false;
+    for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
+      // [J; sqrt(lambda) D] w' = [J w - r; sqrt(lambda) D w], w' >= 0.
+      Matrix stacked(jacobian.rows() + genes, genes);
+      stacked.topRows(jacobian.rows()) = jacobian;
+      stacked.bottomRows(genes) = (lambda * d2).cwiseSqrt().asDiagonal();
+      Vector rhs(jacobian.rows() + genes);
+      rhs.head(jacobian.rows()) = target;
+      rhs.tail(genes) = (lambda * d2).cwiseSqrt().cwiseProduct(wv);
+      const NnlsResult step = SolveNnls(stacked.sparseView(), rhs, usable);
+      std::vector<double> trial(step.x.data(), step.x.data() + genes);
+      std::vector<Vector> trial_u = u;
+      Vector trial_r;
+      Matrix trial_jacobian;
+      if (Linearise(problem, trial, solvers, trial_u, trial_r, trial_jacobian) && trial_r.squaredNorm() < f) {
+        const double decrease = (f - trial_r.squaredNorm()) / f;
+        w = std::move(trial);
+        u = std::move(trial_u);
+        r = std::move(trial_r);
+        jacobian = std::move(trial_jacobian);
+        f = r.squaredNorm();
+        lambda = std::max(lambda / 3.0, 1e-12);
+        accepted = true;
+        ++result.iterations;
+        if (decrease < options.relative_tolerance) result.converged = true;
+      } else {
+        lambda *= 10.0;
+      }
+    }
+    if (!accepted) {
+      result.converged = true;  // no descent left at any damping: a (local) minimum
+      break;
+    }
+    if (result.converged) break;
+  }
+
+  result.refined = true;
+  result.weights = w;
+  result.evaluation = cost.Evaluate(ModelOf(problem, w));
+  // Standard errors from the Gauss-Newton approximation of the covariance at the optimum.
+  int positive = 0;
+  for (const double x : w) positive += x > 0.0;
+  const double variance = f / std::max<double>(static_cast<double>(r.size()) - positive, 1.0);
+  std::vector<int> columns;
+  for (int j = 0; j < genes; ++j) {
+    if (usable[j]) columns.push_back(j);
+  }
+  const auto m = static_cast<Eigen::Index>(columns.size());
+  Matrix sub(jacobian.rows(), m);
+  for (Eigen::Index c = 0; c < m; ++c) sub.col(c) = jacobian.col(columns[static_cast<std::size_t>(c)]);
+  const Matrix normal = sub.transpose() * sub;
+  Eigen::LDLT<Matrix> ldlt(normal);
+  const Vector pivots = ldlt.vectorD();
+  const double scale = m > 0 ? std::max(normal.diagonal().maxCoeff(), 1e-300) : 1.0;
+  bool regular = ldlt.info() == Eigen::Success;
+  for (Eigen::Index i = 0; i < m && regular; ++i) regular = pivots[i] > 1e-13 * scale;
+  if (regular) {
+    result.sigma.assign(genes, HUGE_VAL);
+    const Matrix inverse = ldlt.solve(Matrix::Identity(m, m));
+    for (Eigen::Index c = 0; c < m; ++c) {
+      result.sigma[columns[static_cast<std::size_t>(c)]] = std::sqrt(std::max(inverse(c, c), 0.0) * variance);
+    }
+  }
+  return result;
+}
+
+}  // namespace springfit
