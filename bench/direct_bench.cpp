@@ -15,6 +15,7 @@
 #include "engine/direct/direct_identification.h"
 #include "engine/examples/catalog.h"
 #include "engine/problem.h"
+#include "engine/search/run_search.h"
 
 using namespace springfit;
 
@@ -89,23 +90,46 @@ void Print(const Row& r) {
 }
 
 // Noise: `draws` noisy copies of an MSS example; how often direct finds the true topology.
-void MeasureNoise(const std::string& name, double fraction, int draws, const DirectOptions& options) {
+void MeasureNoise(const std::string& name, double fraction, int draws, const DirectOptions& options,
+                  int hybrid_generations) {
   const Scene clean = examples::Make(name);
   const Problem truth = Problem::Build(clean);
   int exact = 0;
+  double seconds = 0.0;
   std::vector<int> wrong;
   double worst_error = 0.0;
   for (int draw = 1; draw <= draws; ++draw) {
     const Problem noisy = Problem::Build(examples::WithMeasurementNoise(clean, fraction, static_cast<std::uint64_t>(draw)));
-    const DirectResult r = IdentifyDirect(noisy, options);
-    const auto difference = truth.CompareWithReference(r.genome);
+    Genome genome;
+    double error = 0.0;
+    if (hybrid_generations > 0) {
+      Scene scene = noisy.scene();
+      scene.search.strategy = Strategy::kHybrid;
+      scene.search.max_generations = hybrid_generations;
+      const Problem hybrid = Problem::Build(std::move(scene));
+      RunOptions run;
+      run.threads = 2;
+      const SearchResult result = RunSearch(hybrid, ResolveSearchOptions(hybrid.scene().search, hybrid.gene_count()), run);
+      genome = result.best;
+      error = result.evaluation.normalized_error;
+      seconds += result.wall_seconds;
+    } else {
+      const DirectResult r = IdentifyDirect(noisy, options);
+      genome = r.genome;
+      error = r.evaluation.normalized_error;
+      seconds += r.assemble_seconds + r.solve_seconds;
+    }
+    const auto difference = truth.CompareWithReference(genome);
     exact += difference->hamming() == 0;
     wrong.push_back(difference->hamming());
-    worst_error = std::max(worst_error, r.evaluation.normalized_error);
+    worst_error = std::max(worst_error, error);
   }
   std::sort(wrong.begin(), wrong.end());
-  std::printf("| %s | %g | %d / %d | %d | %d | %.2g |\n", name.c_str(), fraction, exact, draws, wrong[wrong.size() / 2],
-              wrong.back(), worst_error);
+  const int median = wrong.empty() ? 0 : wrong[wrong.size() / 2];
+  const int worst = wrong.empty() ? 0 : wrong.back();
+  std::printf("| %s | %g | %s | %d / %d | %d | %d | %.2g | %.3f |\n", name.c_str(), fraction,
+              hybrid_generations > 0 ? ("hybrid, " + std::to_string(hybrid_generations) + " generations").c_str() : "direct",
+              exact, draws, median, worst, worst_error, seconds / draws);
   std::fflush(stdout);
 }
 
@@ -119,19 +143,24 @@ int main(int argc, char** argv) {
   bool examples_only = false;
   std::vector<double> noise;
   int draws = 20;
+  int hybrid_generations = 0;
   app.add_option("--sizes2", sizes2, "2D grid sizes n (n x n nodes)")->delimiter(',');
   app.add_option("--sizes3", sizes3, "3D grid sizes n (n^3 nodes)")->delimiter(',');
   app.add_option("--repeats", repeats, "Runs per scene; the fastest is reported")->check(CLI::PositiveNumber);
   app.add_flag("--examples-only", examples_only, "Only the example scenes");
   app.add_option("--noise", noise, "Only the noise table, at these fractions (e.g. 0.001,0.01)")->delimiter(',');
+  app.add_option("--hybrid", hybrid_generations, "Also strategy hybrid with this many GA generations (noise table)");
   app.add_option("--draws", draws, "Noise draws per scene and fraction")->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
 
   if (!noise.empty()) {
-    std::printf("| scene | noise | exact topology | median wrong springs | worst | worst normalized error |\n"
-                "|---|---|---|---|---|---|\n");
+    std::printf("| scene | noise | strategy | exact topology | median wrong springs | worst | worst normalized error | "
+                "mean s |\n|---|---|---|---|---|---|---|---|\n");
     for (const double f : noise) {
-      for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5"}) MeasureNoise(name, f, draws, DirectOptions{});
+      for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5"}) {
+        MeasureNoise(name, f, draws, DirectOptions{}, 0);
+        if (hybrid_generations > 0) MeasureNoise(name, f, draws, DirectOptions{}, hybrid_generations);
+      }
     }
     return 0;
   }

@@ -74,6 +74,7 @@ enum class Strategy {
   kDefault,  // the fastest measured: a memetic GA (bench/RESULTS.md chose it)
   kPaper,    // the paper's GA, unchanged (Bianchi et al. 2003)
   kDirect,   // non-negative least squares on the force balance (engine/direct/)
+  kHybrid,   // direct, then the default GA seeded with its topology
 };
 
 // Settings of the topology search (DESIGN.md §1). An unset GA parameter takes the chosen

@@ -42,7 +42,7 @@ std::string_view TerminationName(Termination termination) {
 }
 
 namespace {
-constexpr Strategy kAllStrategies[] = {Strategy::kDefault, Strategy::kPaper, Strategy::kDirect};
+constexpr Strategy kAllStrategies[] = {Strategy::kDefault, Strategy::kPaper, Strategy::kDirect, Strategy::kHybrid};
 }  // namespace
 
 std::string_view StrategyName(Strategy strategy) {
@@ -50,6 +50,7 @@ std::string_view StrategyName(Strategy strategy) {
     case Strategy::kDefault: return "default";
     case Strategy::kPaper: return "paper";
     case Strategy::kDirect: return "direct";
+    case Strategy::kHybrid: return "hybrid";
   }
   return "?";
 }

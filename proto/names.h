@@ -23,11 +23,11 @@ std::string_view TerminationName(Termination termination);
 // Search strategies (proto/SCENE.md, "search").
 std::string_view StrategyName(Strategy strategy);
 std::optional<Strategy> ParseStrategy(std::string_view name);
-// ParseStrategy, or InputError(path, "unknown strategy 'x' (expected default, paper or direct)").
+// ParseStrategy, or InputError(path, "unknown strategy 'x' (expected default, paper, direct or hybrid)").
 Strategy StrategyFromName(const std::string& name, const std::string& path);
 std::string_view StopReasonName(StopReason reason);
 
-// "default, paper or direct": the accepted names, for messages.
+// "default, paper, direct or hybrid": the accepted names, for messages.
 std::string StrategyNames();
 std::vector<Strategy> AllStrategies();
 

@@ -106,6 +106,15 @@ Json SearchResultToJson(const Problem& problem, const SearchResult& r, bool with
   j["cache_hits"] = r.counters.cache_hits;
   j["wall_seconds"] = r.wall_seconds;
   j["options"] = SearchOptionsToJson(r.options);
+  if (r.direct_phase) {
+    Json phase;
+    phase["seconds"] = r.direct_phase->seconds;
+    phase["normalized_error"] = r.direct_phase->normalized_error;
+    const auto& difference = r.direct_phase->difference;
+    phase["missing"] = difference ? Json(difference->missing.size()) : Json(nullptr);
+    phase["extra"] = difference ? Json(difference->extra.size()) : Json(nullptr);
+    j["direct_phase"] = std::move(phase);
+  }
   if (with_trace) {
     Json trace = Json::array();
     for (const TraceRow& row : r.trace) trace.push_back(TraceRowToJson(row));

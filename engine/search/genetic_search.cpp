@@ -26,13 +26,25 @@ TraceRow GeneticSearch::Initialize() {
   const int n = options_.population;
   state_ = SearchState{};
   state_.population.reserve(n);
-  for (int i = 0; i < n; ++i) state_.population.push_back(InitialGenome(i));
+  for (int i = 0; i < n; ++i) {
+    Genome drawn = InitialGenome(i);  // drawn for every place, so seeding moves no other draw
+    state_.population.push_back(i < static_cast<int>(seeds_.size()) ? seeds_[i] : std::move(drawn));
+  }
   state_.fitness = evaluator_->Evaluate(state_.population);
   state_.best = state_.population.front();
   state_.best_fitness = state_.fitness.front();
   UpdateBest();
   if (options_.local_search && !TargetReached()) LocalSearch();
   return Row();
+}
+
+void GeneticSearch::SeedInitialPopulation(std::vector<Genome> genomes, double elapsed_seconds) {
+  const auto genes = static_cast<std::size_t>(problem_->gene_count());
+  for (const Genome& g : genomes) {
+    if (g.size() != genes) throw std::invalid_argument("GeneticSearch::SeedInitialPopulation: wrong genome size");
+  }
+  seeds_ = std::move(genomes);
+  elapsed_before_ = elapsed_seconds;
 }
 
 Genome GeneticSearch::InitialGenome(int i) {

@@ -66,8 +66,12 @@ class GeneticSearch {
   // `evaluator` must outlive the search and belong to the same problem.
   GeneticSearch(const Problem& problem, SearchOptions options, FitnessEvaluator& evaluator);
 
-  // Draws and evaluates the initial population (generation 0).
+  // Draws and evaluates the initial population (generation 0). Genomes given to
+  // SeedInitialPopulation take the first places; the rest are drawn as usual.
   TraceRow Initialize();
+  // Before Initialize(): start from these genomes (strategy hybrid seeds the direct result),
+  // with `elapsed_seconds` of earlier phases on the trace's clock.
+  void SeedInitialPopulation(std::vector<Genome> genomes, double elapsed_seconds);
   // Continues from a saved state instead of Initialize().
   void Restore(const SearchState& state);
   // Breeds and evaluates one generation (and runs the local search when enabled).
@@ -107,7 +111,8 @@ class GeneticSearch {
   SearchState state_;
   std::vector<std::vector<int>> swap_partners_;
   std::chrono::steady_clock::time_point started_;
-  double elapsed_before_ = 0.0;  // wall time of the run before a Restore()
+  double elapsed_before_ = 0.0;  // wall time of the run before a Restore() or a seeding phase
+  std::vector<Genome> seeds_;
 };
 
 }  // namespace springfit

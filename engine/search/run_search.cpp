@@ -1,6 +1,9 @@
 #include "engine/search/run_search.h"
 
+#include <chrono>
 #include <memory>
+
+#include "engine/direct/direct_identification.h"
 
 namespace springfit {
 
@@ -25,6 +28,17 @@ SearchResult RunSearch(const Problem& problem, const SearchOptions& options, con
   if (run.resume_from) {
     search.Restore(*run.resume_from);
   } else {
+    if (options.strategy == Strategy::kHybrid) {
+      // The direct identification seeds the GA; its time starts the trace's clock.
+      const auto start = std::chrono::steady_clock::now();
+      const DirectResult direct = IdentifyDirect(problem);
+      SearchResult::DirectPhase phase;
+      phase.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      phase.normalized_error = evaluator.EvaluateInDetail(direct.genome).normalized_error;
+      phase.difference = problem.CompareWithReference(direct.genome);
+      result.direct_phase = phase;
+      search.SeedInitialPopulation({direct.genome}, phase.seconds);
+    }
     record(search.Initialize());
   }
   while (!cancelled && !search.Finished()) record(search.Step());

@@ -30,6 +30,14 @@ struct SearchResult {
   EvaluationCounters counters;
   double wall_seconds = 0.0;
   std::vector<TraceRow> trace;
+  // Strategy hybrid: the direct phase that seeded the GA (absent on a resumed run: it ran
+  // before the checkpoint).
+  struct DirectPhase {
+    double seconds = 0.0;
+    double normalized_error = 0.0;  // of the direct topology (training stiffness)
+    std::optional<TopologyDifference> difference;
+  };
+  std::optional<DirectPhase> direct_phase;
 
   // nullopt when the reference topology is unknown.
   std::optional<bool> exact() const {
