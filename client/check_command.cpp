@@ -4,12 +4,38 @@
 #include "client/commands.h"
 #include "client/exit_codes.h"
 #include "client/error_reporting.h"
+#include "engine/direct/identifiability.h"
 #include "engine/problem.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
 
 namespace springfit::cli {
 namespace {
+
+std::string PairList(const std::vector<NodePair>& pairs) {
+  std::string out;
+  for (const NodePair& p : pairs) out += " (" + std::to_string(p.first) + ", " + std::to_string(p.second) + ")";
+  return out;
+}
+
+void PrintIdentifiability(const IdentifiabilityReport& report) {
+  std::cout << "unseen springs:         " << report.unseen.size();
+  if (!report.unseen.empty()) std::cout << " (no load case changes their length:" << PairList(report.unseen) << ")";
+  std::cout << "\n";
+  if (!report.groups_analysed) {
+    std::cout << "dependent groups:       not analysed (more than 1500 genes)\n";
+    return;
+  }
+  std::cout << "dependent groups:       " << report.groups.size();
+  if (report.groups.empty()) std::cout << " (the load cases tell every seen spring apart)";
+  std::cout << "\n";
+  for (std::size_t g = 0; g < report.groups.size(); ++g) {
+    const DependentGroup& group = report.groups[g];
+    std::cout << "  group " << g << ": " << group.dependencies << " dependenc" << (group.dependencies == 1 ? "y" : "ies")
+              << " among" << PairList(group.springs) << "\n";
+    if (group.suggestion) std::cout << "    to separate them: " << group.suggestion->text << "\n";
+  }
+}
 
 int Check(const std::string& file) {
   const Problem problem = Problem::Build(proto::LoadSceneFile(file));
@@ -31,6 +57,7 @@ int Check(const std::string& file) {
     std::cout << ")";
   }
   std::cout << "\n";
+  PrintIdentifiability(AnalyseIdentifiability(problem));
   if (s.reference.kind == Reference::Kind::kMss) {
     std::cout << "reference:              mss, " << s.reference.springs.size() << " springs";
     if (problem.reference_mask()) {

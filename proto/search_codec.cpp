@@ -76,6 +76,23 @@ TraceRow TraceRowFromJson(const Json& j, const std::string& path) {
   return r;
 }
 
+Json IdentifiabilityToJson(const IdentifiabilityReport& report) {
+  Json j;
+  j["unseen"] = PairsToJson(report.unseen);
+  j["analysed"] = report.groups_analysed;
+  j["rank"] = report.groups_analysed ? Json(report.rank) : Json(nullptr);
+  Json groups = Json::array();
+  for (const DependentGroup& g : report.groups) {
+    Json group;
+    group["springs"] = PairsToJson(g.springs);
+    group["dependencies"] = g.dependencies;
+    group["suggestion"] = g.suggestion ? Json(g.suggestion->text) : Json(nullptr);
+    groups.push_back(std::move(group));
+  }
+  j["groups"] = std::move(groups);
+  return j;
+}
+
 Json SearchResultToJson(const Problem& problem, const SearchResult& r, bool with_trace) {
   Json j;
   j["scene"] = problem.scene().name;
@@ -98,6 +115,7 @@ Json SearchResultToJson(const Problem& problem, const SearchResult& r, bool with
   std::vector<NodePair> unidentifiable;
   for (int c : problem.unidentifiable()) unidentifiable.push_back(problem.candidates().pairs[c]);
   j["unidentifiable"] = PairsToJson(unidentifiable);
+  j["identifiability"] = IdentifiabilityToJson(r.identifiability);
   const Json evaluation = EvaluationToJson(problem, r.evaluation);
   for (const auto& [key, value] : evaluation.items()) j[key] = value;
   j["generations"] = r.generations;

@@ -16,6 +16,8 @@ Json TraceRowToJson(const TraceRow& row);
 // Reads what TraceRowToJson wrote; throws InputError naming the path.
 TraceRow TraceRowFromJson(const Json& json, const std::string& path);
 // The result object; the trace is included only when `with_trace`.
+// The identifiability report (proto/RUN.md, "identifiability").
+Json IdentifiabilityToJson(const IdentifiabilityReport& report);
 Json SearchResultToJson(const Problem& problem, const SearchResult& result, bool with_trace);
 // Strategy direct: the search result's fields plus `stiffness` (per spring of `springs`) and
 // `direct` (proto/RUN.md).

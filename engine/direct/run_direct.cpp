@@ -10,6 +10,7 @@ DirectRun RunDirect(const Problem& problem, const SearchOptions& options, const 
   DirectRun run;
   run.direct = IdentifyDirect(problem, direct_options);
   SearchResult& r = run.search;
+  r.identifiability = AnalyseIdentifiability(problem);
   r.options = options;
   r.best = run.direct.genome;
   r.springs = problem.SpringsOfGenome(r.best);

@@ -18,6 +18,7 @@ SearchResult RunSearch(const Problem& problem, const SearchOptions& options, con
   GeneticSearch search(problem, options, evaluator);
 
   SearchResult result;
+  result.identifiability = AnalyseIdentifiability(problem);
   result.options = options;
   result.trace = run.trace;
   bool cancelled = false;

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "engine/cost.h"
+#include "engine/direct/identifiability.h"
 #include "engine/problem.h"
 #include "engine/search/genetic_search.h"
 #include "engine/search/search_options.h"
@@ -38,6 +39,8 @@ struct SearchResult {
     std::optional<TopologyDifference> difference;
   };
   std::optional<DirectPhase> direct_phase;
+  // What the load cases can and cannot tell apart, analysed before the search.
+  IdentifiabilityReport identifiability;
 
   // nullopt when the reference topology is unknown.
   std::optional<bool> exact() const {

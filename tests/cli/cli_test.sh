@@ -19,6 +19,15 @@ expect_exit() {  # expected_code description command...
 # check: valid scene 0, invalid scene 2 with the path on one line, missing file 2, usage 64.
 expect_exit 0 "check valid" "$sf" check "$src/examples/kidney-2d.json"
 grep -q "genes:" "$tmp/out" || fail "check prints the genes"
+grep -q "dependent groups:       0" "$tmp/out" || fail "check prints the identifiability report"
+python3 - "$src/examples/paper-iso-5x5.json" "$tmp/one-case.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+s["load_cases"] = s["load_cases"][:1]
+json.dump(s, open(sys.argv[2], "w"))
+PY
+expect_exit 0 "check one load case" "$sf" check "$tmp/one-case.json"
+grep -q "to separate them: add a load case with a force on node" "$tmp/out" || fail "check suggests a load case: $(grep -A2 'dependent' "$tmp/out")"
 expect_exit 2 "check invalid" "$sf" check "$src/tests/data/invalid-index.json"
 grep -q "reference.springs\[5\]\[1\]: node index 7 out of range" "$tmp/err" || fail "check names the path: $(cat "$tmp/err")"
 [ "$(wc -l <"$tmp/err")" -eq 1 ] || fail "one error line"

@@ -1,0 +1,111 @@
+// The identifiability report: unseen springs, dependent groups and the suggested load cases.
+#include <gtest/gtest.h>
+
+#include "engine/direct/identifiability.h"
+#include "engine/examples/catalog.h"
+
+namespace springfit {
+namespace {
+
+// Three separate pieces, each with its free node held by fixed nodes:
+//  - nodes 0..3: node 3 hangs on three springs, so one load case (two equations at node 3)
+//    cannot tell three weights apart: one dependency among (0,3), (1,3), (2,3);
+//  - nodes 4..7: the same, shifted;
+//  - nodes 8..10: node 10 on two springs, which one load case does determine.
+// Springs between fixed nodes are candidates too: unidentifiable.
+Scene ThreePieces() {
+  Scene s;
+  s.name = "three-pieces";
+  s.dimension = 2;
+  const std::vector<std::array<double, 2>> xy = {{0, 0}, {2, 0}, {1, -1}, {1, 1},  {5, 0},  {7, 0},
+                                                 {6, -1}, {6, 1}, {10, 0}, {12, 0}, {11, 1}};
+  s.rest.resize(static_cast<Eigen::Index>(2 * xy.size()));
+  for (std::size_t i = 0; i < xy.size(); ++i) {
+    s.rest[static_cast<Eigen::Index>(2 * i)] = xy[i][0];
+    s.rest[static_cast<Eigen::Index>(2 * i + 1)] = xy[i][1];
+  }
+  s.candidates.kind = CandidateSpec::Kind::kPairs;
+  s.candidates.pairs = {{0, 1}, {0, 3}, {1, 3}, {2, 3}, {4, 7}, {5, 7}, {6, 7}, {8, 10}, {9, 10}};
+  s.reference.springs = {{0, 3}, {1, 3}, {2, 3}, {4, 7}, {5, 7}, {6, 7}, {8, 10}, {9, 10}};
+  s.reference.stiffness = {1.0};
+  LoadCase lc;
+  lc.name = "pull";
+  lc.fixed = {0, 1, 2, 4, 5, 6, 8, 9};
+  for (const int node : {3, 7, 10}) {
+    NodalLoad f;
+    f.nodes = {node};
+    f.value = Vector(2);
+    f.value << 0.02, 0.05;
+    lc.forces.push_back(f);
+  }
+  s.load_cases = {lc};
+  return s;
+}
+
+std::vector<NodePair> Pairs(std::initializer_list<std::pair<int, int>> list) {
+  std::vector<NodePair> out;
+  for (const auto& [a, b] : list) out.push_back({a, b});
+  return out;
+}
+
+TEST(Identifiability, FindsExactlyTheDependentGroupsOfAHandBuiltScene) {
+  const Problem problem = Problem::Build(ThreePieces());
+  const IdentifiabilityReport report = AnalyseIdentifiability(problem);
+  EXPECT_EQ(report.unidentifiable, Pairs({{0, 1}}));
+  EXPECT_TRUE(report.unseen.empty());
+  ASSERT_TRUE(report.groups_analysed);
+  EXPECT_EQ(report.rank, 6);  // 8 genes, 2 dependencies
+  ASSERT_EQ(report.groups.size(), 2u);
+  EXPECT_EQ(report.groups[0].springs, Pairs({{0, 3}, {1, 3}, {2, 3}}));
+  EXPECT_EQ(report.groups[1].springs, Pairs({{4, 7}, {5, 7}, {6, 7}}));
+  EXPECT_EQ(report.groups[0].dependencies, 1);
+
+  // The suggestion works: add the load case it describes and the group is gone.
+  ASSERT_TRUE(report.groups[0].suggestion);
+  const LoadSuggestion& s = *report.groups[0].suggestion;
+  EXPECT_EQ(s.node, 3);
+  EXPECT_EQ(s.separated, 1);
+  EXPECT_NE(s.text.find("node 3"), std::string::npos);
+  Scene fixed = ThreePieces();
+  LoadCase extra;
+  extra.fixed = fixed.load_cases[static_cast<std::size_t>(s.constraints_of)].fixed;
+  NodalLoad f;
+  f.nodes = {s.node};
+  f.value = Vector::Zero(2);
+  f.value[s.axis] = 0.05;
+  extra.forces = {f};
+  fixed.load_cases.push_back(extra);
+  const IdentifiabilityReport after = AnalyseIdentifiability(Problem::Build(fixed));
+  ASSERT_EQ(after.groups.size(), 1u);
+  EXPECT_EQ(after.groups[0].springs, Pairs({{4, 7}, {5, 7}, {6, 7}}));
+}
+
+TEST(Identifiability, TheExamplesAreFullyIdentifiable) {
+  for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d"}) {
+    const Problem problem = Problem::Build(examples::Make(name));
+    const IdentifiabilityReport report = AnalyseIdentifiability(problem);
+    EXPECT_TRUE(report.groups_analysed) << name;
+    EXPECT_TRUE(report.groups.empty()) << name;
+    EXPECT_TRUE(report.unseen.empty()) << name;
+    EXPECT_EQ(report.rank, problem.gene_count()) << name;
+  }
+}
+
+TEST(Identifiability, OneLoadCaseOnAGridLeavesGroupsWithSuggestions) {
+  Scene scene = examples::Make("paper-iso-5x5");
+  scene.load_cases.resize(1);  // only 'stretch +y'
+  const Problem problem = Problem::Build(scene);
+  const IdentifiabilityReport report = AnalyseIdentifiability(problem);
+  EXPECT_EQ(report.unidentifiable.size(), 4u);  // the bottom row, fixed in the only case
+  ASSERT_FALSE(report.groups.empty());
+  int dependencies = 0;
+  for (const DependentGroup& g : report.groups) {
+    dependencies += g.dependencies;
+    EXPECT_TRUE(g.suggestion) << "a group without a suggestion";
+  }
+  // Every seen gene is independent or in a group: rank + dependencies = seen genes.
+  EXPECT_EQ(report.rank + dependencies + static_cast<int>(report.unseen.size()), problem.gene_count());
+}
+
+}  // namespace
+}  // namespace springfit
