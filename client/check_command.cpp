@@ -23,7 +23,8 @@ void PrintIdentifiability(const IdentifiabilityReport& report) {
   if (!report.unseen.empty()) std::cout << " (no load case changes their length:" << PairList(report.unseen) << ")";
   std::cout << "\n";
   if (!report.groups_analysed) {
-    std::cout << "dependent groups:       not analysed (more than 1500 genes)\n";
+    std::cout << "dependent groups:       not analysed (more than " << IdentifiabilityOptions{}.max_genes
+              << " seen genes)\n";
     return;
   }
   std::cout << "dependent groups:       " << report.groups.size();

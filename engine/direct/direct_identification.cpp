@@ -21,12 +21,9 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
   auto start = std::chrono::steady_clock::now();
   const ForceBalance fb = AssembleForceBalance(problem);
   const int genes = problem.gene_count();
-  std::vector<bool> usable(genes, true);
+  const std::vector<bool> usable = SeenGenes(fb, options.unseen_strain);
   for (int g = 0; g < genes; ++g) {
-    if (fb.strain[g] < options.unseen_strain) {
-      usable[g] = false;
-      r.unseen.push_back(g);
-    }
+    if (!usable[g]) r.unseen.push_back(g);
   }
   r.assemble_seconds = SecondsSince(start);
 
@@ -53,7 +50,9 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
       if (!refinement.sigma.empty()) sigma = Eigen::Map<const Vector>(refinement.sigma.data(), genes);
     }
   }
-  if (!exact_data && !r.refined) sigma = WeightStandardErrors(fb.a, usable, variance, options.uncertainty_max_genes);
+  // Noisy data never go without standard errors when they can be had: the relative floor
+  // alone lets every spurious weight in.
+  if (!exact_data && !sigma) sigma = WeightStandardErrors(fb.a, usable, variance, options.uncertainty_max_genes);
   const double largest = genes > 0 ? *std::max_element(r.weights.begin(), r.weights.end()) : 0.0;
   const double floor = options.relative_threshold * largest;
   if (sigma) {

@@ -40,11 +40,12 @@ ForceBalance AssembleForceBalance(const Problem& problem, const std::vector<Vect
       const Vector sep = x.segment(d * pair.first, d) - x.segment(d * pair.second, d);
       const double length = sep.norm();
       const double stretch = length - geometry.rest_length[c];
+      const int fi = free.free_index[pair.first];
+      const int fj = free.free_index[pair.second];
+      if (fi < 0 && fj < 0) continue;  // no free node: no equation sees this spring here
       fb.strain[g] = std::max(fb.strain[g], std::abs(stretch) / geometry.rest_length[c]);
       if (stretch == 0.0 || length == 0.0) continue;
       const Vector force_on_first = (-stretch / length) * sep;  // per unit stiffness
-      const int fi = free.free_index[pair.first];
-      const int fj = free.free_index[pair.second];
       for (int a = 0; a < d; ++a) {
         if (fi >= 0) entries.emplace_back(row_offset[k] + d * fi + a, g, force_on_first[a]);
         if (fj >= 0) entries.emplace_back(row_offset[k] + d * fj + a, g, -force_on_first[a]);
@@ -56,6 +57,14 @@ ForceBalance AssembleForceBalance(const Problem& problem, const std::vector<Vect
   fb.a.makeCompressed();
   fb.row_offset = std::move(row_offset);
   return fb;
+}
+
+std::vector<bool> SeenGenes(const ForceBalance& fb, double unseen_strain) {
+  std::vector<bool> seen(fb.strain.size());
+  for (std::size_t g = 0; g < seen.size(); ++g) {
+    seen[g] = fb.strain[g] >= unseen_strain && fb.a.col(static_cast<Eigen::Index>(g)).norm() > 0.0;
+  }
+  return seen;
 }
 
 }  // namespace springfit

@@ -33,4 +33,9 @@ struct ForceBalance {
 // per unit stiffness there, what the equilibrium's sensitivity to that stiffness needs).
 ForceBalance AssembleForceBalance(const Problem& problem, const std::vector<Vector>* displacements = nullptr);
 
+// The genes some load case sees: strained by at least `unseen_strain` (relative) in a case
+// where one of its nodes is free, so that its column of A is not zero. The one rule for
+// strategy direct and the identifiability report.
+std::vector<bool> SeenGenes(const ForceBalance& fb, double unseen_strain);
+
 }  // namespace springfit

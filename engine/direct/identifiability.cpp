@@ -117,9 +117,10 @@ IdentifiabilityReport AnalyseIdentifiability(const Problem& problem, const Ident
   for (const int c : problem.unidentifiable()) report.unidentifiable.push_back(problem.candidates().pairs[c]);
   const ForceBalance fb = AssembleForceBalance(problem);
   std::vector<int> seen;
+  const std::vector<bool> is_seen = SeenGenes(fb, options.unseen_strain);
   for (int g = 0; g < problem.gene_count(); ++g) {
     const NodePair pair = problem.candidates().pairs[problem.gene_candidates()[g]];
-    if (fb.strain[g] < options.unseen_strain || fb.a.col(g).norm() == 0.0) {
+    if (!is_seen[g]) {
       report.unseen.push_back(pair);
     } else {
       seen.push_back(g);
@@ -184,7 +185,10 @@ IdentifiabilityReport AnalyseIdentifiability(const Problem& problem, const Ident
     lu.setThreshold(options.rank_tolerance);
     const Matrix null = lu.kernel();
     group.dependencies = lu.rank() == columns.cols() ? 0 : static_cast<int>(null.cols());
-    if (group.dependencies > 0) group.suggestion = SuggestLoad(problem, genes, null, options);
+    const auto size = static_cast<long long>(genes.size()) * group.dependencies;
+    if (group.dependencies > 0 && size <= options.max_suggestion_size) {
+      group.suggestion = SuggestLoad(problem, genes, null, options);
+    }
     report.groups.push_back(std::move(group));
   }
   return report;

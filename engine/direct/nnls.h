@@ -20,10 +20,12 @@
 namespace springfit {
 
 struct NnlsOptions {
-  // Pivoting rounds before giving up (the last feasible solution is returned). 0 = 10 + 3n.
+  // Pivoting rounds before giving up (the last iterate is returned, clipped at 0, with
+  // converged false). 0 = 10 + 3n.
   int max_iterations = 0;
-  // A variable counts as negative below -tolerance * (its scale), a gradient component as
-  // negative below -tolerance * |A^T b|_inf: relative, so that units do not matter.
+  // A variable counts as negative below -tolerance * max|x|, a gradient component as
+  // negative below -tolerance * |A^T b|_inf (both on unit-norm columns): relative, so that
+  // units do not matter.
   double tolerance = 1e-10;
   // Refinement steps after each normal-equations solve.
   int refinement_steps = 2;
@@ -33,7 +35,9 @@ struct NnlsOptions {
 
 struct NnlsResult {
   Vector x;                    // >= 0; 0 on columns not usable
-  bool converged = false;      // the optimality conditions hold within the tolerance
+  // The optimality conditions hold within the tolerance, and the least-squares solves on the
+  // positive set were accurate (false for a singular set the ridge could not resolve).
+  bool converged = false;
   int iterations = 0;          // pivoting rounds
   int factorizations = 0;
   double residual_norm = 0.0;  // |A x - b|

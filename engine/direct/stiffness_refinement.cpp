@@ -133,20 +133,30 @@ RefinementResult RefineWeights(const Problem& problem, const std::vector<double>
   for (int j = 0; j < genes; ++j) {
     if (usable[j]) columns.push_back(j);
   }
+  // Unit-norm columns, so that the regularity test does not depend on units (a stiff spring
+  // moves the nodes little per unit of weight: its column is short, not dependent).
   const auto m = static_cast<Eigen::Index>(columns.size());
   Matrix sub(jacobian.rows(), m);
-  for (Eigen::Index c = 0; c < m; ++c) sub.col(c) = jacobian.col(columns[static_cast<std::size_t>(c)]);
+  Vector norms(m);
+  bool zero_column = false;
+  for (Eigen::Index c = 0; c < m; ++c) {
+    sub.col(c) = jacobian.col(columns[static_cast<std::size_t>(c)]);
+    norms[c] = sub.col(c).norm();
+    zero_column = zero_column || !(norms[c] > 0.0);
+    if (norms[c] > 0.0) sub.col(c) /= norms[c];
+  }
+  if (zero_column || m == 0) return result;
   const Matrix normal = sub.transpose() * sub;
   Eigen::LDLT<Matrix> ldlt(normal);
   const Vector pivots = ldlt.vectorD();
-  const double scale = m > 0 ? std::max(normal.diagonal().maxCoeff(), 1e-300) : 1.0;
   bool regular = ldlt.info() == Eigen::Success;
-  for (Eigen::Index i = 0; i < m && regular; ++i) regular = pivots[i] > 1e-13 * scale;
+  for (Eigen::Index i = 0; i < m && regular; ++i) regular = pivots[i] > 1e-13;
   if (regular) {
     result.sigma.assign(genes, HUGE_VAL);
     const Matrix inverse = ldlt.solve(Matrix::Identity(m, m));
     for (Eigen::Index c = 0; c < m; ++c) {
-      result.sigma[columns[static_cast<std::size_t>(c)]] = std::sqrt(std::max(inverse(c, c), 0.0) * variance);
+      result.sigma[columns[static_cast<std::size_t>(c)]] =
+          std::sqrt(std::max(inverse(c, c), 0.0) * variance) / norms[c];
     }
   }
   return result;

@@ -44,7 +44,9 @@ void GeneticSearch::SeedInitialPopulation(std::vector<Genome> genomes, double el
     if (g.size() != genes) throw std::invalid_argument("GeneticSearch::SeedInitialPopulation: wrong genome size");
   }
   seeds_ = std::move(genomes);
+  // The earlier phases' time replaces whatever the clock counted since construction.
   elapsed_before_ = elapsed_seconds;
+  started_ = std::chrono::steady_clock::now();
 }
 
 Genome GeneticSearch::InitialGenome(int i) {
