@@ -6,6 +6,8 @@
 //                                 [--scenes a,b] [--strategies paper,default]
 //   build/bench/search_experiment --full-run paper-iso-5x5   (1000 generations, no early stop)
 //   build/bench/search_experiment --elites 1 ...            (a variant: strategies with N elites)
+//   build/bench/search_experiment --strategies paper,default,direct,hybrid --noise 0.01
+//        (noisy references: seed s also draws the noise; exactness against the clean scene)
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -17,6 +19,7 @@
 #include <CLI/CLI.hpp>
 
 #include "engine/examples/catalog.h"
+#include "engine/direct/run_direct.h"
 #include "engine/search/run_search.h"
 
 namespace springfit {
@@ -67,15 +70,18 @@ std::string Number(double x, const char* format = "%.3g") {
   return buf;
 }
 
-RunRecord RunOnce(const Problem& problem, Strategy strategy, std::uint64_t seed, int threads, double time_limit,
-                  int elites) {
+// `truth`: the problem whose reference topology judges exactness (the clean scene of a noisy
+// one; the problem itself otherwise).
+RunRecord RunOnce(const Problem& problem, const Problem& truth, Strategy strategy, std::uint64_t seed, int threads,
+                  double time_limit, int elites) {
   SearchOptions o = StrategyDefaults(strategy, problem.gene_count());
   o.seed = seed;
   if (elites >= 0) o.elites = elites;
   RunOptions run;
   run.threads = threads;
   run.on_generation = [&](const TraceRow& row, const GeneticSearch&) { return row.wall_seconds < time_limit; };
-  const SearchResult r = RunSearch(problem, o, run);
+  SearchResult r = strategy == Strategy::kDirect ? RunDirect(problem, o).search : RunSearch(problem, o, run);
+  r.difference = truth.CompareWithReference(r.best);
   RunRecord rec;
   rec.exact = r.exact().value_or(false);
   rec.generations = r.generations;
@@ -127,6 +133,7 @@ int Main(int argc, char** argv) {
   std::string scenes = "paper-iso-5x5,paper-aniso-5x5,kidney-2d,grid3d-4x4x4";
   std::string strategies = "paper,default";
   std::string full_run;
+  double noise = 0.0;
   app.add_option("--seeds", seeds)->capture_default_str();
   app.add_option("--threads", threads)->capture_default_str();
   app.add_option("--time-limit", time_limit, "Wall-time limit per run, seconds")->capture_default_str();
@@ -135,6 +142,7 @@ int Main(int argc, char** argv) {
   app.add_option("--elites", elites, "Override the strategies' elite count (a variant, not the strategy)");
   app.add_option("--full-run", full_run, "Time full 1000-generation runs of this scene instead");
   app.add_option("--repeats", repeats, "Runs per strategy for --full-run")->capture_default_str();
+  app.add_option("--noise", noise, "Noisy references: Gaussian noise of this fraction of the displacement (seed s draws it)");
   CLI11_PARSE(app, argc, argv);
   if (!full_run.empty()) {
     std::printf("| scene | strategy | threads | median | max | evaluations per run | cache hits |\n|---|---|---:|---:|---:|---:|---:|\n");
@@ -147,12 +155,23 @@ int Main(int argc, char** argv) {
               "time to exact (median / p90) | not exact: final error (median), missing + extra (median) |\n"
               "|---|---|---:|---:|---:|---:|---|\n");
   for (const std::string& scene : Split(scenes)) {
-    const Problem problem = Problem::Build(examples::Make(scene));
+    const Scene clean = examples::Make(scene);
+    const Problem truth = Problem::Build(clean);
+    std::vector<Problem> problems;  // per seed when noisy
+    if (noise > 0.0) {
+      for (int s = 1; s <= seeds; ++s) {
+        problems.push_back(Problem::Build(examples::WithMeasurementNoise(clean, noise, static_cast<std::uint64_t>(s))));
+      }
+    }
     for (const std::string& strategy_name : Split(strategies)) {
-      const Strategy strategy = strategy_name == "paper" ? Strategy::kPaper : Strategy::kDefault;
+      const Strategy strategy = strategy_name == "paper"    ? Strategy::kPaper
+                                : strategy_name == "direct" ? Strategy::kDirect
+                                : strategy_name == "hybrid" ? Strategy::kHybrid
+                                                            : Strategy::kDefault;
       std::vector<RunRecord> runs;
       for (int s = 1; s <= seeds; ++s) {
-        runs.push_back(RunOnce(problem, strategy, static_cast<std::uint64_t>(s), threads, time_limit, elites));
+        const Problem& problem = noise > 0.0 ? problems[static_cast<std::size_t>(s - 1)] : truth;
+        runs.push_back(RunOnce(problem, truth, strategy, static_cast<std::uint64_t>(s), threads, time_limit, elites));
         std::fprintf(stderr, "%s %s seed %d: exact %d, %d generations, %.3f s, e %.3g\n", scene.c_str(),
                      strategy_name.c_str(), s, runs.back().exact, runs.back().generations, runs.back().seconds,
                      runs.back().final_error);
