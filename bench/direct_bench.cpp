@@ -51,15 +51,9 @@ Row Measure(Scene scene, int repeats) {
   row.missing = difference ? static_cast<int>(difference->missing.size()) : -1;
   row.extra = difference ? static_cast<int>(difference->extra.size()) : -1;
   row.exact = difference && difference->hamming() == 0;
-  const Reference& ref = problem.scene().reference;
-  for (std::size_t s = 0; s < ref.springs.size(); ++s) {
-    const double k = ref.stiffness.size() == 1 ? ref.stiffness[0] : ref.stiffness[s];
-    const int c = problem.CandidateIndex(ref.springs[s]);
-    const auto& genes = problem.gene_candidates();
-    const auto it = std::lower_bound(genes.begin(), genes.end(), c);
-    if (it == genes.end() || *it != c) continue;  // unidentifiable
-    const double w = best.weights[static_cast<std::size_t>(it - genes.begin())];
-    row.stiffness_error = std::max(row.stiffness_error, std::abs(w - k) / k);
+  const std::vector<double> truth = problem.ReferenceWeights();
+  for (std::size_t g = 0; g < truth.size(); ++g) {
+    if (truth[g] > 0.0) row.stiffness_error = std::max(row.stiffness_error, std::abs(best.weights[g] - truth[g]) / truth[g]);
   }
   // Diagnostic: the smallest true weight and the largest weight of an absent spring, relative
   // to the largest weight: the room the topology threshold has.

@@ -125,7 +125,7 @@ void RegisterRun(CLI::App& app, int& exit_code) {
   auto* cmd = app.add_subcommand("run", "Identify the topology: run a search in this process");
   auto args = std::make_shared<RunArgs>();
   cmd->add_option("SCENE", args->scene, "Scene file (JSON, proto/SCENE.md)")->required();
-  cmd->add_option("--strategy", args->strategy, "Search strategy: default, paper, direct or hybrid (default: the scene's)");
+  cmd->add_option("--strategy", args->strategy, "Search strategy: " + proto::StrategyNames() + " (default: the scene's)");
   cmd->add_option("--seed", args->seed, "Random seed (default: the scene's, else 1)");
   cmd->add_option("--threads", args->threads, "Threads for the fitness evaluations (the result does not depend on it)")
       ->check(CLI::Range(1, 1024))

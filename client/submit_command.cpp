@@ -83,7 +83,7 @@ void RegisterSubmit(CLI::App& app, int& exit_code) {
   cmd->add_option("--label", args->label, "A label to find the job by (job.list --label)");
   cmd->add_option("--priority", args->priority, "Higher runs first (default 0)")->check(CLI::Range(-1000, 1000));
   cmd->add_option("--seed", args->seed, "Random seed (default: the scene's, else 1)");
-  cmd->add_option("--strategy", args->strategy, "Search strategy (default: the scene's)");
+  cmd->add_option("--strategy", args->strategy, "Search strategy: " + proto::StrategyNames() + " (default: the scene's)");
   cmd->add_option("--generations", args->generations, "Generation limit (default: the scene's, else 1000)")
       ->check(CLI::Range(1, 100000000));
   cmd->add_option("--idempotency-key", args->idempotency_key,

@@ -175,6 +175,21 @@ int Problem::CandidateIndex(NodePair pair) const {
   return static_cast<int>(it - candidates_.pairs.begin());
 }
 
+std::vector<double> Problem::ReferenceWeights() const {
+  const Reference& ref = scene_.reference;
+  if (ref.kind != Reference::Kind::kMss) return {};
+  std::vector<double> w(gene_candidate_.size(), 0.0);
+  for (std::size_t s = 0; s < ref.springs.size(); ++s) {
+    const NodePair ordered{std::min(ref.springs[s].first, ref.springs[s].second),
+                           std::max(ref.springs[s].first, ref.springs[s].second)};
+    const auto it = std::lower_bound(gene_candidate_.begin(), gene_candidate_.end(), CandidateIndex(ordered));
+    if (it != gene_candidate_.end() && *it == CandidateIndex(ordered)) {
+      w[static_cast<std::size_t>(it - gene_candidate_.begin())] = ref.stiffness.size() == 1 ? ref.stiffness[0] : ref.stiffness[s];
+    }
+  }
+  return w;
+}
+
 std::vector<std::uint8_t> Problem::MaskFromGenome(const Genome& genome) const {
   std::vector<std::uint8_t> mask(candidates_.size(), 0);
   for (std::size_t g = 0; g < gene_candidate_.size(); ++g) mask[gene_candidate_[g]] = genome[g];

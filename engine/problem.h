@@ -85,6 +85,9 @@ class Problem {
   ActiveSprings SpringsFromMask(const std::vector<std::uint8_t>& mask) const;
   // Index of candidate (i, j), or -1.
   int CandidateIndex(NodePair pair) const;
+  // Per gene, the reference's stiffness of that spring, 0 where the reference has none (what
+  // strategy direct should find). Empty for a positions reference.
+  std::vector<double> ReferenceWeights() const;
 
  private:
   Scene scene_;

@@ -204,12 +204,6 @@ Json VectorToJson(const Vector& v) {
   return a;
 }
 
-Json PairsToJson(const std::vector<NodePair>& pairs) {
-  Json a = Json::array();
-  for (const NodePair& p : pairs) a.push_back({p.first, p.second});
-  return a;
-}
-
 Json LoadsToJson(const std::vector<NodalLoad>& loads, const char* value_key) {
   Json a = Json::array();
   for (const NodalLoad& l : loads) {
@@ -229,6 +223,12 @@ Json LoadsToJson(const std::vector<NodalLoad>& loads, const char* value_key) {
 
 std::vector<NodePair> ReadNodePairs(const Json& v, const std::string& path) {
   return ReadArray<NodePair>(v, path, ReadPair);
+}
+
+Json PairsToJson(const std::vector<NodePair>& pairs) {
+  Json a = Json::array();
+  for (const NodePair& p : pairs) a.push_back({p.first, p.second});
+  return a;
 }
 
 Scene SceneFromJson(const Json& json) {

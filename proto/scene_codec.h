@@ -20,8 +20,9 @@ Scene LoadSceneFile(const std::string& path);
 // The scene as JSON: fields equal to their defaults are left out.
 Json SceneToJson(const Scene& scene);
 
-// An array of node pairs [[i, j], ...] as written (not reordered or range-checked).
+// An array of node pairs [[i, j], ...] as written (not reordered or range-checked), and back.
 std::vector<NodePair> ReadNodePairs(const Json& json, const std::string& path);
+Json PairsToJson(const std::vector<NodePair>& pairs);
 
 // Reads a whole file into a string; throws InputError when it cannot.
 std::string ReadFile(const std::string& path);

@@ -5,15 +5,10 @@
 
 #include "proto/evaluation_codec.h"
 #include "proto/names.h"
+#include "proto/scene_codec.h"
 
 namespace springfit::proto {
 namespace {
-
-Json PairsToJson(const std::vector<NodePair>& pairs) {
-  Json a = Json::array();
-  for (const NodePair& p : pairs) a.push_back({p.first, p.second});
-  return a;
-}
 
 // -1 (unknown) becomes null.
 Json CountOrNull(int count) { return count < 0 ? Json(nullptr) : Json(count); }

@@ -37,7 +37,7 @@ struct DirectOptions {
   // the threshold; its standard errors replace the force balance's.
   bool refine = true;
   RefinementOptions refinement;
-  double unseen_strain = 1e-12;      // relative length change below which a spring is unseen
+  double unseen_strain = kUnseenStrain;  // relative length change below which a spring is unseen
   NnlsOptions nnls;
 };
 

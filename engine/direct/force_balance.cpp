@@ -59,6 +59,22 @@ ForceBalance AssembleForceBalance(const Problem& problem, const std::vector<Vect
   return fb;
 }
 
+SparseMatrix SelectColumns(const SparseMatrix& a, const std::vector<int>& columns) {
+  SparseMatrix sub(a.rows(), static_cast<Eigen::Index>(columns.size()));
+  Eigen::VectorXi sizes(static_cast<Eigen::Index>(columns.size()));
+  for (std::size_t c = 0; c < columns.size(); ++c) {
+    sizes[static_cast<Eigen::Index>(c)] = static_cast<int>(a.col(columns[c]).nonZeros());
+  }
+  sub.reserve(sizes);
+  for (std::size_t c = 0; c < columns.size(); ++c) {
+    for (SparseMatrix::InnerIterator it(a, columns[c]); it; ++it) {
+      sub.insert(it.row(), static_cast<Eigen::Index>(c)) = it.value();
+    }
+  }
+  sub.makeCompressed();
+  return sub;
+}
+
 std::vector<bool> SeenGenes(const ForceBalance& fb, double unseen_strain) {
   std::vector<bool> seen(fb.strain.size());
   for (std::size_t g = 0; g < seen.size(); ++g) {

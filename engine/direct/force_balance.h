@@ -37,5 +37,10 @@ ForceBalance AssembleForceBalance(const Problem& problem, const std::vector<Vect
 // where one of its nodes is free, so that its column of A is not zero. The one rule for
 // strategy direct and the identifiability report.
 std::vector<bool> SeenGenes(const ForceBalance& fb, double unseen_strain);
+// The columns of `a` listed in `columns`, in that order, as a new matrix.
+SparseMatrix SelectColumns(const SparseMatrix& a, const std::vector<int>& columns);
+
+// The default `unseen_strain`: a relative length change at round-off.
+inline constexpr double kUnseenStrain = 1e-12;
 
 }  // namespace springfit

@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/direct/force_balance.h"
 #include "engine/problem.h"
 
 namespace springfit {
@@ -29,7 +30,7 @@ struct IdentifiabilityOptions {
   // A coefficient of a fundamental circuit below this (relative to its largest) is not part
   // of it.
   double circuit_tolerance = 1e-8;
-  double unseen_strain = 1e-12;   // as DirectOptions::unseen_strain
+  double unseen_strain = kUnseenStrain;
   // Dense QR of A over the seen genes (A has genes columns and a row per free coordinate and
   // load case): about 0.1 s at kidney-2d's 461 genes; larger scenes get no group analysis.
   int max_genes = 600;

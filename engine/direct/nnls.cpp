@@ -16,28 +16,11 @@ constexpr double kRidge = 1e-10;
 // to |A^T b|: refinement reaches about 1e-12 on healthy problems.
 constexpr double kSolveAccuracy = 1e-6;  // relative to the unit diagonal of the scaled normal matrix
 
-// The columns of `a` listed in `columns`, as a new matrix.
-SparseMatrix Columns(const SparseMatrix& a, const std::vector<int>& columns) {
-  SparseMatrix sub(a.rows(), static_cast<Eigen::Index>(columns.size()));
-  Eigen::VectorXi sizes(static_cast<Eigen::Index>(columns.size()));
-  for (std::size_t c = 0; c < columns.size(); ++c) {
-    sizes[static_cast<Eigen::Index>(c)] = static_cast<int>(a.col(columns[c]).nonZeros());
-  }
-  sub.reserve(sizes);
-  for (std::size_t c = 0; c < columns.size(); ++c) {
-    for (SparseMatrix::InnerIterator it(a, columns[c]); it; ++it) {
-      sub.insert(it.row(), static_cast<Eigen::Index>(c)) = it.value();
-    }
-  }
-  sub.makeCompressed();
-  return sub;
-}
-
 // The least-squares solution on the columns `free` (unconstrained), refined.
 Vector SolveOn(const SparseMatrix& a, const Vector& b, const std::vector<int>& free, int refinement_steps,
                int& factorizations) {
   if (free.empty()) return Vector();
-  const SparseMatrix sub = Columns(a, free);
+  const SparseMatrix sub = SelectColumns(a, free);
   const SparseMatrix normal = sub.transpose() * sub;
   // CHOLMOD's supernodal Cholesky (dense BLAS blocks) is many times faster than a simplicial
   // one on the fill of 3D meshes; dependent columns make the matrix semidefinite, where it

@@ -18,18 +18,13 @@ std::optional<Vector> WeightStandardErrors(const SparseMatrix& a, const std::vec
   if (columns.empty()) return sigma;
 
   // Unit-norm columns for the factorisation, as in the NNLS solve; scaled back at the end.
-  SparseMatrix sub(a.rows(), static_cast<Eigen::Index>(columns.size()));
   Vector scale(static_cast<Eigen::Index>(columns.size()));
-  std::vector<Eigen::Triplet<double>> entries;
   for (std::size_t c = 0; c < columns.size(); ++c) {
     const double norm = a.col(columns[c]).norm();
     if (!(norm > 0.0)) return std::nullopt;
     scale[static_cast<Eigen::Index>(c)] = 1.0 / norm;
-    for (SparseMatrix::InnerIterator it(a, columns[c]); it; ++it) {
-      entries.emplace_back(it.row(), static_cast<Eigen::Index>(c), it.value() / norm);
-    }
   }
-  sub.setFromTriplets(entries.begin(), entries.end());
+  const SparseMatrix sub = SelectColumns(a, columns) * scale.asDiagonal();
   const SparseMatrix normal = sub.transpose() * sub;
   Eigen::SimplicialLDLT<SparseMatrix> ldlt(normal);
   if (ldlt.info() != Eigen::Success) return std::nullopt;

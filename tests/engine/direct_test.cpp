@@ -14,23 +14,8 @@
 namespace springfit {
 namespace {
 
-// Per gene, the reference stiffness (0 for a spring the reference lacks).
-std::vector<double> ReferenceWeights(const Problem& problem) {
-  std::vector<double> w(problem.gene_count(), 0.0);
-  const Reference& ref = problem.scene().reference;
-  const auto& genes = problem.gene_candidates();
-  for (std::size_t s = 0; s < ref.springs.size(); ++s) {
-    const int c = problem.CandidateIndex(ref.springs[s]);
-    const auto it = std::lower_bound(genes.begin(), genes.end(), c);
-    if (it != genes.end() && *it == c) {
-      w[static_cast<std::size_t>(it - genes.begin())] = ref.stiffness.size() == 1 ? ref.stiffness[0] : ref.stiffness[s];
-    }
-  }
-  return w;
-}
-
 double MaxRelativeStiffnessError(const Problem& problem, const DirectResult& r) {
-  const std::vector<double> truth = ReferenceWeights(problem);
+  const std::vector<double> truth = problem.ReferenceWeights();
   double worst = 0.0;
   for (std::size_t g = 0; g < truth.size(); ++g) {
     if (truth[g] > 0.0) worst = std::max(worst, std::abs(r.weights[g] - truth[g]) / truth[g]);
@@ -41,7 +26,7 @@ double MaxRelativeStiffnessError(const Problem& problem, const DirectResult& r) 
 TEST(ForceBalance, TheReferenceStiffnessSolvesItExactly) {
   const Problem problem = Problem::Build(examples::ThinnedGrid({4, 4}, 3, 2.0));
   const ForceBalance fb = AssembleForceBalance(problem);
-  const std::vector<double> truth = ReferenceWeights(problem);
+  const std::vector<double> truth = problem.ReferenceWeights();
   const Vector w = Eigen::Map<const Vector>(truth.data(), static_cast<Eigen::Index>(truth.size()));
   // A w = b up to the reference equilibrium's own tolerance (relative to the loads).
   EXPECT_LT((fb.a * w - fb.b).norm(), 1e-9 * fb.b.norm());
