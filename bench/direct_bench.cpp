@@ -84,8 +84,7 @@ void Print(const Row& r) {
 }
 
 // Noise: `draws` noisy copies of an MSS example; how often direct finds the true topology.
-void MeasureNoise(const std::string& name, double fraction, int draws, const DirectOptions& options,
-                  int hybrid_generations) {
+void MeasureNoise(const std::string& name, double fraction, int draws, Identify identify, int hybrid_generations) {
   const Scene clean = examples::Make(name);
   const Problem truth = Problem::Build(clean);
   int exact = 0;
@@ -108,10 +107,12 @@ void MeasureNoise(const std::string& name, double fraction, int draws, const Dir
       error = result.evaluation.normalized_error;
       seconds += result.wall_seconds;
     } else {
-      const DirectResult r = IdentifyDirect(noisy, options);
+      DirectOptions o;
+      if (identify == Identify::kTopology) o.known_stiffness = noisy.training_stiffness();
+      const DirectResult r = IdentifyDirect(noisy, o);
       genome = r.genome;
       error = r.evaluation.normalized_error;
-      seconds += r.assemble_seconds + r.solve_seconds;
+      seconds += r.assemble_seconds + r.solve_seconds + r.evaluate_seconds;
     }
     const auto difference = truth.CompareWithReference(genome);
     exact += difference->hamming() == 0;
@@ -122,7 +123,9 @@ void MeasureNoise(const std::string& name, double fraction, int draws, const Dir
   const int median = wrong.empty() ? 0 : wrong[wrong.size() / 2];
   const int worst = wrong.empty() ? 0 : wrong.back();
   std::printf("| %s | %g | %s | %d / %d | %d | %d | %.2g | %.3f |\n", name.c_str(), fraction,
-              hybrid_generations > 0 ? ("hybrid, " + std::to_string(hybrid_generations) + " generations").c_str() : "direct",
+              hybrid_generations > 0 ? ("hybrid, " + std::to_string(hybrid_generations) + " generations").c_str()
+              : identify == Identify::kTopology ? "direct, topology"
+                                                : "direct, topology and stiffness",
               exact, draws, median, worst, worst_error, seconds / draws);
   std::fflush(stdout);
 }
@@ -152,8 +155,9 @@ int main(int argc, char** argv) {
                 "mean s |\n|---|---|---|---|---|---|---|---|\n");
     for (const double f : noise) {
       for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5"}) {
-        MeasureNoise(name, f, draws, DirectOptions{}, 0);
-        if (hybrid_generations > 0) MeasureNoise(name, f, draws, DirectOptions{}, hybrid_generations);
+        MeasureNoise(name, f, draws, Identify::kTopology, 0);
+        MeasureNoise(name, f, draws, Identify::kTopologyAndStiffness, 0);
+        if (hybrid_generations > 0) MeasureNoise(name, f, draws, Identify::kTopology, hybrid_generations);
       }
     }
     return 0;

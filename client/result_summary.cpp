@@ -28,6 +28,7 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
   out << "scene:             " << r.value("scene", std::string()) << "\n";
   if (r.contains("job_id")) out << "job:               " << r["job_id"].get<long long>() << " (" << r.value("state", std::string()) << ")\n";
   out << "strategy:          " << r.value("strategy", std::string()) << " (seed " << r.value("seed", std::uint64_t{0}) << ")\n";
+  if (r.contains("identify")) out << "identified:        " << r.value("identify", std::string()) << "\n";
   out << "stopped:           " << r.value("stop", std::string()) << " after " << r.value("generations", 0)
       << " generations (best found in generation " << r.value("best_generation", 0) << ")\n";
   out << "evaluations:       " << r.value("evaluations", 0LL) << " (" << r.value("cache_hits", 0LL) << " from the cache)\n";
@@ -45,6 +46,7 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
   } else {
     out << "reference:         topology unknown (positions reference, or springs outside the candidates)\n";
   }
+  if (r.contains("direct")) PrintPairs(out, "below threshold, kept so the model carries the loads", r["direct"]["added_to_carry"]);
 }
 
 void PrintResult(const proto::Json& result, bool as_json) {

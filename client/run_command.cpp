@@ -36,6 +36,7 @@ extern "C" void OnInterrupt(int signal) {
 struct RunArgs {
   std::string scene;
   std::optional<std::string> strategy;
+  std::optional<std::string> identify;
   std::optional<std::uint64_t> seed;
   int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   std::optional<int> generations;
@@ -72,6 +73,7 @@ int Run(const RunArgs& args) {
   Scene scene = proto::LoadSceneFile(args.scene);
   SearchSettings& st = scene.search;
   if (args.strategy) st.strategy = proto::StrategyFromName(*args.strategy, "--strategy");
+  if (args.identify) st.identify = proto::IdentifyFromName(*args.identify, "--identify");
   if (args.seed) st.seed = *args.seed;
   if (args.generations) st.max_generations = *args.generations;
   if (args.population) st.population = *args.population;
@@ -126,6 +128,8 @@ void RegisterRun(CLI::App& app, int& exit_code) {
   auto args = std::make_shared<RunArgs>();
   cmd->add_option("SCENE", args->scene, "Scene file (JSON, proto/SCENE.md)")->required();
   cmd->add_option("--strategy", args->strategy, "Search strategy: " + proto::StrategyNames() + " (default: the scene's)");
+  cmd->add_option("--identify", args->identify,
+                  "What to identify: topology or topology_and_stiffness (direct only; default: the scene's, else topology_and_stiffness for direct, topology otherwise)");
   cmd->add_option("--seed", args->seed, "Random seed (default: the scene's, else 1)");
   cmd->add_option("--threads", args->threads, "Threads for the fitness evaluations (the result does not depend on it)")
       ->check(CLI::Range(1, 1024))

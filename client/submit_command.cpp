@@ -22,6 +22,7 @@ struct SubmitArgs {
   int priority = 0;
   std::optional<std::uint64_t> seed;
   std::optional<std::string> strategy;
+  std::optional<std::string> identify;
   std::optional<int> generations;
   std::string idempotency_key;
   bool wait = false;
@@ -32,10 +33,11 @@ struct SubmitArgs {
 int Submit(const SubmitArgs& args) {
   Json scene = proto::ParseJson(proto::ReadFile(args.scene));
   if (!scene.is_object()) throw InputError("", "a scene is a JSON object (proto/SCENE.md)");
-  if (args.strategy || args.generations) {
+  if (args.strategy || args.identify || args.generations) {
     Json& search = scene["search"];
     if (search.is_null()) search = Json::object();
     if (args.strategy) search["strategy"] = proto::StrategyName(proto::StrategyFromName(*args.strategy, "--strategy"));
+    if (args.identify) search["identify"] = proto::IdentifyName(proto::IdentifyFromName(*args.identify, "--identify"));
     if (args.generations) search["max_generations"] = *args.generations;
   }
   Json params;
@@ -84,6 +86,8 @@ void RegisterSubmit(CLI::App& app, int& exit_code) {
   cmd->add_option("--priority", args->priority, "Higher runs first (default 0)")->check(CLI::Range(-1000, 1000));
   cmd->add_option("--seed", args->seed, "Random seed (default: the scene's, else 1)");
   cmd->add_option("--strategy", args->strategy, "Search strategy: " + proto::StrategyNames() + " (default: the scene's)");
+  cmd->add_option("--identify", args->identify,
+                  "What to identify: topology or topology_and_stiffness (direct only; default: the scene's, else topology_and_stiffness for direct, topology otherwise)");
   cmd->add_option("--generations", args->generations, "Generation limit (default: the scene's, else 1000)")
       ->check(CLI::Range(1, 100000000));
   cmd->add_option("--idempotency-key", args->idempotency_key,

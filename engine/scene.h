@@ -77,10 +77,18 @@ enum class Strategy {
   kHybrid,   // direct, then the default GA seeded with its topology
 };
 
+// What an identification finds (proto/SCENE.md, "search.identify").
+enum class Identify {
+  kTopology,              // which springs: every spring has the training stiffness (the paper)
+  kTopologyAndStiffness,  // which springs and each one's stiffness (strategy direct only)
+};
+
 // Settings of the topology search (DESIGN.md §1). An unset GA parameter takes the chosen
 // strategy's default (engine/search/search_options.h).
 struct SearchSettings {
   Strategy strategy = Strategy::kDefault;
+  // nullopt: topology and stiffness for strategy direct, topology for the others.
+  std::optional<Identify> identify;
   std::uint64_t seed = 1;
   std::optional<int> population;                // individuals per generation, >= 2
   std::optional<double> crossover_probability;  // in [0, 1]

@@ -239,6 +239,13 @@ void CheckLoadCases(const Scene& s) {
 }
 
 void CheckSearch(const SearchSettings& s) {
+  if (s.identify == Identify::kTopologyAndStiffness && s.strategy != Strategy::kDirect) {
+    // The genetic strategies compare topologies whose springs all have the training
+    // stiffness; they have nothing to say about each spring's stiffness.
+    throw InputError("search.identify",
+                     "topology_and_stiffness needs strategy direct (paper, default and hybrid identify the "
+                     "topology with the one training stiffness)");
+  }
   if (s.population && *s.population < 2) {
     throw InputError("search.population", "must be >= 2, got " + std::to_string(*s.population));
   }

@@ -68,6 +68,17 @@ Strategy StrategyFromName(const std::string& name, const std::string& path) {
   return *strategy;
 }
 
+std::string_view IdentifyName(Identify identify) {
+  return identify == Identify::kTopology ? "topology" : "topology_and_stiffness";
+}
+
+Identify IdentifyFromName(const std::string& name, const std::string& path) {
+  for (Identify i : {Identify::kTopology, Identify::kTopologyAndStiffness}) {
+    if (IdentifyName(i) == name) return i;
+  }
+  throw InputError(path, "unknown value '" + name + "' (expected topology or topology_and_stiffness)");
+}
+
 std::string_view StopReasonName(StopReason reason) {
   switch (reason) {
     case StopReason::kTargetReached: return "target_reached";

@@ -27,6 +27,11 @@ std::optional<Strategy> ParseStrategy(std::string_view name);
 Strategy StrategyFromName(const std::string& name, const std::string& path);
 std::string_view StopReasonName(StopReason reason);
 
+// What an identification finds (proto/SCENE.md, "search.identify").
+std::string_view IdentifyName(Identify identify);
+// InputError(path, "unknown value 'x' (expected topology or topology_and_stiffness)").
+Identify IdentifyFromName(const std::string& name, const std::string& path);
+
 // "default, paper, direct or hybrid": the accepted names, for messages.
 std::string StrategyNames();
 std::vector<Strategy> AllStrategies();

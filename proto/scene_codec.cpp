@@ -169,10 +169,13 @@ void ReadLoadCases(const Json& v, Scene& s) {
 
 void ReadSearch(const Json& v, SearchSettings& st) {
   const std::string path = "search";
-  ExpectKeys(v, path, {"strategy", "seed", "population", "crossover_probability",
+  ExpectKeys(v, path, {"strategy", "identify", "seed", "population", "crossover_probability",
                        "mutation_probability", "max_generations", "target_normalized_error"});
   if (v.contains("strategy")) {
     st.strategy = StrategyFromName(ReadString(v["strategy"], JoinPath(path, "strategy")), JoinPath(path, "strategy"));
+  }
+  if (v.contains("identify")) {
+    st.identify = IdentifyFromName(ReadString(v["identify"], JoinPath(path, "identify")), JoinPath(path, "identify"));
   }
   if (v.contains("seed")) st.seed = ReadUint64(v["seed"], JoinPath(path, "seed"));
   if (v.contains("population")) st.population = ReadInt(v["population"], JoinPath(path, "population"));
@@ -320,6 +323,7 @@ Json SceneToJson(const Scene& s) {
   const SearchSettings& d = defaults.search;
   Json sj = Json::object();
   if (st.strategy != d.strategy) sj["strategy"] = StrategyName(st.strategy);
+  if (st.identify) sj["identify"] = IdentifyName(*st.identify);
   if (st.seed != d.seed) sj["seed"] = st.seed;
   if (st.population) sj["population"] = *st.population;
   if (st.crossover_probability) sj["crossover_probability"] = *st.crossover_probability;

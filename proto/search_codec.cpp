@@ -92,6 +92,7 @@ Json SearchResultToJson(const Problem& problem, const SearchResult& r, bool with
   Json j;
   j["scene"] = problem.scene().name;
   j["strategy"] = StrategyName(r.options.strategy);
+  j["identify"] = IdentifyName(r.options.identify);
   j["seed"] = r.options.seed;
   j["stop"] = StopReasonName(r.stop);
   if (const auto exact = r.exact()) {
@@ -167,6 +168,10 @@ Json DirectRunToJson(const Problem& problem, const DirectRun& run, bool with_tra
   direct["nnls_pivots"] = d.nnls.iterations;
   direct["refined"] = d.refined;
   direct["refinement_iterations"] = d.refinement_iterations;
+  direct["topology_threshold"] = d.topology_threshold > 0.0 ? Json(d.topology_threshold) : Json(nullptr);
+  std::vector<NodePair> added;
+  for (const int g : d.added_to_carry) added.push_back(problem.candidates().pairs[problem.gene_candidates()[g]]);
+  direct["added_to_carry"] = PairsToJson(added);
   std::vector<NodePair> unseen;
   for (const int g : d.unseen) unseen.push_back(problem.candidates().pairs[problem.gene_candidates()[g]]);
   direct["unseen"] = PairsToJson(unseen);

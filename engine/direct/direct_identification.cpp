@@ -14,6 +14,141 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+// The threshold splitting `weights` into an absent group, scored by its squared distance
+// from 0, and a present group, scored by its squared deviation from its mean, with the least
+// total: midway between the largest absent and the smallest present weight.
+double TwoGroupThreshold(std::vector<double> weights) {
+  if (weights.empty()) return 0.0;
+  std::sort(weights.begin(), weights.end());
+  const auto n = weights.size();
+  double sum = 0.0;
+  double squares = 0.0;
+  for (double w : weights) {
+    sum += w;
+    squares += w * w;
+  }
+  // Split i: weights[0, i) absent, [i, n) present. The absent cost (their squares) and the
+  // present one (their squares minus their sum squared over their count) add up to all the
+  // squares minus the present sum squared over the present count.
+  std::size_t best = n;
+  double best_cost = squares;
+  double below_sum = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double above_sum = sum - below_sum;
+    const double split_cost = squares - above_sum * above_sum / static_cast<double>(n - i);
+    if (split_cost < best_cost) {
+      best_cost = split_cost;
+      best = i;
+    }
+    below_sum += weights[i];
+  }
+  if (best == n) return weights.back();
+  if (best == 0) return weights.front() / 2.0;
+  return (weights[best - 1] + weights[best]) / 2.0;
+}
+
+// One way of reading the weights: thresholded, completed to carry the loads, evaluated.
+struct Reading {
+  std::vector<double> weights;
+  std::optional<Vector> sigma;
+  double topology_threshold = 0.0;
+  Genome genome;
+  std::vector<double> confidence;
+  std::vector<int> added_to_carry;
+  ActiveSprings springs;
+  Evaluation evaluation;
+};
+
+class WeightReader {
+ public:
+  WeightReader(const Problem& problem, const std::vector<bool>& usable, const DirectOptions& options, bool exact_data)
+      : problem_(problem), usable_(usable), options_(options), exact_data_(exact_data), cost_(problem) {}
+
+  Reading Read(std::vector<double> weights, std::optional<Vector> sigma) {
+    Reading r;
+    r.weights = std::move(weights);
+    r.sigma = std::move(sigma);
+    Threshold(r);
+    r.springs = ModelOf(r.genome, r.weights);
+    r.evaluation = cost_.Evaluate(r.springs);
+    if (options_.carry_loads && r.evaluation.mechanism) CarryLoads(r);
+    return r;
+  }
+
+ private:
+  bool TopologyOnly() const { return options_.known_stiffness.has_value(); }
+
+  void Threshold(Reading& r) const {
+    const int genes = problem_.gene_count();
+    const double largest = genes > 0 ? *std::max_element(r.weights.begin(), r.weights.end()) : 0.0;
+    const double floor = options_.relative_threshold * largest;
+    if (TopologyOnly() && !exact_data_) {
+      std::vector<double> seen;
+      for (int g = 0; g < genes; ++g) {
+        if (usable_[g]) seen.push_back(r.weights[g]);
+      }
+      r.topology_threshold = TwoGroupThreshold(std::move(seen));
+    }
+    if (r.sigma) r.confidence.assign(genes, std::numeric_limits<double>::quiet_NaN());
+    r.genome.assign(genes, 0);
+    for (int g = 0; g < genes; ++g) {
+      if (!usable_[g]) continue;
+      double threshold = std::max(floor, r.topology_threshold);
+      if (r.sigma) {
+        const double s = (*r.sigma)[g];
+        if (!TopologyOnly()) threshold = std::max(floor, options_.significance * s);
+        r.confidence[g] = s > 0.0 ? (r.weights[g] - threshold) / s : (r.weights[g] > threshold ? HUGE_VAL : -HUGE_VAL);
+      }
+      if (largest > 0.0 && r.weights[g] > threshold) r.genome[g] = 1;
+    }
+  }
+
+  ActiveSprings ModelOf(const Genome& genome, const std::vector<double>& weights) const {
+    ActiveSprings model;
+    for (int g = 0; g < problem_.gene_count(); ++g) {
+      if (!genome[g]) continue;
+      model.index.push_back(problem_.gene_candidates()[g]);
+      model.stiffness.push_back(TopologyOnly() ? *options_.known_stiffness : weights[g]);
+    }
+    return model;
+  }
+
+  // Below-threshold genes by decreasing weight: the shortest prefix that carries the loads.
+  void CarryLoads(Reading& r) {
+    std::vector<int> order;
+    for (int g = 0; g < problem_.gene_count(); ++g) {
+      if (usable_[g] && !r.genome[g] && r.weights[g] > 0.0) order.push_back(g);
+    }
+    std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return r.weights[a] > r.weights[b]; });
+    const auto with_prefix = [&](std::size_t count) {
+      Genome genome = r.genome;
+      for (std::size_t i = 0; i < count; ++i) genome[order[i]] = 1;
+      return genome;
+    };
+    const auto carries = [&](std::size_t count) {
+      return !cost_.Evaluate(ModelOf(with_prefix(count), r.weights)).mechanism;
+    };
+    if (!carries(order.size())) return;
+    std::size_t enough = order.size();
+    std::size_t too_few = 0;
+    while (enough - too_few > 1) {
+      const std::size_t mid = too_few + (enough - too_few) / 2;
+      (carries(mid) ? enough : too_few) = mid;
+    }
+    r.added_to_carry.assign(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(enough));
+    std::sort(r.added_to_carry.begin(), r.added_to_carry.end());
+    r.genome = with_prefix(enough);
+    r.springs = ModelOf(r.genome, r.weights);
+    r.evaluation = cost_.Evaluate(r.springs);
+  }
+
+  const Problem& problem_;
+  const std::vector<bool>& usable_;
+  const DirectOptions& options_;
+  bool exact_data_;
+  CostFunction cost_;
+};
+
 }  // namespace
 
 DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options) {
@@ -29,10 +164,10 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
 
   start = std::chrono::steady_clock::now();
   r.nnls = SolveNnls(fb.a, fb.b, usable, options.nnls);
-  r.weights.assign(r.nnls.x.data(), r.nnls.x.data() + r.nnls.x.size());
+  std::vector<double> nnls_weights(r.nnls.x.data(), r.nnls.x.data() + r.nnls.x.size());
   // The residual variance over the degrees of freedom left by the positive weights.
   int positive = 0;
-  for (int g = 0; g < genes; ++g) positive += r.weights[g] > 0.0;
+  for (int g = 0; g < genes; ++g) positive += nnls_weights[g] > 0.0;
   const double dof = std::max<double>(static_cast<double>(fb.a.rows()) - positive, 1.0);
   const double variance = (fb.a * r.nnls.x - fb.b).squaredNorm() / dof;
   // Exact data (an MSS reference: the force balance holds to round-off) needs no standard
@@ -40,49 +175,47 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
   // one solve per gene, several times the identification itself.
   const double b_norm = std::max(fb.b.norm(), 1e-300);
   const bool exact_data = (fb.a * r.nnls.x - fb.b).norm() <= options.exact_data_residual * b_norm;
-  std::optional<Vector> sigma;
-  if (!exact_data && options.refine) {
-    const RefinementResult refinement = RefineWeights(problem, r.weights, usable, options.refinement);
-    if (refinement.refined) {
-      r.refined = true;
-      r.refinement_iterations = refinement.iterations;
-      r.weights = refinement.weights;
-      if (!refinement.sigma.empty()) sigma = Eigen::Map<const Vector>(refinement.sigma.data(), genes);
-    }
-  }
-  // Noisy data never go without standard errors when they can be had: the relative floor
-  // alone lets every spurious weight in.
-  if (!exact_data && !sigma) sigma = WeightStandardErrors(fb.a, usable, variance, options.uncertainty_max_genes);
-  const double largest = genes > 0 ? *std::max_element(r.weights.begin(), r.weights.end()) : 0.0;
-  const double floor = options.relative_threshold * largest;
-  if (sigma) {
-    r.sigma.assign(sigma->data(), sigma->data() + sigma->size());
-    r.confidence.assign(genes, std::numeric_limits<double>::quiet_NaN());
-  }
-  r.genome.assign(genes, 0);
-  Vector kept = Vector::Zero(genes);
-  for (int g = 0; g < genes; ++g) {
-    if (!usable[g]) continue;
-    double threshold = floor;
-    if (sigma) {
-      const double s = (*sigma)[g];
-      threshold = std::max(floor, options.significance * s);
-      r.confidence[g] = s > 0.0 ? (r.weights[g] - threshold) / s : (r.weights[g] > threshold ? HUGE_VAL : -HUGE_VAL);
-    }
-    if (largest > 0.0 && r.weights[g] > threshold) {
-      r.genome[g] = 1;
-      kept[g] = r.weights[g];
-      r.springs.index.push_back(problem.gene_candidates()[g]);
-      r.springs.stiffness.push_back(r.weights[g]);
-    }
-  }
-  r.force_residual = (fb.a * kept - fb.b).norm() / b_norm;
   r.nnls_residual = (fb.a * r.nnls.x - fb.b).norm() / b_norm;
+  std::optional<RefinementResult> refinement;
+  if (!exact_data && options.refine) {
+    refinement = RefineWeights(problem, nnls_weights, usable, options.refinement);
+    if (!refinement->refined) refinement.reset();
+  }
   r.solve_seconds = SecondsSince(start);
 
   start = std::chrono::steady_clock::now();
-  CostFunction cost(problem);
-  r.evaluation = cost.Evaluate(r.springs);
+  WeightReader reader(problem, usable, options, exact_data);
+  // Noisy data never go without standard errors when they can be had: the relative floor
+  // alone lets every spurious weight in.
+  std::optional<Vector> nnls_sigma;
+  if (!exact_data) nnls_sigma = WeightStandardErrors(fb.a, usable, variance, options.uncertainty_max_genes);
+  Reading reading = reader.Read(std::move(nnls_weights), std::move(nnls_sigma));
+  if (refinement) {
+    // The refined weights fit the displacements, but from a poor start the fit can drift to
+    // a worse topology than the force balance's: the lower displacement cost decides.
+    std::optional<Vector> sigma;
+    if (!refinement->sigma.empty()) sigma = Eigen::Map<const Vector>(refinement->sigma.data(), genes);
+    if (!sigma) sigma = reading.sigma;
+    Reading refined = reader.Read(refinement->weights, std::move(sigma));
+    if (!(reading.evaluation.cost < refined.evaluation.cost)) {
+      reading = std::move(refined);
+      r.refined = true;
+      r.refinement_iterations = refinement->iterations;
+    }
+  }
+  r.weights = std::move(reading.weights);
+  if (reading.sigma) r.sigma.assign(reading.sigma->data(), reading.sigma->data() + reading.sigma->size());
+  r.confidence = std::move(reading.confidence);
+  r.topology_threshold = reading.topology_threshold;
+  r.genome = std::move(reading.genome);
+  r.added_to_carry = std::move(reading.added_to_carry);
+  r.springs = std::move(reading.springs);
+  r.evaluation = std::move(reading.evaluation);
+  Vector kept = Vector::Zero(genes);
+  for (std::size_t i = 0, g = 0; g < static_cast<std::size_t>(genes); ++g) {
+    if (r.genome[g]) kept[static_cast<Eigen::Index>(g)] = r.springs.stiffness[i++];
+  }
+  r.force_residual = (fb.a * kept - fb.b).norm() / b_norm;
   r.evaluate_seconds = SecondsSince(start);
   return r;
 }

@@ -14,9 +14,23 @@
 // genes (one solve per gene) whose data is not exact; for exact data, beyond that size, or
 // when columns are dependent, only the first term applies and confidences are unknown.
 //
+// Topology only (`known_stiffness` set: the paper's setting, every spring of the model has
+// that stiffness): the weights only decide which springs are present. Noisy weights of
+// present springs then gather around one value, and absent ones around 0: the threshold is
+// the split of the weights into those two groups with least squared deviation (the absent
+// group's centre held at 0), which needs no standard errors and is blind to the shrinking of
+// noisy force-balance weights (stiffness_refinement.h). For exact data the relative floor
+// applies as above. Kept springs get the known stiffness.
+//
+// The model must carry the loads: when the thresholded topology is a mechanism in some load
+// case (noise pushed a needed spring under its threshold), springs below the threshold are
+// added back in order of decreasing weight, the fewest that make every load case carry
+// (adding a spring never makes a mechanism, so the count is found by bisection).
+//
 // A spring no load case stretches or compresses (strain below `unseen_strain` in every case)
 // has a zero column: its weight is not determined, it is left out and reported.
 #pragma once
+#include <optional>
 #include <vector>
 
 #include "engine/cost.h"
@@ -38,6 +52,9 @@ struct DirectOptions {
   bool refine = true;
   RefinementOptions refinement;
   double unseen_strain = kUnseenStrain;  // relative length change below which a spring is unseen
+  // Topology only: the stiffness of every spring (> 0). nullopt: per-spring stiffness.
+  std::optional<double> known_stiffness;
+  bool carry_loads = true;  // add springs back until the model carries every load case
   NnlsOptions nnls;
 };
 
@@ -49,7 +66,12 @@ struct DirectResult {
   // (w - threshold) / sigma; NaN for unseen genes.
   std::vector<double> sigma;
   std::vector<double> confidence;
-  ActiveSprings springs;        // the identified model: candidate indices and stiffness (= weight)
+  // Topology only, noisy data: the weight splitting present from absent springs (0 otherwise).
+  double topology_threshold = 0.0;
+  // Genes below their threshold added back so that the model carries the loads.
+  std::vector<int> added_to_carry;
+  // The identified model: candidate indices and stiffness (the weight, or the known stiffness).
+  ActiveSprings springs;
   // |A w - b| / |b| for the identified model's weights (thresholded), and of the NNLS
   // solution itself: how well the force balance holds.
   double force_residual = 0.0;

@@ -10,7 +10,9 @@ DirectRun RunDirect(const Problem& problem, const SearchOptions& options, const 
   SearchResult& r = run.search;
   r.identifiability = AnalyseIdentifiability(problem);  // before the clock, as for the GAs
   const auto start = std::chrono::steady_clock::now();
-  run.direct = IdentifyDirect(problem, direct_options);
+  DirectOptions resolved = direct_options;
+  if (options.identify == Identify::kTopology) resolved.known_stiffness = problem.training_stiffness();
+  run.direct = IdentifyDirect(problem, resolved);
   r.options = options;
   r.best = run.direct.genome;
   r.springs = problem.SpringsOfGenome(r.best);

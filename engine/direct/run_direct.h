@@ -12,6 +12,8 @@ struct DirectRun {
   DirectResult direct;
 };
 
+// `options.identify` decides whether the stiffness is known (DirectOptions::known_stiffness,
+// the training stiffness) or identified per spring.
 DirectRun RunDirect(const Problem& problem, const SearchOptions& options, const DirectOptions& direct = {});
 
 }  // namespace springfit

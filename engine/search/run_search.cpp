@@ -33,7 +33,10 @@ SearchResult RunSearch(const Problem& problem, const SearchOptions& options, con
     if (options.strategy == Strategy::kHybrid) {
       // The direct identification seeds the GA; its time starts the trace's clock.
       const auto start = std::chrono::steady_clock::now();
-      const DirectResult direct = IdentifyDirect(problem);
+      // The GA's models have the training stiffness: the direct phase identifies topology only.
+      DirectOptions direct_options;
+      direct_options.known_stiffness = problem.training_stiffness();
+      const DirectResult direct = IdentifyDirect(problem, direct_options);
       SearchResult::DirectPhase phase;
       phase.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       phase.normalized_error = evaluator.EvaluateInDetail(direct.genome).normalized_error;

@@ -36,6 +36,7 @@ struct SearchOptions {
   enum class Crossover { kOnePoint, kUniform };
 
   Strategy strategy = Strategy::kPaper;
+  Identify identify = Identify::kTopology;
   std::uint64_t seed = 1;
   int population = 20;
   int max_generations = 1000;           // generations bred after the initial population
