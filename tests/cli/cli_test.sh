@@ -120,6 +120,19 @@ assert len(r["confidence"]) == len(r["springs"]) and min(r["confidence"]) > 0, r
 PY
 expect_exit 64 "example noise out of range" "$sf" example paper-iso-5x5 --noise 2
 
+# --identify topology: every spring at the training stiffness; a GA cannot identify stiffness.
+expect_exit 0 "run direct topology" "$sf" run "$tmp/noisy.json" --strategy direct --identify topology --json
+python3 - "$tmp/out" <<'PY' || fail "direct topology only"
+import json, sys
+r = json.load(open(sys.argv[1]))
+assert r["identify"] == "topology" and set(r["stiffness"]) == {1.0}, (r["identify"], set(r["stiffness"]))
+assert r["direct"]["topology_threshold"] > 0 and r["direct"]["added_to_carry"] == [] and not r["mechanism"]
+PY
+expect_exit 2 "identify stiffness with a GA" "$sf" run "$tmp/noisy.json" --strategy default --identify topology_and_stiffness
+grep -q "search.identify: topology_and_stiffness needs strategy direct" "$tmp/err" || fail "names the field: $(cat "$tmp/err")"
+expect_exit 2 "identify unknown" "$sf" run "$tmp/noisy.json" --identify shape
+grep -q -- "--identify: unknown value 'shape'" "$tmp/err" || fail "names the option: $(cat "$tmp/err")"
+
 # render and plot: SVG files from result files; the wrong springs are drawn one line each.
 expect_exit 0 "render exact" "$sf" render "$tmp/result.json" -o "$tmp/exact.svg"
 "$sf" run "$src/examples/paper-iso-5x5.json" --strategy paper --generations 5 -q -o "$tmp/short.json" >/dev/null

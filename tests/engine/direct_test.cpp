@@ -9,6 +9,7 @@
 #include "engine/direct/nnls.h"
 #include "engine/direct/run_direct.h"
 #include "engine/examples/catalog.h"
+#include "engine/input_error.h"
 #include "tests/test_scenes.h"
 
 namespace springfit {
@@ -174,6 +175,108 @@ TEST(Direct, RefinementByTheDisplacementCostUndoesTheNoiseShrinkage) {
   EXPECT_LT(refined.evaluation.cost, nnls.evaluation.cost);
   // Exact data is not refined.
   EXPECT_FALSE(IdentifyDirect(truth).refined);
+}
+
+TEST(Direct, KnowingTheStiffnessFindsTheTopologyUnderMoreNoise) {
+  // 1% noise on paper-iso-5x5: per-spring stiffness misses springs, the known training
+  // stiffness splits the weights into present and absent ones correctly.
+  const Scene clean = examples::Make("paper-iso-5x5");
+  const Problem truth = Problem::Build(clean);
+  const Problem problem = Problem::Build(examples::WithMeasurementNoise(clean, 0.01, 1));
+  const DirectResult per_spring = IdentifyDirect(problem);
+  DirectOptions known;
+  known.known_stiffness = problem.training_stiffness();
+  const DirectResult topology = IdentifyDirect(problem, known);
+  EXPECT_GT(truth.CompareWithReference(per_spring.genome)->hamming(), 0);
+  EXPECT_EQ(truth.CompareWithReference(topology.genome)->hamming(), 0);
+  EXPECT_GT(topology.topology_threshold, 0.0);
+  EXPECT_EQ(per_spring.topology_threshold, 0.0);
+  for (const double k : topology.springs.stiffness) EXPECT_EQ(k, problem.training_stiffness());
+  for (int g = 0; g < problem.gene_count(); ++g) {
+    EXPECT_EQ(topology.genome[g] == 1, topology.weights[g] > topology.topology_threshold) << g;
+  }
+
+  // Exact data: the topology alone, at the training stiffness, without a split.
+  known.known_stiffness = 2.0;  // not the reference's 1: the topology is still exact
+  const DirectResult exact = IdentifyDirect(truth, known);
+  EXPECT_EQ(truth.CompareWithReference(exact.genome)->hamming(), 0);
+  EXPECT_EQ(exact.topology_threshold, 0.0);
+  for (const double k : exact.springs.stiffness) EXPECT_EQ(k, 2.0);
+}
+
+TEST(Direct, SceneIdentifySettingChoosesWhatRunDirectFinds) {
+  Scene scene = examples::Make("stiff-2d");  // per-spring reference stiffness
+  scene.search.strategy = Strategy::kDirect;
+  const Problem both = Problem::Build(scene);
+  const DirectRun per_spring = RunDirect(both, ResolveSearchOptions(both.scene().search, both.gene_count()));
+  EXPECT_EQ(per_spring.search.options.identify, Identify::kTopologyAndStiffness);  // direct's default
+  EXPECT_TRUE(per_spring.search.exact());
+  EXPECT_LT(per_spring.search.evaluation.normalized_error, 1e-12);
+
+  scene.search.identify = Identify::kTopology;
+  const Problem topology_only = Problem::Build(scene);
+  const DirectRun uniform = RunDirect(topology_only, ResolveSearchOptions(topology_only.scene().search, topology_only.gene_count()));
+  EXPECT_EQ(uniform.search.options.identify, Identify::kTopology);
+  EXPECT_TRUE(uniform.search.exact());  // the topology, yes
+  for (const double k : uniform.direct.springs.stiffness) EXPECT_EQ(k, topology_only.training_stiffness());
+  // ... but uniform stiffness does not reproduce a reference whose stiffness varies.
+  EXPECT_GT(uniform.search.evaluation.normalized_error, 1e-6);
+
+  // The genetic strategies only know the training stiffness.
+  scene.search.identify = Identify::kTopologyAndStiffness;
+  for (const Strategy s : {Strategy::kDefault, Strategy::kPaper, Strategy::kHybrid}) {
+    scene.search.strategy = s;
+    try {
+      Problem::Build(scene);
+      ADD_FAILURE() << "accepted topology_and_stiffness for a GA strategy";
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.path(), "search.identify");
+    }
+  }
+  scene.search.identify.reset();
+  EXPECT_EQ(ResolveSearchOptions(scene.search, 10).identify, Identify::kTopology);
+}
+
+TEST(Direct, SpringsUnderTheThresholdAreAddedBackUntilTheModelCarriesTheLoads) {
+  // A threshold no weight passes leaves no spring: a mechanism. The guard then adds the
+  // fewest springs, largest weights first, that carry every load case.
+  const Problem problem = Problem::Build(examples::WithMeasurementNoise(examples::Make("paper-aniso-5x5"), 0.01, 1));
+  DirectOptions strict;
+  strict.significance = 1e9;
+  strict.refine = false;
+  strict.carry_loads = false;
+  const DirectResult none = IdentifyDirect(problem, strict);
+  EXPECT_TRUE(none.springs.index.empty());
+  EXPECT_TRUE(none.evaluation.mechanism);
+  EXPECT_TRUE(none.added_to_carry.empty());
+
+  strict.carry_loads = true;
+  const DirectResult carried = IdentifyDirect(problem, strict);
+  EXPECT_FALSE(carried.evaluation.mechanism);
+  ASSERT_FALSE(carried.added_to_carry.empty());
+  ASSERT_EQ(carried.springs.index.size(), carried.added_to_carry.size());
+  double smallest_added = HUGE_VAL;
+  int weakest = -1;
+  for (const int g : carried.added_to_carry) {
+    EXPECT_EQ(carried.genome[g], 1);
+    if (carried.weights[g] < smallest_added) {
+      smallest_added = carried.weights[g];
+      weakest = g;
+    }
+  }
+  // Largest weights first: every gene left out weighs no more than the smallest added one;
+  // and the fewest: without the weakest added spring the model is a mechanism again.
+  for (int g = 0; g < problem.gene_count(); ++g) {
+    if (!carried.genome[g]) EXPECT_LE(carried.weights[g], smallest_added) << g;
+  }
+  ActiveSprings fewer;
+  for (std::size_t i = 0; i < carried.springs.index.size(); ++i) {
+    if (carried.springs.index[i] == problem.gene_candidates()[weakest]) continue;
+    fewer.index.push_back(carried.springs.index[i]);
+    fewer.stiffness.push_back(carried.springs.stiffness[i]);
+  }
+  CostFunction cost(problem);
+  EXPECT_TRUE(cost.Evaluate(fewer).mechanism);
 }
 
 TEST(Hybrid, SeedsTheGeneticSearchWithTheDirectTopology) {

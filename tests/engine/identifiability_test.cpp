@@ -1,6 +1,7 @@
 // The identifiability report: unseen springs, dependent groups and the suggested load cases.
 #include <gtest/gtest.h>
 
+#include "engine/direct/direct_identification.h"
 #include "engine/direct/identifiability.h"
 #include "engine/examples/catalog.h"
 
@@ -78,6 +79,41 @@ TEST(Identifiability, FindsExactlyTheDependentGroupsOfAHandBuiltScene) {
   const IdentifiabilityReport after = AnalyseIdentifiability(Problem::Build(fixed));
   ASSERT_EQ(after.groups.size(), 1u);
   EXPECT_EQ(after.groups[0].springs, Pairs({{4, 7}, {5, 7}, {6, 7}}));
+}
+
+TEST(Identifiability, SpringsOfAPieceNoLoadCaseLoadsAreUnseen) {
+  // Add a fourth piece to the three: nodes 11, 12 fixed, node 13 on springs (11,13) and
+  // (12,13), with no force on it in any load case. The reference holds those springs, but
+  // nothing stretches them: no data on them at all.
+  Scene s = ThreePieces();
+  const Eigen::Index n = s.rest.size();
+  s.rest.conservativeResize(n + 6);
+  s.rest.tail(6) << 15, 0, 17, 0, 16, 1;
+  s.candidates.pairs.push_back({11, 13});
+  s.candidates.pairs.push_back({12, 13});
+  s.reference.springs.push_back({11, 13});
+  s.reference.springs.push_back({12, 13});
+  for (LoadCase& lc : s.load_cases) {
+    lc.fixed.push_back(11);
+    lc.fixed.push_back(12);
+  }
+  const Problem problem = Problem::Build(s);
+  ASSERT_EQ(problem.gene_count(), 10);  // both are genes: node 13 is free
+  const IdentifiabilityReport report = AnalyseIdentifiability(problem);
+  EXPECT_EQ(report.unseen, Pairs({{11, 13}, {12, 13}}));
+  EXPECT_EQ(report.rank, 6);  // as without the piece
+  ASSERT_EQ(report.groups.size(), 2u);  // the unseen springs form no group of their own
+
+  // Strategy direct leaves them out and says so; without them node 13 floats.
+  const DirectResult direct = IdentifyDirect(problem);
+  ASSERT_EQ(direct.unseen.size(), 2u);
+  for (const int g : direct.unseen) {
+    const NodePair pair = problem.candidates().pairs[problem.gene_candidates()[g]];
+    EXPECT_EQ(pair.second, 13);
+    EXPECT_EQ(direct.genome[g], 0);
+    EXPECT_EQ(direct.weights[g], 0.0);
+  }
+  EXPECT_TRUE(direct.evaluation.mechanism);
 }
 
 TEST(Identifiability, TheExamplesAreFullyIdentifiable) {

@@ -94,6 +94,8 @@ TEST(SceneCodec, EveryRuleNamesTheField) {
       {"grid off lattice", [](Json& j) { j["nodes"][4] = {1.3, 1}; }, "candidates", "off it"},
       {"positions count", [](Json& j) { j["reference"] = {{"type", "positions"}, {"positions", Json::array()}}; }, "reference.positions", "one configuration per load case"},
       {"unknown strategy", [](Json& j) { j["search"] = {{"strategy", "annealing"}}; }, "search.strategy", "unknown strategy"},
+      {"unknown identify", [](Json& j) { j["search"] = {{"identify", "stiffness"}}; }, "search.identify", "expected topology or topology_and_stiffness"},
+      {"stiffness for a GA", [](Json& j) { j["search"] = {{"strategy", "hybrid"}, {"identify", "topology_and_stiffness"}}; }, "search.identify", "needs strategy direct"},
       {"population", [](Json& j) { j["search"] = {{"population", 1}}; }, "search.population", ">= 2"},
       {"mutation probability", [](Json& j) { j["search"] = {{"mutation_probability", 1.5}}; }, "search.mutation_probability", "[0, 1]"},
       {"negative seed", [](Json& j) { j["search"] = {{"seed", -3}}; }, "search.seed", ">= 0"},
@@ -127,6 +129,18 @@ TEST(SceneCodec, ExamplesRoundTrip) {
     EXPECT_EQ(SceneToJson(back), j) << info.name;
     EXPECT_EQ(back.rest, s.rest);
   }
+}
+
+TEST(SceneCodec, IdentifyRoundTripsAndIsOnlyWrittenWhenGiven) {
+  Json j = ParseJson(kMinimal);
+  j["search"] = {{"strategy", "direct"}, {"identify", "topology"}};
+  const Scene s = SceneFromJson(j);
+  ASSERT_TRUE(s.search.identify);
+  EXPECT_EQ(*s.search.identify, Identify::kTopology);
+  EXPECT_EQ(SceneToJson(s)["search"], j["search"]);
+  j["search"].erase("identify");
+  EXPECT_FALSE(SceneFromJson(j).search.identify);
+  EXPECT_FALSE(SceneToJson(SceneFromJson(j))["search"].contains("identify"));
 }
 
 TEST(SceneCodec, WriterLeavesDefaultsOut) {
