@@ -172,6 +172,12 @@ Json DirectRunToJson(const Problem& problem, const DirectRun& run, bool with_tra
   std::vector<NodePair> added;
   for (const int g : d.added_to_carry) added.push_back(problem.candidates().pairs[problem.gene_candidates()[g]]);
   direct["added_to_carry"] = PairsToJson(added);
+  direct["displacement_only"] = d.displacement_only;
+  direct["pinned_spring"] = nullptr;
+  if (d.pinned_gene >= 0) {
+    const NodePair pinned = problem.candidates().pairs[problem.gene_candidates()[d.pinned_gene]];
+    direct["pinned_spring"] = {pinned.first, pinned.second};
+  }
   std::vector<NodePair> unseen;
   for (const int g : d.unseen) unseen.push_back(problem.candidates().pairs[problem.gene_candidates()[g]]);
   direct["unseen"] = PairsToJson(unseen);

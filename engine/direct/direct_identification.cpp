@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 
+#include "engine/direct/scale_pinning.h"
 #include "engine/direct/weight_uncertainty.h"
 
 namespace springfit {
@@ -163,19 +164,34 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
   r.assemble_seconds = SecondsSince(start);
 
   start = std::chrono::steady_clock::now();
-  r.nnls = SolveNnls(fb.a, fb.b, usable, options.nnls);
+  // The NNLS solves A x = rhs over `columns`: the force balance itself, or, when the loads
+  // only prescribe displacements (b = 0), its pinned form (scale_pinning.h).
+  Vector rhs = fb.b;
+  std::vector<bool> columns = usable;
+  r.displacement_only = fb.b.size() > 0 && fb.b.cwiseAbs().maxCoeff() == 0.0;
+  std::optional<PinnedSolution> pinned;
+  if (r.displacement_only) pinned = SolvePinnedNnls(fb.a, usable, {}, options.nnls);
+  if (pinned) {
+    r.pinned_gene = pinned->pinned_gene;
+    r.nnls = std::move(pinned->nnls);
+    rhs = std::move(pinned->rhs);
+    columns = std::move(pinned->columns);
+  } else {
+    r.nnls = SolveNnls(fb.a, fb.b, usable, options.nnls);
+  }
   std::vector<double> nnls_weights(r.nnls.x.data(), r.nnls.x.data() + r.nnls.x.size());
+  if (r.pinned_gene >= 0) nnls_weights[r.pinned_gene] = 1.0;
   // The residual variance over the degrees of freedom left by the positive weights.
   int positive = 0;
   for (int g = 0; g < genes; ++g) positive += nnls_weights[g] > 0.0;
   const double dof = std::max<double>(static_cast<double>(fb.a.rows()) - positive, 1.0);
-  const double variance = (fb.a * r.nnls.x - fb.b).squaredNorm() / dof;
+  const double variance = (fb.a * r.nnls.x - rhs).squaredNorm() / dof;
   // Exact data (an MSS reference: the force balance holds to round-off) needs no standard
   // errors: its absent springs sit at round-off, below the relative floor. They would cost
   // one solve per gene, several times the identification itself.
-  const double b_norm = std::max(fb.b.norm(), 1e-300);
-  const bool exact_data = (fb.a * r.nnls.x - fb.b).norm() <= options.exact_data_residual * b_norm;
-  r.nnls_residual = (fb.a * r.nnls.x - fb.b).norm() / b_norm;
+  const double rhs_norm = std::max(rhs.norm(), 1e-300);
+  const bool exact_data = (fb.a * r.nnls.x - rhs).norm() <= options.exact_data_residual * rhs_norm;
+  r.nnls_residual = (fb.a * r.nnls.x - rhs).norm() / rhs_norm;
   std::optional<RefinementResult> refinement;
   if (!exact_data && options.refine) {
     refinement = RefineWeights(problem, nnls_weights, usable, options.refinement);
@@ -188,7 +204,8 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
   // Noisy data never go without standard errors when they can be had: the relative floor
   // alone lets every spurious weight in.
   std::optional<Vector> nnls_sigma;
-  if (!exact_data) nnls_sigma = WeightStandardErrors(fb.a, usable, variance, options.uncertainty_max_genes);
+  if (!exact_data) nnls_sigma = WeightStandardErrors(fb.a, columns, variance, options.uncertainty_max_genes);
+  if (nnls_sigma && r.pinned_gene >= 0) (*nnls_sigma)[r.pinned_gene] = 0.0;  // fixed, not estimated
   Reading reading = reader.Read(std::move(nnls_weights), std::move(nnls_sigma));
   if (refinement) {
     // The refined weights fit the displacements, but from a poor start the fit can drift to
@@ -211,11 +228,23 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
   r.added_to_carry = std::move(reading.added_to_carry);
   r.springs = std::move(reading.springs);
   r.evaluation = std::move(reading.evaluation);
+  if (r.displacement_only && !options.known_stiffness && !r.springs.stiffness.empty()) {
+    // Only ratios of stiffness are in the data: the median spring gets the training
+    // stiffness. The equilibria, hence the evaluation, do not change.
+    std::vector<double> sorted = r.springs.stiffness;
+    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2), sorted.end());
+    const double factor = problem.training_stiffness() / sorted[sorted.size() / 2];
+    for (double& w : r.weights) w *= factor;
+    for (double& s : r.sigma) s *= factor;
+    for (double& k : r.springs.stiffness) k *= factor;
+  }
   Vector kept = Vector::Zero(genes);
   for (std::size_t i = 0, g = 0; g < static_cast<std::size_t>(genes); ++g) {
     if (r.genome[g]) kept[static_cast<Eigen::Index>(g)] = r.springs.stiffness[i++];
   }
-  r.force_residual = (fb.a * kept - fb.b).norm() / b_norm;
+  // Relative to the external forces; with none, to the spring forces themselves.
+  const double force_scale = r.displacement_only ? SparseMatrix(fb.a * kept.asDiagonal()).norm() : fb.b.norm();
+  r.force_residual = (fb.a * kept - fb.b).norm() / std::max(force_scale, 1e-300);
   r.evaluate_seconds = SecondsSince(start);
   return r;
 }

@@ -27,6 +27,10 @@
 // added back in order of decreasing weight, the fewest that make every load case carry
 // (adding a spring never makes a mechanism, so the count is found by bisection).
 //
+// Loads that only prescribe displacements fix the weights up to one common factor: one weight
+// is pinned (scale_pinning.h) and, for per-spring stiffness, the result scaled so that the
+// median identified spring has the training stiffness.
+//
 // A spring no load case stretches or compresses (strain below `unseen_strain` in every case)
 // has a zero column: its weight is not determined, it is left out and reported.
 #pragma once
@@ -68,6 +72,12 @@ struct DirectResult {
   std::vector<double> confidence;
   // Topology only, noisy data: the weight splitting present from absent springs (0 otherwise).
   double topology_threshold = 0.0;
+  // The loads only prescribe displacements (no external force on a free node): the data fix
+  // the weights up to one factor. Gene `pinned_gene` was held at weight 1 and the others
+  // solved relative to it (scale_pinning.h); per-spring stiffness is then scaled so that the
+  // median identified spring has the training stiffness.
+  bool displacement_only = false;
+  int pinned_gene = -1;
   // Genes below their threshold added back so that the model carries the loads.
   std::vector<int> added_to_carry;
   // The identified model: candidate indices and stiffness (the weight, or the known stiffness).

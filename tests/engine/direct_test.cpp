@@ -279,6 +279,54 @@ TEST(Direct, SpringsUnderTheThresholdAreAddedBackUntilTheModelCarriesTheLoads) {
   EXPECT_TRUE(cost.Evaluate(fewer).mechanism);
 }
 
+// The scene with every force replaced by a prescribed displacement of the same nodes, in the
+// force's direction: no external force is left on a free node.
+Scene DisplacementsOnly(Scene s) {
+  for (LoadCase& lc : s.load_cases) {
+    for (NodalLoad& f : lc.forces) {
+      f.value *= 0.5 / f.value.norm();
+      lc.displacements.push_back(f);
+    }
+    lc.forces.clear();
+  }
+  return s;
+}
+
+TEST(Direct, DisplacementOnlyLoadsFixTheStiffnessUpToOneFactor) {
+  // Topology: exact. The pin is a present spring (on kidney-2d the most strained candidates
+  // are all absent ones).
+  for (const char* name : {"paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4"}) {
+    const Problem problem = Problem::Build(DisplacementsOnly(examples::Make(name)));
+    const DirectResult topology = IdentifyDirect(problem);
+    EXPECT_TRUE(topology.displacement_only) << name;
+    ASSERT_GE(topology.pinned_gene, 0) << name;
+    EXPECT_GT(problem.ReferenceWeights()[topology.pinned_gene], 0.0) << name;
+    EXPECT_EQ(problem.CompareWithReference(topology.genome)->hamming(), 0) << name;
+    EXPECT_LT(topology.evaluation.normalized_error, 1e-12) << name;
+    EXPECT_LT(topology.force_residual, 1e-9) << name;
+  }
+
+  // Stiffness spanning eight decades: every ratio exact, the median at the training stiffness.
+  Scene stiff = DisplacementsOnly(examples::Make("stiff-2d"));
+  stiff.training_stiffness = 3.0;
+  const Problem problem = Problem::Build(stiff);
+  const DirectResult r = IdentifyDirect(problem);
+  EXPECT_EQ(problem.CompareWithReference(r.genome)->hamming(), 0);
+  const std::vector<double> truth = problem.ReferenceWeights();
+  std::vector<double> ratio;
+  for (int g = 0; g < problem.gene_count(); ++g) {
+    if (truth[g] > 0.0) ratio.push_back(r.weights[g] / truth[g]);
+  }
+  for (const double q : ratio) EXPECT_NEAR(q / ratio.front(), 1.0, 1e-6);
+  std::vector<double> k = r.springs.stiffness;
+  std::sort(k.begin(), k.end());
+  EXPECT_DOUBLE_EQ(k[k.size() / 2], 3.0);
+  EXPECT_LT(r.evaluation.normalized_error, 1e-12);
+
+  // With forces the scale is the data's: nothing is pinned.
+  EXPECT_EQ(IdentifyDirect(Problem::Build(examples::Make("stiff-2d"))).pinned_gene, -1);
+}
+
 TEST(Hybrid, SeedsTheGeneticSearchWithTheDirectTopology) {
   // Exact data: the seed is the reference, so the GA has nothing left to do.
   Scene scene = examples::Make("paper-aniso-5x5");

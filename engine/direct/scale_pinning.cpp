@@ -1,0 +1,51 @@
+#include "engine/direct/scale_pinning.h"
+
+#include <Eigen/SparseCholesky>
+
+namespace springfit {
+namespace {
+
+// The gene whose component of A's (approximate) null vector is largest; -1 when there is
+// none to find.
+int LargestNullComponent(const SparseMatrix& a, const std::vector<bool>& usable, const PinOptions& options) {
+  std::vector<int> genes;
+  for (int g = 0; g < static_cast<int>(a.cols()); ++g) {
+    if (usable[g]) genes.push_back(g);
+  }
+  if (genes.empty()) return -1;
+  SparseMatrix columns = SelectColumns(a, genes);
+  Vector scale(static_cast<Eigen::Index>(genes.size()));
+  for (Eigen::Index j = 0; j < columns.cols(); ++j) scale[j] = 1.0 / columns.col(j).norm();
+  columns = columns * scale.asDiagonal();
+  SparseMatrix normal = SparseMatrix(columns.transpose()) * columns;
+  SparseMatrix identity(normal.rows(), normal.cols());
+  identity.setIdentity();
+  normal += options.shift * identity;
+  const Eigen::SimplicialLDLT<SparseMatrix> ldlt(normal);
+  if (ldlt.info() != Eigen::Success) return -1;
+  Vector x = Vector::Ones(normal.rows()).normalized();
+  for (int it = 0; it < options.inverse_iterations; ++it) x = ldlt.solve(x).normalized();
+  // The sign of a null vector is free; that of the weights is not. Back in weight units.
+  if (x.sum() < 0.0) x = -x;
+  const Vector w = scale.cwiseProduct(x);
+  Eigen::Index best = 0;
+  w.maxCoeff(&best);
+  return genes[static_cast<std::size_t>(best)];
+}
+
+}  // namespace
+
+std::optional<PinnedSolution> SolvePinnedNnls(const SparseMatrix& a, const std::vector<bool>& usable,
+                                              const PinOptions& pins, const NnlsOptions& nnls) {
+  const int pin = LargestNullComponent(a, usable, pins);
+  if (pin < 0) return std::nullopt;
+  PinnedSolution s;
+  s.pinned_gene = pin;
+  s.rhs = -Vector(a.col(pin));
+  s.columns = usable;
+  s.columns[pin] = false;
+  s.nnls = SolveNnls(a, s.rhs, s.columns, nnls);
+  return s;
+}
+
+}  // namespace springfit
