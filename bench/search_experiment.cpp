@@ -73,8 +73,9 @@ std::string Number(double x, const char* format = "%.3g") {
 // `truth`: the problem whose reference topology judges exactness (the clean scene of a noisy
 // one; the problem itself otherwise).
 RunRecord RunOnce(const Problem& problem, const Problem& truth, Strategy strategy, std::uint64_t seed, int threads,
-                  double time_limit, int elites) {
+                  double time_limit, int elites, bool topology_only) {
   SearchOptions o = StrategyDefaults(strategy, problem.gene_count());
+  if (topology_only) o.identify = Identify::kTopology;
   o.seed = seed;
   if (elites >= 0) o.elites = elites;
   RunOptions run;
@@ -138,7 +139,9 @@ int Main(int argc, char** argv) {
   app.add_option("--threads", threads)->capture_default_str();
   app.add_option("--time-limit", time_limit, "Wall-time limit per run, seconds")->capture_default_str();
   app.add_option("--scenes", scenes)->capture_default_str();
-  app.add_option("--strategies", strategies)->capture_default_str();
+  app.add_option("--strategies", strategies,
+                 "paper, default, direct, hybrid, or direct-topology (direct with search.identify topology)")
+      ->capture_default_str();
   app.add_option("--elites", elites, "Override the strategies' elite count (a variant, not the strategy)");
   app.add_option("--full-run", full_run, "Time full 1000-generation runs of this scene instead");
   app.add_option("--repeats", repeats, "Runs per strategy for --full-run")->capture_default_str();
@@ -164,14 +167,16 @@ int Main(int argc, char** argv) {
       }
     }
     for (const std::string& strategy_name : Split(strategies)) {
-      const Strategy strategy = strategy_name == "paper"    ? Strategy::kPaper
-                                : strategy_name == "direct" ? Strategy::kDirect
+      // "direct-topology": strategy direct with search.identify topology.
+      const bool topology_only = strategy_name == "direct-topology";
+      const Strategy strategy = strategy_name == "paper"                      ? Strategy::kPaper
+                                : strategy_name == "direct" || topology_only ? Strategy::kDirect
                                 : strategy_name == "hybrid" ? Strategy::kHybrid
                                                             : Strategy::kDefault;
       std::vector<RunRecord> runs;
       for (int s = 1; s <= seeds; ++s) {
         const Problem& problem = noise > 0.0 ? problems[static_cast<std::size_t>(s - 1)] : truth;
-        runs.push_back(RunOnce(problem, truth, strategy, static_cast<std::uint64_t>(s), threads, time_limit, elites));
+        runs.push_back(RunOnce(problem, truth, strategy, static_cast<std::uint64_t>(s), threads, time_limit, elites, topology_only));
         std::fprintf(stderr, "%s %s seed %d: exact %d, %d generations, %.3f s, e %.3g\n", scene.c_str(),
                      strategy_name.c_str(), s, runs.back().exact, runs.back().generations, runs.back().seconds,
                      runs.back().final_error);

@@ -16,6 +16,17 @@ constexpr double kRidge = 1e-10;
 // to |A^T b|: refinement reaches about 1e-12 on healthy problems.
 constexpr double kSolveAccuracy = 1e-6;  // relative to the unit diagonal of the scaled normal matrix
 
+// z refined against the residual of the scaled problem on the selected columns `sub`.
+template <class Factor, class Sub>
+Vector Refined(const Factor& factor, const Sub& sub, const Vector& b, int refinement_steps) {
+  Vector z = factor.solve(sub.transpose() * b);
+  for (int step = 0; step < refinement_steps; ++step) {
+    const Vector r = b - sub * z;
+    z += factor.solve(sub.transpose() * r);
+  }
+  return z;
+}
+
 // The least-squares solution on the columns `free` (unconstrained), refined.
 Vector SolveOn(const SparseMatrix& a, const Vector& b, const std::vector<int>& free, int refinement_steps,
                int& factorizations) {
@@ -25,27 +36,19 @@ Vector SolveOn(const SparseMatrix& a, const Vector& b, const std::vector<int>& f
   // CHOLMOD's supernodal Cholesky (dense BLAS blocks) is many times faster than a simplicial
   // one on the fill of 3D meshes; dependent columns make the matrix semidefinite, where it
   // fails and the simplicial LDLT takes over.
-  auto refine = [&](const auto& factor) {
-    Vector z = factor.solve(sub.transpose() * b);
-    for (int step = 0; step < refinement_steps; ++step) {
-      const Vector r = b - sub * z;
-      z += factor.solve(sub.transpose() * r);
-    }
-    return z;
-  };
   ++factorizations;
   if (free.size() >= kSupernodalFromColumns) {
     Eigen::CholmodSupernodalLLT<SparseMatrix> llt;
     llt.cholmod().print = 0;  // a failure is handled below, not printed on standard output
     llt.compute(normal);
     if (llt.info() == Eigen::Success) {
-      Vector z = refine(llt);
+      Vector z = Refined(llt, sub, b, refinement_steps);
       if (z.allFinite()) return z;
     }
   }
   Eigen::SimplicialLDLT<SparseMatrix> ldlt(normal);
   if (ldlt.info() == Eigen::Success) {
-    Vector z = refine(ldlt);
+    Vector z = Refined(ldlt, sub, b, refinement_steps);
     if (z.allFinite()) return z;
   }
   // Dependent columns (an unidentifiable combination of springs): the normal matrix is
@@ -54,28 +57,56 @@ Vector SolveOn(const SparseMatrix& a, const Vector& b, const std::vector<int>& f
   SparseMatrix identity(normal.rows(), normal.cols());
   identity.setIdentity();
   Eigen::SimplicialLDLT<SparseMatrix> ridge(normal + kRidge * identity);
-  return refine(ridge);
+  return Refined(ridge, sub, b, refinement_steps);
 }
 
-}  // namespace
+// The same on a dense matrix, whose normal matrix `normal` (of all columns) is formed once:
+// each round only picks its rows and columns of the free set.
+Vector SolveOn(const Matrix& a, const Matrix& normal, const Vector& b, const std::vector<int>& free,
+               int refinement_steps, int& factorizations) {
+  if (free.empty()) return Vector();
+  const auto m = static_cast<Eigen::Index>(free.size());
+  Matrix sub(a.rows(), m);
+  Matrix normal_ff(m, m);
+  for (Eigen::Index c = 0; c < m; ++c) {
+    sub.col(c) = a.col(free[static_cast<std::size_t>(c)]);
+    for (Eigen::Index r = 0; r < m; ++r) normal_ff(r, c) = normal(free[static_cast<std::size_t>(r)], free[static_cast<std::size_t>(c)]);
+  }
+  ++factorizations;
+  Eigen::LDLT<Matrix> ldlt(normal_ff);
+  if (ldlt.info() == Eigen::Success) {
+    Vector z = Refined(ldlt, sub, b, refinement_steps);
+    if (z.allFinite()) return z;
+  }
+  Eigen::LDLT<Matrix> ridge(normal_ff + kRidge * Matrix::Identity(m, m));
+  return Refined(ridge, sub, b, refinement_steps);
+}
 
-NnlsResult SolveNnls(const SparseMatrix& a, const Vector& b, const std::vector<bool>& usable,
-                     const NnlsOptions& options) {
-  const int n = static_cast<int>(a.cols());
+// Unit-norm column scaling: the weights of short and long springs, or of springs stretched a
+// lot and a little, then sit on one scale for the tolerances and the solver. 0 for columns
+// not usable.
+template <class MatrixType>
+Vector UnitColumnScale(const MatrixType& a, const std::vector<bool>& usable) {
+  Vector scale = Vector::Zero(a.cols());
+  for (Eigen::Index j = 0; j < a.cols(); ++j) {
+    const double norm = a.col(j).norm();
+    if (usable[static_cast<std::size_t>(j)] && norm > 0.0) scale[j] = 1.0 / norm;
+  }
+  return scale;
+}
+
+// The block principal pivoting on the scaled matrix `as`; `solve_on(free)` solves the
+// unconstrained problem on a free set.
+template <class MatrixType, class SolveOnFree>
+NnlsResult Pivot(const MatrixType& as, const Vector& b, const Vector& scale, const NnlsOptions& options,
+                 SolveOnFree&& solve_on) {
+  const auto n = static_cast<int>(as.cols());
   NnlsResult result;
   if (n == 0) {
     result.converged = true;
     result.residual_norm = b.norm();
     return result;
   }
-  // Scale every column to unit norm: the weights of short and long springs, or of springs
-  // stretched a lot and a little, then sit on one scale for the tolerances and the solver.
-  Vector scale = Vector::Zero(n);
-  for (int j = 0; j < n; ++j) {
-    const double norm = a.col(j).norm();
-    if (usable[j] && norm > 0.0) scale[j] = 1.0 / norm;
-  }
-  const SparseMatrix as = a * scale.asDiagonal();
   const Vector atb = as.transpose() * b;
   double atb_max = 0.0;
   for (Eigen::Index j = 0; j < atb.size(); ++j) atb_max = std::max(atb_max, std::abs(atb[j]));
@@ -93,7 +124,7 @@ NnlsResult SolveNnls(const SparseMatrix& a, const Vector& b, const std::vector<b
     for (int j = 0; j < n; ++j) {
       if (in_free[j]) free.push_back(j);
     }
-    const Vector z = SolveOn(as, b, free, options.refinement_steps, result.factorizations);
+    const Vector z = solve_on(free, result.factorizations);
     x.setZero();
     for (std::size_t c = 0; c < free.size(); ++c) x[free[c]] = z[static_cast<Eigen::Index>(c)];
     const Vector gradient = as.transpose() * (as * x - b);  // of |A x - b|^2 / 2
@@ -132,6 +163,27 @@ NnlsResult SolveNnls(const SparseMatrix& a, const Vector& b, const std::vector<b
   result.residual_norm = (as * x - b).norm();
   result.x = scale.cwiseProduct(x);
   return result;
+}
+
+}  // namespace
+
+NnlsResult SolveNnls(const SparseMatrix& a, const Vector& b, const std::vector<bool>& usable,
+                     const NnlsOptions& options) {
+  const Vector scale = UnitColumnScale(a, usable);
+  const SparseMatrix as = a * scale.asDiagonal();
+  return Pivot(as, b, scale, options, [&](const std::vector<int>& free, int& factorizations) {
+    return SolveOn(as, b, free, options.refinement_steps, factorizations);
+  });
+}
+
+NnlsResult SolveDenseNnls(const Matrix& a, const Vector& b, const std::vector<bool>& usable,
+                          const NnlsOptions& options) {
+  const Vector scale = UnitColumnScale(a, usable);
+  const Matrix as = a * scale.asDiagonal();
+  const Matrix normal = as.transpose() * as;
+  return Pivot(as, b, scale, options, [&](const std::vector<int>& free, int& factorizations) {
+    return SolveOn(as, normal, b, free, options.refinement_steps, factorizations);
+  });
 }
 
 }  // namespace springfit

@@ -46,5 +46,10 @@ struct NnlsResult {
 // Columns with `usable[j]` false are held at 0 (e.g. zero columns).
 NnlsResult SolveNnls(const SparseMatrix& a, const Vector& b, const std::vector<bool>& usable,
                      const NnlsOptions& options = {});
+// The same for a dense matrix (the Levenberg-Marquardt steps of stiffness_refinement.h, whose
+// Jacobians are dense): its normal matrix is formed once, with dense products, and each
+// round factorises the free set's block of it by a dense LDLT.
+NnlsResult SolveDenseNnls(const Matrix& a, const Vector& b, const std::vector<bool>& usable,
+                          const NnlsOptions& options = {});
 
 }  // namespace springfit

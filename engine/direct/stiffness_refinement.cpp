@@ -20,33 +20,47 @@ ActiveSprings ModelOf(const Problem& problem, const std::vector<double>& w) {
   return springs;
 }
 
-// The model's equilibria, its residual r = u^M - u^R on the free coordinates (stacked by
-// load case, free-node order), and the Jacobian dr/dw. False when some load case has no
-// equilibrium or no positive definite tangent there.
-bool Linearise(const Problem& problem, const std::vector<double>& w, std::vector<EquilibriumSolver>& solvers,
-               std::vector<Vector>& u, Vector& r, Matrix& jacobian) {
+// The model's equilibria u (warm-started from u where given) and its residual r = u^M - u^R
+// on the free coordinates (stacked by load case, free-node order, as the force balance's
+// rows). False when some load case has no equilibrium.
+bool Equilibria(const Problem& problem, const std::vector<double>& w, std::vector<EquilibriumSolver>& solvers,
+                std::vector<Vector>& u, Vector& r) {
   const int d = problem.dimension();
   const ActiveSprings springs = ModelOf(problem, w);
+  Eigen::Index rows = 0;
   for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
     const PreparedLoadCase& lc = problem.load_cases()[k];
     EquilibriumSolver& solver = solvers[lc.free_set];
     if (solver.RestMechanismModes(springs) > 0) return false;
     if (u[k].size() == 0) u[k] = lc.reference;  // warm start at the reference's equilibrium
     if (!solver.Solve(springs, lc.force, lc.prescribed, u[k]).converged()) return false;
+    rows += d * problem.free_sets()[lc.free_set].count;
   }
-  const ForceBalance fb = AssembleForceBalance(problem, &u);
-  const Eigen::Index rows = fb.row_offset.back();
   r.resize(rows);
-  jacobian = Matrix(fb.a);  // g_j per case; turned into H^-1 g_j block by block below
+  Eigen::Index begin = 0;
   for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
     const PreparedLoadCase& lc = problem.load_cases()[k];
     const FreeNodes& free = problem.free_sets()[lc.free_set];
-    const Eigen::Index begin = fb.row_offset[k];
-    const Eigen::Index size = fb.row_offset[k + 1] - begin;
     for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
       const int f = free.free_index[i];
       if (f >= 0) r.segment(begin + d * f, d) = u[k].segment(d * i, d) - lc.reference.segment(d * i, d);
     }
+    begin += d * free.count;
+  }
+  return true;
+}
+
+// The Jacobian dr/dw at the equilibria u: per load case H^-1 g_j, g_j the force spring j
+// exerts per unit stiffness. False when some tangent is not positive definite.
+bool Jacobian(const Problem& problem, const std::vector<double>& w, std::vector<EquilibriumSolver>& solvers,
+              const std::vector<Vector>& u, Matrix& jacobian) {
+  const ActiveSprings springs = ModelOf(problem, w);
+  const ForceBalance fb = AssembleForceBalance(problem, &u);
+  jacobian = Matrix(fb.a);  // g_j per case; turned into H^-1 g_j block by block below
+  for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
+    const PreparedLoadCase& lc = problem.load_cases()[k];
+    const Eigen::Index begin = fb.row_offset[k];
+    const Eigen::Index size = fb.row_offset[k + 1] - begin;
     Matrix block = jacobian.middleRows(begin, size);
     if (!solvers[lc.free_set].SolveWithTangent(springs, lc.force, u[k], block)) return false;
     jacobian.middleRows(begin, size) = block;
@@ -72,7 +86,7 @@ RefinementResult RefineWeights(const Problem& problem, const std::vector<double>
   std::vector<Vector> u(problem.load_cases().size());
   Vector r;
   Matrix jacobian;
-  if (!Linearise(problem, w, solvers, u, r, jacobian)) return result;
+  if (!Equilibria(problem, w, solvers, u, r) || !Jacobian(problem, w, solvers, u, jacobian)) return result;
   double f = r.squaredNorm();
   result.initial_cost = f;
   double lambda = options.initial_damping;
@@ -95,12 +109,14 @@ RefinementResult RefineWeights(const Problem& problem, const std::vector<double>
       Vector rhs(jacobian.rows() + genes);
       rhs.head(jacobian.rows()) = target;
       rhs.tail(genes) = (lambda * d2).cwiseSqrt().cwiseProduct(wv);
-      const NnlsResult step = SolveNnls(stacked.sparseView(), rhs, usable);
+      const NnlsResult step = SolveDenseNnls(stacked, rhs, usable);
       std::vector<double> trial(step.x.data(), step.x.data() + genes);
       std::vector<Vector> trial_u = u;
       Vector trial_r;
       Matrix trial_jacobian;
-      if (Linearise(problem, trial, solvers, trial_u, trial_r, trial_jacobian) && trial_r.squaredNorm() < f) {
+      // The Jacobian (one solve per gene) only for a step that lowers the cost.
+      if (Equilibria(problem, trial, solvers, trial_u, trial_r) && trial_r.squaredNorm() < f &&
+          Jacobian(problem, trial, solvers, trial_u, trial_jacobian)) {
         const double decrease = (f - trial_r.squaredNorm()) / f;
         w = std::move(trial);
         u = std::move(trial_u);

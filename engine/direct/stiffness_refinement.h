@@ -9,7 +9,7 @@
 // force spring j exerts per unit stiffness (one factorisation per load case, then one solve
 // per gene); each step is the non-negative least-squares problem
 //   min |J w' - (J w - r)|^2 + lambda |D (w' - w)|^2,  w' >= 0,   D^2 = diag(J^T J),
-// solved by SolveNnls, and accepted when f decreases. A weight that reaches 0 has left the
+// solved by SolveDenseNnls, and accepted when f decreases. A weight that reaches 0 has left the
 // model; one whose gradient points back in returns.
 #pragma once
 #include <vector>
@@ -23,10 +23,11 @@ struct RefinementOptions {
   int max_iterations = 30;               // accepted steps
   double relative_tolerance = 1e-10;     // stop when f falls by less than this fraction
   double initial_damping = 1e-4;         // lambda at the start, relative to D^2
-  // Dense Jacobians (rows x genes) and a bounded least-squares step per attempt: about 0.1 s
-  // per draw at 72 genes, 17 s at 461 (kidney-2d), so larger scenes keep the force-balance
-  // weights.
-  int max_genes = 200;
+  // Dense Jacobians (rows x genes, one solve per gene and load case) and a dense bounded
+  // least-squares step per attempt, cubic in the genes: 0.01 s at 0.1% noise on
+  // paper-aniso-5x5 (72 genes), 0.7 s on grid3d-4x4x4 (465), 1.9 s on kidney-2d (461, 15
+  // steps); larger scenes keep the force-balance weights.
+  int max_genes = 1000;
 };
 
 struct RefinementResult {

@@ -51,6 +51,10 @@ TEST(Nnls, MatchesTheBestActiveSetOfASmallDenseProblem) {
     const NnlsResult r = SolveNnls(a, b, std::vector<bool>(6, true));
     ASSERT_TRUE(r.converged);
     EXPECT_GE(r.x.minCoeff(), 0.0);
+    // The dense variant (for Jacobians) finds the same solution.
+    const NnlsResult d = SolveDenseNnls(dense, b, std::vector<bool>(6, true));
+    ASSERT_TRUE(d.converged);
+    EXPECT_LT((d.x - r.x).norm(), 1e-12 * (1.0 + r.x.norm())) << "trial " << trial;
     double best = (b).norm();
     for (int set = 1; set < 64; ++set) {
       std::vector<int> cols;
@@ -74,6 +78,9 @@ TEST(Nnls, HoldsUnusableColumnsAtZero) {
   const NnlsResult r = SolveNnls(dense.sparseView(), b, {true, false});
   EXPECT_DOUBLE_EQ(r.x[1], 0.0);
   EXPECT_NEAR(r.x[0], 1.0, 1e-14);
+  const NnlsResult d = SolveDenseNnls(dense, b, {true, false});
+  EXPECT_DOUBLE_EQ(d.x[1], 0.0);
+  EXPECT_NEAR(d.x[0], 1.0, 1e-14);
 }
 
 struct DirectCase {
@@ -267,7 +274,9 @@ TEST(Direct, SpringsUnderTheThresholdAreAddedBackUntilTheModelCarriesTheLoads) {
   // Largest weights first: every gene left out weighs no more than the smallest added one;
   // and the fewest: without the weakest added spring the model is a mechanism again.
   for (int g = 0; g < problem.gene_count(); ++g) {
-    if (!carried.genome[g]) EXPECT_LE(carried.weights[g], smallest_added) << g;
+    if (!carried.genome[g]) {
+      EXPECT_LE(carried.weights[g], smallest_added) << g;
+    }
   }
   ActiveSprings fewer;
   for (std::size_t i = 0; i < carried.springs.index.size(); ++i) {
