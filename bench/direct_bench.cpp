@@ -141,12 +141,14 @@ int main(int argc, char** argv) {
   std::vector<double> noise;
   int draws = 20;
   int hybrid_generations = 0;
+  std::vector<std::string> noise_scenes{"paper-iso-5x5", "paper-aniso-5x5"};
   app.add_option("--sizes2", sizes2, "2D grid sizes n (n x n nodes)")->delimiter(',');
   app.add_option("--sizes3", sizes3, "3D grid sizes n (n^3 nodes)")->delimiter(',');
   app.add_option("--repeats", repeats, "Runs per scene; the fastest is reported")->check(CLI::PositiveNumber);
   app.add_flag("--examples-only", examples_only, "Only the example scenes");
   app.add_option("--noise", noise, "Only the noise table, at these fractions (e.g. 0.001,0.01)")->delimiter(',');
   app.add_option("--hybrid", hybrid_generations, "Also strategy hybrid with this many GA generations (noise table)");
+  app.add_option("--noise-scenes", noise_scenes, "Scenes of the noise table")->delimiter(',');
   app.add_option("--draws", draws, "Noise draws per scene and fraction")->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
 
@@ -154,7 +156,7 @@ int main(int argc, char** argv) {
     std::printf("| scene | noise | strategy | exact topology | median wrong springs | worst | worst normalized error | "
                 "mean s |\n|---|---|---|---|---|---|---|---|\n");
     for (const double f : noise) {
-      for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5"}) {
+      for (const std::string& name : noise_scenes) {
         MeasureNoise(name, f, draws, Identify::kTopology, 0);
         MeasureNoise(name, f, draws, Identify::kTopologyAndStiffness, 0);
         if (hybrid_generations > 0) MeasureNoise(name, f, draws, Identify::kTopology, hybrid_generations);

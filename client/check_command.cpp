@@ -1,4 +1,5 @@
 // springfit check SCENE: validate a scene and summarise it.
+#include <algorithm>
 #include <iostream>
 
 #include "client/commands.h"
@@ -6,6 +7,7 @@
 #include "client/error_reporting.h"
 #include "engine/direct/identifiability.h"
 #include "engine/problem.h"
+#include "engine/search/search_options.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
 
@@ -82,6 +84,16 @@ int Check(const std::string& file) {
               << lc.fixed.size() << " fixed, " << displaced << " displaced, " << forced
               << " loaded\n";
   }
+  const bool any_force = std::any_of(s.load_cases.begin(), s.load_cases.end(),
+                                     [](const LoadCase& lc) { return !lc.forces.empty(); });
+  if (!any_force) {
+    std::cout << "  no load case applies a force: the data fix the stiffness only up to one factor\n";
+  }
+  const SearchOptions options = ResolveSearchOptions(s.search, problem.gene_count());
+  std::cout << "search:                 strategy " << proto::StrategyName(options.strategy) << ", identifies "
+            << (options.identify == Identify::kTopology ? "the topology (every spring at the training stiffness)"
+                                                        : "the topology and each spring's stiffness")
+            << "\n";
   return kExitOk;
 }
 

@@ -7,7 +7,8 @@ namespace {
 
 // The gene whose component of A's (approximate) null vector is largest; -1 when there is
 // none to find.
-int LargestNullComponent(const SparseMatrix& a, const std::vector<bool>& usable, const PinOptions& options) {
+int LargestNullComponent(const SparseMatrix& a, const std::vector<bool>& usable,
+                         const PinOptions& options) {
   std::vector<int> genes;
   for (int g = 0; g < static_cast<int>(a.cols()); ++g) {
     if (usable[g]) genes.push_back(g);
@@ -35,7 +36,8 @@ int LargestNullComponent(const SparseMatrix& a, const std::vector<bool>& usable,
 
 }  // namespace
 
-std::optional<PinnedSolution> SolvePinnedNnls(const SparseMatrix& a, const std::vector<bool>& usable,
+std::optional<PinnedSolution> SolvePinnedNnls(const SparseMatrix& a,
+                                              const std::vector<bool>& usable,
                                               const PinOptions& pins, const NnlsOptions& nnls) {
   const int pin = LargestNullComponent(a, usable, pins);
   if (pin < 0) return std::nullopt;

@@ -24,13 +24,15 @@ struct PinOptions {
 
 struct PinnedSolution {
   int pinned_gene = -1;
-  NnlsResult nnls;             // x: the other weights, 0 at the pin
-  Vector rhs;                  // -a_p: the right-hand side the NNLS solved
-  std::vector<bool> columns;   // the usable columns but the pin
+  NnlsResult nnls;            // x: the other weights, 0 at the pin
+  Vector rhs;                 // -a_p: the right-hand side the NNLS solved
+  std::vector<bool> columns;  // the usable columns but the pin
 };
 
 // nullopt when no column is usable, or the normal matrix does not factorise.
-std::optional<PinnedSolution> SolvePinnedNnls(const SparseMatrix& a, const std::vector<bool>& usable,
-                                              const PinOptions& pins = {}, const NnlsOptions& nnls = {});
+std::optional<PinnedSolution> SolvePinnedNnls(const SparseMatrix& a,
+                                              const std::vector<bool>& usable,
+                                              const PinOptions& pins = {},
+                                              const NnlsOptions& nnls = {});
 
 }  // namespace springfit
