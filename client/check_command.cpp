@@ -1,5 +1,4 @@
 // springfit check SCENE: validate a scene and summarise it.
-#include <algorithm>
 #include <iostream>
 
 #include "client/commands.h"
@@ -84,9 +83,7 @@ int Check(const std::string& file) {
               << lc.fixed.size() << " fixed, " << displaced << " displaced, " << forced
               << " loaded\n";
   }
-  const bool any_force = std::any_of(s.load_cases.begin(), s.load_cases.end(),
-                                     [](const LoadCase& lc) { return !lc.forces.empty(); });
-  if (!any_force) {
+  if (problem.DisplacementOnly()) {
     std::cout << "  no load case applies a force: the data fix the stiffness only up to one factor\n";
   }
   const SearchOptions options = ResolveSearchOptions(s.search, problem.gene_count());

@@ -46,7 +46,10 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
   } else {
     out << "reference:         topology unknown (positions reference, or springs outside the candidates)\n";
   }
-  if (r.contains("direct")) PrintPairs(out, "below threshold, kept so the model carries the loads", r["direct"]["added_to_carry"]);
+  if (r.contains("direct") && r["direct"].is_object()) {
+    PrintPairs(out, "below threshold, kept so the model carries the loads",
+               r["direct"].value("added_to_carry", proto::Json::array()));
+  }
 }
 
 void PrintResult(const proto::Json& result, bool as_json) {

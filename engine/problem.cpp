@@ -175,6 +175,17 @@ int Problem::CandidateIndex(NodePair pair) const {
   return static_cast<int>(it - candidates_.pairs.begin());
 }
 
+bool Problem::DisplacementOnly() const {
+  const int d = dimension();
+  for (const PreparedLoadCase& lc : load_cases_) {
+    const FreeNodes& free = free_sets_[lc.free_set];
+    for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
+      if (free.free_index[i] >= 0 && lc.force.segment(d * i, d).squaredNorm() > 0.0) return false;
+    }
+  }
+  return true;
+}
+
 std::vector<double> Problem::ReferenceWeights() const {
   const Reference& ref = scene_.reference;
   if (ref.kind != Reference::Kind::kMss) return {};

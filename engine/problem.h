@@ -88,6 +88,9 @@ class Problem {
   // Per gene, the reference's stiffness of that spring, 0 where the reference has none (what
   // strategy direct should find). Empty for a positions reference.
   std::vector<double> ReferenceWeights() const;
+  // No load case puts a force on a free node: prescribed displacements alone load the model,
+  // so the data fix the stiffness only up to one common factor (engine/direct/scale_pinning.h).
+  bool DisplacementOnly() const;
 
  private:
   Scene scene_;

@@ -71,10 +71,12 @@ class WeightReader {
     r.sigma = std::move(sigma);
     Threshold(r);
     r.springs = ModelOf(r.genome, r.weights);
-    r.evaluation = cost_.Evaluate(r.springs);
+    r.evaluation = Evaluate(r.springs);
     if (options_.carry_loads && r.evaluation.mechanism) CarryLoads(r);
     return r;
   }
+
+  int evaluations() const { return evaluations_; }  // of the displacement cost, so far
 
  private:
   bool TopologyOnly() const { return options_.known_stiffness.has_value(); }
@@ -114,11 +116,18 @@ class WeightReader {
     return model;
   }
 
+  Evaluation Evaluate(const ActiveSprings& springs) {
+    ++evaluations_;
+    return cost_.Evaluate(springs);
+  }
+
   // Below-threshold genes by decreasing weight: the shortest prefix that carries the loads.
+  // With per-spring stiffness a gene at weight 0 has no stiffness to add; with a known
+  // stiffness it has, and comes last.
   void CarryLoads(Reading& r) {
     std::vector<int> order;
     for (int g = 0; g < problem_.gene_count(); ++g) {
-      if (usable_[g] && !r.genome[g] && r.weights[g] > 0.0) order.push_back(g);
+      if (usable_[g] && !r.genome[g] && (r.weights[g] > 0.0 || TopologyOnly())) order.push_back(g);
     }
     std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return r.weights[a] > r.weights[b]; });
     const auto with_prefix = [&](std::size_t count) {
@@ -126,9 +135,7 @@ class WeightReader {
       for (std::size_t i = 0; i < count; ++i) genome[order[i]] = 1;
       return genome;
     };
-    const auto carries = [&](std::size_t count) {
-      return !cost_.Evaluate(ModelOf(with_prefix(count), r.weights)).mechanism;
-    };
+    const auto carries = [&](std::size_t count) { return !Evaluate(ModelOf(with_prefix(count), r.weights)).mechanism; };
     if (!carries(order.size())) return;
     std::size_t enough = order.size();
     std::size_t too_few = 0;
@@ -140,7 +147,7 @@ class WeightReader {
     std::sort(r.added_to_carry.begin(), r.added_to_carry.end());
     r.genome = with_prefix(enough);
     r.springs = ModelOf(r.genome, r.weights);
-    r.evaluation = cost_.Evaluate(r.springs);
+    r.evaluation = Evaluate(r.springs);
   }
 
   const Problem& problem_;
@@ -148,6 +155,7 @@ class WeightReader {
   const DirectOptions& options_;
   bool exact_data_;
   CostFunction cost_;
+  int evaluations_ = 0;
 };
 
 }  // namespace
@@ -168,7 +176,7 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
   // only prescribe displacements (b = 0), its pinned form (scale_pinning.h).
   Vector rhs = fb.b;
   std::vector<bool> columns = usable;
-  r.displacement_only = fb.b.size() > 0 && fb.b.cwiseAbs().maxCoeff() == 0.0;
+  r.displacement_only = problem.DisplacementOnly();
   std::optional<PinnedSolution> pinned;
   if (r.displacement_only) pinned = SolvePinnedNnls(fb.a, usable, {}, options.nnls);
   if (pinned) {
@@ -197,6 +205,7 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
     refinement = RefineWeights(problem, nnls_weights, usable, options.refinement);
     if (!refinement->refined) refinement.reset();
   }
+  if (refinement) r.refinement_iterations = refinement->iterations;
   r.solve_seconds = SecondsSince(start);
 
   start = std::chrono::steady_clock::now();
@@ -217,7 +226,6 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
     if (!(reading.evaluation.cost < refined.evaluation.cost)) {
       reading = std::move(refined);
       r.refined = true;
-      r.refinement_iterations = refinement->iterations;
     }
   }
   r.weights = std::move(reading.weights);
@@ -228,15 +236,24 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
   r.added_to_carry = std::move(reading.added_to_carry);
   r.springs = std::move(reading.springs);
   r.evaluation = std::move(reading.evaluation);
-  if (r.displacement_only && !options.known_stiffness && !r.springs.stiffness.empty()) {
-    // Only ratios of stiffness are in the data: the median spring gets the training
-    // stiffness. The equilibria, hence the evaluation, do not change.
-    std::vector<double> sorted = r.springs.stiffness;
-    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2), sorted.end());
-    const double factor = problem.training_stiffness() / sorted[sorted.size() / 2];
+  r.evaluations = reader.evaluations();
+  std::vector<double> kept_weights;
+  for (int g = 0; g < genes; ++g) {
+    if (r.genome[g] && r.weights[g] > 0.0) kept_weights.push_back(r.weights[g]);
+  }
+  if (r.displacement_only && !kept_weights.empty()) {
+    // Only ratios of stiffness are in the data: the weights are scaled so that the median
+    // kept spring has the training stiffness (the known one for topology only, which the
+    // springs have anyway). The equilibria, hence the evaluation, do not change.
+    const auto middle = kept_weights.begin() + static_cast<std::ptrdiff_t>(kept_weights.size() / 2);
+    std::nth_element(kept_weights.begin(), middle, kept_weights.end());
+    const double factor = options.known_stiffness.value_or(problem.training_stiffness()) / *middle;
     for (double& w : r.weights) w *= factor;
     for (double& s : r.sigma) s *= factor;
-    for (double& k : r.springs.stiffness) k *= factor;
+    r.topology_threshold *= factor;
+    if (!options.known_stiffness) {
+      for (double& k : r.springs.stiffness) k *= factor;
+    }
   }
   Vector kept = Vector::Zero(genes);
   for (std::size_t i = 0, g = 0; g < static_cast<std::size_t>(genes); ++g) {

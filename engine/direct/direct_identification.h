@@ -24,8 +24,10 @@
 //
 // The model must carry the loads: when the thresholded topology is a mechanism in some load
 // case (noise pushed a needed spring under its threshold), springs below the threshold are
-// added back in order of decreasing weight, the fewest that make every load case carry
-// (adding a spring never makes a mechanism, so the count is found by bisection).
+// added back in order of decreasing weight, the shortest such prefix that makes every load
+// case carry (adding a spring never makes a mechanism, so its length is found by bisection).
+// With per-spring stiffness a spring at weight 0 has no stiffness to add and is not tried;
+// when even all tried springs do not carry, the result stays a mechanism.
 //
 // Loads that only prescribe displacements fix the weights up to one common factor: one weight
 // is pinned (scale_pinning.h) and, for per-spring stiffness, the result scaled so that the
@@ -74,8 +76,8 @@ struct DirectResult {
   double topology_threshold = 0.0;
   // The loads only prescribe displacements (no external force on a free node): the data fix
   // the weights up to one factor. Gene `pinned_gene` was held at weight 1 and the others
-  // solved relative to it (scale_pinning.h); per-spring stiffness is then scaled so that the
-  // median identified spring has the training stiffness.
+  // solved relative to it (scale_pinning.h); the weights (and per-spring stiffness) are then
+  // scaled so that the median identified spring has the training (or known) stiffness.
   bool displacement_only = false;
   int pinned_gene = -1;
   // Genes below their threshold added back so that the model carries the loads.
@@ -88,7 +90,8 @@ struct DirectResult {
   double nnls_residual = 0.0;
   NnlsResult nnls;
   bool refined = false;         // the weights are the displacement-cost fit's
-  int refinement_iterations = 0;
+  int refinement_iterations = 0;  // its accepted steps, whether or not its reading was kept
+  int evaluations = 0;          // of the displacement cost (readings and the load-carrying guard)
   Evaluation evaluation;        // the identified model's equilibria against the reference
   double assemble_seconds = 0.0;
   double solve_seconds = 0.0;

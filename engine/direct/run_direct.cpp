@@ -18,14 +18,14 @@ DirectRun RunDirect(const Problem& problem, const SearchOptions& options, const 
   r.springs = problem.SpringsOfGenome(r.best);
   r.evaluation = run.direct.evaluation;
   r.difference = problem.CompareWithReference(r.best);
-  r.counters.evaluations = 1;
+  r.counters.evaluations = run.direct.evaluations;
   r.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const double target = std::max(options.target_normalized_error, kExactNormalizedError);
   r.stop = r.evaluation.normalized_error <= target ? StopReason::kTargetReached : StopReason::kCompleted;
 
   TraceRow row;
   row.wall_seconds = r.wall_seconds;
-  row.evaluations = 1;
+  row.evaluations = r.counters.evaluations;
   row.best_cost = r.evaluation.cost;
   row.best_normalized_error = r.evaluation.normalized_error;
   row.mean_cost = r.evaluation.cost;

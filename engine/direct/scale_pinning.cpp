@@ -26,11 +26,12 @@ int LargestNullComponent(const SparseMatrix& a, const std::vector<bool>& usable,
   if (ldlt.info() != Eigen::Success) return -1;
   Vector x = Vector::Ones(normal.rows()).normalized();
   for (int it = 0; it < options.inverse_iterations; ++it) x = ldlt.solve(x).normalized();
-  // The sign of a null vector is free; that of the weights is not. Back in weight units.
+  // The sign of a null vector is free; that of the weights is not. Its largest component on
+  // the unit columns (the spring whose force the balance leans on most), not in weight
+  // units, where a barely strained column's huge 1/|a_j| would magnify round-off and noise.
   if (x.sum() < 0.0) x = -x;
-  const Vector w = scale.cwiseProduct(x);
   Eigen::Index best = 0;
-  w.maxCoeff(&best);
+  x.maxCoeff(&best);
   return genes[static_cast<std::size_t>(best)];
 }
 

@@ -7,7 +7,8 @@
 // space. Column norms do not tell (absent candidates, often longer, strain the most: on
 // kidney-2d the six largest columns are all absent springs). The null vector itself does:
 // the direction A nearly annihilates, found by inverse iteration on the normal matrix of the
-// unit-norm columns, has its largest component on a present spring. That spring is pinned.
+// unit-norm columns, has its largest component (on those columns) on a present spring. That
+// spring is pinned.
 #pragma once
 #include <optional>
 #include <vector>

@@ -217,14 +217,14 @@ TEST(Direct, SceneIdentifySettingChoosesWhatRunDirectFinds) {
   const Problem both = Problem::Build(scene);
   const DirectRun per_spring = RunDirect(both, ResolveSearchOptions(both.scene().search, both.gene_count()));
   EXPECT_EQ(per_spring.search.options.identify, Identify::kTopologyAndStiffness);  // direct's default
-  EXPECT_TRUE(per_spring.search.exact());
+  EXPECT_EQ(per_spring.search.exact(), true);
   EXPECT_LT(per_spring.search.evaluation.normalized_error, 1e-12);
 
   scene.search.identify = Identify::kTopology;
   const Problem topology_only = Problem::Build(scene);
   const DirectRun uniform = RunDirect(topology_only, ResolveSearchOptions(topology_only.scene().search, topology_only.gene_count()));
   EXPECT_EQ(uniform.search.options.identify, Identify::kTopology);
-  EXPECT_TRUE(uniform.search.exact());  // the topology, yes
+  EXPECT_EQ(uniform.search.exact(), true);  // the topology, yes
   for (const double k : uniform.direct.springs.stiffness) EXPECT_EQ(k, topology_only.training_stiffness());
   // ... but uniform stiffness does not reproduce a reference whose stiffness varies.
   EXPECT_GT(uniform.search.evaluation.normalized_error, 1e-6);
@@ -331,6 +331,26 @@ TEST(Direct, DisplacementOnlyLoadsFixTheStiffnessUpToOneFactor) {
   std::sort(k.begin(), k.end());
   EXPECT_DOUBLE_EQ(k[k.size() / 2], 3.0);
   EXPECT_LT(r.evaluation.normalized_error, 1e-12);
+
+  // Measured positions (0.1% noise): the pin is still a present spring, the topology exact,
+  // and the reported weights are in stiffness units (median kept spring at the known 1).
+  const Scene clean = DisplacementsOnly(examples::Make("paper-aniso-5x5"));
+  const Problem clean_problem = Problem::Build(clean);
+  const Problem noisy = Problem::Build(examples::WithMeasurementNoise(clean, 1e-3, 1));
+  DirectOptions known;
+  known.known_stiffness = 1.0;
+  for (const DirectOptions& o : {DirectOptions{}, known}) {
+    const DirectResult d = IdentifyDirect(noisy, o);
+    ASSERT_GE(d.pinned_gene, 0);
+    EXPECT_GT(clean_problem.ReferenceWeights()[d.pinned_gene], 0.0);
+    EXPECT_EQ(clean_problem.CompareWithReference(d.genome)->hamming(), 0);
+    std::vector<double> kept;
+    for (int g = 0; g < noisy.gene_count(); ++g) {
+      if (d.genome[g]) kept.push_back(d.weights[g]);
+    }
+    std::sort(kept.begin(), kept.end());
+    EXPECT_NEAR(kept[kept.size() / 2], 1.0, 1e-12);
+  }
 
   // With forces the scale is the data's: nothing is pinned.
   EXPECT_EQ(IdentifyDirect(Problem::Build(examples::Make("stiff-2d"))).pinned_gene, -1);
