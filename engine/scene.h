@@ -71,10 +71,10 @@ struct Reference {
 
 // The topology search strategies (engine/search/search_options.h has what each does).
 enum class Strategy {
-  kDefault,  // the fastest measured: a memetic GA (bench/RESULTS.md chose it)
+  kDefault,  // the fastest measured (bench/RESULTS.md): today the memetic GA seeded by direct
   kPaper,    // the paper's GA, unchanged (Bianchi et al. 2003)
   kDirect,   // non-negative least squares on the force balance (engine/direct/)
-  kHybrid,   // direct, then the default GA seeded with its topology
+  kHybrid,   // direct, then the memetic GA seeded with its topology (today's default)
 };
 
 // What an identification finds (proto/SCENE.md, "search.identify").

@@ -30,7 +30,7 @@ SearchResult RunSearch(const Problem& problem, const SearchOptions& options, con
   if (run.resume_from) {
     search.Restore(*run.resume_from);
   } else {
-    if (options.strategy == Strategy::kHybrid) {
+    if (options.direct_seed) {
       // The direct identification seeds the GA; its time starts the trace's clock.
       const auto start = std::chrono::steady_clock::now();
       // The GA's models have the training stiffness: the direct phase identifies topology only.

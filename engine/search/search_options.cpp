@@ -18,6 +18,7 @@ SearchOptions StrategyDefaults(Strategy strategy, int genes) {
   o.initial_density_low = 0.5;
   o.initial_density_high = 1.0;
   o.local_search = true;
+  o.direct_seed = true;
   return o;
 }
 

@@ -10,11 +10,14 @@
 // the scene's lengths leaves e, hence every weight, unchanged), finite for an exact
 // topology, and graded among mechanisms because their penalised e grows with their modes.
 //
-// Strategy `default` is a memetic GA chosen by the experiment in bench/RESULTS.md (issue 3):
-// one elite, binary tournament selection, uniform crossover with probability 0.9, mutation of
-// one gene per child on average (1 / genes), an initial population spread in density over
-// [0.5, 1), and in every generation a local search (single flips, then swaps of nearby
-// springs) on the best new individual.
+// Strategy `default` is what the experiments in bench/RESULTS.md measured fastest (issues 3
+// and 4): the direct identification's topology (engine/direct/, topology only) seeds a
+// memetic GA: one elite, binary tournament selection, uniform crossover with probability 0.9,
+// mutation of one gene per child on average (1 / genes), an initial population spread in
+// density over [0.5, 1), and in every generation a local search (single flips, then swaps of
+// nearby springs) on the best new individual. For an MSS reference the seed is the answer and
+// the run ends in generation 0; for noisy data the GA corrects it. Strategy `hybrid` is the
+// same combination by name, fixed whatever `default` becomes.
 #pragma once
 
 #include <cstddef>
@@ -77,6 +80,10 @@ struct SearchOptions {
   // anew (0 = never; restarts after 3 or 20 stalled generations measured no better on
   // paper-aniso-5x5, bench/RESULTS.md).
   int restart_after = 0;
+
+  // The direct identification's topology (topology only, at the training stiffness) takes
+  // the first place of the initial population; its time starts the trace's clock.
+  bool direct_seed = false;
 
   std::size_t cache_capacity = FitnessCache::kDefaultCapacity;
 };
