@@ -12,4 +12,4 @@ for _ in $(seq 100); do [ -s "$run/port" ] && break; sleep 0.05; done
 server="127.0.0.1:$(cat "$run/port")"
 "$build/bench/daemon_bench" --server "$server" --get --clients 50 --seconds 5
 "$build/bench/daemon_bench" --server "$server" --overhead examples/kidney-2d.json --strategy paper --generations 100 --threads 2 --repeats 5
-"$build/bench/daemon_bench" --server "$server" --overhead examples/paper-aniso-5x5.json --strategy default --generations 1000 --threads 2 --repeats 10
+"$build/bench/daemon_bench" --server "$server" --overhead examples/paper-aniso-5x5.json --strategy paper --generations 1000 --threads 2 --repeats 10
