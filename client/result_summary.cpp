@@ -33,6 +33,15 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
       << " generations (best found in generation " << r.value("best_generation", 0) << ")\n";
   out << "evaluations:       " << r.value("evaluations", 0LL) << " (" << r.value("cache_hits", 0LL) << " from the cache)\n";
   out << "wall time:         " << Format("%.3f", r.value("wall_seconds", 0.0)) << " s\n";
+  if (r.contains("direct_phase") && r["direct_phase"].is_object()) {
+    const proto::Json& phase = r["direct_phase"];
+    out << "direct seed:       " << Format("%.3f", phase.value("seconds", 0.0)) << " s, normalized error "
+        << Format("%.6g", phase.value("normalized_error", 0.0));
+    if (phase.contains("missing") && phase["missing"].is_number()) {
+      out << " (" << phase["missing"].get<long long>() << " missing, " << phase["extra"].get<long long>() << " extra)";
+    }
+    out << "\n";
+  }
   out << "springs:           " << r.value("springs", proto::Json::array()).size() << " of " << r.value("genes", 0)
       << " genes\n";
   out << "cost:              " << Format("%.6g", r.value("cost", 0.0)) << "\n";
