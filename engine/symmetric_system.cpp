@@ -126,10 +126,10 @@ SymmetricSystem::Factorization SymmetricSystem::Factorize(double shift, double t
       for (int r = c; r < n_; ++r) dense_work_(r, c) = scale_[r] * dense_(r, c) * scale_[c];
       dense_work_(c, c) += shift;
     }
-    llt_.compute(dense_work_);
+    dense_factor_ = dense_work_;
     dense_used_ldlt_ = false;
-    if (llt_.info() == Eigen::Success) {
-      const auto& l = llt_.matrixLLT();
+    if (Eigen::internal::llt_inplace<double, Eigen::Lower>::unblocked(dense_factor_) < 0) {
+      const Matrix& l = dense_factor_;
       for (int i = 0; i < n_; ++i) {
         const double pivot = l(i, i) * l(i, i);
         f.min_pivot = std::min(f.min_pivot, pivot);
@@ -185,7 +185,8 @@ void SymmetricSystem::Solve(Vector& b) const {
     if (dense_used_ldlt_) {
       b = ldlt_.solve(b);
     } else {
-      llt_.solveInPlace(b);
+      dense_factor_.triangularView<Eigen::Lower>().solveInPlace(b);
+      dense_factor_.triangularView<Eigen::Lower>().transpose().solveInPlace(b);
     }
   } else {
     b = sldlt_->solve(b);

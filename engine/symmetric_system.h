@@ -68,7 +68,10 @@ class SymmetricSystem {
   // Dense backend: lower triangle of a column-major matrix.
   Matrix dense_;
   Matrix dense_work_;
-  Eigen::LLT<Matrix, Eigen::Lower> llt_;
+  // The Cholesky factor L of dense_work_ (lower triangle). Eigen's LLT blocks its work in
+  // panels with matrix-matrix updates, whose overhead dominates at the dense path's sizes
+  // (tens of unknowns: a 5x5 grid has 40); its unblocked kernel is used directly instead.
+  Matrix dense_factor_;
   Eigen::LDLT<Matrix, Eigen::Lower> ldlt_;
   bool dense_used_ldlt_ = false;
 
