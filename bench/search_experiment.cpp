@@ -122,7 +122,7 @@ int FullRun(const std::string& scene, int threads, int repeats) {
       evaluations += r.counters.evaluations;
       hits += r.counters.cache_hits;
     }
-    std::printf("| %s | %s | %d | %s | %s | %.0f | %.0f%% |\n", scene.c_str(), strategy == Strategy::kPaper ? "paper" : "default",
+    std::printf("| %s | %s | %d | %s | %s | %.0f | %.0f%% |\n", scene.c_str(), strategy == Strategy::kPaper ? "paper" : "default-ga",
                 threads, Seconds(Quantile(seconds, 0.5)).c_str(), Seconds(*std::max_element(seconds.begin(), seconds.end())).c_str(),
                 static_cast<double>(evaluations) / repeats, 100.0 * static_cast<double>(hits) / static_cast<double>(evaluations));
   }

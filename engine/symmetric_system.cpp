@@ -121,12 +121,15 @@ SymmetricSystem::Factorization SymmetricSystem::Factorize(double shift, double t
   Factorization f;
   f.min_pivot = std::numeric_limits<double>::infinity();
   if (backend_ == Backend::kDense) {
-    // Scale the lower triangle only: that is all LLT and LDLT read.
-    for (int c = 0; c < n_; ++c) {
-      for (int r = c; r < n_; ++r) dense_work_(r, c) = scale_[r] * dense_(r, c) * scale_[c];
-      dense_work_(c, c) += shift;
-    }
-    dense_factor_ = dense_work_;
+    // Scale the lower triangle only: that is all the factorisations read.
+    const auto scaled_into = [&](Matrix& m) {
+      for (int c = 0; c < n_; ++c) {
+        for (int r = c; r < n_; ++r) m(r, c) = scale_[r] * dense_(r, c) * scale_[c];
+        m(c, c) += shift;
+      }
+    };
+    dense_factor_.resize(n_, n_);  // no-op once sized (copies of a system start without it)
+    scaled_into(dense_factor_);
     dense_used_ldlt_ = false;
     if (Eigen::internal::llt_inplace<double, Eigen::Lower>::unblocked(dense_factor_) < 0) {
       const Matrix& l = dense_factor_;
@@ -143,6 +146,7 @@ SymmetricSystem::Factorization SymmetricSystem::Factorize(double shift, double t
       return f;
     }
     // Indefinite or singular beyond the shift: the pivoted LDLT still counts its pivots.
+    scaled_into(dense_work_);
     ldlt_.compute(dense_work_);
     dense_used_ldlt_ = true;
     const Vector d = ldlt_.vectorD();
