@@ -88,6 +88,19 @@ struct DirectCase {
   std::uint64_t seed;
 };
 
+// Stable names ("grid5x5_seed1"): by default gtest prints the parameter's bytes, which
+// change between builds.
+std::string CaseName(const DirectCase& c) {
+  std::string name = "grid";
+  for (std::size_t a = 0; a < c.grid.size(); ++a) {
+    if (a > 0) name += "x";
+    name += std::to_string(c.grid[a]);
+  }
+  return name + "_seed" + std::to_string(c.seed);
+}
+
+void PrintTo(const DirectCase& c, std::ostream* os) { *os << CaseName(c); }
+
 class DirectRecovery : public ::testing::TestWithParam<DirectCase> {};
 
 TEST_P(DirectRecovery, TopologyExactlyAndStiffnessTo1e8) {
@@ -107,7 +120,10 @@ TEST_P(DirectRecovery, TopologyExactlyAndStiffnessTo1e8) {
 
 INSTANTIATE_TEST_SUITE_P(Grids, DirectRecovery,
                          ::testing::Values(DirectCase{{5, 5}, 1}, DirectCase{{6, 4}, 2}, DirectCase{{3, 3, 3}, 1},
-                                           DirectCase{{4, 3, 3}, 5}));
+                                           DirectCase{{4, 3, 3}, 5}),
+                         [](const ::testing::TestParamInfo<DirectCase>& param_info) {
+                           return CaseName(param_info.param);
+                         });
 
 TEST(Direct, RecoversEveryMssExampleTopologyExactly) {
   for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d"}) {
