@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -21,6 +22,7 @@
 #include "engine/examples/catalog.h"
 #include "engine/direct/run_direct.h"
 #include "engine/search/run_search.h"
+#include "proto/names.h"
 
 namespace springfit {
 namespace {
@@ -174,10 +176,13 @@ int Main(int argc, char** argv) {
       // default GA without its direct seed (the memetic GA alone).
       const bool topology_only = strategy_name == "direct-topology";
       const bool no_direct_seed = strategy_name == "default-ga";
-      const Strategy strategy = strategy_name == "paper"                      ? Strategy::kPaper
-                                : strategy_name == "direct" || topology_only ? Strategy::kDirect
-                                : strategy_name == "hybrid" ? Strategy::kHybrid
-                                                            : Strategy::kDefault;
+      const std::string base = topology_only ? "direct" : no_direct_seed ? "default" : strategy_name;
+      const std::optional<Strategy> parsed = proto::ParseStrategy(base);
+      if (!parsed) {
+        std::fprintf(stderr, "search_experiment: unknown strategy '%s'\n", strategy_name.c_str());
+        return 64;
+      }
+      const Strategy strategy = *parsed;
       std::vector<RunRecord> runs;
       for (int s = 1; s <= seeds; ++s) {
         const Problem& problem = noise > 0.0 ? problems[static_cast<std::size_t>(s - 1)] : truth;

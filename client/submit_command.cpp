@@ -87,7 +87,9 @@ void RegisterSubmit(CLI::App& app, int& exit_code) {
   cmd->add_option("--seed", args->seed, "Random seed (default: the scene's, else 1)");
   cmd->add_option("--strategy", args->strategy, "Search strategy: " + proto::StrategyNames() + " (default: the scene's)");
   cmd->add_option("--identify", args->identify,
-                  "What to identify: topology or topology_and_stiffness (direct only; default: the scene's, else topology_and_stiffness for direct, topology otherwise)");
+                  "What to identify: " + proto::IdentifyNames() +
+                      " (the latter with strategy direct only; default: the scene's, else topology_and_stiffness for direct, "
+                      "topology otherwise)");
   cmd->add_option("--generations", args->generations, "Generation limit (default: the scene's, else 1000)")
       ->check(CLI::Range(1, 100000000));
   cmd->add_option("--idempotency-key", args->idempotency_key,

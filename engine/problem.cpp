@@ -231,6 +231,17 @@ Genome Problem::GenomeFromMask(const std::vector<std::uint8_t>& mask) const {
   return genome;
 }
 
+ActiveSprings Problem::SpringsOfWeights(const std::vector<double>& weights) const {
+  ActiveSprings springs;
+  for (std::size_t g = 0; g < gene_candidate_.size(); ++g) {
+    if (weights[g] > 0.0) {
+      springs.index.push_back(gene_candidate_[g]);
+      springs.stiffness.push_back(weights[g]);
+    }
+  }
+  return springs;
+}
+
 ActiveSprings Problem::SpringsFromMask(const std::vector<std::uint8_t>& mask) const {
   ActiveSprings springs;
   for (int c = 0; c < candidates_.size(); ++c) {

@@ -83,6 +83,8 @@ class Problem {
   Genome GenomeFromMask(const std::vector<std::uint8_t>& mask) const;
   // The springs of a candidate mask, with the training stiffness.
   ActiveSprings SpringsFromMask(const std::vector<std::uint8_t>& mask) const;
+  // The springs of the genes with a positive weight, each with its weight as stiffness.
+  ActiveSprings SpringsOfWeights(const std::vector<double>& weights) const;
   // Index of candidate (i, j), or -1.
   int CandidateIndex(NodePair pair) const;
   // Per gene, the reference's stiffness of that spring, 0 where the reference has none (what

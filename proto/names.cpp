@@ -72,11 +72,15 @@ std::string_view IdentifyName(Identify identify) {
   return identify == Identify::kTopology ? "topology" : "topology_and_stiffness";
 }
 
+std::string IdentifyNames() {
+  return std::string(IdentifyName(Identify::kTopology)) + " or " + std::string(IdentifyName(Identify::kTopologyAndStiffness));
+}
+
 Identify IdentifyFromName(const std::string& name, const std::string& path) {
   for (Identify i : {Identify::kTopology, Identify::kTopologyAndStiffness}) {
     if (IdentifyName(i) == name) return i;
   }
-  throw InputError(path, "unknown value '" + name + "' (expected topology or topology_and_stiffness)");
+  throw InputError(path, "unknown value '" + name + "' (expected " + IdentifyNames() + ")");
 }
 
 std::string_view StopReasonName(StopReason reason) {

@@ -29,6 +29,8 @@ std::string_view StopReasonName(StopReason reason);
 
 // What an identification finds (proto/SCENE.md, "search.identify").
 std::string_view IdentifyName(Identify identify);
+// "topology or topology_and_stiffness": the accepted names, for messages and help.
+std::string IdentifyNames();
 // InputError(path, "unknown value 'x' (expected topology or topology_and_stiffness)").
 Identify IdentifyFromName(const std::string& name, const std::string& path);
 

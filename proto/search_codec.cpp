@@ -8,10 +8,15 @@
 #include "proto/scene_codec.h"
 
 namespace springfit::proto {
+Json CountOrNull(int count) { return count < 0 ? Json(nullptr) : Json(count); }
+
 namespace {
 
-// -1 (unknown) becomes null.
-Json CountOrNull(int count) { return count < 0 ? Json(nullptr) : Json(count); }
+Json TraceToJson(const std::vector<TraceRow>& trace) {
+  Json rows = Json::array();
+  for (const TraceRow& row : trace) rows.push_back(TraceRowToJson(row));
+  return rows;
+}
 
 }  // namespace
 
@@ -129,21 +134,12 @@ Json SearchResultToJson(const Problem& problem, const SearchResult& r, bool with
     phase["extra"] = difference ? Json(difference->extra.size()) : Json(nullptr);
     j["direct_phase"] = std::move(phase);
   }
-  if (with_trace) {
-    Json trace = Json::array();
-    for (const TraceRow& row : r.trace) trace.push_back(TraceRowToJson(row));
-    j["trace"] = std::move(trace);
-  }
+  if (with_trace) j["trace"] = TraceToJson(r.trace);
   return j;
 }
 
 Json DirectRunToJson(const Problem& problem, const DirectRun& run, bool with_trace) {
-  Json j = SearchResultToJson(problem, run.search, with_trace);
-  Json trace;
-  if (with_trace) {
-    trace = std::move(j["trace"]);
-    j.erase("trace");
-  }
+  Json j = SearchResultToJson(problem, run.search, false);  // the trace goes last, below
   j["stiffness"] = run.direct.springs.stiffness;  // parallel to springs: both in candidate order
   const DirectResult& d = run.direct;
   // Confidence of each identified spring, and the absent ones closest to being present.
@@ -184,7 +180,7 @@ Json DirectRunToJson(const Problem& problem, const DirectRun& run, bool with_tra
   direct["absent_near_threshold"] = std::move(near);
   direct["seconds"] = {{"assemble", d.assemble_seconds}, {"solve", d.solve_seconds}, {"evaluate", d.evaluate_seconds}};
   j["direct"] = std::move(direct);
-  if (with_trace) j["trace"] = std::move(trace);
+  if (with_trace) j["trace"] = TraceToJson(run.search.trace);
   return j;
 }
 

@@ -13,6 +13,8 @@ namespace springfit::proto {
 
 Json SearchOptionsToJson(const SearchOptions& options);
 Json TraceRowToJson(const TraceRow& row);
+// A missing or extra count, -1 (unknown: no reference topology) as null.
+Json CountOrNull(int count);
 // Reads what TraceRowToJson wrote; throws InputError naming the path.
 TraceRow TraceRowFromJson(const Json& json, const std::string& path);
 // The result object; the trace is included only when `with_trace`.

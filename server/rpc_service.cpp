@@ -362,8 +362,8 @@ Json RpcService::JobImprovements(const Json& params) {
     row["wall_seconds"] = improvement.wall_seconds;
     row["cost"] = improvement.cost;
     row["normalized_error"] = improvement.normalized_error;
-    row["missing"] = improvement.missing >= 0 ? Json(improvement.missing) : Json(nullptr);
-    row["extra"] = improvement.extra >= 0 ? Json(improvement.extra) : Json(nullptr);
+    row["missing"] = proto::CountOrNull(improvement.missing);
+    row["extra"] = proto::CountOrNull(improvement.extra);
     std::string genome(improvement.genome.size(), '0');
     for (std::size_t g = 0; g < genome.size(); ++g) {
       if (improvement.genome[g] != 0) genome[g] = '1';

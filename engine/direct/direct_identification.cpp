@@ -106,14 +106,13 @@ class WeightReader {
     }
   }
 
+  // The genome's springs, at the known stiffness or at their weights.
   ActiveSprings ModelOf(const Genome& genome, const std::vector<double>& weights) const {
-    ActiveSprings model;
-    for (int g = 0; g < problem_.gene_count(); ++g) {
-      if (!genome[g]) continue;
-      model.index.push_back(problem_.gene_candidates()[g]);
-      model.stiffness.push_back(TopologyOnly() ? *options_.known_stiffness : weights[g]);
+    std::vector<double> stiffness(genome.size(), 0.0);
+    for (std::size_t g = 0; g < genome.size(); ++g) {
+      if (genome[g]) stiffness[g] = TopologyOnly() ? *options_.known_stiffness : weights[g];
     }
-    return model;
+    return problem_.SpringsOfWeights(stiffness);
   }
 
   Evaluation Evaluate(const ActiveSprings& springs) {

@@ -9,6 +9,7 @@
 // candidates, A w = b holds exactly at the reference's stiffness.
 #pragma once
 #include <Eigen/SparseCore>
+#include <optional>
 #include <vector>
 
 #include "engine/problem.h"
@@ -39,6 +40,18 @@ ForceBalance AssembleForceBalance(const Problem& problem, const std::vector<Vect
 std::vector<bool> SeenGenes(const ForceBalance& fb, double unseen_strain);
 // The columns of `a` listed in `columns`, in that order, as a new matrix.
 SparseMatrix SelectColumns(const SparseMatrix& a, const std::vector<int>& columns);
+
+// The normal matrix of the usable columns scaled to unit norm: its diagonal is 1, so that the
+// factorisations of the standard errors and of the scale pinning judge pivots unit-free.
+struct UnitColumnNormal {
+  std::vector<int> columns;  // the usable columns, in order
+  Vector scale;              // 1 / |a_j| per listed column
+  SparseMatrix normal;       // (A S)^T (A S) over them
+};
+// nullopt when a usable column is zero.
+std::optional<UnitColumnNormal> UnitNormalOf(const SparseMatrix& a, const std::vector<bool>& usable);
+// A pivot of a unit-diagonal normal matrix at or below this marks dependent columns.
+inline constexpr double kSingularUnitPivot = 1e-13;
 
 // The default `unseen_strain`: a relative length change at round-off.
 inline constexpr double kUnseenStrain = 1e-12;

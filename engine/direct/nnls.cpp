@@ -12,7 +12,6 @@ namespace {
 // against 6 ms on grid3d-4x4x4's 465 columns; 2.5 s against 10.7 s on 12x12x12's 18,777).
 constexpr std::size_t kSupernodalFromColumns = 2000;
 constexpr double kRidge = 1e-10;
-constexpr double kSingularPivot = 1e-13;  // of the unit diagonal
 // The gradient on the free set that still counts as a solved least-squares problem, relative
 // to |A^T b|: refinement reaches about 1e-12 on healthy problems.
 constexpr double kSolveAccuracy = 1e-6;  // relative to the unit diagonal of the scaled normal matrix
@@ -78,7 +77,7 @@ Vector SolveOn(const Matrix& a, const Matrix& normal, const Vector& b, const std
   // failing: a pivot at round-off of the unit diagonal counts as failure here, as in the
   // sparse path, so that the ridge takes over.
   Eigen::LDLT<Matrix> ldlt(normal_ff);
-  if (ldlt.info() == Eigen::Success && ldlt.vectorD().cwiseAbs().minCoeff() > kSingularPivot) {
+  if (ldlt.info() == Eigen::Success && ldlt.vectorD().cwiseAbs().minCoeff() > kSingularUnitPivot) {
     Vector z = Refined(ldlt, sub, b, refinement_steps);
     if (z.allFinite()) return z;
   }

@@ -7,18 +7,10 @@ namespace {
 
 // The gene whose component of A's (approximate) null vector is largest; -1 when there is
 // none to find.
-int LargestNullComponent(const SparseMatrix& a, const std::vector<bool>& usable,
-                         const PinOptions& options) {
-  std::vector<int> genes;
-  for (int g = 0; g < static_cast<int>(a.cols()); ++g) {
-    if (usable[g]) genes.push_back(g);
-  }
-  if (genes.empty()) return -1;
-  SparseMatrix columns = SelectColumns(a, genes);
-  Vector scale(static_cast<Eigen::Index>(genes.size()));
-  for (Eigen::Index j = 0; j < columns.cols(); ++j) scale[j] = 1.0 / columns.col(j).norm();
-  columns = columns * scale.asDiagonal();
-  SparseMatrix normal = SparseMatrix(columns.transpose()) * columns;
+int LargestNullComponent(const SparseMatrix& a, const std::vector<bool>& usable, const PinOptions& options) {
+  std::optional<UnitColumnNormal> unit_normal = UnitNormalOf(a, usable);
+  if (!unit_normal || unit_normal->columns.empty()) return -1;
+  SparseMatrix& normal = unit_normal->normal;
   SparseMatrix identity(normal.rows(), normal.cols());
   identity.setIdentity();
   normal += options.shift * identity;
@@ -32,7 +24,7 @@ int LargestNullComponent(const SparseMatrix& a, const std::vector<bool>& usable,
   if (x.sum() < 0.0) x = -x;
   Eigen::Index best = 0;
   x.maxCoeff(&best);
-  return genes[static_cast<std::size_t>(best)];
+  return unit_normal->columns[static_cast<std::size_t>(best)];
 }
 
 }  // namespace

@@ -9,24 +9,13 @@
 namespace springfit {
 namespace {
 
-ActiveSprings ModelOf(const Problem& problem, const std::vector<double>& w) {
-  ActiveSprings springs;
-  for (std::size_t g = 0; g < w.size(); ++g) {
-    if (w[g] > 0.0) {
-      springs.index.push_back(problem.gene_candidates()[g]);
-      springs.stiffness.push_back(w[g]);
-    }
-  }
-  return springs;
-}
-
 // The model's equilibria u (warm-started from u where given) and its residual r = u^M - u^R
 // on the free coordinates (stacked by load case, free-node order, as the force balance's
 // rows). False when some load case has no equilibrium.
 bool Equilibria(const Problem& problem, const std::vector<double>& w, std::vector<EquilibriumSolver>& solvers,
                 std::vector<Vector>& u, Vector& r) {
   const int d = problem.dimension();
-  const ActiveSprings springs = ModelOf(problem, w);
+  const ActiveSprings springs = problem.SpringsOfWeights(w);
   Eigen::Index rows = 0;
   for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
     const PreparedLoadCase& lc = problem.load_cases()[k];
@@ -54,7 +43,7 @@ bool Equilibria(const Problem& problem, const std::vector<double>& w, std::vecto
 // exerts per unit stiffness. False when some tangent is not positive definite.
 bool Jacobian(const Problem& problem, const std::vector<double>& w, std::vector<EquilibriumSolver>& solvers,
               const std::vector<Vector>& u, Matrix& jacobian) {
-  const ActiveSprings springs = ModelOf(problem, w);
+  const ActiveSprings springs = problem.SpringsOfWeights(w);
   const ForceBalance fb = AssembleForceBalance(problem, &u);
   jacobian = Matrix(fb.a);  // g_j per case; turned into H^-1 g_j block by block below
   for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
@@ -140,7 +129,7 @@ RefinementResult RefineWeights(const Problem& problem, const std::vector<double>
 
   result.refined = true;
   result.weights = w;
-  result.evaluation = cost.Evaluate(ModelOf(problem, w));
+  result.evaluation = cost.Evaluate(problem.SpringsOfWeights(w));
   // Standard errors from the Gauss-Newton approximation of the covariance at the optimum.
   int positive = 0;
   for (const double x : w) positive += x > 0.0;
@@ -166,7 +155,7 @@ RefinementResult RefineWeights(const Problem& problem, const std::vector<double>
   Eigen::LDLT<Matrix> ldlt(normal);
   const Vector pivots = ldlt.vectorD();
   bool regular = ldlt.info() == Eigen::Success;
-  for (Eigen::Index i = 0; i < m && regular; ++i) regular = pivots[i] > 1e-13;
+  for (Eigen::Index i = 0; i < m && regular; ++i) regular = pivots[i] > kSingularUnitPivot;
   if (regular) {
     result.sigma.assign(genes, HUGE_VAL);
     const Matrix inverse = ldlt.solve(Matrix::Identity(m, m));
