@@ -60,7 +60,7 @@ EquilibriumSolver::EquilibriumSolver(const SpringGeometry& geometry, FreeNodes f
       }
     }
   }
-  const auto backend = n <= options_.dense_max_dofs ? SymmetricSystem::Backend::kDense
+  const auto backend = n <= options_.banded_max_dofs ? SymmetricSystem::Backend::kBanded
                                                      : SymmetricSystem::Backend::kSparse;
   // Diagonal blocks of free nodes: the whole lower triangle of each node's d x d block.
   for (int f = 0; f < free_.count; ++f) {

@@ -63,9 +63,9 @@ struct EquilibriumOptions {
   // Added to the scaled rest stiffness in RestMechanismModes so that a mechanism's zero pivot
   // is never exactly zero (Eigen's sparse LDLT stops at an exact zero pivot).
   double mechanism_shift = 1e-13;
-  // Free-node degrees of freedom up to which the dense factorisation is used; above it the
+  // Free-node degrees of freedom up to which the banded factorisation is used; above it the
   // sparse one (bench/solve_bench measures the crossover).
-  int dense_max_dofs = 96;
+  int banded_max_dofs = 96;
 };
 
 struct EquilibriumSummary {

@@ -3,16 +3,29 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <cstddef>
 #include <limits>
+
+// LAPACK (Fortran; the trailing arguments are the hidden lengths of the character arguments).
+extern "C" {
+void dpbtf2_(const char* uplo, const int* n, const int* kd, double* ab, const int* ldab, int* info,
+             std::size_t uplo_len);
+void dpbtrs_(const char* uplo, const int* n, const int* kd, const int* nrhs, const double* ab,
+             const int* ldab, double* b, const int* ldb, int* info, std::size_t uplo_len);
+}
 
 namespace springfit {
 
 SymmetricSystem::SymmetricSystem(int n, std::vector<std::pair<int, int>> lower, Backend backend)
     : n_(n), backend_(backend), scale_(Vector::Ones(n)) {
   for (int i = 0; i < n; ++i) lower.emplace_back(i, i);
-  if (backend_ == Backend::kDense) {
-    dense_ = Matrix::Zero(n, n);
-    dense_work_ = Matrix::Zero(n, n);
+  if (backend_ == Backend::kBanded) {
+    for (const auto& [r, c] : lower) {
+      assert(r >= c);
+      bandwidth_ = std::max(bandwidth_, r - c);
+    }
+    band_ = Matrix::Zero(bandwidth_ + 1, n);
+    band_factor_ = band_;
     RebindValues();
     return;
   }
@@ -37,8 +50,9 @@ SymmetricSystem::SymmetricSystem(const SymmetricSystem& other)
     : n_(other.n_),
       backend_(other.backend_),
       scale_(other.scale_),
-      dense_(other.dense_),
-      dense_work_(other.dense_work_),
+      bandwidth_(other.bandwidth_),
+      band_(other.band_),
+      band_factor_(other.band_factor_),
       sparse_(other.sparse_),
       sparse_work_(other.sparse_work_),
       diagonal_slot_(other.diagonal_slot_) {
@@ -58,8 +72,9 @@ SymmetricSystem::SymmetricSystem(SymmetricSystem&& other) noexcept
     : n_(other.n_),
       backend_(other.backend_),
       scale_(std::move(other.scale_)),
-      dense_(std::move(other.dense_)),
-      dense_work_(std::move(other.dense_work_)),
+      bandwidth_(other.bandwidth_),
+      band_(std::move(other.band_)),
+      band_factor_(std::move(other.band_factor_)),
       sparse_(std::move(other.sparse_)),
       sparse_work_(std::move(other.sparse_work_)),
       diagonal_slot_(std::move(other.diagonal_slot_)),
@@ -71,9 +86,10 @@ SymmetricSystem& SymmetricSystem::operator=(SymmetricSystem&& other) noexcept {
   n_ = other.n_;
   backend_ = other.backend_;
   scale_ = std::move(other.scale_);
-  dense_ = std::move(other.dense_);
-  dense_work_ = std::move(other.dense_work_);
-  dense_used_ldlt_ = false;
+  bandwidth_ = other.bandwidth_;
+  band_ = std::move(other.band_);
+  band_factor_ = std::move(other.band_factor_);
+  used_ldlt_ = false;
   sparse_ = std::move(other.sparse_);
   sparse_work_ = std::move(other.sparse_work_);
   diagonal_slot_ = std::move(other.diagonal_slot_);
@@ -84,7 +100,10 @@ SymmetricSystem& SymmetricSystem::operator=(SymmetricSystem&& other) noexcept {
 
 int SymmetricSystem::Slot(int row, int col) const {
   assert(row >= col && row < n_);
-  if (backend_ == Backend::kDense) return row + col * n_;
+  if (backend_ == Backend::kBanded) {
+    assert(row - col <= bandwidth_);
+    return (row - col) + col * (bandwidth_ + 1);
+  }
   const int* inner = sparse_.innerIndexPtr();
   const int begin = sparse_.outerIndexPtr()[col];
   const int end = sparse_.outerIndexPtr()[col + 1];
@@ -94,22 +113,30 @@ int SymmetricSystem::Slot(int row, int col) const {
 }
 
 void SymmetricSystem::SetZero() {
-  if (backend_ == Backend::kDense) {
-    dense_.setZero();
+  if (backend_ == Backend::kBanded) {
+    band_.setZero();
   } else {
     std::fill(sparse_.valuePtr(), sparse_.valuePtr() + sparse_.nonZeros(), 0.0);
   }
 }
 
+Matrix SymmetricSystem::BandToDense(const Matrix& band) const {
+  Matrix a = Matrix::Zero(n_, n_);
+  for (int c = 0; c < n_; ++c) {
+    for (int r = c; r <= std::min(n_ - 1, c + bandwidth_); ++r) a(r, c) = band(r - c, c);
+  }
+  return a;
+}
+
 Matrix SymmetricSystem::ToDense() const {
-  Matrix a = backend_ == Backend::kDense ? dense_ : Matrix(Eigen::MatrixXd(sparse_));
+  Matrix a = backend_ == Backend::kBanded ? BandToDense(band_) : Matrix(Eigen::MatrixXd(sparse_));
   a.triangularView<Eigen::StrictlyUpper>() = a.transpose();
   return a;
 }
 
 void SymmetricSystem::ComputeScaling() {
   for (int i = 0; i < n_; ++i) {
-    const double d = backend_ == Backend::kDense ? dense_(i, i) : values_[diagonal_slot_[i]];
+    const double d = backend_ == Backend::kBanded ? band_(0, i) : values_[diagonal_slot_[i]];
     // A zero or negative diagonal has no scale; 1 keeps it visible as a small pivot.
     scale_[i] = d > 0.0 ? 1.0 / std::sqrt(d) : 1.0;
   }
@@ -120,21 +147,23 @@ SymmetricSystem::Factorization SymmetricSystem::Factorize(double shift, double t
   ComputeScaling();
   Factorization f;
   f.min_pivot = std::numeric_limits<double>::infinity();
-  if (backend_ == Backend::kDense) {
-    // Scale the lower triangle only: that is all the factorisations read.
-    const auto scaled_into = [&](Matrix& m) {
+  if (backend_ == Backend::kBanded) {
+    const int width = bandwidth_ + 1;
+    const auto scale_into_factor = [&] {
+      band_factor_.resize(width, n_);  // no-op once sized (copies of a system start without it)
       for (int c = 0; c < n_; ++c) {
-        for (int r = c; r < n_; ++r) m(r, c) = scale_[r] * dense_(r, c) * scale_[c];
-        m(c, c) += shift;
+        const int rows = std::min(width, n_ - c);
+        for (int k = 0; k < rows; ++k) band_factor_(k, c) = scale_[c + k] * band_(k, c) * scale_[c];
+        band_factor_(0, c) += shift;
       }
     };
-    dense_factor_.resize(n_, n_);  // no-op once sized (copies of a system start without it)
-    scaled_into(dense_factor_);
-    dense_used_ldlt_ = false;
-    if (Eigen::internal::llt_inplace<double, Eigen::Lower>::unblocked(dense_factor_) < 0) {
-      const Matrix& l = dense_factor_;
+    scale_into_factor();
+    used_ldlt_ = false;
+    int info = 0;
+    dpbtf2_("L", &n_, &bandwidth_, band_factor_.data(), &width, &info, 1);
+    if (info == 0) {
       for (int i = 0; i < n_; ++i) {
-        const double pivot = l(i, i) * l(i, i);
+        const double pivot = band_factor_(0, i) * band_factor_(0, i);
         f.min_pivot = std::min(f.min_pivot, pivot);
         if (pivot <= tolerance) ++f.small_pivots;
       }
@@ -146,9 +175,9 @@ SymmetricSystem::Factorization SymmetricSystem::Factorize(double shift, double t
       return f;
     }
     // Indefinite or singular beyond the shift: the pivoted LDLT still counts its pivots.
-    scaled_into(dense_work_);
-    ldlt_.compute(dense_work_);
-    dense_used_ldlt_ = true;
+    scale_into_factor();  // dpbtf2 left the columns before the failed pivot factored
+    ldlt_.compute(BandToDense(band_factor_));
+    used_ldlt_ = true;
     const Vector d = ldlt_.vectorD();
     for (int i = 0; i < n_; ++i) {
       f.min_pivot = std::min(f.min_pivot, d[i]);
@@ -185,12 +214,13 @@ SymmetricSystem::Factorization SymmetricSystem::Factorize(double shift, double t
 
 void SymmetricSystem::Solve(Vector& b) const {
   b.array() *= scale_.array();
-  if (backend_ == Backend::kDense) {
-    if (dense_used_ldlt_) {
+  if (backend_ == Backend::kBanded) {
+    if (used_ldlt_) {
       b = ldlt_.solve(b);
     } else {
-      dense_factor_.triangularView<Eigen::Lower>().solveInPlace(b);
-      dense_factor_.triangularView<Eigen::Lower>().transpose().solveInPlace(b);
+      const int width = bandwidth_ + 1, one = 1;
+      int info = 0;
+      dpbtrs_("L", &n_, &bandwidth_, &one, band_factor_.data(), &width, b.data(), &n_, &info, 1);
     }
   } else {
     b = sldlt_->solve(b);

@@ -1,5 +1,5 @@
 // A symmetric linear system A x = b on a sparsity pattern fixed at construction, with one
-// interface over a dense and a sparse factorisation.
+// interface over a banded and a sparse factorisation.
 //
 // Callers assemble into `values()` through slots (positions of lower-triangle entries) that they
 // look up once with Slot(); assembly then costs no search. Factorize() works on the
@@ -7,7 +7,10 @@
 // tells a healthy pivot from a mechanism whatever the stiffness scale or spread (a scene with
 // stiffness ratios of 1e8 has raw pivot ratios far below round-off of a mechanism's). The
 // sparse backend does its symbolic analysis (AMD ordering, elimination tree) once, here, and
-// reuses it for every factorisation.
+// reuses it for every factorisation. The banded backend stores the lower band of the pattern
+// (LAPACK's band storage, as wide as the pattern's farthest entry from the diagonal) and
+// factorises it with LAPACK's unblocked band Cholesky: for the small scenes it serves, a grid
+// numbered row by row, the band is a third of the matrix and so is the work.
 //
 // Not thread-safe; copy one per thread.
 #pragma once
@@ -26,7 +29,7 @@ namespace springfit {
 
 class SymmetricSystem {
  public:
-  enum class Backend { kDense, kSparse };
+  enum class Backend { kBanded, kSparse };
 
   struct Factorization {
     bool positive_definite = false;  // every scaled pivot > small_pivot_tolerance
@@ -59,21 +62,23 @@ class SymmetricSystem {
 
  private:
   void ComputeScaling();
+  // The lower triangle of a matrix in band storage, as a dense matrix (upper triangle zero).
+  Matrix BandToDense(const Matrix& band) const;
 
   int n_ = 0;
-  Backend backend_ = Backend::kDense;
-  double* values_ = nullptr;  // points into dense_ or sparse_ storage
+  Backend backend_ = Backend::kBanded;
+  double* values_ = nullptr;  // points into band_ or sparse_ storage
   Vector scale_;              // S
 
-  // Dense backend: lower triangle of a column-major matrix.
-  Matrix dense_;
-  Matrix dense_work_;
-  // The Cholesky factor L of dense_work_ (lower triangle). Eigen's LLT blocks its work in
-  // panels with matrix-matrix updates, whose overhead dominates at the dense path's sizes
-  // (tens of unknowns: a 5x5 grid has 40); its unblocked kernel is used directly instead.
-  Matrix dense_factor_;
+  // Banded backend, LAPACK's lower band storage: A(r, c) is band_(r - c, c), r - c <= bandwidth_.
+  int bandwidth_ = 0;
+  Matrix band_;
+  // The Cholesky factor L of S A S + shift I, in the same storage.
+  Matrix band_factor_;
+  // Where the band Cholesky meets a non-positive pivot and the pivots must be counted, a
+  // pivoted dense LDLT of the same scaled matrix counts them (a mechanism's modes).
   Eigen::LDLT<Matrix, Eigen::Lower> ldlt_;
-  bool dense_used_ldlt_ = false;
+  bool used_ldlt_ = false;
 
   // Sparse backend: lower triangle in compressed column storage.
   Eigen::SparseMatrix<double> sparse_;
@@ -96,7 +101,7 @@ class SymmetricSystem {
  private:
   // values_ points into storage owned by this object: re-aim it after a copy or move.
   void RebindValues() {
-    values_ = backend_ == Backend::kDense ? dense_.data() : sparse_.valuePtr();
+    values_ = backend_ == Backend::kBanded ? band_.data() : sparse_.valuePtr();
   }
 };
 

@@ -8,6 +8,7 @@ packages=(
   build-essential cmake pkg-config
   libeigen3-dev            # linear algebra, sparse factorisation
   libsuitesparse-dev       # CHOLMOD: supernodal sparse Cholesky (strategy direct at scale)
+  liblapack-dev            # band Cholesky of the small equilibrium systems
   libboost-dev             # Asio (header-only) for networking and thread pools
   nlohmann-json3-dev       # JSON
   libsqlite3-dev libsqlitecpp-dev sqlite3
