@@ -6,6 +6,9 @@
 //                                 [--scenes a,b] [--strategies paper,default]
 //   build/bench/search_experiment --full-run paper-iso-5x5   (1000 generations, no early stop)
 //   build/bench/search_experiment --elites 1 ...            (a variant: strategies with N elites)
+//   build/bench/search_experiment --roulette-exponent 2 ... (a variant: roulette weights e^-2)
+//   build/bench/search_experiment --local-optima ...        (also: can single flips or pairs
+//        of flips improve the best genome of each run that was not exact?)
 //   build/bench/search_experiment --strategies paper,default,direct,hybrid --noise 0.01
 //        (noisy references: seed s also draws the noise; exactness against the clean scene)
 #include <algorithm>
@@ -19,6 +22,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "engine/cost.h"
 #include "engine/examples/catalog.h"
 #include "engine/direct/run_direct.h"
 #include "engine/search/run_search.h"
@@ -38,7 +42,33 @@ struct RunRecord {
   int missing = 0;
   int extra = 0;
   std::vector<double> error_at;  // per checkpoint; NaN = not yet evaluated the first generation
+  Genome best;
 };
+
+// How a genome's neighbourhood compares with it: single flips that lower its normalised
+// error, and, when none does, pairs of flips that do.
+struct Neighbourhood {
+  int improving_flips = 0;
+  int improving_pairs = 0;
+};
+
+Neighbourhood ExamineNeighbourhood(const Problem& problem, const Genome& genome) {
+  CostFunction cost(problem);
+  const double e = cost.EvaluateGenome(genome).normalized_error;
+  const auto improves = [&](Genome g, int a, int b) {
+    g[static_cast<std::size_t>(a)] ^= 1;
+    if (b >= 0) g[static_cast<std::size_t>(b)] ^= 1;
+    return cost.EvaluateGenome(g).normalized_error < e;
+  };
+  Neighbourhood n;
+  const int genes = static_cast<int>(genome.size());
+  for (int a = 0; a < genes; ++a) n.improving_flips += improves(genome, a, -1);
+  if (n.improving_flips > 0) return n;
+  for (int a = 0; a < genes; ++a) {
+    for (int b = a + 1; b < genes; ++b) n.improving_pairs += improves(genome, a, b);
+  }
+  return n;
+}
 
 std::vector<std::string> Split(const std::string& s) {
   std::vector<std::string> out;
@@ -74,13 +104,20 @@ std::string Number(double x, const char* format = "%.3g") {
 
 // `truth`: the problem whose reference topology judges exactness (the clean scene of a noisy
 // one; the problem itself otherwise).
+// Overrides of a strategy's operators, for the experiments on the paper's unpublished choices.
+struct Variant {
+  int elites = -1;                 // < 0: the strategy's
+  double roulette_exponent = 0.0;  // <= 0: the strategy's
+};
+
 RunRecord RunOnce(const Problem& problem, const Problem& truth, Strategy strategy, std::uint64_t seed, int threads,
-                  double time_limit, int elites, bool topology_only, bool no_direct_seed) {
+                  double time_limit, const Variant& variant, bool topology_only, bool no_direct_seed) {
   SearchOptions o = StrategyDefaults(strategy, problem.gene_count());
   if (topology_only) o.identify = Identify::kTopology;
   if (no_direct_seed) o.direct_seed = false;
   o.seed = seed;
-  if (elites >= 0) o.elites = elites;
+  if (variant.elites >= 0) o.elites = variant.elites;
+  if (variant.roulette_exponent > 0.0) o.roulette_exponent = variant.roulette_exponent;
   RunOptions run;
   run.threads = threads;
   run.on_generation = [&](const TraceRow& row, const GeneticSearch&) { return row.wall_seconds < time_limit; };
@@ -92,6 +129,7 @@ RunRecord RunOnce(const Problem& problem, const Problem& truth, Strategy strateg
   rec.evaluations = r.counters.evaluations;
   rec.seconds = r.trace.back().wall_seconds;
   rec.final_error = r.evaluation.normalized_error;
+  rec.best = r.best;
   rec.missing = r.difference ? static_cast<int>(r.difference->missing.size()) : -1;
   rec.extra = r.difference ? static_cast<int>(r.difference->extra.size()) : -1;
   for (double t : kCheckpoints) {
@@ -133,7 +171,9 @@ int FullRun(const std::string& scene, int threads, int repeats) {
 
 int Main(int argc, char** argv) {
   CLI::App app{"springfit search experiment (bench/RESULTS.md)"};
-  int seeds = 20, threads = 2, repeats = 5, elites = -1;
+  int seeds = 20, threads = 2, repeats = 5;
+  Variant variant;
+  bool local_optima = false;
   double time_limit = 10.0;
   std::string scenes = "paper-iso-5x5,paper-aniso-5x5,kidney-2d,grid3d-4x4x4";
   std::string strategies = "paper,default";
@@ -147,7 +187,13 @@ int Main(int argc, char** argv) {
                  "paper, default, direct, hybrid, direct-topology (direct with search.identify topology), "
                  "default-ga (default without the direct seed)")
       ->capture_default_str();
-  app.add_option("--elites", elites, "Override the strategies' elite count (a variant, not the strategy)");
+  app.add_option("--elites", variant.elites, "Override the strategies' elite count (a variant, not the strategy)");
+  app.add_option("--roulette-exponent", variant.roulette_exponent,
+                 "Override the roulette weights' exponent p, weights e^-p (a variant, not the strategy)")
+      ->check(CLI::PositiveNumber);
+  app.add_flag("--local-optima", local_optima,
+               "After each scene, examine the best genome of every run that was not exact: single flips that "
+               "improve it, else pairs of flips (all pairs: 5x5 scenes)");
   app.add_option("--full-run", full_run, "Time full 1000-generation runs of this scene instead");
   app.add_option("--repeats", repeats, "Runs per strategy for --full-run")->capture_default_str();
   app.add_option("--noise", noise, "Noisy references: Gaussian noise of this fraction of the displacement (seed s draws it)");
@@ -159,6 +205,9 @@ int Main(int argc, char** argv) {
 
   std::string error_table =
       "| scene | strategy | after 1 ms | 10 ms | 100 ms | 1 s | 10 s |\n|---|---|---:|---:|---:|---:|---:|\n";
+  std::string optima_table =
+      "| scene | strategy | not exact | a single flip improves (improving flips: median) | single-flip optima | "
+      "of which a pair of flips improves |\n|---|---|---:|---:|---:|---:|\n";
   std::printf("| scene | strategy | exact | generations to exact (median / p90) | evaluations to exact (median / p90) | "
               "time to exact (median / p90) | not exact: final error (median), missing + extra (median) |\n"
               "|---|---|---:|---:|---:|---:|---|\n");
@@ -186,7 +235,7 @@ int Main(int argc, char** argv) {
       std::vector<RunRecord> runs;
       for (int s = 1; s <= seeds; ++s) {
         const Problem& problem = noise > 0.0 ? problems[static_cast<std::size_t>(s - 1)] : truth;
-        runs.push_back(RunOnce(problem, truth, strategy, static_cast<std::uint64_t>(s), threads, time_limit, elites, topology_only, no_direct_seed));
+        runs.push_back(RunOnce(problem, truth, strategy, static_cast<std::uint64_t>(s), threads, time_limit, variant, topology_only, no_direct_seed));
         std::fprintf(stderr, "%s %s seed %d: exact %d, %d generations, %.3f s, e %.3g\n", scene.c_str(),
                      strategy_name.c_str(), s, runs.back().exact, runs.back().generations, runs.back().seconds,
                      runs.back().final_error);
@@ -223,9 +272,32 @@ int Main(int argc, char** argv) {
         error_table += " " + cell + " |";
       }
       error_table += "\n";
+      if (local_optima) {
+        int failed = 0, improvable = 0, optima = 0, pair_improvable = 0;
+        std::vector<double> flips;
+        for (std::size_t i = 0; i < runs.size(); ++i) {
+          if (runs[i].exact) continue;
+          ++failed;
+          const Problem& problem = noise > 0.0 ? problems[i] : truth;
+          const Neighbourhood n = ExamineNeighbourhood(problem, runs[i].best);
+          std::fprintf(stderr, "%s %s seed %zu: %d improving flips, %d improving pairs\n", scene.c_str(),
+                       strategy_name.c_str(), i + 1, n.improving_flips, n.improving_pairs);
+          if (n.improving_flips > 0) {
+            ++improvable;
+            flips.push_back(n.improving_flips);
+          } else {
+            ++optima;
+            pair_improvable += n.improving_pairs > 0;
+          }
+        }
+        optima_table += "| " + scene + " | " + strategy_name + " | " + std::to_string(failed) + " | " +
+                        std::to_string(improvable) + " (" + Number(Quantile(flips, 0.5), "%.0f") + ") | " +
+                        std::to_string(optima) + " | " + std::to_string(pair_improvable) + " |\n";
+      }
     }
   }
   std::printf("\nMedian normalised error of the best genome found so far, against wall time:\n\n%s", error_table.c_str());
+  if (local_optima) std::printf("\nThe best genomes of the runs that were not exact:\n\n%s", optima_table.c_str());
   return 0;
 }
 

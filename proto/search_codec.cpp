@@ -27,6 +27,7 @@ Json SearchOptionsToJson(const SearchOptions& o) {
   j["target_normalized_error"] = o.target_normalized_error;
   j["selection"] = o.selection == SearchOptions::Selection::kRoulette ? "roulette" : "tournament";
   if (o.selection == SearchOptions::Selection::kTournament) j["tournament_size"] = o.tournament_size;
+  if (o.selection == SearchOptions::Selection::kRoulette) j["roulette_exponent"] = o.roulette_exponent;
   j["crossover"] = o.crossover == SearchOptions::Crossover::kOnePoint ? "one_point" : "uniform";
   j["crossover_probability"] = o.crossover_probability;
   j["mutation_probability"] = o.mutation_probability;

@@ -1,9 +1,18 @@
 #include "engine/search/genetic_operators.h"
 
+#include <cmath>
 #include <stdexcept>
 #include <utility>
 
+#include "engine/search/search_options.h"
+
 namespace springfit {
+
+double RouletteWeight(double normalized_error, double exponent) {
+  const double e = normalized_error + kExactNormalizedError;
+  // 1 / e exactly for the paper strategy's exponent, whatever pow's rounding.
+  return exponent == 1.0 ? 1.0 / e : std::pow(e, -exponent);
+}
 
 int RouletteSelect(std::span<const double> weights, RandomStream& random) {
   if (weights.empty()) throw std::invalid_argument("RouletteSelect: no weights");

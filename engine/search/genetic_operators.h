@@ -12,6 +12,9 @@ namespace springfit {
 // Roulette-wheel (fitness-proportional) selection: index i with probability
 // weights[i] / sum(weights). Weights must be finite and >= 0; all zero selects uniformly.
 int RouletteSelect(std::span<const double> weights, RandomStream& random);
+// The roulette weight of an individual of normalised error e: (e + kExactNormalizedError)^-p.
+// Unit-free (e is), finite for an exact topology, and graded among mechanisms.
+double RouletteWeight(double normalized_error, double exponent);
 
 // Tournament selection: `size` indices drawn uniformly with replacement; the one with the
 // smallest error wins (ties: the first drawn).

@@ -20,6 +20,7 @@ GeneticSearch::GeneticSearch(const Problem& problem, SearchOptions options, Fitn
     throw std::invalid_argument("GeneticSearch: elites must be in [0, population)");
   }
   if (options_.local_search_batch < 1) throw std::invalid_argument("GeneticSearch: local_search_batch must be >= 1");
+  if (!(options_.roulette_exponent > 0.0)) throw std::invalid_argument("GeneticSearch: roulette_exponent must be > 0");
 }
 
 TraceRow GeneticSearch::Initialize() {
@@ -112,7 +113,7 @@ std::vector<Genome> GeneticSearch::Breed() {
   std::vector<double> key(n);
   for (int i = 0; i < n; ++i) {
     key[i] = options_.selection == SearchOptions::Selection::kRoulette
-                 ? 1.0 / (fit[i].normalized_error + kExactNormalizedError)
+                 ? RouletteWeight(fit[i].normalized_error, options_.roulette_exponent)
                  : fit[i].normalized_error;
   }
   std::vector<Genome> next;

@@ -9,6 +9,8 @@
 // individual is 1 / (e + kExactNormalizedError), e its normalised error: unit-free (scaling
 // the scene's lengths leaves e, hence every weight, unchanged), finite for an exact
 // topology, and graded among mechanisms because their penalised e grows with their modes.
+// Other powers of it and elitism, which the paper does not describe either, are variants
+// for the experiments (bench/search_experiment --roulette-exponent, --elites).
 //
 // Strategy `default` is what the experiments in bench/RESULTS.md measured fastest (issues 3
 // and 4): the direct identification's topology (engine/direct/, topology only) seeds a
@@ -48,6 +50,8 @@ struct SearchOptions {
 
   Selection selection = Selection::kRoulette;
   int tournament_size = 2;               // kTournament
+  // kRoulette: individual weights (e + kExactNormalizedError)^-roulette_exponent (> 0).
+  double roulette_exponent = 1.0;
   Crossover crossover = Crossover::kOnePoint;
   double crossover_probability = 0.3;    // per pair of parents
   double mutation_probability = 0.01;    // per gene of every child

@@ -8,6 +8,7 @@
 #include "engine/search/fitness_cache.h"
 #include "engine/search/genetic_operators.h"
 #include "engine/search/random_stream.h"
+#include "engine/search/search_options.h"
 
 namespace springfit {
 namespace {
@@ -126,6 +127,18 @@ TEST(GeneticOperators, RouletteSelectsInProportionToTheWeights) {
   std::vector<int> uniform(4, 0);
   for (int i = 0; i < n; ++i) ++uniform[RouletteSelect(zero, r)];
   for (int c : uniform) ExpectBinomial(c, n, 0.25);
+}
+
+TEST(GeneticOperators, RouletteWeightsArePowersOfTheInverseError) {
+  // The paper strategy's exponent 1: exactly 1 / (e + kExactNormalizedError).
+  for (double e : {0.0, 1e-6, 0.3, 2e6}) EXPECT_EQ(RouletteWeight(e, 1.0), 1.0 / (e + kExactNormalizedError));
+  // Exponent p: weight ratios are error ratios to the power p, so an individual ten times
+  // closer to the reference is ten, a hundred, ... times as likely to be drawn.
+  EXPECT_NEAR(RouletteWeight(0.01, 2.0) / RouletteWeight(0.1, 2.0), 100.0, 1e-6);  // the offset 1e-12 moves it by 2e-8
+  EXPECT_NEAR(RouletteWeight(0.01, 0.5) / RouletteWeight(0.1, 0.5), std::sqrt(10.0), 1e-8);
+  // An exact topology's weight is finite.
+  EXPECT_TRUE(std::isfinite(RouletteWeight(0.0, 3.0)));
+  EXPECT_GT(RouletteWeight(0.0, 3.0), RouletteWeight(1e-9, 3.0));
 }
 
 TEST(GeneticOperators, TournamentPicksTheSmallestErrorOfItsDraws) {
