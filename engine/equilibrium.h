@@ -64,7 +64,8 @@ struct EquilibriumOptions {
   // is never exactly zero (Eigen's sparse LDLT stops at an exact zero pivot).
   double mechanism_shift = 1e-13;
   // Free-node degrees of freedom up to which the banded factorisation is used; above it the
-  // sparse one (bench/solve_bench measures the crossover).
+  // sparse one. On grids numbered row by row the banded one also wins up to 20x20, not on
+  // irregular meshes in their mesher's numbering (bench/RESULTS.md, solve section).
   int banded_max_dofs = 96;
 };
 

@@ -52,7 +52,6 @@ SymmetricSystem::SymmetricSystem(const SymmetricSystem& other)
       scale_(other.scale_),
       bandwidth_(other.bandwidth_),
       band_(other.band_),
-      band_factor_(other.band_factor_),
       sparse_(other.sparse_),
       sparse_work_(other.sparse_work_),
       diagonal_slot_(other.diagonal_slot_) {
@@ -144,9 +143,13 @@ void SymmetricSystem::ComputeScaling() {
 
 SymmetricSystem::Factorization SymmetricSystem::Factorize(double shift, double tolerance,
                                                           bool count_pivots) {
-  ComputeScaling();
   Factorization f;
   f.min_pivot = std::numeric_limits<double>::infinity();
+  if (n_ == 0) {  // nothing free: trivially positive definite (LAPACK rejects order 0 leading dimensions)
+    f.positive_definite = true;
+    return f;
+  }
+  ComputeScaling();
   if (backend_ == Backend::kBanded) {
     const int width = bandwidth_ + 1;
     const auto scale_into_factor = [&] {
@@ -213,6 +216,7 @@ SymmetricSystem::Factorization SymmetricSystem::Factorize(double shift, double t
 }
 
 void SymmetricSystem::Solve(Vector& b) const {
+  if (n_ == 0) return;
   b.array() *= scale_.array();
   if (backend_ == Backend::kBanded) {
     if (used_ldlt_) {

@@ -87,9 +87,10 @@ class SymmetricSystem {
   using SparseLdlt =
       Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>>;
   // Eigen's sparse solvers cannot be copied: a copy of the system analyses the pattern anew
-  // (once per thread, not once per solve). A copy or move carries the matrix and the pattern
-  // but no numeric factorisation (copying an unfactorised Eigen LLT reads its uninitialised
-  // status, which UBSan flags): Factorize() before Solve(), as every caller does.
+  // (once per thread, not once per solve). A copy carries the matrix and the pattern but no
+  // numeric factorisation (copying an unfactorised Eigen LDLT reads its uninitialised status,
+  // which UBSan flags); a move may carry it or not. Factorize() before Solve(), as every
+  // caller does.
   std::unique_ptr<SparseLdlt> sldlt_;
 
  public:

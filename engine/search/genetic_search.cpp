@@ -20,7 +20,9 @@ GeneticSearch::GeneticSearch(const Problem& problem, SearchOptions options, Fitn
     throw std::invalid_argument("GeneticSearch: elites must be in [0, population)");
   }
   if (options_.local_search_batch < 1) throw std::invalid_argument("GeneticSearch: local_search_batch must be >= 1");
-  if (!(options_.roulette_exponent > 0.0)) throw std::invalid_argument("GeneticSearch: roulette_exponent must be > 0");
+  if (!(options_.roulette_exponent > 0.0 && options_.roulette_exponent <= kMaxRouletteExponent)) {
+    throw std::invalid_argument("GeneticSearch: roulette_exponent must be in (0, 10]");
+  }
 }
 
 TraceRow GeneticSearch::Initialize() {

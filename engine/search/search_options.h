@@ -35,6 +35,9 @@ namespace springfit {
 // wrong gene costs far more (tests/engine/search_test.cpp checks a margin of 1e3 on a
 // small scene).
 inline constexpr double kExactNormalizedError = 1e-12;
+// The largest roulette exponent: an exact individual's weight (1e-12)^-10 = 1e120 keeps every
+// weight, and the sum of a population's, finite.
+inline constexpr double kMaxRouletteExponent = 10.0;
 
 struct SearchOptions {
   enum class Selection { kRoulette, kTournament };
@@ -50,7 +53,8 @@ struct SearchOptions {
 
   Selection selection = Selection::kRoulette;
   int tournament_size = 2;               // kTournament
-  // kRoulette: individual weights (e + kExactNormalizedError)^-roulette_exponent (> 0).
+  // kRoulette: individual weights (e + kExactNormalizedError)^-roulette_exponent, the exponent
+  // in (0, kMaxRouletteExponent].
   double roulette_exponent = 1.0;
   Crossover crossover = Crossover::kOnePoint;
   double crossover_probability = 0.3;    // per pair of parents

@@ -155,6 +155,25 @@ TEST(Search, TheCacheNeverChangesResults) {
   }
 }
 
+TEST(Search, RouletteExponentChangesSelectionAndIsBounded) {
+  const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
+  SearchOptions o = Options(Strategy::kPaper, p, 3, 20);
+  o.stop_at_target = false;
+  const SearchResult inverse = RunSearch(p, o);
+  o.roulette_exponent = 4.0;
+  const SearchResult steep = RunSearch(p, o);
+  // The initial population is the same draw; what the roulette breeds from it is not.
+  ASSERT_EQ(inverse.trace.size(), steep.trace.size());
+  EXPECT_TRUE(inverse.trace.front().SameSearch(steep.trace.front()));
+  bool differ = false;
+  for (std::size_t g = 1; g < inverse.trace.size(); ++g) differ = differ || !inverse.trace[g].SameSearch(steep.trace[g]);
+  EXPECT_TRUE(differ);
+  for (double bad : {0.0, -1.0, std::nan(""), static_cast<double>(INFINITY), kMaxRouletteExponent * 1.1}) {
+    o.roulette_exponent = bad;
+    EXPECT_THROW(RunSearch(p, o), std::invalid_argument) << "roulette_exponent " << bad;
+  }
+}
+
 TEST(Search, CancellationReturnsTheBestSoFar) {
   const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
   RunOptions run;
