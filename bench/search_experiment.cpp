@@ -120,7 +120,6 @@ struct Variant {
 
 // `truth`: the problem whose reference topology judges exactness (the clean scene of a noisy
 // one; the problem itself otherwise).
-
 RunRecord RunOnce(const Problem& problem, const Problem& truth, Strategy strategy, std::uint64_t seed, int threads,
                   double time_limit, const Variant& variant, bool topology_only, bool no_direct_seed) {
   SearchOptions o = StrategyDefaults(strategy, problem.gene_count());

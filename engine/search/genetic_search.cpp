@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <numeric>
 #include <stdexcept>
+#include <string>
 #include <utility>
 
 #include "engine/search/genetic_operators.h"
@@ -21,7 +22,8 @@ GeneticSearch::GeneticSearch(const Problem& problem, SearchOptions options, Fitn
   }
   if (options_.local_search_batch < 1) throw std::invalid_argument("GeneticSearch: local_search_batch must be >= 1");
   if (!(options_.roulette_exponent > 0.0 && options_.roulette_exponent <= kMaxRouletteExponent)) {
-    throw std::invalid_argument("GeneticSearch: roulette_exponent must be in (0, 10]");
+    throw std::invalid_argument("GeneticSearch: roulette_exponent must be in (0, " +
+                                std::to_string(static_cast<int>(kMaxRouletteExponent)) + "]");
   }
 }
 
