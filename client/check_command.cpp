@@ -1,10 +1,13 @@
 // springfit check SCENE: validate a scene and summarise it.
+#include <algorithm>
+#include <cstdio>
 #include <iostream>
 
 #include "client/commands.h"
 #include "client/exit_codes.h"
 #include "client/error_reporting.h"
 #include "engine/direct/identifiability.h"
+#include "engine/fem/fem_model.h"
 #include "engine/problem.h"
 #include "engine/search/search_options.h"
 #include "proto/names.h"
@@ -39,6 +42,36 @@ void PrintIdentifiability(const IdentifiabilityReport& report) {
   }
 }
 
+std::string MaterialText(const Material& m) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "%s, young %.6g, poisson %.6g", std::string(proto::MaterialModelName(m.model)).c_str(),
+                m.young, m.poisson);
+  return buf;
+}
+
+void PrintFemReference(const Scene& s) {
+  const FemReference& fem = s.reference.fem;
+  const fem::FemModel model = fem::FemModel::Build(s);
+  const auto [quality, worst] = model.WorstQuality();
+  std::cout << "reference:              fem, " << fem.elements.size() << (s.dimension == 2 ? " triangles" : " tetrahedra");
+  if (s.dimension == 2) {
+    std::cout << ", plane " << proto::PlaneModeName(fem.plane) << ", thickness " << fem.thickness;
+  }
+  std::cout << "\n";
+  if (fem.regions) {
+    for (std::size_t m = 0; m < fem.materials.size(); ++m) {
+      const auto count = std::count(fem.element_material.begin(), fem.element_material.end(), static_cast<int>(m));
+      std::cout << "  material " << m << ":             " << MaterialText(fem.materials[m]) << " (" << count
+                << " elements)\n";
+    }
+  } else {
+    std::cout << "  material:             " << MaterialText(fem.materials[0]) << "\n";
+  }
+  std::cout << "  " << (s.dimension == 2 ? "area x thickness:     " : "volume:               ") << model.Volume() << "\n";
+  std::printf("  smallest quality:     %.3g (element %d; 1 = equilateral)\n", quality, worst);
+  std::fflush(stdout);
+}
+
 int Check(const std::string& file) {
   const Problem problem = Problem::Build(proto::LoadSceneFile(file));
   const Scene& s = problem.scene();
@@ -69,6 +102,8 @@ int Check(const std::string& file) {
                 << " not among the candidates (exact recovery impossible)";
     }
     std::cout << "\n";
+  } else if (s.reference.kind == Reference::Kind::kFem) {
+    PrintFemReference(s);
   } else {
     std::cout << "reference:              positions given per load case\n";
   }
@@ -81,7 +116,9 @@ int Check(const std::string& file) {
     for (const NodalLoad& d : lc.displacements) displaced += static_cast<int>(d.nodes.size());
     std::cout << "  [" << k << "] " << (lc.name.empty() ? "(unnamed)" : lc.name) << ": "
               << lc.fixed.size() << " fixed, " << displaced << " displaced, " << forced
-              << " loaded\n";
+              << " loaded";
+    if (!lc.tractions.empty()) std::cout << ", " << lc.tractions.size() << " traction" << (lc.tractions.size() == 1 ? "" : "s");
+    std::cout << "\n";
   }
   if (problem.DisplacementOnly()) {
     std::cout << "  no load case applies a force: the data fix the stiffness only up to one factor\n";

@@ -9,6 +9,7 @@ namespace springfit::cli {
 void RegisterCheck(CLI::App& app, int& exit_code);
 void RegisterEval(CLI::App& app, int& exit_code);
 void RegisterExample(CLI::App& app, int& exit_code);
+void RegisterReference(CLI::App& app, int& exit_code);
 void RegisterRun(CLI::App& app, int& exit_code);
 void RegisterSubmit(CLI::App& app, int& exit_code);
 void RegisterJobCommands(CLI::App& app, int& exit_code);  // status, watch, result, trace, cancel, delete, list, info

@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   springfit::cli::RegisterCheck(app, exit_code);
   springfit::cli::RegisterEval(app, exit_code);
   springfit::cli::RegisterExample(app, exit_code);
+  springfit::cli::RegisterReference(app, exit_code);
   springfit::cli::RegisterRun(app, exit_code);
   springfit::cli::RegisterSubmit(app, exit_code);
   springfit::cli::RegisterJobCommands(app, exit_code);

@@ -5,6 +5,8 @@
 #include <string>
 
 #include "engine/candidates.h"
+#include "engine/fem/fem_equilibrium.h"
+#include "engine/fem/traction.h"
 #include "engine/input_error.h"
 #include "engine/scene_validation.h"
 
@@ -18,7 +20,7 @@ constexpr double kPrescribedMismatchTolerance = 1e-9;
 std::string CasePath(std::size_t k) { return "load_cases[" + std::to_string(k) + "]"; }
 
 // Scatter a case's loads into flat vectors and mark the constrained nodes.
-void Flatten(const Scene& scene, const LoadCase& lc, Vector& force, Vector& prescribed,
+void Flatten(const Scene& scene, const LoadCase& lc, const std::string& path, Vector& force, Vector& prescribed,
              std::vector<bool>& constrained) {
   const int d = scene.dimension;
   const int n = scene.node_count();
@@ -34,6 +36,30 @@ void Flatten(const Scene& scene, const LoadCase& lc, Vector& force, Vector& pres
   }
   for (const NodalLoad& load : lc.forces) {
     for (int node : load.nodes) force.segment(d * node, d) += load.value;
+  }
+  for (std::size_t m = 0; m < lc.tractions.size(); ++m) {
+    fem::AddTractionForces(scene, lc.tractions[m], path + ".tractions[" + std::to_string(m) + "]", force);
+  }
+  // A traction's share on a constrained node is taken by the support (a reaction).
+  for (int i = 0; i < n; ++i) {
+    if (constrained[i]) force.segment(d * i, d).setZero();
+  }
+}
+
+// The FEM reference's equilibria (engine/fem/): one solver per set of free nodes.
+void SolveFemReference(const Scene& s, const std::vector<FreeNodes>& free_sets,
+                       std::vector<PreparedLoadCase>& load_cases) {
+  const fem::FemModel model = fem::FemModel::Build(s);
+  std::vector<fem::FemEquilibriumSolver> solvers;
+  solvers.reserve(free_sets.size());
+  for (const FreeNodes& free : free_sets) solvers.emplace_back(model, free);
+  for (std::size_t k = 0; k < load_cases.size(); ++k) {
+    PreparedLoadCase& lc = load_cases[k];
+    const fem::FemSolveSummary summary = solvers[lc.free_set].Solve(lc.force, lc.prescribed, lc.reference);
+    if (!summary.converged()) {
+      throw InputError("reference", "the FEM reference under " + CasePath(k) + ": " + summary.message);
+    }
+    lc.reference_solve = ReferenceSolve{summary.iterations, summary.load_steps, summary.final_residual};
   }
 }
 
@@ -56,7 +82,7 @@ Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
   for (const LoadCase& lc : s.load_cases) {
     PreparedLoadCase prepared;
     std::vector<bool> constrained;
-    Flatten(s, lc, prepared.force, prepared.prescribed, constrained);
+    Flatten(s, lc, CasePath(p.load_cases_.size()), prepared.force, prepared.prescribed, constrained);
     FreeNodes free = FreeNodes::FromConstrained(constrained);
     const auto it = std::find(p.free_sets_.begin(), p.free_sets_.end(), free);
     prepared.free_set = static_cast<int>(it - p.free_sets_.begin());
@@ -118,7 +144,12 @@ Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
       }
       Vector polished = lc.reference;
       const EquilibriumSummary polish = polishers[lc.free_set].Solve(springs, lc.force, lc.prescribed, polished);
-      if (polish.final_residual < summary.final_residual) lc.reference = std::move(polished);
+      lc.reference_solve = ReferenceSolve{summary.iterations, 1, summary.final_residual};
+      if (polish.final_residual < summary.final_residual) {
+        lc.reference = std::move(polished);
+        lc.reference_solve->iterations += polish.iterations;
+        lc.reference_solve->residual = polish.final_residual;
+      }
     }
     // The reference topology as a candidate mask.
     std::vector<std::uint8_t> mask(p.candidates_.size(), 0);
@@ -136,6 +167,8 @@ Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
       p.reference_genome_ = p.GenomeFromMask(mask);
       p.reference_mask_ = std::move(mask);
     }
+  } else if (ref.kind == Reference::Kind::kFem) {
+    SolveFemReference(p.scene_, p.free_sets_, p.load_cases_);
   } else {
     const double tol = kPrescribedMismatchTolerance * p.candidates_.MaxRestLength();
     for (std::size_t k = 0; k < p.load_cases_.size(); ++k) {

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -45,28 +46,78 @@ struct CandidateSpec {
 // One force or prescribed displacement applied alike to one or more nodes; `value` has the
 // scene's dimension. `single` records that the scene named one "node" rather than a "nodes"
 // list, so that writing the scene back keeps its form.
+// `set` names the node set the nodes were given as (written back as that name), or is empty.
 struct NodalLoad {
   std::vector<int> nodes;
   Vector value;
   bool single = false;
+  std::string set;
+};
+
+// A distributed load on the boundary of an FEM reference's mesh: a constant traction on the
+// boundary edges (2D) or faces (3D) whose nodes all belong to the node set `on`, turned into
+// consistent nodal forces when the scene is prepared (engine/fem/traction.h).
+struct Traction {
+  std::string on;          // a node set's name
+  std::vector<int> nodes;  // that set's nodes (resolved by the reader)
+  Vector value;            // d components
+  // true: `value` is the total force over those edges or faces; false: force per unit length
+  // of edge (2D, through the whole thickness) or per unit area of face (3D).
+  bool total = true;
 };
 
 struct LoadCase {
   std::string name;
   std::vector<int> fixed;                // nodes held at their rest position
+  std::string fixed_set;                 // the node set `fixed` was given as, or empty
   std::vector<NodalLoad> forces;         // external forces on free nodes (they add up)
   std::vector<NodalLoad> displacements;  // nodes moved by a prescribed displacement
+  std::vector<Traction> tractions;       // distributed loads (FEM references only)
+};
+
+// The constitutive law of a finite-element reference (engine/fem/material_law.h has the
+// energies).
+enum class MaterialModel { kLinear, kStVenantKirchhoff, kNeoHookean };
+
+struct Material {
+  MaterialModel model = MaterialModel::kLinear;
+  double young = 0.0;    // Young's modulus, > 0 (force per area)
+  double poisson = 0.0;  // Poisson's ratio, in (-1, 0.5)
+  friend bool operator==(const Material&, const Material&) = default;
+};
+
+// A 2D finite-element model is a thin sheet (plane stress) or a slice of a long body (plane
+// strain).
+enum class PlaneMode { kStress, kStrain };
+
+// A finite-element model on the scene's nodes: 3-node triangles in 2D, 4-node tetrahedra in
+// 3D (linear shape functions), one material or one per region.
+struct FemReference {
+  std::vector<std::vector<int>> elements;  // d + 1 node indices each, either orientation
+  std::vector<Material> materials;         // one, or one per region
+  std::vector<int> element_material;       // empty: every element has materials[0]
+  bool regions = false;                    // read as "materials" + "element_materials"
+  PlaneMode plane = PlaneMode::kStress;    // 2D only
+  double thickness = 1.0;                  // 2D only, > 0 (length)
+  bool plane_given = false;                // written back only when read
+  bool thickness_given = false;
+
+  const Material& MaterialOf(std::size_t element) const {
+    return materials[element_material.empty() ? 0 : element_material[element]];
+  }
 };
 
 struct Reference {
   enum class Kind {
     kMss,        // a mass-spring model: springs and their stiffness; equilibria are computed
     kPositions,  // deformed positions given directly, one configuration per load case
+    kFem,        // a finite-element model; equilibria are computed (engine/fem/)
   };
   Kind kind = Kind::kMss;
   std::vector<NodePair> springs;  // kMss
   std::vector<double> stiffness;  // kMss: one per spring, or a single value for all (default 1)
   std::vector<Vector> positions;  // kPositions: per load case, flat d*n positions
+  FemReference fem;               // kFem
 };
 
 // The topology search strategies (engine/search/search_options.h has what each does).
@@ -115,6 +166,8 @@ struct Scene {
   CandidateSpec candidates;
   Reference reference;
   std::vector<LoadCase> load_cases;
+  // Named node sets, usable wherever a list of nodes is expected (fixed, loaded, tractions).
+  std::map<std::string, std::vector<int>> node_sets;
   // Stiffness of every spring of the training model. nullopt = the reference's stiffness when
   // it is one value for all springs, otherwise 1.
   std::optional<double> training_stiffness;

@@ -6,6 +6,7 @@
 #include <set>
 #include <string>
 
+#include "engine/fem/fem_validation.h"
 #include "engine/input_error.h"
 
 namespace springfit {
@@ -139,6 +140,10 @@ void CheckReference(const Scene& s) {
     }
     return;
   }
+  if (r.kind == Reference::Kind::kFem) {
+    fem::ValidateFemReference(s);
+    return;
+  }
   if (r.positions.size() != s.load_cases.size()) {
     throw InputError("reference.positions",
                      "expected one configuration per load case (" +
@@ -224,6 +229,15 @@ void CheckLoadCases(const Scene& s) {
     bool nonzero = false;
     CheckLoads(s, lc.displacements, p + ".displacements", "displacement", role, 1, nonzero);
     CheckLoads(s, lc.forces, p + ".forces", "force", role, 2, nonzero);
+    for (std::size_t m = 0; m < lc.tractions.size(); ++m) {
+      const std::string tp = Index(p + ".tractions", m);
+      if (s.reference.kind != Reference::Kind::kFem) {
+        throw InputError(tp, "a traction needs a mesh: a reference of type fem");
+      }
+      const Traction& t = lc.tractions[m];
+      CheckVector(s, t.value, tp + (t.total ? ".total" : s.dimension == 2 ? ".per_length" : ".per_area"));
+      if (t.value.squaredNorm() > 0.0) nonzero = true;
+    }
     if (!nonzero) {
       throw InputError(p, "applies no load: it needs a nonzero force or prescribed displacement");
     }
@@ -264,11 +278,18 @@ void CheckSearch(const SearchSettings& s) {
   }
 }
 
+void CheckNodeSets(const Scene& s) {
+  for (const auto& [name, nodes] : s.node_sets) {
+    for (std::size_t q = 0; q < nodes.size(); ++q) CheckNode(s, nodes[q], Index("node_sets." + name, q));
+  }
+}
+
 }  // namespace
 
 void ValidateScene(const Scene& s) {
   CheckNodes(s);
   CheckCandidates(s);
+  CheckNodeSets(s);
   CheckLoadCases(s);
   CheckReference(s);
   if (s.training_stiffness) {

@@ -87,6 +87,10 @@ void ExpectArray(const Json& value, const std::string& path) {
   if (!value.is_array()) WrongType(value, path, "an array");
 }
 
+void ExpectObject(const Json& value, const std::string& path) {
+  if (!value.is_object()) WrongType(value, path, "an object");
+}
+
 double ReadNumber(const Json& value, const std::string& path) {
   if (!value.is_number()) WrongType(value, path, "a number");
   const double x = value.get<double>();

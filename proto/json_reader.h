@@ -32,6 +32,7 @@ void ExpectKeys(const Json& value, const std::string& path,
 // The member `key` of the object `value`; InputError("path.key", "required") when absent.
 const Json& RequiredMember(const Json& value, const std::string& path, std::string_view key);
 void ExpectArray(const Json& value, const std::string& path);
+void ExpectObject(const Json& value, const std::string& path);
 
 double ReadNumber(const Json& value, const std::string& path);  // finite
 int ReadInt(const Json& value, const std::string& path);        // an integer within int range

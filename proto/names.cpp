@@ -23,12 +23,42 @@ std::optional<CandidateSpec::Kind> ParseCandidateKind(std::string_view name) {
 }
 
 std::string_view ReferenceKindName(Reference::Kind kind) {
-  return kind == Reference::Kind::kMss ? "mss" : "positions";
+  switch (kind) {
+    case Reference::Kind::kMss: return "mss";
+    case Reference::Kind::kPositions: return "positions";
+    case Reference::Kind::kFem: return "fem";
+  }
+  return "?";
 }
 
 std::optional<Reference::Kind> ParseReferenceKind(std::string_view name) {
-  if (name == "mss") return Reference::Kind::kMss;
-  if (name == "positions") return Reference::Kind::kPositions;
+  for (auto k : {Reference::Kind::kMss, Reference::Kind::kPositions, Reference::Kind::kFem}) {
+    if (ReferenceKindName(k) == name) return k;
+  }
+  return std::nullopt;
+}
+
+std::string_view MaterialModelName(MaterialModel model) {
+  switch (model) {
+    case MaterialModel::kLinear: return "linear";
+    case MaterialModel::kStVenantKirchhoff: return "st_venant_kirchhoff";
+    case MaterialModel::kNeoHookean: return "neo_hookean";
+  }
+  return "?";
+}
+
+std::optional<MaterialModel> ParseMaterialModel(std::string_view name) {
+  for (auto m : {MaterialModel::kLinear, MaterialModel::kStVenantKirchhoff, MaterialModel::kNeoHookean}) {
+    if (MaterialModelName(m) == name) return m;
+  }
+  return std::nullopt;
+}
+
+std::string_view PlaneModeName(PlaneMode mode) { return mode == PlaneMode::kStress ? "stress" : "strain"; }
+
+std::optional<PlaneMode> ParsePlaneMode(std::string_view name) {
+  if (name == "stress") return PlaneMode::kStress;
+  if (name == "strain") return PlaneMode::kStrain;
   return std::nullopt;
 }
 

@@ -18,6 +18,12 @@ std::optional<CandidateSpec::Kind> ParseCandidateKind(std::string_view name);
 std::string_view ReferenceKindName(Reference::Kind kind);
 std::optional<Reference::Kind> ParseReferenceKind(std::string_view name);
 
+// FEM reference materials and 2D modes (proto/SCENE.md, "fem").
+std::string_view MaterialModelName(MaterialModel model);
+std::optional<MaterialModel> ParseMaterialModel(std::string_view name);
+std::string_view PlaneModeName(PlaneMode mode);
+std::optional<PlaneMode> ParsePlaneMode(std::string_view name);
+
 std::string_view TerminationName(Termination termination);
 
 // Search strategies (proto/SCENE.md, "search").

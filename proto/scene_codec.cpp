@@ -5,6 +5,7 @@
 
 #include "engine/input_error.h"
 #include "engine/scene_validation.h"
+#include "proto/fem_codec.h"
 #include "proto/names.h"
 
 namespace springfit::proto {
@@ -93,15 +94,33 @@ void ReadCandidates(const Json& v, Scene& s) {
 
 void ReadReference(const Json& v, Scene& s) {
   const std::string path = "reference";
-  ExpectKeys(v, path, {"type", "springs", "stiffness", "positions"});
+  ExpectKeys(v, path, {"type", "springs", "stiffness", "positions", "elements", "material", "materials",
+                       "element_materials", "plane", "thickness"});
   if (!v.contains("type")) throw InputError(JoinPath(path, "type"), "required");
   const std::string type = ReadString(v["type"], JoinPath(path, "type"));
   const auto kind = ParseReferenceKind(type);
-  if (!kind) throw InputError(JoinPath(path, "type"), "unknown reference type '" + type + "' (expected mss or positions)");
+  if (!kind) {
+    throw InputError(JoinPath(path, "type"), "unknown reference type '" + type + "' (expected mss, positions or fem)");
+  }
   Reference& r = s.reference;
   r.kind = *kind;
+  // Each field belongs to one type.
+  const std::pair<const char*, Reference::Kind> owners[] = {
+      {"springs", Reference::Kind::kMss},          {"stiffness", Reference::Kind::kMss},
+      {"positions", Reference::Kind::kPositions},  {"elements", Reference::Kind::kFem},
+      {"material", Reference::Kind::kFem},         {"materials", Reference::Kind::kFem},
+      {"element_materials", Reference::Kind::kFem}, {"plane", Reference::Kind::kFem},
+      {"thickness", Reference::Kind::kFem}};
+  for (const auto& [key, owner] : owners) {
+    if (v.contains(key) && owner != r.kind) {
+      throw InputError(JoinPath(path, key), "only applies to type " + std::string(ReferenceKindName(owner)));
+    }
+  }
+  if (r.kind == Reference::Kind::kFem) {
+    ReadFemReference(v, s.dimension, r.fem);
+    return;
+  }
   if (r.kind == Reference::Kind::kMss) {
-    if (v.contains("positions")) throw InputError(JoinPath(path, "positions"), "only applies to type positions");
     if (!v.contains("springs")) throw InputError(JoinPath(path, "springs"), "required for type mss");
     r.springs = ReadNodePairs(v["springs"], JoinPath(path, "springs"));
     r.stiffness = {1.0};
@@ -117,9 +136,6 @@ void ReadReference(const Json& v, Scene& s) {
     }
     return;
   }
-  for (const char* key : {"springs", "stiffness"}) {
-    if (v.contains(key)) throw InputError(JoinPath(path, key), "only applies to type mss");
-  }
   if (!v.contains("positions")) throw InputError(JoinPath(path, "positions"), "required for type positions");
   const std::string p = JoinPath(path, "positions");
   ExpectArray(v["positions"], p);
@@ -128,7 +144,57 @@ void ReadReference(const Json& v, Scene& s) {
   }
 }
 
-std::vector<NodalLoad> ReadLoads(const Json& v, const std::string& path, const char* value_key, int d) {
+void ReadNodeSets(const Json& v, Scene& s) {
+  ExpectObject(v, "node_sets");
+  for (const auto& [name, nodes] : v.items()) {
+    const std::string p = JoinPath("node_sets", name);
+    if (name.empty()) throw InputError("node_sets", "a node set needs a non-empty name");
+    std::vector<int> list = ReadIndices(nodes, p);
+    if (list.empty()) throw InputError(p, "must not be empty");
+    s.node_sets[name] = std::move(list);
+  }
+}
+
+// A list of node indices, or a string naming one of the scene's node sets (its name is
+// returned in `set`).
+std::vector<int> ReadNodeList(const Json& v, const std::string& path, const Scene& s, std::string& set) {
+  if (!v.is_string()) return ReadIndices(v, path);
+  set = v.get<std::string>();
+  const auto it = s.node_sets.find(set);
+  if (it == s.node_sets.end()) {
+    std::string known;
+    for (const auto& [name, nodes] : s.node_sets) known += (known.empty() ? "" : ", ") + name;
+    throw InputError(path, "unknown node set '" + set + "' (" +
+                               (known.empty() ? std::string("the scene has no node_sets") : "the scene's node_sets: " + known) +
+                               ")");
+  }
+  return it->second;
+}
+
+std::vector<Traction> ReadTractions(const Json& v, const std::string& path, const Scene& s) {
+  ExpectArray(v, path);
+  std::vector<Traction> out;
+  const char* density_key = s.dimension == 2 ? "per_length" : "per_area";
+  for (std::size_t m = 0; m < v.size(); ++m) {
+    const std::string p = IndexPath(path, m);
+    ExpectKeys(v[m], p, {"on", "total", density_key});
+    Traction t;
+    const Json& on = RequiredMember(v[m], p, "on");
+    if (!on.is_string()) throw InputError(JoinPath(p, "on"), "expected the name of a node set");
+    t.nodes = ReadNodeList(on, JoinPath(p, "on"), s, t.on);
+    if (v[m].contains("total") == v[m].contains(density_key)) {
+      throw InputError(p, std::string("needs exactly one of \"total\" or \"") + density_key + "\"");
+    }
+    t.total = v[m].contains("total");
+    const char* key = t.total ? "total" : density_key;
+    t.value = ReadVector(v[m][key], JoinPath(p, key), s.dimension);
+    out.push_back(std::move(t));
+  }
+  return out;
+}
+
+std::vector<NodalLoad> ReadLoads(const Json& v, const std::string& path, const char* value_key, const Scene& s) {
+  const int d = s.dimension;
   ExpectArray(v, path);
   std::vector<NodalLoad> loads;
   for (std::size_t m = 0; m < v.size(); ++m) {
@@ -142,7 +208,7 @@ std::vector<NodalLoad> ReadLoads(const Json& v, const std::string& path, const c
       load.single = true;
       load.nodes = {ReadInt(v[m]["node"], JoinPath(p, "node"))};
     } else {
-      load.nodes = ReadIndices(v[m]["nodes"], JoinPath(p, "nodes"));
+      load.nodes = ReadNodeList(v[m]["nodes"], JoinPath(p, "nodes"), s, load.set);
     }
     if (!v[m].contains(value_key)) throw InputError(JoinPath(p, value_key), "required");
     load.value = ReadVector(v[m][value_key], JoinPath(p, value_key), d);
@@ -155,14 +221,15 @@ void ReadLoadCases(const Json& v, Scene& s) {
   ExpectArray(v, "load_cases");
   for (std::size_t k = 0; k < v.size(); ++k) {
     const std::string p = IndexPath("load_cases", k);
-    ExpectKeys(v[k], p, {"name", "fixed", "forces", "displacements"});
+    ExpectKeys(v[k], p, {"name", "fixed", "forces", "displacements", "tractions"});
     LoadCase lc;
     if (v[k].contains("name")) lc.name = ReadString(v[k]["name"], JoinPath(p, "name"));
-    if (v[k].contains("fixed")) lc.fixed = ReadIndices(v[k]["fixed"], JoinPath(p, "fixed"));
-    if (v[k].contains("forces")) lc.forces = ReadLoads(v[k]["forces"], JoinPath(p, "forces"), "force", s.dimension);
+    if (v[k].contains("fixed")) lc.fixed = ReadNodeList(v[k]["fixed"], JoinPath(p, "fixed"), s, lc.fixed_set);
+    if (v[k].contains("forces")) lc.forces = ReadLoads(v[k]["forces"], JoinPath(p, "forces"), "force", s);
     if (v[k].contains("displacements")) {
-      lc.displacements = ReadLoads(v[k]["displacements"], JoinPath(p, "displacements"), "displacement", s.dimension);
+      lc.displacements = ReadLoads(v[k]["displacements"], JoinPath(p, "displacements"), "displacement", s);
     }
+    if (v[k].contains("tractions")) lc.tractions = ReadTractions(v[k]["tractions"], JoinPath(p, "tractions"), s);
     s.load_cases.push_back(std::move(lc));
   }
 }
@@ -211,7 +278,9 @@ Json LoadsToJson(const std::vector<NodalLoad>& loads, const char* value_key) {
   Json a = Json::array();
   for (const NodalLoad& l : loads) {
     Json o;
-    if (l.single && l.nodes.size() == 1) {
+    if (!l.set.empty()) {
+      o["nodes"] = l.set;
+    } else if (l.single && l.nodes.size() == 1) {
       o["node"] = l.nodes[0];
     } else {
       o["nodes"] = l.nodes;
@@ -235,7 +304,7 @@ Json PairsToJson(const std::vector<NodePair>& pairs) {
 }
 
 Scene SceneFromJson(const Json& json) {
-  ExpectKeys(json, "", {"name", "description", "nodes", "candidates", "reference", "load_cases",
+  ExpectKeys(json, "", {"name", "description", "nodes", "candidates", "node_sets", "reference", "load_cases",
                         "stiffness", "search"});
   Scene s;
   if (json.contains("name")) s.name = ReadString(json["name"], "name");
@@ -245,6 +314,7 @@ Scene SceneFromJson(const Json& json) {
   }
   ReadNodes(json["nodes"], s);
   if (json.contains("candidates")) ReadCandidates(json["candidates"], s);
+  if (json.contains("node_sets")) ReadNodeSets(json["node_sets"], s);
   ReadLoadCases(json["load_cases"], s);
   ReadReference(json["reference"], s);
   if (json.contains("stiffness")) s.training_stiffness = ReadNumber(json["stiffness"], "stiffness");
@@ -291,6 +361,12 @@ Json SceneToJson(const Scene& s) {
     j["candidates"] = std::move(cj);
   }
 
+  if (!s.node_sets.empty()) {
+    Json sets = Json::object();
+    for (const auto& [name, nodes] : s.node_sets) sets[name] = nodes;
+    j["node_sets"] = std::move(sets);
+  }
+
   Json r;
   r["type"] = ReferenceKindName(s.reference.kind);
   if (s.reference.kind == Reference::Kind::kMss) {
@@ -300,6 +376,8 @@ Json SceneToJson(const Scene& s) {
     } else {
       r["stiffness"] = s.reference.stiffness;
     }
+  } else if (s.reference.kind == Reference::Kind::kFem) {
+    WriteFemReference(s.reference.fem, r);
   } else {
     Json positions = Json::array();
     for (const Vector& p : s.reference.positions) positions.push_back(PointsToJson(p, s.dimension));
@@ -311,9 +389,23 @@ Json SceneToJson(const Scene& s) {
   for (const LoadCase& lc : s.load_cases) {
     Json o = Json::object();
     if (!lc.name.empty()) o["name"] = lc.name;
-    if (!lc.fixed.empty()) o["fixed"] = lc.fixed;
+    if (!lc.fixed_set.empty()) {
+      o["fixed"] = lc.fixed_set;
+    } else if (!lc.fixed.empty()) {
+      o["fixed"] = lc.fixed;
+    }
     if (!lc.forces.empty()) o["forces"] = LoadsToJson(lc.forces, "force");
     if (!lc.displacements.empty()) o["displacements"] = LoadsToJson(lc.displacements, "displacement");
+    if (!lc.tractions.empty()) {
+      Json tractions = Json::array();
+      for (const Traction& t : lc.tractions) {
+        Json tj;
+        tj["on"] = t.on;
+        tj[t.total ? "total" : (s.dimension == 2 ? "per_length" : "per_area")] = VectorToJson(t.value);
+        tractions.push_back(std::move(tj));
+      }
+      o["tractions"] = std::move(tractions);
+    }
     cases.push_back(std::move(o));
   }
   j["load_cases"] = std::move(cases);

@@ -17,6 +17,8 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev # libFuzzer targets and sanitizer runtime
   python3                  # the end-to-end tests drive the CLI and the daemon with it
+  calculix-ccx             # CalculiX: independent answers for the FEM reference tests
+  gmsh                     # meshes a 2D shape for the FEM reference tests
 )
 
 missing=()

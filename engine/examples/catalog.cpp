@@ -343,7 +343,7 @@ std::vector<LoadCase> Paper7LoadCases(int d, const Vector& rest, double magnitud
     LoadCase lc;
     lc.name = p.name;
     lc.fixed = side(p.fixed_axis, true);
-    lc.forces.push_back({side(p.fixed_axis, false), unit(p.load_axis, p.sign), false});
+    lc.forces.push_back({side(p.fixed_axis, false), unit(p.load_axis, p.sign), false, {}});
     cases.push_back(std::move(lc));
   }
   return cases;

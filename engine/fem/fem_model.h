@@ -1,0 +1,73 @@
+// A finite-element model on a scene's nodes, ready to evaluate: per element its nodes, the
+// gradients of its linear shape functions at rest, its rest volume (area x thickness in 2D)
+// and its material law.
+//
+// With x = X + u the deformed positions and G_a the rest gradient of node a's shape function,
+// an element's deformation gradient is F = sum_a x_a G_a^T (constant over a linear simplex),
+// its energy V0 W(F), the force it puts on node a is f_a = -V0 P G_a, and the stiffness block
+// between nodes a and b is K_ab(i, k) = V0 sum_JL A_iJkL G_aJ G_bL (material_law.h).
+// The potential energy of a load case is sum_e V0 W(F_e) - f . u.
+//
+// Immutable after Build(); safe to share between threads.
+#pragma once
+
+#include <array>
+#include <vector>
+
+#include "engine/fem/material_law.h"
+#include "engine/scene.h"
+
+namespace springfit::fem {
+
+template <int D>
+struct Element {
+  std::array<int, D + 1> nodes{};
+  Eigen::Matrix<double, D + 1, D> gradients;  // row a: G_a^T
+  double volume = 0.0;                        // V0 (2D: area x thickness)
+  int law = 0;                                // index into FemModel's laws
+};
+
+class FemModel {
+ public:
+  FemModel() = default;
+  // Precondition: the scene passed ValidateScene (its reference is kFem, elements are
+  // non-degenerate and in range).
+  static FemModel Build(const Scene& scene);
+
+  int dimension() const { return dimension_; }
+  int node_count() const { return node_count_; }
+  int element_count() const { return dimension_ == 2 ? static_cast<int>(elements2_.size())
+                                                     : static_cast<int>(elements3_.size()); }
+  const Vector& rest() const { return rest_; }
+  const std::vector<Element<2>>& elements2() const { return elements2_; }
+  const std::vector<Element<3>>& elements3() const { return elements3_; }
+  const std::vector<MaterialLaw<2>>& laws2() const { return laws2_; }
+  const std::vector<MaterialLaw<3>>& laws3() const { return laws3_; }
+  // Whether every material is linear: the energy is then quadratic in u.
+  bool linear() const { return linear_; }
+
+  // The deformation gradient's determinant of element e at displacement u (flat d*n).
+  double Jacobian(int e, const Vector& u) const;
+  // The first element with J <= 0 at u, or -1.
+  int FirstInvertedElement(const Vector& u) const;
+  // Total rest volume (2D: area x thickness).
+  double Volume() const;
+  // The smallest element quality (SimplexQuality, unsigned) and the element attaining it.
+  std::pair<double, int> WorstQuality() const;
+
+ private:
+  int dimension_ = 2;
+  int node_count_ = 0;
+  Vector rest_;
+  bool linear_ = true;
+  std::vector<Element<2>> elements2_;
+  std::vector<Element<3>> elements3_;
+  std::vector<MaterialLaw<2>> laws2_;
+  std::vector<MaterialLaw<3>> laws3_;
+};
+
+// Quality of a simplex from its nodes' positions (d + 1 columns): 1 for an equilateral one,
+// 0 for a degenerate one; signed like its orientation.
+double SimplexQuality(int dimension, const Matrix& corners);
+
+}  // namespace springfit::fem

@@ -1,0 +1,38 @@
+#include "proto/reference_codec.h"
+
+namespace springfit::proto {
+
+Json ReferenceSolutionToJson(const Problem& problem) {
+  const Scene& s = problem.scene();
+  const int d = s.dimension;
+  Json positions = Json::array();
+  Json cases = Json::array();
+  for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
+    const PreparedLoadCase& lc = problem.load_cases()[k];
+    const Vector x = s.rest + lc.reference;
+    Json points = Json::array();
+    double largest = 0.0;
+    for (int i = 0; i < s.node_count(); ++i) {
+      Json p = Json::array();
+      for (int a = 0; a < d; ++a) p.push_back(x[d * i + a]);
+      points.push_back(std::move(p));
+      largest = std::max(largest, lc.reference.segment(d * i, d).norm());
+    }
+    positions.push_back(std::move(points));
+    Json c;
+    c["name"] = s.load_cases[k].name;
+    if (lc.reference_solve) {
+      c["iterations"] = lc.reference_solve->iterations;
+      c["load_steps"] = lc.reference_solve->load_steps;
+      c["residual"] = lc.reference_solve->residual;
+    }
+    c["max_displacement"] = largest;
+    cases.push_back(std::move(c));
+  }
+  Json out;
+  out["reference"] = {{"type", "positions"}, {"positions", std::move(positions)}};
+  out["load_cases"] = std::move(cases);
+  return out;
+}
+
+}  // namespace springfit::proto
