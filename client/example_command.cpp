@@ -27,10 +27,12 @@ int Example(const ExampleArgs& args) {
     }
     return kExitOk;
   }
-  bool known = false;
-  for (const examples::ExampleInfo& e : examples::Catalog()) known = known || e.name == args.name;
-  if (!known) throw InputError("NAME", "unknown example '" + args.name + "' (springfit example --list)");
-  Scene scene = examples::Make(args.name);
+  Scene scene;
+  try {
+    scene = examples::Make(args.name);  // the catalogue itself would build every example
+  } catch (const std::invalid_argument&) {
+    throw InputError("NAME", "unknown example '" + args.name + "' (springfit example --list)");
+  }
   if (args.noise > 0.0) scene = examples::WithMeasurementNoise(scene, args.noise, args.noise_seed);
   const std::string text = proto::DumpCompact(proto::SceneToJson(scene));
   if (args.output.empty() || args.output == "-") {

@@ -48,8 +48,9 @@ int Reference(const ReferenceArgs& args) {
                 s.load_cases[k].name.empty() ? "(unnamed)" : s.load_cases[k].name.c_str(),
                 c["max_displacement"].get<double>());
     if (c.contains("iterations")) {
-      std::printf(", %d Newton iterations, %d load step%s, relative residual %.3g", c["iterations"].get<int>(),
-                  c["load_steps"].get<int>(), c["load_steps"].get<int>() == 1 ? "" : "s", c["residual"].get<double>());
+      const int iterations = c["iterations"].get<int>(), steps = c["load_steps"].get<int>();
+      std::printf(", %d Newton iteration%s, %d load step%s, relative residual %.3g", iterations,
+                  iterations == 1 ? "" : "s", steps, steps == 1 ? "" : "s", c["residual"].get<double>());
     }
     std::printf("\n");
   }

@@ -146,6 +146,17 @@ std::vector<NodePair> GenerateCandidates(const Scene& scene) {
     case CandidateSpec::Kind::kPairs:
       for (const NodePair& p : scene.candidates.pairs) pairs.push_back(Ordered(p.first, p.second));
       break;
+    case CandidateSpec::Kind::kMesh:
+      for (const std::vector<int>& element : scene.reference.fem.elements) {
+        for (std::size_t a = 0; a < element.size(); ++a) {
+          for (std::size_t b = a + 1; b < element.size(); ++b) pairs.push_back(Ordered(element[a], element[b]));
+        }
+      }
+      if (scene.candidates.k > 0) {
+        const std::vector<NodePair> near = NearestCandidates(scene);
+        pairs.insert(pairs.end(), near.begin(), near.end());
+      }
+      break;
   }
   SortUnique(pairs);
   return pairs;

@@ -33,12 +33,13 @@ struct CandidateSpec {
     kNearest,  // pair (i,j) if j is among the k nearest neighbours of i, or i among j's
     kRadius,   // every pair at rest distance <= radius
     kPairs,    // an explicit list
+    kMesh,     // the edges of an FEM reference's elements, plus the k nearest neighbours (k >= 0)
   };
   Kind kind = Kind::kGrid;
   // kGrid: lattice step per axis; empty = inferred (the smallest difference between the nodes'
   // coordinates along that axis above 1e-6 of the axis's range).
   std::vector<double> spacing;
-  int k = 8;            // kNearest
+  int k = 8;            // kNearest (>= 1); kMesh (>= 0, default 0)
   double radius = 0.0;  // kRadius
   std::vector<NodePair> pairs;  // kPairs
 };

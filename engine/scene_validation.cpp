@@ -108,6 +108,12 @@ void CheckCandidates(const Scene& s) {
     case CandidateSpec::Kind::kNearest:
       if (c.k < 1) throw InputError("candidates.k", "must be >= 1, got " + std::to_string(c.k));
       break;
+    case CandidateSpec::Kind::kMesh:
+      if (c.k < 0) throw InputError("candidates.k", "must be >= 0, got " + std::to_string(c.k));
+      if (s.reference.kind != Reference::Kind::kFem) {
+        throw InputError("candidates.type", "mesh candidates are the edges of a reference of type fem");
+      }
+      break;
     case CandidateSpec::Kind::kRadius:
       if (!(c.radius > 0.0) || !std::isfinite(c.radius)) {
         throw InputError("candidates.radius", "must be a finite number > 0");

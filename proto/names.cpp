@@ -10,13 +10,14 @@ std::string_view CandidateKindName(CandidateSpec::Kind kind) {
     case CandidateSpec::Kind::kNearest: return "nearest";
     case CandidateSpec::Kind::kRadius: return "radius";
     case CandidateSpec::Kind::kPairs: return "pairs";
+    case CandidateSpec::Kind::kMesh: return "mesh";
   }
   return "?";
 }
 
 std::optional<CandidateSpec::Kind> ParseCandidateKind(std::string_view name) {
   for (auto k : {CandidateSpec::Kind::kGrid, CandidateSpec::Kind::kNearest,
-                 CandidateSpec::Kind::kRadius, CandidateSpec::Kind::kPairs}) {
+                 CandidateSpec::Kind::kRadius, CandidateSpec::Kind::kPairs, CandidateSpec::Kind::kMesh}) {
     if (CandidateKindName(k) == name) return k;
   }
   return std::nullopt;

@@ -61,7 +61,10 @@ void ReadCandidates(const Json& v, Scene& s) {
   if (!v.contains("type")) throw InputError(JoinPath(path, "type"), "required");
   const std::string type = ReadString(v["type"], JoinPath(path, "type"));
   const auto kind = ParseCandidateKind(type);
-  if (!kind) throw InputError(JoinPath(path, "type"), "unknown candidate type '" + type + "' (expected grid, nearest, radius or pairs)");
+  if (!kind) {
+    throw InputError(JoinPath(path, "type"),
+                     "unknown candidate type '" + type + "' (expected grid, nearest, radius, pairs or mesh)");
+  }
   s.candidates.kind = *kind;
   auto only_for = [&](const char* key, CandidateSpec::Kind k) {
     if (v.contains(key) && *kind != k) {
@@ -69,7 +72,10 @@ void ReadCandidates(const Json& v, Scene& s) {
     }
   };
   only_for("spacing", CandidateSpec::Kind::kGrid);
-  only_for("k", CandidateSpec::Kind::kNearest);
+  if (v.contains("k") && *kind != CandidateSpec::Kind::kNearest && *kind != CandidateSpec::Kind::kMesh) {
+    throw InputError(JoinPath(path, "k"), "only applies to types nearest and mesh");
+  }
+  if (*kind == CandidateSpec::Kind::kMesh) s.candidates.k = 0;
   only_for("radius", CandidateSpec::Kind::kRadius);
   only_for("pairs", CandidateSpec::Kind::kPairs);
   if (v.contains("spacing")) {
@@ -293,6 +299,13 @@ Json LoadsToJson(const std::vector<NodalLoad>& loads, const char* value_key) {
 
 }  // namespace
 
+CandidateSpec FemDefaultCandidates() {
+  CandidateSpec c;
+  c.kind = CandidateSpec::Kind::kMesh;
+  c.k = 8;
+  return c;
+}
+
 std::vector<NodePair> ReadNodePairs(const Json& v, const std::string& path) {
   return ReadArray<NodePair>(v, path, ReadPair);
 }
@@ -317,6 +330,7 @@ Scene SceneFromJson(const Json& json) {
   if (json.contains("node_sets")) ReadNodeSets(json["node_sets"], s);
   ReadLoadCases(json["load_cases"], s);
   ReadReference(json["reference"], s);
+  if (!json.contains("candidates") && s.reference.kind == Reference::Kind::kFem) s.candidates = FemDefaultCandidates();
   if (json.contains("stiffness")) s.training_stiffness = ReadNumber(json["stiffness"], "stiffness");
   if (json.contains("search")) ReadSearch(json["search"], s.search);
   ValidateScene(s);
@@ -343,7 +357,11 @@ Json SceneToJson(const Scene& s) {
   j["nodes"] = PointsToJson(s.rest, s.dimension);
 
   const CandidateSpec& c = s.candidates;
-  if (c.kind != CandidateSpec::Kind::kGrid || !c.spacing.empty()) {
+  const bool default_candidates =
+      s.reference.kind == Reference::Kind::kFem
+          ? c.kind == FemDefaultCandidates().kind && c.k == FemDefaultCandidates().k
+          : c.kind == CandidateSpec::Kind::kGrid && c.spacing.empty();
+  if (!default_candidates) {
     Json cj;
     cj["type"] = CandidateKindName(c.kind);
     switch (c.kind) {
@@ -357,6 +375,9 @@ Json SceneToJson(const Scene& s) {
       case CandidateSpec::Kind::kNearest: cj["k"] = c.k; break;
       case CandidateSpec::Kind::kRadius: cj["radius"] = c.radius; break;
       case CandidateSpec::Kind::kPairs: cj["pairs"] = PairsToJson(c.pairs); break;
+      case CandidateSpec::Kind::kMesh:
+        if (c.k > 0) cj["k"] = c.k;
+        break;
     }
     j["candidates"] = std::move(cj);
   }

@@ -24,6 +24,10 @@ Json SceneToJson(const Scene& scene);
 std::vector<NodePair> ReadNodePairs(const Json& json, const std::string& path);
 Json PairsToJson(const std::vector<NodePair>& pairs);
 
+// The candidates of a scene with an FEM reference that names none: the mesh's edges and the
+// 8 nearest neighbours of every node (proto/SCENE.md).
+CandidateSpec FemDefaultCandidates();
+
 // Reads a whole file into a string; throws InputError when it cannot.
 std::string ReadFile(const std::string& path);
 

@@ -105,18 +105,13 @@ Scene Kidney2d() {
       "triangulation's edges, candidates: 8 nearest neighbours; paper7 loads on opposite ends "
       "at 5% strain";
   s.dimension = 2;
-  const int nodes = static_cast<int>(std::size(kKidneyNodes));
-  s.rest.resize(2 * nodes);
-  for (int i = 0; i < nodes; ++i) {
-    s.rest[2 * i] = kKidneyNodes[i][0];
-    s.rest[2 * i + 1] = kKidneyNodes[i][1];
-  }
+  const SimplexMesh mesh = KidneyMesh();
+  s.rest = mesh.nodes;
   s.candidates.kind = CandidateSpec::Kind::kNearest;
   s.candidates.k = 8;
-  std::vector<std::vector<int>> triangles;
+  const std::vector<std::vector<int>>& triangles = mesh.elements;
   std::vector<NodePair> edges;
-  for (const auto& t : kKidneyTriangles) {
-    triangles.push_back({t[0], t[1], t[2]});
+  for (const auto& t : triangles) {
     for (int e = 0; e < 3; ++e) {
       const int a = t[e], b = t[(e + 1) % 3];
       edges.push_back({std::min(a, b), std::max(a, b)});
@@ -131,6 +126,22 @@ Scene Kidney2d() {
   CheckFoldFree(s, triangles);
   return s;
 }
+
+}  // namespace
+
+SimplexMesh KidneyMesh() {
+  SimplexMesh mesh;
+  const int nodes = static_cast<int>(std::size(kKidneyNodes));
+  mesh.nodes.resize(2 * nodes);
+  for (int i = 0; i < nodes; ++i) {
+    mesh.nodes[2 * i] = kKidneyNodes[i][0];
+    mesh.nodes[2 * i + 1] = kKidneyNodes[i][1];
+  }
+  for (const auto& t : kKidneyTriangles) mesh.elements.push_back({t[0], t[1], t[2]});
+  return mesh;
+}
+
+namespace {
 
 // SplitMix64: a fixed hash, so that which springs a ThinnedGrid keeps depends only on the
 // seed and the pair, not on a library's random engine.
@@ -242,7 +253,8 @@ Scene WithMeasurementNoise(const Scene& scene, double fraction, std::uint64_t se
 const std::vector<ExampleInfo>& Catalog() {
   static const std::vector<ExampleInfo> catalog = [] {
     std::vector<ExampleInfo> c;
-    for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d"}) {
+    for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d", "fem-plate-5x5",
+                             "fem-kidney-2d", "fem-kidney-2d-nl", "fem-block-3d"}) {
       c.push_back({name, Make(name).description});
     }
     return c;
@@ -256,6 +268,10 @@ Scene Make(const std::string& name) {
   if (name == "kidney-2d") return Kidney2d();
   if (name == "grid3d-4x4x4") return Grid3d();
   if (name == "stiff-2d") return Stiff2d();
+  if (name == "fem-plate-5x5") return FemPlate5x5();
+  if (name == "fem-kidney-2d") return FemKidney2d(false);
+  if (name == "fem-kidney-2d-nl") return FemKidney2d(true);
+  if (name == "fem-block-3d") return FemBlock3d();
   throw std::invalid_argument("unknown example '" + name + "'");
 }
 
@@ -302,48 +318,38 @@ std::vector<NodePair> GridNeighbourSprings(const std::vector<int>& n) {
   return springs;
 }
 
-std::vector<LoadCase> Paper7LoadCases(int d, const Vector& rest, double magnitude, double band) {
+const std::vector<Paper7Pattern>& Paper7Patterns(int d) {
+  static const std::vector<Paper7Pattern> two = {
+      {"stretch +y", 1, 1, 1}, {"compression -y", 1, 1, -1}, {"shear +x", 1, 0, 1}, {"shear -x", 1, 0, -1},
+      {"stretch +x", 0, 0, 1}, {"shear +y", 0, 1, 1},        {"shear -y", 0, 1, -1}};
+  static const std::vector<Paper7Pattern> three = {
+      {"stretch +z", 2, 2, 1},   {"compression -z", 2, 2, -1}, {"shear +x", 2, 0, 1},
+      {"shear -x", 2, 0, -1},    {"shear +y", 2, 1, 1},        {"stretch +x", 0, 0, 1},
+      {"shear +y (x)", 0, 1, 1}, {"shear -y (x)", 0, 1, -1},   {"shear +z (x)", 0, 2, 1}};
+  return d == 2 ? two : three;
+}
+
+std::vector<int> SideNodes(int d, const Vector& rest, int axis, bool low, double band) {
   const int n = static_cast<int>(rest.size()) / d;
-  const auto box = BoundingBox::Of(d, rest);
-  const Vector& lo = box.lo;  // references, not a structured binding: clang 14 cannot capture those
-  const Vector& hi = box.hi;
-  auto side = [&](int axis, bool low) {
-    const double width = std::max(band * (hi[axis] - lo[axis]), 1e-9 * (hi - lo).norm());
-    std::vector<int> nodes;
-    for (int i = 0; i < n; ++i) {
-      const double x = rest[d * i + axis];
-      if (low ? x <= lo[axis] + width : x >= hi[axis] - width) nodes.push_back(i);
-    }
-    return nodes;
-  };
-  auto unit = [&](int axis, double sign) {
-    Vector v = Vector::Zero(d);
-    v[axis] = sign * magnitude;
-    return v;
-  };
-  struct Pattern {
-    const char* name;
-    int fixed_axis;
-    int load_axis;
-    double sign;
-  };
-  const int up = d - 1;  // y in 2D, z in 3D
-  std::vector<Pattern> patterns;
-  if (d == 2) {
-    patterns = {{"stretch +y", 1, 1, 1},  {"compression -y", 1, 1, -1}, {"shear +x", 1, 0, 1},
-                {"shear -x", 1, 0, -1},   {"stretch +x", 0, 0, 1},      {"shear +y", 0, 1, 1},
-                {"shear -y", 0, 1, -1}};
-  } else {
-    patterns = {{"stretch +z", up, 2, 1}, {"compression -z", up, 2, -1}, {"shear +x", up, 0, 1},
-                {"shear -x", up, 0, -1},  {"shear +y", up, 1, 1},        {"stretch +x", 0, 0, 1},
-                {"shear +y (x)", 0, 1, 1}, {"shear -y (x)", 0, 1, -1},   {"shear +z (x)", 0, 2, 1}};
+  const BoundingBox box = BoundingBox::Of(d, rest);
+  const double width = std::max(band * (box.hi[axis] - box.lo[axis]), 1e-9 * box.Diagonal());
+  std::vector<int> nodes;
+  for (int i = 0; i < n; ++i) {
+    const double x = rest[d * i + axis];
+    if (low ? x <= box.lo[axis] + width : x >= box.hi[axis] - width) nodes.push_back(i);
   }
+  return nodes;
+}
+
+std::vector<LoadCase> Paper7LoadCases(int d, const Vector& rest, double magnitude, double band) {
   std::vector<LoadCase> cases;
-  for (const Pattern& p : patterns) {
+  for (const Paper7Pattern& p : Paper7Patterns(d)) {
     LoadCase lc;
     lc.name = p.name;
-    lc.fixed = side(p.fixed_axis, true);
-    lc.forces.push_back({side(p.fixed_axis, false), unit(p.load_axis, p.sign), false, {}});
+    lc.fixed = SideNodes(d, rest, p.fixed_axis, true, band);
+    Vector load = Vector::Zero(d);  // not Unit() * sign: that writes -0.0 components
+    load[p.load_axis] = p.sign * magnitude;
+    lc.forces.push_back({SideNodes(d, rest, p.fixed_axis, false, band), load, false, {}});
     cases.push_back(std::move(lc));
   }
   return cases;
@@ -359,7 +365,9 @@ void ScaleLoadsToStrain(Scene& scene, double strain) {
   Scene probe = scene;
   for (LoadCase& lc : probe.load_cases) {
     for (NodalLoad& f : lc.forces) f.value *= kProbe / f.value.norm();
+    for (Traction& t : lc.tractions) t.value *= kProbe / t.value.norm();
   }
+  // The probe is solved in the small-load limit, where every material is the linear one.
   const Problem problem = Problem::Build(probe);
   for (std::size_t k = 0; k < scene.load_cases.size(); ++k) {
     double umax = 0.0;
@@ -368,6 +376,10 @@ void ScaleLoadsToStrain(Scene& scene, double strain) {
     std::vector<NodalLoad>& forces = scene.load_cases[k].forces;
     for (std::size_t m = 0; m < forces.size(); ++m) {
       forces[m].value = probe.load_cases[k].forces[m].value * (strain * extent / umax);
+    }
+    std::vector<Traction>& tractions = scene.load_cases[k].tractions;
+    for (std::size_t m = 0; m < tractions.size(); ++m) {
+      tractions[m].value = probe.load_cases[k].tractions[m].value * (strain * extent / umax);
     }
   }
 }

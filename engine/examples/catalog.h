@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/examples/simplex_mesh.h"
 #include "engine/scene.h"
 
 namespace springfit::examples {
@@ -40,7 +41,30 @@ std::vector<NodePair> GridNeighbourSprings(const std::vector<int>& n);
 std::vector<LoadCase> Paper7LoadCases(int dimension, const Vector& rest, double magnitude,
                                       double band = 0.0);
 
-// Rescales every load case's forces so that the reference's largest nodal displacement in
+// The paper7 patterns: a case's name, the axis whose low side is fixed (its high side is
+// loaded), the axis of the load and its sign.
+struct Paper7Pattern {
+  const char* name;
+  int fixed_axis;
+  int load_axis;
+  double sign;
+};
+const std::vector<Paper7Pattern>& Paper7Patterns(int dimension);
+
+// The nodes within `band` (a fraction of the extent along `axis`; 0 = exactly on the
+// boundary, within 1e-9 of the diagonal) of the low or the high side along `axis`.
+std::vector<int> SideNodes(int dimension, const Vector& rest, int axis, bool low, double band);
+
+// The kidney cross-section meshed by gmsh (examples/meshes/kidney-2d.geo): 99 nodes, triangles.
+SimplexMesh KidneyMesh();
+
+// The FEM examples (fem_examples.cpp): the paper7 patterns as tractions on named node sets,
+// scaled to 5% strain in the small-load limit.
+Scene FemPlate5x5();
+Scene FemKidney2d(bool nonlinear);
+Scene FemBlock3d();
+
+// Rescales every load case's forces and tractions so that the reference's largest nodal displacement in
 // the small-load (linear) limit is `strain` times the scene's extent (DESIGN.md: examples
 // keep loads at moderate strain).
 void ScaleLoadsToStrain(Scene& scene, double strain);

@@ -33,7 +33,8 @@ TEST(Examples, EveryExampleBuildsWithAConvergedReference) {
     const Scene s = examples::Make(info.name);
     const Problem p = Problem::Build(s);  // throws if the reference has no equilibrium
     EXPECT_GT(p.gene_count(), 0) << info.name;
-    EXPECT_TRUE(p.reference_mask()) << info.name;
+    // An MSS reference's topology is known; an FEM reference has none to recover.
+    EXPECT_EQ(p.reference_mask().has_value(), s.reference.kind == Reference::Kind::kMss) << info.name;
   }
   const Scene kidney = examples::Make("kidney-2d");
   EXPECT_GE(kidney.node_count(), 60);
@@ -43,6 +44,37 @@ TEST(Examples, EveryExampleBuildsWithAConvergedReference) {
   EXPECT_NEAR(*lo, 1e-4, 1e-16);
   EXPECT_NEAR(*hi, 1e4, 1e-8);
   EXPECT_EQ(examples::Make("grid3d-4x4x4").dimension, 3);
+}
+
+TEST(Examples, FemExamplesAreWhatTheCatalogueSays) {
+  const Scene plate = examples::Make("fem-plate-5x5");
+  EXPECT_EQ(plate.node_count(), 25);
+  EXPECT_EQ(plate.reference.kind, Reference::Kind::kFem);
+  EXPECT_EQ(plate.reference.fem.elements.size(), 32u);
+  EXPECT_EQ(plate.reference.fem.plane, PlaneMode::kStress);
+  ASSERT_EQ(plate.load_cases.size(), 7u);
+  for (const LoadCase& lc : plate.load_cases) {
+    EXPECT_TRUE(lc.forces.empty());
+    ASSERT_EQ(lc.tractions.size(), 1u);
+    EXPECT_EQ(lc.fixed.size(), 5u);
+  }
+  EXPECT_EQ(plate.load_cases[0].fixed_set, "bottom");
+  EXPECT_EQ(plate.load_cases[0].tractions[0].on, "top");
+  EXPECT_EQ(plate.candidates.kind, CandidateSpec::Kind::kMesh);
+  // 5% strain in the small-load limit: the largest displacement is 5% of the extent (4).
+  const Problem p = Problem::Build(plate);
+  double largest = 0.0;
+  for (const PreparedLoadCase& lc : p.load_cases()) largest = std::max(largest, lc.reference.cwiseAbs().maxCoeff());
+  EXPECT_GT(largest, 0.05 * 4.0 * 0.7);
+  EXPECT_LT(largest, 0.05 * 4.0 * 1.0 + 1e-12);
+  const Scene nl = examples::Make("fem-kidney-2d-nl");
+  EXPECT_EQ(nl.reference.fem.materials[0].model, MaterialModel::kStVenantKirchhoff);
+  EXPECT_EQ(examples::Make("fem-kidney-2d").reference.fem.materials[0].model, MaterialModel::kLinear);
+  const Scene block = examples::Make("fem-block-3d");
+  EXPECT_EQ(block.dimension, 3);
+  EXPECT_GE(block.node_count(), 500);
+  EXPECT_LE(block.node_count(), 2000);
+  EXPECT_EQ(block.load_cases.size(), 9u);
 }
 
 TEST(Examples, GridSimplicesCoverTheGrid) {

@@ -154,3 +154,85 @@ TEST(SceneCodec, WriterLeavesDefaultsOut) {
 
 }  // namespace
 }  // namespace springfit::proto
+
+namespace springfit::proto {
+namespace {
+
+// A 2x2-cell plate with a linear FEM reference, node sets and a traction.
+const char* kFemPlate = R"({
+  "nodes": [[0,0],[1,0],[2,0],[0,1],[1,1],[2,1],[0,2],[1,2],[2,2]],
+  "node_sets": {"bottom": [0, 1, 2], "top": [6, 7, 8]},
+  "reference": {"type": "fem", "elements": [[0,1,4],[0,4,3],[1,2,5],[1,5,4],[3,4,7],[3,7,6],[4,5,8],[4,8,7]],
+                "material": {"model": "linear", "young": 10.0, "poisson": 0.3}, "plane": "stress", "thickness": 0.5},
+  "load_cases": [
+    {"name": "pull", "fixed": "bottom", "tractions": [{"on": "top", "total": [0, 0.05]}]},
+    {"name": "push", "fixed": [0, 1, 2], "forces": [{"nodes": "top", "force": [0.01, 0]}]}
+  ]
+})";
+
+TEST(SceneCodec, FemReferenceNodeSetsAndTractions) {
+  const Scene s = SceneFromText(kFemPlate);
+  EXPECT_EQ(s.reference.kind, Reference::Kind::kFem);
+  EXPECT_EQ(s.reference.fem.elements.size(), 8u);
+  EXPECT_EQ(s.reference.fem.thickness, 0.5);
+  EXPECT_EQ(s.load_cases[0].fixed, (std::vector<int>{0, 1, 2}));
+  EXPECT_EQ(s.load_cases[0].tractions[0].nodes, (std::vector<int>{6, 7, 8}));
+  EXPECT_EQ(s.load_cases[1].forces[0].nodes, (std::vector<int>{6, 7, 8}));
+  // Without "candidates", an FEM scene takes the mesh's edges and 8 nearest neighbours.
+  EXPECT_EQ(s.candidates.kind, CandidateSpec::Kind::kMesh);
+  EXPECT_EQ(s.candidates.k, 8);
+  // Written back as read: set names stay names, the default candidates stay unwritten.
+  const Json written = SceneToJson(s);
+  EXPECT_EQ(written["load_cases"][0]["fixed"], "bottom");
+  EXPECT_EQ(written["load_cases"][1]["forces"][0]["nodes"], "top");
+  EXPECT_FALSE(written.contains("candidates"));
+  EXPECT_EQ(SceneToJson(SceneFromJson(written)), written);
+  // The traction is spread over the top edges: 1/4, 1/2, 1/4 of the total.
+  const Problem p = Problem::Build(s);
+  EXPECT_NEAR(p.load_cases()[0].force[2 * 7 + 1], 0.025, 1e-15);
+  EXPECT_NEAR(p.load_cases()[0].force[2 * 6 + 1], 0.0125, 1e-15);
+}
+
+TEST(SceneCodec, FemErrorsNameThePath) {
+  const std::vector<BadCase> cases = {
+      {"unknown set", [](Json& j) { j["load_cases"][0]["fixed"] = "botom"; }, "load_cases[0].fixed", "unknown node set 'botom'"},
+      {"set out of range", [](Json& j) { j["node_sets"]["top"][1] = 12; }, "node_sets.top[1]", "out of range"},
+      {"empty set", [](Json& j) { j["node_sets"]["top"] = Json::array(); }, "node_sets.top", "must not be empty"},
+      {"traction on a list", [](Json& j) { j["load_cases"][0]["tractions"][0]["on"] = {6, 7}; },
+       "load_cases[0].tractions[0].on", "name of a node set"},
+      {"traction both", [](Json& j) { j["load_cases"][0]["tractions"][0]["per_length"] = {0, 1}; },
+       "load_cases[0].tractions[0]", "exactly one of"},
+      {"traction per_area in 2D", [](Json& j) { j["load_cases"][0]["tractions"][0]["per_area"] = {0, 1}; },
+       "load_cases[0].tractions[0].per_area", "unknown field"},
+      {"traction inside", [](Json& j) { j["node_sets"]["top"] = {4}; }, "load_cases[0].tractions[0].on",
+       "no boundary edge"},
+      {"two materials", [](Json& j) { j["reference"]["materials"] = Json::array(); }, "reference", "exactly one of"},
+      {"unknown model", [](Json& j) { j["reference"]["material"]["model"] = "mooney"; }, "reference.material.model",
+       "unknown material model"},
+      {"poisson", [](Json& j) { j["reference"]["material"]["poisson"] = 0.5; }, "reference.material.poisson", "(-1, 0.5)"},
+      {"young", [](Json& j) { j["reference"]["material"]["young"] = 0; }, "reference.material.young", "> 0"},
+      {"plane", [](Json& j) { j["reference"]["plane"] = "shell"; }, "reference.plane", "stress or strain"},
+      {"thickness", [](Json& j) { j["reference"]["thickness"] = -1; }, "reference.thickness", "> 0"},
+      {"springs on fem", [](Json& j) { j["reference"]["springs"] = {{0, 1}}; }, "reference.springs", "only applies to type mss"},
+      {"degenerate", [](Json& j) { j["reference"]["elements"][0] = {0, 1, 2}; }, "reference.elements[0]", "degenerate"},
+      {"element size", [](Json& j) { j["reference"]["elements"][2] = {1, 2}; }, "reference.elements[2]", "3-node triangle"},
+      {"mesh without fem", [](Json& j) {
+         j["reference"] = {{"type", "positions"}, {"positions", Json::array()}};
+         j["candidates"] = {{"type", "mesh"}};
+         j["load_cases"][0].erase("tractions");
+         j["load_cases"][0]["forces"] = {{{"node", 7}, {"force", {0, 1}}}};
+       }, "candidates.type", "reference of type fem"},
+      {"k on radius", [](Json& j) { j["candidates"] = {{"type", "radius"}, {"radius", 1.5}, {"k", 3}}; }, "candidates.k",
+       "nearest and mesh"},
+  };
+  for (const BadCase& c : cases) {
+    Json j = ParseJson(kFemPlate);
+    c.mutate(j);
+    std::string message;
+    EXPECT_EQ(ErrorPath(j, &message), c.path) << c.what << ": " << message;
+    EXPECT_NE(message.find(c.message_snippet), std::string::npos) << c.what << ": " << message;
+  }
+}
+
+}  // namespace
+}  // namespace springfit::proto
