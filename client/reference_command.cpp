@@ -43,7 +43,7 @@ int Reference(const ReferenceArgs& args) {
   std::cout << "reference: " << proto::ReferenceKindName(s.reference.kind) << ", " << s.load_cases.size()
             << " load case" << (s.load_cases.size() == 1 ? "" : "s") << "\n";
   for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
-    const proto::Json& c = out["load_cases"][k];
+    const proto::Json& c = out["solves"][k];
     std::printf("  [%zu] %s: largest displacement %.6g", k,
                 s.load_cases[k].name.empty() ? "(unnamed)" : s.load_cases[k].name.c_str(),
                 c["max_displacement"].get<double>());

@@ -47,13 +47,30 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
   out << "cost:              " << Format("%.6g", r.value("cost", 0.0)) << "\n";
   out << "normalized error:  " << Format("%.6g", r.value("normalized_error", 0.0))
       << (r.value("mechanism", false) ? " (mechanism)" : "") << "\n";
+  if (r.contains("rms_error")) {
+    out << "E (RMS nodal):     " << Format("%.6g", r["rms_error"].get<double>())
+        << " (relative RMS nodal error against the reference)\n";
+  }
+  if (r.contains("baseline") && r["baseline"].is_object()) {
+    const proto::Json& b = r["baseline"];
+    out << "baseline:          " << b.value("recipe", std::string()) << " on the " << b.value("springs", 0) << " mesh edges: ";
+    if (b.value("converged", false)) {
+      out << "E " << Format("%.6g", b.value("rms_error", 0.0)) << "\n";
+    } else {
+      out << "no equilibrium\n";
+    }
+    if (b.value("worse_than_baseline", false)) {
+      out << "WARNING:           THIS MODEL IS WORSE THAN THE CLOSED-FORM BASELINE (" << b.value("recipe", std::string())
+          << "): its stiffness on the mesh edges reproduces the reference better\n";
+    }
+  }
   if (r.contains("exact") && r["exact"].is_boolean()) {
     out << "reference:         " << (r["exact"].get<bool>() ? "recovered exactly" : "not recovered") << " ("
         << r["missing"].size() << " missing, " << r["extra"].size() << " extra)\n";
     PrintPairs(out, "missing", r["missing"]);
     PrintPairs(out, "extra", r["extra"]);
   } else {
-    out << "reference:         topology unknown (positions reference, or springs outside the candidates)\n";
+    out << "reference:         topology unknown (a positions or FEM reference, or springs outside the candidates)\n";
   }
   if (r.contains("direct") && r["direct"].is_object()) {
     PrintPairs(out, "below threshold, kept so the model carries the loads",

@@ -8,9 +8,11 @@
 
 namespace springfit::proto {
 
-// {"reference": {"type": "positions", "positions": [...]}, "load_cases": [{"name", "iterations",
-//  "load_steps", "residual", "max_displacement"}, ...]}; the solver fields only where the
-// reference was solved (mss, fem).
+// {"reference": {"type": "positions", "positions": [...]}, "load_cases": [...], "solves":
+//  [{"name", "iterations", "load_steps", "residual", "max_displacement"}, ...]}. "reference" and
+// "load_cases" replace a scene's own to make it a positions scene: a load case with tractions
+// (which need the FEM mesh) is written with them turned into the nodal forces they give. The
+// solver fields only where the reference was solved (mss, fem).
 Json ReferenceSolutionToJson(const Problem& problem);
 
 }  // namespace springfit::proto

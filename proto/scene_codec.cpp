@@ -299,6 +299,29 @@ Json LoadsToJson(const std::vector<NodalLoad>& loads, const char* value_key) {
 
 }  // namespace
 
+Json LoadCaseToJson(const LoadCase& lc, int dimension) {
+  Json o = Json::object();
+  if (!lc.name.empty()) o["name"] = lc.name;
+  if (!lc.fixed_set.empty()) {
+    o["fixed"] = lc.fixed_set;
+  } else if (!lc.fixed.empty()) {
+    o["fixed"] = lc.fixed;
+  }
+  if (!lc.forces.empty()) o["forces"] = LoadsToJson(lc.forces, "force");
+  if (!lc.displacements.empty()) o["displacements"] = LoadsToJson(lc.displacements, "displacement");
+  if (!lc.tractions.empty()) {
+    Json tractions = Json::array();
+    for (const Traction& t : lc.tractions) {
+      Json tj;
+      tj["on"] = t.on;
+      tj[t.total ? "total" : (dimension == 2 ? "per_length" : "per_area")] = VectorToJson(t.value);
+      tractions.push_back(std::move(tj));
+    }
+    o["tractions"] = std::move(tractions);
+  }
+  return o;
+}
+
 CandidateSpec FemDefaultCandidates() {
   CandidateSpec c;
   c.kind = CandidateSpec::Kind::kMesh;
@@ -407,28 +430,7 @@ Json SceneToJson(const Scene& s) {
   j["reference"] = std::move(r);
 
   Json cases = Json::array();
-  for (const LoadCase& lc : s.load_cases) {
-    Json o = Json::object();
-    if (!lc.name.empty()) o["name"] = lc.name;
-    if (!lc.fixed_set.empty()) {
-      o["fixed"] = lc.fixed_set;
-    } else if (!lc.fixed.empty()) {
-      o["fixed"] = lc.fixed;
-    }
-    if (!lc.forces.empty()) o["forces"] = LoadsToJson(lc.forces, "force");
-    if (!lc.displacements.empty()) o["displacements"] = LoadsToJson(lc.displacements, "displacement");
-    if (!lc.tractions.empty()) {
-      Json tractions = Json::array();
-      for (const Traction& t : lc.tractions) {
-        Json tj;
-        tj["on"] = t.on;
-        tj[t.total ? "total" : (s.dimension == 2 ? "per_length" : "per_area")] = VectorToJson(t.value);
-        tractions.push_back(std::move(tj));
-      }
-      o["tractions"] = std::move(tractions);
-    }
-    cases.push_back(std::move(o));
-  }
+  for (const LoadCase& lc : s.load_cases) cases.push_back(LoadCaseToJson(lc, s.dimension));
   j["load_cases"] = std::move(cases);
   if (s.training_stiffness) j["stiffness"] = *s.training_stiffness;
 

@@ -24,6 +24,9 @@ Json SceneToJson(const Scene& scene);
 std::vector<NodePair> ReadNodePairs(const Json& json, const std::string& path);
 Json PairsToJson(const std::vector<NodePair>& pairs);
 
+// One load case as the scene format writes it (node sets by name where they were given so).
+Json LoadCaseToJson(const LoadCase& load_case, int dimension);
+
 // The candidates of a scene with an FEM reference that names none: the mesh's edges and the
 // 8 nearest neighbours of every node (proto/SCENE.md).
 CandidateSpec FemDefaultCandidates();

@@ -120,6 +120,23 @@ Json SearchResultToJson(const Problem& problem, const SearchResult& r, bool with
   j["identifiability"] = IdentifiabilityToJson(r.identifiability);
   const Json evaluation = EvaluationToJson(problem, r.evaluation);
   for (const auto& [key, value] : evaluation.items()) j[key] = value;
+  // E, the relative RMS nodal error, where the model has equilibria (penalties are not errors).
+  const bool stable = r.evaluation.converged && !r.evaluation.mechanism;
+  if (stable) j["rms_error"] = std::sqrt(r.evaluation.normalized_error);
+  if (r.baseline) {
+    Json b;
+    b["recipe"] = r.baseline->recipe;
+    b["springs"] = r.baseline->springs;
+    b["converged"] = r.baseline->converged;
+    if (r.baseline->converged) {
+      b["normalized_error"] = r.baseline->normalized_error;
+      b["rms_error"] = r.baseline->rms_error;
+    }
+    // Worse: no equilibrium where the baseline has one, or a larger error.
+    b["worse_than_baseline"] =
+        r.baseline->converged && (!stable || r.evaluation.normalized_error > r.baseline->normalized_error);
+    j["baseline"] = std::move(b);
+  }
   j["generations"] = r.generations;
   j["best_generation"] = r.best_generation;
   j["evaluations"] = r.counters.evaluations;

@@ -9,6 +9,7 @@ DirectRun RunDirect(const Problem& problem, const SearchOptions& options, const 
   DirectRun run;
   SearchResult& r = run.search;
   r.identifiability = AnalyseIdentifiability(problem);  // before the clock, as for the GAs
+  r.baseline = fem::EvaluateClosedFormBaseline(problem);
   const auto start = std::chrono::steady_clock::now();
   DirectOptions resolved = direct_options;
   if (options.identify == Identify::kTopology) resolved.known_stiffness = problem.training_stiffness();

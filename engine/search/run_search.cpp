@@ -17,6 +17,7 @@ SearchResult RunSearch(const Problem& problem, const SearchOptions& options, con
   // Before the search's clock starts (it starts with the GeneticSearch): not part of its time.
   SearchResult result;
   result.identifiability = AnalyseIdentifiability(problem);
+  result.baseline = fem::EvaluateClosedFormBaseline(problem);
   FitnessEvaluator evaluator(problem, pool, options.cache_capacity, run.use_cache);
   GeneticSearch search(problem, options, evaluator);
 

@@ -9,6 +9,7 @@
 
 #include "engine/cost.h"
 #include "engine/direct/identifiability.h"
+#include "engine/fem/closed_form_baseline.h"
 #include "engine/problem.h"
 #include "engine/search/genetic_search.h"
 #include "engine/search/search_options.h"
@@ -41,6 +42,9 @@ struct SearchResult {
   std::optional<DirectPhase> direct_phase;
   // What the load cases can and cannot tell apart, analysed before the search.
   IdentifiabilityReport identifiability;
+  // An FEM reference: the closed-form MSS of its mesh, evaluated before the search (the model
+  // an identification must beat, engine/fem/closed_form_baseline.h).
+  std::optional<fem::BaselineReport> baseline;
 
   // nullopt when the reference topology is unknown.
   std::optional<bool> exact() const {

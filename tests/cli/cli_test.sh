@@ -167,5 +167,48 @@ expect_exit 0 "render with --scene" "$sf" render "$tmp/stdout-result.json" --sce
 expect_exit 2 "plot without a trace" "$sf" plot "$tmp/stdout-result.json" -o "$tmp/x.svg"
 expect_exit 64 "render without -o" "$sf" render "$tmp/short.json"
 
+# FEM references: check summarises, reference solves and prints positions that paste into a
+# positions scene, run reports E and the closed-form baseline.
+expect_exit 0 "check fem" "$sf" check "$src/examples/fem-plate-5x5.json"
+grep -q "reference:              fem, 32 triangles, plane stress, thickness 1" "$tmp/out" || fail "check fem reference: $(cat "$tmp/out")"
+grep -q "smallest quality:" "$tmp/out" || fail "check fem quality"
+grep -q "1 traction" "$tmp/out" || fail "check counts tractions"
+expect_exit 0 "reference fem" "$sf" reference "$src/examples/fem-kidney-2d-nl.json" --json -o "$tmp/reference.json"
+cmp -s "$tmp/out" "$tmp/reference.json" || fail "reference -o writes what --json prints"
+python3 - "$src/examples/fem-kidney-2d-nl.json" "$tmp/reference.json" "$tmp/positions-scene.json" <<'PY' || fail "reference output"
+import json, sys
+scene = json.load(open(sys.argv[1]))
+out = json.load(open(sys.argv[2]))
+assert out["reference"]["type"] == "positions"
+assert len(out["reference"]["positions"]) == len(scene["load_cases"]) == 7
+assert all(len(p) == len(scene["nodes"]) for p in out["reference"]["positions"])
+assert len(out["load_cases"]) == 7 and "tractions" not in out["load_cases"][0] and out["load_cases"][0]["forces"]
+for c in out["solves"]:
+    assert c["iterations"] >= 2 and c["load_steps"] >= 1 and c["residual"] < 1e-9, c  # nonlinear: several Newton steps
+    assert 0.1 < c["max_displacement"] < 1.0, c
+scene["reference"] = out["reference"]
+scene["load_cases"] = out["load_cases"]
+scene["candidates"] = {"type": "nearest", "k": 8}
+json.dump(scene, open(sys.argv[3], "w"))
+PY
+expect_exit 0 "positions scene from reference" "$sf" check "$tmp/positions-scene.json"
+python3 - "$src/examples/fem-plate-5x5.json" "$tmp/bad-fem.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+s["reference"]["material"]["poisson"] = 0.5
+json.dump(s, open(sys.argv[2], "w"))
+PY
+expect_exit 2 "reference invalid fem" "$sf" reference "$tmp/bad-fem.json"
+grep -q "reference.material.poisson: must be in (-1, 0.5), got 0.5" "$tmp/err" || fail "reference names the path: $(cat "$tmp/err")"
+expect_exit 0 "run fem direct" "$sf" run "$src/examples/fem-kidney-2d.json" --strategy direct --json
+python3 - "$tmp/out" <<'PY' || fail "run fem reports E and the baseline: $(head -c 300 "$tmp/out")"
+import json, math, sys
+r = json.load(open(sys.argv[1]))
+assert abs(r["rms_error"] - math.sqrt(r["normalized_error"])) < 1e-12 * r["rms_error"]
+b = r["baseline"]
+assert b["recipe"] == "van_gelder_1998" and b["springs"] == 263 and b["converged"], b
+assert b["worse_than_baseline"] == (r["normalized_error"] > b["normalized_error"]), b
+PY
+
 if [ "$failures" -eq 0 ]; then echo "cli: all checks passed"; else echo "cli: $failures failed"; fi
 [ "$failures" -eq 0 ]

@@ -1,0 +1,76 @@
+#include "engine/fem/closed_form_baseline.h"
+
+#include <cmath>
+#include <map>
+
+#include "engine/equilibrium.h"
+#include "engine/fem/fem_model.h"
+
+namespace springfit::fem {
+
+ClosedFormModel VanGelderModel(const Scene& scene) {
+  const FemModel model = FemModel::Build(scene);
+  const FemReference& fem = scene.reference.fem;
+  const int d = scene.dimension;
+  std::map<NodePair, double> stiffness;
+  for (std::size_t e = 0; e < fem.elements.size(); ++e) {
+    const std::vector<int>& el = fem.elements[e];
+    // The element's rest measure (2D: area x thickness), as the model computed it.
+    const double measure = d == 2 ? model.elements2()[e].volume : model.elements3()[e].volume;
+    const double young = fem.MaterialOf(e).young;
+    for (int a = 0; a <= d; ++a) {
+      for (int b = a + 1; b <= d; ++b) {
+        const NodePair edge{std::min(el[a], el[b]), std::max(el[a], el[b])};
+        const double length2 = (scene.rest.segment(d * edge.first, d) - scene.rest.segment(d * edge.second, d)).squaredNorm();
+        stiffness[edge] += young * measure / length2;
+      }
+    }
+  }
+  ClosedFormModel out;
+  for (const auto& [edge, k] : stiffness) {
+    out.springs.push_back(edge);
+    out.stiffness.push_back(k);
+  }
+  return out;
+}
+
+std::optional<BaselineReport> EvaluateClosedFormBaseline(const Problem& problem) {
+  const Scene& s = problem.scene();
+  if (s.reference.kind != Reference::Kind::kFem) return std::nullopt;
+  const ClosedFormModel model = VanGelderModel(s);
+  const int d = s.dimension;
+  const SpringGeometry geometry(d, s.rest, model.springs);
+  ActiveSprings springs;
+  for (int m = 0; m < geometry.size(); ++m) {
+    springs.index.push_back(m);
+    springs.stiffness.push_back(model.stiffness[m]);
+  }
+  std::vector<EquilibriumSolver> solvers;
+  for (const FreeNodes& free : problem.free_sets()) solvers.emplace_back(geometry, free, problem.solver_options());
+  BaselineReport report;
+  report.springs = geometry.size();
+  double cost = 0.0;
+  for (const PreparedLoadCase& lc : problem.load_cases()) {
+    EquilibriumSolver& solver = solvers[lc.free_set];
+    if (solver.RestMechanismModes(springs) > 0) {
+      report.converged = false;
+      break;
+    }
+    Vector u = Vector::Zero(d * s.node_count());
+    if (!solver.Solve(springs, lc.force, lc.prescribed, u).converged()) {
+      report.converged = false;
+      break;
+    }
+    const FreeNodes& free = problem.free_sets()[lc.free_set];
+    for (int i = 0; i < s.node_count(); ++i) {
+      if (free.free_index[i] >= 0) cost += (u.segment(d * i, d) - lc.reference.segment(d * i, d)).squaredNorm();
+    }
+  }
+  if (report.converged) {
+    report.normalized_error = cost / problem.reference_norm2();
+    report.rms_error = std::sqrt(report.normalized_error);
+  }
+  return report;
+}
+
+}  // namespace springfit::fem
