@@ -61,7 +61,9 @@ void PrintFemReference(const Scene& s) {
   if (fem.regions) {
     for (std::size_t m = 0; m < fem.materials.size(); ++m) {
       const auto count = std::count(fem.element_material.begin(), fem.element_material.end(), static_cast<int>(m));
-      std::cout << "  material " << m << ":             " << MaterialText(fem.materials[m]) << " (" << count
+      std::printf("  material %-14s", (std::to_string(m) + ":").c_str());
+      std::fflush(stdout);
+      std::cout << MaterialText(fem.materials[m]) << " (" << count
                 << " elements)\n";
     }
   } else {

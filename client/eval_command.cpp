@@ -25,8 +25,10 @@ struct EvalArgs {
 std::vector<std::uint8_t> ChooseTopology(const Problem& problem, const std::string& topology) {
   if (topology == "reference") {
     if (!problem.reference_mask()) {
-      throw InputError("--topology", problem.scene().reference.kind == Reference::Kind::kMss
-                                         ? "the reference has springs that are not candidates"
+      const Reference::Kind kind = problem.scene().reference.kind;
+      throw InputError("--topology", kind == Reference::Kind::kMss ? "the reference has springs that are not candidates"
+                                     : kind == Reference::Kind::kFem
+                                         ? "the reference is an FEM model: it has no spring topology (use --topology all or FILE)"
                                          : "the reference is given as positions: it has no topology");
     }
     return *problem.reference_mask();

@@ -22,12 +22,13 @@ struct ReferenceArgs {
 };
 
 int Reference(const ReferenceArgs& args) {
+  Scene scene = proto::LoadSceneFile(args.scene);  // a bad scene leaves no output file behind
   if (!args.output.empty()) {
     // Before the solve: a reference of 100,000 DOFs takes seconds.
     std::ofstream probe(args.output, std::ios::binary | std::ios::app);
     if (!probe) throw std::runtime_error("cannot write '" + args.output + "'");
   }
-  const Problem problem = Problem::Build(proto::LoadSceneFile(args.scene));
+  const Problem problem = Problem::Build(std::move(scene));
   const proto::Json out = proto::ReferenceSolutionToJson(problem);
   const std::string text = proto::DumpCompact(out);
   if (!args.output.empty()) {

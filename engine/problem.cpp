@@ -5,6 +5,7 @@
 #include <string>
 
 #include "engine/candidates.h"
+#include "engine/fem/closed_form_baseline.h"
 #include "engine/fem/fem_equilibrium.h"
 #include "engine/fem/traction.h"
 #include "engine/input_error.h"
@@ -74,6 +75,14 @@ Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
   const int d = s.dimension;
   const int n = s.node_count();
   p.training_stiffness_ = s.EffectiveTrainingStiffness();
+  if (!s.training_stiffness && s.reference.kind == Reference::Kind::kFem) {
+    // An FEM reference has no spring stiffness: the training springs take the median of the
+    // closed-form recipe's on the mesh edges (engine/fem/closed_form_baseline.h), which has the
+    // material's scale (a stiffness of 1 would be off by the Young's modulus).
+    std::vector<double> k = fem::VanGelderModel(s).stiffness;
+    std::nth_element(k.begin(), k.begin() + static_cast<std::ptrdiff_t>(k.size() / 2), k.end());
+    p.training_stiffness_ = k[k.size() / 2];
+  }
   p.candidates_ = SpringGeometry(d, s.rest, GenerateCandidates(s));
   if (p.candidates_.size() == 0) throw InputError("candidates", "generates no candidate spring");
 

@@ -196,7 +196,9 @@ void CheckLoads(const Scene& s, const std::vector<NodalLoad>& loads, const std::
     const NodalLoad& load = loads[m];
     if (load.nodes.empty()) throw InputError(p + ".nodes", "must not be empty");
     for (std::size_t q = 0; q < load.nodes.size(); ++q) {
-      const std::string np = load.single ? p + ".node" : Index(p + ".nodes", q);
+      const std::string np = load.single         ? p + ".node"
+                             : load.set.empty() ? Index(p + ".nodes", q)
+                                                : Index("node_sets." + load.set, q);
       CheckNode(s, load.nodes[q], np);
       int& r = role[load.nodes[q]];
       if (role_id == 2) {  // a force
@@ -225,7 +227,8 @@ void CheckLoadCases(const Scene& s) {
     // role: -1 free, 0 fixed, 1 displaced
     std::vector<int> role(s.node_count(), -1);
     for (std::size_t m = 0; m < lc.fixed.size(); ++m) {
-      const std::string fp = Index(p + ".fixed", m);
+      // Nodes given by a set's name are named where the set lists them.
+      const std::string fp = lc.fixed_set.empty() ? Index(p + ".fixed", m) : Index("node_sets." + lc.fixed_set, m);
       CheckNode(s, lc.fixed[m], fp);
       if (role[lc.fixed[m]] == 0) {
         throw InputError(fp, "node " + std::to_string(lc.fixed[m]) + " is listed twice");
@@ -245,7 +248,7 @@ void CheckLoadCases(const Scene& s) {
       if (t.value.squaredNorm() > 0.0) nonzero = true;
     }
     if (!nonzero) {
-      throw InputError(p, "applies no load: it needs a nonzero force or prescribed displacement");
+      throw InputError(p, "applies no load: it needs a nonzero force, traction or prescribed displacement");
     }
     std::vector<int> constrained;
     for (int i = 0; i < s.node_count(); ++i) {

@@ -42,6 +42,14 @@ SymmetricSystem::SymmetricSystem(int n, std::vector<std::pair<int, int>> lower, 
   diagonal_slot_.resize(n);
   for (int i = 0; i < n; ++i) diagonal_slot_[i] = Slot(i, i);
   sparse_work_ = sparse_;
+  AnalyseSparse();
+}
+
+void SymmetricSystem::AnalyseSparse() {
+  if (backend_ == Backend::kSupernodal) {
+    supernodal_ = std::make_unique<SupernodalCholesky>(n_, sparse_work_.outerIndexPtr(), sparse_work_.innerIndexPtr());
+    return;
+  }
   sldlt_ = std::make_unique<SparseLdlt>();
   sldlt_->analyzePattern(sparse_work_);
 }
@@ -56,10 +64,7 @@ SymmetricSystem::SymmetricSystem(const SymmetricSystem& other)
       sparse_work_(other.sparse_work_),
       diagonal_slot_(other.diagonal_slot_) {
   RebindValues();
-  if (other.sldlt_) {
-    sldlt_ = std::make_unique<SparseLdlt>();
-    sldlt_->analyzePattern(sparse_work_);
-  }
+  if (other.sldlt_ || other.supernodal_) AnalyseSparse();
 }
 
 SymmetricSystem& SymmetricSystem::operator=(const SymmetricSystem& other) {
@@ -77,7 +82,8 @@ SymmetricSystem::SymmetricSystem(SymmetricSystem&& other) noexcept
       sparse_(std::move(other.sparse_)),
       sparse_work_(std::move(other.sparse_work_)),
       diagonal_slot_(std::move(other.diagonal_slot_)),
-      sldlt_(std::move(other.sldlt_)) {
+      sldlt_(std::move(other.sldlt_)),
+      supernodal_(std::move(other.supernodal_)) {
   RebindValues();
 }
 
@@ -93,6 +99,8 @@ SymmetricSystem& SymmetricSystem::operator=(SymmetricSystem&& other) noexcept {
   sparse_work_ = std::move(other.sparse_work_);
   diagonal_slot_ = std::move(other.diagonal_slot_);
   sldlt_ = std::move(other.sldlt_);
+  supernodal_ = std::move(other.supernodal_);
+  used_sldlt_ = false;
   RebindValues();
   return *this;
 }
@@ -198,6 +206,28 @@ SymmetricSystem::Factorization SymmetricSystem::Factorize(double shift, double t
     for (int p = outer[c]; p < outer[c + 1]; ++p) w[p] = scale_[inner[p]] * a[p] * scale_[c];
   }
   for (int i = 0; i < n_; ++i) w[diagonal_slot_[i]] += shift;
+  if (backend_ == Backend::kSupernodal) {
+    used_sldlt_ = false;
+    if (supernodal_->Factorize(sparse_work_.outerIndexPtr(), sparse_work_.innerIndexPtr(), w)) {
+      const Vector pivots = supernodal_->Pivots();
+      for (int i = 0; i < n_; ++i) {
+        f.min_pivot = std::min(f.min_pivot, pivots[i]);
+        if (pivots[i] <= tolerance) ++f.small_pivots;
+      }
+      f.positive_definite = f.small_pivots == 0;
+      return f;
+    }
+    if (!count_pivots) {
+      f.min_pivot = -1.0;
+      return f;
+    }
+    // Indefinite beyond the shift: the simplicial LDLT still counts the pivots.
+    if (!sldlt_) {
+      sldlt_ = std::make_unique<SparseLdlt>();
+      sldlt_->analyzePattern(sparse_work_);
+    }
+    used_sldlt_ = true;
+  }
   sldlt_->factorize(sparse_work_);
   if (sldlt_->info() != Eigen::Success) {
     // An exactly zero pivot stops Eigen's factorisation; with a positive shift this only
@@ -226,6 +256,8 @@ void SymmetricSystem::Solve(Vector& b) const {
       int info = 0;
       dpbtrs_("L", &n_, &bandwidth_, &one, band_factor_.data(), &width, b.data(), &n_, &info, 1);
     }
+  } else if (backend_ == Backend::kSupernodal && !used_sldlt_) {
+    supernodal_->Solve(b);
   } else {
     b = sldlt_->solve(b);
   }

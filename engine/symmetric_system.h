@@ -24,12 +24,15 @@
 #include <Eigen/SparseCore>
 
 #include "engine/linalg.h"
+#include "engine/supernodal_cholesky.h"
 
 namespace springfit {
 
 class SymmetricSystem {
  public:
-  enum class Backend { kBanded, kSparse };
+  // kSparse: Eigen's simplicial LDLT (AMD), fastest for the spring models' small, sparse
+  // systems; kSupernodal: CHOLMOD's supernodal Cholesky (BLAS kernels), for large FEM systems.
+  enum class Backend { kBanded, kSparse, kSupernodal };
 
   struct Factorization {
     bool positive_definite = false;  // every scaled pivot > small_pivot_tolerance
@@ -62,6 +65,8 @@ class SymmetricSystem {
 
  private:
   void ComputeScaling();
+  // The sparse backends' symbolic analysis of sparse_work_'s pattern.
+  void AnalyseSparse();
   // The lower triangle of a matrix in band storage, as a dense matrix (upper triangle zero).
   Matrix BandToDense(const Matrix& band) const;
 
@@ -92,6 +97,10 @@ class SymmetricSystem {
   // which UBSan flags); a move may carry it or not. Factorize() before Solve(), as every
   // caller does.
   std::unique_ptr<SparseLdlt> sldlt_;
+  // Supernodal backend: CHOLMOD on the same compressed lower triangle (sparse_work_). Where it
+  // meets a non-positive pivot and the pivots must be counted, a simplicial LDLT counts them.
+  std::unique_ptr<SupernodalCholesky> supernodal_;
+  bool used_sldlt_ = false;
 
  public:
   SymmetricSystem(const SymmetricSystem& other);

@@ -389,6 +389,7 @@ Json SceneToJson(const Scene& s) {
     cj["type"] = CandidateKindName(c.kind);
     switch (c.kind) {
       case CandidateSpec::Kind::kGrid:
+        if (c.spacing.empty()) break;  // inferred (written out because an FEM scene's default differs)
         if (std::all_of(c.spacing.begin(), c.spacing.end(), [&](double h) { return h == c.spacing[0]; })) {
           cj["spacing"] = c.spacing[0];
         } else {

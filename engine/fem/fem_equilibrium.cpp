@@ -16,6 +16,9 @@ constexpr double kEnergyRoundoffUlps = 64.0;
 // Shifts of the Jacobi-scaled tangent tried in turn where it is not positive definite: a
 // Levenberg-like regularisation that keeps the Newton direction a descent direction.
 constexpr double kShifts[] = {0.0, 1e-10, 1e-7, 1e-4, 1e-2, 1e-1, 1.0, 10.0};
+// The shift of the scaled rest stiffness when its pivots are counted: keeps an exact zero
+// pivot from stopping the sparse LDLT, and is far below any step's precision.
+constexpr double kRestShift = 1e-13;
 
 template <int D>
 MatD<D> DisplacementGradient(const Element<D>& el, const Vector& u) {
@@ -50,6 +53,7 @@ void FemSolverOptions::Validate() const {
   if (max_load_cuts < 0 || max_load_cuts > 40) fail("max_load_cuts", max_load_cuts, "0 <= value <= 40");
   if (max_load_steps < 1) fail("max_load_steps", max_load_steps, "value >= 1");
   if (!(pivot_tolerance > 0.0 && pivot_tolerance < 1.0)) fail("pivot_tolerance", pivot_tolerance, "0 < value < 1");
+  if (supernodal_min_dofs < 0) fail("supernodal_min_dofs", supernodal_min_dofs, "value >= 0");
 }
 
 FemEquilibriumSolver::FemEquilibriumSolver(const FemModel& model, FreeNodes free_nodes,
@@ -85,7 +89,9 @@ FemEquilibriumSolver::FemEquilibriumSolver(const FemModel& model, FreeNodes free
   std::vector<std::pair<int, int>> lower;
   lower.reserve(static_cast<std::size_t>(elements) * per_element / 2);
   for_each_entry([&](std::size_t, int r, int c) { lower.emplace_back(r, c); });
-  system_ = SymmetricSystem(d * free_.count, std::move(lower), SymmetricSystem::Backend::kSparse);
+  system_ = SymmetricSystem(d * free_.count, std::move(lower),
+                            d * free_.count > options_.supernodal_min_dofs ? SymmetricSystem::Backend::kSupernodal
+                                                                          : SymmetricSystem::Backend::kSparse);
   slots_.assign(static_cast<std::size_t>(elements) * per_element, -1);
   for_each_entry([&](std::size_t at, int r, int c) { slots_[at] = system_.Slot(r, c); });
   // The stiffness scale: the largest diagonal entry of the rest tangent.
@@ -191,7 +197,9 @@ int FemEquilibriumSolver::RestFreeModes() {
   const Vector zero = Vector::Zero(dim_ * model_->node_count());
   Energy(zero, 0.0, zero, nullptr, true, nullptr);
   // A tiny shift keeps an exact zero pivot from stopping the sparse LDLT (equilibrium.h).
-  return system_.Factorize(1e-13, options_.pivot_tolerance, true).small_pivots;
+  const int modes = system_.Factorize(kRestShift, options_.pivot_tolerance, true).small_pivots;
+  rest_factor_valid_ = modes == 0;
+  return modes;
 }
 
 bool FemEquilibriumSolver::Newton(const Vector& force, double load, double tolerance, Vector& u,
@@ -203,8 +211,12 @@ bool FemEquilibriumSolver::Newton(const Vector& force, double load, double toler
     const double residual = gradient_.size() ? gradient_.cwiseAbs().maxCoeff() : 0.0;
     summary.final_residual = residual;
     if (residual <= tolerance) return true;
-    bool factorised = false;
+    // The rest stiffness's factor (RestFreeModes) serves the first step from rest, and every
+    // step of a linear material, whose tangent is the same everywhere.
+    bool factorised = rest_factor_valid_ && (model_->linear() || u.isZero());
+    rest_factor_valid_ = rest_factor_valid_ && model_->linear();
     for (const double shift : kShifts) {
+      if (factorised) break;
       if (system_.Factorize(shift, options_.pivot_tolerance, false).positive_definite) {
         factorised = true;
         break;

@@ -44,6 +44,10 @@ struct FemSolverOptions {
   // A scaled pivot at or below this marks a free mode of the rest stiffness (a part of the
   // mesh not held by the constrained nodes), unit-free.
   double pivot_tolerance = 1e-10;
+  // Systems of more free degrees of freedom than this are factorised by CHOLMOD's supernodal
+  // Cholesky, smaller ones by Eigen's simplicial LDLT (bench/RESULTS.md, "FEM references": the
+  // supernodal one wins from about this size on). >= 0.
+  int supernodal_min_dofs = 2000;
 
   // Throws std::invalid_argument naming the field, its value and the rule.
   void Validate() const;
@@ -110,6 +114,8 @@ class FemEquilibriumSolver {
   SymmetricSystem system_;
   double stiffness_scale_ = 0.0;  // K_max
   double extent_ = 0.0;
+  // The system's factor is the rest stiffness's (from RestFreeModes).
+  bool rest_factor_valid_ = false;
   Vector gradient_, step_, trial_, trial_gradient_;
 };
 

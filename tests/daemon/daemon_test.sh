@@ -116,6 +116,14 @@ id3=$("$sf" submit "$kidney" --strategy paper --generations 100000 2>/dev/null)
 "$sf" status 123456 >/dev/null 2>&1
 [ $? -eq 4 ] || fail "status of an unknown job exits 4"
 
+# An FEM reference through the daemon: the same result as a local run, with E and the baseline.
+fem="$src/examples/fem-kidney-2d-nl.json"
+fem_id=$("$sf" submit "$fem" --strategy paper --generations 5 --seed 3 2>/dev/null) || fail "submit fem"
+"$sf" watch "$fem_id" -q >/dev/null || fail "watch fem job $fem_id: exit $?"
+expect_same_as_local "$fem_id" "$fem" --strategy paper --generations 5 --seed 3
+python3 -c "import json,sys; r=json.load(open(sys.argv[1])); assert r['baseline']['recipe']=='van_gelder_1998' and r['rms_error']>0, r" \
+  "$tmp/daemon.json" || fail "fem job result carries E and the baseline"
+
 kill -TERM "$pid"
 wait "$pid"
 pid=""

@@ -31,7 +31,8 @@ SymmetricSystem Indefinite(SymmetricSystem::Backend backend, Matrix* dense) {
 }
 
 TEST(SymmetricSystem, IndefiniteMatricesAreCountedAndSolvedOnBothBackends) {
-  for (auto backend : {SymmetricSystem::Backend::kBanded, SymmetricSystem::Backend::kSparse}) {
+  for (auto backend : {SymmetricSystem::Backend::kBanded, SymmetricSystem::Backend::kSparse,
+                       SymmetricSystem::Backend::kSupernodal}) {
     Matrix a;
     SymmetricSystem system = Indefinite(backend, &a);
     EXPECT_EQ(system.ToDense(), a);
@@ -48,6 +49,62 @@ TEST(SymmetricSystem, IndefiniteMatricesAreCountedAndSolvedOnBothBackends) {
     Vector b = a * x;
     system.Solve(b);
     EXPECT_LE((b - x).norm(), 1e-12 * x.norm());
+  }
+}
+
+// The graph Laplacian of an n x n grid (5-point stencil) plus `shift` on the diagonal: positive
+// definite for shift > 0, one null vector (the constant) for shift 0.
+SymmetricSystem GridLaplacian(int n, double shift, SymmetricSystem::Backend backend, Matrix* dense) {
+  const int size = n * n;
+  std::vector<std::pair<int, int>> lower;
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) {
+      const int i = y * n + x;
+      if (x > 0) lower.emplace_back(i, i - 1);
+      if (y > 0) lower.emplace_back(i, i - n);
+    }
+  }
+  SymmetricSystem system(size, lower, backend);
+  system.SetZero();
+  *dense = Matrix::Zero(size, size);
+  for (const auto& [r, c] : lower) {
+    system.values()[system.Slot(r, c)] = -1.0;
+    system.values()[system.Slot(r, r)] += 1.0;
+    system.values()[system.Slot(c, c)] += 1.0;
+    (*dense)(r, c) = (*dense)(c, r) = -1.0;
+    (*dense)(r, r) += 1.0;
+    (*dense)(c, c) += 1.0;
+  }
+  for (int i = 0; i < size; ++i) {
+    system.values()[system.Slot(i, i)] += shift;
+    (*dense)(i, i) += shift;
+  }
+  return system;
+}
+
+TEST(SymmetricSystem, TheThreeBackendsAgreeOnDefiniteAndSingularMatrices) {
+  for (auto backend : {SymmetricSystem::Backend::kBanded, SymmetricSystem::Backend::kSparse,
+                       SymmetricSystem::Backend::kSupernodal}) {
+    Matrix a;
+    SymmetricSystem system = GridLaplacian(9, 0.01, backend, &a);
+    const SymmetricSystem::Factorization f = system.Factorize(0.0, 1e-10, true);
+    EXPECT_TRUE(f.positive_definite);
+    EXPECT_EQ(f.small_pivots, 0);
+    const Vector x = Vector::LinSpaced(81, -1.0, 2.0);
+    Vector b = a * x;
+    system.Solve(b);
+    EXPECT_LE((b - x).norm(), 1e-10 * x.norm()) << static_cast<int>(backend);
+    // A copy analyses the pattern anew and factorises alike.
+    SymmetricSystem copy = system;
+    EXPECT_TRUE(copy.Factorize(0.0, 1e-10, true).positive_definite);
+    Vector b2 = a * x;
+    copy.Solve(b2);
+    EXPECT_LE((b2 - x).norm(), 1e-10 * x.norm()) << static_cast<int>(backend);
+    // Without the shift the Laplacian has one null vector: one small pivot under a tiny shift.
+    SymmetricSystem singular = GridLaplacian(9, 0.0, backend, &a);
+    const SymmetricSystem::Factorization s = singular.Factorize(1e-13, 1e-10, true);
+    EXPECT_EQ(s.small_pivots, 1) << static_cast<int>(backend);
+    EXPECT_FALSE(s.positive_definite);
   }
 }
 
