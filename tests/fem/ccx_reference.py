@@ -8,10 +8,15 @@ input deck per load case (every case starts from the rest state), runs `ccx` on 
 the nodal displacements from the .dat file (*NODE PRINT) and writes
 
     {"reference": {"type": "positions", "positions": [[[x, y], ...], ...]},
-     "load_cases": [{"name": ..., "increments": I, "iterations": N, "cutbacks": C}, ...]}
+     "solves": [{"name": ..., "increments": I, "iterations": N, "cutbacks": C}, ...]}
 
-where positions[k][i] is node i's equilibrium position under load case k, the form
-`springfit reference SCENE --json` prints. Python 3 standard library only.
+where positions[k][i] is node i's equilibrium position under load case k. Only `reference`
+has the form of the member of that name in what `springfit reference SCENE --json` prints
+(compare those two); springfit's output also has `load_cases` (the scene's load cases with
+tractions resolved into nodal forces), which this harness does not write, and its `solves`
+hold springfit's own solver statistics (iterations, load_steps, residual, max_displacement),
+while here `solves` holds ccx's (increments, Newton iterations and cutbacks read from the
+.sta file). Python 3 standard library only.
 
 How the scene maps onto CalculiX:
 - 3D: C3D4 tetrahedra, isotropic *ELASTIC.
@@ -31,6 +36,18 @@ How the scene maps onto CalculiX:
 - Fixed nodes: *BOUNDARY on every component; prescribed displacements: *BOUNDARY with the
   value; forces: *CLOAD (dead loads; forces on one node add up; in 2D the force acts on the
   whole thickness).
+- Tractions (proto/SCENE.md, "Tractions"), resolved here from their definition into *CLOAD
+  nodal forces: a traction acts on the boundary facets of the mesh (edges of triangles in 2D,
+  triangular faces of tetrahedra in 3D, each belonging to exactly one element) whose nodes
+  all belong to the node set `on`. A constant traction t on a linear facet of measure A
+  (length in 2D, area in 3D, at rest) puts the consistent nodal force t A / d on each of its
+  d nodes; `per_length` (2D; acting on the whole thickness, not multiplied by it) and
+  `per_area` (3D) give t, `total` gives T spread as t = T / (the selected facets' summed
+  measure). Shares that fall on a node constrained in the case (fixed or displaced) are
+  dropped (the support takes them); the rest add to the case's `forces` (dead loads).
+- A load case with a field other than name, fixed, displacements, forces and tractions, or an
+  entry with an unknown field, is refused (exit 2): nothing that could change the mechanics is
+  silently ignored.
 
 Exit status: 0 on success, 1 when ccx fails (its message is printed), 2 on an invalid scene
 or usage, 3 when ccx is not installed.
@@ -256,16 +273,18 @@ def problem_from_scene(scene):
     if not isinstance(raw_cases, list) or not raw_cases:
         raise SceneError("load_cases: expected a non-empty array")
     cases = []
+    facets = None  # the mesh's boundary facets, found when a traction first needs them
     for k, c in enumerate(raw_cases):
         where = f"load_cases[{k}]"
         if not isinstance(c, dict):
             raise SceneError(f"{where}: expected an object")
+        _check_fields(c, LOAD_CASE_FIELDS, where)
         case = LoadCase(c.get("name", ""))
         for i in _node_list(c.get("fixed", []), f"{where}.fixed", node_sets, n):
             case.constraints[i] = {d: 0.0 for d in range(dim)}
         for j, entry in enumerate(c.get("displacements", [])):
             w = f"{where}.displacements[{j}]"
-            targets = _entry_nodes(entry, w, node_sets, n)
+            targets = _entry_nodes(entry, w, node_sets, n, ENTRY_FIELDS["displacements"])
             disp = _vector(entry.get("displacement"), f"{w}.displacement", dim)
             for i in targets:
                 if i in case.constraints:
@@ -273,11 +292,24 @@ def problem_from_scene(scene):
                 case.constraints[i] = {d: disp[d] for d in range(dim)}
         for j, entry in enumerate(c.get("forces", [])):
             w = f"{where}.forces[{j}]"
-            targets = _entry_nodes(entry, w, node_sets, n)
+            targets = _entry_nodes(entry, w, node_sets, n, ENTRY_FIELDS["forces"])
             f = _vector(entry.get("force"), f"{w}.force", dim)
             for i in targets:
                 if i in case.constraints:
                     raise SceneError(f"{w}: node {i} is constrained; forces go on free nodes")
+                acc = case.forces.setdefault(i, [0.0] * dim)
+                for d in range(dim):
+                    acc[d] += f[d]
+        tractions = c.get("tractions", [])
+        if not isinstance(tractions, list):
+            raise SceneError(f"{where}.tractions: expected an array")
+        for j, entry in enumerate(tractions):
+            if facets is None:
+                facets = boundary_facets(elems)
+            w = f"{where}.tractions[{j}]"
+            for i, f in traction_forces(entry, w, pts, facets, node_sets).items():
+                if i in case.constraints:
+                    continue  # the support takes this share
                 acc = case.forces.setdefault(i, [0.0] * dim)
                 for d in range(dim):
                     acc[d] += f[d]
@@ -313,9 +345,83 @@ def _check_rigid_motion(pts, case, where):
                      f"constrained (fixed or displaced) nodes not on one line")
 
 
-def _entry_nodes(entry, where, node_sets, n):
+# The fields of a load case and of its entries (proto/SCENE.md, "Load cases"). Anything else
+# is refused: a field this harness does not know might change the mechanics.
+LOAD_CASE_FIELDS = ("name", "fixed", "forces", "displacements", "tractions")
+ENTRY_FIELDS = {"forces": ("node", "nodes", "force"),
+                "displacements": ("node", "nodes", "displacement")}
+
+
+def _check_fields(obj, allowed, where):
+    for key in obj:
+        if key not in allowed:
+            raise SceneError(f"{where}.{key}: unknown field (expected one of: "
+                             f"{', '.join(allowed)}); the ccx harness refuses what it does not "
+                             f"model rather than ignore it")
+
+
+def boundary_facets(elements):
+    """The boundary facets of a mesh of simplices: the facets (edges of triangles, triangles of
+    tetrahedra) that belong to exactly one element, as sorted node tuples."""
+    count = {}
+    for e in elements:
+        for skip in range(len(e)):
+            key = tuple(sorted(e[a] for a in range(len(e)) if a != skip))
+            count[key] = count.get(key, 0) + 1
+    return sorted(f for f, c in count.items() if c == 1)
+
+
+def facet_measure(pts):
+    """Length of an edge (2 points) or area of a triangle (3 points in 3D)."""
+    if len(pts) == 2:
+        return math.dist(pts[0], pts[1])
+    u = [pts[1][d] - pts[0][d] for d in range(3)]
+    v = [pts[2][d] - pts[0][d] for d in range(3)]
+    cross = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+    return 0.5 * math.sqrt(sum(c * c for c in cross))
+
+
+def traction_forces(entry, where, pts, facets, node_sets):
+    """The consistent nodal forces {node: [f0, f1(, f2)]} of one traction entry
+    {"on": SET, "total" | "per_length" (2D) | "per_area" (3D): vector}, on every node of the
+    loaded facets (constrained ones included: the caller drops those)."""
+    dim = len(pts[0])
+    density = "per_length" if dim == 2 else "per_area"
     if not isinstance(entry, dict):
         raise SceneError(f"{where}: expected an object")
+    _check_fields(entry, ("on", "total", density), where)
+    on = entry.get("on")
+    if on is None:
+        raise SceneError(f"{where}.on: required")
+    if not isinstance(on, str):
+        raise SceneError(f"{where}.on: expected the name of a node set")
+    members = set(_node_list(on, f"{where}.on", node_sets, len(pts)))
+    if ("total" in entry) == (density in entry):
+        raise SceneError(f'{where}: needs exactly one of "total" or "{density}"')
+    key = "total" if "total" in entry else density
+    vec = _vector(entry[key], f"{where}.{key}", dim)
+    loaded = [f for f in facets if all(i in members for i in f)]
+    if not loaded:
+        raise SceneError(f"{where}.on: node set '{on}' holds no boundary "
+                         f"{'edge' if dim == 2 else 'face'} of the mesh")
+    measures = [facet_measure([pts[i] for i in f]) for f in loaded]
+    if key == "total":
+        t = [v / math.fsum(measures) for v in vec]
+    else:
+        t = vec
+    out = {}
+    for f, a in zip(loaded, measures):
+        for i in f:
+            acc = out.setdefault(i, [0.0] * dim)
+            for d in range(dim):
+                acc[d] += t[d] * a / len(f)
+    return out
+
+
+def _entry_nodes(entry, where, node_sets, n, fields):
+    if not isinstance(entry, dict):
+        raise SceneError(f"{where}: expected an object")
+    _check_fields(entry, fields, where)
     if ("node" in entry) == ("nodes" in entry):
         raise SceneError(f'{where}: needs exactly one of "node" or "nodes"')
     if "node" in entry:
@@ -643,10 +749,12 @@ def solve(problem, workdir=None, ccx=None):
 
 
 def solve_scene(scene, workdir=None, ccx=None):
-    """The harness's answer for a parsed scene, in the form springfit prints."""
+    """The harness's answer for a parsed scene: {"reference": positions reference in the form
+    of springfit's `reference` (`springfit reference SCENE --json`), "solves": ccx's
+    statistics per load case} (see the module docstring)."""
     problem = problem_from_scene(scene)
     positions, info = solve(problem, workdir, ccx)
-    return {"reference": {"type": "positions", "positions": positions}, "load_cases": info}
+    return {"reference": {"type": "positions", "positions": positions}, "solves": info}
 
 
 def main(argv=None):

@@ -13,15 +13,22 @@ prescribed displacements; and, not a closed form, a sheared 5x5 plate against a 
 2D solver written here (direct_2d), where ccx's own plane-stress element CPS3 would be 1e-2
 off. Together they show that the plane-strain element with the plane-stress ORTHO constants
 reproduces the 2D plane-stress law exactly (to the 7 digits ccx prints), linear and
-St. Venant-Kirchhoff.
+St. Venant-Kirchhoff. It also checks, without ccx, the harness's own resolution of tractions
+into nodal forces against hand values and exact resultants and moments
+(traction_self_check), and that the harness refuses load-case fields it does not model.
 
 Then it generates scenes (a 4-triangle patch, a 5x5 plate, a gmsh-meshed plate with an
 elliptical hole, a tetrahedral block, their St. Venant-Kirchhoff versions, prescribed
-displacements, two material regions) in a temporary directory, runs
+displacements, two material regions, a distorted tetrahedral block under a per_area and a
+total traction) and reads the committed examples loaded by tractions (examples/
+fem-plate-5x5.json, linear plane stress; examples/fem-kidney-2d-nl.json, St. Venant-Kirchhoff
+plane strain), writes them to a temporary directory, runs
 `SPRINGFIT_BINARY reference SCENE --json` and the ccx harness on each, and compares the
 positions: max over nodes of |x_springfit - x_ccx| / max over nodes of |u_ccx| per load case.
 Tolerances: linear 1e-6 (ccx prints 7 significant digits, so its answer carries up to 5e-7 of
-that), St. Venant-Kirchhoff 1e-4.
+that), St. Venant-Kirchhoff 1e-4. On scenes with tractions it also compares the nodal forces
+springfit prints in its resolved `load_cases` with the harness's (max |df| / max |f| over the
+scene's traction cases, tolerance 1e-12).
 
 Prints one line per comparison and ends with `N passed, M failed`; exits 1 if any failed
 (or ccx / gmsh are missing), 2 on bad usage. Python 3 standard library only.
@@ -42,6 +49,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 TOL_LINEAR = 1e-6
 TOL_SVK = 1e-4
 TOL_SELF = 1e-6          # closed forms; the ccx .dat carries 7 significant digits
+TOL_FORCES = 1e-12       # nodal forces of tractions: the same sums, to round-off
 SPRINGFIT_TIMEOUT = 120.0
 MISSING_TOOL = "{tool} not found: run scripts/install-deps.sh"
 
@@ -81,6 +89,31 @@ class Tally:
     def fail(self, label, why):
         print(f"{label}: FAIL ({why})", flush=True)
         self.failed += 1
+
+    def check(self, label, ok, detail=""):
+        if ok:
+            print(f"{label}: OK{detail and '  (' + detail + ')'}", flush=True)
+            self.passed += 1
+        else:
+            self.fail(label, detail)
+
+
+def force_diff(got, want):
+    """max_i |got_i - want_i| / max_i |want_i| over two {node: force vector} maps (a node
+    missing from one counts as a zero force there); None when want is all zero."""
+    scale = max((math.sqrt(sum(c * c for c in f)) for f in want.values()), default=0.0)
+    if scale == 0.0:
+        return None
+    worst = 0.0
+    for i in set(got) | set(want):
+        g, w = got.get(i), want.get(i)
+        dim = len(g if g is not None else w)
+        g = g if g is not None else [0.0] * dim
+        w = w if w is not None else [0.0] * dim
+        if len(g) != len(w):
+            return None
+        worst = max(worst, math.dist(g, w))
+    return worst / scale
 
 
 def rel_diff(got, ref, rest):
@@ -399,7 +432,11 @@ def self_check(tally, workdir=None):
         check_against(tally, f"self-check two regions plane stress {model}", prob, [x],
                       workdir=workdir)
 
-    # 4. Not a closed form but an independent solver: a non-homogeneous state (the 5x5 plate,
+    # 4. The harness's tractions (no ccx): nodal forces against hand values, resultants and
+    #    moments; refusal of load-case fields it does not model.
+    traction_self_check(tally)
+
+    # 5. Not a closed form but an independent solver: a non-homogeneous state (the 5x5 plate,
     #    bottom fixed, top row sheared), where ccx's own plane-stress element (CPS3, expanded
     #    into wedges with a free thickness) is off by 1e-2 at nu = 0.45 while the plane-strain
     #    element with the plane-stress ORTHO constants must agree with the 2D law exactly.
@@ -417,6 +454,159 @@ def self_check(tally, workdir=None):
                           name=f"plate-{plane}-{model}")
         check_against(tally, f"self-check plate plane {plane} nu={nu} {model} vs direct 2D "
                       f"solver", prob, [exact], workdir=workdir)
+
+
+def traction_self_check(tally):
+    """ccx_reference's resolution of tractions into nodal forces (problem_from_scene) against
+    values worked out by hand: a traction t on linear facets is equivalent to nodal forces
+    whose sum is the resultant t x (loaded length or area) and whose first moment
+    sum_i f_i x_i is t x the integral of x over the loaded facets (exact for linear shape
+    functions); on a 2 x 1 bar's right end (3 nodes, edges of length 0.5) the shares are
+    1/4, 1/2, 1/4 of the total. Also: the share of a constrained node is dropped, interior
+    edges and faces carry nothing, `per_length` is not multiplied by the thickness, and
+    unknown fields are refused."""
+    def run(label, sc, expect):
+        """expect(cases) -> (ok, detail)."""
+        try:
+            prob = cr.problem_from_scene(sc)
+        except cr.SceneError as e:
+            tally.fail(label, f"harness refused the scene: {e}")
+            return
+        ok, detail = expect(prob.cases)
+        tally.check(label, ok, detail)
+
+    def close(a, b):
+        return abs(a - b) <= 1e-14 * max(1.0, abs(b))
+
+    def resultant(forces, d):
+        return math.fsum(f[d] for f in forces.values())
+
+    mat = {"model": "linear", "young": 10.0, "poisson": 0.3}
+
+    # 2D: 2 x 1 bar, 5 x 3 nodes at spacing 0.5, thickness 0.1 (which must not scale tractions).
+    nodes = grid_nodes(4, 2, 0.5, 0.5)
+    tris = grid_triangles(4, 2)
+    right = [i for i, p in enumerate(nodes) if p[0] == 2.0]    # y = 0, 0.5, 1
+    left = [i for i, p in enumerate(nodes) if p[0] == 0.0]
+    sets = {"left": left, "right": right, "all": list(range(len(nodes))),
+            "corner": [right[0], right[1]]}
+    base = {"name": "bar", "nodes": nodes, "node_sets": sets,
+            "reference": {"type": "fem", "elements": tris, "material": mat, "thickness": 0.1}}
+    F, q = 0.02, 0.03
+    sc = dict(base, load_cases=[
+        {"name": "total", "fixed": "left", "tractions": [{"on": "right", "total": [F, 0.0]}]},
+        {"name": "per_length", "fixed": "left",
+         "tractions": [{"on": "right", "per_length": [0.0, q]}]},
+        {"name": "held corner", "fixed": left + [right[0]],
+         "tractions": [{"on": "right", "total": [F, 0.0]}]},
+        {"name": "with a force", "fixed": "left",
+         "forces": [{"node": right[1], "force": [0.0, 0.001]}],
+         "tractions": [{"on": "right", "total": [F, 0.0]}, {"on": "corner", "total": [0.0, F]}]},
+        {"name": "whole boundary", "fixed": "left",
+         "tractions": [{"on": "all", "per_length": [q, 0.0]}]},
+    ])
+    a, b, c = right
+
+    def expect_2d(cases):
+        want = [
+            {a: [F / 4, 0.0], b: [F / 2, 0.0], c: [F / 4, 0.0]},
+            {a: [0.0, q / 4], b: [0.0, q / 2], c: [0.0, q / 4]},
+            {b: [F / 2, 0.0], c: [F / 4, 0.0]},
+            {a: [F / 4, F / 2], b: [F / 2, F / 2 + 0.001], c: [F / 4, 0.0]},
+        ]
+        bad = []
+        for k, w in enumerate(want):
+            got = cases[k].forces
+            if set(got) != set(w) or not all(close(got[i][d], w[i][d])
+                                             for i in w for d in range(2)):
+                bad.append(f"{cases[k].name}: {got} != {w}")
+        # The perimeter is 6; the fixed left end takes all of its 1 and half of each of the
+        # two edges (length 0.5) that end on it: q (6 - 1 - 2 x 0.25) on the free nodes.
+        got = cases[4].forces
+        want_sum = q * (6.0 - 1.0 - 2 * 0.25)
+        if not close(resultant(got, 0), want_sum) or resultant(got, 1) != 0.0:
+            bad.append(f"whole boundary: resultant {resultant(got, 0)} != {want_sum}")
+        return not bad, "; ".join(bad) or "5 cases"
+
+    run("self-check tractions 2D nodal forces (bar end, held node, forces add, boundary only)",
+        sc, expect_2d)
+
+    # 3D: 2 x 1 x 1 block, 5 x 3 x 3 nodes at spacing 0.5; its right end is the unit square
+    # x = 2 (16 triangles). Resultant t; first moments sum f_z y = sum f_z z = t_z / 2.
+    nodes = block_nodes(4, 2, 2, h=0.5)
+    tets = block_tets(4, 2, 2)
+    right = [i for i, p in enumerate(nodes) if p[0] == 2.0]
+    left = [i for i, p in enumerate(nodes) if p[0] == 0.0]
+    sets = {"left": left, "right": right, "all": list(range(len(nodes)))}
+    base = {"name": "block", "nodes": nodes, "node_sets": sets,
+            "reference": {"type": "fem", "elements": tets, "material": mat}}
+    p, T = 0.03, 0.05
+    sc = dict(base, load_cases=[
+        {"name": "per_area", "fixed": "left",
+         "tractions": [{"on": "right", "per_area": [0.0, 0.0, p]}]},
+        {"name": "total", "fixed": "left",
+         "tractions": [{"on": "right", "total": [0.0, 0.0, T]}]},
+        {"name": "whole boundary", "fixed": "left",
+         "tractions": [{"on": "all", "per_area": [p, 0.0, 0.0]}]},
+    ])
+
+    def expect_3d(cases):
+        bad = []
+        for k, tz in ((0, p), (1, T)):
+            f = cases[k].forces
+            r = [resultant(f, d) for d in range(3)]
+            my = math.fsum(v[2] * nodes[i][1] for i, v in f.items())
+            mz = math.fsum(v[2] * nodes[i][2] for i, v in f.items())
+            if not (close(r[2], tz) and r[0] == 0.0 and r[1] == 0.0 and close(my, tz / 2)
+                    and close(mz, tz / 2) and set(f) == set(right)):
+                bad.append(f"{cases[k].name}: resultant {r}, moments {my}, {mz} (want {tz}, "
+                           f"{tz / 2})")
+        # The surface is 10; the fixed left face's nodes take all of its 1 and, on the strip
+        # 0 <= x <= 0.5 of the four sides (perimeter 4), the integral of the sum of their hat
+        # functions, 1 - 2x: 4 x 0.25 = 1. The free nodes carry p (10 - 1 - 1) = 8 p.
+        f = cases[2].forces
+        free_sum = resultant(f, 0)
+        if not close(free_sum, 8.0 * p) or any(i in f for i in left):
+            bad.append(f"whole boundary: free resultant {free_sum} != {8 * p}")
+        return not bad, "; ".join(bad) or "3 cases"
+
+    run("self-check tractions 3D nodal forces (resultants, moments, boundary only)", sc,
+        expect_3d)
+
+    # Refusals: what the harness does not model must not pass silently.
+    plain = {"name": "refusals", "nodes": grid_nodes(1, 1), "node_sets": {"top": [2, 3]},
+             "reference": {"type": "fem", "elements": grid_triangles(1, 1), "material": mat}}
+    good = {"name": "ok", "fixed": [0, 1], "tractions": [{"on": "top", "total": [0.0, 0.1]}]}
+    refusals = [
+        ("an unknown load-case field", dict(good, pressure=[{"on": "top", "value": 1.0}])),
+        ("a 3D density in 2D", dict(good, tractions=[{"on": "top", "per_area": [0.0, 1.0]}])),
+        ("an unknown traction field", dict(good, tractions=[{"on": "top", "total": [0.0, 1.0],
+                                                              "follower": True}])),
+        ("total and per_length", dict(good, tractions=[{"on": "top", "total": [0.0, 1.0],
+                                                         "per_length": [0.0, 1.0]}])),
+        ("a node list as on", dict(good, tractions=[{"on": [2, 3], "total": [0.0, 1.0]}])),
+        ("a set with no boundary edge", dict(good, fixed=[1, 2])),
+        ("an unknown force field", dict(good, forces=[{"node": 2, "force": [0.0, 1.0],
+                                                       "follower": True}])),
+    ]
+    # (top = [2, 3] is a boundary edge; for "a set with no boundary edge" the set becomes
+    # the ends of the diagonal (0, 3), the one interior edge.)
+    missed = []
+    for why, case in refusals:
+        sc = dict(plain, load_cases=[case])
+        if why == "a set with no boundary edge":
+            sc["node_sets"] = {"top": [0, 3]}
+        try:
+            cr.problem_from_scene(sc)
+            missed.append(why)
+        except cr.SceneError:
+            pass
+    try:
+        cr.problem_from_scene(dict(plain, load_cases=[good]))
+    except cr.SceneError as e:
+        missed.append(f"the valid case was refused: {e}")
+    tally.check("self-check the harness refuses what it does not model", not missed,
+                "accepted: " + ", ".join(missed) if missed else f"{len(refusals)} refusals")
 
 
 def direct_2d(nodes, tris, material, plane, thickness, fixed, forces):
@@ -593,7 +783,7 @@ def mat(model, young, poisson):
     return {"model": model, "young": young, "poisson": poisson}
 
 
-def make_scenes(tmp):
+def make_scenes(tmp, source_dir):
     """[(scene dict, tolerance)]"""
     out = []
     # The patch: stretched along x, then along y.
@@ -673,6 +863,30 @@ def make_scenes(tmp):
                        {"name": "displaced top", "fixed": bottom,
                         "displacements": [{"nodes": top, "displacement": [0.1, 0.0, -0.15]}]}]),
                 TOL_SVK))
+
+    # Tractions. The same block, distorted so that its boundary triangles differ in area
+    # (x -> x + 0.1 x^2, y -> y (1 + 0.1 x); the faces stay planar), bottom fixed: a per_area
+    # traction on the top face, a total traction on the side x = max (whose bottom edge is
+    # fixed, so the shares there go to the support), and both with a force on a top corner.
+    nodes = [[x + 0.1 * x * x, y * (1.0 + 0.1 * x), z] for x, y, z in block_nodes(3, 2, 2)]
+    sets = {"bottom": bottom, "top": top,
+            "side": [i for i, p in enumerate(block_nodes(3, 2, 2)) if p[0] == 3.0]}
+    top_load = {"on": "top", "per_area": [0.004, -0.002, 0.02]}
+    side_load = {"on": "side", "total": [0.0, 0.06, 0.03]}
+    sc = scene("block-4x3x3-tractions", nodes, fem(tets, mat("linear", 10.0, 0.3)),
+               [{"name": "top per_area", "fixed": "bottom", "tractions": [top_load]},
+                {"name": "side total", "fixed": "bottom", "tractions": [side_load]},
+                {"name": "both and a force", "fixed": "bottom",
+                 "forces": [{"node": top[-1], "force": [0.0, 0.0, 0.01]}],
+                 "tractions": [top_load, side_load]}])
+    sc["node_sets"] = sets
+    out.append((sc, TOL_LINEAR))
+
+    # The committed examples loaded by tractions (the paper's seven load cases at 5% strain).
+    for example, tol in (("fem-plate-5x5.json", TOL_LINEAR),          # linear, plane stress
+                         ("fem-kidney-2d-nl.json", TOL_SVK)):         # SVK, plane strain
+        with open(os.path.join(source_dir, "examples", example)) as f:
+            out.append((json.load(f), tol))
     return out
 
 
@@ -681,31 +895,73 @@ def make_scenes(tmp):
 
 
 def run_springfit(binary, path):
-    """(positions, None) or (None, why)."""
+    """(positions, resolved load cases, None) or (None, None, why)."""
     try:
         proc = subprocess.run([binary, "reference", path, "--json"], stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, stdin=subprocess.DEVNULL,
                               timeout=SPRINGFIT_TIMEOUT)
     except subprocess.TimeoutExpired:
-        return None, f"springfit did not finish within {SPRINGFIT_TIMEOUT:.0f} s"
+        return None, None, f"springfit did not finish within {SPRINGFIT_TIMEOUT:.0f} s"
     except OSError as e:
-        return None, f"cannot run {binary}: {e}"
+        return None, None, f"cannot run {binary}: {e}"
     err = proc.stderr.decode("utf-8", "replace").strip()
     if proc.returncode != 0:
-        return None, f"springfit exited {proc.returncode}: {err}"
+        return None, None, f"springfit exited {proc.returncode}: {err}"
     try:
         doc = json.loads(proc.stdout)
         ref = doc["reference"]
         if ref.get("type") != "positions":
-            return None, f"springfit printed a reference of type {ref.get('type')!r}"
-        return ref["positions"], None
+            return None, None, f"springfit printed a reference of type {ref.get('type')!r}"
+        return ref["positions"], doc.get("load_cases"), None
     except (ValueError, KeyError, TypeError, AttributeError) as e:
-        return None, f"unreadable springfit output ({e}): {proc.stdout[:300]!r}"
+        return None, None, f"unreadable springfit output ({e}): {proc.stdout[:300]!r}"
 
 
-def compare_scenes(tally, binary, tmp):
+def printed_forces(case, node_sets):
+    """{node: force} from a load case as springfit prints it (forces summed per node)."""
+    out = {}
+    for entry in case.get("forces", []):
+        targets = entry["nodes"] if "nodes" in entry else [entry["node"]]
+        if isinstance(targets, str):
+            targets = node_sets[targets]
+        for i in targets:
+            acc = out.setdefault(i, [0.0] * len(entry["force"]))
+            for d, v in enumerate(entry["force"]):
+                acc[d] += v
+    return out
+
+
+def compare_forces(tally, sc, printed):
+    """springfit's nodal forces of the tractions (its resolved load_cases) against the
+    harness's, over the scene's load cases that have tractions."""
+    traction_cases = [k for k, c in enumerate(sc["load_cases"]) if c.get("tractions")]
+    if not traction_cases:
+        return
+    label = (f"{sc['name']} nodal forces of the tractions ({len(traction_cases)} case"
+             f"{'s' if len(traction_cases) > 1 else ''})")
+    try:
+        cases = cr.problem_from_scene(sc).cases
+        if not isinstance(printed, list) or len(printed) != len(cases):
+            raise ValueError(f"springfit printed {len(printed or [])} load cases for "
+                             f"{len(cases)}")
+        worst = 0.0
+        for k in traction_cases:
+            if printed[k].get("tractions"):
+                raise ValueError(f"springfit's load_cases[{k}] still has tractions")
+            d = force_diff(printed_forces(printed[k], sc.get("node_sets", {})),
+                           cases[k].forces)
+            if d is None:
+                raise ValueError(f"load_cases[{k}]: no nodal forces to compare")
+            worst = max(worst, d)
+    except (cr.SceneError, ValueError, KeyError, TypeError, AttributeError) as e:
+        tally.fail(label, str(e))
+        return
+    tally.line(label, worst, TOL_FORCES)
+
+
+def compare_scenes(tally, binary, tmp, source_dir):
     print("== springfit reference against ccx", flush=True)
-    for sc, tol in make_scenes(tmp):
+    for sc, tol in make_scenes(tmp, source_dir):
         name = sc["name"]
         path = os.path.join(tmp, name + ".json")
         with open(path, "w") as f:
@@ -717,7 +973,7 @@ def compare_scenes(tally, binary, tmp):
             for label in labels:
                 tally.fail(label, f"ccx harness: {e}")
             continue
-        got, why = run_springfit(binary, path)
+        got, printed, why = run_springfit(binary, path)
         if got is None:
             for label in labels:
                 tally.fail(label, why)
@@ -732,6 +988,7 @@ def compare_scenes(tally, binary, tmp):
             d = rel_diff(got[k], ref, sc["nodes"])
             note = "" if d is not None else "  (springfit's positions do not match the scene)"
             tally.line(label, d, tol, note)
+        compare_forces(tally, sc, printed)
 
 
 # ----------------------------------------------------------------------------------------
@@ -769,7 +1026,7 @@ def main(argv=None):
     try:
         self_check(tally, os.path.join(tmp, "self-check") if args.keep else None)
         if not args.self_check_only:
-            compare_scenes(tally, args.springfit, tmp)
+            compare_scenes(tally, args.springfit, tmp, args.source_dir)
     finally:
         if not args.keep:
             shutil.rmtree(tmp, ignore_errors=True)
