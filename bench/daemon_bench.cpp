@@ -13,8 +13,8 @@
 #include <CLI/CLI.hpp>
 
 #include "client/rpc_client.h"
+#include "engine/identification/identify.h"
 #include "engine/problem.h"
-#include "engine/search/run_search.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
 
@@ -22,7 +22,9 @@ namespace {
 using springfit::proto::Json;
 using Clock = std::chrono::steady_clock;
 
-double Seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+double Seconds(Clock::duration d) {
+  return std::chrono::duration<double>(d).count();
+}
 
 double Percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0.0;
@@ -37,7 +39,8 @@ Json SceneWith(const std::string& path, const std::string& strategy, int generat
   return scene;
 }
 
-void BenchGet(const springfit::cli::ServerOptions& server, const std::string& scene_path, int clients, double seconds) {
+void BenchGet(const springfit::cli::ServerOptions& server, const std::string& scene_path,
+              int clients, double seconds) {
   std::int64_t id = 0;
   {
     springfit::cli::RpcClient c(server);
@@ -54,7 +57,8 @@ void BenchGet(const springfit::cli::ServerOptions& server, const std::string& sc
       Json params;
       params["job_id"] = id;
       while (!go.load()) std::this_thread::yield();
-      const auto end = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
+      const auto end = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                          std::chrono::duration<double>(seconds));
       while (Clock::now() < end) {
         const auto t0 = Clock::now();
         c.Call("job.get", params);
@@ -68,9 +72,11 @@ void BenchGet(const springfit::cli::ServerOptions& server, const std::string& sc
   const double wall = Seconds(Clock::now() - t0);
   std::vector<double> all;
   for (const auto& l : latencies) all.insert(all.end(), l.begin(), l.end());
-  std::printf("job.get: %d clients, %.1f s: %zu requests, %.0f requests/s, latency median %.3f ms, p99 %.3f ms\n",
-              clients, wall, all.size(), static_cast<double>(all.size()) / wall, 1e3 * Percentile(all, 0.5),
-              1e3 * Percentile(all, 0.99));
+  std::printf(
+      "job.get: %d clients, %.1f s: %zu requests, %.0f requests/s, latency median %.3f ms, p99 "
+      "%.3f ms\n",
+      clients, wall, all.size(), static_cast<double>(all.size()) / wall, 1e3 * Percentile(all, 0.5),
+      1e3 * Percentile(all, 0.99));
 }
 
 void BenchOverhead(const springfit::cli::ServerOptions& server, const std::string& scene_path,
@@ -101,20 +107,24 @@ void BenchOverhead(const springfit::cli::ServerOptions& server, const std::strin
       springfit::Scene s = springfit::proto::SceneFromJson(scene);
       s.search.seed = seed;
       const springfit::Problem problem = springfit::Problem::Build(std::move(s));
-      springfit::RunOptions run;
+      springfit::RunContext run;
       run.threads = threads;
-      springfit::RunSearch(problem, springfit::ResolveSearchOptions(problem.scene().search, problem.gene_count()), run);
+      springfit::RunIdentification(
+          problem, springfit::ResolveSearchOptions(problem.scene().search, problem.gene_count()),
+          run);
       local_wall.push_back(Seconds(Clock::now() - t0));
     }
   }
   // Run times vary a lot between seeds: compare each seed with itself.
   std::vector<double> ratios;
   for (int r = 0; r < repeats; ++r) ratios.push_back(daemon_wall[r] / local_wall[r]);
-  std::printf("overhead: %s, %s, %d generations, %d threads, %d seeds: daemon end to end median %.3f s "
-              "(search %.3f s), in-process median %.3f s; daemon/in-process per seed: median %.3f, max %.3f\n",
-              scene_path.c_str(), strategy.c_str(), generations, threads, repeats, Percentile(daemon_wall, 0.5),
-              Percentile(daemon_search, 0.5), Percentile(local_wall, 0.5), Percentile(ratios, 0.5),
-              Percentile(ratios, 1.0));
+  std::printf(
+      "overhead: %s, %s, %d generations, %d threads, %d seeds: daemon end to end median %.3f s "
+      "(search %.3f s), in-process median %.3f s; daemon/in-process per seed: median %.3f, max "
+      "%.3f\n",
+      scene_path.c_str(), strategy.c_str(), generations, threads, repeats,
+      Percentile(daemon_wall, 0.5), Percentile(daemon_search, 0.5), Percentile(local_wall, 0.5),
+      Percentile(ratios, 0.5), Percentile(ratios, 1.0));
 }
 
 }  // namespace
@@ -136,15 +146,19 @@ int main(int argc, char** argv) {
   app.add_option("--scene", scene, "Scene of the job that --get reads");
   app.add_option("--clients", clients, "Concurrent clients for --get")->capture_default_str();
   app.add_option("--seconds", seconds, "Duration of --get")->capture_default_str();
-  app.add_option("--overhead", overhead_scene, "Scene for the daemon-against-in-process comparison");
+  app.add_option("--overhead", overhead_scene,
+                 "Scene for the daemon-against-in-process comparison");
   app.add_option("--strategy", strategy, "Strategy of the --overhead runs")->capture_default_str();
-  app.add_option("--generations", generations, "Generations of the --overhead runs")->capture_default_str();
-  app.add_option("--threads", threads, "In-process threads (match the daemon's --workers)")->capture_default_str();
+  app.add_option("--generations", generations, "Generations of the --overhead runs")
+      ->capture_default_str();
+  app.add_option("--threads", threads, "In-process threads (match the daemon's --workers)")
+      ->capture_default_str();
   app.add_option("--repeats", repeats, "Seeds of the --overhead runs")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   try {
     if (get) BenchGet(server, scene, clients, seconds);
-    if (!overhead_scene.empty()) BenchOverhead(server, overhead_scene, strategy, generations, threads, repeats);
+    if (!overhead_scene.empty())
+      BenchOverhead(server, overhead_scene, strategy, generations, threads, repeats);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "daemon_bench: %s\n", e.what());
     return 1;

@@ -14,8 +14,8 @@
 
 #include "engine/direct/direct_identification.h"
 #include "engine/examples/catalog.h"
+#include "engine/identification/identify.h"
 #include "engine/problem.h"
-#include "engine/search/run_search.h"
 
 using namespace springfit;
 
@@ -45,7 +45,8 @@ Row Measure(Scene scene, int repeats) {
   DirectResult best;
   for (int r = 0; r < repeats; ++r) {
     DirectResult d = IdentifyDirect(problem);
-    if (r == 0 || d.assemble_seconds + d.solve_seconds < best.assemble_seconds + best.solve_seconds) best = std::move(d);
+    if (r == 0 || d.assemble_seconds + d.solve_seconds < best.assemble_seconds + best.solve_seconds)
+      best = std::move(d);
   }
   const auto difference = problem.CompareWithReference(best.genome);
   row.missing = difference ? static_cast<int>(difference->missing.size()) : -1;
@@ -53,7 +54,9 @@ Row Measure(Scene scene, int repeats) {
   row.exact = difference && difference->hamming() == 0;
   const std::vector<double> truth = problem.ReferenceWeights();
   for (std::size_t g = 0; g < truth.size(); ++g) {
-    if (truth[g] > 0.0) row.stiffness_error = std::max(row.stiffness_error, std::abs(best.weights[g] - truth[g]) / truth[g]);
+    if (truth[g] > 0.0)
+      row.stiffness_error =
+          std::max(row.stiffness_error, std::abs(best.weights[g] - truth[g]) / truth[g]);
   }
   // Diagnostic: the smallest true weight and the largest weight of an absent spring, relative
   // to the largest weight: the room the topology threshold has.
@@ -61,7 +64,10 @@ Row Measure(Scene scene, int repeats) {
     double lo = 1e300, hi = 0.0, top = 0.0;
     for (double w : best.weights) top = std::max(top, w);
     for (std::size_t g = 0; g < best.weights.size(); ++g) {
-      if ((*mask)[g]) lo = std::min(lo, best.weights[g] / top); else hi = std::max(hi, best.weights[g] / top);
+      if ((*mask)[g])
+        lo = std::min(lo, best.weights[g] / top);
+      else
+        hi = std::max(hi, best.weights[g] / top);
     }
     row.smallest_true = lo;
     row.largest_absent = hi;
@@ -75,16 +81,18 @@ Row Measure(Scene scene, int repeats) {
 }
 
 void Print(const Row& r) {
-  std::printf("| %s | %d | %d | %s | %d / %d | %.1e | %.1e | %.2f | %.2f | %.2f | %d | %.2f |\n", r.scene.c_str(),
-              r.nodes, r.genes, r.exact ? "yes" : "no", r.missing, r.extra, r.stiffness_error, r.normalized_error,
-              1e3 * r.assemble, 1e3 * r.solve, 1e3 * (r.assemble + r.solve), r.iterations, r.evaluate);
-  std::fprintf(stderr, "%s: smallest true weight %.2e, largest absent %.2e (of the largest)\n", r.scene.c_str(),
-               r.smallest_true, r.largest_absent);
+  std::printf("| %s | %d | %d | %s | %d / %d | %.1e | %.1e | %.2f | %.2f | %.2f | %d | %.2f |\n",
+              r.scene.c_str(), r.nodes, r.genes, r.exact ? "yes" : "no", r.missing, r.extra,
+              r.stiffness_error, r.normalized_error, 1e3 * r.assemble, 1e3 * r.solve,
+              1e3 * (r.assemble + r.solve), r.iterations, r.evaluate);
+  std::fprintf(stderr, "%s: smallest true weight %.2e, largest absent %.2e (of the largest)\n",
+               r.scene.c_str(), r.smallest_true, r.largest_absent);
   std::fflush(stdout);
 }
 
 // Noise: `draws` noisy copies of an MSS example; how often direct finds the true topology.
-void MeasureNoise(const std::string& name, double fraction, int draws, Identify identify, int hybrid_generations) {
+void MeasureNoise(const std::string& name, double fraction, int draws, Identify identify,
+                  int hybrid_generations) {
   const Scene clean = examples::Make(name);
   const Problem truth = Problem::Build(clean);
   int exact = 0;
@@ -92,7 +100,8 @@ void MeasureNoise(const std::string& name, double fraction, int draws, Identify 
   std::vector<int> wrong;
   double worst_error = 0.0;
   for (int draw = 1; draw <= draws; ++draw) {
-    const Problem noisy = Problem::Build(examples::WithMeasurementNoise(clean, fraction, static_cast<std::uint64_t>(draw)));
+    const Problem noisy = Problem::Build(
+        examples::WithMeasurementNoise(clean, fraction, static_cast<std::uint64_t>(draw)));
     Genome genome;
     double error = 0.0;
     if (hybrid_generations > 0) {
@@ -100,9 +109,10 @@ void MeasureNoise(const std::string& name, double fraction, int draws, Identify 
       scene.search.strategy = Strategy::kHybrid;
       scene.search.max_generations = hybrid_generations;
       const Problem hybrid = Problem::Build(std::move(scene));
-      RunOptions run;
+      RunContext run;
       run.threads = 2;
-      const SearchResult result = RunSearch(hybrid, ResolveSearchOptions(hybrid.scene().search, hybrid.gene_count()), run);
+      const IdentificationResult result = RunIdentification(
+          hybrid, ResolveSearchOptions(hybrid.scene().search, hybrid.gene_count()), run);
       genome = result.best;
       error = result.evaluation.normalized_error;
       seconds += result.wall_seconds;
@@ -123,7 +133,8 @@ void MeasureNoise(const std::string& name, double fraction, int draws, Identify 
   const int median = wrong.empty() ? 0 : wrong[wrong.size() / 2];
   const int worst = wrong.empty() ? 0 : wrong.back();
   std::printf("| %s | %g | %s | %d / %d | %d | %d | %.2g | %.3f |\n", name.c_str(), fraction,
-              hybrid_generations > 0 ? ("hybrid, " + std::to_string(hybrid_generations) + " generations").c_str()
+              hybrid_generations > 0
+                  ? ("hybrid, " + std::to_string(hybrid_generations) + " generations").c_str()
               : identify == Identify::kTopology ? "direct, topology"
                                                 : "direct, topology and stiffness",
               exact, draws, median, worst, worst_error, seconds / draws);
@@ -144,30 +155,41 @@ int main(int argc, char** argv) {
   std::vector<std::string> noise_scenes{"paper-iso-5x5", "paper-aniso-5x5"};
   app.add_option("--sizes2", sizes2, "2D grid sizes n (n x n nodes)")->delimiter(',');
   app.add_option("--sizes3", sizes3, "3D grid sizes n (n^3 nodes)")->delimiter(',');
-  app.add_option("--repeats", repeats, "Runs per scene; the fastest is reported")->check(CLI::PositiveNumber);
+  app.add_option("--repeats", repeats, "Runs per scene; the fastest is reported")
+      ->check(CLI::PositiveNumber);
   app.add_flag("--examples-only", examples_only, "Only the example scenes");
-  app.add_option("--noise", noise, "Only the noise table, at these fractions (e.g. 0.001,0.01)")->delimiter(',');
-  app.add_option("--hybrid", hybrid_generations, "Also strategy hybrid with this many GA generations (noise table)");
+  app.add_option("--noise", noise, "Only the noise table, at these fractions (e.g. 0.001,0.01)")
+      ->delimiter(',');
+  app.add_option("--hybrid", hybrid_generations,
+                 "Also strategy hybrid with this many GA generations (noise table)");
   app.add_option("--noise-scenes", noise_scenes, "Scenes of the noise table")->delimiter(',');
-  app.add_option("--draws", draws, "Noise draws per scene and fraction")->check(CLI::PositiveNumber);
+  app.add_option("--draws", draws, "Noise draws per scene and fraction")
+      ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
 
   if (!noise.empty()) {
-    std::printf("| scene | noise | strategy | exact topology | median wrong springs | worst | worst normalized error | "
-                "mean s |\n|---|---|---|---|---|---|---|---|\n");
+    std::printf(
+        "| scene | noise | strategy | exact topology | median wrong springs | worst | worst "
+        "normalized error | "
+        "mean s |\n|---|---|---|---|---|---|---|---|\n");
     for (const double f : noise) {
       for (const std::string& name : noise_scenes) {
         MeasureNoise(name, f, draws, Identify::kTopology, 0);
         MeasureNoise(name, f, draws, Identify::kTopologyAndStiffness, 0);
-        if (hybrid_generations > 0) MeasureNoise(name, f, draws, Identify::kTopology, hybrid_generations);
+        if (hybrid_generations > 0)
+          MeasureNoise(name, f, draws, Identify::kTopology, hybrid_generations);
       }
     }
     return 0;
   }
 
-  std::printf("| scene | nodes | genes | exact | missing / extra | stiffness rel. error | normalized error | "
-              "assemble ms | NNLS ms | direct ms | pivots | evaluate s |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
-  for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d"}) {
+  std::printf(
+      "| scene | nodes | genes | exact | missing / extra | stiffness rel. error | normalized error "
+      "| "
+      "assemble ms | NNLS ms | direct ms | pivots | evaluate s "
+      "|\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (const char* name :
+       {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d"}) {
     Print(Measure(examples::Make(name), repeats));
   }
   if (examples_only) return 0;
@@ -192,7 +214,8 @@ int main(int argc, char** argv) {
     rows3.push_back(Measure(examples::ThinnedGrid({n, n, n}, 1, 2.0), n >= 8 ? 1 : repeats));
     Print(rows3.back());
   }
-  std::printf("\ngrowth exponent of direct time in genes (scenes of >= 1000 genes): 2D %.2f, 3D %.2f\n",
-              exponent(rows2), exponent(rows3));
+  std::printf(
+      "\ngrowth exponent of direct time in genes (scenes of >= 1000 genes): 2D %.2f, 3D %.2f\n",
+      exponent(rows2), exponent(rows3));
   return 0;
 }

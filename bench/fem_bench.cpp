@@ -29,7 +29,9 @@ namespace springfit {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double Seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
+double Seconds(Clock::time_point since) {
+  return std::chrono::duration<double>(Clock::now() - since).count();
+}
 
 struct Row {
   int dofs = 0;
@@ -92,8 +94,9 @@ double GrowthExponent(const std::vector<Row>& rows) {
 }
 
 void SizeSweep(int d, MaterialModel model, int max_dofs, const std::vector<int>& cells) {
-  std::printf("\n%dD, %s\n%8s %8s %10s %10s %8s %6s\n", d, model == MaterialModel::kLinear ? "linear" : "st_venant_kirchhoff",
-              "cells/n", "DOFs", "setup s", "solve s", "Newton", "steps");
+  std::printf("\n%dD, %s\n%8s %8s %10s %10s %8s %6s\n", d,
+              model == MaterialModel::kLinear ? "linear" : "st_venant_kirchhoff", "cells/n", "DOFs",
+              "setup s", "solve s", "Newton", "steps");
   std::vector<Row> rows;
   std::vector<int> sizes = cells;
   if (sizes.empty()) {
@@ -106,15 +109,17 @@ void SizeSweep(int d, MaterialModel model, int max_dofs, const std::vector<int>&
     fem::FemSolveSummary summary;
     const Row row = Measure(MeshScene(d, n, model), summary);
     rows.push_back(row);
-    std::printf("%8d %8d %10.3f %10.3f %8d %6d%s\n", n, row.dofs, row.setup, row.solve, summary.iterations,
-                summary.load_steps, summary.converged() ? "" : "  NOT CONVERGED");
+    std::printf("%8d %8d %10.3f %10.3f %8d %6d%s\n", n, row.dofs, row.setup, row.solve,
+                summary.iterations, summary.load_steps,
+                summary.converged() ? "" : "  NOT CONVERGED");
     std::fflush(stdout);
   }
   std::printf("growth exponent of the solve time (>= 5,000 DOFs): %.2f\n", GrowthExponent(rows));
 }
 
 void Examples() {
-  std::printf("%-18s %6s %6s %10s %12s %10s %8s\n", "example", "DOFs", "cases", "setup s", "solve s/case", "max s", "Newton");
+  std::printf("%-18s %6s %6s %10s %12s %10s %8s\n", "example", "DOFs", "cases", "setup s",
+              "solve s/case", "max s", "Newton");
   for (const char* name : {"fem-plate-5x5", "fem-kidney-2d", "fem-kidney-2d-nl", "fem-block-3d"}) {
     const Scene s = examples::Make(name);
     const Problem problem = Problem::Build(s);
@@ -134,8 +139,8 @@ void Examples() {
       worst = std::max(worst, t);
     }
     const int cases = static_cast<int>(problem.load_cases().size());
-    std::printf("%-18s %6d %6d %10.4f %12.4f %10.4f %8.1f\n", name, s.dimension * s.node_count(), cases, setup,
-                total / cases, worst, static_cast<double>(newton) / cases);
+    std::printf("%-18s %6d %6d %10.4f %12.4f %10.4f %8.1f\n", name, s.dimension * s.node_count(),
+                cases, setup, total / cases, worst, static_cast<double>(newton) / cases);
   }
 }
 
@@ -166,7 +171,9 @@ int main(int argc, char** argv) {
   }
   for (int d : dims) {
     for (const std::string& m : models) {
-      springfit::SizeSweep(d, m == "svk" ? springfit::MaterialModel::kStVenantKirchhoff : springfit::MaterialModel::kLinear,
+      springfit::SizeSweep(d,
+                           m == "svk" ? springfit::MaterialModel::kStVenantKirchhoff
+                                      : springfit::MaterialModel::kLinear,
                            max_dofs, cells);
     }
   }

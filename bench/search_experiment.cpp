@@ -24,8 +24,7 @@
 
 #include "engine/cost.h"
 #include "engine/examples/catalog.h"
-#include "engine/direct/run_direct.h"
-#include "engine/search/run_search.h"
+#include "engine/identification/strategy.h"
 #include "proto/names.h"
 
 namespace springfit {
@@ -98,9 +97,12 @@ double Quantile(std::vector<double> v, double q) {
 std::string Seconds(double s) {
   char buf[32];
   if (std::isnan(s)) return "—";
-  if (s < 1e-3) std::snprintf(buf, sizeof buf, "%.0f µs", s * 1e6);
-  else if (s < 1.0) std::snprintf(buf, sizeof buf, "%.1f ms", s * 1e3);
-  else std::snprintf(buf, sizeof buf, "%.2f s", s);
+  if (s < 1e-3)
+    std::snprintf(buf, sizeof buf, "%.0f µs", s * 1e6);
+  else if (s < 1.0)
+    std::snprintf(buf, sizeof buf, "%.1f ms", s * 1e3);
+  else
+    std::snprintf(buf, sizeof buf, "%.2f s", s);
   return buf;
 }
 
@@ -120,18 +122,22 @@ struct Variant {
 
 // `truth`: the problem whose reference topology judges exactness (the clean scene of a noisy
 // one; the problem itself otherwise).
-RunRecord RunOnce(const Problem& problem, const Problem& truth, Strategy strategy, std::uint64_t seed, int threads,
-                  double time_limit, const Variant& variant, bool topology_only, bool no_direct_seed) {
+RunRecord RunOnce(const Problem& problem, const Problem& truth, Strategy strategy,
+                  std::uint64_t seed, int threads, double time_limit, const Variant& variant,
+                  bool topology_only, bool no_direct_seed) {
   SearchOptions o = StrategyDefaults(strategy, problem.gene_count());
   if (topology_only) o.identify = Identify::kTopology;
-  if (no_direct_seed) o.direct_seed = false;
   o.seed = seed;
   if (variant.elites >= 0) o.elites = variant.elites;
   if (variant.roulette_exponent > 0.0) o.roulette_exponent = variant.roulette_exponent;
-  RunOptions run;
+  RunContext run;
   run.threads = threads;
-  run.on_generation = [&](const TraceRow& row, const GeneticSearch&) { return row.wall_seconds < time_limit; };
-  SearchResult r = strategy == Strategy::kDirect ? RunDirect(problem, o).search : RunSearch(problem, o, run);
+  run.on_iteration = [&](const TraceRow& row, const IterationState&) {
+    return row.wall_seconds < time_limit;
+  };
+  // default-ga: the memetic GA of `default` alone, without its direct seed.
+  IdentificationResult r = no_direct_seed ? RunIdentification(problem, o, run, GeneticStrategy())
+                                          : RunIdentification(problem, o, run);
   r.difference = truth.CompareWithReference(r.best);
   RunRecord rec;
   rec.exact = r.exact().value_or(false);
@@ -164,17 +170,20 @@ int FullRun(const std::string& scene, int threads, int repeats) {
       SearchOptions o = StrategyDefaults(strategy, problem.gene_count());
       o.seed = static_cast<std::uint64_t>(i + 1);
       o.stop_at_target = false;
-      o.direct_seed = false;  // the GA's own throughput, comparable across strategies
-      RunOptions run;
+      RunContext run;
       run.threads = threads;
-      const SearchResult r = RunSearch(problem, o, run);
+      // The GA alone (no direct seed): its own throughput, comparable across strategies.
+      const IdentificationResult r = RunIdentification(problem, o, run, GeneticStrategy());
       seconds.push_back(r.wall_seconds);
       evaluations += r.counters.evaluations;
       hits += r.counters.cache_hits;
     }
-    std::printf("| %s | %s | %d | %s | %s | %.0f | %.0f%% |\n", scene.c_str(), strategy == Strategy::kPaper ? "paper" : "default-ga",
-                threads, Seconds(Quantile(seconds, 0.5)).c_str(), Seconds(*std::max_element(seconds.begin(), seconds.end())).c_str(),
-                static_cast<double>(evaluations) / repeats, 100.0 * static_cast<double>(hits) / static_cast<double>(evaluations));
+    std::printf("| %s | %s | %d | %s | %s | %.0f | %.0f%% |\n", scene.c_str(),
+                strategy == Strategy::kPaper ? "paper" : "default-ga", threads,
+                Seconds(Quantile(seconds, 0.5)).c_str(),
+                Seconds(*std::max_element(seconds.begin(), seconds.end())).c_str(),
+                static_cast<double>(evaluations) / repeats,
+                100.0 * static_cast<double>(hits) / static_cast<double>(evaluations));
   }
   return 0;
 }
@@ -191,48 +200,63 @@ int Main(int argc, char** argv) {
   double noise = 0.0;
   app.add_option("--seeds", seeds)->capture_default_str();
   app.add_option("--threads", threads)->capture_default_str();
-  app.add_option("--time-limit", time_limit, "Wall-time limit per run, seconds")->capture_default_str();
-  app.add_option("--scenes", scenes)->capture_default_str();
-  app.add_option("--strategies", strategies,
-                 "paper, default, direct, hybrid, direct-topology (direct with search.identify topology), "
-                 "default-ga (default without the direct seed)")
+  app.add_option("--time-limit", time_limit, "Wall-time limit per run, seconds")
       ->capture_default_str();
-  app.add_option("--elites", variant.elites, "Override the strategies' elite count (a variant, not the strategy)");
-  app.add_option("--roulette-exponent", variant.roulette_exponent,
-                 "Override the roulette weights' exponent p, weights e^-p (a variant, not the strategy)")
+  app.add_option("--scenes", scenes)->capture_default_str();
+  app.add_option(
+         "--strategies", strategies,
+         "paper, default, direct, hybrid, direct-topology (direct with search.identify topology), "
+         "default-ga (default without the direct seed)")
+      ->capture_default_str();
+  app.add_option("--elites", variant.elites,
+                 "Override the strategies' elite count (a variant, not the strategy)");
+  app.add_option(
+         "--roulette-exponent", variant.roulette_exponent,
+         "Override the roulette weights' exponent p, weights e^-p (a variant, not the strategy)")
       ->check(CLI::PositiveNumber);
   app.add_flag("--local-optima", local_optima,
-               "After each scene, examine the best genome of every run that was not exact: single flips that "
+               "After each scene, examine the best genome of every run that was not exact: single "
+               "flips that "
                "improve it, else pairs of flips (all pairs; scenes of at most 100 genes)");
   app.add_option("--full-run", full_run, "Time full 1000-generation runs of this scene instead");
   app.add_option("--repeats", repeats, "Runs per strategy for --full-run")->capture_default_str();
-  app.add_option("--noise", noise, "Noisy references: Gaussian noise of this fraction of the displacement (seed s draws it)");
+  app.add_option(
+      "--noise", noise,
+      "Noisy references: Gaussian noise of this fraction of the displacement (seed s draws it)");
   CLI11_PARSE(app, argc, argv);
   if (!full_run.empty() && variant.any()) {
-    std::fprintf(stderr, "search_experiment: --full-run times the strategies as they are; --elites and "
-                         "--roulette-exponent do not apply\n");
+    std::fprintf(stderr,
+                 "search_experiment: --full-run times the strategies as they are; --elites and "
+                 "--roulette-exponent do not apply\n");
     return 64;
   }
   if (!full_run.empty()) {
-    std::printf("| scene | strategy | threads | median | max | evaluations per run | cache hits |\n|---|---|---:|---:|---:|---:|---:|\n");
+    std::printf(
+        "| scene | strategy | threads | median | max | evaluations per run | cache hits "
+        "|\n|---|---|---:|---:|---:|---:|---:|\n");
     return FullRun(full_run, threads, repeats);
   }
 
   std::string error_table =
-      "| scene | strategy | after 1 ms | 10 ms | 100 ms | 1 s | 10 s |\n|---|---|---:|---:|---:|---:|---:|\n";
+      "| scene | strategy | after 1 ms | 10 ms | 100 ms | 1 s | 10 s "
+      "|\n|---|---|---:|---:|---:|---:|---:|\n";
   std::string optima_table =
-      "| scene | strategy | not exact | a single flip improves (improving flips: median) | single-flip optima | "
+      "| scene | strategy | not exact | a single flip improves (improving flips: median) | "
+      "single-flip optima | "
       "of which a pair of flips improves |\n|---|---|---:|---:|---:|---:|\n";
-  std::printf("| scene | strategy | exact | generations to exact (median / p90) | evaluations to exact (median / p90) | "
-              "time to exact (median / p90) | not exact: final error (median), missing + extra (median) |\n"
-              "|---|---|---:|---:|---:|---:|---|\n");
+  std::printf(
+      "| scene | strategy | exact | generations to exact (median / p90) | evaluations to exact "
+      "(median / p90) | "
+      "time to exact (median / p90) | not exact: final error (median), missing + extra (median) |\n"
+      "|---|---|---:|---:|---:|---:|---|\n");
   for (const std::string& scene : Split(scenes)) {
     const Scene clean = examples::Make(scene);
     const Problem truth = Problem::Build(clean);
     std::vector<Problem> problems;  // per seed when noisy
     if (noise > 0.0) {
       for (int s = 1; s <= seeds; ++s) {
-        problems.push_back(Problem::Build(examples::WithMeasurementNoise(clean, noise, static_cast<std::uint64_t>(s))));
+        problems.push_back(Problem::Build(
+            examples::WithMeasurementNoise(clean, noise, static_cast<std::uint64_t>(s))));
       }
     }
     for (const std::string& strategy_name : Split(strategies)) {
@@ -240,7 +264,9 @@ int Main(int argc, char** argv) {
       // default GA without its direct seed (the memetic GA alone).
       const bool topology_only = strategy_name == "direct-topology";
       const bool no_direct_seed = strategy_name == "default-ga";
-      const std::string base = topology_only ? "direct" : no_direct_seed ? "default" : strategy_name;
+      const std::string base = topology_only    ? "direct"
+                               : no_direct_seed ? "default"
+                                                : strategy_name;
       const std::optional<Strategy> parsed = proto::ParseStrategy(base);
       if (!parsed) {
         std::fprintf(stderr, "search_experiment: unknown strategy '%s'\n", strategy_name.c_str());
@@ -248,18 +274,22 @@ int Main(int argc, char** argv) {
       }
       const Strategy strategy = *parsed;
       if (variant.roulette_exponent > 0.0 &&
-          StrategyDefaults(strategy, truth.gene_count()).selection != SearchOptions::Selection::kRoulette) {
-        std::fprintf(stderr, "search_experiment: --roulette-exponent applies to roulette selection (paper), not to '%s'\n",
+          StrategyDefaults(strategy, truth.gene_count()).selection !=
+              SearchOptions::Selection::kRoulette) {
+        std::fprintf(stderr,
+                     "search_experiment: --roulette-exponent applies to roulette selection "
+                     "(paper), not to '%s'\n",
                      strategy_name.c_str());
         return 64;
       }
       std::vector<RunRecord> runs;
       for (int s = 1; s <= seeds; ++s) {
         const Problem& problem = noise > 0.0 ? problems[static_cast<std::size_t>(s - 1)] : truth;
-        runs.push_back(RunOnce(problem, truth, strategy, static_cast<std::uint64_t>(s), threads, time_limit, variant, topology_only, no_direct_seed));
-        std::fprintf(stderr, "%s %s seed %d: exact %d, %d generations, %.3f s, e %.3g\n", scene.c_str(),
-                     strategy_name.c_str(), s, runs.back().exact, runs.back().generations, runs.back().seconds,
-                     runs.back().final_error);
+        runs.push_back(RunOnce(problem, truth, strategy, static_cast<std::uint64_t>(s), threads,
+                               time_limit, variant, topology_only, no_direct_seed));
+        std::fprintf(stderr, "%s %s seed %d: exact %d, %d generations, %.3f s, e %.3g\n",
+                     scene.c_str(), strategy_name.c_str(), s, runs.back().exact,
+                     runs.back().generations, runs.back().seconds, runs.back().final_error);
       }
       std::vector<double> gens, evals, secs, errors, wrong;
       int exact = 0;
@@ -274,19 +304,24 @@ int Main(int argc, char** argv) {
           wrong.push_back(r.missing + r.extra);
         }
       }
-      std::printf("| %s | %s | %d / %d | %s / %s | %s / %s | %s / %s | %s |\n", scene.c_str(), strategy_name.c_str(), exact,
-                  seeds, Number(Quantile(gens, 0.5), "%.0f").c_str(), Number(Quantile(gens, 0.9), "%.0f").c_str(),
-                  Number(Quantile(evals, 0.5), "%.0f").c_str(), Number(Quantile(evals, 0.9), "%.0f").c_str(),
-                  Seconds(Quantile(secs, 0.5)).c_str(), Seconds(Quantile(secs, 0.9)).c_str(),
-                  errors.empty() ? "—"
-                                 : (Number(Quantile(errors, 0.5)) + ", " + Number(Quantile(wrong, 0.5), "%.1f")).c_str());
+      std::printf(
+          "| %s | %s | %d / %d | %s / %s | %s / %s | %s / %s | %s |\n", scene.c_str(),
+          strategy_name.c_str(), exact, seeds, Number(Quantile(gens, 0.5), "%.0f").c_str(),
+          Number(Quantile(gens, 0.9), "%.0f").c_str(), Number(Quantile(evals, 0.5), "%.0f").c_str(),
+          Number(Quantile(evals, 0.9), "%.0f").c_str(), Seconds(Quantile(secs, 0.5)).c_str(),
+          Seconds(Quantile(secs, 0.9)).c_str(),
+          errors.empty()
+              ? "—"
+              : (Number(Quantile(errors, 0.5)) + ", " + Number(Quantile(wrong, 0.5), "%.1f"))
+                    .c_str());
       std::fflush(stdout);
       error_table += "| " + scene + " | " + strategy_name + " |";
       for (std::size_t c = 0; c < std::size(kCheckpoints); ++c) {
         // A seed still on its first generation counts as worse than any error (+inf); the
         // lower median, so that an even count needs no average with infinity.
         std::vector<double> at;
-        for (const RunRecord& r : runs) at.push_back(std::isnan(r.error_at[c]) ? INFINITY : r.error_at[c]);
+        for (const RunRecord& r : runs)
+          at.push_back(std::isnan(r.error_at[c]) ? INFINITY : r.error_at[c]);
         std::sort(at.begin(), at.end());
         const double median = at[(at.size() - 1) / 2];
         const std::string cell = std::isinf(median) ? "—" : Number(median);
@@ -301,8 +336,9 @@ int Main(int argc, char** argv) {
           ++failed;
           const Problem& problem = noise > 0.0 ? problems[i] : truth;
           const Neighbourhood n = ExamineNeighbourhood(problem, runs[i].best);
-          std::fprintf(stderr, "%s %s seed %zu: %d improving flips, %d improving pairs\n", scene.c_str(),
-                       strategy_name.c_str(), i + 1, n.improving_flips, n.improving_pairs);
+          std::fprintf(stderr, "%s %s seed %zu: %d improving flips, %d improving pairs\n",
+                       scene.c_str(), strategy_name.c_str(), i + 1, n.improving_flips,
+                       n.improving_pairs);
           if (n.improving_flips > 0) {
             ++improvable;
             flips.push_back(n.improving_flips);
@@ -312,19 +348,24 @@ int Main(int argc, char** argv) {
             pair_improvable += n.improving_pairs > 0;
           }
         }
-        optima_table += "| " + scene + " | " + strategy_name + " | " + std::to_string(failed) + " | " +
-                        std::to_string(improvable) + " (" + Number(Quantile(flips, 0.5), "%.0f") + ") | " +
-                        std::to_string(optima) + " | " +
-                        (pairs_examined == optima ? std::to_string(pair_improvable) : "not examined") + " |\n";
+        optima_table +=
+            "| " + scene + " | " + strategy_name + " | " + std::to_string(failed) + " | " +
+            std::to_string(improvable) + " (" + Number(Quantile(flips, 0.5), "%.0f") + ") | " +
+            std::to_string(optima) + " | " +
+            (pairs_examined == optima ? std::to_string(pair_improvable) : "not examined") + " |\n";
       }
     }
   }
-  std::printf("\nMedian normalised error of the best genome found so far, against wall time:\n\n%s", error_table.c_str());
-  if (local_optima) std::printf("\nThe best genomes of the runs that were not exact:\n\n%s", optima_table.c_str());
+  std::printf("\nMedian normalised error of the best genome found so far, against wall time:\n\n%s",
+              error_table.c_str());
+  if (local_optima)
+    std::printf("\nThe best genomes of the runs that were not exact:\n\n%s", optima_table.c_str());
   return 0;
 }
 
 }  // namespace
 }  // namespace springfit
 
-int main(int argc, char** argv) { return springfit::Main(argc, argv); }
+int main(int argc, char** argv) {
+  return springfit::Main(argc, argv);
+}

@@ -68,14 +68,16 @@ void BM_Solve(benchmark::State& state) {
 // A full cost evaluation (every load case) of the reference topology (warm start = the
 // reference's equilibrium), and of topologies with 5% of the genes flipped.
 void BM_CostReference(benchmark::State& state) {
-  const Problem& p = CachedProblem(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
+  const Problem& p =
+      CachedProblem(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
   CostFunction cost(p);
   const Genome genome = p.GenomeFromMask(*p.reference_mask());
   for (auto _ : state) benchmark::DoNotOptimize(cost.EvaluateGenome(genome).cost);
 }
 
 void BM_CostFlipped5Percent(benchmark::State& state) {
-  const Problem& p = CachedProblem(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
+  const Problem& p =
+      CachedProblem(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
   CostFunction cost(p);
   // 16 fixed genomes, each the reference with 5% of its genes flipped (deterministic picks).
   std::vector<Genome> genomes;
@@ -92,7 +94,8 @@ void BM_CostFlipped5Percent(benchmark::State& state) {
   int mechanisms = 0;
   for (const Genome& g : genomes) mechanisms += cost.EvaluateGenome(g).mechanism;
   std::size_t i = 0;
-  for (auto _ : state) benchmark::DoNotOptimize(cost.EvaluateGenome(genomes[i++ % genomes.size()]).cost);
+  for (auto _ : state)
+    benchmark::DoNotOptimize(cost.EvaluateGenome(genomes[i++ % genomes.size()]).cost);
   state.counters["mechanisms_of_16"] = mechanisms;
 }
 
@@ -108,9 +111,18 @@ void CostSizes(benchmark::internal::Benchmark* b) {
   for (int n : {4, 8}) b->Args({3, n});
 }
 
-BENCHMARK(BM_Solve)->Apply(SolveSizes)->ArgNames({"dim", "n", "load"})->Unit(benchmark::kMicrosecond);
-BENCHMARK(BM_CostReference)->Apply(CostSizes)->ArgNames({"dim", "n"})->Unit(benchmark::kMicrosecond);
-BENCHMARK(BM_CostFlipped5Percent)->Apply(CostSizes)->ArgNames({"dim", "n"})->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_Solve)
+    ->Apply(SolveSizes)
+    ->ArgNames({"dim", "n", "load"})
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_CostReference)
+    ->Apply(CostSizes)
+    ->ArgNames({"dim", "n"})
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_CostFlipped5Percent)
+    ->Apply(CostSizes)
+    ->ArgNames({"dim", "n"})
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace springfit

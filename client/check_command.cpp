@@ -4,8 +4,8 @@
 #include <iostream>
 
 #include "client/commands.h"
-#include "client/exit_codes.h"
 #include "client/error_reporting.h"
+#include "client/exit_codes.h"
 #include "engine/direct/identifiability.h"
 #include "engine/fem/fem_model.h"
 #include "engine/problem.h"
@@ -18,17 +18,19 @@ namespace {
 
 std::string PairList(const std::vector<NodePair>& pairs) {
   std::string out;
-  for (const NodePair& p : pairs) out += " (" + std::to_string(p.first) + ", " + std::to_string(p.second) + ")";
+  for (const NodePair& p : pairs)
+    out += " (" + std::to_string(p.first) + ", " + std::to_string(p.second) + ")";
   return out;
 }
 
 void PrintIdentifiability(const IdentifiabilityReport& report) {
   std::cout << "unseen springs:         " << report.unseen.size();
-  if (!report.unseen.empty()) std::cout << " (no load case changes their length:" << PairList(report.unseen) << ")";
+  if (!report.unseen.empty())
+    std::cout << " (no load case changes their length:" << PairList(report.unseen) << ")";
   std::cout << "\n";
   if (!report.groups_analysed) {
-    std::cout << "dependent groups:       not analysed (more than " << IdentifiabilityOptions{}.max_genes
-              << " seen genes)\n";
+    std::cout << "dependent groups:       not analysed (more than "
+              << IdentifiabilityOptions{}.max_genes << " seen genes)\n";
     return;
   }
   std::cout << "dependent groups:       " << report.groups.size();
@@ -36,16 +38,17 @@ void PrintIdentifiability(const IdentifiabilityReport& report) {
   std::cout << "\n";
   for (std::size_t g = 0; g < report.groups.size(); ++g) {
     const DependentGroup& group = report.groups[g];
-    std::cout << "  group " << g << ": " << group.dependencies << " dependenc" << (group.dependencies == 1 ? "y" : "ies")
-              << " among" << PairList(group.springs) << "\n";
+    std::cout << "  group " << g << ": " << group.dependencies << " dependenc"
+              << (group.dependencies == 1 ? "y" : "ies") << " among" << PairList(group.springs)
+              << "\n";
     if (group.suggestion) std::cout << "    to separate them: " << group.suggestion->text << "\n";
   }
 }
 
 std::string MaterialText(const Material& m) {
   char buf[160];
-  std::snprintf(buf, sizeof buf, "%s, young %.6g, poisson %.6g", std::string(proto::MaterialModelName(m.model)).c_str(),
-                m.young, m.poisson);
+  std::snprintf(buf, sizeof buf, "%s, young %.6g, poisson %.6g",
+                std::string(proto::MaterialModelName(m.model)).c_str(), m.young, m.poisson);
   return buf;
 }
 
@@ -53,23 +56,25 @@ void PrintFemReference(const Scene& s) {
   const FemReference& fem = s.reference.fem;
   const fem::FemModel model = fem::FemModel::Build(s);
   const auto [quality, worst] = model.WorstQuality();
-  std::cout << "reference:              fem, " << fem.elements.size() << (s.dimension == 2 ? " triangles" : " tetrahedra");
+  std::cout << "reference:              fem, " << fem.elements.size()
+            << (s.dimension == 2 ? " triangles" : " tetrahedra");
   if (s.dimension == 2) {
     std::cout << ", plane " << proto::PlaneModeName(fem.plane) << ", thickness " << fem.thickness;
   }
   std::cout << "\n";
   if (fem.regions) {
     for (std::size_t m = 0; m < fem.materials.size(); ++m) {
-      const auto count = std::count(fem.element_material.begin(), fem.element_material.end(), static_cast<int>(m));
+      const auto count =
+          std::count(fem.element_material.begin(), fem.element_material.end(), static_cast<int>(m));
       std::printf("  material %-14s", (std::to_string(m) + ":").c_str());
       std::fflush(stdout);
-      std::cout << MaterialText(fem.materials[m]) << " (" << count
-                << " elements)\n";
+      std::cout << MaterialText(fem.materials[m]) << " (" << count << " elements)\n";
     }
   } else {
     std::cout << "  material:             " << MaterialText(fem.materials[0]) << "\n";
   }
-  std::cout << "  " << (s.dimension == 2 ? "area x thickness:     " : "volume:               ") << model.Volume() << "\n";
+  std::cout << "  " << (s.dimension == 2 ? "area x thickness:     " : "volume:               ")
+            << model.Volume() << "\n";
   std::printf("  smallest quality:     %.3g (element %d; 1 = equilateral)\n", quality, worst);
   std::fflush(stdout);
 }
@@ -119,16 +124,21 @@ int Check(const std::string& file) {
     std::cout << "  [" << k << "] " << (lc.name.empty() ? "(unnamed)" : lc.name) << ": "
               << lc.fixed.size() << " fixed, " << displaced << " displaced, " << forced
               << " loaded";
-    if (!lc.tractions.empty()) std::cout << ", " << lc.tractions.size() << " traction" << (lc.tractions.size() == 1 ? "" : "s");
+    if (!lc.tractions.empty())
+      std::cout << ", " << lc.tractions.size() << " traction"
+                << (lc.tractions.size() == 1 ? "" : "s");
     std::cout << "\n";
   }
   if (problem.DisplacementOnly()) {
-    std::cout << "  no load case applies a force: the data fix the stiffness only up to one factor\n";
+    std::cout
+        << "  no load case applies a force: the data fix the stiffness only up to one factor\n";
   }
   const SearchOptions options = ResolveSearchOptions(s.search, problem.gene_count());
-  std::cout << "search:                 strategy " << proto::StrategyName(options.strategy) << ", identifies "
-            << (options.identify == Identify::kTopology ? "the topology (every spring at the training stiffness)"
-                                                        : "the topology and each spring's stiffness")
+  std::cout << "search:                 strategy " << proto::StrategyName(options.strategy)
+            << ", identifies "
+            << (options.identify == Identify::kTopology
+                    ? "the topology (every spring at the training stiffness)"
+                    : "the topology and each spring's stiffness")
             << "\n";
   return kExitOk;
 }
@@ -136,12 +146,12 @@ int Check(const std::string& file) {
 }  // namespace
 
 void RegisterCheck(CLI::App& app, int& exit_code) {
-  auto* cmd = app.add_subcommand("check", "Validate a scene and print a summary (exit 2 if invalid)");
+  auto* cmd =
+      app.add_subcommand("check", "Validate a scene and print a summary (exit 2 if invalid)");
   auto file = std::make_shared<std::string>();
   cmd->add_option("SCENE", *file, "Scene file (JSON, proto/SCENE.md)")->required();
-  cmd->callback([file, &exit_code] {
-    exit_code = RunReportingErrors(*file, [&] { return Check(*file); });
-  });
+  cmd->callback(
+      [file, &exit_code] { exit_code = RunReportingErrors(*file, [&] { return Check(*file); }); });
 }
 
 }  // namespace springfit::cli

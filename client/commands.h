@@ -12,7 +12,8 @@ void RegisterExample(CLI::App& app, int& exit_code);
 void RegisterReference(CLI::App& app, int& exit_code);
 void RegisterRun(CLI::App& app, int& exit_code);
 void RegisterSubmit(CLI::App& app, int& exit_code);
-void RegisterJobCommands(CLI::App& app, int& exit_code);  // status, watch, result, trace, cancel, delete, list, info
+void RegisterJobCommands(
+    CLI::App& app, int& exit_code);  // status, watch, result, trace, cancel, delete, list, info
 void RegisterFigureCommands(CLI::App& app, int& exit_code);  // render, plot
 
 }  // namespace springfit::cli

@@ -13,13 +13,19 @@ int ExitCodeOfRemoteError(int code) {
   namespace rpc = proto::rpc;
   switch (code) {
     case rpc::kInvalidScene:
-    case rpc::kInvalidParams: return kExitInvalidInput;
-    case rpc::kNoSuchJob: return kExitNotFound;
-    case rpc::kUnauthorized: return kExitUnauthorized;
+    case rpc::kInvalidParams:
+      return kExitInvalidInput;
+    case rpc::kNoSuchJob:
+      return kExitNotFound;
+    case rpc::kUnauthorized:
+      return kExitUnauthorized;
     case rpc::kBusy:
-    case rpc::kLimitExceeded: return kExitBusy;
-    case rpc::kWrongState: return kExitWrongState;
-    default: return kExitFailure;
+    case rpc::kLimitExceeded:
+      return kExitBusy;
+    case rpc::kWrongState:
+      return kExitWrongState;
+    default:
+      return kExitFailure;
   }
 }
 

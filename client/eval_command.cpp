@@ -26,10 +26,13 @@ std::vector<std::uint8_t> ChooseTopology(const Problem& problem, const std::stri
   if (topology == "reference") {
     if (!problem.reference_mask()) {
       const Reference::Kind kind = problem.scene().reference.kind;
-      throw InputError("--topology", kind == Reference::Kind::kMss ? "the reference has springs that are not candidates"
-                                     : kind == Reference::Kind::kFem
-                                         ? "the reference is an FEM model: it has no spring topology (use --topology all or FILE)"
-                                         : "the reference is given as positions: it has no topology");
+      throw InputError("--topology",
+                       kind == Reference::Kind::kMss
+                           ? "the reference has springs that are not candidates"
+                       : kind == Reference::Kind::kFem
+                           ? "the reference is an FEM model: it has no spring topology (use "
+                             "--topology all or FILE)"
+                           : "the reference is given as positions: it has no topology");
     }
     return *problem.reference_mask();
   }
@@ -48,7 +51,8 @@ int Eval(const EvalArgs& args) {
   CostFunction cost(problem);
   const auto start = std::chrono::steady_clock::now();
   const Evaluation e = cost.EvaluateMask(mask);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   int springs = 0;
   for (std::uint8_t bit : mask) springs += bit;
 

@@ -54,7 +54,8 @@ void RegisterExample(CLI::App& app, int& exit_code) {
   cmd->add_option("-o,--output", args->output, "Output file (default: standard output)");
   cmd->add_flag("--list", args->list, "List the examples");
   cmd->add_option("--noise", args->noise,
-                  "Replace the reference by its equilibrium positions with Gaussian noise of this fraction of "
+                  "Replace the reference by its equilibrium positions with Gaussian noise of this "
+                  "fraction of "
                   "each load case's RMS displacement (e.g. 0.001)")
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--noise-seed", args->noise_seed, "Seed of the noise (default 1)");

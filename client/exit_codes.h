@@ -4,16 +4,17 @@
 namespace springfit::cli {
 
 inline constexpr int kExitOk = 0;
-inline constexpr int kExitFailure = 1;        // an operation failed (I/O, unexpected error)
-inline constexpr int kExitInvalidInput = 2;   // an invalid scene, topology file or option value
-inline constexpr int kExitJobFailed = 3;      // the job failed (its error is printed)
-inline constexpr int kExitNotFound = 4;       // no such job on the server
-inline constexpr int kExitConnection = 5;     // the server cannot be reached, or the connection broke
-inline constexpr int kExitUnauthorized = 6;   // the server wants a (different) token
-inline constexpr int kExitCancelled = 7;      // the job was cancelled
-inline constexpr int kExitBusy = 8;           // a server limit: queue full, too many connections, too large
-inline constexpr int kExitWrongState = 9;     // e.g. the result of a job that has not finished
-inline constexpr int kExitUsage = 64;         // bad command line (unknown option, missing argument)
-inline constexpr int kExitInterrupted = 130;  // stopped by SIGINT/SIGTERM (run: the result so far is still written)
+inline constexpr int kExitFailure = 1;       // an operation failed (I/O, unexpected error)
+inline constexpr int kExitInvalidInput = 2;  // an invalid scene, topology file or option value
+inline constexpr int kExitJobFailed = 3;     // the job failed (its error is printed)
+inline constexpr int kExitNotFound = 4;      // no such job on the server
+inline constexpr int kExitConnection = 5;  // the server cannot be reached, or the connection broke
+inline constexpr int kExitUnauthorized = 6;  // the server wants a (different) token
+inline constexpr int kExitCancelled = 7;     // the job was cancelled
+inline constexpr int kExitBusy = 8;  // a server limit: queue full, too many connections, too large
+inline constexpr int kExitWrongState = 9;  // e.g. the result of a job that has not finished
+inline constexpr int kExitUsage = 64;      // bad command line (unknown option, missing argument)
+inline constexpr int kExitInterrupted =
+    130;  // stopped by SIGINT/SIGTERM (run: the result so far is still written)
 
 }  // namespace springfit::cli

@@ -33,8 +33,9 @@ struct Source {
 Source ParseSource(const std::string& text) {
   Source s{text, std::nullopt};
   if (std::filesystem::exists(text)) return s;
-  const bool digits = !text.empty() && text.size() < 19 &&
-                      std::all_of(text.begin(), text.end(), [](unsigned char c) { return std::isdigit(c) != 0; });
+  const bool digits =
+      !text.empty() && text.size() < 19 &&
+      std::all_of(text.begin(), text.end(), [](unsigned char c) { return std::isdigit(c) != 0; });
   if (!digits) throw InputError("", text + ": no such file (and not a job id)");
   s.job_id = std::stoll(text);
   return s;
@@ -54,7 +55,8 @@ Json ReadResultFile(const std::string& path) {
 }
 
 std::string Describe(const Json& result) {
-  std::string s = result.value("scene", std::string("?")) + ", strategy " + result.value("strategy", std::string("?"));
+  std::string s = result.value("scene", std::string("?")) + ", strategy " +
+                  result.value("strategy", std::string("?"));
   if (result.contains("seed")) s += ", seed " + result["seed"].dump();
   return s;
 }
@@ -90,28 +92,36 @@ int Render(const RenderArgs& a) {
   if (source.job_id) {
     RpcClient client(a.server);
     result = client.Call("job.result", JobIdParams(*source.job_id));
-    if (a.scene_path.empty()) scene_json = client.Call("job.scene", JobIdParams(*source.job_id))["scene"];
+    if (a.scene_path.empty())
+      scene_json = client.Call("job.scene", JobIdParams(*source.job_id))["scene"];
     where = "job " + std::to_string(*source.job_id);
   } else {
     result = ReadResultFile(source.name);
     if (a.scene_path.empty()) {
       if (!result.contains("scene_definition")) {
-        throw InputError("", source.name + " does not contain its scene (it was written by an older springfit or by "
-                                           "--json): pass --scene SCENE.json");
+        throw InputError(
+            "", source.name +
+                    " does not contain its scene (it was written by an older springfit or by "
+                    "--json): pass --scene SCENE.json");
       }
       scene_json = result["scene_definition"];
     }
     where = std::filesystem::path(source.name).filename().string();
   }
-  Scene scene = a.scene_path.empty() ? proto::SceneFromJson(scene_json) : proto::LoadSceneFile(a.scene_path);
+  Scene scene =
+      a.scene_path.empty() ? proto::SceneFromJson(scene_json) : proto::LoadSceneFile(a.scene_path);
   const Problem problem = Problem::Build(std::move(scene));
   // A result of another scene could still name valid node pairs: refuse what is detectable.
   const std::string result_scene = result.value("scene", problem.scene().name);
-  const int result_genes = result.contains("genes") && result["genes"].is_number_integer() ? result["genes"].get<int>() : -1;
-  if (result_scene != problem.scene().name || (result_genes >= 0 && result_genes != problem.gene_count())) {
-    throw InputError("", "the result is of scene '" + result_scene + "' (" + std::to_string(result_genes) +
-                             " genes), the scene given is '" + problem.scene().name + "' (" +
-                             std::to_string(problem.gene_count()) + " genes)");
+  const int result_genes = result.contains("genes") && result["genes"].is_number_integer()
+                               ? result["genes"].get<int>()
+                               : -1;
+  if (result_scene != problem.scene().name ||
+      (result_genes >= 0 && result_genes != problem.gene_count())) {
+    throw InputError("", "the result is of scene '" + result_scene + "' (" +
+                             std::to_string(result_genes) + " genes), the scene given is '" +
+                             problem.scene().name + "' (" + std::to_string(problem.gene_count()) +
+                             " genes)");
   }
 
   TopologyFigureInput input;
@@ -120,10 +130,12 @@ int Render(const RenderArgs& a) {
   if (result.contains("stiffness")) {
     proto::ExpectArray(result["stiffness"], "stiffness");
     for (std::size_t s = 0; s < result["stiffness"].size(); ++s) {
-      input.stiffness.push_back(proto::ReadNumber(result["stiffness"][s], "stiffness[" + std::to_string(s) + "]"));
+      input.stiffness.push_back(
+          proto::ReadNumber(result["stiffness"][s], "stiffness[" + std::to_string(s) + "]"));
     }
   }
-  if (result.value("stop", std::string()) == "cancelled") input.note = "cancelled: the best topology so far";
+  if (result.value("stop", std::string()) == "cancelled")
+    input.note = "cancelled: the best topology so far";
   TopologyFigureOptions options;
   options.load_cases = a.load_cases;
   options.magnify = a.magnify;
@@ -144,7 +156,8 @@ ErrorCurve CurveOf(const std::vector<TraceRow>& rows, std::string label) {
   double best = std::numeric_limits<double>::infinity();
   for (const TraceRow& row : rows) {
     // Exact recovery as the search counts it (proto/RUN.md), drawn as 0.
-    const double e = row.best_normalized_error <= kExactNormalizedError ? 0.0 : row.best_normalized_error;
+    const double e =
+        row.best_normalized_error <= kExactNormalizedError ? 0.0 : row.best_normalized_error;
     if (e < best || curve.points.empty()) curve.points.emplace_back(row.wall_seconds, e);
     best = std::min(best, e);
   }
@@ -166,12 +179,15 @@ int Plot(const PlotArgs& a) {
       if (!client) client = std::make_unique<RpcClient>(a.server);
       const Json job = client->Call("job.get", JobIdParams(*source.job_id));
       rows = FetchTrace(*client, *source.job_id);
-      label = "job " + std::to_string(*source.job_id) + ": " + job.value("scene", std::string("?")) + ", strategy " +
+      label = "job " + std::to_string(*source.job_id) + ": " +
+              job.value("scene", std::string("?")) + ", strategy " +
               job.value("strategy", std::string("?")) + ", seed " + job["seed"].dump();
     } else {
       const Json result = ReadResultFile(source.name);
       if (!result.contains("trace")) {
-        throw InputError("", source.name + " has no trace: write the result with -o (springfit run -o, result -o)");
+        throw InputError(
+            "",
+            source.name + " has no trace: write the result with -o (springfit run -o, result -o)");
       }
       const Json& trace = result["trace"];
       proto::ExpectArray(trace, "trace");
@@ -181,7 +197,8 @@ int Plot(const PlotArgs& a) {
       label = std::filesystem::path(source.name).filename().string() + ": " + Describe(result);
     }
     if (rows.empty() && source.job_id) {
-      throw RemoteError(proto::rpc::kWrongState, "job " + text + " has no trace rows yet (queued)", nullptr);
+      throw RemoteError(proto::rpc::kWrongState, "job " + text + " has no trace rows yet (queued)",
+                        nullptr);
     }
     if (rows.empty()) throw InputError("trace", source.name + ": the trace is empty");
     curves.push_back(CurveOf(rows, std::move(label)));
@@ -198,24 +215,33 @@ void RegisterFigureCommands(CLI::App& app, int& exit_code) {
     auto args = std::make_shared<RenderArgs>();
     auto* cmd = app.add_subcommand(
         "render", "Draw the reference and the identified topology under each load case (SVG)");
-    cmd->add_option("RESULT_OR_ID", args->source, "A result file (run -o, result -o) or a job id")->required();
+    cmd->add_option("RESULT_OR_ID", args->source, "A result file (run -o, result -o) or a job id")
+        ->required();
     cmd->add_option("-o,--output", args->output, "The SVG file to write")->required();
-    cmd->add_option("--scene", args->scene_path, "The scene, for a result file that does not carry it");
+    cmd->add_option("--scene", args->scene_path,
+                    "The scene, for a result file that does not carry it");
     cmd->add_option("--case", args->load_cases, "Only this load case (repeatable; default: all)");
-    cmd->add_option("--magnify", args->magnify, "Draw displacements this many times their size (default: automatic)")
+    cmd->add_option("--magnify", args->magnify,
+                    "Draw displacements this many times their size (default: automatic)")
         ->check(CLI::PositiveNumber);
     AddServerFlags(cmd, args->server);
-    cmd->callback([args, &exit_code] { exit_code = RunReportingErrors("render", [&] { return Render(*args); }); });
+    cmd->callback([args, &exit_code] {
+      exit_code = RunReportingErrors("render", [&] { return Render(*args); });
+    });
   }
   {
     auto args = std::make_shared<PlotArgs>();
-    auto* cmd = app.add_subcommand("plot", "Draw normalized error against wall time, log scales (SVG)");
-    cmd->add_option("RESULT_OR_ID", args->sources, "Result files (run -o, result -o) or job ids, one curve each")
+    auto* cmd =
+        app.add_subcommand("plot", "Draw normalized error against wall time, log scales (SVG)");
+    cmd->add_option("RESULT_OR_ID", args->sources,
+                    "Result files (run -o, result -o) or job ids, one curve each")
         ->required();
     cmd->add_option("-o,--output", args->output, "The SVG file to write")->required();
     cmd->add_option("--title", args->title, "The plot's title");
     AddServerFlags(cmd, args->server);
-    cmd->callback([args, &exit_code] { exit_code = RunReportingErrors("plot", [&] { return Plot(*args); }); });
+    cmd->callback([args, &exit_code] {
+      exit_code = RunReportingErrors("plot", [&] { return Plot(*args); });
+    });
   }
 }
 

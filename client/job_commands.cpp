@@ -46,11 +46,13 @@ std::string ErrorText(double e) {
 }
 
 void PrintJob(const proto::JobRecord& j) {
-  std::cout << "job:               " << j.id << (j.label.empty() ? "" : " (" + j.label + ")") << "\n"
+  std::cout << "job:               " << j.id << (j.label.empty() ? "" : " (" + j.label + ")")
+            << "\n"
             << "state:             " << proto::JobStateName(j.state) << "\n";
   if (!j.error.empty()) std::cout << "error:             " << j.error << "\n";
   std::cout << "scene:             " << j.scene_name << " (" << j.genes << " genes)\n"
-            << "strategy:          " << j.strategy << " (seed " << j.seed << ", priority " << j.priority << ")\n"
+            << "strategy:          " << j.strategy << " (seed " << j.seed << ", priority "
+            << j.priority << ")\n"
             << "created:           " << LocalTime(j.created_at) << "\n"
             << "started:           " << LocalTime(j.started_at) << "\n"
             << "finished:          " << LocalTime(j.finished_at) << "\n";
@@ -59,7 +61,8 @@ void PrintJob(const proto::JobRecord& j) {
     std::cout << "generation:        " << p.generation << " of " << j.max_generations << "\n"
               << "normalized error:  " << ErrorText(p.best_normalized_error) << "\n"
               << "evaluations:       " << p.evaluations << "\n";
-    if (p.missing >= 0) std::cout << "against reference: " << p.missing << " missing, " << p.extra << " extra\n";
+    if (p.missing >= 0)
+      std::cout << "against reference: " << p.missing << " missing, " << p.extra << " extra\n";
   }
   if (j.checkpoint_generation >= 0 && !proto::IsFinal(j.state)) {
     std::cout << "checkpoint:        generation " << j.checkpoint_generation << "\n";
@@ -95,9 +98,11 @@ int Result(const JobArgs& a) {
   if (!a.output_path.empty()) {
     Json with_trace = result;
     Json trace = Json::array();
-    for (const TraceRow& row : FetchTrace(client, a.job_id)) trace.push_back(proto::TraceRowToJson(row));
+    for (const TraceRow& row : FetchTrace(client, a.job_id))
+      trace.push_back(proto::TraceRowToJson(row));
     with_trace["trace"] = std::move(trace);
-    WriteResultFile(a.output_path, with_trace, client.Call("job.scene", JobIdParams(a.job_id))["scene"]);
+    WriteResultFile(a.output_path, with_trace,
+                    client.Call("job.scene", JobIdParams(a.job_id))["scene"]);
   }
   PrintResult(result, a.json);
   return ExitCodeOfJobState(result.value("state", std::string("succeeded")));
@@ -114,8 +119,8 @@ int Trace(const JobArgs& a) {
     std::cout << proto::TraceCsvHeader() << "\n";
     for (const TraceRow& r : rows) std::cout << proto::TraceRowToCsv(r) << "\n";
   } else {
-    std::printf("%10s %10s %12s %14s %14s %8s %6s\n", "generation", "seconds", "evaluations", "best cost",
-                "norm. error", "missing", "extra");
+    std::printf("%10s %10s %12s %14s %14s %8s %6s\n", "generation", "seconds", "evaluations",
+                "best cost", "norm. error", "missing", "extra");
     for (const TraceRow& r : rows) {
       std::printf("%10d %10.3f %12lld %14.6g %14.6g %8s %6s\n", r.generation, r.wall_seconds,
                   static_cast<long long>(r.evaluations), r.best_cost, r.best_normalized_error,
@@ -138,8 +143,12 @@ int ChangeJob(const JobArgs& a, const char* method) {
   return kExitOk;
 }
 
-int Cancel(const JobArgs& a) { return ChangeJob(a, "job.cancel"); }
-int Delete(const JobArgs& a) { return ChangeJob(a, "job.delete"); }
+int Cancel(const JobArgs& a) {
+  return ChangeJob(a, "job.cancel");
+}
+int Delete(const JobArgs& a) {
+  return ChangeJob(a, "job.delete");
+}
 
 int List(const JobArgs& a) {
   RpcClient client(a.server);
@@ -158,15 +167,16 @@ int List(const JobArgs& a) {
     std::cout << jobs.dump() << std::endl;
     return kExitOk;
   }
-  std::printf("%6s  %-9s  %-16s  %-20s  %-8s  %15s  %11s  %s\n", "id", "state", "label", "scene", "strategy",
-              "generation", "norm. error", "exact");
+  std::printf("%6s  %-9s  %-16s  %-20s  %-8s  %15s  %11s  %s\n", "id", "state", "label", "scene",
+              "strategy", "generation", "norm. error", "exact");
   for (const Json& j : jobs) {
     const proto::JobRecord r = proto::JobFromJson(j);
-    const std::string generation =
-        r.progress ? std::to_string(r.progress->generation) + "/" + std::to_string(r.max_generations) : "-";
+    const std::string generation = r.progress ? std::to_string(r.progress->generation) + "/" +
+                                                    std::to_string(r.max_generations)
+                                              : "-";
     std::printf("%6lld  %-9s  %-16s  %-20s  %-8s  %15s  %11s  %s\n", static_cast<long long>(r.id),
-                std::string(proto::JobStateName(r.state)).c_str(), r.label.c_str(), r.scene_name.c_str(),
-                r.strategy.c_str(), generation.c_str(),
+                std::string(proto::JobStateName(r.state)).c_str(), r.label.c_str(),
+                r.scene_name.c_str(), r.strategy.c_str(), generation.c_str(),
                 r.progress ? ErrorText(r.progress->best_normalized_error).c_str() : "-",
                 r.exact ? (*r.exact ? "yes" : "no") : "-");
   }
@@ -180,19 +190,22 @@ int Info(const JobArgs& a) {
     std::cout << info.dump() << std::endl;
     return kExitOk;
   }
-  std::cout << info["name"].get<std::string>() << " " << info["version"].get<std::string>() << " (protocol "
-            << info["protocol"] << ")\n"
-            << "workers:           " << info["workers"] << " (" << info["max_running"] << " jobs at once)\n"
-            << "jobs:              " << info["running"] << " running, " << info["queued"] << " queued\n"
+  std::cout << info["name"].get<std::string>() << " " << info["version"].get<std::string>()
+            << " (protocol " << info["protocol"] << ")\n"
+            << "workers:           " << info["workers"] << " (" << info["max_running"]
+            << " jobs at once)\n"
+            << "jobs:              " << info["running"] << " running, " << info["queued"]
+            << " queued\n"
             << "token required:    " << (info["auth_required"].get<bool>() ? "yes" : "no") << "\n"
             << "limits:            " << info["limits"].dump() << "\n";
   return kExitOk;
 }
 
-CLI::App* AddJobCommand(CLI::App& app, const char* name, const char* help, int& exit_code, int (*body)(const JobArgs&),
-                        std::shared_ptr<JobArgs> args, bool takes_id) {
+CLI::App* AddJobCommand(CLI::App& app, const char* name, const char* help, int& exit_code,
+                        int (*body)(const JobArgs&), std::shared_ptr<JobArgs> args, bool takes_id) {
   auto* cmd = app.add_subcommand(name, help);
-  if (takes_id) cmd->add_option("ID", args->job_id, "Job id (springfit submit prints it)")->required();
+  if (takes_id)
+    cmd->add_option("ID", args->job_id, "Job id (springfit submit prints it)")->required();
   cmd->add_flag("--json", args->json, "Print JSON (proto/RPC.md) instead of text");
   AddServerFlags(cmd, args->server);
   const std::string context = name;
@@ -205,34 +218,40 @@ CLI::App* AddJobCommand(CLI::App& app, const char* name, const char* help, int& 
 }  // namespace
 
 void RegisterJobCommands(CLI::App& app, int& exit_code) {
-  AddJobCommand(app, "status", "Show a job's state and progress", exit_code, Status, std::make_shared<JobArgs>(), true);
+  AddJobCommand(app, "status", "Show a job's state and progress", exit_code, Status,
+                std::make_shared<JobArgs>(), true);
   {
     auto args = std::make_shared<JobArgs>();
-    auto* cmd = AddJobCommand(app, "watch", "Follow a job's progress until it finishes", exit_code, Watch, args, true);
+    auto* cmd = AddJobCommand(app, "watch", "Follow a job's progress until it finishes", exit_code,
+                              Watch, args, true);
     cmd->add_flag("-q,--quiet", args->quiet, "No progress line");
   }
   {
     auto args = std::make_shared<JobArgs>();
-    auto* cmd = AddJobCommand(app, "result", "Print a finished job's result", exit_code, Result, args, true);
-    cmd->add_option("-o,--output", args->output_path, "Also write the result with its trace as JSON");
+    auto* cmd = AddJobCommand(app, "result", "Print a finished job's result", exit_code, Result,
+                              args, true);
+    cmd->add_option("-o,--output", args->output_path,
+                    "Also write the result with its trace as JSON");
   }
   {
     auto args = std::make_shared<JobArgs>();
-    auto* cmd = AddJobCommand(app, "trace", "Print a job's trace (one row per stored generation)", exit_code, Trace,
-                              args, true);
+    auto* cmd = AddJobCommand(app, "trace", "Print a job's trace (one row per stored generation)",
+                              exit_code, Trace, args, true);
     cmd->add_flag("--csv", args->csv, "CSV as `springfit run --trace` writes it");
   }
-  AddJobCommand(app, "cancel", "Cancel a queued or running job (it keeps its best so far)", exit_code, Cancel,
-                std::make_shared<JobArgs>(), true);
-  AddJobCommand(app, "delete", "Delete a finished job and everything stored with it", exit_code, Delete,
-                std::make_shared<JobArgs>(), true);
+  AddJobCommand(app, "cancel", "Cancel a queued or running job (it keeps its best so far)",
+                exit_code, Cancel, std::make_shared<JobArgs>(), true);
+  AddJobCommand(app, "delete", "Delete a finished job and everything stored with it", exit_code,
+                Delete, std::make_shared<JobArgs>(), true);
   {
     auto args = std::make_shared<JobArgs>();
     auto* cmd = AddJobCommand(app, "list", "List jobs, oldest first", exit_code, List, args, false);
     cmd->add_option("--state", args->state, "Only jobs in this state")
         ->check(CLI::IsMember({"queued", "running", "succeeded", "failed", "cancelled"}));
     cmd->add_option("--label", args->label, "Only jobs with this label");
-    cmd->add_option("--limit", args->limit, "At most this many jobs")->check(CLI::Range(1, 1000000))->capture_default_str();
+    cmd->add_option("--limit", args->limit, "At most this many jobs")
+        ->check(CLI::Range(1, 1000000))
+        ->capture_default_str();
   }
   AddJobCommand(app, "info", "Show the server's version, workers, jobs and limits", exit_code, Info,
                 std::make_shared<JobArgs>(), false);

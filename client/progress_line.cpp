@@ -17,9 +17,11 @@ void ProgressLine::Report(const TraceRow& row, bool last) {
   if (last && !terminal_ && row.generation == shown_generation_) return;  // already printed
   shown_at_ = row.wall_seconds;
   shown_generation_ = row.generation;
-  const double rate = row.wall_seconds > 0.0 ? static_cast<double>(row.evaluations) / row.wall_seconds : 0.0;
+  const double rate =
+      row.wall_seconds > 0.0 ? static_cast<double>(row.evaluations) / row.wall_seconds : 0.0;
   std::string topology;
-  if (row.missing >= 0) topology = "  missing " + std::to_string(row.missing) + " extra " + std::to_string(row.extra);
+  if (row.missing >= 0)
+    topology = "  missing " + std::to_string(row.missing) + " extra " + std::to_string(row.extra);
   // The generation limit's ETA: an upper bound, since reaching the target stops sooner.
   std::string eta;
   if (!last && row.generation > 0 && row.generation < max_generations_) {
@@ -29,9 +31,10 @@ void ProgressLine::Report(const TraceRow& row, bool last) {
     eta = text;
   }
   char line[320];
-  std::snprintf(line, sizeof line, "generation %d/%d  best cost %.4g  normalized error %.4g%s  %.0f eval/s  %.1f s%s",
-                row.generation, max_generations_, row.best_cost, row.best_normalized_error, topology.c_str(), rate,
-                row.wall_seconds, eta.c_str());
+  std::snprintf(line, sizeof line,
+                "generation %d/%d  best cost %.4g  normalized error %.4g%s  %.0f eval/s  %.1f s%s",
+                row.generation, max_generations_, row.best_cost, row.best_normalized_error,
+                topology.c_str(), rate, row.wall_seconds, eta.c_str());
   if (terminal_) {
     std::fprintf(stderr, "\r\033[K%s%s", line, last ? "\n" : "");
   } else {

@@ -41,8 +41,8 @@ int Reference(const ReferenceArgs& args) {
     return kExitOk;
   }
   const Scene& s = problem.scene();
-  std::cout << "reference: " << proto::ReferenceKindName(s.reference.kind) << ", " << s.load_cases.size()
-            << " load case" << (s.load_cases.size() == 1 ? "" : "s") << "\n";
+  std::cout << "reference: " << proto::ReferenceKindName(s.reference.kind) << ", "
+            << s.load_cases.size() << " load case" << (s.load_cases.size() == 1 ? "" : "s") << "\n";
   for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
     const proto::Json& c = out["solves"][k];
     std::printf("  [%zu] %s: largest displacement %.6g", k,
@@ -51,7 +51,8 @@ int Reference(const ReferenceArgs& args) {
     if (c.contains("iterations")) {
       const int iterations = c["iterations"].get<int>(), steps = c["load_steps"].get<int>();
       std::printf(", %d Newton iteration%s, %d load step%s, relative residual %.3g", iterations,
-                  iterations == 1 ? "" : "s", steps, steps == 1 ? "" : "s", c["residual"].get<double>());
+                  iterations == 1 ? "" : "s", steps, steps == 1 ? "" : "s",
+                  c["residual"].get<double>());
     }
     std::printf("\n");
   }
@@ -64,10 +65,12 @@ int Reference(const ReferenceArgs& args) {
 
 void RegisterReference(CLI::App& app, int& exit_code) {
   auto* cmd = app.add_subcommand(
-      "reference", "Solve the scene's reference model and write its equilibrium positions per load case");
+      "reference",
+      "Solve the scene's reference model and write its equilibrium positions per load case");
   auto args = std::make_shared<ReferenceArgs>();
   cmd->add_option("SCENE", args->scene, "Scene file (JSON, proto/SCENE.md)")->required();
-  cmd->add_flag("--json", args->json, "Print the positions and solver statistics as JSON (proto/SCENE.md)");
+  cmd->add_flag("--json", args->json,
+                "Print the positions and solver statistics as JSON (proto/SCENE.md)");
   cmd->add_option("-o,--output", args->output, "Also write the JSON to this file");
   cmd->callback([args, &exit_code] {
     exit_code = RunReportingErrors(args->scene, [&] { return Reference(*args); });

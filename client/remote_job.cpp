@@ -16,8 +16,11 @@ Json JobIdParams(std::int64_t job_id) {
 }
 
 void AddServerFlags(CLI::App* command, ServerOptions& options) {
-  command->add_option("--server", options.server, "springfitd address HOST:PORT (default: $SPRINGFIT_SERVER, else 127.0.0.1:7117)");
-  command->add_option("--token-file", options.token_file, "File holding the server's token (default: $SPRINGFIT_TOKEN)");
+  command->add_option(
+      "--server", options.server,
+      "springfitd address HOST:PORT (default: $SPRINGFIT_SERVER, else 127.0.0.1:7117)");
+  command->add_option("--token-file", options.token_file,
+                      "File holding the server's token (default: $SPRINGFIT_TOKEN)");
 }
 
 Json WatchJob(RpcClient& client, std::int64_t job_id, bool quiet) {
@@ -33,7 +36,8 @@ Json WatchJob(RpcClient& client, std::int64_t job_id, bool quiet) {
       row.erase("max_generations");
       progress.Report(proto::TraceRowFromJson(row, "params"), false);
     } else if (n["method"] == "job.finished") {
-      if (p["progress"].is_object()) progress.Report(proto::TraceRowFromJson(p["progress"], "params.progress"), true);
+      if (p["progress"].is_object())
+        progress.Report(proto::TraceRowFromJson(p["progress"], "params.progress"), true);
       return p;
     }
   }

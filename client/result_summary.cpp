@@ -18,7 +18,8 @@ std::string Format(const char* format, double value) {
 void PrintPairs(std::ostream& out, const char* label, const proto::Json& pairs) {
   if (!pairs.is_array() || pairs.empty()) return;
   out << "  " << label << ":";
-  for (const proto::Json& p : pairs) out << " (" << p[0].get<long long>() << ", " << p[1].get<long long>() << ")";
+  for (const proto::Json& p : pairs)
+    out << " (" << p[0].get<long long>() << ", " << p[1].get<long long>() << ")";
   out << "\n";
 }
 
@@ -26,24 +27,31 @@ void PrintPairs(std::ostream& out, const char* label, const proto::Json& pairs) 
 
 void PrintResultSummary(const proto::Json& r, std::ostream& out) {
   out << "scene:             " << r.value("scene", std::string()) << "\n";
-  if (r.contains("job_id")) out << "job:               " << r["job_id"].get<long long>() << " (" << r.value("state", std::string()) << ")\n";
-  out << "strategy:          " << r.value("strategy", std::string()) << " (seed " << r.value("seed", std::uint64_t{0}) << ")\n";
-  if (r.contains("identify")) out << "identified:        " << r.value("identify", std::string()) << "\n";
-  out << "stopped:           " << r.value("stop", std::string()) << " after " << r.value("generations", 0)
-      << " generations (best found in generation " << r.value("best_generation", 0) << ")\n";
-  out << "evaluations:       " << r.value("evaluations", 0LL) << " (" << r.value("cache_hits", 0LL) << " from the cache)\n";
+  if (r.contains("job_id"))
+    out << "job:               " << r["job_id"].get<long long>() << " ("
+        << r.value("state", std::string()) << ")\n";
+  out << "strategy:          " << r.value("strategy", std::string()) << " (seed "
+      << r.value("seed", std::uint64_t{0}) << ")\n";
+  if (r.contains("identify"))
+    out << "identified:        " << r.value("identify", std::string()) << "\n";
+  out << "stopped:           " << r.value("stop", std::string()) << " after "
+      << r.value("generations", 0) << " generations (best found in generation "
+      << r.value("best_generation", 0) << ")\n";
+  out << "evaluations:       " << r.value("evaluations", 0LL) << " (" << r.value("cache_hits", 0LL)
+      << " from the cache)\n";
   out << "wall time:         " << Format("%.3f", r.value("wall_seconds", 0.0)) << " s\n";
   if (r.contains("direct_phase") && r["direct_phase"].is_object()) {
     const proto::Json& phase = r["direct_phase"];
-    out << "direct seed:       " << Format("%.3f", phase.value("seconds", 0.0)) << " s, normalized error "
-        << Format("%.6g", phase.value("normalized_error", 0.0));
+    out << "direct seed:       " << Format("%.3f", phase.value("seconds", 0.0))
+        << " s, normalized error " << Format("%.6g", phase.value("normalized_error", 0.0));
     if (phase.contains("missing") && phase["missing"].is_number()) {
-      out << " (" << phase["missing"].get<long long>() << " missing, " << phase["extra"].get<long long>() << " extra)";
+      out << " (" << phase["missing"].get<long long>() << " missing, "
+          << phase["extra"].get<long long>() << " extra)";
     }
     out << "\n";
   }
-  out << "springs:           " << r.value("springs", proto::Json::array()).size() << " of " << r.value("genes", 0)
-      << " genes\n";
+  out << "springs:           " << r.value("springs", proto::Json::array()).size() << " of "
+      << r.value("genes", 0) << " genes\n";
   out << "cost:              " << Format("%.6g", r.value("cost", 0.0)) << "\n";
   out << "normalized error:  " << Format("%.6g", r.value("normalized_error", 0.0))
       << (r.value("mechanism", false) ? " (mechanism)" : "") << "\n";
@@ -53,24 +61,27 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
   }
   if (r.contains("baseline") && r["baseline"].is_object()) {
     const proto::Json& b = r["baseline"];
-    out << "baseline:          " << b.value("recipe", std::string()) << " on the " << b.value("springs", 0) << " mesh edges: ";
+    out << "baseline:          " << b.value("recipe", std::string()) << " on the "
+        << b.value("springs", 0) << " mesh edges: ";
     if (b.value("converged", false)) {
       out << "E " << Format("%.6g", b.value("rms_error", 0.0)) << "\n";
     } else {
       out << "no equilibrium\n";
     }
     if (b.value("worse_than_baseline", false)) {
-      out << "WARNING:           THIS MODEL IS WORSE THAN THE CLOSED-FORM BASELINE (" << b.value("recipe", std::string())
+      out << "WARNING:           THIS MODEL IS WORSE THAN THE CLOSED-FORM BASELINE ("
+          << b.value("recipe", std::string())
           << "): its stiffness on the mesh edges reproduces the reference better\n";
     }
   }
   if (r.contains("exact") && r["exact"].is_boolean()) {
-    out << "reference:         " << (r["exact"].get<bool>() ? "recovered exactly" : "not recovered") << " ("
-        << r["missing"].size() << " missing, " << r["extra"].size() << " extra)\n";
+    out << "reference:         " << (r["exact"].get<bool>() ? "recovered exactly" : "not recovered")
+        << " (" << r["missing"].size() << " missing, " << r["extra"].size() << " extra)\n";
     PrintPairs(out, "missing", r["missing"]);
     PrintPairs(out, "extra", r["extra"]);
   } else {
-    out << "reference:         topology unknown (a positions or FEM reference, or springs outside the candidates)\n";
+    out << "reference:         topology unknown (a positions or FEM reference, or springs outside "
+           "the candidates)\n";
   }
   if (r.contains("direct") && r["direct"].is_object()) {
     PrintPairs(out, "below threshold, kept so the model carries the loads",

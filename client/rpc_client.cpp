@@ -71,21 +71,25 @@ Json RpcClient::ReadMessage() {
   boost::system::error_code ec;
   const std::size_t n = asio::read_until(connection_->socket, connection_->input, '\n', ec);
   if (ec) {
-    throw ConnectionError("connection to springfitd at " + where_ + " lost: " +
-                          (ec == asio::error::eof ? std::string("closed by the server") : ec.message()));
+    throw ConnectionError(
+        "connection to springfitd at " + where_ +
+        " lost: " + (ec == asio::error::eof ? std::string("closed by the server") : ec.message()));
   }
-  std::string line(asio::buffers_begin(connection_->input.data()), asio::buffers_begin(connection_->input.data()) + n);
+  std::string line(asio::buffers_begin(connection_->input.data()),
+                   asio::buffers_begin(connection_->input.data()) + n);
   connection_->input.consume(n);
   try {
     return proto::ParseJson(line);
   } catch (const InputError& e) {
-    throw ConnectionError("springfitd at " + where_ + " sent something that is not JSON: " + e.what());
+    throw ConnectionError("springfitd at " + where_ +
+                          " sent something that is not JSON: " + e.what());
   }
 }
 
 Json RpcClient::Call(const std::string& method, Json params) {
   const std::int64_t id = next_id_++;
-  const std::string text = proto::rpc::Serialize(proto::rpc::Request(id, method, std::move(params)));
+  const std::string text =
+      proto::rpc::Serialize(proto::rpc::Request(id, method, std::move(params)));
   boost::system::error_code ec;
   asio::write(connection_->socket, asio::buffer(text), ec);
   if (ec) throw ConnectionError("connection to springfitd at " + where_ + " lost: " + ec.message());
@@ -97,9 +101,11 @@ Json RpcClient::Call(const std::string& method, Json params) {
     }
     if (message.contains("error")) {
       const Json& e = message["error"];
-      throw RemoteError(e.value("code", 0), e.value("message", std::string("error")), e.value("data", Json()));
+      throw RemoteError(e.value("code", 0), e.value("message", std::string("error")),
+                        e.value("data", Json()));
     }
-    if (message.value("id", Json()) != Json(id)) continue;  // not ours (cannot happen with one caller)
+    if (message.value("id", Json()) != Json(id))
+      continue;  // not ours (cannot happen with one caller)
     return message.value("result", Json());
   }
 }

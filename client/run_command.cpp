@@ -13,10 +13,9 @@
 #include "client/exit_codes.h"
 #include "client/progress_line.h"
 #include "client/result_summary.h"
+#include "engine/identification/identify.h"
 #include "engine/input_error.h"
 #include "engine/problem.h"
-#include "engine/direct/run_direct.h"
-#include "engine/search/run_search.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
@@ -50,25 +49,6 @@ struct RunArgs {
   std::string output_path;
 };
 
-// Strategy direct: one least-squares solve, no generations, so no progress line and nothing
-// for Ctrl-C to stop.
-int RunDirectStrategy(const RunArgs& args, const Problem& problem, const SearchOptions& options) {
-  const DirectRun run = RunDirect(problem, options);
-  if (!args.trace_path.empty()) {
-    std::ofstream trace(args.trace_path);
-    trace << proto::TraceCsvHeader() << "\n" << proto::TraceRowToCsv(run.search.trace.front()) << "\n";
-    trace.close();
-    if (!trace) throw std::runtime_error("cannot write the trace file " + args.trace_path);
-  }
-  if (!args.output_path.empty()) {
-    WriteResultFile(args.output_path, proto::DirectRunToJson(problem, run, true), proto::SceneToJson(problem.scene()));
-  }
-  proto::Json j = proto::DirectRunToJson(problem, run, false);
-  if (args.json) j["threads"] = 1;
-  PrintResult(j, args.json);
-  return kExitOk;
-}
-
 int Run(const RunArgs& args) {
   Scene scene = proto::LoadSceneFile(args.scene);
   SearchSettings& st = scene.search;
@@ -82,7 +62,6 @@ int Run(const RunArgs& args) {
   if (args.target) st.target_normalized_error = *args.target;
   const Problem problem = Problem::Build(std::move(scene));
   const SearchOptions options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
-  if (options.strategy == Strategy::kDirect) return RunDirectStrategy(args, problem, options);
 
   std::ofstream trace;
   if (!args.trace_path.empty()) {
@@ -95,14 +74,14 @@ int Run(const RunArgs& args) {
   auto previous_int = std::signal(SIGINT, OnInterrupt);
   auto previous_term = std::signal(SIGTERM, OnInterrupt);
 
-  RunOptions run;
+  RunContext run;
   run.threads = args.threads;
-  run.on_generation = [&](const TraceRow& row, const GeneticSearch& search) {
+  run.on_iteration = [&](const TraceRow& row, const IterationState& state) {
     if (trace.is_open()) trace << proto::TraceRowToCsv(row) << std::endl;  // on disk as it goes
-    progress.Report(row, search.Finished());
+    progress.Report(row, state.finished);
     return !g_interrupted.load();
   };
-  const SearchResult result = RunSearch(problem, options, run);
+  const IdentificationResult result = RunIdentification(problem, options, run);
   std::signal(SIGINT, previous_int);
   std::signal(SIGTERM, previous_term);
   if (result.stop == StopReason::kCancelled) progress.Report(result.trace.back(), true);
@@ -112,10 +91,10 @@ int Run(const RunArgs& args) {
   }
 
   if (!args.output_path.empty()) {
-    WriteResultFile(args.output_path, proto::SearchResultToJson(problem, result, true),
+    WriteResultFile(args.output_path, proto::ResultToJson(problem, result, true),
                     proto::SceneToJson(problem.scene()));
   }
-  proto::Json j = proto::SearchResultToJson(problem, result, false);
+  proto::Json j = proto::ResultToJson(problem, result, false);
   if (args.json) j["threads"] = args.threads;
   PrintResult(j, args.json);
   return result.stop == StopReason::kCancelled ? kExitInterrupted : kExitOk;
@@ -127,29 +106,40 @@ void RegisterRun(CLI::App& app, int& exit_code) {
   auto* cmd = app.add_subcommand("run", "Identify the topology: run a search in this process");
   auto args = std::make_shared<RunArgs>();
   cmd->add_option("SCENE", args->scene, "Scene file (JSON, proto/SCENE.md)")->required();
-  cmd->add_option("--strategy", args->strategy, "Search strategy: " + proto::StrategyNames() + " (default: the scene's)");
+  cmd->add_option("--strategy", args->strategy,
+                  "Search strategy: " + proto::StrategyNames() + " (default: the scene's)");
   cmd->add_option("--identify", args->identify,
                   "What to identify: " + proto::IdentifyNames() +
-                      " (the latter with strategy direct only; default: the scene's, else topology_and_stiffness for direct, "
+                      " (the latter with strategy direct only; default: the scene's, else "
+                      "topology_and_stiffness for direct, "
                       "topology otherwise)");
   cmd->add_option("--seed", args->seed, "Random seed (default: the scene's, else 1)");
-  cmd->add_option("--threads", args->threads, "Threads for the fitness evaluations (the result does not depend on it)")
+  cmd->add_option("--threads", args->threads,
+                  "Threads for the fitness evaluations (the result does not depend on it)")
       ->check(CLI::Range(1, 1024))
       ->capture_default_str();
-  cmd->add_option("--generations", args->generations, "Generation limit (default: the scene's, else 1000)")
+  cmd->add_option("--generations", args->generations,
+                  "Generation limit (default: the scene's, else 1000)")
       ->check(CLI::Range(1, 100000000));
-  cmd->add_option("--population", args->population, "Individuals per generation (default: the strategy's)")
+  cmd->add_option("--population", args->population,
+                  "Individuals per generation (default: the strategy's)")
       ->check(CLI::Range(2, 1000000));
-  cmd->add_option("--crossover", args->crossover, "Crossover probability per pair (default: the strategy's)")
+  cmd->add_option("--crossover", args->crossover,
+                  "Crossover probability per pair (default: the strategy's)")
       ->check(CLI::Range(0.0, 1.0));
-  cmd->add_option("--mutation", args->mutation, "Bit-flip probability per gene (default: the strategy's)")
+  cmd->add_option("--mutation", args->mutation,
+                  "Bit-flip probability per gene (default: the strategy's)")
       ->check(CLI::Range(0.0, 1.0));
-  cmd->add_option("--target", args->target, "Stop at this normalized error (default 0: exact recovery)")
+  cmd->add_option("--target", args->target,
+                  "Stop at this normalized error (default 0: exact recovery)")
       ->check(CLI::NonNegativeNumber);
-  cmd->add_flag("--json", args->json, "Print one JSON object (proto/RUN.md) instead of the summary");
+  cmd->add_flag("--json", args->json,
+                "Print one JSON object (proto/RUN.md) instead of the summary");
   cmd->add_flag("-q,--quiet", args->quiet, "No progress lines on standard error");
-  cmd->add_option("--trace", args->trace_path, "Write the trace, one CSV row per generation (proto/RUN.md)");
-  cmd->add_option("-o,--output", args->output_path, "Write the result with its trace as JSON (proto/RUN.md)");
+  cmd->add_option("--trace", args->trace_path,
+                  "Write the trace, one CSV row per generation (proto/RUN.md)");
+  cmd->add_option("-o,--output", args->output_path,
+                  "Write the result with its trace as JSON (proto/RUN.md)");
   cmd->callback([args, &exit_code] {
     exit_code = RunReportingErrors(args->scene, [&] { return Run(*args); });
   });

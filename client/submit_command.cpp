@@ -36,8 +36,12 @@ int Submit(const SubmitArgs& args) {
   if (args.strategy || args.identify || args.generations) {
     Json& search = scene["search"];
     if (search.is_null()) search = Json::object();
-    if (args.strategy) search["strategy"] = proto::StrategyName(proto::StrategyFromName(*args.strategy, "--strategy"));
-    if (args.identify) search["identify"] = proto::IdentifyName(proto::IdentifyFromName(*args.identify, "--identify"));
+    if (args.strategy)
+      search["strategy"] =
+          proto::StrategyName(proto::StrategyFromName(*args.strategy, "--strategy"));
+    if (args.identify)
+      search["identify"] =
+          proto::IdentifyName(proto::IdentifyFromName(*args.identify, "--identify"));
     if (args.generations) search["max_generations"] = *args.generations;
   }
   Json params;
@@ -57,15 +61,18 @@ int Submit(const SubmitArgs& args) {
     } else {
       std::cout << id << std::endl;
     }
-    std::cerr << "job " << id << (submitted["created"].get<bool>() ? " queued" : " already submitted with this key")
-              << " (" << job["scene"].get<std::string>() << ", " << job["genes"].get<int>() << " genes, strategy "
-              << job["strategy"].get<std::string>() << ", seed " << job["seed"].get<std::uint64_t>() << ")\n";
+    std::cerr << "job " << id
+              << (submitted["created"].get<bool>() ? " queued" : " already submitted with this key")
+              << " (" << job["scene"].get<std::string>() << ", " << job["genes"].get<int>()
+              << " genes, strategy " << job["strategy"].get<std::string>() << ", seed "
+              << job["seed"].get<std::uint64_t>() << ")\n";
     return kExitOk;
   }
   const Json finished = WatchJob(client, id, !args.watch);
   const std::string state = finished["state"].get<std::string>();
   if (state == "failed") {
-    std::cerr << "springfit: job " << id << " failed: " << finished.value("error", Json("")).get<std::string>() << "\n";
+    std::cerr << "springfit: job " << id
+              << " failed: " << finished.value("error", Json("")).get<std::string>() << "\n";
     return kExitJobFailed;
   }
   try {
@@ -79,26 +86,36 @@ int Submit(const SubmitArgs& args) {
 }  // namespace
 
 void RegisterSubmit(CLI::App& app, int& exit_code) {
-  auto* cmd = app.add_subcommand("submit", "Queue an identification job on springfitd; prints its id");
+  auto* cmd =
+      app.add_subcommand("submit", "Queue an identification job on springfitd; prints its id");
   auto args = std::make_shared<SubmitArgs>();
   cmd->add_option("SCENE", args->scene, "Scene file (JSON, proto/SCENE.md)")->required();
   cmd->add_option("--label", args->label, "A label to find the job by (job.list --label)");
-  cmd->add_option("--priority", args->priority, "Higher runs first (default 0)")->check(CLI::Range(-1000, 1000));
+  cmd->add_option("--priority", args->priority, "Higher runs first (default 0)")
+      ->check(CLI::Range(-1000, 1000));
   cmd->add_option("--seed", args->seed, "Random seed (default: the scene's, else 1)");
-  cmd->add_option("--strategy", args->strategy, "Search strategy: " + proto::StrategyNames() + " (default: the scene's)");
+  cmd->add_option("--strategy", args->strategy,
+                  "Search strategy: " + proto::StrategyNames() + " (default: the scene's)");
   cmd->add_option("--identify", args->identify,
                   "What to identify: " + proto::IdentifyNames() +
-                      " (the latter with strategy direct only; default: the scene's, else topology_and_stiffness for direct, "
+                      " (the latter with strategy direct only; default: the scene's, else "
+                      "topology_and_stiffness for direct, "
                       "topology otherwise)");
-  cmd->add_option("--generations", args->generations, "Generation limit (default: the scene's, else 1000)")
+  cmd->add_option("--generations", args->generations,
+                  "Generation limit (default: the scene's, else 1000)")
       ->check(CLI::Range(1, 100000000));
   cmd->add_option("--idempotency-key", args->idempotency_key,
                   "Submitting again with the same key returns the same job instead of a new one");
-  auto* wait = cmd->add_flag("--wait", args->wait, "Wait for the job to finish, then print its result");
-  cmd->add_flag("--watch", args->watch, "Show its progress until it finishes, then print its result")->excludes(wait);
+  auto* wait =
+      cmd->add_flag("--wait", args->wait, "Wait for the job to finish, then print its result");
+  cmd->add_flag("--watch", args->watch,
+                "Show its progress until it finishes, then print its result")
+      ->excludes(wait);
   cmd->add_flag("--json", args->json, "Print JSON: the job (or, with --wait/--watch, the result)");
   AddServerFlags(cmd, args->server);
-  cmd->callback([args, &exit_code] { exit_code = RunReportingErrors(args->scene, [&] { return Submit(*args); }); });
+  cmd->callback([args, &exit_code] {
+    exit_code = RunReportingErrors(args->scene, [&] { return Submit(*args); });
+  });
 }
 
 }  // namespace springfit::cli

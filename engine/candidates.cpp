@@ -17,7 +17,9 @@ constexpr double kLatticeTolerance = 1e-6;
 // round-off in generated coordinates does not decide.
 constexpr double kDistanceTolerance = 1e-9;
 
-NodePair Ordered(int a, int b) { return a < b ? NodePair{a, b} : NodePair{b, a}; }
+NodePair Ordered(int a, int b) {
+  return a < b ? NodePair{a, b} : NodePair{b, a};
+}
 
 void SortUnique(std::vector<NodePair>& pairs) {
   std::sort(pairs.begin(), pairs.end());
@@ -51,10 +53,10 @@ std::vector<NodePair> GridCandidates(const Scene& scene) {
       const double steps = offset / spacing[a];
       cell[i][a] = std::lround(steps);
       if (std::abs(steps - static_cast<double>(cell[i][a])) > kLatticeTolerance) {
-        throw InputError("candidates",
-                         "grid candidates need every node on a lattice of step " +
-                             std::to_string(spacing[a]) + " along axis " + std::to_string(a) +
-                             "; nodes[" + std::to_string(i) + "] is off it");
+        throw InputError("candidates", "grid candidates need every node on a lattice of step " +
+                                           std::to_string(spacing[a]) + " along axis " +
+                                           std::to_string(a) + "; nodes[" + std::to_string(i) +
+                                           "] is off it");
       }
       if (cell[i][a] >= (1L << 20)) {
         throw InputError("candidates", "grid has more than 2^20 steps along an axis");
@@ -140,16 +142,23 @@ std::vector<double> InferLatticeSpacing(const Scene& scene) {
 std::vector<NodePair> GenerateCandidates(const Scene& scene) {
   std::vector<NodePair> pairs;
   switch (scene.candidates.kind) {
-    case CandidateSpec::Kind::kGrid: pairs = GridCandidates(scene); break;
-    case CandidateSpec::Kind::kNearest: pairs = NearestCandidates(scene); break;
-    case CandidateSpec::Kind::kRadius: pairs = RadiusCandidates(scene); break;
+    case CandidateSpec::Kind::kGrid:
+      pairs = GridCandidates(scene);
+      break;
+    case CandidateSpec::Kind::kNearest:
+      pairs = NearestCandidates(scene);
+      break;
+    case CandidateSpec::Kind::kRadius:
+      pairs = RadiusCandidates(scene);
+      break;
     case CandidateSpec::Kind::kPairs:
       for (const NodePair& p : scene.candidates.pairs) pairs.push_back(Ordered(p.first, p.second));
       break;
     case CandidateSpec::Kind::kMesh:
       for (const std::vector<int>& element : scene.reference.fem.elements) {
         for (std::size_t a = 0; a < element.size(); ++a) {
-          for (std::size_t b = a + 1; b < element.size(); ++b) pairs.push_back(Ordered(element[a], element[b]));
+          for (std::size_t b = a + 1; b < element.size(); ++b)
+            pairs.push_back(Ordered(element[a], element[b]));
         }
       }
       if (scene.candidates.k > 0) {

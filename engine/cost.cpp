@@ -25,7 +25,8 @@ Evaluation CostFunction::EvaluateMask(const std::vector<std::uint8_t>& candidate
   return Evaluate(problem_->SpringsFromMask(candidate_mask));
 }
 
-Evaluation CostFunction::Evaluate(const ActiveSprings& springs, std::vector<Vector>* displacements) {
+Evaluation CostFunction::Evaluate(const ActiveSprings& springs,
+                                  std::vector<Vector>* displacements) {
   const Problem& p = *problem_;
   const int d = p.dimension();
   Evaluation e;
@@ -34,7 +35,8 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs, std::vector<Vect
 
   // Stability first: one rest factorisation per distinct set of constrained nodes.
   modes_.assign(solvers_.size(), 0);
-  for (std::size_t f = 0; f < solvers_.size(); ++f) modes_[f] = solvers_[f].RestMechanismModes(springs);
+  for (std::size_t f = 0; f < solvers_.size(); ++f)
+    modes_[f] = solvers_[f].RestMechanismModes(springs);
 
   double stable_cost = 0.0;
   for (std::size_t k = 0; k < p.load_cases().size(); ++k) {
@@ -69,7 +71,8 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs, std::vector<Vect
     }
     out.cost = cost;
     // A case whose reference moves no free node is normalised by the whole reference instead.
-    out.normalized_error = cost / (lc.reference_norm2 > 0.0 ? lc.reference_norm2 : p.reference_norm2());
+    out.normalized_error =
+        cost / (lc.reference_norm2 > 0.0 ? lc.reference_norm2 : p.reference_norm2());
     stable_cost += cost;
     if (displacements) (*displacements)[k] = u_;
   }
@@ -77,7 +80,8 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs, std::vector<Vect
   // Penalties per load case, so the breakdown shows where the topology failed.
   for (std::size_t k = 0; k < p.load_cases().size(); ++k) {
     LoadCaseEvaluation& out = e.load_cases[k];
-    const double norm2 = p.load_cases()[k].reference_norm2 > 0.0 ? p.load_cases()[k].reference_norm2 : p.reference_norm2();
+    const double norm2 = p.load_cases()[k].reference_norm2 > 0.0 ? p.load_cases()[k].reference_norm2
+                                                                 : p.reference_norm2();
     if (out.solve.termination == Termination::kMechanism) {
       out.normalized_error = kPenaltyBase * (1.0 + out.solve.mechanism_modes);
       out.cost = out.normalized_error * norm2;
@@ -93,8 +97,9 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs, std::vector<Vect
   } else {
     e.normalized_error = std::min(stable_cost / p.reference_norm2(), kPenaltyBase);
   }
-  e.cost = e.converged && e.normalized_error < kPenaltyBase ? stable_cost
-                                                            : e.normalized_error * p.reference_norm2();
+  e.cost = e.converged && e.normalized_error < kPenaltyBase
+               ? stable_cost
+               : e.normalized_error * p.reference_norm2();
   return e;
 }
 

@@ -37,9 +37,9 @@ struct LoadCaseEvaluation {
 struct Evaluation {
   double cost = 0.0;
   double normalized_error = 0.0;
-  bool mechanism = false;     // some load case found a singular rest stiffness
-  bool converged = true;      // every solve converged (false for mechanisms too)
-  int mechanism_modes = 0;    // summed over load cases
+  bool mechanism = false;   // some load case found a singular rest stiffness
+  bool converged = true;    // every solve converged (false for mechanisms too)
+  int mechanism_modes = 0;  // summed over load cases
   std::vector<LoadCaseEvaluation> load_cases;
 };
 

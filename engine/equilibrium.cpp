@@ -97,8 +97,8 @@ EquilibriumSolver::EquilibriumSolver(const SpringGeometry& geometry, FreeNodes f
 
 template <int D>
 double EquilibriumSolver::Assemble(const ActiveSprings& springs, const Vector& force,
-                                   const Vector& u, Vector* gradient, bool hessian,
-                                   bool projected, double* magnitude) {
+                                   const Vector& u, Vector* gradient, bool hessian, bool projected,
+                                   double* magnitude) {
   constexpr int kBlock = D * D;
   const SpringGeometry& g = *geometry_;
   const std::vector<int>& fidx = free_.free_index;
@@ -112,8 +112,8 @@ double EquilibriumSolver::Assemble(const ActiveSprings& springs, const Vector& f
     const double k = springs.stiffness[a];
     const double l = g.rest_length[s];
     const int i = g.pairs[s].first, j = g.pairs[s].second;
-    const VecD<D> d = g.rest_separation.template segment<D>(D * s) +
-                      u.template segment<D>(D * i) - u.template segment<D>(D * j);
+    const VecD<D> d = g.rest_separation.template segment<D>(D * s) + u.template segment<D>(D * i) -
+                      u.template segment<D>(D * j);
     const SpringState<D> state(d, l, k);
     const double e = state.Energy(l, k);
     energy += e;
@@ -163,8 +163,8 @@ double EquilibriumSolver::EnergyAndGradient(const ActiveSprings& springs, const 
   return Assemble<3>(springs, force, u, gradient, hessian, projected, nullptr);
 }
 
-bool EquilibriumSolver::SolveWithTangent(const ActiveSprings& springs, const Vector& force, const Vector& u,
-                                         Matrix& rhs) {
+bool EquilibriumSolver::SolveWithTangent(const ActiveSprings& springs, const Vector& force,
+                                         const Vector& u, Matrix& rhs) {
   if (free_.count == 0) return true;
   EnergyAndGradient(springs, force, u, nullptr, true, false);
   const SymmetricSystem::Factorization f = system_.Factorize(0.0, options_.pivot_tolerance, false);
@@ -178,7 +178,9 @@ bool EquilibriumSolver::SolveWithTangent(const ActiveSprings& springs, const Vec
   return true;
 }
 
-Matrix EquilibriumSolver::AssembledHessian() const { return system_.ToDense(); }
+Matrix EquilibriumSolver::AssembledHessian() const {
+  return system_.ToDense();
+}
 
 int EquilibriumSolver::RestMechanismModes(const ActiveSprings& springs) {
   if (free_.count == 0) return 0;
@@ -198,13 +200,13 @@ EquilibriumSummary EquilibriumSolver::Solve(const ActiveSprings& springs, const 
 }
 
 template <int D>
-EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs,
-                                                const Vector& force, const Vector& prescribed,
-                                                Vector& u) {
+EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, const Vector& force,
+                                                const Vector& prescribed, Vector& u) {
   EquilibriumSummary summary;
   const int nodes = static_cast<int>(free_.free_index.size());
   for (int node = 0; node < nodes; ++node) {
-    if (free_.free_index[node] < 0) u.template segment<D>(D * node) = prescribed.template segment<D>(D * node);
+    if (free_.free_index[node] < 0)
+      u.template segment<D>(D * node) = prescribed.template segment<D>(D * node);
   }
   if (free_.count == 0) {
     summary.termination = Termination::kConverged;
@@ -272,7 +274,8 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs,
       trial_u_ = u;
       for (int node = 0; node < nodes; ++node) {
         const int fi = free_.free_index[node];
-        if (fi >= 0) trial_u_.template segment<D>(D * node) += alpha * step_.template segment<D>(D * fi);
+        if (fi >= 0)
+          trial_u_.template segment<D>(D * node) += alpha * step_.template segment<D>(D * fi);
       }
       double trial_magnitude = 0.0;
       const double trial_energy =

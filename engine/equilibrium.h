@@ -71,9 +71,9 @@ struct EquilibriumOptions {
 
 struct EquilibriumSummary {
   Termination termination = Termination::kNotConverged;
-  int iterations = 0;          // Newton steps taken
-  int projected_steps = 0;     // of which on the projected Hessian
-  int line_search_steps = 0;   // step halvings in all
+  int iterations = 0;             // Newton steps taken
+  int projected_steps = 0;        // of which on the projected Hessian
+  int line_search_steps = 0;      // step halvings in all
   double initial_residual = 0.0;  // |gradient|_inf / force_scale at the start
   double final_residual = 0.0;    // |gradient|_inf / force_scale at the end
   int mechanism_modes = 0;        // kMechanism: the rest stiffness's null-space dimension
@@ -108,7 +108,8 @@ class EquilibriumSolver {
   // the exact Hessian of E at `u` (an equilibrium from Solve): one factorisation, then one
   // solve per column. The sensitivity of an equilibrium to the stiffness is such a solve.
   // Returns false, leaving `rhs` unspecified, when H is not positive definite there.
-  bool SolveWithTangent(const ActiveSprings& springs, const Vector& force, const Vector& u, Matrix& rhs);
+  bool SolveWithTangent(const ActiveSprings& springs, const Vector& force, const Vector& u,
+                        Matrix& rhs);
 
   // E(u) and its gradient on the free degrees of freedom (flat, free-node order). Exposed for
   // tests; `hessian` true also assembles the Hessian into the system (`projected` clamps it).

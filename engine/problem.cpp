@@ -18,11 +18,13 @@ namespace {
 // fraction of the scene's longest candidate (round-off in exported data), no more.
 constexpr double kPrescribedMismatchTolerance = 1e-9;
 
-std::string CasePath(std::size_t k) { return "load_cases[" + std::to_string(k) + "]"; }
+std::string CasePath(std::size_t k) {
+  return "load_cases[" + std::to_string(k) + "]";
+}
 
 // Scatter a case's loads into flat vectors and mark the constrained nodes.
-void Flatten(const Scene& scene, const LoadCase& lc, const std::string& path, Vector& force, Vector& prescribed,
-             std::vector<bool>& constrained) {
+void Flatten(const Scene& scene, const LoadCase& lc, const std::string& path, Vector& force,
+             Vector& prescribed, std::vector<bool>& constrained) {
   const int d = scene.dimension;
   const int n = scene.node_count();
   force = Vector::Zero(d * n);
@@ -39,7 +41,8 @@ void Flatten(const Scene& scene, const LoadCase& lc, const std::string& path, Ve
     for (int node : load.nodes) force.segment(d * node, d) += load.value;
   }
   for (std::size_t m = 0; m < lc.tractions.size(); ++m) {
-    fem::AddTractionForces(scene, lc.tractions[m], path + ".tractions[" + std::to_string(m) + "]", force);
+    fem::AddTractionForces(scene, lc.tractions[m], path + ".tractions[" + std::to_string(m) + "]",
+                           force);
   }
   // A traction's share on a constrained node is taken by the support (a reaction).
   for (int i = 0; i < n; ++i) {
@@ -56,11 +59,14 @@ void SolveFemReference(const Scene& s, const std::vector<FreeNodes>& free_sets,
   for (const FreeNodes& free : free_sets) solvers.emplace_back(model, free);
   for (std::size_t k = 0; k < load_cases.size(); ++k) {
     PreparedLoadCase& lc = load_cases[k];
-    const fem::FemSolveSummary summary = solvers[lc.free_set].Solve(lc.force, lc.prescribed, lc.reference);
+    const fem::FemSolveSummary summary =
+        solvers[lc.free_set].Solve(lc.force, lc.prescribed, lc.reference);
     if (!summary.converged()) {
-      throw InputError("reference", "the FEM reference under " + CasePath(k) + ": " + summary.message);
+      throw InputError("reference",
+                       "the FEM reference under " + CasePath(k) + ": " + summary.message);
     }
-    lc.reference_solve = ReferenceSolve{summary.iterations, summary.load_steps, summary.final_residual};
+    lc.reference_solve =
+        ReferenceSolve{summary.iterations, summary.load_steps, summary.final_residual};
   }
 }
 
@@ -91,7 +97,8 @@ Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
   for (const LoadCase& lc : s.load_cases) {
     PreparedLoadCase prepared;
     std::vector<bool> constrained;
-    Flatten(s, lc, CasePath(p.load_cases_.size()), prepared.force, prepared.prescribed, constrained);
+    Flatten(s, lc, CasePath(p.load_cases_.size()), prepared.force, prepared.prescribed,
+            constrained);
     FreeNodes free = FreeNodes::FromConstrained(constrained);
     const auto it = std::find(p.free_sets_.begin(), p.free_sets_.end(), free);
     prepared.free_set = static_cast<int>(it - p.free_sets_.begin());
@@ -105,7 +112,8 @@ Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
   // Genes: candidates with at least one node free in some load case.
   for (int c = 0; c < p.candidates_.size(); ++c) {
     const NodePair& pair = p.candidates_.pairs[c];
-    if (constrained_anywhere_never_free[pair.first] && constrained_anywhere_never_free[pair.second]) {
+    if (constrained_anywhere_never_free[pair.first] &&
+        constrained_anywhere_never_free[pair.second]) {
       p.unidentifiable_.push_back(c);
     } else {
       p.gene_candidate_.push_back(c);
@@ -133,7 +141,8 @@ Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
     polish_options.roundoff_force_tolerance = 1e-16;
     polish_options.max_iterations = 4;
     std::vector<EquilibriumSolver> polishers;
-    for (const FreeNodes& free : p.free_sets_) polishers.emplace_back(geometry, free, polish_options);
+    for (const FreeNodes& free : p.free_sets_)
+      polishers.emplace_back(geometry, free, polish_options);
     for (std::size_t k = 0; k < p.load_cases_.size(); ++k) {
       PreparedLoadCase& lc = p.load_cases_[k];
       EquilibriumSolver& solver = solvers[lc.free_set];
@@ -144,7 +153,8 @@ Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
                                           " free modes): it cannot carry the load");
       }
       lc.reference = Vector::Zero(d * n);
-      const EquilibriumSummary summary = solver.Solve(springs, lc.force, lc.prescribed, lc.reference);
+      const EquilibriumSummary summary =
+          solver.Solve(springs, lc.force, lc.prescribed, lc.reference);
       if (!summary.converged()) {
         throw InputError("reference", "no equilibrium of the reference MSS found under " +
                                           CasePath(k) + " (relative residual " +
@@ -152,7 +162,8 @@ Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
                                           std::to_string(summary.iterations) + " iterations)");
       }
       Vector polished = lc.reference;
-      const EquilibriumSummary polish = polishers[lc.free_set].Solve(springs, lc.force, lc.prescribed, polished);
+      const EquilibriumSummary polish =
+          polishers[lc.free_set].Solve(springs, lc.force, lc.prescribed, polished);
       lc.reference_solve = ReferenceSolve{summary.iterations, 1, summary.final_residual};
       if (polish.final_residual < summary.final_residual) {
         lc.reference = std::move(polished);
@@ -187,9 +198,10 @@ Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
       for (int i = 0; i < n; ++i) {
         if (free.free_index[i] >= 0) continue;
         if ((lc.reference.segment(d * i, d) - lc.prescribed.segment(d * i, d)).norm() > tol) {
-          throw InputError("reference.positions[" + std::to_string(k) + "][" + std::to_string(i) + "]",
-                           "node " + std::to_string(i) + " is constrained in " + CasePath(k) +
-                               " but its reference position differs from the prescribed one");
+          throw InputError(
+              "reference.positions[" + std::to_string(k) + "][" + std::to_string(i) + "]",
+              "node " + std::to_string(i) + " is constrained in " + CasePath(k) +
+                  " but its reference position differs from the prescribed one");
         }
         lc.reference.segment(d * i, d) = lc.prescribed.segment(d * i, d);
       }
@@ -201,7 +213,8 @@ Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
     const FreeNodes& free = p.free_sets_[lc.free_set];
     lc.reference_norm2 = 0.0;
     for (int i = 0; i < n; ++i) {
-      if (free.free_index[i] >= 0) lc.reference_norm2 += lc.reference.segment(d * i, d).squaredNorm();
+      if (free.free_index[i] >= 0)
+        lc.reference_norm2 += lc.reference.segment(d * i, d).squaredNorm();
     }
     p.reference_norm2_ += lc.reference_norm2;
   }
@@ -235,9 +248,11 @@ std::vector<double> Problem::ReferenceWeights() const {
   for (std::size_t s = 0; s < ref.springs.size(); ++s) {
     const NodePair ordered{std::min(ref.springs[s].first, ref.springs[s].second),
                            std::max(ref.springs[s].first, ref.springs[s].second)};
-    const auto it = std::lower_bound(gene_candidate_.begin(), gene_candidate_.end(), CandidateIndex(ordered));
+    const auto it =
+        std::lower_bound(gene_candidate_.begin(), gene_candidate_.end(), CandidateIndex(ordered));
     if (it != gene_candidate_.end() && *it == CandidateIndex(ordered)) {
-      w[static_cast<std::size_t>(it - gene_candidate_.begin())] = ref.stiffness.size() == 1 ? ref.stiffness[0] : ref.stiffness[s];
+      w[static_cast<std::size_t>(it - gene_candidate_.begin())] =
+          ref.stiffness.size() == 1 ? ref.stiffness[0] : ref.stiffness[s];
     }
   }
   return w;

@@ -29,16 +29,16 @@ using Genome = std::vector<std::uint8_t>;
 // How the reference's equilibrium of a load case was solved (MSS and FEM references; absent
 // for positions).
 struct ReferenceSolve {
-  int iterations = 0;       // Newton iterations
-  int load_steps = 1;       // load increments (FEM continuation; 1 = the full load at once)
-  double residual = 0.0;    // final |gradient|_inf relative to the case's force scale
+  int iterations = 0;     // Newton iterations
+  int load_steps = 1;     // load increments (FEM continuation; 1 = the full load at once)
+  double residual = 0.0;  // final |gradient|_inf relative to the case's force scale
 };
 
 struct PreparedLoadCase {
-  int free_set = 0;          // index into Problem::free_sets
-  Vector force;              // flat d*n
-  Vector prescribed;         // flat d*n, zero on free nodes
-  Vector reference;          // u^R, flat d*n
+  int free_set = 0;              // index into Problem::free_sets
+  Vector force;                  // flat d*n
+  Vector prescribed;             // flat d*n, zero on free nodes
+  Vector reference;              // u^R, flat d*n
   double reference_norm2 = 0.0;  // sum over free nodes of |u^R_i|^2
   std::optional<ReferenceSolve> reference_solve;
 };

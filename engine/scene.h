@@ -39,8 +39,8 @@ struct CandidateSpec {
   // kGrid: lattice step per axis; empty = inferred (the smallest difference between the nodes'
   // coordinates along that axis above 1e-6 of the axis's range).
   std::vector<double> spacing;
-  int k = 8;            // kNearest (>= 1); kMesh (>= 0, default 0)
-  double radius = 0.0;  // kRadius
+  int k = 8;                    // kNearest (>= 1); kMesh (>= 0, default 0)
+  double radius = 0.0;          // kRadius
   std::vector<NodePair> pairs;  // kPairs
 };
 

@@ -28,8 +28,9 @@ void CheckNode(const Scene& s, int node, const std::string& path) {
 
 void CheckVector(const Scene& s, const Vector& v, const std::string& path) {
   if (v.size() != s.dimension) {
-    throw InputError(path, "expected " + std::to_string(s.dimension) + " components (the scene is " +
-                               std::to_string(s.dimension) + "D), got " + std::to_string(v.size()));
+    throw InputError(path, "expected " + std::to_string(s.dimension) +
+                               " components (the scene is " + std::to_string(s.dimension) +
+                               "D), got " + std::to_string(v.size()));
   }
   for (Eigen::Index a = 0; a < v.size(); ++a) {
     if (!std::isfinite(v[a])) throw InputError(Index(path, a), "not a finite number");
@@ -56,7 +57,9 @@ void CheckPairs(const Scene& s, const std::vector<NodePair>& pairs, const std::s
   }
 }
 
-double Extent(const Scene& s) { return s.Bounds().Diagonal(); }
+double Extent(const Scene& s) {
+  return s.Bounds().Diagonal();
+}
 
 void CheckNodes(const Scene& s) {
   if (s.dimension != 2 && s.dimension != 3) {
@@ -95,8 +98,8 @@ void CheckCandidates(const Scene& s) {
     case CandidateSpec::Kind::kGrid:
       if (!c.spacing.empty()) {
         if (static_cast<int>(c.spacing.size()) != s.dimension) {
-          throw InputError("candidates.spacing", "expected one step per axis (" +
-                                                     std::to_string(s.dimension) + ")");
+          throw InputError("candidates.spacing",
+                           "expected one step per axis (" + std::to_string(s.dimension) + ")");
         }
         for (std::size_t a = 0; a < c.spacing.size(); ++a) {
           if (!(c.spacing[a] > 0.0) || !std::isfinite(c.spacing[a])) {
@@ -111,7 +114,8 @@ void CheckCandidates(const Scene& s) {
     case CandidateSpec::Kind::kMesh:
       if (c.k < 0) throw InputError("candidates.k", "must be >= 0, got " + std::to_string(c.k));
       if (s.reference.kind != Reference::Kind::kFem) {
-        throw InputError("candidates.type", "mesh candidates are the edges of a reference of type fem");
+        throw InputError("candidates.type",
+                         "mesh candidates are the edges of a reference of type fem");
       }
       break;
     case CandidateSpec::Kind::kRadius:
@@ -132,9 +136,9 @@ void CheckReference(const Scene& s) {
     if (r.springs.empty()) throw InputError("reference.springs", "must not be empty");
     CheckPairs(s, r.springs, "reference.springs", "spring");
     if (r.stiffness.size() != 1 && r.stiffness.size() != r.springs.size()) {
-      throw InputError("reference.stiffness",
-                       "expected one value or one per spring (" + std::to_string(r.springs.size()) +
-                           "), got " + std::to_string(r.stiffness.size()));
+      throw InputError("reference.stiffness", "expected one value or one per spring (" +
+                                                  std::to_string(r.springs.size()) + "), got " +
+                                                  std::to_string(r.stiffness.size()));
     }
     for (std::size_t m = 0; m < r.stiffness.size(); ++m) {
       const std::string p = r.stiffness.size() == 1 ? std::string("reference.stiffness")
@@ -151,10 +155,9 @@ void CheckReference(const Scene& s) {
     return;
   }
   if (r.positions.size() != s.load_cases.size()) {
-    throw InputError("reference.positions",
-                     "expected one configuration per load case (" +
-                         std::to_string(s.load_cases.size()) + "), got " +
-                         std::to_string(r.positions.size()));
+    throw InputError("reference.positions", "expected one configuration per load case (" +
+                                                std::to_string(s.load_cases.size()) + "), got " +
+                                                std::to_string(r.positions.size()));
   }
   for (std::size_t k = 0; k < r.positions.size(); ++k) {
     const std::string p = Index("reference.positions", k);
@@ -170,10 +173,12 @@ void CheckReference(const Scene& s) {
   }
 }
 
-void CheckRigidMotion(const Scene& s, const std::vector<int>& constrained, const std::string& path) {
+void CheckRigidMotion(const Scene& s, const std::vector<int>& constrained,
+                      const std::string& path) {
   const int d = s.dimension;
-  const char* rule = d == 2 ? "at least two constrained (fixed or displaced) nodes"
-                            : "at least three constrained (fixed or displaced) nodes not on one line";
+  const char* rule = d == 2
+                         ? "at least two constrained (fixed or displaced) nodes"
+                         : "at least three constrained (fixed or displaced) nodes not on one line";
   if (static_cast<int>(constrained.size()) < d) {
     throw InputError(path, std::string("rigid motion is left free: a load case needs ") + rule);
   }
@@ -189,14 +194,13 @@ void CheckRigidMotion(const Scene& s, const std::vector<int>& constrained, const
 }
 
 void CheckLoads(const Scene& s, const std::vector<NodalLoad>& loads, const std::string& path,
-                const char* value_name, std::vector<int>& role, int role_id,
-                bool& nonzero) {
+                const char* value_name, std::vector<int>& role, int role_id, bool& nonzero) {
   for (std::size_t m = 0; m < loads.size(); ++m) {
     const std::string p = Index(path, m);
     const NodalLoad& load = loads[m];
     if (load.nodes.empty()) throw InputError(p + ".nodes", "must not be empty");
     for (std::size_t q = 0; q < load.nodes.size(); ++q) {
-      const std::string np = load.single         ? p + ".node"
+      const std::string np = load.single        ? p + ".node"
                              : load.set.empty() ? Index(p + ".nodes", q)
                                                 : Index("node_sets." + load.set, q);
       CheckNode(s, load.nodes[q], np);
@@ -228,7 +232,8 @@ void CheckLoadCases(const Scene& s) {
     std::vector<int> role(s.node_count(), -1);
     for (std::size_t m = 0; m < lc.fixed.size(); ++m) {
       // Nodes given by a set's name are named where the set lists them.
-      const std::string fp = lc.fixed_set.empty() ? Index(p + ".fixed", m) : Index("node_sets." + lc.fixed_set, m);
+      const std::string fp =
+          lc.fixed_set.empty() ? Index(p + ".fixed", m) : Index("node_sets." + lc.fixed_set, m);
       CheckNode(s, lc.fixed[m], fp);
       if (role[lc.fixed[m]] == 0) {
         throw InputError(fp, "node " + std::to_string(lc.fixed[m]) + " is listed twice");
@@ -244,11 +249,15 @@ void CheckLoadCases(const Scene& s) {
         throw InputError(tp, "a traction needs a mesh: a reference of type fem");
       }
       const Traction& t = lc.tractions[m];
-      CheckVector(s, t.value, tp + (t.total ? ".total" : s.dimension == 2 ? ".per_length" : ".per_area"));
+      CheckVector(s, t.value,
+                  tp + (t.total            ? ".total"
+                        : s.dimension == 2 ? ".per_length"
+                                           : ".per_area"));
       if (t.value.squaredNorm() > 0.0) nonzero = true;
     }
     if (!nonzero) {
-      throw InputError(p, "applies no load: it needs a nonzero force, traction or prescribed displacement");
+      throw InputError(
+          p, "applies no load: it needs a nonzero force, traction or prescribed displacement");
     }
     std::vector<int> constrained;
     for (int i = 0; i < s.node_count(); ++i) {
@@ -265,17 +274,20 @@ void CheckSearch(const SearchSettings& s) {
   if (s.identify == Identify::kTopologyAndStiffness && s.strategy != Strategy::kDirect) {
     // The genetic strategies compare topologies whose springs all have the training
     // stiffness; they have nothing to say about each spring's stiffness.
-    throw InputError("search.identify",
-                     "topology_and_stiffness needs strategy direct (paper, default and hybrid identify the "
-                     "topology with the one training stiffness)");
+    throw InputError(
+        "search.identify",
+        "topology_and_stiffness needs strategy direct (paper, default and hybrid identify the "
+        "topology with the one training stiffness)");
   }
   if (s.population && *s.population < 2) {
     throw InputError("search.population", "must be >= 2, got " + std::to_string(*s.population));
   }
-  if (s.crossover_probability && !(*s.crossover_probability >= 0.0 && *s.crossover_probability <= 1.0)) {
+  if (s.crossover_probability &&
+      !(*s.crossover_probability >= 0.0 && *s.crossover_probability <= 1.0)) {
     throw InputError("search.crossover_probability", "must be in [0, 1]");
   }
-  if (s.mutation_probability && !(*s.mutation_probability >= 0.0 && *s.mutation_probability <= 1.0)) {
+  if (s.mutation_probability &&
+      !(*s.mutation_probability >= 0.0 && *s.mutation_probability <= 1.0)) {
     throw InputError("search.mutation_probability", "must be in [0, 1]");
   }
   if (s.max_generations < 1) {
@@ -289,7 +301,8 @@ void CheckSearch(const SearchSettings& s) {
 
 void CheckNodeSets(const Scene& s) {
   for (const auto& [name, nodes] : s.node_sets) {
-    for (std::size_t q = 0; q < nodes.size(); ++q) CheckNode(s, nodes[q], Index("node_sets." + name, q));
+    for (std::size_t q = 0; q < nodes.size(); ++q)
+      CheckNode(s, nodes[q], Index("node_sets." + name, q));
   }
 }
 

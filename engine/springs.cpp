@@ -9,7 +9,8 @@ SpringGeometry::SpringGeometry(int dim, const Vector& rest, std::vector<NodePair
   rest_length.reserve(pairs.size());
   rest_separation.resize(dim * static_cast<Eigen::Index>(pairs.size()));
   for (std::size_t s = 0; s < pairs.size(); ++s) {
-    const Vector d = rest.segment(dim * pairs[s].first, dim) - rest.segment(dim * pairs[s].second, dim);
+    const Vector d =
+        rest.segment(dim * pairs[s].first, dim) - rest.segment(dim * pairs[s].second, dim);
     rest_separation.segment(dim * static_cast<Eigen::Index>(s), dim) = d;
     rest_length.push_back(d.norm());
   }

@@ -20,7 +20,8 @@ struct SupernodalCholesky::State {
   }
 };
 
-SupernodalCholesky::SupernodalCholesky(int n, const int* outer, const int* inner) : state_(std::make_unique<State>()) {
+SupernodalCholesky::SupernodalCholesky(int n, const int* outer, const int* inner)
+    : state_(std::make_unique<State>()) {
   State& s = *state_;
   s.n = n;
   s.common.print = 0;  // failures are reported by the return value, never on standard output

@@ -47,7 +47,8 @@ SymmetricSystem::SymmetricSystem(int n, std::vector<std::pair<int, int>> lower, 
 
 void SymmetricSystem::AnalyseSparse() {
   if (backend_ == Backend::kSupernodal) {
-    supernodal_ = std::make_unique<SupernodalCholesky>(n_, sparse_work_.outerIndexPtr(), sparse_work_.innerIndexPtr());
+    supernodal_ = std::make_unique<SupernodalCholesky>(n_, sparse_work_.outerIndexPtr(),
+                                                       sparse_work_.innerIndexPtr());
     return;
   }
   sldlt_ = std::make_unique<SparseLdlt>();
@@ -153,7 +154,8 @@ SymmetricSystem::Factorization SymmetricSystem::Factorize(double shift, double t
                                                           bool count_pivots) {
   Factorization f;
   f.min_pivot = std::numeric_limits<double>::infinity();
-  if (n_ == 0) {  // nothing free: trivially positive definite (LAPACK rejects order 0 leading dimensions)
+  if (n_ ==
+      0) {  // nothing free: trivially positive definite (LAPACK rejects order 0 leading dimensions)
     f.positive_definite = true;
     return f;
   }

@@ -58,7 +58,9 @@ std::vector<std::uint8_t> TopologyFromJson(const Problem& problem, const Json& j
 Json TopologyToJson(const Problem& problem, const std::vector<std::uint8_t>& mask) {
   Json springs = Json::array();
   for (int c = 0; c < problem.candidates().size(); ++c) {
-    if (mask[c]) springs.push_back({problem.candidates().pairs[c].first, problem.candidates().pairs[c].second});
+    if (mask[c])
+      springs.push_back(
+          {problem.candidates().pairs[c].first, problem.candidates().pairs[c].second});
   }
   Json j;
   j["springs"] = std::move(springs);

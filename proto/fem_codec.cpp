@@ -13,7 +13,8 @@ Material ReadMaterial(const Json& v, const std::string& path) {
   const auto parsed = ParseMaterialModel(model);
   if (!parsed) {
     throw InputError(JoinPath(path, "model"),
-                     "unknown material model '" + model + "' (expected linear, st_venant_kirchhoff or neo_hookean)");
+                     "unknown material model '" + model +
+                         "' (expected linear, st_venant_kirchhoff or neo_hookean)");
   }
   m.model = *parsed;
   m.young = ReadNumber(RequiredMember(v, path, "young"), JoinPath(path, "young"));
@@ -42,11 +43,14 @@ void ReadFemReference(const Json& v, int dimension, FemReference& fem) {
     ExpectArray(elements[e], p);
     std::vector<int> nodes;
     nodes.reserve(elements[e].size());
-    for (std::size_t a = 0; a < elements[e].size(); ++a) nodes.push_back(ReadInt(elements[e][a], IndexPath(p, a)));
+    for (std::size_t a = 0; a < elements[e].size(); ++a)
+      nodes.push_back(ReadInt(elements[e][a], IndexPath(p, a)));
     fem.elements.push_back(std::move(nodes));
   }
   if (v.contains("material") == v.contains("materials")) {
-    throw InputError(path, "an fem reference needs exactly one of \"material\" or \"materials\" (with \"element_materials\")");
+    throw InputError(path,
+                     "an fem reference needs exactly one of \"material\" or \"materials\" (with "
+                     "\"element_materials\")");
   }
   if (v.contains("material")) {
     if (v.contains("element_materials")) {

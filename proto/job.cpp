@@ -18,8 +18,12 @@ constexpr std::array<std::pair<JobState, std::string_view>, 5> kStateNames{{
 }};
 
 // Times of events that have not happened yet are null.
-Json TimeOrNull(double t) { return t > 0.0 ? Json(t) : Json(nullptr); }
-double ReadTime(const Json& j, const std::string& path) { return j.is_null() ? 0.0 : ReadNumber(j, path); }
+Json TimeOrNull(double t) {
+  return t > 0.0 ? Json(t) : Json(nullptr);
+}
+double ReadTime(const Json& j, const std::string& path) {
+  return j.is_null() ? 0.0 : ReadNumber(j, path);
+}
 
 }  // namespace
 
@@ -54,16 +58,18 @@ Json JobToJson(const JobRecord& job) {
   j["started_at"] = TimeOrNull(job.started_at);
   j["finished_at"] = TimeOrNull(job.finished_at);
   j["progress"] = job.progress ? TraceRowToJson(*job.progress) : Json(nullptr);
-  j["checkpoint_generation"] = job.checkpoint_generation >= 0 ? Json(job.checkpoint_generation) : Json(nullptr);
+  j["checkpoint_generation"] =
+      job.checkpoint_generation >= 0 ? Json(job.checkpoint_generation) : Json(nullptr);
   j["exact"] = job.exact ? Json(*job.exact) : Json(nullptr);
   return j;
 }
 
 JobRecord JobFromJson(const Json& j) {
   const std::string path = "result";
-  ExpectKeys(j, path, {"job_id", "label", "priority", "seed", "idempotency_key", "state", "error", "scene", "genes",
-                       "strategy", "max_generations", "created_at", "started_at", "finished_at", "progress",
-                       "checkpoint_generation", "exact"});
+  ExpectKeys(j, path,
+             {"job_id", "label", "priority", "seed", "idempotency_key", "state", "error", "scene",
+              "genes", "strategy", "max_generations", "created_at", "started_at", "finished_at",
+              "progress", "checkpoint_generation", "exact"});
   auto at = [&](const char* key) -> const Json& { return RequiredMember(j, path, key); };
   auto sub = [&](const char* key) { return JoinPath(path, key); };
   JobRecord job;
@@ -71,7 +77,8 @@ JobRecord JobFromJson(const Json& j) {
   job.label = ReadString(at("label"), sub("label"));
   job.priority = ReadInt(at("priority"), sub("priority"));
   job.seed = ReadUint64(at("seed"), sub("seed"));
-  if (!at("idempotency_key").is_null()) job.idempotency_key = ReadString(at("idempotency_key"), sub("idempotency_key"));
+  if (!at("idempotency_key").is_null())
+    job.idempotency_key = ReadString(at("idempotency_key"), sub("idempotency_key"));
   const std::string state = ReadString(at("state"), sub("state"));
   const auto parsed = ParseJobState(state);
   if (!parsed) throw InputError(sub("state"), "unknown job state '" + state + "'");

@@ -5,7 +5,7 @@
 #include <string>
 #include <string_view>
 
-#include "engine/search/genetic_search.h"
+#include "engine/identification/trace.h"
 #include "proto/json_reader.h"
 
 namespace springfit::proto {
@@ -16,21 +16,23 @@ enum class JobState { kQueued, kRunning, kSucceeded, kFailed, kCancelled };
 
 std::string_view JobStateName(JobState state);
 std::optional<JobState> ParseJobState(std::string_view name);
-inline bool IsFinal(JobState s) { return s != JobState::kQueued && s != JobState::kRunning; }
+inline bool IsFinal(JobState s) {
+  return s != JobState::kQueued && s != JobState::kRunning;
+}
 
 struct JobRecord {
   std::int64_t id = 0;
   std::string label;
-  int priority = 0;              // higher runs first; equal priorities in submission order
+  int priority = 0;  // higher runs first; equal priorities in submission order
   std::uint64_t seed = 1;
-  std::string idempotency_key;   // empty: none
+  std::string idempotency_key;  // empty: none
   JobState state = JobState::kQueued;
-  std::string error;             // why it failed
+  std::string error;  // why it failed
   std::string scene_name;
   int genes = 0;
   std::string strategy;
   int max_generations = 0;
-  double created_at = 0.0;       // Unix time in seconds; 0 = not yet
+  double created_at = 0.0;  // Unix time in seconds; 0 = not yet
   double started_at = 0.0;
   double finished_at = 0.0;
   std::optional<TraceRow> progress;  // the last generation stored (or seen, while running)

@@ -5,9 +5,15 @@
 namespace springfit::proto {
 namespace {
 
-bool IsSpace(char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r'; }
-bool IsDigit(char c) { return c >= '0' && c <= '9'; }
-bool IsHexDigit(char c) { return IsDigit(c) || (c >= 'a' && c <= 'f') || (c >= 'A' && c <= 'F'); }
+bool IsSpace(char c) {
+  return c == ' ' || c == '\t' || c == '\n' || c == '\r';
+}
+bool IsDigit(char c) {
+  return c >= '0' && c <= '9';
+}
+bool IsHexDigit(char c) {
+  return IsDigit(c) || (c >= 'a' && c <= 'f') || (c >= 'A' && c <= 'F');
+}
 
 // A byte as it can be shown in a message: 'x', or \xNN when not printable.
 std::string Shown(char c) {
@@ -43,8 +49,10 @@ std::vector<JsonFramer::Frame> JsonFramer::Feed(std::string_view bytes) {
     }
     // The size first: a message that completes one byte over the limit is still too large.
     if (message_.size() > options_.max_message_bytes) {
-      frames.push_back({Frame::Kind::kTooLarge, {},
-                        "message longer than " + std::to_string(options_.max_message_bytes) + " bytes"});
+      frames.push_back(
+          {Frame::Kind::kTooLarge,
+           {},
+           "message longer than " + std::to_string(options_.max_message_bytes) + " bytes"});
       message_.clear();
       message_.shrink_to_fit();
       stack_.clear();
@@ -159,8 +167,8 @@ bool JsonFramer::Step(char c) {
         CloseValue();
         return true;
       }
-      return Fail("unexpected " + Shown(c) + " where ',' or '" + (stack_.back() == '{' ? "}" : "]") +
-                  "' was expected");
+      return Fail("unexpected " + Shown(c) + " where ',' or '" +
+                  (stack_.back() == '{' ? "}" : "]") + "' was expected");
     case State::kString:
       if (c == '"') {
         if (string_is_key_) {
@@ -174,7 +182,8 @@ bool JsonFramer::Step(char c) {
         state_ = State::kStringEscape;
         return true;
       }
-      if (static_cast<unsigned char>(c) < 0x20) return Fail("unescaped control character (" + Shown(c) + ") in a string");
+      if (static_cast<unsigned char>(c) < 0x20)
+        return Fail("unescaped control character (" + Shown(c) + ") in a string");
       return true;
     case State::kStringEscape:
       if (c == 'u') {
@@ -182,7 +191,8 @@ bool JsonFramer::Step(char c) {
         state_ = State::kStringUnicode;
         return true;
       }
-      if (c == '"' || c == '\\' || c == '/' || c == 'b' || c == 'f' || c == 'n' || c == 'r' || c == 't') {
+      if (c == '"' || c == '\\' || c == '/' || c == 'b' || c == 'f' || c == 'n' || c == 'r' ||
+          c == 't') {
         state_ = State::kString;
         return true;
       }
@@ -243,7 +253,8 @@ bool JsonFramer::Step(char c) {
       }
       return false;
     case State::kLiteral:
-      if (c != literal_[literal_pos_]) return Fail("invalid literal (expected " + std::string(literal_) + ")");
+      if (c != literal_[literal_pos_])
+        return Fail("invalid literal (expected " + std::string(literal_) + ")");
       if (++literal_pos_ == literal_.size()) CloseValue();
       return true;
     case State::kSkipLine:

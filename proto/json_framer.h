@@ -70,7 +70,16 @@ class JsonFramer {
     kClosed,    // after kTooLarge
   };
   // Number grammar positions: -?(0|[1-9][0-9]*)(.[0-9]+)?([eE][+-]?[0-9]+)?
-  enum class NumberPart { kSign, kZero, kInteger, kFractionStart, kFraction, kExponentStart, kExponentSign, kExponent };
+  enum class NumberPart {
+    kSign,
+    kZero,
+    kInteger,
+    kFractionStart,
+    kFraction,
+    kExponentStart,
+    kExponentSign,
+    kExponent
+  };
 
   // Returns false when `c` breaks the grammar (error_ is set).
   bool Step(char c);
@@ -81,16 +90,16 @@ class JsonFramer {
 
   Options options_;
   State state_ = State::kTop;
-  std::vector<char> stack_;      // open containers, '{' or '['
+  std::vector<char> stack_;  // open containers, '{' or '['
   bool string_is_key_ = false;
   int unicode_digits_ = 0;
   NumberPart number_ = NumberPart::kSign;
-  std::string_view literal_;     // the literal being matched ("true", "false", "null")
+  std::string_view literal_;  // the literal being matched ("true", "false", "null")
   std::size_t literal_pos_ = 0;
-  std::string message_;          // bytes of the current message
-  bool complete_ = false;        // message_ holds a whole message
+  std::string message_;    // bytes of the current message
+  bool complete_ = false;  // message_ holds a whole message
   std::string error_;
-  std::size_t offset_ = 0;       // bytes of the stream scanned so far, for messages
+  std::size_t offset_ = 0;  // bytes of the stream scanned so far, for messages
 };
 
 }  // namespace springfit::proto

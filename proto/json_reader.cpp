@@ -10,15 +10,23 @@ namespace {
 
 std::string TypeName(const Json& v) {
   switch (v.type()) {
-    case Json::value_t::null: return "null";
-    case Json::value_t::object: return "an object";
-    case Json::value_t::array: return "an array";
-    case Json::value_t::string: return "a string";
-    case Json::value_t::boolean: return "a boolean";
+    case Json::value_t::null:
+      return "null";
+    case Json::value_t::object:
+      return "an object";
+    case Json::value_t::array:
+      return "an array";
+    case Json::value_t::string:
+      return "a string";
+    case Json::value_t::boolean:
+      return "a boolean";
     case Json::value_t::number_integer:
-    case Json::value_t::number_unsigned: return "an integer";
-    case Json::value_t::number_float: return "a number";
-    default: return "an unsupported value";
+    case Json::value_t::number_unsigned:
+      return "an integer";
+    case Json::value_t::number_float:
+      return "a number";
+    default:
+      return "an unsupported value";
   }
 }
 
@@ -71,7 +79,8 @@ Json ParseJson(std::string_view text) {
 
 void ExpectKeys(const Json& value, const std::string& path,
                 std::initializer_list<std::string_view> allowed) {
-  if (!value.is_object()) WrongType(value, path.empty() ? std::string("(top level)") : path, "an object");
+  if (!value.is_object())
+    WrongType(value, path.empty() ? std::string("(top level)") : path, "an object");
   for (const auto& [key, _] : value.items()) {
     bool known = false;
     for (std::string_view a : allowed) known = known || key == a;
@@ -131,7 +140,8 @@ Vector ReadVector(const Json& value, const std::string& path, int dimension) {
   ExpectArray(value, path);
   if (dimension > 0 && static_cast<int>(value.size()) != dimension) {
     throw InputError(path, "expected " + std::to_string(dimension) + " components (the scene is " +
-                               std::to_string(dimension) + "D), got " + std::to_string(value.size()));
+                               std::to_string(dimension) + "D), got " +
+                               std::to_string(value.size()));
   }
   if (value.empty()) throw InputError(path, "must not be empty");
   Vector v(static_cast<Eigen::Index>(value.size()));

@@ -6,18 +6,24 @@ namespace springfit::proto {
 
 std::string_view CandidateKindName(CandidateSpec::Kind kind) {
   switch (kind) {
-    case CandidateSpec::Kind::kGrid: return "grid";
-    case CandidateSpec::Kind::kNearest: return "nearest";
-    case CandidateSpec::Kind::kRadius: return "radius";
-    case CandidateSpec::Kind::kPairs: return "pairs";
-    case CandidateSpec::Kind::kMesh: return "mesh";
+    case CandidateSpec::Kind::kGrid:
+      return "grid";
+    case CandidateSpec::Kind::kNearest:
+      return "nearest";
+    case CandidateSpec::Kind::kRadius:
+      return "radius";
+    case CandidateSpec::Kind::kPairs:
+      return "pairs";
+    case CandidateSpec::Kind::kMesh:
+      return "mesh";
   }
   return "?";
 }
 
 std::optional<CandidateSpec::Kind> ParseCandidateKind(std::string_view name) {
-  for (auto k : {CandidateSpec::Kind::kGrid, CandidateSpec::Kind::kNearest,
-                 CandidateSpec::Kind::kRadius, CandidateSpec::Kind::kPairs, CandidateSpec::Kind::kMesh}) {
+  for (auto k :
+       {CandidateSpec::Kind::kGrid, CandidateSpec::Kind::kNearest, CandidateSpec::Kind::kRadius,
+        CandidateSpec::Kind::kPairs, CandidateSpec::Kind::kMesh}) {
     if (CandidateKindName(k) == name) return k;
   }
   return std::nullopt;
@@ -25,9 +31,12 @@ std::optional<CandidateSpec::Kind> ParseCandidateKind(std::string_view name) {
 
 std::string_view ReferenceKindName(Reference::Kind kind) {
   switch (kind) {
-    case Reference::Kind::kMss: return "mss";
-    case Reference::Kind::kPositions: return "positions";
-    case Reference::Kind::kFem: return "fem";
+    case Reference::Kind::kMss:
+      return "mss";
+    case Reference::Kind::kPositions:
+      return "positions";
+    case Reference::Kind::kFem:
+      return "fem";
   }
   return "?";
 }
@@ -41,21 +50,27 @@ std::optional<Reference::Kind> ParseReferenceKind(std::string_view name) {
 
 std::string_view MaterialModelName(MaterialModel model) {
   switch (model) {
-    case MaterialModel::kLinear: return "linear";
-    case MaterialModel::kStVenantKirchhoff: return "st_venant_kirchhoff";
-    case MaterialModel::kNeoHookean: return "neo_hookean";
+    case MaterialModel::kLinear:
+      return "linear";
+    case MaterialModel::kStVenantKirchhoff:
+      return "st_venant_kirchhoff";
+    case MaterialModel::kNeoHookean:
+      return "neo_hookean";
   }
   return "?";
 }
 
 std::optional<MaterialModel> ParseMaterialModel(std::string_view name) {
-  for (auto m : {MaterialModel::kLinear, MaterialModel::kStVenantKirchhoff, MaterialModel::kNeoHookean}) {
+  for (auto m :
+       {MaterialModel::kLinear, MaterialModel::kStVenantKirchhoff, MaterialModel::kNeoHookean}) {
     if (MaterialModelName(m) == name) return m;
   }
   return std::nullopt;
 }
 
-std::string_view PlaneModeName(PlaneMode mode) { return mode == PlaneMode::kStress ? "stress" : "strain"; }
+std::string_view PlaneModeName(PlaneMode mode) {
+  return mode == PlaneMode::kStress ? "stress" : "strain";
+}
 
 std::optional<PlaneMode> ParsePlaneMode(std::string_view name) {
   if (name == "stress") return PlaneMode::kStress;
@@ -65,23 +80,31 @@ std::optional<PlaneMode> ParsePlaneMode(std::string_view name) {
 
 std::string_view TerminationName(Termination termination) {
   switch (termination) {
-    case Termination::kConverged: return "converged";
-    case Termination::kNotConverged: return "not_converged";
-    case Termination::kMechanism: return "mechanism";
+    case Termination::kConverged:
+      return "converged";
+    case Termination::kNotConverged:
+      return "not_converged";
+    case Termination::kMechanism:
+      return "mechanism";
   }
   return "?";
 }
 
 namespace {
-constexpr Strategy kAllStrategies[] = {Strategy::kDefault, Strategy::kPaper, Strategy::kDirect, Strategy::kHybrid};
+constexpr Strategy kAllStrategies[] = {Strategy::kDefault, Strategy::kPaper, Strategy::kDirect,
+                                       Strategy::kHybrid};
 }  // namespace
 
 std::string_view StrategyName(Strategy strategy) {
   switch (strategy) {
-    case Strategy::kDefault: return "default";
-    case Strategy::kPaper: return "paper";
-    case Strategy::kDirect: return "direct";
-    case Strategy::kHybrid: return "hybrid";
+    case Strategy::kDefault:
+      return "default";
+    case Strategy::kPaper:
+      return "paper";
+    case Strategy::kDirect:
+      return "direct";
+    case Strategy::kHybrid:
+      return "hybrid";
   }
   return "?";
 }
@@ -95,7 +118,8 @@ std::optional<Strategy> ParseStrategy(std::string_view name) {
 
 Strategy StrategyFromName(const std::string& name, const std::string& path) {
   const auto strategy = ParseStrategy(name);
-  if (!strategy) throw InputError(path, "unknown strategy '" + name + "' (expected " + StrategyNames() + ")");
+  if (!strategy)
+    throw InputError(path, "unknown strategy '" + name + "' (expected " + StrategyNames() + ")");
   return *strategy;
 }
 
@@ -104,7 +128,8 @@ std::string_view IdentifyName(Identify identify) {
 }
 
 std::string IdentifyNames() {
-  return std::string(IdentifyName(Identify::kTopology)) + " or " + std::string(IdentifyName(Identify::kTopologyAndStiffness));
+  return std::string(IdentifyName(Identify::kTopology)) + " or " +
+         std::string(IdentifyName(Identify::kTopologyAndStiffness));
 }
 
 Identify IdentifyFromName(const std::string& name, const std::string& path) {
@@ -116,15 +141,21 @@ Identify IdentifyFromName(const std::string& name, const std::string& path) {
 
 std::string_view StopReasonName(StopReason reason) {
   switch (reason) {
-    case StopReason::kTargetReached: return "target_reached";
-    case StopReason::kGenerationLimit: return "generation_limit";
-    case StopReason::kCompleted: return "completed";
-    case StopReason::kCancelled: return "cancelled";
+    case StopReason::kTargetReached:
+      return "target_reached";
+    case StopReason::kGenerationLimit:
+      return "generation_limit";
+    case StopReason::kCompleted:
+      return "completed";
+    case StopReason::kCancelled:
+      return "cancelled";
   }
   return "?";
 }
 
-std::vector<Strategy> AllStrategies() { return {std::begin(kAllStrategies), std::end(kAllStrategies)}; }
+std::vector<Strategy> AllStrategies() {
+  return {std::begin(kAllStrategies), std::end(kAllStrategies)};
+}
 
 std::string StrategyNames() {
   std::string out;

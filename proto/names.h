@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "engine/equilibrium.h"
+#include "engine/identification/trace.h"
 #include "engine/scene.h"
-#include "engine/search/run_search.h"
 
 namespace springfit::proto {
 
@@ -29,7 +29,8 @@ std::string_view TerminationName(Termination termination);
 // Search strategies (proto/SCENE.md, "search").
 std::string_view StrategyName(Strategy strategy);
 std::optional<Strategy> ParseStrategy(std::string_view name);
-// ParseStrategy, or InputError(path, "unknown strategy 'x' (expected default, paper, direct or hybrid)").
+// ParseStrategy, or InputError(path, "unknown strategy 'x' (expected default, paper, direct or
+// hybrid)").
 Strategy StrategyFromName(const std::string& name, const std::string& path);
 std::string_view StopReasonName(StopReason reason);
 

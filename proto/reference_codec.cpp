@@ -32,7 +32,8 @@ Json ReferenceSolutionToJson(const Problem& problem) {
       const FreeNodes& free = problem.free_sets()[lc.free_set];
       for (int i = 0; i < s.node_count(); ++i) {
         const Vector f = lc.force.segment(d * i, d);
-        if (free.free_index[i] >= 0 && f.squaredNorm() > 0.0) resolved.forces.push_back({{i}, f, true, {}});
+        if (free.free_index[i] >= 0 && f.squaredNorm() > 0.0)
+          resolved.forces.push_back({{i}, f, true, {}});
       }
       load_cases.push_back(LoadCaseToJson(resolved, d));
     }

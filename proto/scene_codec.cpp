@@ -13,7 +13,8 @@ namespace {
 
 NodePair ReadPair(const Json& v, const std::string& path) {
   ExpectArray(v, path);
-  if (v.size() != 2) throw InputError(path, "expected a pair [i, j], got " + std::to_string(v.size()) + " values");
+  if (v.size() != 2)
+    throw InputError(path, "expected a pair [i, j], got " + std::to_string(v.size()) + " values");
   return {ReadInt(v[0], IndexPath(path, 0)), ReadInt(v[1], IndexPath(path, 1))};
 }
 
@@ -62,17 +63,20 @@ void ReadCandidates(const Json& v, Scene& s) {
   const std::string type = ReadString(v["type"], JoinPath(path, "type"));
   const auto kind = ParseCandidateKind(type);
   if (!kind) {
-    throw InputError(JoinPath(path, "type"),
-                     "unknown candidate type '" + type + "' (expected grid, nearest, radius, pairs or mesh)");
+    throw InputError(
+        JoinPath(path, "type"),
+        "unknown candidate type '" + type + "' (expected grid, nearest, radius, pairs or mesh)");
   }
   s.candidates.kind = *kind;
   auto only_for = [&](const char* key, CandidateSpec::Kind k) {
     if (v.contains(key) && *kind != k) {
-      throw InputError(JoinPath(path, key), "only applies to type " + std::string(CandidateKindName(k)));
+      throw InputError(JoinPath(path, key),
+                       "only applies to type " + std::string(CandidateKindName(k)));
     }
   };
   only_for("spacing", CandidateSpec::Kind::kGrid);
-  if (v.contains("k") && *kind != CandidateSpec::Kind::kNearest && *kind != CandidateSpec::Kind::kMesh) {
+  if (v.contains("k") && *kind != CandidateSpec::Kind::kNearest &&
+      *kind != CandidateSpec::Kind::kMesh) {
     throw InputError(JoinPath(path, "k"), "only applies to types nearest and mesh");
   }
   if (*kind == CandidateSpec::Kind::kMesh) s.candidates.k = 0;
@@ -89,7 +93,8 @@ void ReadCandidates(const Json& v, Scene& s) {
   }
   if (v.contains("k")) s.candidates.k = ReadInt(v["k"], JoinPath(path, "k"));
   if (*kind == CandidateSpec::Kind::kRadius) {
-    if (!v.contains("radius")) throw InputError(JoinPath(path, "radius"), "required for type radius");
+    if (!v.contains("radius"))
+      throw InputError(JoinPath(path, "radius"), "required for type radius");
     s.candidates.radius = ReadNumber(v["radius"], JoinPath(path, "radius"));
   }
   if (*kind == CandidateSpec::Kind::kPairs) {
@@ -100,26 +105,29 @@ void ReadCandidates(const Json& v, Scene& s) {
 
 void ReadReference(const Json& v, Scene& s) {
   const std::string path = "reference";
-  ExpectKeys(v, path, {"type", "springs", "stiffness", "positions", "elements", "material", "materials",
-                       "element_materials", "plane", "thickness"});
+  ExpectKeys(v, path,
+             {"type", "springs", "stiffness", "positions", "elements", "material", "materials",
+              "element_materials", "plane", "thickness"});
   if (!v.contains("type")) throw InputError(JoinPath(path, "type"), "required");
   const std::string type = ReadString(v["type"], JoinPath(path, "type"));
   const auto kind = ParseReferenceKind(type);
   if (!kind) {
-    throw InputError(JoinPath(path, "type"), "unknown reference type '" + type + "' (expected mss, positions or fem)");
+    throw InputError(JoinPath(path, "type"),
+                     "unknown reference type '" + type + "' (expected mss, positions or fem)");
   }
   Reference& r = s.reference;
   r.kind = *kind;
   // Each field belongs to one type.
   const std::pair<const char*, Reference::Kind> owners[] = {
-      {"springs", Reference::Kind::kMss},          {"stiffness", Reference::Kind::kMss},
-      {"positions", Reference::Kind::kPositions},  {"elements", Reference::Kind::kFem},
-      {"material", Reference::Kind::kFem},         {"materials", Reference::Kind::kFem},
+      {"springs", Reference::Kind::kMss},           {"stiffness", Reference::Kind::kMss},
+      {"positions", Reference::Kind::kPositions},   {"elements", Reference::Kind::kFem},
+      {"material", Reference::Kind::kFem},          {"materials", Reference::Kind::kFem},
       {"element_materials", Reference::Kind::kFem}, {"plane", Reference::Kind::kFem},
       {"thickness", Reference::Kind::kFem}};
   for (const auto& [key, owner] : owners) {
     if (v.contains(key) && owner != r.kind) {
-      throw InputError(JoinPath(path, key), "only applies to type " + std::string(ReferenceKindName(owner)));
+      throw InputError(JoinPath(path, key),
+                       "only applies to type " + std::string(ReferenceKindName(owner)));
     }
   }
   if (r.kind == Reference::Kind::kFem) {
@@ -127,7 +135,8 @@ void ReadReference(const Json& v, Scene& s) {
     return;
   }
   if (r.kind == Reference::Kind::kMss) {
-    if (!v.contains("springs")) throw InputError(JoinPath(path, "springs"), "required for type mss");
+    if (!v.contains("springs"))
+      throw InputError(JoinPath(path, "springs"), "required for type mss");
     r.springs = ReadNodePairs(v["springs"], JoinPath(path, "springs"));
     r.stiffness = {1.0};
     if (v.contains("stiffness")) {
@@ -135,14 +144,16 @@ void ReadReference(const Json& v, Scene& s) {
       if (v["stiffness"].is_array()) {
         const Json& a = v["stiffness"];
         r.stiffness.clear();
-        for (std::size_t m = 0; m < a.size(); ++m) r.stiffness.push_back(ReadNumber(a[m], IndexPath(p, m)));
+        for (std::size_t m = 0; m < a.size(); ++m)
+          r.stiffness.push_back(ReadNumber(a[m], IndexPath(p, m)));
       } else {
         r.stiffness = {ReadNumber(v["stiffness"], p)};
       }
     }
     return;
   }
-  if (!v.contains("positions")) throw InputError(JoinPath(path, "positions"), "required for type positions");
+  if (!v.contains("positions"))
+    throw InputError(JoinPath(path, "positions"), "required for type positions");
   const std::string p = JoinPath(path, "positions");
   ExpectArray(v["positions"], p);
   for (std::size_t k = 0; k < v["positions"].size(); ++k) {
@@ -163,7 +174,8 @@ void ReadNodeSets(const Json& v, Scene& s) {
 
 // A list of node indices, or a string naming one of the scene's node sets (its name is
 // returned in `set`).
-std::vector<int> ReadNodeList(const Json& v, const std::string& path, const Scene& s, std::string& set) {
+std::vector<int> ReadNodeList(const Json& v, const std::string& path, const Scene& s,
+                              std::string& set) {
   if (!v.is_string()) return ReadIndices(v, path);
   set = v.get<std::string>();
   const auto it = s.node_sets.find(set);
@@ -171,7 +183,8 @@ std::vector<int> ReadNodeList(const Json& v, const std::string& path, const Scen
     std::string known;
     for (const auto& [name, nodes] : s.node_sets) known += (known.empty() ? "" : ", ") + name;
     throw InputError(path, "unknown node set '" + set + "' (" +
-                               (known.empty() ? std::string("the scene has no node_sets") : "the scene's node_sets: " + known) +
+                               (known.empty() ? std::string("the scene has no node_sets")
+                                              : "the scene's node_sets: " + known) +
                                ")");
   }
   return it->second;
@@ -199,7 +212,8 @@ std::vector<Traction> ReadTractions(const Json& v, const std::string& path, cons
   return out;
 }
 
-std::vector<NodalLoad> ReadLoads(const Json& v, const std::string& path, const char* value_key, const Scene& s) {
+std::vector<NodalLoad> ReadLoads(const Json& v, const std::string& path, const char* value_key,
+                                 const Scene& s) {
   const int d = s.dimension;
   ExpectArray(v, path);
   std::vector<NodalLoad> loads;
@@ -230,37 +244,49 @@ void ReadLoadCases(const Json& v, Scene& s) {
     ExpectKeys(v[k], p, {"name", "fixed", "forces", "displacements", "tractions"});
     LoadCase lc;
     if (v[k].contains("name")) lc.name = ReadString(v[k]["name"], JoinPath(p, "name"));
-    if (v[k].contains("fixed")) lc.fixed = ReadNodeList(v[k]["fixed"], JoinPath(p, "fixed"), s, lc.fixed_set);
-    if (v[k].contains("forces")) lc.forces = ReadLoads(v[k]["forces"], JoinPath(p, "forces"), "force", s);
+    if (v[k].contains("fixed"))
+      lc.fixed = ReadNodeList(v[k]["fixed"], JoinPath(p, "fixed"), s, lc.fixed_set);
+    if (v[k].contains("forces"))
+      lc.forces = ReadLoads(v[k]["forces"], JoinPath(p, "forces"), "force", s);
     if (v[k].contains("displacements")) {
-      lc.displacements = ReadLoads(v[k]["displacements"], JoinPath(p, "displacements"), "displacement", s);
+      lc.displacements =
+          ReadLoads(v[k]["displacements"], JoinPath(p, "displacements"), "displacement", s);
     }
-    if (v[k].contains("tractions")) lc.tractions = ReadTractions(v[k]["tractions"], JoinPath(p, "tractions"), s);
+    if (v[k].contains("tractions"))
+      lc.tractions = ReadTractions(v[k]["tractions"], JoinPath(p, "tractions"), s);
     s.load_cases.push_back(std::move(lc));
   }
 }
 
 void ReadSearch(const Json& v, SearchSettings& st) {
   const std::string path = "search";
-  ExpectKeys(v, path, {"strategy", "identify", "seed", "population", "crossover_probability",
-                       "mutation_probability", "max_generations", "target_normalized_error"});
+  ExpectKeys(v, path,
+             {"strategy", "identify", "seed", "population", "crossover_probability",
+              "mutation_probability", "max_generations", "target_normalized_error"});
   if (v.contains("strategy")) {
-    st.strategy = StrategyFromName(ReadString(v["strategy"], JoinPath(path, "strategy")), JoinPath(path, "strategy"));
+    st.strategy = StrategyFromName(ReadString(v["strategy"], JoinPath(path, "strategy")),
+                                   JoinPath(path, "strategy"));
   }
   if (v.contains("identify")) {
-    st.identify = IdentifyFromName(ReadString(v["identify"], JoinPath(path, "identify")), JoinPath(path, "identify"));
+    st.identify = IdentifyFromName(ReadString(v["identify"], JoinPath(path, "identify")),
+                                   JoinPath(path, "identify"));
   }
   if (v.contains("seed")) st.seed = ReadUint64(v["seed"], JoinPath(path, "seed"));
-  if (v.contains("population")) st.population = ReadInt(v["population"], JoinPath(path, "population"));
+  if (v.contains("population"))
+    st.population = ReadInt(v["population"], JoinPath(path, "population"));
   if (v.contains("crossover_probability")) {
-    st.crossover_probability = ReadNumber(v["crossover_probability"], JoinPath(path, "crossover_probability"));
+    st.crossover_probability =
+        ReadNumber(v["crossover_probability"], JoinPath(path, "crossover_probability"));
   }
   if (v.contains("mutation_probability")) {
-    st.mutation_probability = ReadNumber(v["mutation_probability"], JoinPath(path, "mutation_probability"));
+    st.mutation_probability =
+        ReadNumber(v["mutation_probability"], JoinPath(path, "mutation_probability"));
   }
-  if (v.contains("max_generations")) st.max_generations = ReadInt(v["max_generations"], JoinPath(path, "max_generations"));
+  if (v.contains("max_generations"))
+    st.max_generations = ReadInt(v["max_generations"], JoinPath(path, "max_generations"));
   if (v.contains("target_normalized_error")) {
-    st.target_normalized_error = ReadNumber(v["target_normalized_error"], JoinPath(path, "target_normalized_error"));
+    st.target_normalized_error =
+        ReadNumber(v["target_normalized_error"], JoinPath(path, "target_normalized_error"));
   }
 }
 
@@ -340,8 +366,9 @@ Json PairsToJson(const std::vector<NodePair>& pairs) {
 }
 
 Scene SceneFromJson(const Json& json) {
-  ExpectKeys(json, "", {"name", "description", "nodes", "candidates", "node_sets", "reference", "load_cases",
-                        "stiffness", "search"});
+  ExpectKeys(json, "",
+             {"name", "description", "nodes", "candidates", "node_sets", "reference", "load_cases",
+              "stiffness", "search"});
   Scene s;
   if (json.contains("name")) s.name = ReadString(json["name"], "name");
   if (json.contains("description")) s.description = ReadString(json["description"], "description");
@@ -353,14 +380,17 @@ Scene SceneFromJson(const Json& json) {
   if (json.contains("node_sets")) ReadNodeSets(json["node_sets"], s);
   ReadLoadCases(json["load_cases"], s);
   ReadReference(json["reference"], s);
-  if (!json.contains("candidates") && s.reference.kind == Reference::Kind::kFem) s.candidates = FemDefaultCandidates();
+  if (!json.contains("candidates") && s.reference.kind == Reference::Kind::kFem)
+    s.candidates = FemDefaultCandidates();
   if (json.contains("stiffness")) s.training_stiffness = ReadNumber(json["stiffness"], "stiffness");
   if (json.contains("search")) ReadSearch(json["search"], s.search);
   ValidateScene(s);
   return s;
 }
 
-Scene SceneFromText(std::string_view text) { return SceneFromJson(ParseJson(text)); }
+Scene SceneFromText(std::string_view text) {
+  return SceneFromJson(ParseJson(text));
+}
 
 std::string ReadFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -370,7 +400,9 @@ std::string ReadFile(const std::string& path) {
   return buffer.str();
 }
 
-Scene LoadSceneFile(const std::string& path) { return SceneFromText(ReadFile(path)); }
+Scene LoadSceneFile(const std::string& path) {
+  return SceneFromText(ReadFile(path));
+}
 
 Json SceneToJson(const Scene& s) {
   Json j;
@@ -389,16 +421,24 @@ Json SceneToJson(const Scene& s) {
     cj["type"] = CandidateKindName(c.kind);
     switch (c.kind) {
       case CandidateSpec::Kind::kGrid:
-        if (c.spacing.empty()) break;  // inferred (written out because an FEM scene's default differs)
-        if (std::all_of(c.spacing.begin(), c.spacing.end(), [&](double h) { return h == c.spacing[0]; })) {
+        if (c.spacing.empty())
+          break;  // inferred (written out because an FEM scene's default differs)
+        if (std::all_of(c.spacing.begin(), c.spacing.end(),
+                        [&](double h) { return h == c.spacing[0]; })) {
           cj["spacing"] = c.spacing[0];
         } else {
           cj["spacing"] = c.spacing;
         }
         break;
-      case CandidateSpec::Kind::kNearest: cj["k"] = c.k; break;
-      case CandidateSpec::Kind::kRadius: cj["radius"] = c.radius; break;
-      case CandidateSpec::Kind::kPairs: cj["pairs"] = PairsToJson(c.pairs); break;
+      case CandidateSpec::Kind::kNearest:
+        cj["k"] = c.k;
+        break;
+      case CandidateSpec::Kind::kRadius:
+        cj["radius"] = c.radius;
+        break;
+      case CandidateSpec::Kind::kPairs:
+        cj["pairs"] = PairsToJson(c.pairs);
+        break;
       case CandidateSpec::Kind::kMesh:
         if (c.k > 0) cj["k"] = c.k;
         break;
@@ -445,7 +485,8 @@ Json SceneToJson(const Scene& s) {
   if (st.crossover_probability) sj["crossover_probability"] = *st.crossover_probability;
   if (st.mutation_probability) sj["mutation_probability"] = *st.mutation_probability;
   if (st.max_generations != d.max_generations) sj["max_generations"] = st.max_generations;
-  if (st.target_normalized_error != d.target_normalized_error) sj["target_normalized_error"] = st.target_normalized_error;
+  if (st.target_normalized_error != d.target_normalized_error)
+    sj["target_normalized_error"] = st.target_normalized_error;
   if (!sj.empty()) j["search"] = std::move(sj);
   return j;
 }

@@ -8,7 +8,9 @@
 #include "proto/scene_codec.h"
 
 namespace springfit::proto {
-Json CountOrNull(int count) { return count < 0 ? Json(nullptr) : Json(count); }
+Json CountOrNull(int count) {
+  return count < 0 ? Json(nullptr) : Json(count);
+}
 
 namespace {
 
@@ -26,8 +28,10 @@ Json SearchOptionsToJson(const SearchOptions& o) {
   j["max_generations"] = o.max_generations;
   j["target_normalized_error"] = o.target_normalized_error;
   j["selection"] = o.selection == SearchOptions::Selection::kRoulette ? "roulette" : "tournament";
-  if (o.selection == SearchOptions::Selection::kTournament) j["tournament_size"] = o.tournament_size;
-  if (o.selection == SearchOptions::Selection::kRoulette) j["roulette_exponent"] = o.roulette_exponent;
+  if (o.selection == SearchOptions::Selection::kTournament)
+    j["tournament_size"] = o.tournament_size;
+  if (o.selection == SearchOptions::Selection::kRoulette)
+    j["roulette_exponent"] = o.roulette_exponent;
   j["crossover"] = o.crossover == SearchOptions::Crossover::kOnePoint ? "one_point" : "uniform";
   j["crossover_probability"] = o.crossover_probability;
   j["mutation_probability"] = o.mutation_probability;
@@ -60,17 +64,23 @@ Json TraceRowToJson(const TraceRow& r) {
 }
 
 TraceRow TraceRowFromJson(const Json& j, const std::string& path) {
-  ExpectKeys(j, path, {"generation", "wall_seconds", "evaluations", "cache_hits", "best_cost",
-                       "best_normalized_error", "mean_cost", "missing", "extra"});
+  ExpectKeys(j, path,
+             {"generation", "wall_seconds", "evaluations", "cache_hits", "best_cost",
+              "best_normalized_error", "mean_cost", "missing", "extra"});
   auto at = [&](const char* key) -> const Json& { return RequiredMember(j, path, key); };
-  auto count = [&](const char* key) { return at(key).is_null() ? -1 : ReadInt(at(key), JoinPath(path, key)); };
+  auto count = [&](const char* key) {
+    return at(key).is_null() ? -1 : ReadInt(at(key), JoinPath(path, key));
+  };
   TraceRow r;
   r.generation = ReadInt(at("generation"), JoinPath(path, "generation"));
   r.wall_seconds = ReadNumber(at("wall_seconds"), JoinPath(path, "wall_seconds"));
-  r.evaluations = static_cast<std::int64_t>(ReadUint64(at("evaluations"), JoinPath(path, "evaluations")));
-  r.cache_hits = static_cast<std::int64_t>(ReadUint64(at("cache_hits"), JoinPath(path, "cache_hits")));
+  r.evaluations =
+      static_cast<std::int64_t>(ReadUint64(at("evaluations"), JoinPath(path, "evaluations")));
+  r.cache_hits =
+      static_cast<std::int64_t>(ReadUint64(at("cache_hits"), JoinPath(path, "cache_hits")));
   r.best_cost = ReadNumber(at("best_cost"), JoinPath(path, "best_cost"));
-  r.best_normalized_error = ReadNumber(at("best_normalized_error"), JoinPath(path, "best_normalized_error"));
+  r.best_normalized_error =
+      ReadNumber(at("best_normalized_error"), JoinPath(path, "best_normalized_error"));
   r.mean_cost = ReadNumber(at("mean_cost"), JoinPath(path, "mean_cost"));
   r.missing = count("missing");
   r.extra = count("extra");
@@ -94,13 +104,67 @@ Json IdentifiabilityToJson(const IdentifiabilityReport& report) {
   return j;
 }
 
-Json SearchResultToJson(const Problem& problem, const SearchResult& r, bool with_trace) {
+namespace {
+
+// Strategy direct's own fields: confidences and the details of its solve.
+void DirectDetailsToJson(const Problem& problem, const DirectResult& d, Json& j) {
+  // Confidence of each identified spring, and the absent ones closest to being present.
+  Json confidence = nullptr;
+  Json near = Json::array();
+  if (!d.confidence.empty()) {
+    confidence = Json::array();
+    for (int g = 0; g < static_cast<int>(d.genome.size()); ++g) {
+      const NodePair pair = problem.candidates().pairs[problem.gene_candidates()[g]];
+      if (d.genome[g]) {
+        confidence.push_back(d.confidence[g]);
+      } else if (std::isfinite(d.confidence[g]) && d.confidence[g] > -2.0) {
+        near.push_back({{"spring", {pair.first, pair.second}},
+                        {"weight", d.weights[g]},
+                        {"confidence", d.confidence[g]}});
+      }
+    }
+  }
+  j["confidence"] = std::move(confidence);
+  Json direct;
+  direct["force_residual"] = d.force_residual;
+  direct["nnls_residual"] = d.nnls_residual;
+  direct["nnls_converged"] = d.nnls.converged;
+  direct["nnls_pivots"] = d.nnls.iterations;
+  direct["refined"] = d.refined;
+  direct["refinement_iterations"] = d.refinement_iterations;
+  direct["topology_threshold"] =
+      d.topology_threshold > 0.0 ? Json(d.topology_threshold) : Json(nullptr);
+  std::vector<NodePair> added;
+  for (const int g : d.added_to_carry)
+    added.push_back(problem.candidates().pairs[problem.gene_candidates()[g]]);
+  direct["added_to_carry"] = PairsToJson(added);
+  direct["displacement_only"] = d.displacement_only;
+  direct["pinned_spring"] = nullptr;
+  if (d.pinned_gene >= 0) {
+    const NodePair pinned = problem.candidates().pairs[problem.gene_candidates()[d.pinned_gene]];
+    direct["pinned_spring"] = {pinned.first, pinned.second};
+  }
+  std::vector<NodePair> unseen;
+  for (const int g : d.unseen)
+    unseen.push_back(problem.candidates().pairs[problem.gene_candidates()[g]]);
+  direct["unseen"] = PairsToJson(unseen);
+  direct["absent_near_threshold"] = std::move(near);
+  direct["seconds"] = {{"assemble", d.assemble_seconds},
+                       {"solve", d.solve_seconds},
+                       {"evaluate", d.evaluate_seconds}};
+  j["direct"] = std::move(direct);
+}
+
+}  // namespace
+
+Json ResultToJson(const Problem& problem, const IdentificationResult& r, bool with_trace) {
   Json j;
   j["scene"] = problem.scene().name;
   j["strategy"] = StrategyName(r.options.strategy);
   j["identify"] = IdentifyName(r.options.identify);
   j["seed"] = r.options.seed;
   j["stop"] = StopReasonName(r.stop);
+  j["stop_message"] = r.stop_message;
   if (const auto exact = r.exact()) {
     j["exact"] = *exact;
     j["hamming"] = r.difference->hamming();
@@ -114,6 +178,7 @@ Json SearchResultToJson(const Problem& problem, const SearchResult& r, bool with
   }
   j["genes"] = problem.gene_count();
   j["springs"] = PairsToJson(r.springs);
+  j["stiffness"] = r.stiffness;  // parallel to springs
   std::vector<NodePair> unidentifiable;
   for (int c : problem.unidentifiable()) unidentifiable.push_back(problem.candidates().pairs[c]);
   j["unidentifiable"] = PairsToJson(unidentifiable);
@@ -134,7 +199,8 @@ Json SearchResultToJson(const Problem& problem, const SearchResult& r, bool with
     }
     // Worse: no equilibrium where the baseline has one, or a larger error.
     b["worse_than_baseline"] =
-        r.baseline->converged && (!stable || r.evaluation.normalized_error > r.baseline->normalized_error);
+        r.baseline->converged &&
+        (!stable || r.evaluation.normalized_error > r.baseline->normalized_error);
     j["baseline"] = std::move(b);
   }
   j["generations"] = r.generations;
@@ -152,67 +218,24 @@ Json SearchResultToJson(const Problem& problem, const SearchResult& r, bool with
     phase["extra"] = difference ? Json(difference->extra.size()) : Json(nullptr);
     j["direct_phase"] = std::move(phase);
   }
+  if (r.direct) DirectDetailsToJson(problem, *r.direct, j);
   if (with_trace) j["trace"] = TraceToJson(r.trace);
   return j;
 }
 
-Json DirectRunToJson(const Problem& problem, const DirectRun& run, bool with_trace) {
-  Json j = SearchResultToJson(problem, run.search, false);  // the trace goes last, below
-  j["stiffness"] = run.direct.springs.stiffness;  // parallel to springs: both in candidate order
-  const DirectResult& d = run.direct;
-  // Confidence of each identified spring, and the absent ones closest to being present.
-  Json confidence = nullptr;
-  Json near = Json::array();
-  if (!d.confidence.empty()) {
-    confidence = Json::array();
-    for (int g = 0; g < static_cast<int>(d.genome.size()); ++g) {
-      const NodePair pair = problem.candidates().pairs[problem.gene_candidates()[g]];
-      if (d.genome[g]) {
-        confidence.push_back(d.confidence[g]);
-      } else if (std::isfinite(d.confidence[g]) && d.confidence[g] > -2.0) {
-        near.push_back({{"spring", {pair.first, pair.second}}, {"weight", d.weights[g]}, {"confidence", d.confidence[g]}});
-      }
-    }
-  }
-  j["confidence"] = std::move(confidence);
-  Json direct;
-  direct["force_residual"] = d.force_residual;
-  direct["nnls_residual"] = d.nnls_residual;
-  direct["nnls_converged"] = d.nnls.converged;
-  direct["nnls_pivots"] = d.nnls.iterations;
-  direct["refined"] = d.refined;
-  direct["refinement_iterations"] = d.refinement_iterations;
-  direct["topology_threshold"] = d.topology_threshold > 0.0 ? Json(d.topology_threshold) : Json(nullptr);
-  std::vector<NodePair> added;
-  for (const int g : d.added_to_carry) added.push_back(problem.candidates().pairs[problem.gene_candidates()[g]]);
-  direct["added_to_carry"] = PairsToJson(added);
-  direct["displacement_only"] = d.displacement_only;
-  direct["pinned_spring"] = nullptr;
-  if (d.pinned_gene >= 0) {
-    const NodePair pinned = problem.candidates().pairs[problem.gene_candidates()[d.pinned_gene]];
-    direct["pinned_spring"] = {pinned.first, pinned.second};
-  }
-  std::vector<NodePair> unseen;
-  for (const int g : d.unseen) unseen.push_back(problem.candidates().pairs[problem.gene_candidates()[g]]);
-  direct["unseen"] = PairsToJson(unseen);
-  direct["absent_near_threshold"] = std::move(near);
-  direct["seconds"] = {{"assemble", d.assemble_seconds}, {"solve", d.solve_seconds}, {"evaluate", d.evaluate_seconds}};
-  j["direct"] = std::move(direct);
-  if (with_trace) j["trace"] = TraceToJson(run.search.trace);
-  return j;
-}
-
 std::string TraceCsvHeader() {
-  return "generation,wall_seconds,evaluations,cache_hits,best_cost,best_normalized_error,mean_cost,missing,extra";
+  return "generation,wall_seconds,evaluations,cache_hits,best_cost,best_normalized_error,mean_cost,"
+         "missing,extra";
 }
 
 std::string TraceRowToCsv(const TraceRow& r) {
   auto count = [](int c) { return c < 0 ? std::string() : std::to_string(c); };
   char numbers[160];
   std::snprintf(numbers, sizeof numbers, "%.6f,%lld,%lld,%.17g,%.17g,%.17g", r.wall_seconds,
-                static_cast<long long>(r.evaluations), static_cast<long long>(r.cache_hits), r.best_cost,
-                r.best_normalized_error, r.mean_cost);
-  return std::to_string(r.generation) + "," + numbers + "," + count(r.missing) + "," + count(r.extra);
+                static_cast<long long>(r.evaluations), static_cast<long long>(r.cache_hits),
+                r.best_cost, r.best_normalized_error, r.mean_cost);
+  return std::to_string(r.generation) + "," + numbers + "," + count(r.missing) + "," +
+         count(r.extra);
 }
 
 }  // namespace springfit::proto

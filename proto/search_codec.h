@@ -1,12 +1,11 @@
-// JSON and CSV forms of a search's result and trace (`springfit run`, proto/RUN.md); the
+// JSON and CSV forms of an identification's result and trace (`springfit run`, proto/RUN.md); the
 // daemon's job.result and job.trace use the same forms.
 #pragma once
 
 #include <string>
 
+#include "engine/identification/identification_result.h"
 #include "engine/problem.h"
-#include "engine/direct/run_direct.h"
-#include "engine/search/run_search.h"
 #include "proto/json_reader.h"
 
 namespace springfit::proto {
@@ -17,13 +16,12 @@ Json TraceRowToJson(const TraceRow& row);
 Json CountOrNull(int count);
 // Reads what TraceRowToJson wrote; throws InputError naming the path.
 TraceRow TraceRowFromJson(const Json& json, const std::string& path);
-// The result object; the trace is included only when `with_trace`.
 // The identifiability report (proto/RUN.md, "identifiability").
 Json IdentifiabilityToJson(const IdentifiabilityReport& report);
-Json SearchResultToJson(const Problem& problem, const SearchResult& result, bool with_trace);
-// Strategy direct: the search result's fields plus `stiffness` (per spring of `springs`) and
-// `direct` (proto/RUN.md).
-Json DirectRunToJson(const Problem& problem, const DirectRun& run, bool with_trace);
+// The result object of every strategy (proto/RUN.md): `stiffness` per spring of `springs`,
+// strategy direct's `confidence` and `direct` details when it ran; the trace only when
+// `with_trace`.
+Json ResultToJson(const Problem& problem, const IdentificationResult& result, bool with_trace);
 
 // One CSV line per trace row under a header line (no trailing newline in either).
 std::string TraceCsvHeader();

@@ -16,6 +16,8 @@ packages=(
   libspdlog-dev libfmt-dev # logging
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev # libFuzzer targets and sanitizer runtime
+  clang-format             # the format check (tests/format_check.sh)
+  git                      # the format check lists the tracked files
   python3                  # the end-to-end tests drive the CLI and the daemon with it
   calculix-ccx             # CalculiX: independent answers for the FEM reference tests
   gmsh                     # meshes a 2D shape for the FEM reference tests

@@ -64,7 +64,8 @@ class Reader {
   Genome GetGenome() {
     if (Get<std::uint8_t>() == 0) return {};
     const std::string key = GetString();
-    if (key.size() != (static_cast<std::size_t>(genes_) + 7) / 8) throw std::runtime_error("checkpoint: genome size");
+    if (key.size() != (static_cast<std::size_t>(genes_) + 7) / 8)
+      throw std::runtime_error("checkpoint: genome size");
     return FitnessCache::Unpack(key, genes_);
   }
   Fitness GetFitness() {
@@ -79,7 +80,8 @@ class Reader {
   // Element counts are checked against the bytes left, so a corrupt count cannot allocate.
   std::size_t GetCount(std::size_t min_bytes_each) {
     const auto n = Get<std::uint64_t>();
-    if (min_bytes_each > 0 && n > (bytes_.size() - pos_) / min_bytes_each) throw std::runtime_error("checkpoint: count");
+    if (min_bytes_each > 0 && n > (bytes_.size() - pos_) / min_bytes_each)
+      throw std::runtime_error("checkpoint: count");
     return n;
   }
   bool AtEnd() const { return pos_ == bytes_.size(); }
@@ -125,10 +127,13 @@ std::string EncodeCheckpoint(const SearchState& s, int genes) {
 SearchState DecodeCheckpoint(const std::string& bytes, int genes) {
   Reader r(bytes, genes);
   for (char c : kMagic) {
-    if (r.Get<char>() != c) throw std::runtime_error("checkpoint: not a springfit checkpoint of this version");
+    if (r.Get<char>() != c)
+      throw std::runtime_error("checkpoint: not a springfit checkpoint of this version");
   }
-  if (r.Get<std::uint32_t>() != kByteOrderMark) throw std::runtime_error("checkpoint: written on another byte order");
-  if (r.Get<std::int32_t>() != genes) throw std::runtime_error("checkpoint: written for another number of genes");
+  if (r.Get<std::uint32_t>() != kByteOrderMark)
+    throw std::runtime_error("checkpoint: written on another byte order");
+  if (r.Get<std::int32_t>() != genes)
+    throw std::runtime_error("checkpoint: written for another number of genes");
   SearchState s;
   s.generation = r.Get<std::int32_t>();
   s.random_state = r.GetString();

@@ -5,8 +5,7 @@
 
 #include <spdlog/spdlog.h>
 
-#include "engine/direct/run_direct.h"
-#include "engine/search/run_search.h"
+#include "engine/identification/identify.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
 #include "server/checkpoint_codec.h"
@@ -22,58 +21,40 @@ double SecondsSince(std::chrono::steady_clock::time_point t) {
 
 // A finished run: the result, and its JSON as job.result answers it.
 struct FinishedRun {
-  SearchResult result;
+  IdentificationResult result;
   proto::Json json;
 };
 
 JobRecord FinishJob(JobStore& store, JobRecord& record, FinishedRun finished) {
-  const SearchResult& result = finished.result;
+  const IdentificationResult& result = finished.result;
   finished.json["job_id"] = record.id;
-  record.state = result.stop == StopReason::kCancelled ? JobState::kCancelled : JobState::kSucceeded;
+  record.state =
+      result.stop == StopReason::kCancelled ? JobState::kCancelled : JobState::kSucceeded;
   record.exact = result.exact();
   record.finished_at = UnixNow();
-  store.MarkFinished(record.id, record.state, "", finished.json.dump(), record.exact, record.finished_at);
+  store.MarkFinished(record.id, record.state, "", finished.json.dump(), record.exact,
+                     record.finished_at);
   spdlog::info("job {} {} after {} generations, {:.3f} s, normalized error {:.3g}{}", record.id,
                proto::JobStateName(record.state), result.generations, result.wall_seconds,
-               result.evaluation.normalized_error, record.exact ? (*record.exact ? ", exact" : ", not exact") : "");
+               result.evaluation.normalized_error,
+               record.exact ? (*record.exact ? ", exact" : ", not exact") : "");
   return record;
-}
-
-// Strategy direct: one solve, no generations, so nothing to checkpoint; its single trace row
-// and improvement are stored like a GA's, so job.trace, job.improvements and job.watch
-// behave the same. A cancel asked during the solve takes effect when it returns.
-FinishedRun RunDirectJob(JobStore& store, const Problem& problem, const SearchOptions& options, std::int64_t id,
-                         JobRecord& record, const JobControl& control) {
-  DirectRun run = RunDirect(problem, options);
-  const TraceRow& row = run.search.trace.front();
-  ProgressBatch batch;
-  batch.trace.push_back(row);
-  batch.improvements.push_back({row.generation, row.wall_seconds, row.best_cost, row.best_normalized_error,
-                                row.missing, row.extra, run.search.best});
-  batch.latest = row;
-  store.SaveProgress(id, batch);
-  record.progress = row;
-  if (control.on_generation) control.on_generation(row);
-  if (control.cancel && control.cancel->load() && run.search.stop != StopReason::kTargetReached) {
-    run.search.stop = StopReason::kCancelled;
-  }
-  proto::Json json = proto::DirectRunToJson(problem, run, false);
-  return {std::move(run.search), std::move(json)};
 }
 
 }  // namespace
 
-JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job, const JobRunnerOptions& options,
-                 const JobControl& control) {
+JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
+                 const JobRunnerOptions& options, const JobControl& control) {
   JobRecord record = job;
   try {
     const std::optional<std::string> scene = store.GetScene(job.id);
     if (!scene) throw std::runtime_error("the job's scene is missing from the store");
     const Problem problem = Problem::Build(proto::SceneFromText(*scene));
-    const SearchOptions search_options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
+    const SearchOptions search_options =
+        ResolveSearchOptions(problem.scene().search, problem.gene_count());
     const int genes = problem.gene_count();
 
-    RunOptions run;
+    RunContext run;
     run.pool = &pool;
     int resumed_at = -1;
     if (const std::optional<std::string> bytes = store.GetCheckpoint(job.id)) {
@@ -81,7 +62,8 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job, const 
         run.resume_from = DecodeCheckpoint(*bytes, genes);
         resumed_at = run.resume_from->generation;
       } catch (const std::exception& e) {
-        spdlog::warn("job {}: checkpoint unusable ({}); starting again from generation 0", job.id, e.what());
+        spdlog::warn("job {}: checkpoint unusable ({}); starting again from generation 0", job.id,
+                     e.what());
       }
     }
     // Rows and improvements after the checkpoint are about to be produced again.
@@ -90,14 +72,11 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job, const 
     record.state = JobState::kRunning;
     store.MarkRunning(job.id, record.started_at);
     if (resumed_at >= 0) {
-      spdlog::info("job {} running, resumed from its checkpoint at generation {}", job.id, resumed_at);
+      spdlog::info("job {} running, resumed from its checkpoint at generation {}", job.id,
+                   resumed_at);
     } else {
-      spdlog::info("job {} running ({}, {} genes, strategy {}, seed {})", job.id, record.scene_name, genes,
-                   record.strategy, record.seed);
-    }
-
-    if (search_options.strategy == Strategy::kDirect) {
-      return FinishJob(store, record, RunDirectJob(store, problem, search_options, job.id, record, control));
+      spdlog::info("job {} running ({}, {} genes, strategy {}, seed {})", job.id, record.scene_name,
+                   genes, record.strategy, record.seed);
     }
 
     ProgressBatch batch;
@@ -106,14 +85,18 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job, const 
     double best_error = run.resume_from ? run.resume_from->best_fitness.normalized_error
                                         : std::numeric_limits<double>::infinity();
     bool interrupted = false;
-    run.on_generation = [&](const TraceRow& row, const GeneticSearch& search) {
+    // Strategy direct reports once, finished, with nothing to checkpoint; its single row and
+    // improvement are stored like a GA's, so job.trace, job.improvements and job.watch behave
+    // the same.
+    run.on_iteration = [&](const TraceRow& row, const IterationState& state) {
       const bool improved = row.best_normalized_error < best_error;
       if (improved) {
         best_error = row.best_normalized_error;
-        batch.improvements.push_back({row.generation, row.wall_seconds, row.best_cost, row.best_normalized_error,
-                                      row.missing, row.extra, search.state().best});
+        batch.improvements.push_back({row.generation, row.wall_seconds, row.best_cost,
+                                      row.best_normalized_error, row.missing, row.extra,
+                                      *state.best});
       }
-      const bool finished = search.Finished();
+      const bool finished = state.finished;
       const bool cancel = control.cancel && control.cancel->load();
       const bool shutdown = !finished && !cancel && control.shutdown && control.shutdown->load();
       // A cancelled job's last row is kept; a shut-down job's is not special: it will be
@@ -121,13 +104,16 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job, const 
       if (KeepTraceRow(row.generation, improved, finished || cancel)) batch.trace.push_back(row);
       batch.latest = row;
       if (control.on_generation) control.on_generation(row);
-      if (shutdown || (!finished && !cancel && SecondsSince(last_checkpoint) >= options.checkpoint_seconds)) {
-        batch.checkpoint = EncodeCheckpoint(search.Snapshot(), genes);
+      if (state.snapshot &&
+          (shutdown ||
+           (!finished && !cancel && SecondsSince(last_checkpoint) >= options.checkpoint_seconds))) {
+        batch.checkpoint = EncodeCheckpoint(state.snapshot(), genes);
         batch.checkpoint_generation = row.generation;
         record.checkpoint_generation = row.generation;
         last_checkpoint = std::chrono::steady_clock::now();
       }
-      if (batch.checkpoint || finished || cancel || SecondsSince(last_flush) >= options.flush_seconds) {
+      if (batch.checkpoint || finished || cancel ||
+          SecondsSince(last_flush) >= options.flush_seconds) {
         store.SaveProgress(job.id, batch);
         batch = ProgressBatch{};
         last_flush = std::chrono::steady_clock::now();
@@ -136,13 +122,15 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job, const 
       interrupted = shutdown;
       return !cancel && !shutdown;
     };
-    const SearchResult result = RunSearch(problem, search_options, run);
+    const IdentificationResult result = RunIdentification(problem, search_options, run);
     if (interrupted && result.stop == StopReason::kCancelled) {
-      spdlog::info("job {} interrupted by the shutdown at generation {}; it resumes from there at the next start",
-                   job.id, result.generations);
+      spdlog::info(
+          "job {} interrupted by the shutdown at generation {}; it resumes from there at the next "
+          "start",
+          job.id, result.generations);
       return record;
     }
-    return FinishJob(store, record, {result, proto::SearchResultToJson(problem, result, false)});
+    return FinishJob(store, record, {result, proto::ResultToJson(problem, result, false)});
   } catch (const std::exception& e) {
     record.state = JobState::kFailed;
     record.error = e.what();

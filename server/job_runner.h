@@ -24,7 +24,7 @@ struct JobControl {
 
 // The job's record after the run: finished (succeeded, failed, cancelled), or still running
 // when a shutdown interrupted it (it resumes from its checkpoint at the next start).
-JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job, const JobRunnerOptions& options,
-                 const JobControl& control);
+JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
+                 const JobRunnerOptions& options, const JobControl& control);
 
 }  // namespace springfit::server

@@ -37,10 +37,10 @@ struct Improvement {
 
 // What a running job hands to the store at each flush: everything since the last one.
 struct ProgressBatch {
-  std::vector<TraceRow> trace;              // rows to keep (the trace policy already applied)
+  std::vector<TraceRow> trace;  // rows to keep (the trace policy already applied)
   std::vector<Improvement> improvements;
-  std::optional<TraceRow> latest;           // the newest generation, kept or not
-  std::optional<std::string> checkpoint;    // server/checkpoint_codec.h; replaces the last one
+  std::optional<TraceRow> latest;         // the newest generation, kept or not
+  std::optional<std::string> checkpoint;  // server/checkpoint_codec.h; replaces the last one
   int checkpoint_generation = -1;
 };
 
@@ -77,8 +77,9 @@ class JobStore {
   virtual void MarkRunning(std::int64_t id, double started_at) = 0;
   virtual void SaveProgress(std::int64_t id, const ProgressBatch& batch) = 0;
   // Final state, its error (failed) and result JSON (succeeded or cancelled; may be empty).
-  virtual void MarkFinished(std::int64_t id, JobState state, const std::string& error, const std::string& result_json,
-                            std::optional<bool> exact, double finished_at) = 0;
+  virtual void MarkFinished(std::int64_t id, JobState state, const std::string& error,
+                            const std::string& result_json, std::optional<bool> exact,
+                            double finished_at) = 0;
 
   virtual std::optional<std::string> GetResult(std::int64_t id) = 0;
   // Trace rows with generation > after, oldest first, at most `limit`.

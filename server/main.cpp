@@ -8,11 +8,11 @@
 #include <iostream>
 #include <thread>
 
+#include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/address.hpp>
 #include <boost/asio/signal_set.hpp>
-#include <spdlog/spdlog.h>
 
 #include "proto/scene_codec.h"
 #include "proto/server_address.h"
@@ -45,7 +45,8 @@ std::string ReadToken(const std::string& path) {
   std::string token = springfit::proto::ReadFile(path);
   while (!token.empty() && std::isspace(static_cast<unsigned char>(token.back()))) token.pop_back();
   if (token.empty()) throw std::runtime_error("the token file " + path + " is empty");
-  if (token.size() < 16) throw std::runtime_error("the token in " + path + " is shorter than 16 characters");
+  if (token.size() < 16)
+    throw std::runtime_error("the token in " + path + " is shorter than 16 characters");
   return token;
 }
 
@@ -54,14 +55,16 @@ int RunDaemon(const DaemonArgs& args) {
   spdlog::set_level(level);
   spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
 
-  const springfit::proto::ServerAddress address = springfit::proto::ParseServerAddress(args.listen, "--listen");
+  const springfit::proto::ServerAddress address =
+      springfit::proto::ParseServerAddress(args.listen, "--listen");
   const std::string token = args.token_file.empty() ? std::string() : ReadToken(args.token_file);
   boost::system::error_code ec;
   const auto ip = boost::asio::ip::make_address(address.host, ec);
   if (ec) throw std::runtime_error("--listen: '" + address.host + "' is not an IP address");
   if (!ip.is_loopback() && token.empty()) {
-    throw std::runtime_error("refusing to listen on " + args.listen +
-                             " without a token: other hosts could submit and delete jobs (--token-file FILE)");
+    throw std::runtime_error(
+        "refusing to listen on " + args.listen +
+        " without a token: other hosts could submit and delete jobs (--token-file FILE)");
   }
 
   sf::SqliteStore store(args.db);
@@ -90,9 +93,9 @@ int RunDaemon(const DaemonArgs& args) {
 
   const auto unfinished = store.UnfinishedJobs().size();
   scheduler.Start();
-  spdlog::info("springfitd listening on {}:{} (database {}, {} workers, {} jobs at once{}{})", address.host,
-               server.port(), args.db, scheduler_options.workers, scheduler_options.max_running,
-               token.empty() ? "" : ", token required",
+  spdlog::info("springfitd listening on {}:{} (database {}, {} workers, {} jobs at once{}{})",
+               address.host, server.port(), args.db, scheduler_options.workers,
+               scheduler_options.max_running, token.empty() ? "" : ", token required",
                unfinished ? ", " + std::to_string(unfinished) + " unfinished jobs queued" : "");
   if (!args.port_file.empty()) {
     const std::string tmp = args.port_file + ".tmp";
@@ -104,7 +107,8 @@ int RunDaemon(const DaemonArgs& args) {
   std::thread stopper;
   signals.async_wait([&](const boost::system::error_code& error, int signal) {
     if (error) return;
-    spdlog::info("signal {}: stopping (running jobs checkpoint and resume at the next start)", signal);
+    spdlog::info("signal {}: stopping (running jobs checkpoint and resume at the next start)",
+                 signal);
     service.set_stopping();
     server.StopAccepting();
     // A second signal does not wait for the jobs.
@@ -117,11 +121,14 @@ int RunDaemon(const DaemonArgs& args) {
     // The jobs are waited for off the I/O thread, so that answers and job.finished
     // notifications of the last moments still reach their connections.
     stopper = std::thread([&] {
-      const auto timeout = std::chrono::milliseconds(static_cast<long long>(args.shutdown_seconds * 1000));
+      const auto timeout =
+          std::chrono::milliseconds(static_cast<long long>(args.shutdown_seconds * 1000));
       if (!scheduler.Stop(timeout)) {
-        // A job in a long generation: leave it as a crash would, to resume from its last checkpoint.
-        spdlog::warn("jobs still running after {:.1f} s; exiting, they resume from their last checkpoint",
-                     args.shutdown_seconds);
+        // A job in a long generation: leave it as a crash would, to resume from its last
+        // checkpoint.
+        spdlog::warn(
+            "jobs still running after {:.1f} s; exiting, they resume from their last checkpoint",
+            args.shutdown_seconds);
         spdlog::shutdown();
         std::_Exit(1);
       }
@@ -145,21 +152,28 @@ int main(int argc, char** argv) {
   CLI::App app{"springfitd: the springfit identification daemon (JSON-RPC over TCP, proto/RPC.md)"};
   app.set_version_flag("--version", "springfitd 0.1.0");
   DaemonArgs args;
-  app.add_option("--listen", args.listen, "Address to listen on, HOST:PORT (port 0: any free port)")->capture_default_str();
-  app.add_option("--db", args.db, "SQLite database file (created when missing)")->capture_default_str();
+  app.add_option("--listen", args.listen, "Address to listen on, HOST:PORT (port 0: any free port)")
+      ->capture_default_str();
+  app.add_option("--db", args.db, "SQLite database file (created when missing)")
+      ->capture_default_str();
   app.add_option("--workers", args.workers, "Threads for fitness evaluations, all jobs together")
       ->check(CLI::Range(1, 1024))
       ->capture_default_str();
-  app.add_option("--jobs", args.max_running, "Jobs run at once (default: --workers)")->check(CLI::Range(1, 1024));
-  app.add_option("--token-file", args.token_file, "File holding the token clients must present (session.auth)");
-  app.add_option("--port-file", args.port_file, "Write the port listened on to this file once listening");
+  app.add_option("--jobs", args.max_running, "Jobs run at once (default: --workers)")
+      ->check(CLI::Range(1, 1024));
+  app.add_option("--token-file", args.token_file,
+                 "File holding the token clients must present (session.auth)");
+  app.add_option("--port-file", args.port_file,
+                 "Write the port listened on to this file once listening");
   app.add_option("--log-level", args.log_level, "trace, debug, info, warn, error or off")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}))
       ->capture_default_str();
-  app.add_option("--checkpoint-seconds", args.checkpoint_seconds, "Checkpoint running jobs at least this often")
+  app.add_option("--checkpoint-seconds", args.checkpoint_seconds,
+                 "Checkpoint running jobs at least this often")
       ->check(CLI::Range(0.0, 86400.0))
       ->capture_default_str();
-  app.add_option("--idle-seconds", args.idle_seconds, "Close connections idle this long (not while watching a job)")
+  app.add_option("--idle-seconds", args.idle_seconds,
+                 "Close connections idle this long (not while watching a job)")
       ->check(CLI::Range(1.0, 86400.0))
       ->capture_default_str();
   app.add_option("--shutdown-seconds", args.shutdown_seconds,
@@ -181,7 +195,8 @@ int main(int argc, char** argv) {
   app.add_option("--max-genes", args.limits.max_genes, "Candidate springs in a submitted scene")
       ->check(CLI::Range(1, 100000000))
       ->capture_default_str();
-  app.add_option("--max-generations", args.limits.max_generations, "Generation limit of a submitted job")
+  app.add_option("--max-generations", args.limits.max_generations,
+                 "Generation limit of a submitted job")
       ->check(CLI::Range(1, 1000000000))
       ->capture_default_str();
   try {

@@ -36,7 +36,9 @@ bool SameToken(const std::string& expected, const std::string& given) {
   return diff == 0;
 }
 
-std::string ParamPath(std::string_view key) { return proto::JoinPath("params", key); }
+std::string ParamPath(std::string_view key) {
+  return proto::JoinPath("params", key);
+}
 
 const Json* Optional(const Json& params, const char* key) {
   const auto it = params.find(key);
@@ -45,7 +47,8 @@ const Json* Optional(const Json& params, const char* key) {
 
 std::string ReadBoundedString(const Json& v, const std::string& path) {
   std::string s = proto::ReadString(v, path);
-  if (s.size() > kMaxLabelBytes) throw InputError(path, "longer than " + std::to_string(kMaxLabelBytes) + " bytes");
+  if (s.size() > kMaxLabelBytes)
+    throw InputError(path, "longer than " + std::to_string(kMaxLabelBytes) + " bytes");
   return s;
 }
 
@@ -64,11 +67,15 @@ int ReadPageLimit(const Json& params, int default_limit, int max) {
   data["limit"] = what;
   data["value"] = value;
   data["max"] = max;
-  throw rpc::RpcError(rpc::kLimitExceeded,
-                      what + " " + std::to_string(value) + " exceeds this server's limit of " + std::to_string(max), data);
+  throw rpc::RpcError(
+      rpc::kLimitExceeded,
+      what + " " + std::to_string(value) + " exceeds this server's limit of " + std::to_string(max),
+      data);
 }
 
-bool IsValidId(const Json& id) { return id.is_null() || id.is_string() || id.is_number(); }
+bool IsValidId(const Json& id) {
+  return id.is_null() || id.is_string() || id.is_number();
+}
 
 }  // namespace
 
@@ -80,7 +87,8 @@ std::string RpcService::HandleMessage(std::string_view text, SessionContext& ses
   try {
     message = proto::ParseJson(text);
   } catch (const InputError& e) {
-    return rpc::Serialize(rpc::Error(nullptr, rpc::kParseError, std::string("parse error: ") + e.what()));
+    return rpc::Serialize(
+        rpc::Error(nullptr, rpc::kParseError, std::string("parse error: ") + e.what()));
   }
   const Json response = HandleJson(message, session);
   return response.is_null() ? std::string() : rpc::Serialize(response);
@@ -88,14 +96,16 @@ std::string RpcService::HandleMessage(std::string_view text, SessionContext& ses
 
 Json RpcService::HandleJson(const Json& message, SessionContext& session) {
   if (!message.is_array()) return HandleRequest(message, session);
-  if (message.empty()) return rpc::Error(nullptr, rpc::kInvalidRequest, "invalid request: an empty batch");
+  if (message.empty())
+    return rpc::Error(nullptr, rpc::kInvalidRequest, "invalid request: an empty batch");
   if (static_cast<int>(message.size()) > options_.limits.max_batch) {
     Json data;
     data["limit"] = "max_batch";
     data["value"] = message.size();
     data["max"] = options_.limits.max_batch;
     return rpc::Error(nullptr, rpc::kLimitExceeded,
-                      "a batch of " + std::to_string(message.size()) + " requests exceeds this server's limit of " +
+                      "a batch of " + std::to_string(message.size()) +
+                          " requests exceeds this server's limit of " +
                           std::to_string(options_.limits.max_batch),
                       data);
   }
@@ -113,25 +123,31 @@ void RpcService::EndSession(SessionContext& session) {
 }
 
 Json RpcService::HandleRequest(const Json& request, SessionContext& session) {
-  if (!request.is_object()) return rpc::Error(nullptr, rpc::kInvalidRequest, "invalid request: not an object");
+  if (!request.is_object())
+    return rpc::Error(nullptr, rpc::kInvalidRequest, "invalid request: not an object");
   const auto id_it = request.find("id");
   const bool is_notification = id_it == request.end();
   const Json id = is_notification || !IsValidId(*id_it) ? Json(nullptr) : *id_it;
-  auto invalid = [&](const std::string& why) { return rpc::Error(id, rpc::kInvalidRequest, "invalid request: " + why); };
-  if (!is_notification && !IsValidId(*id_it)) return invalid("id must be a string, a number or null");
+  auto invalid = [&](const std::string& why) {
+    return rpc::Error(id, rpc::kInvalidRequest, "invalid request: " + why);
+  };
+  if (!is_notification && !IsValidId(*id_it))
+    return invalid("id must be a string, a number or null");
   const auto version = request.find("jsonrpc");
   if (version == request.end() || *version != "2.0") return invalid("jsonrpc must be \"2.0\"");
   const auto method = request.find("method");
   if (method == request.end() || !method->is_string()) return invalid("method must be a string");
   for (const auto& [key, value] : request.items()) {
-    if (key != "jsonrpc" && key != "id" && key != "method" && key != "params") return invalid("unknown member '" + key + "'");
+    if (key != "jsonrpc" && key != "id" && key != "method" && key != "params")
+      return invalid("unknown member '" + key + "'");
   }
   Json params = Json::object();
   if (const auto p = request.find("params"); p != request.end()) {
     if (p->is_array()) {
       Json data;
       data["path"] = "params";
-      return rpc::Error(id, rpc::kInvalidParams, "invalid params: springfit methods take named params (an object)", data);
+      return rpc::Error(id, rpc::kInvalidParams,
+                        "invalid params: springfit methods take named params (an object)", data);
     }
     if (!p->is_object()) return invalid("params must be an object");
     params = *p;
@@ -144,7 +160,8 @@ Json RpcService::HandleRequest(const Json& request, SessionContext& session) {
   } catch (const InputError& e) {
     Json data;
     data["path"] = e.path();
-    response = rpc::Error(id, rpc::kInvalidParams, std::string("invalid params: ") + e.what(), data);
+    response =
+        rpc::Error(id, rpc::kInvalidParams, std::string("invalid params: ") + e.what(), data);
   } catch (const std::exception& e) {
     spdlog::error("{}: internal error: {}", method->get<std::string>(), e.what());
     response = rpc::Error(id, rpc::kInternalError, std::string("internal error: ") + e.what());
@@ -160,17 +177,23 @@ Json RpcService::Dispatch(const std::string& method, const Json& params, Session
   if (method == "session.auth") return SessionAuth(params, session);
   using Handler = Json (RpcService::*)(const Json&);
   static const std::pair<const char*, Handler> kJobMethods[] = {
-      {"job.submit", &RpcService::JobSubmit}, {"job.get", &RpcService::JobGet},
-      {"job.result", &RpcService::JobResult}, {"job.trace", &RpcService::JobTrace},
-      {"job.list", &RpcService::JobList},     {"job.cancel", &RpcService::JobCancel},
-      {"job.delete", &RpcService::JobDelete},   {"job.scene", &RpcService::JobScene},
+      {"job.submit", &RpcService::JobSubmit},
+      {"job.get", &RpcService::JobGet},
+      {"job.result", &RpcService::JobResult},
+      {"job.trace", &RpcService::JobTrace},
+      {"job.list", &RpcService::JobList},
+      {"job.cancel", &RpcService::JobCancel},
+      {"job.delete", &RpcService::JobDelete},
+      {"job.scene", &RpcService::JobScene},
       {"job.improvements", &RpcService::JobImprovements},
   };
-  const bool known = method == "job.watch" || std::any_of(std::begin(kJobMethods), std::end(kJobMethods),
-                                                          [&](const auto& m) { return method == m.first; });
+  const bool known =
+      method == "job.watch" || std::any_of(std::begin(kJobMethods), std::end(kJobMethods),
+                                           [&](const auto& m) { return method == m.first; });
   if (!known) throw rpc::RpcError(rpc::kMethodNotFound, "method not found: " + method);
   if (!options_.token.empty() && !session.authenticated) {
-    throw rpc::RpcError(rpc::kUnauthorized, "unauthorized: call session.auth with the server's token first");
+    throw rpc::RpcError(rpc::kUnauthorized,
+                        "unauthorized: call session.auth with the server's token first");
   }
   if (method == "job.watch") return JobWatch(params, session);
   for (const auto& [name, handler] : kJobMethods) {
@@ -205,7 +228,8 @@ Json RpcService::ServerInfo() {
 
 Json RpcService::SessionAuth(const Json& params, SessionContext& session) {
   proto::ExpectKeys(params, "params", {"token"});
-  const std::string token = proto::ReadString(proto::RequiredMember(params, "params", "token"), ParamPath("token"));
+  const std::string token =
+      proto::ReadString(proto::RequiredMember(params, "params", "token"), ParamPath("token"));
   if (options_.token.empty()) {
     session.authenticated = true;
   } else if (SameToken(options_.token, token)) {
@@ -225,19 +249,23 @@ Json RpcService::JobSubmit(const Json& params) {
   if (stopping()) throw rpc::RpcError(rpc::kBusy, "busy: the server is shutting down");
   NewJob job;
   JobRecord& r = job.record;
-  if (const Json* v = Optional(params, "label")) r.label = ReadBoundedString(*v, ParamPath("label"));
+  if (const Json* v = Optional(params, "label"))
+    r.label = ReadBoundedString(*v, ParamPath("label"));
   if (const Json* v = Optional(params, "priority")) {
     r.priority = proto::ReadInt(*v, ParamPath("priority"));
-    if (r.priority < -1000 || r.priority > 1000) throw InputError(ParamPath("priority"), "must be in [-1000, 1000]");
+    if (r.priority < -1000 || r.priority > 1000)
+      throw InputError(ParamPath("priority"), "must be in [-1000, 1000]");
   }
   if (const Json* v = Optional(params, "idempotency_key")) {
     r.idempotency_key = ReadBoundedString(*v, ParamPath("idempotency_key"));
-    if (r.idempotency_key.empty()) throw InputError(ParamPath("idempotency_key"), "must not be empty");
+    if (r.idempotency_key.empty())
+      throw InputError(ParamPath("idempotency_key"), "must not be empty");
   }
   std::optional<std::uint64_t> seed;
   if (const Json* v = Optional(params, "seed")) seed = proto::ReadUint64(*v, ParamPath("seed"));
   const Json& scene_json = proto::RequiredMember(params, "params", "scene");
-  if (!scene_json.is_object()) throw InputError(ParamPath("scene"), "expected a scene object (proto/SCENE.md)");
+  if (!scene_json.is_object())
+    throw InputError(ParamPath("scene"), "expected a scene object (proto/SCENE.md)");
 
   // The scene is validated in full here, so that a bad one is refused at the door rather
   // than failing later as a job.
@@ -248,7 +276,8 @@ Json RpcService::JobSubmit(const Json& params) {
       LimitExceeded("max_nodes", scene.node_count(), options_.limits.max_nodes);
     }
     if (scene.search.max_generations > options_.limits.max_generations) {
-      LimitExceeded("max_generations", scene.search.max_generations, options_.limits.max_generations);
+      LimitExceeded("max_generations", scene.search.max_generations,
+                    options_.limits.max_generations);
     }
     if (seed) scene.search.seed = *seed;
     problem = Problem::Build(std::move(scene));
@@ -270,12 +299,13 @@ Json RpcService::JobSubmit(const Json& params) {
   r.created_at = UnixNow();
   job.scene_json = proto::SceneToJson(scene).dump();
   if (store_.CountQueued() >= options_.limits.max_queued) {
-    throw rpc::RpcError(rpc::kBusy, "busy: " + std::to_string(options_.limits.max_queued) + " jobs are queued already");
+    throw rpc::RpcError(rpc::kBusy, "busy: " + std::to_string(options_.limits.max_queued) +
+                                        " jobs are queued already");
   }
   const JobStore::Created created = store_.CreateJob(job);
   if (created.created) {
-    spdlog::info("job {} queued ({}, label '{}', priority {}, seed {})", created.job.id, r.scene_name, r.label,
-                 r.priority, r.seed);
+    spdlog::info("job {} queued ({}, label '{}', priority {}, seed {})", created.job.id,
+                 r.scene_name, r.label, r.priority, r.seed);
     scheduler_.Enqueue(created.job);
   }
   Json j;
@@ -314,10 +344,12 @@ Json RpcService::JobResult(const Json& params) {
   if (!result) {
     Json data;
     data["state"] = proto::JobStateName(job.state);
-    std::string why = job.state == JobState::kFailed ? "job " + std::to_string(job.id) + " failed: " + job.error
-                      : proto::IsFinal(job.state)     ? "job " + std::to_string(job.id) + " was cancelled before it ran"
-                                                      : "job " + std::to_string(job.id) + " is " +
-                                                            std::string(proto::JobStateName(job.state)) + "; no result yet";
+    std::string why = job.state == JobState::kFailed
+                          ? "job " + std::to_string(job.id) + " failed: " + job.error
+                      : proto::IsFinal(job.state)
+                          ? "job " + std::to_string(job.id) + " was cancelled before it ran"
+                          : "job " + std::to_string(job.id) + " is " +
+                                std::string(proto::JobStateName(job.state)) + "; no result yet";
     throw rpc::RpcError(rpc::kWrongState, why, data);
   }
   Json j = proto::ParseJson(*result);
@@ -337,7 +369,8 @@ Json RpcService::JobTrace(const Json& params) {
   Json list = Json::array();
   for (const TraceRow& row : rows) list.push_back(proto::TraceRowToJson(row));
   j["rows"] = std::move(list);
-  j["next_after"] = static_cast<int>(rows.size()) == limit ? Json(rows.back().generation) : Json(nullptr);
+  j["next_after"] =
+      static_cast<int>(rows.size()) == limit ? Json(rows.back().generation) : Json(nullptr);
   return j;
 }
 
@@ -385,10 +418,12 @@ Json RpcService::JobList(const Json& params) {
     filter.state = proto::ParseJobState(name);
     if (!filter.state) {
       throw InputError(ParamPath("state"),
-                       "unknown state '" + name + "' (expected queued, running, succeeded, failed or cancelled)");
+                       "unknown state '" + name +
+                           "' (expected queued, running, succeeded, failed or cancelled)");
     }
   }
-  if (const Json* v = Optional(params, "label")) filter.label = ReadBoundedString(*v, ParamPath("label"));
+  if (const Json* v = Optional(params, "label"))
+    filter.label = ReadBoundedString(*v, ParamPath("label"));
   filter.limit = ReadPageLimit(params, 100, options_.limits.max_page);
   if (const Json* v = Optional(params, "cursor")) {
     const std::uint64_t cursor = proto::ReadUint64(*v, ParamPath("cursor"));
@@ -419,7 +454,8 @@ Json RpcService::JobCancel(const Json& params) {
     Json data;
     data["state"] = proto::JobStateName(job.state);
     throw rpc::RpcError(rpc::kWrongState,
-                        "job " + std::to_string(job.id) + " is " + std::string(proto::JobStateName(job.state)) +
+                        "job " + std::to_string(job.id) + " is " +
+                            std::string(proto::JobStateName(job.state)) +
                             "; only a queued or running job can be cancelled",
                         data);
   }
@@ -436,7 +472,8 @@ Json RpcService::JobDelete(const Json& params) {
     Json data;
     data["state"] = proto::JobStateName(job.state);
     throw rpc::RpcError(rpc::kWrongState,
-                        "job " + std::to_string(job.id) + " is " + std::string(proto::JobStateName(job.state)) +
+                        "job " + std::to_string(job.id) + " is " +
+                            std::string(proto::JobStateName(job.state)) +
                             "; cancel it before deleting it",
                         data);
   }

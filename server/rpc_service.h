@@ -57,7 +57,8 @@ class RpcService {
 
  private:
   proto::Json HandleRequest(const proto::Json& request, SessionContext& session);
-  proto::Json Dispatch(const std::string& method, const proto::Json& params, SessionContext& session);
+  proto::Json Dispatch(const std::string& method, const proto::Json& params,
+                       SessionContext& session);
 
   proto::Json ServerInfo();
   proto::Json SessionAuth(const proto::Json& params, SessionContext& session);

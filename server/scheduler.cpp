@@ -108,7 +108,8 @@ bool Scheduler::Stop(std::chrono::milliseconds timeout) {
   }
   wake_.notify_all();
   std::unique_lock lock(mutex_);
-  const bool stopped = runners_done_.wait_for(lock, timeout, [this] { return runners_alive_ == 0; });
+  const bool stopped =
+      runners_done_.wait_for(lock, timeout, [this] { return runners_alive_ == 0; });
   lock.unlock();
   if (stopped) {
     for (std::thread& t : runners_) {
@@ -118,13 +119,15 @@ bool Scheduler::Stop(std::chrono::milliseconds timeout) {
   return stopped;
 }
 
-void Scheduler::OnGeneration(std::int64_t id, Running& running, const JobRecord& job, const TraceRow& row) {
+void Scheduler::OnGeneration(std::int64_t id, Running& running, const JobRecord& job,
+                             const TraceRow& row) {
   {
     std::lock_guard lock(mutex_);
     running.progress = row;
   }
   const auto now = std::chrono::steady_clock::now();
-  if (row.generation != 0 && std::chrono::duration<double>(now - running.last_notified).count() < options_.progress_seconds) {
+  if (row.generation != 0 && std::chrono::duration<double>(now - running.last_notified).count() <
+                                 options_.progress_seconds) {
     return;
   }
   running.last_notified = now;
@@ -157,8 +160,9 @@ void Scheduler::RunnerLoop() {
       // Failed rather than forgotten: a job left queued would hold its watchers forever.
       spdlog::error("job {} failed: cannot read it from the store: {}", job.id, e.what());
       try {
-        store_.MarkFinished(job.id, JobState::kFailed, std::string("cannot read the job: ") + e.what(), "",
-                            std::nullopt, UnixNow());
+        store_.MarkFinished(job.id, JobState::kFailed,
+                            std::string("cannot read the job: ") + e.what(), "", std::nullopt,
+                            UnixNow());
         if (const auto failed = store_.GetJob(job.id)) {
           Publish(job.id, proto::rpc::Notification("job.finished", proto::JobToJson(*failed)));
         }
@@ -170,7 +174,9 @@ void Scheduler::RunnerLoop() {
       JobControl control;
       control.cancel = &running->cancel;
       control.shutdown = &stopping_;
-      control.on_generation = [&](const TraceRow& row) { OnGeneration(job.id, *running, *stored, row); };
+      control.on_generation = [&](const TraceRow& row) {
+        OnGeneration(job.id, *running, *stored, row);
+      };
       const JobRecord after = RunJob(store_, pool_, *stored, options_.runner, control);
       if (proto::IsFinal(after.state)) {
         std::optional<JobRecord> final_record;
@@ -178,7 +184,8 @@ void Scheduler::RunnerLoop() {
           final_record = store_.GetJob(job.id);
         } catch (const std::exception&) {
         }
-        Publish(job.id, proto::rpc::Notification("job.finished", proto::JobToJson(final_record.value_or(after))));
+        Publish(job.id, proto::rpc::Notification("job.finished",
+                                                 proto::JobToJson(final_record.value_or(after))));
       }
     }
     std::lock_guard lock(mutex_);

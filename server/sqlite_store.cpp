@@ -72,7 +72,8 @@ constexpr int kMigrationCount = static_cast<int>(std::size(kMigrations));
 static_assert(kMigrationCount == SqliteStore::kSchemaVersion);
 
 constexpr const char* kJobColumns =
-    "id, label, priority, seed, idempotency_key, state, error, scene_name, genes, strategy, max_generations, "
+    "id, label, priority, seed, idempotency_key, state, error, scene_name, genes, strategy, "
+    "max_generations, "
     "created_at, started_at, finished_at, progress, checkpoint_generation, exact";
 
 JobRecord ReadJob(SQLite::Statement& q) {
@@ -91,7 +92,8 @@ JobRecord ReadJob(SQLite::Statement& q) {
   j.created_at = q.getColumn(11).getDouble();
   j.started_at = q.getColumn(12).getDouble();
   j.finished_at = q.getColumn(13).getDouble();
-  if (!q.getColumn(14).isNull()) j.progress = proto::TraceRowFromJson(proto::ParseJson(q.getColumn(14).getString()), "progress");
+  if (!q.getColumn(14).isNull())
+    j.progress = proto::TraceRowFromJson(proto::ParseJson(q.getColumn(14).getString()), "progress");
   j.checkpoint_generation = q.getColumn(15).getInt();
   if (!q.getColumn(16).isNull()) j.exact = q.getColumn(16).getInt() != 0;
   return j;
@@ -154,13 +156,15 @@ JobStore::Created SqliteStore::CreateJob(const NewJob& job) {
   SQLite::Transaction tx(*db_);
   const JobRecord& r = job.record;
   if (!r.idempotency_key.empty()) {
-    SQLite::Statement q(*db_, std::string("SELECT ") + kJobColumns + " FROM jobs WHERE idempotency_key = ?");
+    SQLite::Statement q(
+        *db_, std::string("SELECT ") + kJobColumns + " FROM jobs WHERE idempotency_key = ?");
     q.bind(1, r.idempotency_key);
     if (q.executeStep()) return {ReadJob(q), false};
   }
-  SQLite::Statement insert(*db_,
-                           "INSERT INTO jobs (label, priority, seed, idempotency_key, state, scene_name, genes, "
-                           "strategy, max_generations, created_at, scene) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+  SQLite::Statement insert(
+      *db_,
+      "INSERT INTO jobs (label, priority, seed, idempotency_key, state, scene_name, genes, "
+      "strategy, max_generations, created_at, scene) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
   insert.bind(1, r.label);
   insert.bind(2, r.priority);
   insert.bind(3, std::bit_cast<std::int64_t>(r.seed));
@@ -223,8 +227,9 @@ JobPage SqliteStore::ListJobs(const JobFilter& f) {
 
 std::vector<JobRecord> SqliteStore::UnfinishedJobs() {
   std::lock_guard lock(mutex_);
-  SQLite::Statement q(*db_, std::string("SELECT ") + kJobColumns +
-                                " FROM jobs WHERE state IN ('queued', 'running') ORDER BY priority DESC, id");
+  SQLite::Statement q(
+      *db_, std::string("SELECT ") + kJobColumns +
+                " FROM jobs WHERE state IN ('queued', 'running') ORDER BY priority DESC, id");
   std::vector<JobRecord> jobs;
   while (q.executeStep()) jobs.push_back(ReadJob(q));
   return jobs;
@@ -247,9 +252,11 @@ void SqliteStore::SaveProgress(std::int64_t id, const ProgressBatch& b) {
   std::lock_guard lock(mutex_);
   SQLite::Transaction tx(*db_);
   if (!b.trace.empty()) {
-    SQLite::Statement q(*db_,
-                        "INSERT OR REPLACE INTO trace (job_id, generation, wall_seconds, evaluations, cache_hits, "
-                        "best_cost, best_normalized_error, mean_cost, missing, extra) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+    SQLite::Statement q(
+        *db_,
+        "INSERT OR REPLACE INTO trace (job_id, generation, wall_seconds, evaluations, cache_hits, "
+        "best_cost, best_normalized_error, mean_cost, missing, extra) VALUES (?, ?, ?, ?, ?, ?, ?, "
+        "?, ?, ?)");
     for (const TraceRow& r : b.trace) {
       q.bind(1, id);
       q.bind(2, r.generation);
@@ -267,7 +274,8 @@ void SqliteStore::SaveProgress(std::int64_t id, const ProgressBatch& b) {
   }
   if (!b.improvements.empty()) {
     SQLite::Statement q(*db_,
-                        "INSERT OR REPLACE INTO improvements (job_id, generation, wall_seconds, cost, normalized_error, "
+                        "INSERT OR REPLACE INTO improvements (job_id, generation, wall_seconds, "
+                        "cost, normalized_error, "
                         "missing, extra, genome) VALUES (?, ?, ?, ?, ?, ?, ?, ?)");
     for (const Improvement& m : b.improvements) {
       q.bind(1, id);
@@ -289,7 +297,8 @@ void SqliteStore::SaveProgress(std::int64_t id, const ProgressBatch& b) {
     q.exec();
   }
   if (b.checkpoint) {
-    SQLite::Statement q(*db_, "INSERT OR REPLACE INTO checkpoints (job_id, generation, state) VALUES (?, ?, ?)");
+    SQLite::Statement q(
+        *db_, "INSERT OR REPLACE INTO checkpoints (job_id, generation, state) VALUES (?, ?, ?)");
     q.bind(1, id);
     q.bind(2, b.checkpoint_generation);
     BindBlob(q, 3, *b.checkpoint);
@@ -302,11 +311,14 @@ void SqliteStore::SaveProgress(std::int64_t id, const ProgressBatch& b) {
   tx.commit();
 }
 
-void SqliteStore::MarkFinished(std::int64_t id, JobState state, const std::string& error, const std::string& result_json,
-                               std::optional<bool> exact, double finished_at) {
+void SqliteStore::MarkFinished(std::int64_t id, JobState state, const std::string& error,
+                               const std::string& result_json, std::optional<bool> exact,
+                               double finished_at) {
   std::lock_guard lock(mutex_);
   SQLite::Transaction tx(*db_);
-  SQLite::Statement q(*db_, "UPDATE jobs SET state = ?, error = ?, result = ?, exact = ?, finished_at = ? WHERE id = ?");
+  SQLite::Statement q(
+      *db_,
+      "UPDATE jobs SET state = ?, error = ?, result = ?, exact = ?, finished_at = ? WHERE id = ?");
   q.bind(1, std::string(proto::JobStateName(state)));
   q.bind(2, error);
   if (result_json.empty()) {
@@ -339,9 +351,11 @@ std::optional<std::string> SqliteStore::GetResult(std::int64_t id) {
 
 std::vector<TraceRow> SqliteStore::GetTrace(std::int64_t id, int after, int limit) {
   std::lock_guard lock(mutex_);
-  SQLite::Statement q(*db_,
-                      "SELECT generation, wall_seconds, evaluations, cache_hits, best_cost, best_normalized_error, "
-                      "mean_cost, missing, extra FROM trace WHERE job_id = ? AND generation > ? ORDER BY generation LIMIT ?");
+  SQLite::Statement q(
+      *db_,
+      "SELECT generation, wall_seconds, evaluations, cache_hits, best_cost, best_normalized_error, "
+      "mean_cost, missing, extra FROM trace WHERE job_id = ? AND generation > ? ORDER BY "
+      "generation LIMIT ?");
   q.bind(1, id);
   q.bind(2, after);
   q.bind(3, limit);
@@ -365,8 +379,10 @@ std::vector<TraceRow> SqliteStore::GetTrace(std::int64_t id, int after, int limi
 std::vector<Improvement> SqliteStore::GetImprovements(std::int64_t id) {
   std::lock_guard lock(mutex_);
   SQLite::Statement q(*db_,
-                      "SELECT i.generation, i.wall_seconds, i.cost, i.normalized_error, i.missing, i.extra, i.genome, "
-                      "j.genes FROM improvements i JOIN jobs j ON j.id = i.job_id WHERE i.job_id = ? ORDER BY i.generation");
+                      "SELECT i.generation, i.wall_seconds, i.cost, i.normalized_error, i.missing, "
+                      "i.extra, i.genome, "
+                      "j.genes FROM improvements i JOIN jobs j ON j.id = i.job_id WHERE i.job_id = "
+                      "? ORDER BY i.generation");
   q.bind(1, id);
   std::vector<Improvement> out;
   while (q.executeStep()) {
@@ -395,7 +411,8 @@ void SqliteStore::RewindTo(std::int64_t id, int generation) {
   std::lock_guard lock(mutex_);
   SQLite::Transaction tx(*db_);
   for (const char* table : {"trace", "improvements"}) {
-    SQLite::Statement q(*db_, std::string("DELETE FROM ") + table + " WHERE job_id = ? AND generation > ?");
+    SQLite::Statement q(
+        *db_, std::string("DELETE FROM ") + table + " WHERE job_id = ? AND generation > ?");
     q.bind(1, id);
     q.bind(2, generation);
     q.exec();

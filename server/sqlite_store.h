@@ -36,8 +36,9 @@ class SqliteStore final : public JobStore {
   int CountQueued() override;
   void MarkRunning(std::int64_t id, double started_at) override;
   void SaveProgress(std::int64_t id, const ProgressBatch& batch) override;
-  void MarkFinished(std::int64_t id, JobState state, const std::string& error, const std::string& result_json,
-                    std::optional<bool> exact, double finished_at) override;
+  void MarkFinished(std::int64_t id, JobState state, const std::string& error,
+                    const std::string& result_json, std::optional<bool> exact,
+                    double finished_at) override;
   std::optional<std::string> GetResult(std::int64_t id) override;
   std::vector<TraceRow> GetTrace(std::int64_t id, int after, int limit) override;
   std::vector<Improvement> GetImprovements(std::int64_t id) override;

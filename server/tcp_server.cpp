@@ -6,10 +6,10 @@
 #include <optional>
 #include <vector>
 
+#include <spdlog/spdlog.h>
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <boost/asio/write.hpp>
-#include <spdlog/spdlog.h>
 
 #include "proto/json_framer.h"
 #include "proto/rpc.h"
@@ -28,7 +28,8 @@ class Session : public std::enable_shared_from_this<Session> {
         framer_(proto::JsonFramer::Options{server.options_.max_message_bytes, 64}) {
     boost::system::error_code ec;
     const auto remote = socket_.remote_endpoint(ec);
-    peer_ = ec ? std::string("?") : remote.address().to_string() + ":" + std::to_string(remote.port());
+    peer_ =
+        ec ? std::string("?") : remote.address().to_string() + ":" + std::to_string(remote.port());
   }
 
   void Start() {
@@ -68,9 +69,9 @@ class Session : public std::enable_shared_from_this<Session> {
   void Read() {
     if (reading_ || closed_ || close_after_write_ || too_large_ || inbox_.size() >= 64) return;
     reading_ = true;
-    socket_.async_read_some(asio::buffer(buffer_), [self = shared_from_this()](boost::system::error_code ec, std::size_t n) {
-      self->OnRead(ec, n);
-    });
+    socket_.async_read_some(asio::buffer(buffer_),
+                            [self = shared_from_this()](boost::system::error_code ec,
+                                                        std::size_t n) { self->OnRead(ec, n); });
   }
 
   void OnRead(boost::system::error_code ec, std::size_t n) {
@@ -80,7 +81,8 @@ class Session : public std::enable_shared_from_this<Session> {
       if (ec != asio::error::eof && ec != asio::error::operation_aborted) {
         spdlog::info("connection {}: read error: {}", peer_, ec.message());
       }
-      if (!framer_.at_boundary()) spdlog::info("connection {}: closed in the middle of a message", peer_);
+      if (!framer_.at_boundary())
+        spdlog::info("connection {}: closed in the middle of a message", peer_);
       Close();
       return;
     }
@@ -93,7 +95,8 @@ class Session : public std::enable_shared_from_this<Session> {
         case proto::JsonFramer::Frame::Kind::kMalformed:
           spdlog::info("connection {}: malformed message: {}", peer_, frame.error);
           inbox_.push_back({});  // answered in order with the requests around it
-          errors_.push_back(rpc::Serialize(rpc::Error(nullptr, rpc::kParseError, "parse error: " + frame.error)));
+          errors_.push_back(
+              rpc::Serialize(rpc::Error(nullptr, rpc::kParseError, "parse error: " + frame.error)));
           break;
         case proto::JsonFramer::Frame::Kind::kTooLarge: {
           spdlog::warn("connection {}: {}; closing", peer_, frame.error);
@@ -129,7 +132,9 @@ class Session : public std::enable_shared_from_this<Session> {
     handling_ = true;
     asio::post(server_.handlers_, [self = shared_from_this(), text = std::move(text)] {
       std::string answer = self->server_.service_.HandleMessage(text, self->context_);
-      asio::post(self->server_.io_, [self, answer = std::move(answer)]() mutable { self->OnHandled(std::move(answer)); });
+      asio::post(self->server_.io_, [self, answer = std::move(answer)]() mutable {
+        self->OnHandled(std::move(answer));
+      });
     });
   }
 
@@ -200,12 +205,15 @@ class Session : public std::enable_shared_from_this<Session> {
 
   void ArmIdleTimer() {
     const auto idle = std::chrono::duration<double>(server_.options_.idle_seconds);
-    idle_timer_.expires_at(last_activity_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(idle));
+    idle_timer_.expires_at(last_activity_ +
+                           std::chrono::duration_cast<std::chrono::steady_clock::duration>(idle));
     idle_timer_.async_wait([self = shared_from_this(), idle](boost::system::error_code ec) {
       if (ec || self->closed_) return;
       // Not idle: a request being handled, or a watched job that has not finished.
-      const bool watching = !self->handling_ && self->finished_sent_ < self->context_.watches.size();
-      if (!watching && !self->handling_ && std::chrono::steady_clock::now() - self->last_activity_ >= idle) {
+      const bool watching =
+          !self->handling_ && self->finished_sent_ < self->context_.watches.size();
+      if (!watching && !self->handling_ &&
+          std::chrono::steady_clock::now() - self->last_activity_ >= idle) {
         spdlog::info("connection {}: idle for {:.0f} s; closing", self->peer_, idle.count());
         self->Close();
         return;
@@ -244,7 +252,9 @@ TcpServer::TcpServer(asio::io_context& io, RpcService& service, TcpServerOptions
       acceptor_(io),
       handlers_(static_cast<std::size_t>(std::max(1, options_.handler_threads))) {}
 
-TcpServer::~TcpServer() { handlers_.join(); }
+TcpServer::~TcpServer() {
+  handlers_.join();
+}
 
 void TcpServer::Start() {
   boost::system::error_code ec;
@@ -275,7 +285,8 @@ void TcpServer::Accept() {
     if (static_cast<int>(sessions_.size()) > options_.max_connections) {
       spdlog::warn("refusing a connection: {} connections open", options_.max_connections);
       session->SendAndClose(rpc::Serialize(rpc::Error(
-          nullptr, rpc::kBusy, "busy: " + std::to_string(options_.max_connections) + " connections are open")));
+          nullptr, rpc::kBusy,
+          "busy: " + std::to_string(options_.max_connections) + " connections are open")));
     } else {
       session->Start();
     }
@@ -283,7 +294,9 @@ void TcpServer::Accept() {
   });
 }
 
-void TcpServer::Remove(const std::shared_ptr<Session>& session) { sessions_.erase(session); }
+void TcpServer::Remove(const std::shared_ptr<Session>& session) {
+  sessions_.erase(session);
+}
 
 void TcpServer::StopAccepting() {
   asio::post(io_, [this] {

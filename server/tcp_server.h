@@ -28,7 +28,8 @@ struct TcpServerOptions {
   unsigned short port = 7117;  // 0: an ephemeral port (see TcpServer::port)
   int max_connections = 256;
   std::size_t max_message_bytes = std::size_t{16} << 20;
-  std::size_t max_pending_output = std::size_t{64} << 20;  // unread answers before a slow reader is dropped
+  std::size_t max_pending_output = std::size_t{64}
+                                   << 20;  // unread answers before a slow reader is dropped
   double idle_seconds = 300.0;
   int handler_threads = 2;
 };

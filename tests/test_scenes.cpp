@@ -20,7 +20,8 @@ Scene GridScene(int dimension, int n, double h, double k, double magnitude) {
 Scene JitteredScene(int dimension, int n, double jitter, std::uint32_t seed) {
   Scene s = GridScene(dimension, n);
   TestRandom random(seed);
-  for (Eigen::Index i = 0; i < s.rest.size(); ++i) s.rest[i] += jitter * (2.0 * random.Uniform() - 1.0);
+  for (Eigen::Index i = 0; i < s.rest.size(); ++i)
+    s.rest[i] += jitter * (2.0 * random.Uniform() - 1.0);
   // Keep the boundary rows/columns exactly on their planes so paper7 finds the same sides.
   const int d = dimension;
   for (int i = 0; i < s.node_count(); ++i) {

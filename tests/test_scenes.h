@@ -21,7 +21,8 @@ Scene JitteredScene(int dimension, int n, double jitter, std::uint32_t seed);
 // A deterministic pseudo-random number in [0, 1) (a tiny LCG; tests own their randomness).
 class TestRandom {
  public:
-  explicit TestRandom(std::uint64_t seed) : state_(seed * 6364136223846793005ULL + 1442695040888963407ULL) {}
+  explicit TestRandom(std::uint64_t seed)
+      : state_(seed * 6364136223846793005ULL + 1442695040888963407ULL) {}
   double Uniform() {
     state_ = state_ * 6364136223846793005ULL + 1442695040888963407ULL;
     return static_cast<double>(state_ >> 11) * (1.0 / 9007199254740992.0);

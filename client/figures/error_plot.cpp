@@ -78,7 +78,10 @@ std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::st
   const double legend_height = kLegendRow * static_cast<double>(curves.size()) + 10;
   const double plot_w = options.width - kLeft - kRight;
   const double plot_h = options.height - kTop - kBottom;
-  auto px = [&](double t) { return kLeft + plot_w * std::clamp(x_axis.Fraction(std::max(t, std::pow(10.0, x_axis.lo))), 0.0, 1.0); };
+  auto px = [&](double t) {
+    return kLeft +
+           plot_w * std::clamp(x_axis.Fraction(std::max(t, std::pow(10.0, x_axis.lo))), 0.0, 1.0);
+  };
   auto py = [&](double e) {
     const double floor = std::pow(10.0, y_axis.lo);
     return kTop + plot_h * (1.0 - std::clamp(y_axis.Fraction(std::max(e, floor)), 0.0, 1.0));
@@ -96,10 +99,12 @@ std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::st
   for (int d = y_axis.lo; d <= y_axis.hi; ++d) {
     const double y = py(std::pow(10.0, d));
     svg.Line({kLeft, y}, {kLeft + plot_w, y}, "grid");
-    svg.Text({kLeft - 8, y + 4}, d == y_axis.lo ? "exact" : Decade(d), "", SvgDocument::Anchor::kEnd);
+    svg.Text({kLeft - 8, y + 4}, d == y_axis.lo ? "exact" : Decade(d), "",
+             SvgDocument::Anchor::kEnd);
   }
   svg.Rect({kLeft, kTop}, plot_w, plot_h, "frame");
-  svg.Text({kLeft + plot_w / 2, kTop + plot_h + 40}, "wall time (s)", "", SvgDocument::Anchor::kMiddle);
+  svg.Text({kLeft + plot_w / 2, kTop + plot_h + 40}, "wall time (s)", "",
+           SvgDocument::Anchor::kMiddle);
   svg.VerticalText({22, kTop + plot_h / 2}, "best normalized error", "");
 
   for (std::size_t i = 0; i < curves.size(); ++i) {

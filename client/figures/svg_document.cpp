@@ -34,20 +34,34 @@ std::string XmlEscape(std::string_view text) {
     const auto c = static_cast<unsigned char>(text[i]);
     if (c < 0x80) {
       switch (c) {
-        case '&': out += "&amp;"; break;
-        case '<': out += "&lt;"; break;
-        case '>': out += "&gt;"; break;
-        case '"': out += "&quot;"; break;
-        default: (c < 0x20 && c != '\t' && c != '\n' && c != '\r') ? out += kReplacement : out += static_cast<char>(c);
+        case '&':
+          out += "&amp;";
+          break;
+        case '<':
+          out += "&lt;";
+          break;
+        case '>':
+          out += "&gt;";
+          break;
+        case '"':
+          out += "&quot;";
+          break;
+        default:
+          (c < 0x20 && c != '\t' && c != '\n' && c != '\r') ? out += kReplacement
+                                                            : out += static_cast<char>(c);
       }
       ++i;
       continue;
     }
     // A multi-byte sequence: its length from the lead byte, then continuation bytes; overlong
     // forms, surrogates and code points above U+10FFFF are refused.
-    const int length = c >= 0xC2 && c <= 0xDF ? 2 : c >= 0xE0 && c <= 0xEF ? 3 : c >= 0xF0 && c <= 0xF4 ? 4 : 0;
+    const int length = c >= 0xC2 && c <= 0xDF   ? 2
+                       : c >= 0xE0 && c <= 0xEF ? 3
+                       : c >= 0xF0 && c <= 0xF4 ? 4
+                                                : 0;
     bool valid = length > 0 && i + static_cast<std::size_t>(length) <= text.size();
-    for (int k = 1; valid && k < length; ++k) valid = (static_cast<unsigned char>(text[i + k]) & 0xC0) == 0x80;
+    for (int k = 1; valid && k < length; ++k)
+      valid = (static_cast<unsigned char>(text[i + k]) & 0xC0) == 0x80;
     if (valid && length >= 3) {
       const auto second = static_cast<unsigned char>(text[i + 1]);
       if (c == 0xE0) valid = second >= 0xA0;
@@ -68,7 +82,9 @@ std::string XmlEscape(std::string_view text) {
 
 SvgDocument::SvgDocument(double width, double height) : width_(width), height_(height) {}
 
-void SvgDocument::Style(std::string_view css) { style_ += css; }
+void SvgDocument::Style(std::string_view css) {
+  style_ += css;
+}
 
 void SvgDocument::Open(std::string_view tag, std::string_view cls) {
   body_ << '<' << tag;
@@ -77,8 +93,8 @@ void SvgDocument::Open(std::string_view tag, std::string_view cls) {
 
 void SvgDocument::Line(Point2 a, Point2 b, std::string_view cls) {
   Open("line", cls);
-  body_ << " x1=\"" << Num(a.x) << "\" y1=\"" << Num(a.y) << "\" x2=\"" << Num(b.x) << "\" y2=\"" << Num(b.y)
-        << "\"/>\n";
+  body_ << " x1=\"" << Num(a.x) << "\" y1=\"" << Num(a.y) << "\" x2=\"" << Num(b.x) << "\" y2=\""
+        << Num(b.y) << "\"/>\n";
 }
 
 void SvgDocument::Polyline(const std::vector<Point2>& points, std::string_view cls) {
@@ -93,13 +109,14 @@ void SvgDocument::Polygon(const std::vector<Point2>& points, std::string_view cl
 
 void SvgDocument::Circle(Point2 center, double radius, std::string_view cls) {
   Open("circle", cls);
-  body_ << " cx=\"" << Num(center.x) << "\" cy=\"" << Num(center.y) << "\" r=\"" << Num(radius) << "\"/>\n";
+  body_ << " cx=\"" << Num(center.x) << "\" cy=\"" << Num(center.y) << "\" r=\"" << Num(radius)
+        << "\"/>\n";
 }
 
 void SvgDocument::Rect(Point2 corner, double width, double height, std::string_view cls) {
   Open("rect", cls);
-  body_ << " x=\"" << Num(corner.x) << "\" y=\"" << Num(corner.y) << "\" width=\"" << Num(width) << "\" height=\""
-        << Num(height) << "\"/>\n";
+  body_ << " x=\"" << Num(corner.x) << "\" y=\"" << Num(corner.y) << "\" width=\"" << Num(width)
+        << "\" height=\"" << Num(height) << "\"/>\n";
 }
 
 void SvgDocument::Text(Point2 at, std::string_view text, std::string_view cls, Anchor anchor) {
@@ -112,8 +129,9 @@ void SvgDocument::Text(Point2 at, std::string_view text, std::string_view cls, A
 
 void SvgDocument::VerticalText(Point2 at, std::string_view text, std::string_view cls) {
   Open("text", cls);
-  body_ << " x=\"" << Num(at.x) << "\" y=\"" << Num(at.y) << "\" text-anchor=\"middle\" transform=\"rotate(-90 "
-        << Num(at.x) << ' ' << Num(at.y) << ")\">" << XmlEscape(text) << "</text>\n";
+  body_ << " x=\"" << Num(at.x) << "\" y=\"" << Num(at.y)
+        << "\" text-anchor=\"middle\" transform=\"rotate(-90 " << Num(at.x) << ' ' << Num(at.y)
+        << ")\">" << XmlEscape(text) << "</text>\n";
 }
 
 void SvgDocument::BeginGroup(std::string_view cls, std::string_view tooltip) {
@@ -129,13 +147,16 @@ void SvgDocument::BeginClippedGroup(Point2 corner, double width, double height) 
         << "<g clip-path=\"url(#" << id << ")\">\n";
 }
 
-void SvgDocument::EndGroup() { body_ << "</g>\n"; }
+void SvgDocument::EndGroup() {
+  body_ << "</g>\n";
+}
 
 std::string SvgDocument::str() const {
   std::ostringstream out;
   out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-      << "<svg xmlns=\"http://www.w3.org/2000/svg\" version=\"1.1\" width=\"" << Num(width_) << "\" height=\""
-      << Num(height_) << "\" viewBox=\"0 0 " << Num(width_) << ' ' << Num(height_) << "\">\n";
+      << "<svg xmlns=\"http://www.w3.org/2000/svg\" version=\"1.1\" width=\"" << Num(width_)
+      << "\" height=\"" << Num(height_) << "\" viewBox=\"0 0 " << Num(width_) << ' ' << Num(height_)
+      << "\">\n";
   if (!style_.empty()) out << "<style>\n" << style_ << "</style>\n";
   out << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n" << body_.str() << "</svg>\n";
   return out.str();

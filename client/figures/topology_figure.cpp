@@ -14,10 +14,10 @@ namespace springfit::cli {
 namespace {
 
 constexpr double kMargin = 20.0;
-constexpr double kHeading = 78.0;   // title, subtitle, legend
-constexpr double kCaption = 34.0;   // under each row of panels
-constexpr double kGap = 24.0;       // between the two columns
-constexpr double kPanelPad = 14.0;  // inside a panel, around the drawing
+constexpr double kHeading = 78.0;        // title, subtitle, legend
+constexpr double kCaption = 34.0;        // under each row of panels
+constexpr double kGap = 24.0;            // between the two columns
+constexpr double kPanelPad = 14.0;       // inside a panel, around the drawing
 constexpr double kArrowFraction = 0.08;  // the largest force arrow, of a panel's size
 
 constexpr std::string_view kCss =
@@ -90,7 +90,7 @@ double MaxNodeNorm(const Vector& flat, int d) {
 }
 
 struct PanelContent {
-  const Vector* positions = nullptr;        // deformed (or rest, when there is no equilibrium)
+  const Vector* positions = nullptr;  // deformed (or rest, when there is no equilibrium)
   const std::vector<NodePair>* springs = nullptr;  // drawn at rest and deformed; null = nodes only
   const std::vector<NodePair>* missing = nullptr;
   const std::vector<NodePair>* extra = nullptr;
@@ -99,7 +99,9 @@ struct PanelContent {
 class FigureWriter {
  public:
   FigureWriter(const Problem& problem, const TopologyFigureOptions& options)
-      : problem_(problem), options_(options), d_(problem.dimension()),
+      : problem_(problem),
+        options_(options),
+        d_(problem.dimension()),
         projection_(d_, options.azimuth, options.elevation) {}
 
   std::string Write(const TopologyFigureInput& input) {
@@ -107,16 +109,18 @@ class FigureWriter {
     Evaluate(input);
     const double magnify = Magnification();
     for (const int k : cases) {
-      reference_positions_.push_back(problem_.scene().rest + magnify * problem_.load_cases()[k].reference);
-      identified_positions_.push_back(identified_u_[k].size() > 0
-                                          ? Vector(problem_.scene().rest + magnify * identified_u_[k])
-                                          : problem_.scene().rest);
+      reference_positions_.push_back(problem_.scene().rest +
+                                     magnify * problem_.load_cases()[k].reference);
+      identified_positions_.push_back(
+          identified_u_[k].size() > 0 ? Vector(problem_.scene().rest + magnify * identified_u_[k])
+                                      : problem_.scene().rest);
     }
     FitFrames();
 
     const double p = options_.panel_size;
     const double width = 2 * kMargin + 2 * p + kGap;
-    const double height = kMargin + kHeading + static_cast<double>(cases.size()) * (p + kCaption) + kMargin;
+    const double height =
+        kMargin + kHeading + static_cast<double>(cases.size()) * (p + kCaption) + kMargin;
     SvgDocument svg(width, height);
     svg.Style(kCss);
     Heading(svg, input, magnify, width);
@@ -128,19 +132,22 @@ class FigureWriter {
       const double top = kMargin + kHeading + static_cast<double>(row) * (p + kCaption);
       const Point2 left{kMargin, top};
       const Point2 right{kMargin + p + kGap, top};
-      const std::string name = scene.load_cases[k].name.empty() ? "load case " + std::to_string(k)
-                                                                : "load case " + std::to_string(k) + " '" +
-                                                                      scene.load_cases[k].name + "'";
+      const std::string name =
+          scene.load_cases[k].name.empty()
+              ? "load case " + std::to_string(k)
+              : "load case " + std::to_string(k) + " '" + scene.load_cases[k].name + "'";
       PanelContent reference{&reference_positions_[row], mss ? &scene.reference.springs : nullptr};
       Panel(svg, left, k, reference, "reference, " + name);
 
       PanelContent identified{&identified_positions_[row], &input.springs,
-                              difference_ ? &difference_->missing : nullptr, difference_ ? &difference_->extra : nullptr};
+                              difference_ ? &difference_->missing : nullptr,
+                              difference_ ? &difference_->extra : nullptr};
       const LoadCaseEvaluation& eval = evaluation_.load_cases[k];
       std::string caption = "identified: normalized error " + Format("%.3g", eval.normalized_error);
       bool warn = false;
       if (eval.solve.termination == Termination::kMechanism) {
-        caption = "identified: a mechanism (" + std::to_string(eval.solve.mechanism_modes) + " modes), at rest";
+        caption = "identified: a mechanism (" + std::to_string(eval.solve.mechanism_modes) +
+                  " modes), at rest";
         warn = true;
       } else if (!eval.solve.converged()) {
         caption = "identified: no convergence, at rest";
@@ -163,7 +170,8 @@ class FigureWriter {
       const int k = options_.load_cases[i];
       if (k < 0 || k >= count) {
         throw InputError("load_cases[" + std::to_string(i) + "]",
-                         "load case " + std::to_string(k) + " out of range: the scene has " + std::to_string(count));
+                         "load case " + std::to_string(k) + " out of range: the scene has " +
+                             std::to_string(count));
       }
     }
     return options_.load_cases;
@@ -181,7 +189,8 @@ class FigureWriter {
       const std::string path = "springs[" + std::to_string(s) + "]";
       const int c = problem_.CandidateIndex(springs[s]);
       if (c < 0) {
-        throw InputError(path, "[" + std::to_string(springs[s].first) + ", " + std::to_string(springs[s].second) +
+        throw InputError(path, "[" + std::to_string(springs[s].first) + ", " +
+                                   std::to_string(springs[s].second) +
                                    "] is not a candidate spring of the scene");
       }
       if (mask[c]) throw InputError(path, "given twice");
@@ -201,9 +210,10 @@ class FigureWriter {
   std::string Subtitle(const TopologyFigureInput& input) const {
     std::string s = input.note.empty() ? "" : input.note + "; ";
     if (difference_) {
-      s += difference_->hamming() == 0 ? "exact recovery"
-                                       : "not exact: " + std::to_string(difference_->missing.size()) + " missing, " +
-                                             std::to_string(difference_->extra.size()) + " extra";
+      s += difference_->hamming() == 0
+               ? "exact recovery"
+               : "not exact: " + std::to_string(difference_->missing.size()) + " missing, " +
+                     std::to_string(difference_->extra.size()) + " extra";
     } else {
       s += "reference topology unknown";
     }
@@ -214,7 +224,8 @@ class FigureWriter {
   double Magnification() const {
     if (options_.magnify > 0.0) return options_.magnify;
     double largest = 0.0;
-    for (const PreparedLoadCase& lc : problem_.load_cases()) largest = std::max(largest, MaxNodeNorm(lc.reference, d_));
+    for (const PreparedLoadCase& lc : problem_.load_cases())
+      largest = std::max(largest, MaxNodeNorm(lc.reference, d_));
     const double diagonal = problem_.scene().Bounds().Diagonal();
     if (largest <= 0.0 || largest >= 0.05 * diagonal) return 1.0;
     return 0.1 * diagonal / largest;
@@ -232,7 +243,8 @@ class FigureWriter {
     }
     // Force arrows: the largest is 8% of a panel, and the drawing leaves room for it.
     double largest_force = 0.0;
-    for (const PreparedLoadCase& lc : problem_.load_cases()) largest_force = std::max(largest_force, MaxNodeNorm(lc.force, d_));
+    for (const PreparedLoadCase& lc : problem_.load_cases())
+      largest_force = std::max(largest_force, MaxNodeNorm(lc.force, d_));
     const double arrow = largest_force > 0.0 ? kArrowFraction * options_.panel_size : 0.0;
     force_scale_ = largest_force > 0.0 ? arrow / largest_force : 0.0;
     const double inner = options_.panel_size - 2 * (kPanelPad + arrow);
@@ -266,12 +278,13 @@ class FigureWriter {
     svg.Line({x, y - 4}, {x + 18, y - 4}, "force");
     svg.Polygon({{x + 22, y - 4}, {x + 15, y - 7.5}, {x + 15, y - 0.5}}, "force-head");
     svg.Text({x + 27, y}, "force", "");
-    const std::string scale = magnify == 1.0 ? "displacements true size" : "displacements x" + Format("%.3g", magnify);
+    const std::string scale =
+        magnify == 1.0 ? "displacements true size" : "displacements x" + Format("%.3g", magnify);
     svg.Text({width - kMargin, kMargin + 14}, scale, "", SvgDocument::Anchor::kEnd);
   }
 
-  void Panel(SvgDocument& svg, Point2 corner, int k, const PanelContent& content, const std::string& caption,
-             bool warn = false) {
+  void Panel(SvgDocument& svg, Point2 corner, int k, const PanelContent& content,
+             const std::string& caption, bool warn = false) {
     const double p = options_.panel_size;
     Frame frame = frame_;
     frame.origin = {corner.x + p / 2, corner.y + p / 2};
@@ -284,7 +297,8 @@ class FigureWriter {
     const int n = problem_.scene().node_count();
     if (content.springs) {
       svg.BeginGroup("rest");
-      for (const NodePair& s : *content.springs) svg.Line(at(rest, s.first), at(rest, s.second), "");
+      for (const NodePair& s : *content.springs)
+        svg.Line(at(rest, s.first), at(rest, s.second), "");
       svg.EndGroup();
       svg.BeginGroup("spring");
       for (const NodePair& s : *content.springs) svg.Line(at(x, s.first), at(x, s.second), "");
@@ -298,7 +312,8 @@ class FigureWriter {
     }
     // Wrong springs last, over the others; one shape each so they can be counted.
     if (content.missing) {
-      for (const NodePair& s : *content.missing) svg.Line(at(x, s.first), at(x, s.second), "missing");
+      for (const NodePair& s : *content.missing)
+        svg.Line(at(x, s.first), at(x, s.second), "missing");
     }
     if (content.extra) {
       for (const NodePair& s : *content.extra) svg.Line(at(x, s.first), at(x, s.second), "extra");

@@ -25,7 +25,7 @@ struct TopologyFigureOptions {
   // largest displacement is at least 5% of the scene's diagonal, otherwise enlarged to 10%
   // of it (small-strain scenes would look undeformed). The heading states the factor.
   double magnify = 0.0;
-  double panel_size = 340.0;    // pixels, each panel square
+  double panel_size = 340.0;  // pixels, each panel square
   // 3D scenes are drawn in an orthographic view turned by these angles (degrees).
   double azimuth = -35.0;
   double elevation = 25.0;

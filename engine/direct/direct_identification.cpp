@@ -62,8 +62,13 @@ struct Reading {
 
 class WeightReader {
  public:
-  WeightReader(const Problem& problem, const std::vector<bool>& usable, const DirectOptions& options, bool exact_data)
-      : problem_(problem), usable_(usable), options_(options), exact_data_(exact_data), cost_(problem) {}
+  WeightReader(const Problem& problem, const std::vector<bool>& usable,
+               const DirectOptions& options, bool exact_data)
+      : problem_(problem),
+        usable_(usable),
+        options_(options),
+        exact_data_(exact_data),
+        cost_(problem) {}
 
   Reading Read(std::vector<double> weights, std::optional<Vector> sigma) {
     Reading r;
@@ -100,7 +105,8 @@ class WeightReader {
       if (r.sigma) {
         const double s = (*r.sigma)[g];
         if (!TopologyOnly()) threshold = std::max(floor, options_.significance * s);
-        r.confidence[g] = s > 0.0 ? (r.weights[g] - threshold) / s : (r.weights[g] > threshold ? HUGE_VAL : -HUGE_VAL);
+        r.confidence[g] = s > 0.0 ? (r.weights[g] - threshold) / s
+                                  : (r.weights[g] > threshold ? HUGE_VAL : -HUGE_VAL);
       }
       if (largest > 0.0 && r.weights[g] > threshold) r.genome[g] = 1;
     }
@@ -128,13 +134,16 @@ class WeightReader {
     for (int g = 0; g < problem_.gene_count(); ++g) {
       if (usable_[g] && !r.genome[g] && (r.weights[g] > 0.0 || TopologyOnly())) order.push_back(g);
     }
-    std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return r.weights[a] > r.weights[b]; });
+    std::stable_sort(order.begin(), order.end(),
+                     [&](int a, int b) { return r.weights[a] > r.weights[b]; });
     const auto with_prefix = [&](std::size_t count) {
       Genome genome = r.genome;
       for (std::size_t i = 0; i < count; ++i) genome[order[i]] = 1;
       return genome;
     };
-    const auto carries = [&](std::size_t count) { return !Evaluate(ModelOf(with_prefix(count), r.weights)).mechanism; };
+    const auto carries = [&](std::size_t count) {
+      return !Evaluate(ModelOf(with_prefix(count), r.weights)).mechanism;
+    };
     if (!carries(order.size())) return;
     std::size_t enough = order.size();
     std::size_t too_few = 0;
@@ -212,14 +221,16 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
   // Noisy data never go without standard errors when they can be had: the relative floor
   // alone lets every spurious weight in.
   std::optional<Vector> nnls_sigma;
-  if (!exact_data) nnls_sigma = WeightStandardErrors(fb.a, columns, variance, options.uncertainty_max_genes);
+  if (!exact_data)
+    nnls_sigma = WeightStandardErrors(fb.a, columns, variance, options.uncertainty_max_genes);
   if (nnls_sigma && r.pinned_gene >= 0) (*nnls_sigma)[r.pinned_gene] = 0.0;  // fixed, not estimated
   Reading reading = reader.Read(std::move(nnls_weights), std::move(nnls_sigma));
   if (refinement) {
     // The refined weights fit the displacements, but from a poor start the fit can drift to
     // a worse topology than the force balance's: the lower displacement cost decides.
     std::optional<Vector> sigma;
-    if (!refinement->sigma.empty()) sigma = Eigen::Map<const Vector>(refinement->sigma.data(), genes);
+    if (!refinement->sigma.empty())
+      sigma = Eigen::Map<const Vector>(refinement->sigma.data(), genes);
     if (!sigma) sigma = reading.sigma;
     Reading refined = reader.Read(refinement->weights, std::move(sigma));
     if (!(reading.evaluation.cost < refined.evaluation.cost)) {
@@ -228,7 +239,8 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
     }
   }
   r.weights = std::move(reading.weights);
-  if (reading.sigma) r.sigma.assign(reading.sigma->data(), reading.sigma->data() + reading.sigma->size());
+  if (reading.sigma)
+    r.sigma.assign(reading.sigma->data(), reading.sigma->data() + reading.sigma->size());
   r.confidence = std::move(reading.confidence);
   r.topology_threshold = reading.topology_threshold;
   r.genome = std::move(reading.genome);
@@ -259,7 +271,8 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
     if (r.genome[g]) kept[static_cast<Eigen::Index>(g)] = r.springs.stiffness[i++];
   }
   // Relative to the external forces; with none, to the spring forces themselves.
-  const double force_scale = r.displacement_only ? SparseMatrix(fb.a * kept.asDiagonal()).norm() : fb.b.norm();
+  const double force_scale =
+      r.displacement_only ? SparseMatrix(fb.a * kept.asDiagonal()).norm() : fb.b.norm();
   r.force_residual = (fb.a * kept - fb.b).norm() / std::max(force_scale, 1e-300);
   r.evaluate_seconds = SecondsSince(start);
   return r;

@@ -89,10 +89,10 @@ struct DirectResult {
   double force_residual = 0.0;
   double nnls_residual = 0.0;
   NnlsResult nnls;
-  bool refined = false;         // the weights are the displacement-cost fit's
+  bool refined = false;           // the weights are the displacement-cost fit's
   int refinement_iterations = 0;  // its accepted steps, whether or not its reading was kept
-  int evaluations = 0;          // of the displacement cost (readings and the load-carrying guard)
-  Evaluation evaluation;        // the identified model's equilibria against the reference
+  int evaluations = 0;            // of the displacement cost (readings and the load-carrying guard)
+  Evaluation evaluation;          // the identified model's equilibria against the reference
   double assemble_seconds = 0.0;
   double solve_seconds = 0.0;
   double evaluate_seconds = 0.0;

@@ -5,7 +5,8 @@
 
 namespace springfit {
 
-ForceBalance AssembleForceBalance(const Problem& problem, const std::vector<Vector>* displacements) {
+ForceBalance AssembleForceBalance(const Problem& problem,
+                                  const std::vector<Vector>* displacements) {
   const int d = problem.dimension();
   const int genes = problem.gene_count();
   const SpringGeometry& geometry = problem.candidates();
@@ -59,7 +60,8 @@ ForceBalance AssembleForceBalance(const Problem& problem, const std::vector<Vect
   return fb;
 }
 
-std::optional<UnitColumnNormal> UnitNormalOf(const SparseMatrix& a, const std::vector<bool>& usable) {
+std::optional<UnitColumnNormal> UnitNormalOf(const SparseMatrix& a,
+                                             const std::vector<bool>& usable) {
   UnitColumnNormal u;
   for (int j = 0; j < static_cast<int>(a.cols()); ++j) {
     if (usable[static_cast<std::size_t>(j)]) u.columns.push_back(j);
@@ -77,6 +79,9 @@ std::optional<UnitColumnNormal> UnitNormalOf(const SparseMatrix& a, const std::v
 
 SparseMatrix SelectColumns(const SparseMatrix& a, const std::vector<int>& columns) {
   SparseMatrix sub(a.rows(), static_cast<Eigen::Index>(columns.size()));
+  // No columns: Eigen's reserve and makeCompressed on an empty matrix read past its index
+  // array (AddressSanitizer, a scene without genes).
+  if (columns.empty()) return sub;
   Eigen::VectorXi sizes(static_cast<Eigen::Index>(columns.size()));
   for (std::size_t c = 0; c < columns.size(); ++c) {
     sizes[static_cast<Eigen::Index>(c)] = static_cast<int>(a.col(columns[c]).nonZeros());

@@ -32,7 +32,8 @@ struct ForceBalance {
 // At the reference's equilibria, or at the configurations rest + `displacements[k]` (a
 // model's equilibria: then column g of case k's block is the force the gene's spring exerts
 // per unit stiffness there, what the equilibrium's sensitivity to that stiffness needs).
-ForceBalance AssembleForceBalance(const Problem& problem, const std::vector<Vector>* displacements = nullptr);
+ForceBalance AssembleForceBalance(const Problem& problem,
+                                  const std::vector<Vector>* displacements = nullptr);
 
 // The genes some load case sees: strained by at least `unseen_strain` (relative) in a case
 // where one of its nodes is free, so that its column of A is not zero. The one rule for
@@ -49,7 +50,8 @@ struct UnitColumnNormal {
   SparseMatrix normal;       // (A S)^T (A S) over them
 };
 // nullopt when a usable column is zero.
-std::optional<UnitColumnNormal> UnitNormalOf(const SparseMatrix& a, const std::vector<bool>& usable);
+std::optional<UnitColumnNormal> UnitNormalOf(const SparseMatrix& a,
+                                             const std::vector<bool>& usable);
 // A pivot of a unit-diagonal normal matrix at or below this marks dependent columns.
 inline constexpr double kSingularUnitPivot = 1e-13;
 

@@ -28,8 +28,10 @@ int NumericalRank(const Matrix& m, double tolerance) {
 constexpr const char* kAxisNames[] = {"x", "y", "z"};
 
 // The suggestion for one group (MSS reference only): see identifiability.h.
-std::optional<LoadSuggestion> SuggestLoad(const Problem& problem, const std::vector<int>& group_genes,
-                                          const Matrix& group_null, const IdentifiabilityOptions& options) {
+std::optional<LoadSuggestion> SuggestLoad(const Problem& problem,
+                                          const std::vector<int>& group_genes,
+                                          const Matrix& group_null,
+                                          const IdentifiabilityOptions& options) {
   const Scene& scene = problem.scene();
   if (scene.reference.kind != Reference::Kind::kMss) return std::nullopt;
   const int d = problem.dimension();
@@ -37,8 +39,9 @@ std::optional<LoadSuggestion> SuggestLoad(const Problem& problem, const std::vec
   ActiveSprings springs;
   for (int m = 0; m < reference.size(); ++m) {
     springs.index.push_back(m);
-    springs.stiffness.push_back(scene.reference.stiffness.size() == 1 ? scene.reference.stiffness[0]
-                                                                      : scene.reference.stiffness[m]);
+    springs.stiffness.push_back(scene.reference.stiffness.size() == 1
+                                    ? scene.reference.stiffness[0]
+                                    : scene.reference.stiffness[m]);
   }
   std::vector<int> nodes;
   for (const int g : group_genes) {
@@ -61,29 +64,36 @@ std::optional<LoadSuggestion> SuggestLoad(const Problem& problem, const std::vec
       for (int a = 0; a < d; ++a) trials.emplace_back(node, a);
     }
     if (trials.empty()) continue;
-    Matrix response = Matrix::Zero(static_cast<Eigen::Index>(d) * free.count, static_cast<Eigen::Index>(trials.size()));
+    Matrix response = Matrix::Zero(static_cast<Eigen::Index>(d) * free.count,
+                                   static_cast<Eigen::Index>(trials.size()));
     for (std::size_t t = 0; t < trials.size(); ++t) {
-      response(d * free.free_index[trials[t].first] + trials[t].second, static_cast<Eigen::Index>(t)) = 1.0;
+      response(d * free.free_index[trials[t].first] + trials[t].second,
+               static_cast<Eigen::Index>(t)) = 1.0;
     }
     EquilibriumSolver solver(reference, free, problem.solver_options());
     const Vector zero = Vector::Zero(static_cast<Eigen::Index>(d) * n);
     if (!solver.SolveWithTangent(springs, zero, zero, response)) continue;
     for (std::size_t t = 0; t < trials.size(); ++t) {
       // The new load case's force-balance block for the group's genes, to first order.
-      Matrix block = Matrix::Zero(static_cast<Eigen::Index>(d) * free.count, static_cast<Eigen::Index>(group_genes.size()));
+      Matrix block = Matrix::Zero(static_cast<Eigen::Index>(d) * free.count,
+                                  static_cast<Eigen::Index>(group_genes.size()));
       auto displacement = [&](int node) {
         Vector u = Vector::Zero(d);
-        if (free.free_index[node] >= 0) u = response.col(static_cast<Eigen::Index>(t)).segment(d * free.free_index[node], d);
+        if (free.free_index[node] >= 0)
+          u = response.col(static_cast<Eigen::Index>(t)).segment(d * free.free_index[node], d);
         return u;
       };
       for (std::size_t j = 0; j < group_genes.size(); ++j) {
         const int cand = problem.gene_candidates()[group_genes[j]];
         const NodePair p = problem.candidates().pairs[cand];
-        const Vector unit = problem.candidates().rest_separation.segment(d * cand, d) / problem.candidates().rest_length[cand];
+        const Vector unit = problem.candidates().rest_separation.segment(d * cand, d) /
+                            problem.candidates().rest_length[cand];
         const double stretch = unit.dot(displacement(p.first) - displacement(p.second));
         const auto col = static_cast<Eigen::Index>(j);
-        if (free.free_index[p.first] >= 0) block.col(col).segment(d * free.free_index[p.first], d) -= stretch * unit;
-        if (free.free_index[p.second] >= 0) block.col(col).segment(d * free.free_index[p.second], d) += stretch * unit;
+        if (free.free_index[p.first] >= 0)
+          block.col(col).segment(d * free.free_index[p.first], d) -= stretch * unit;
+        if (free.free_index[p.second] >= 0)
+          block.col(col).segment(d * free.free_index[p.second], d) += stretch * unit;
       }
       const Matrix seen = block * group_null;
       const double scale = block.norm() * group_null.norm();
@@ -103,8 +113,9 @@ std::optional<LoadSuggestion> SuggestLoad(const Problem& problem, const std::vec
   if (best) {
     const std::string& name = scene.load_cases[best->constraints_of].name;
     best->text = "add a load case with a force on node " + std::to_string(best->node) + " along " +
-                 kAxisNames[best->axis] + ", with the constraints of load case " + std::to_string(best->constraints_of) +
-                 (name.empty() ? "" : " ('" + name + "')") + ": it separates " + std::to_string(best->separated) + " of " +
+                 kAxisNames[best->axis] + ", with the constraints of load case " +
+                 std::to_string(best->constraints_of) + (name.empty() ? "" : " ('" + name + "')") +
+                 ": it separates " + std::to_string(best->separated) + " of " +
                  std::to_string(group_null.cols()) + " dependencies";
   }
   return best;
@@ -112,9 +123,11 @@ std::optional<LoadSuggestion> SuggestLoad(const Problem& problem, const std::vec
 
 }  // namespace
 
-IdentifiabilityReport AnalyseIdentifiability(const Problem& problem, const IdentifiabilityOptions& options) {
+IdentifiabilityReport AnalyseIdentifiability(const Problem& problem,
+                                             const IdentifiabilityOptions& options) {
   IdentifiabilityReport report;
-  for (const int c : problem.unidentifiable()) report.unidentifiable.push_back(problem.candidates().pairs[c]);
+  for (const int c : problem.unidentifiable())
+    report.unidentifiable.push_back(problem.candidates().pairs[c]);
   const ForceBalance fb = AssembleForceBalance(problem);
   std::vector<int> seen;
   const std::vector<bool> is_seen = SeenGenes(fb, options.unseen_strain);

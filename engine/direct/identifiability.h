@@ -41,15 +41,15 @@ struct IdentifiabilityOptions {
 
 struct LoadSuggestion {
   int node = -1;
-  int axis = 0;                   // 0 = x, 1 = y, 2 = z
-  int constraints_of = 0;         // the load case whose fixed and prescribed nodes it keeps
-  int separated = 0;              // of the group's dependencies, how many it removes
-  std::string text;               // for people
+  int axis = 0;            // 0 = x, 1 = y, 2 = z
+  int constraints_of = 0;  // the load case whose fixed and prescribed nodes it keeps
+  int separated = 0;       // of the group's dependencies, how many it removes
+  std::string text;        // for people
 };
 
 struct DependentGroup {
   std::vector<NodePair> springs;
-  int dependencies = 0;           // the group's nullity: independent combinations not seen
+  int dependencies = 0;  // the group's nullity: independent combinations not seen
   std::optional<LoadSuggestion> suggestion;
 };
 
@@ -61,6 +61,7 @@ struct IdentifiabilityReport {
   std::vector<DependentGroup> groups;
 };
 
-IdentifiabilityReport AnalyseIdentifiability(const Problem& problem, const IdentifiabilityOptions& options = {});
+IdentifiabilityReport AnalyseIdentifiability(const Problem& problem,
+                                             const IdentifiabilityOptions& options = {});
 
 }  // namespace springfit

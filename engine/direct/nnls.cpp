@@ -14,7 +14,8 @@ constexpr std::size_t kSupernodalFromColumns = 2000;
 constexpr double kRidge = 1e-10;
 // The gradient on the free set that still counts as a solved least-squares problem, relative
 // to |A^T b|: refinement reaches about 1e-12 on healthy problems.
-constexpr double kSolveAccuracy = 1e-6;  // relative to the unit diagonal of the scaled normal matrix
+constexpr double kSolveAccuracy =
+    1e-6;  // relative to the unit diagonal of the scaled normal matrix
 
 // z refined against the residual of the scaled problem on the selected columns `sub`.
 template <class Factor, class Sub>
@@ -28,8 +29,8 @@ Vector Refined(const Factor& factor, const Sub& sub, const Vector& b, int refine
 }
 
 // The least-squares solution on the columns `free` (unconstrained), refined.
-Vector SolveOn(const SparseMatrix& a, const Vector& b, const std::vector<int>& free, int refinement_steps,
-               int& factorizations) {
+Vector SolveOn(const SparseMatrix& a, const Vector& b, const std::vector<int>& free,
+               int refinement_steps, int& factorizations) {
   if (free.empty()) return Vector();
   const SparseMatrix sub = SelectColumns(a, free);
   const SparseMatrix normal = sub.transpose() * sub;
@@ -70,7 +71,9 @@ Vector SolveOn(const Matrix& a, const Matrix& normal, const Vector& b, const std
   Matrix normal_ff(m, m);
   for (Eigen::Index c = 0; c < m; ++c) {
     sub.col(c) = a.col(free[static_cast<std::size_t>(c)]);
-    for (Eigen::Index r = 0; r < m; ++r) normal_ff(r, c) = normal(free[static_cast<std::size_t>(r)], free[static_cast<std::size_t>(c)]);
+    for (Eigen::Index r = 0; r < m; ++r)
+      normal_ff(r, c) =
+          normal(free[static_cast<std::size_t>(r)], free[static_cast<std::size_t>(c)]);
   }
   ++factorizations;
   // Eigen's dense LDLT pivots and passes a zero pivot as a pseudo-inverse rather than
@@ -101,8 +104,8 @@ Vector UnitColumnScale(const MatrixType& a, const std::vector<bool>& usable) {
 // The block principal pivoting on the scaled matrix `as`; `solve_on(free)` solves the
 // unconstrained problem on a free set.
 template <class MatrixType, class SolveOnFree>
-NnlsResult Pivot(const MatrixType& as, const Vector& b, const Vector& scale, const NnlsOptions& options,
-                 SolveOnFree&& solve_on) {
+NnlsResult Pivot(const MatrixType& as, const Vector& b, const Vector& scale,
+                 const NnlsOptions& options, SolveOnFree&& solve_on) {
   const auto n = static_cast<int>(as.cols());
   NnlsResult result;
   if (n == 0) {
@@ -136,14 +139,17 @@ NnlsResult Pivot(const MatrixType& as, const Vector& b, const Vector& scale, con
     std::vector<int> violating;
     for (int j = 0; j < n; ++j) {
       if (scale[j] == 0.0) continue;
-      if (in_free[j] ? x[j] < -x_tolerance : gradient[j] < -gradient_tolerance) violating.push_back(j);
+      if (in_free[j] ? x[j] < -x_tolerance : gradient[j] < -gradient_tolerance)
+        violating.push_back(j);
     }
     if (violating.empty()) {
       // Optimal only if the solve on F was accurate: finite, and the gradient vanishing on F
       // (a ridge-regularised solve of dependent columns may not meet this).
       bool accurate = x.allFinite();
       for (int j = 0; j < n && accurate; ++j) {
-        if (in_free[j]) accurate = std::abs(gradient[j]) <= std::max(gradient_tolerance, kSolveAccuracy * atb_max);
+        if (in_free[j])
+          accurate =
+              std::abs(gradient[j]) <= std::max(gradient_tolerance, kSolveAccuracy * atb_max);
       }
       result.converged = accurate;
       break;
@@ -162,7 +168,8 @@ NnlsResult Pivot(const MatrixType& as, const Vector& b, const Vector& scale, con
   }
   result.iterations = std::min(result.iterations, max_iterations);
   // Feasible whatever happened: a negative left by an unconverged run is clipped.
-  for (Eigen::Index j = 0; j < x.size(); ++j) x[j] = std::isfinite(x[j]) ? std::max(x[j], 0.0) : 0.0;
+  for (Eigen::Index j = 0; j < x.size(); ++j)
+    x[j] = std::isfinite(x[j]) ? std::max(x[j], 0.0) : 0.0;
   result.residual_norm = (as * x - b).norm();
   result.x = scale.cwiseProduct(x);
   return result;

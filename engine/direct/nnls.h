@@ -34,11 +34,11 @@ struct NnlsOptions {
 };
 
 struct NnlsResult {
-  Vector x;                    // >= 0; 0 on columns not usable
+  Vector x;  // >= 0; 0 on columns not usable
   // The optimality conditions hold within the tolerance, and the least-squares solves on the
   // positive set were accurate (false for a singular set the ridge could not resolve).
   bool converged = false;
-  int iterations = 0;          // pivoting rounds
+  int iterations = 0;  // pivoting rounds
   int factorizations = 0;
   double residual_norm = 0.0;  // |A x - b|
 };

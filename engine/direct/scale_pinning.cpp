@@ -7,7 +7,8 @@ namespace {
 
 // The gene whose component of A's (approximate) null vector is largest; -1 when there is
 // none to find.
-int LargestNullComponent(const SparseMatrix& a, const std::vector<bool>& usable, const PinOptions& options) {
+int LargestNullComponent(const SparseMatrix& a, const std::vector<bool>& usable,
+                         const PinOptions& options) {
   std::optional<UnitColumnNormal> unit_normal = UnitNormalOf(a, usable);
   if (!unit_normal || unit_normal->columns.empty()) return -1;
   SparseMatrix& normal = unit_normal->normal;

@@ -12,8 +12,8 @@ namespace {
 // The model's equilibria u (warm-started from u where given) and its residual r = u^M - u^R
 // on the free coordinates (stacked by load case, free-node order, as the force balance's
 // rows). False when some load case has no equilibrium.
-bool Equilibria(const Problem& problem, const std::vector<double>& w, std::vector<EquilibriumSolver>& solvers,
-                std::vector<Vector>& u, Vector& r) {
+bool Equilibria(const Problem& problem, const std::vector<double>& w,
+                std::vector<EquilibriumSolver>& solvers, std::vector<Vector>& u, Vector& r) {
   const int d = problem.dimension();
   const ActiveSprings springs = problem.SpringsOfWeights(w);
   Eigen::Index rows = 0;
@@ -32,7 +32,8 @@ bool Equilibria(const Problem& problem, const std::vector<double>& w, std::vecto
     const FreeNodes& free = problem.free_sets()[lc.free_set];
     for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
       const int f = free.free_index[i];
-      if (f >= 0) r.segment(begin + d * f, d) = u[k].segment(d * i, d) - lc.reference.segment(d * i, d);
+      if (f >= 0)
+        r.segment(begin + d * f, d) = u[k].segment(d * i, d) - lc.reference.segment(d * i, d);
     }
     begin += d * free.count;
   }
@@ -41,8 +42,9 @@ bool Equilibria(const Problem& problem, const std::vector<double>& w, std::vecto
 
 // The Jacobian dr/dw at the equilibria u: per load case H^-1 g_j, g_j the force spring j
 // exerts per unit stiffness. False when some tangent is not positive definite.
-bool Jacobian(const Problem& problem, const std::vector<double>& w, std::vector<EquilibriumSolver>& solvers,
-              const std::vector<Vector>& u, Matrix& jacobian) {
+bool Jacobian(const Problem& problem, const std::vector<double>& w,
+              std::vector<EquilibriumSolver>& solvers, const std::vector<Vector>& u,
+              Matrix& jacobian) {
   const ActiveSprings springs = problem.SpringsOfWeights(w);
   const ForceBalance fb = AssembleForceBalance(problem, &u);
   jacobian = Matrix(fb.a);  // g_j per case; turned into H^-1 g_j block by block below
@@ -75,7 +77,8 @@ RefinementResult RefineWeights(const Problem& problem, const std::vector<double>
   std::vector<Vector> u(problem.load_cases().size());
   Vector r;
   Matrix jacobian;
-  if (!Equilibria(problem, w, solvers, u, r) || !Jacobian(problem, w, solvers, u, jacobian)) return result;
+  if (!Equilibria(problem, w, solvers, u, r) || !Jacobian(problem, w, solvers, u, jacobian))
+    return result;
   double f = r.squaredNorm();
   result.initial_cost = f;
   double lambda = options.initial_damping;

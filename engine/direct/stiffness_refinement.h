@@ -20,9 +20,9 @@
 namespace springfit {
 
 struct RefinementOptions {
-  int max_iterations = 30;               // accepted steps
-  double relative_tolerance = 1e-10;     // stop when f falls by less than this fraction
-  double initial_damping = 1e-4;         // lambda at the start, relative to D^2
+  int max_iterations = 30;            // accepted steps
+  double relative_tolerance = 1e-10;  // stop when f falls by less than this fraction
+  double initial_damping = 1e-4;      // lambda at the start, relative to D^2
   // Dense Jacobians (rows x genes, one solve per gene and load case) and a dense bounded
   // least-squares step per attempt, cubic in the genes: 0.01 s at 0.1% noise on
   // paper-aniso-5x5 (72 genes), 0.7 s on grid3d-4x4x4 (465), 1.9 s on kidney-2d (461, 15
@@ -31,12 +31,12 @@ struct RefinementOptions {
 };
 
 struct RefinementResult {
-  bool refined = false;             // false: not run (too many genes, or the start has no equilibrium)
-  std::vector<double> weights;      // per gene
-  Evaluation evaluation;            // of the refined model
+  bool refined = false;         // false: not run (too many genes, or the start has no equilibrium)
+  std::vector<double> weights;  // per gene
+  Evaluation evaluation;        // of the refined model
   double initial_cost = 0.0;
-  int iterations = 0;               // accepted steps
-  bool converged = false;           // stopped by the tolerance rather than the iteration limit
+  int iterations = 0;      // accepted steps
+  bool converged = false;  // stopped by the tolerance rather than the iteration limit
   // Per gene: the weight's standard error at the optimum, s^2 [(J^T J)^-1]_jj with
   // s^2 = f / (rows - positive weights); empty when J^T J is singular (then the caller falls
   // back to the force balance's standard errors).
@@ -45,6 +45,7 @@ struct RefinementResult {
 
 // `usable[g]` false holds gene g at 0 (an unseen spring).
 RefinementResult RefineWeights(const Problem& problem, const std::vector<double>& start,
-                               const std::vector<bool>& usable, const RefinementOptions& options = {});
+                               const std::vector<bool>& usable,
+                               const RefinementOptions& options = {});
 
 }  // namespace springfit

@@ -17,7 +17,9 @@ namespace {
 // A simplex whose signed measure keeps less than this fraction of its rest value is flattened.
 constexpr double kFlattenedRatio = 1e-3;
 
-int GridIndex(const std::vector<int>& n, int x, int y, int z) { return x + n[0] * (y + n[1] * z); }
+int GridIndex(const std::vector<int>& n, int x, int y, int z) {
+  return x + n[0] * (y + n[1] * z);
+}
 
 double SignedMeasure(int d, const Vector& x, const std::vector<int>& s) {
   if (d == 2) {
@@ -199,13 +201,16 @@ Scene ThinnedGrid(const std::vector<int>& n, std::uint64_t seed, double stiffnes
       for (int a = 0; a < d; ++a) axes |= static_cast<std::uint64_t>(ci[a] != cj[a]) << a;
       const bool through_corner = index(ci) == face || index(cj) == face;
       const bool always = UnitHash(seed, static_cast<std::uint64_t>(face), axes) < 0.5;
-      keep = through_corner == always || UnitHash(seed, static_cast<std::uint64_t>(p.first), static_cast<std::uint64_t>(p.second)) < 0.5;
+      keep = through_corner == always || UnitHash(seed, static_cast<std::uint64_t>(p.first),
+                                                  static_cast<std::uint64_t>(p.second)) < 0.5;
     } else if (moved == 3) {
-      keep = UnitHash(seed, static_cast<std::uint64_t>(p.first), static_cast<std::uint64_t>(p.second)) < 0.5;
+      keep = UnitHash(seed, static_cast<std::uint64_t>(p.first),
+                      static_cast<std::uint64_t>(p.second)) < 0.5;
     }
     if (!keep) continue;
     s.reference.springs.push_back(p);
-    const double u = UnitHash(seed + 1, static_cast<std::uint64_t>(p.first), static_cast<std::uint64_t>(p.second));
+    const double u = UnitHash(seed + 1, static_cast<std::uint64_t>(p.first),
+                              static_cast<std::uint64_t>(p.second));
     s.reference.stiffness.push_back(std::pow(10.0, stiffness_decades * (u - 0.5)));
   }
   s.training_stiffness = 1.0;
@@ -229,7 +234,8 @@ Scene WithMeasurementNoise(const Scene& scene, double fraction, std::uint64_t se
   std::snprintf(tag, sizeof tag, "-noise%g-s%llu", fraction, static_cast<unsigned long long>(seed));
   noisy.name += tag;
   noisy.description = scene.description + "; reference positions with Gaussian noise of " +
-                      std::to_string(fraction) + " x the RMS displacement (seed " + std::to_string(seed) + ")";
+                      std::to_string(fraction) + " x the RMS displacement (seed " +
+                      std::to_string(seed) + ")";
   noisy.training_stiffness = problem.training_stiffness();
   noisy.reference = Reference{};
   noisy.reference.kind = Reference::Kind::kPositions;
@@ -253,8 +259,9 @@ Scene WithMeasurementNoise(const Scene& scene, double fraction, std::uint64_t se
 const std::vector<ExampleInfo>& Catalog() {
   static const std::vector<ExampleInfo> catalog = [] {
     std::vector<ExampleInfo> c;
-    for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d", "fem-plate-5x5",
-                             "fem-kidney-2d", "fem-kidney-2d-nl", "fem-block-3d"}) {
+    for (const char* name :
+         {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d",
+          "fem-plate-5x5", "fem-kidney-2d", "fem-kidney-2d-nl", "fem-block-3d"}) {
       c.push_back({name, Make(name).description});
     }
     return c;
@@ -320,8 +327,9 @@ std::vector<NodePair> GridNeighbourSprings(const std::vector<int>& n) {
 
 const std::vector<Paper7Pattern>& Paper7Patterns(int d) {
   static const std::vector<Paper7Pattern> two = {
-      {"stretch +y", 1, 1, 1}, {"compression -y", 1, 1, -1}, {"shear +x", 1, 0, 1}, {"shear -x", 1, 0, -1},
-      {"stretch +x", 0, 0, 1}, {"shear +y", 0, 1, 1},        {"shear -y", 0, 1, -1}};
+      {"stretch +y", 1, 1, 1}, {"compression -y", 1, 1, -1}, {"shear +x", 1, 0, 1},
+      {"shear -x", 1, 0, -1},  {"stretch +x", 0, 0, 1},      {"shear +y", 0, 1, 1},
+      {"shear -y", 0, 1, -1}};
   static const std::vector<Paper7Pattern> three = {
       {"stretch +z", 2, 2, 1},   {"compression -z", 2, 2, -1}, {"shear +x", 2, 0, 1},
       {"shear -x", 2, 0, -1},    {"shear +y", 2, 1, 1},        {"stretch +x", 0, 0, 1},

@@ -64,9 +64,9 @@ Scene FemPlate5x5();
 Scene FemKidney2d(bool nonlinear);
 Scene FemBlock3d();
 
-// Rescales every load case's forces and tractions so that the reference's largest nodal displacement in
-// the small-load (linear) limit is `strain` times the scene's extent (DESIGN.md: examples
-// keep loads at moderate strain).
+// Rescales every load case's forces and tractions so that the reference's largest nodal
+// displacement in the small-load (linear) limit is `strain` times the scene's extent (DESIGN.md:
+// examples keep loads at moderate strain).
 void ScaleLoadsToStrain(Scene& scene, double strain);
 
 // Throws std::logic_error when a simplex of `simplices` (triangles in 2D, tetrahedra in 3D,

@@ -38,8 +38,8 @@ void AddPaper7Tractions(Scene& s, double band) {
   }
 }
 
-Scene FemScene(const std::string& name, const std::string& description, const SimplexMesh& mesh, int d,
-               Material material, int k) {
+Scene FemScene(const std::string& name, const std::string& description, const SimplexMesh& mesh,
+               int d, Material material, int k) {
   Scene s;
   s.name = name;
   s.description = description;
@@ -58,8 +58,10 @@ Scene FemScene(const std::string& name, const std::string& description, const Si
 Scene FemPlate5x5() {
   const SimplexMesh mesh = TriangulatedRectangle(4, 4, 1.0, false);
   Scene s = FemScene("fem-plate-5x5",
-                     "5x5-node plate, 32 triangles (every '/' diagonal), linear elastic, poisson 0.3, plane stress; "
-                     "candidates: mesh edges and 8 nearest neighbours; the paper's seven load cases as tractions at "
+                     "5x5-node plate, 32 triangles (every '/' diagonal), linear elastic, poisson "
+                     "0.3, plane stress; "
+                     "candidates: mesh edges and 8 nearest neighbours; the paper's seven load "
+                     "cases as tractions at "
                      "5% strain",
                      mesh, 2, Material{MaterialModel::kLinear, kYoung, 0.3}, 8);
   s.reference.fem.plane = PlaneMode::kStress;
@@ -72,13 +74,15 @@ Scene FemPlate5x5() {
 
 Scene FemKidney2d(bool nonlinear) {
   const SimplexMesh mesh = KidneyMesh();
-  const MaterialModel model = nonlinear ? MaterialModel::kStVenantKirchhoff : MaterialModel::kLinear;
-  Scene s = FemScene(nonlinear ? "fem-kidney-2d-nl" : "fem-kidney-2d",
-                     std::string("kidney cross-section meshed by gmsh (99 nodes, 165 triangles), ") +
-                         (nonlinear ? "St. Venant-Kirchhoff" : "linear elastic") +
-                         ", poisson 0.45, plane strain; candidates: mesh edges and 8 nearest neighbours; paper7 "
-                         "loads as tractions on opposite ends at 5% strain",
-                     mesh, 2, Material{model, kYoung, 0.45}, 8);
+  const MaterialModel model =
+      nonlinear ? MaterialModel::kStVenantKirchhoff : MaterialModel::kLinear;
+  Scene s = FemScene(
+      nonlinear ? "fem-kidney-2d-nl" : "fem-kidney-2d",
+      std::string("kidney cross-section meshed by gmsh (99 nodes, 165 triangles), ") +
+          (nonlinear ? "St. Venant-Kirchhoff" : "linear elastic") +
+          ", poisson 0.45, plane strain; candidates: mesh edges and 8 nearest neighbours; paper7 "
+          "loads as tractions on opposite ends at 5% strain",
+      mesh, 2, Material{model, kYoung, 0.45}, 8);
   s.reference.fem.plane = PlaneMode::kStrain;
   s.reference.fem.plane_given = true;
   AddPaper7Tractions(s, 0.12);
@@ -89,10 +93,11 @@ Scene FemKidney2d(bool nonlinear) {
 
 Scene FemBlock3d() {
   const SimplexMesh mesh = TetrahedralBlock(12, 8, 8, 1.0);
-  Scene s = FemScene("fem-block-3d",
-                     "13x9x9-node block (1053 nodes, 4608 tetrahedra), linear elastic, poisson 0.3; candidates: "
-                     "mesh edges and 6 nearest neighbours; paper7 extended to 3D as tractions at 5% strain",
-                     mesh, 3, Material{MaterialModel::kLinear, kYoung, 0.3}, 6);
+  Scene s = FemScene(
+      "fem-block-3d",
+      "13x9x9-node block (1053 nodes, 4608 tetrahedra), linear elastic, poisson 0.3; candidates: "
+      "mesh edges and 6 nearest neighbours; paper7 extended to 3D as tractions at 5% strain",
+      mesh, 3, Material{MaterialModel::kLinear, kYoung, 0.3}, 6);
   AddPaper7Tractions(s, 0.0);
   ScaleLoadsToStrain(s, kStrain);
   CheckFoldFree(s, mesh.elements);

@@ -21,7 +21,9 @@ ClosedFormModel VanGelderModel(const Scene& scene) {
     for (int a = 0; a <= d; ++a) {
       for (int b = a + 1; b <= d; ++b) {
         const NodePair edge{std::min(el[a], el[b]), std::max(el[a], el[b])};
-        const double length2 = (scene.rest.segment(d * edge.first, d) - scene.rest.segment(d * edge.second, d)).squaredNorm();
+        const double length2 =
+            (scene.rest.segment(d * edge.first, d) - scene.rest.segment(d * edge.second, d))
+                .squaredNorm();
         stiffness[edge] += young * measure / length2;
       }
     }
@@ -46,7 +48,8 @@ std::optional<BaselineReport> EvaluateClosedFormBaseline(const Problem& problem)
     springs.stiffness.push_back(model.stiffness[m]);
   }
   std::vector<EquilibriumSolver> solvers;
-  for (const FreeNodes& free : problem.free_sets()) solvers.emplace_back(geometry, free, problem.solver_options());
+  for (const FreeNodes& free : problem.free_sets())
+    solvers.emplace_back(geometry, free, problem.solver_options());
   BaselineReport report;
   report.springs = geometry.size();
   double cost = 0.0;
@@ -63,7 +66,8 @@ std::optional<BaselineReport> EvaluateClosedFormBaseline(const Problem& problem)
     }
     const FreeNodes& free = problem.free_sets()[lc.free_set];
     for (int i = 0; i < s.node_count(); ++i) {
-      if (free.free_index[i] >= 0) cost += (u.segment(d * i, d) - lc.reference.segment(d * i, d)).squaredNorm();
+      if (free.free_index[i] >= 0)
+        cost += (u.segment(d * i, d) - lc.reference.segment(d * i, d)).squaredNorm();
     }
   }
   if (report.converged) {

@@ -39,7 +39,8 @@ void FemSolverOptions::Validate() const {
   auto fail = [](const std::string& field, double value, const std::string& rule) {
     char buf[64];
     std::snprintf(buf, sizeof buf, "%.17g", value);
-    throw std::invalid_argument("FemSolverOptions::" + field + " = " + buf + ". Violated constraint: " + rule);
+    throw std::invalid_argument("FemSolverOptions::" + field + " = " + buf +
+                                ". Violated constraint: " + rule);
   };
   if (!(relative_force_tolerance > 0.0 && relative_force_tolerance < 1.0)) {
     fail("relative_force_tolerance", relative_force_tolerance, "0 < value < 1");
@@ -50,9 +51,11 @@ void FemSolverOptions::Validate() const {
   if (max_iterations < 1) fail("max_iterations", max_iterations, "value >= 1");
   if (max_line_search_steps < 1) fail("max_line_search_steps", max_line_search_steps, "value >= 1");
   if (!(armijo > 0.0 && armijo < 0.5)) fail("armijo", armijo, "0 < value < 0.5");
-  if (max_load_cuts < 0 || max_load_cuts > 40) fail("max_load_cuts", max_load_cuts, "0 <= value <= 40");
+  if (max_load_cuts < 0 || max_load_cuts > 40)
+    fail("max_load_cuts", max_load_cuts, "0 <= value <= 40");
   if (max_load_steps < 1) fail("max_load_steps", max_load_steps, "value >= 1");
-  if (!(pivot_tolerance > 0.0 && pivot_tolerance < 1.0)) fail("pivot_tolerance", pivot_tolerance, "0 < value < 1");
+  if (!(pivot_tolerance > 0.0 && pivot_tolerance < 1.0))
+    fail("pivot_tolerance", pivot_tolerance, "0 < value < 1");
   if (supernodal_min_dofs < 0) fail("supernodal_min_dofs", supernodal_min_dofs, "value >= 0");
 }
 
@@ -79,7 +82,10 @@ FemEquilibriumSolver::FemEquilibriumSolver(const FemModel& model, FreeNodes free
           for (int i = 0; i < d; ++i) {
             for (int k = 0; k < d; ++k) {
               const int r = d * fa + i, c = d * fb + k;
-              if (r >= c) visit(static_cast<std::size_t>(e) * per_element + ((a * corners + b) * d + i) * d + k, r, c);
+              if (r >= c)
+                visit(
+                    static_cast<std::size_t>(e) * per_element + ((a * corners + b) * d + i) * d + k,
+                    r, c);
             }
           }
         }
@@ -90,8 +96,9 @@ FemEquilibriumSolver::FemEquilibriumSolver(const FemModel& model, FreeNodes free
   lower.reserve(static_cast<std::size_t>(elements) * per_element / 2);
   for_each_entry([&](std::size_t, int r, int c) { lower.emplace_back(r, c); });
   system_ = SymmetricSystem(d * free_.count, std::move(lower),
-                            d * free_.count > options_.supernodal_min_dofs ? SymmetricSystem::Backend::kSupernodal
-                                                                          : SymmetricSystem::Backend::kSparse);
+                            d * free_.count > options_.supernodal_min_dofs
+                                ? SymmetricSystem::Backend::kSupernodal
+                                : SymmetricSystem::Backend::kSparse);
   slots_.assign(static_cast<std::size_t>(elements) * per_element, -1);
   for_each_entry([&](std::size_t at, int r, int c) { slots_[at] = system_.Slot(r, c); });
   // The stiffness scale: the largest diagonal entry of the rest tangent.
@@ -106,8 +113,8 @@ FemEquilibriumSolver::FemEquilibriumSolver(const FemModel& model, FreeNodes free
 }
 
 template <int D>
-double FemEquilibriumSolver::Assemble(const Vector& force, double load, const Vector& u, Vector* gradient,
-                                      bool hessian, double* magnitude) {
+double FemEquilibriumSolver::Assemble(const Vector& force, double load, const Vector& u,
+                                      Vector* gradient, bool hessian, double* magnitude) {
   constexpr int kCorners = D + 1;
   constexpr int kPerElement = kCorners * kCorners * D * D;
   const auto& elements = [&]() -> const std::vector<Element<D>>& {
@@ -140,7 +147,8 @@ double FemEquilibriumSolver::Assemble(const Vector& force, double load, const Ve
     mag += el.volume * std::abs(r.energy);
     if (gradient) {
       // dE/du_a = V0 P G_a
-      const Eigen::Matrix<double, D, kCorners> nodal = el.volume * r.stress * el.gradients.transpose();
+      const Eigen::Matrix<double, D, kCorners> nodal =
+          el.volume * r.stress * el.gradients.transpose();
       for (int a = 0; a < kCorners; ++a) {
         const int fa = free_.free_index[el.nodes[a]];
         if (fa >= 0) gradient->segment<D>(D * fa) += nodal.col(a);
@@ -152,8 +160,9 @@ double FemEquilibriumSolver::Assemble(const Vector& force, double load, const Ve
       for (int a = 0; a < kCorners; ++a) {
         if (free_.free_index[el.nodes[a]] < 0) continue;
         // rows i, columns (k, L): sum_J A(i + D J, k + D L) G_a(J)
-        Eigen::Matrix<double, D, D * D> ag = Eigen::Matrix<double, D, D * D>::Zero();
-        for (int J = 0; J < D; ++J) ag += el.gradients(a, J) * r.tangent.template middleRows<D>(D * J);
+        Eigen::Matrix<double, D, D* D> ag = Eigen::Matrix<double, D, D * D>::Zero();
+        for (int J = 0; J < D; ++J)
+          ag += el.gradients(a, J) * r.tangent.template middleRows<D>(D * J);
         for (int b = 0; b < kCorners; ++b) {
           if (free_.free_index[el.nodes[b]] < 0) continue;
           for (int i = 0; i < D; ++i) {
@@ -182,14 +191,14 @@ double FemEquilibriumSolver::Assemble(const Vector& force, double load, const Ve
   return energy;
 }
 
-double FemEquilibriumSolver::Energy(const Vector& force, double load, const Vector& u, Vector* gradient,
-                                    bool hessian, double* magnitude) {
+double FemEquilibriumSolver::Energy(const Vector& force, double load, const Vector& u,
+                                    Vector* gradient, bool hessian, double* magnitude) {
   return dim_ == 2 ? Assemble<2>(force, load, u, gradient, hessian, magnitude)
                    : Assemble<3>(force, load, u, gradient, hessian, magnitude);
 }
 
-double FemEquilibriumSolver::EnergyAndGradient(const Vector& force, const Vector& u, Vector* gradient,
-                                               bool hessian) {
+double FemEquilibriumSolver::EnergyAndGradient(const Vector& force, const Vector& u,
+                                               Vector* gradient, bool hessian) {
   return Energy(force, 1.0, u, gradient, hessian, nullptr);
 }
 
@@ -239,7 +248,8 @@ bool FemEquilibriumSolver::Newton(const Vector& force, double load, double toler
       double trial_magnitude = 0.0;
       const double trial_energy = Energy(force, load, trial_, nullptr, false, &trial_magnitude);
       const double roundoff = kEnergyRoundoffUlps * kEpsilon * std::max(magnitude, trial_magnitude);
-      if (std::isfinite(trial_energy) && trial_energy <= energy + options_.armijo * alpha * slope + roundoff) {
+      if (std::isfinite(trial_energy) &&
+          trial_energy <= energy + options_.armijo * alpha * slope + roundoff) {
         accepted = true;
         break;
       }
@@ -254,7 +264,8 @@ bool FemEquilibriumSolver::Newton(const Vector& force, double load, double toler
   return summary.final_residual <= tolerance;
 }
 
-FemSolveSummary FemEquilibriumSolver::Solve(const Vector& force, const Vector& prescribed, Vector& u) {
+FemSolveSummary FemEquilibriumSolver::Solve(const Vector& force, const Vector& prescribed,
+                                            Vector& u) {
   FemSolveSummary summary;
   const int d = dim_;
   const int n = model_->node_count();
@@ -271,7 +282,8 @@ FemSolveSummary FemEquilibriumSolver::Solve(const Vector& force, const Vector& p
     if (free_.free_index[node] >= 0) {
       largest_force = std::max(largest_force, force.segment(d * node, d).cwiseAbs().maxCoeff());
     } else {
-      largest_prescribed = std::max(largest_prescribed, prescribed.segment(d * node, d).cwiseAbs().maxCoeff());
+      largest_prescribed =
+          std::max(largest_prescribed, prescribed.segment(d * node, d).cwiseAbs().maxCoeff());
     }
   }
   const double force_scale = std::max(largest_force, stiffness_scale_ * largest_prescribed);
@@ -287,7 +299,8 @@ FemSolveSummary FemEquilibriumSolver::Solve(const Vector& force, const Vector& p
     const double target = std::min(1.0, level + increment);
     trial = u;
     for (int node = 0; node < n; ++node) {
-      if (free_.free_index[node] < 0) trial.segment(d * node, d) = target * prescribed.segment(d * node, d);
+      if (free_.free_index[node] < 0)
+        trial.segment(d * node, d) = target * prescribed.segment(d * node, d);
     }
     if (Newton(force, target, tolerance, trial, summary)) {
       u.swap(trial);
@@ -305,20 +318,23 @@ FemSolveSummary FemEquilibriumSolver::Solve(const Vector& force, const Vector& p
     }
   }
   summary.reached = level;
-  summary.final_residual = force_scale > 0.0 ? summary.final_residual / force_scale : summary.final_residual;
+  summary.final_residual =
+      force_scale > 0.0 ? summary.final_residual / force_scale : summary.final_residual;
   if (!converged) {
     summary.termination = FemTermination::kNoEquilibrium;
-    summary.message = "no equilibrium found beyond " + Fraction(level) + " of the load (" +
-                      std::to_string(summary.load_steps) + " load steps, " + std::to_string(summary.load_cuts) +
-                      " cut back): an instability such as buckling, or a load beyond what the material "
-                      "carries; try a smaller load";
+    summary.message =
+        "no equilibrium found beyond " + Fraction(level) + " of the load (" +
+        std::to_string(summary.load_steps) + " load steps, " + std::to_string(summary.load_cuts) +
+        " cut back): an instability such as buckling, or a load beyond what the material "
+        "carries; try a smaller load";
     return summary;
   }
   summary.inverted_element = model_->FirstInvertedElement(u);
   if (summary.inverted_element >= 0) {
     summary.termination = FemTermination::kInverted;
-    summary.message = "element " + std::to_string(summary.inverted_element) +
-                      " is inverted (J <= 0) at the equilibrium: the load is too large for this model";
+    summary.message =
+        "element " + std::to_string(summary.inverted_element) +
+        " is inverted (J <= 0) at the equilibrium: the load is too large for this model";
     return summary;
   }
   summary.termination = FemTermination::kConverged;

@@ -62,10 +62,10 @@ enum class FemTermination {
 
 struct FemSolveSummary {
   FemTermination termination = FemTermination::kNoEquilibrium;
-  int iterations = 0;      // Newton iterations, all increments
-  int load_steps = 0;      // accepted load increments (1 when the full load converged at once)
-  int load_cuts = 0;       // increments that failed and were halved
-  double reached = 0.0;    // load fraction of the last converged state
+  int iterations = 0;           // Newton iterations, all increments
+  int load_steps = 0;           // accepted load increments (1 when the full load converged at once)
+  int load_cuts = 0;            // increments that failed and were halved
+  double reached = 0.0;         // load fraction of the last converged state
   double final_residual = 0.0;  // |gradient|_inf / force_scale at the end
   int inverted_element = -1;    // kInverted: the first inverted element
   int free_modes = 0;           // kFreeModes: the null-space dimension
@@ -101,7 +101,8 @@ class FemEquilibriumSolver {
   double Energy(const Vector& force, double load, const Vector& u, Vector* gradient, bool hessian,
                 double* magnitude);
   // Newton at one load level from u (in place); true when converged.
-  bool Newton(const Vector& force, double load, double tolerance, Vector& u, FemSolveSummary& summary);
+  bool Newton(const Vector& force, double load, double tolerance, Vector& u,
+              FemSolveSummary& summary);
   int RestFreeModes();
 
   const FemModel* model_ = nullptr;

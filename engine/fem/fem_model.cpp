@@ -9,7 +9,8 @@ namespace {
 template <int D>
 MatD<D> EdgeMatrix(const Vector& x, const std::array<int, D + 1>& nodes) {
   MatD<D> m;
-  for (int a = 0; a < D; ++a) m.col(a) = x.segment<D>(D * nodes[a + 1]) - x.segment<D>(D * nodes[0]);
+  for (int a = 0; a < D; ++a)
+    m.col(a) = x.segment<D>(D * nodes[a + 1]) - x.segment<D>(D * nodes[0]);
   return m;
 }
 

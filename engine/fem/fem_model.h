@@ -36,8 +36,10 @@ class FemModel {
 
   int dimension() const { return dimension_; }
   int node_count() const { return node_count_; }
-  int element_count() const { return dimension_ == 2 ? static_cast<int>(elements2_.size())
-                                                     : static_cast<int>(elements3_.size()); }
+  int element_count() const {
+    return dimension_ == 2 ? static_cast<int>(elements2_.size())
+                           : static_cast<int>(elements3_.size());
+  }
   const Vector& rest() const { return rest_; }
   const std::vector<Element<2>>& elements2() const { return elements2_; }
   const std::vector<Element<3>>& elements3() const { return elements3_; }

@@ -15,7 +15,9 @@ namespace {
 // would dominate the system's conditioning by more than the factorisation can bear.
 constexpr double kDegenerateQuality = 1e-8;
 
-std::string Index(const std::string& path, std::size_t i) { return path + "[" + std::to_string(i) + "]"; }
+std::string Index(const std::string& path, std::size_t i) {
+  return path + "[" + std::to_string(i) + "]";
+}
 
 std::string Number(double v) {
   char buf[32];
@@ -35,7 +37,8 @@ void CheckMaterial(const Material& m, const std::string& path) {
 // Which side of the facet's line (2D) or plane (3D) point p lies on: +1, -1, or 0.
 double Side(int d, const Vector& rest, const std::vector<int>& facet, int p) {
   Matrix m(d, d);
-  for (int a = 1; a < d; ++a) m.col(a - 1) = rest.segment(d * facet[a], d) - rest.segment(d * facet[0], d);
+  for (int a = 1; a < d; ++a)
+    m.col(a - 1) = rest.segment(d * facet[a], d) - rest.segment(d * facet[0], d);
   m.col(d - 1) = rest.segment(d * p, d) - rest.segment(d * facet[0], d);
   const double det = m.determinant();
   return det > 0.0 ? 1.0 : det < 0.0 ? -1.0 : 0.0;
@@ -56,20 +59,23 @@ void CheckNoFold(const Scene& s) {
       }
       std::sort(facet.begin(), facet.end());
       const int opposite = fem.elements[e][skip];
-      const auto [it, inserted] = owner.emplace(facet, std::make_pair(static_cast<int>(e), opposite));
+      const auto [it, inserted] =
+          owner.emplace(facet, std::make_pair(static_cast<int>(e), opposite));
       if (inserted) continue;
       const int other = it->second.first;
       std::string nodes;
       for (int node : facet) nodes += (nodes.empty() ? "" : ", ") + std::to_string(node);
       if (other < 0) {
-        throw InputError(Index("reference.elements", e), std::string("a third element on the ") +
-                                                             (d == 2 ? "edge" : "face") + " (" + nodes +
-                                                             "): the mesh is not a manifold");
+        throw InputError(Index("reference.elements", e),
+                         std::string("a third element on the ") + (d == 2 ? "edge" : "face") +
+                             " (" + nodes + "): the mesh is not a manifold");
       }
       if (Side(d, s.rest, facet, opposite) == Side(d, s.rest, facet, it->second.second)) {
         throw InputError(Index("reference.elements", e),
-                         "inverted at rest: it overlaps reference.elements[" + std::to_string(other) + "] across their " +
-                             (d == 2 ? "edge" : "face") + " (" + nodes + ") (the mesh folds over itself there)");
+                         "inverted at rest: it overlaps reference.elements[" +
+                             std::to_string(other) + "] across their " +
+                             (d == 2 ? "edge" : "face") + " (" + nodes +
+                             ") (the mesh folds over itself there)");
       }
       it->second.first = -1;  // two elements seen
     }
@@ -88,56 +94,66 @@ void ValidateFemReference(const Scene& s) {
     const std::string p = Index("reference.elements", e);
     const std::vector<int>& el = fem.elements[e];
     if (static_cast<int>(el.size()) != d + 1) {
-      throw InputError(p, std::string("a ") + (d == 2 ? "2D element is a 3-node triangle" : "3D element is a 4-node tetrahedron") +
+      throw InputError(p, std::string("a ") +
+                              (d == 2 ? "2D element is a 3-node triangle"
+                                      : "3D element is a 4-node tetrahedron") +
                               ", got " + std::to_string(el.size()) + " nodes");
     }
     Matrix corners(d, d + 1);
     for (int a = 0; a <= d; ++a) {
       if (el[a] < 0 || el[a] >= n) {
-        throw InputError(Index(p, a), "node index " + std::to_string(el[a]) + " out of range [0, " + std::to_string(n) + ")");
+        throw InputError(Index(p, a), "node index " + std::to_string(el[a]) + " out of range [0, " +
+                                          std::to_string(n) + ")");
       }
       for (int b = 0; b < a; ++b) {
-        if (el[a] == el[b]) throw InputError(Index(p, a), "node " + std::to_string(el[a]) + " is listed twice");
+        if (el[a] == el[b])
+          throw InputError(Index(p, a), "node " + std::to_string(el[a]) + " is listed twice");
       }
       used[el[a]] = true;
       corners.col(a) = s.rest.segment(d * el[a], d);
     }
     const double q = SimplexQuality(d, corners);
     if (!(std::abs(q) >= kDegenerateQuality)) {
-      throw InputError(p, "degenerate element (quality " + Number(std::abs(q)) + ", 1 = equilateral): its nodes are " +
+      throw InputError(p, "degenerate element (quality " + Number(std::abs(q)) +
+                              ", 1 = equilateral): its nodes are " +
                               (d == 2 ? "on one line" : "in one plane"));
     }
   }
   CheckNoFold(s);
   for (int i = 0; i < n; ++i) {
     if (!used[i]) {
-      throw InputError("reference.elements", "node " + std::to_string(i) +
-                                                 " belongs to no element (every node of an FEM reference must)");
+      throw InputError("reference.elements",
+                       "node " + std::to_string(i) +
+                           " belongs to no element (every node of an FEM reference must)");
     }
   }
   if (fem.materials.empty()) throw InputError("reference.material", "required");
   if (fem.regions) {
-    for (std::size_t m = 0; m < fem.materials.size(); ++m) CheckMaterial(fem.materials[m], Index("reference.materials", m));
+    for (std::size_t m = 0; m < fem.materials.size(); ++m)
+      CheckMaterial(fem.materials[m], Index("reference.materials", m));
     if (fem.element_material.size() != fem.elements.size()) {
-      throw InputError("reference.element_materials", "expected one material index per element (" +
-                                                          std::to_string(fem.elements.size()) + "), got " +
-                                                          std::to_string(fem.element_material.size()));
+      throw InputError("reference.element_materials",
+                       "expected one material index per element (" +
+                           std::to_string(fem.elements.size()) + "), got " +
+                           std::to_string(fem.element_material.size()));
     }
     for (std::size_t e = 0; e < fem.element_material.size(); ++e) {
       const int m = fem.element_material[e];
       if (m < 0 || m >= static_cast<int>(fem.materials.size())) {
-        throw InputError(Index("reference.element_materials", e), "material index " + std::to_string(m) +
-                                                                      " out of range [0, " +
-                                                                      std::to_string(fem.materials.size()) + ")");
+        throw InputError(Index("reference.element_materials", e),
+                         "material index " + std::to_string(m) + " out of range [0, " +
+                             std::to_string(fem.materials.size()) + ")");
       }
     }
   } else {
     CheckMaterial(fem.materials[0], "reference.material");
   }
   if (d == 3 && fem.plane_given) throw InputError("reference.plane", "only applies to 2D scenes");
-  if (d == 3 && fem.thickness_given) throw InputError("reference.thickness", "only applies to 2D scenes");
+  if (d == 3 && fem.thickness_given)
+    throw InputError("reference.thickness", "only applies to 2D scenes");
   if (!std::isfinite(fem.thickness) || !(fem.thickness > 0.0)) {
-    throw InputError("reference.thickness", "must be a finite number > 0, got " + Number(fem.thickness));
+    throw InputError("reference.thickness",
+                     "must be a finite number > 0, got " + Number(fem.thickness));
   }
 }
 

@@ -19,14 +19,16 @@ constexpr int Flat(int i, int J) {
 // condensation), c = lambda ln J - mu:
 //   dP_iJ/dF_kL = mu delta_ik delta_JL + lambda Finv_Lk Finv_Ji - c Finv_Jk Finv_Li
 template <int D>
-Eigen::Matrix<double, D * D, D * D> NeoHookeanTangent(const MatD<D>& Finv, double mu, double lambda, double c) {
+Eigen::Matrix<double, D * D, D * D> NeoHookeanTangent(const MatD<D>& Finv, double mu, double lambda,
+                                                      double c) {
   Eigen::Matrix<double, D * D, D * D> a;
   for (int i = 0; i < D; ++i) {
     for (int J = 0; J < D; ++J) {
       for (int k = 0; k < D; ++k) {
         for (int L = 0; L < D; ++L) {
-          a(Flat<D>(i, J), Flat<D>(k, L)) =
-              mu * (i == k) * (J == L) + lambda * Finv(L, k) * Finv(J, i) - c * Finv(J, k) * Finv(L, i);
+          a(Flat<D>(i, J), Flat<D>(k, L)) = mu * (i == k) * (J == L) +
+                                            lambda * Finv(L, k) * Finv(J, i) -
+                                            c * Finv(J, k) * Finv(L, i);
         }
       }
     }
@@ -115,8 +117,9 @@ MaterialResponse<D> MaterialLaw<D>::StVenantKirchhoff(const MatD<D>& H, bool nee
       for (int J = 0; J < D; ++J) {
         for (int k = 0; k < D; ++k) {
           for (int L = 0; L < D; ++L) {
-            r.tangent(Flat<D>(i, J), Flat<D>(k, L)) = (i == k) * S(L, J) + lambda_ * F(i, J) * F(k, L) +
-                                                      mu_ * (FFt(i, k) * (J == L) + F(i, L) * F(k, J));
+            r.tangent(Flat<D>(i, J), Flat<D>(k, L)) =
+                (i == k) * S(L, J) + lambda_ * F(i, J) * F(k, L) +
+                mu_ * (FFt(i, k) * (J == L) + F(i, L) * F(k, J));
           }
         }
       }
@@ -144,7 +147,8 @@ MaterialResponse<D> MaterialLaw<D>::NeoHookean(const MatD<D>& F, bool need_tange
 }
 
 template <int D>
-MaterialResponse<D> MaterialLaw<D>::NeoHookeanPlaneStress(const MatD<D>& F, bool need_tangent) const {
+MaterialResponse<D> MaterialLaw<D>::NeoHookeanPlaneStress(const MatD<D>& F,
+                                                          bool need_tangent) const {
   MaterialResponse<D> r;
   const double J2 = F.determinant();
   if (!(J2 > 0.0)) {
@@ -168,7 +172,8 @@ MaterialResponse<D> MaterialLaw<D>::NeoHookeanPlaneStress(const MatD<D>& F, bool
   }
   const double l3 = std::exp(s);
   const double log_j = log_j2 + s;  // ln of the 3D J = J2 lambda3
-  r.energy = 0.5 * mu * (F.squaredNorm() + l3 * l3 - 3.0) - mu * log_j + 0.5 * lambda * log_j * log_j;
+  r.energy =
+      0.5 * mu * (F.squaredNorm() + l3 * l3 - 3.0) - mu * log_j + 0.5 * lambda * log_j * log_j;
   const MatD<D> Finv = F.inverse();
   const double c = lambda * log_j - mu;
   r.stress = mu * F + c * Finv.transpose();  // dW/dF2 at fixed lambda3 (dW/dlambda3 = 0)

@@ -50,8 +50,10 @@ void AddTractionForces(const Scene& s, const Traction& t, const std::string& pat
     total_measure += m;
   }
   if (facets.empty() || !(total_measure > 0.0)) {
-    throw InputError(path + ".on", "node set '" + t.on + "' holds no boundary " + (d == 2 ? "edge" : "face") +
-                                       " of the mesh (a traction acts on edges or faces whose nodes are all in the set)");
+    throw InputError(
+        path + ".on",
+        "node set '" + t.on + "' holds no boundary " + (d == 2 ? "edge" : "face") +
+            " of the mesh (a traction acts on edges or faces whose nodes are all in the set)");
   }
   const Vector density = t.total ? Vector(t.value / total_measure) : t.value;
   for (std::size_t f = 0; f < facets.size(); ++f) {

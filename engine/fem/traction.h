@@ -20,6 +20,7 @@ std::vector<std::vector<int>> BoundaryFacets(const FemReference& fem, int dimens
 
 // Adds the traction's nodal forces into `force` (flat d*n). Throws InputError(path + ".on")
 // when the node set holds no boundary facet.
-void AddTractionForces(const Scene& scene, const Traction& traction, const std::string& path, Vector& force);
+void AddTractionForces(const Scene& scene, const Traction& traction, const std::string& path,
+                       Vector& force);
 
 }  // namespace springfit::fem

@@ -19,7 +19,8 @@ struct Fitness {
   // finite value, so that comparisons stay a strict weak order.
   static Fitness From(const Evaluation& e) {
     if (!std::isfinite(e.normalized_error) || !std::isfinite(e.cost)) {
-      return {std::numeric_limits<double>::max(), std::numeric_limits<double>::max(), e.mechanism_modes, e.mechanism, false};
+      return {std::numeric_limits<double>::max(), std::numeric_limits<double>::max(),
+              e.mechanism_modes, e.mechanism, false};
     }
     return {e.cost, e.normalized_error, e.mechanism_modes, e.mechanism, e.converged};
   }

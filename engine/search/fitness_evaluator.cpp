@@ -6,8 +6,8 @@
 
 namespace springfit {
 
-FitnessEvaluator::FitnessEvaluator(const Problem& problem, WorkerPool* pool, std::size_t cache_capacity,
-                                   bool use_cache)
+FitnessEvaluator::FitnessEvaluator(const Problem& problem, WorkerPool* pool,
+                                   std::size_t cache_capacity, bool use_cache)
     : problem_(&problem), pool_(pool), use_cache_(use_cache), cache_(cache_capacity) {
   const int slots = pool ? pool->threads() : 1;
   for (int s = 0; s < slots; ++s) costs_.push_back(std::make_unique<CostFunction>(problem));

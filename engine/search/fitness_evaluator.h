@@ -31,7 +31,8 @@ class FitnessEvaluator {
   // `pool` runs the evaluations (nullptr: the calling thread alone); it must outlive this.
   // `use_cache` = false solves every genome (to check that the cache changes nothing).
   FitnessEvaluator(const Problem& problem, WorkerPool* pool,
-                   std::size_t cache_capacity = FitnessCache::kDefaultCapacity, bool use_cache = true);
+                   std::size_t cache_capacity = FitnessCache::kDefaultCapacity,
+                   bool use_cache = true);
 
   std::vector<Fitness> Evaluate(const std::vector<Genome>& genomes);
 
@@ -39,7 +40,9 @@ class FitnessEvaluator {
   void set_counters(const EvaluationCounters& counters) { counters_ = counters; }
   FitnessCache& cache() { return cache_; }
   // A full evaluation (per load case, solver statistics), on the calling thread.
-  Evaluation EvaluateInDetail(const Genome& genome) { return costs_.front()->EvaluateGenome(genome); }
+  Evaluation EvaluateInDetail(const Genome& genome) {
+    return costs_.front()->EvaluateGenome(genome);
+  }
 
  private:
   const Problem* problem_;

@@ -10,17 +10,23 @@
 
 namespace springfit {
 
-GeneticSearch::GeneticSearch(const Problem& problem, SearchOptions options, FitnessEvaluator& evaluator)
-    : problem_(&problem), options_(options), evaluator_(&evaluator), random_(options.seed),
+GeneticSearch::GeneticSearch(const Problem& problem, SearchOptions options,
+                             FitnessEvaluator& evaluator)
+    : problem_(&problem),
+      options_(options),
+      evaluator_(&evaluator),
+      random_(options.seed),
       started_(std::chrono::steady_clock::now()) {
   if (options_.local_search && options_.local_search_swaps) {
     swap_partners_ = SwapPartners(problem, options_.swap_radius);
   }
-  if (options_.population < 2) throw std::invalid_argument("GeneticSearch: population must be >= 2");
+  if (options_.population < 2)
+    throw std::invalid_argument("GeneticSearch: population must be >= 2");
   if (options_.elites < 0 || options_.elites >= options_.population) {
     throw std::invalid_argument("GeneticSearch: elites must be in [0, population)");
   }
-  if (options_.local_search_batch < 1) throw std::invalid_argument("GeneticSearch: local_search_batch must be >= 1");
+  if (options_.local_search_batch < 1)
+    throw std::invalid_argument("GeneticSearch: local_search_batch must be >= 1");
   if (!(options_.roulette_exponent > 0.0 && options_.roulette_exponent <= kMaxRouletteExponent)) {
     throw std::invalid_argument("GeneticSearch: roulette_exponent must be in (0, " +
                                 std::to_string(static_cast<int>(kMaxRouletteExponent)) + "]");
@@ -46,7 +52,8 @@ TraceRow GeneticSearch::Initialize() {
 void GeneticSearch::SeedInitialPopulation(std::vector<Genome> genomes, double elapsed_seconds) {
   const auto genes = static_cast<std::size_t>(problem_->gene_count());
   for (const Genome& g : genomes) {
-    if (g.size() != genes) throw std::invalid_argument("GeneticSearch::SeedInitialPopulation: wrong genome size");
+    if (g.size() != genes)
+      throw std::invalid_argument("GeneticSearch::SeedInitialPopulation: wrong genome size");
   }
   seeds_ = std::move(genomes);
   // The earlier phases' time replaces whatever the clock counted since construction.
@@ -55,8 +62,9 @@ void GeneticSearch::SeedInitialPopulation(std::vector<Genome> genomes, double el
 }
 
 Genome GeneticSearch::InitialGenome(int i) {
-  const double density = options_.initial_density_low + (options_.initial_density_high - options_.initial_density_low) *
-                                                            (i + 0.5) / options_.population;
+  const double density = options_.initial_density_low +
+                         (options_.initial_density_high - options_.initial_density_low) *
+                             (i + 0.5) / options_.population;
   return RandomGenome(problem_->gene_count(), density, random_);
 }
 
@@ -71,7 +79,8 @@ void GeneticSearch::Restore(const SearchState& state) {
                     (state.local_optimum.empty() || state.local_optimum.size() == genes);
   for (const Genome& g : state.population) consistent = consistent && g.size() == genes;
   if (!consistent) {
-    throw std::invalid_argument("GeneticSearch::Restore: the state does not match this problem and options");
+    throw std::invalid_argument(
+        "GeneticSearch::Restore: the state does not match this problem and options");
   }
   state_ = state;
   random_.RestoreState(state.random_state);
@@ -90,7 +99,8 @@ TraceRow GeneticSearch::Step() {
   ++state_.generation;
   UpdateBest();
   if (options_.local_search && !TargetReached()) LocalSearch();
-  state_.stall = state_.best_fitness.normalized_error < before.normalized_error ? 0 : state_.stall + 1;
+  state_.stall =
+      state_.best_fitness.normalized_error < before.normalized_error ? 0 : state_.stall + 1;
   if (options_.restart_after > 0 && state_.stall >= options_.restart_after && !Finished()) {
     Restart();
   }
@@ -125,8 +135,9 @@ std::vector<Genome> GeneticSearch::Breed() {
   if (options_.elites > 0) {
     std::vector<int> order(n);
     std::iota(order.begin(), order.end(), 0);
-    std::stable_sort(order.begin(), order.end(),
-                     [&](int a, int b) { return fit[a].normalized_error < fit[b].normalized_error; });
+    std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+      return fit[a].normalized_error < fit[b].normalized_error;
+    });
     for (int e = 0; e < options_.elites; ++e) next.push_back(state_.population[order[e]]);
   }
   while (static_cast<int>(next.size()) < n) {
@@ -228,7 +239,8 @@ void GeneticSearch::LocalSearch() {
         if (!genome[h]) moves.push_back({g, h});
       }
     }
-    for (int i = static_cast<int>(moves.size()) - 1; i > 0; --i) std::swap(moves[i], moves[random_.Below(i + 1)]);
+    for (int i = static_cast<int>(moves.size()) - 1; i > 0; --i)
+      std::swap(moves[i], moves[random_.Below(i + 1)]);
     return moves;
   };
 
@@ -238,7 +250,8 @@ void GeneticSearch::LocalSearch() {
   std::size_t unimproved = 0;  // moves tried in a row without an improvement
   bool optimum = false;
   std::vector<Genome> neighbours;
-  for (int batches = 0; !(options_.local_search_max_batches > 0 && batches >= options_.local_search_max_batches);
+  for (int batches = 0;
+       !(options_.local_search_max_batches > 0 && batches >= options_.local_search_max_batches);
        ++batches) {
     if (unimproved >= moves.size()) {
       // A whole pass without improvement: single flips give way to swaps; after swaps too,
@@ -267,7 +280,8 @@ void GeneticSearch::LocalSearch() {
     // The improving moves of the batch, best first (ties: batch order).
     std::vector<int> improving;
     for (std::size_t j = 0; j < batch; ++j) {
-      if (results[j].normalized_error < fitness.normalized_error) improving.push_back(static_cast<int>(j));
+      if (results[j].normalized_error < fitness.normalized_error)
+        improving.push_back(static_cast<int>(j));
     }
     std::stable_sort(improving.begin(), improving.end(), [&](int x, int y) {
       return results[x].normalized_error < results[y].normalized_error;
@@ -349,7 +363,8 @@ TraceRow GeneticSearch::Row() const {
 }
 
 double GeneticSearch::ElapsedSeconds() const {
-  return elapsed_before_ + std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+  return elapsed_before_ +
+         std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
 }
 
 }  // namespace springfit

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/identification/trace.h"
 #include "engine/problem.h"
 #include "engine/search/fitness_evaluator.h"
 #include "engine/search/random_stream.h"
@@ -21,39 +22,19 @@
 
 namespace springfit {
 
-// One row of the trace per generation (generation 0 is the initial population).
-struct TraceRow {
-  int generation = 0;
-  double wall_seconds = 0.0;       // since the search started (not reproducible)
-  std::int64_t evaluations = 0;    // genomes evaluated so far, cache hits included
-  std::int64_t cache_hits = 0;     // so far
-  double best_cost = 0.0;          // of the best genome found so far
-  double best_normalized_error = 0.0;
-  double mean_cost = 0.0;          // over the current population (penalties included)
-  int missing = -1;                // best genome against the reference topology; -1 = unknown
-  int extra = -1;
-
-  // Equal in everything but wall time.
-  bool SameSearch(const TraceRow& o) const {
-    return generation == o.generation && evaluations == o.evaluations && cache_hits == o.cache_hits &&
-           best_cost == o.best_cost && best_normalized_error == o.best_normalized_error &&
-           mean_cost == o.mean_cost && missing == o.missing && extra == o.extra;
-  }
-};
-
 // Everything a search carries from one generation to the next. The random stream, the
 // counters, the cache and the elapsed time live in their owners while the search runs;
 // GeneticSearch::Snapshot() copies them in.
 struct SearchState {
   int generation = 0;
-  std::string random_state;      // RandomStream::SaveState()
+  std::string random_state;  // RandomStream::SaveState()
   std::vector<Genome> population;
   std::vector<Fitness> fitness;  // of population
   Genome best;                   // best genome found so far (first found among equals)
   Fitness best_fitness;
   int best_generation = 0;
-  int stall = 0;                 // generations since the best last improved
-  Genome local_optimum;          // last genome the local search proved locally optimal
+  int stall = 0;         // generations since the best last improved
+  Genome local_optimum;  // last genome the local search proved locally optimal
   EvaluationCounters counters;
   // The fitness cache, oldest entry first: restoring it keeps cache hits, hence the trace,
   // identical to an uninterrupted run.
@@ -79,7 +60,8 @@ class GeneticSearch {
 
   bool TargetReached() const;
   bool Finished() const {
-    return (options_.stop_at_target && TargetReached()) || state_.generation >= options_.max_generations;
+    return (options_.stop_at_target && TargetReached()) ||
+           state_.generation >= options_.max_generations;
   }
 
   // The state between generations, random stream and cache included (for a checkpoint).

@@ -7,7 +7,8 @@ namespace springfit {
 SearchOptions StrategyDefaults(Strategy strategy, int genes) {
   SearchOptions o;  // the paper's GA
   o.strategy = strategy;
-  o.identify = strategy == Strategy::kDirect ? Identify::kTopologyAndStiffness : Identify::kTopology;
+  o.identify =
+      strategy == Strategy::kDirect ? Identify::kTopologyAndStiffness : Identify::kTopology;
   if (strategy == Strategy::kPaper) return o;
   o.selection = SearchOptions::Selection::kTournament;
   o.tournament_size = 2;
@@ -18,13 +19,13 @@ SearchOptions StrategyDefaults(Strategy strategy, int genes) {
   o.initial_density_low = 0.5;
   o.initial_density_high = 1.0;
   o.local_search = true;
-  o.direct_seed = true;
   return o;
 }
 
 SearchOptions ResolveSearchOptions(const SearchSettings& settings, int genes) {
   SearchOptions o = StrategyDefaults(settings.strategy, genes);
-  if (settings.identify) o.identify = *settings.identify;  // scene validation checked it fits the strategy
+  if (settings.identify)
+    o.identify = *settings.identify;  // scene validation checked it fits the strategy
   o.seed = settings.seed;
   if (settings.population) o.population = *settings.population;
   if (settings.crossover_probability) o.crossover_probability = *settings.crossover_probability;

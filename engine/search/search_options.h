@@ -47,19 +47,19 @@ struct SearchOptions {
   Identify identify = Identify::kTopology;
   std::uint64_t seed = 1;
   int population = 20;
-  int max_generations = 1000;           // generations bred after the initial population
+  int max_generations = 1000;            // generations bred after the initial population
   double target_normalized_error = 0.0;  // stop at or below max(this, kExactNormalizedError)
   bool stop_at_target = true;            // false: run every generation (benchmarks of a full run)
 
   Selection selection = Selection::kRoulette;
-  int tournament_size = 2;               // kTournament
+  int tournament_size = 2;  // kTournament
   // kRoulette: individual weights (e + kExactNormalizedError)^-roulette_exponent, the exponent
   // in (0, kMaxRouletteExponent].
   double roulette_exponent = 1.0;
   Crossover crossover = Crossover::kOnePoint;
-  double crossover_probability = 0.3;    // per pair of parents
-  double mutation_probability = 0.01;    // per gene of every child
-  int elites = 0;                        // best individuals copied unchanged into the next generation
+  double crossover_probability = 0.3;  // per pair of parents
+  double mutation_probability = 0.01;  // per gene of every child
+  int elites = 0;                      // best individuals copied unchanged into the next generation
 
   // Individual i of the initial population has genes 1 with probability
   // low + (high - low) * (i + 1/2) / population.
@@ -88,10 +88,6 @@ struct SearchOptions {
   // anew (0 = never; restarts after 3 or 20 stalled generations measured no better on
   // paper-aniso-5x5, bench/RESULTS.md).
   int restart_after = 0;
-
-  // The direct identification's topology (topology only, at the training stiffness) takes
-  // the first place of the initial population; its time starts the trace's clock.
-  bool direct_seed = false;
 
   std::size_t cache_capacity = FitnessCache::kDefaultCapacity;
 };

@@ -50,7 +50,8 @@ struct Batch {
 
 WorkerPool::WorkerPool(int threads) : threads_(threads) {
   if (threads < 1) throw std::invalid_argument("WorkerPool: threads must be >= 1");
-  if (threads > 1) pool_ = std::make_unique<boost::asio::thread_pool>(static_cast<std::size_t>(threads - 1));
+  if (threads > 1)
+    pool_ = std::make_unique<boost::asio::thread_pool>(static_cast<std::size_t>(threads - 1));
 }
 
 WorkerPool::~WorkerPool() {

@@ -15,11 +15,15 @@ namespace {
 
 int Count(const std::string& text, const std::string& what) {
   int n = 0;
-  for (std::size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + what.size())) ++n;
+  for (std::size_t at = text.find(what); at != std::string::npos;
+       at = text.find(what, at + what.size()))
+    ++n;
   return n;
 }
 
-Problem GridProblem(int dimension) { return Problem::Build(testing::GridScene(dimension, 3)); }
+Problem GridProblem(int dimension) {
+  return Problem::Build(testing::GridScene(dimension, 3));
+}
 
 TEST(TopologyFigure, MarksEachWrongSpringInEachPanel) {
   const Problem problem = GridProblem(2);
@@ -28,7 +32,8 @@ TEST(TopologyFigure, MarksEachWrongSpringInEachPanel) {
   input.springs.pop_back();  // one missing spring, found by the figure itself
   const std::string svg = RenderTopologyFigure(problem, input);
   const int cases = static_cast<int>(problem.load_cases().size());
-  EXPECT_EQ(Count(svg, "class=\"missing\""), cases + 1);  // one per identified panel, one in the legend
+  EXPECT_EQ(Count(svg, "class=\"missing\""),
+            cases + 1);  // one per identified panel, one in the legend
   EXPECT_EQ(Count(svg, "class=\"extra\""), 1);
   EXPECT_EQ(Count(svg, "class=\"panel\""), 2 * cases);
   EXPECT_EQ(Count(svg, "<clipPath"), 2 * cases);
@@ -50,7 +55,8 @@ TEST(TopologyFigure, AMechanismIsDrawnAtRestAndSaidSo) {
   // Every reference spring the genome can hold is missing, in every identified panel.
   const int missing = problem.CompareWithReference(Genome(problem.gene_count(), 0))->hamming();
   EXPECT_GT(missing, 0);
-  EXPECT_EQ(Count(svg, "class=\"missing\""), static_cast<int>(problem.load_cases().size()) * missing + 1);
+  EXPECT_EQ(Count(svg, "class=\"missing\""),
+            static_cast<int>(problem.load_cases().size()) * missing + 1);
 }
 
 TEST(TopologyFigure, SmallDisplacementsAreMagnifiedAndTheFactorStated) {
@@ -113,8 +119,8 @@ TEST(SvgText, EscapesMarkupAndReplacesWhatXmlForbids) {
   EXPECT_EQ(XmlEscape("a<b>&\"c\""), "a&lt;b&gt;&amp;&quot;c&quot;");
   EXPECT_EQ(XmlEscape("tab\tok"), "tab\tok");
   EXPECT_EQ(XmlEscape(std::string("x\x01y")), "x\xEF\xBF\xBDy");
-  EXPECT_EQ(XmlEscape("caf\xC3\xA9"), "caf\xC3\xA9");           // valid UTF-8 kept
-  EXPECT_EQ(XmlEscape("bad\xC3"), "bad\xEF\xBF\xBD");          // truncated sequence
+  EXPECT_EQ(XmlEscape("caf\xC3\xA9"), "caf\xC3\xA9");            // valid UTF-8 kept
+  EXPECT_EQ(XmlEscape("bad\xC3"), "bad\xEF\xBF\xBD");            // truncated sequence
   EXPECT_EQ(XmlEscape("\xC0\xAF"), "\xEF\xBF\xBD\xEF\xBF\xBD");  // overlong form
   EXPECT_EQ(XmlEscape("\xED\xA0\x80"), "\xEF\xBF\xBD\xEF\xBF\xBD\xEF\xBF\xBD");  // a surrogate
 }

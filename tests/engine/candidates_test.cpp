@@ -31,15 +31,27 @@ TEST(Candidates, NearestIsSymmetricUnion) {
   Scene s = testing::GridScene(2, 3);
   s.candidates.kind = CandidateSpec::Kind::kNearest;
   s.candidates.k = 1;
-  // Each node's single nearest neighbour (ties to the lower index) joins with it.
-  const std::vector<NodePair> pairs = GenerateCandidates(s);
-  for (int i = 0; i < 9; ++i) {
-    bool has = false;
-    for (const NodePair& p : pairs) has = has || p.first == i || p.second == i;
-    EXPECT_TRUE(has) << i;
-  }
+  // Each node's single nearest neighbour, exact ties to the lower index: 0-1, 1-0, 2-1, 3-0,
+  // 4-1, 5-2, 6-3, 7-4, 8-5.
+  const std::vector<NodePair> grid_expected{{0, 1}, {0, 3}, {1, 2}, {1, 4},
+                                            {2, 5}, {3, 6}, {4, 7}, {5, 8}};
+  EXPECT_EQ(GenerateCandidates(s), grid_expected);
   s.candidates.k = 8;  // every other node of a 3x3 grid
   EXPECT_EQ(GenerateCandidates(s).size(), 36u);
+
+  // Nodes on a line at 0, 1, 1.5 and 10: node 3's nearest is node 2, but node 2's is node 1;
+  // the union keeps (2, 3) all the same.
+  Scene line;
+  line.dimension = 2;
+  line.rest.resize(8);
+  line.rest << 0, 0, 1, 0, 1.5, 0, 10, 0;
+  line.candidates.kind = CandidateSpec::Kind::kNearest;
+  line.candidates.k = 1;
+  const std::vector<NodePair> one{{0, 1}, {1, 2}, {2, 3}};
+  EXPECT_EQ(GenerateCandidates(line), one);
+  line.candidates.k = 2;  // 0: 1, 2; 1: 2, 0; 2: 1, 0; 3: 2, 1
+  const std::vector<NodePair> two{{0, 1}, {0, 2}, {1, 2}, {1, 3}, {2, 3}};
+  EXPECT_EQ(GenerateCandidates(line), two);
 }
 
 TEST(Candidates, RadiusIncludesTheBoundary) {
@@ -54,9 +66,27 @@ TEST(Candidates, RadiusIncludesTheBoundary) {
 TEST(Candidates, PairsAreOrderedAndDeduplicated) {
   Scene s = testing::GridScene(2, 3);
   s.candidates.kind = CandidateSpec::Kind::kPairs;
-  s.candidates.pairs = {{4, 1}, {0, 3}};
+  // (generation alone: the scene reader refuses a duplicate pair before this)
+  s.candidates.pairs = {{4, 1}, {0, 3}, {1, 4}};
   const std::vector<NodePair> expected{{0, 3}, {1, 4}};
   EXPECT_EQ(GenerateCandidates(s), expected);
+}
+
+TEST(Candidates, MeshEdgesOnceEachPlusNearest) {
+  // Two triangles sharing the edge (1, 2) have five edges; k = 1 adds each node's nearest.
+  Scene s;
+  s.dimension = 2;
+  s.rest.resize(10);
+  s.rest << 0, 0, 1, 0, 0, 1, 1, 1, 5, 5;
+  s.reference.kind = Reference::Kind::kFem;
+  s.reference.fem.elements = {{0, 1, 2}, {1, 3, 2}};
+  s.candidates.kind = CandidateSpec::Kind::kMesh;
+  s.candidates.k = 0;
+  const std::vector<NodePair> edges{{0, 1}, {0, 2}, {1, 2}, {1, 3}, {2, 3}};
+  EXPECT_EQ(GenerateCandidates(s), edges);
+  s.candidates.k = 1;  // node 4 (not in an element here) joins its nearest, node 3
+  const std::vector<NodePair> with_nearest{{0, 1}, {0, 2}, {1, 2}, {1, 3}, {2, 3}, {3, 4}};
+  EXPECT_EQ(GenerateCandidates(s), with_nearest);
 }
 
 }  // namespace

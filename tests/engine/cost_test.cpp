@@ -115,7 +115,8 @@ TEST(Cost, NormalisedErrorIsInvariantToTheSceneScale) {
       const Problem ps = Problem::Build(testing::ScaledScene(base, s));
       CostFunction cs(ps);
       const Evaluation es = cs.EvaluateMask(mask);
-      EXPECT_NEAR(es.normalized_error, e0.normalized_error, 1e-9 * e0.normalized_error) << "scale " << s;
+      EXPECT_NEAR(es.normalized_error, e0.normalized_error, 1e-9 * e0.normalized_error)
+          << "scale " << s;
       EXPECT_NEAR(es.cost, e0.cost * s * s, 1e-9 * e0.cost * s * s);
       for (std::size_t k = 0; k < es.load_cases.size(); ++k) {
         EXPECT_EQ(es.load_cases[k].solve.iterations, e0.load_cases[k].solve.iterations);

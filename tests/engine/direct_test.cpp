@@ -7,8 +7,8 @@
 #include "engine/direct/direct_identification.h"
 #include "engine/direct/force_balance.h"
 #include "engine/direct/nnls.h"
-#include "engine/direct/run_direct.h"
 #include "engine/examples/catalog.h"
+#include "engine/identification/identify.h"
 #include "engine/input_error.h"
 #include "tests/test_scenes.h"
 
@@ -34,7 +34,8 @@ TEST(ForceBalance, TheReferenceStiffnessSolvesItExactly) {
   EXPECT_EQ(fb.a.cols(), problem.gene_count());
   // One row per free coordinate per load case.
   Eigen::Index rows = 0;
-  for (const PreparedLoadCase& lc : problem.load_cases()) rows += 2 * problem.free_sets()[lc.free_set].count;
+  for (const PreparedLoadCase& lc : problem.load_cases())
+    rows += 2 * problem.free_sets()[lc.free_set].count;
   EXPECT_EQ(fb.a.rows(), rows);
 }
 
@@ -62,7 +63,8 @@ TEST(Nnls, MatchesTheBestActiveSetOfASmallDenseProblem) {
         if (set & (1 << j)) cols.push_back(j);
       }
       Eigen::MatrixXd sub(12, static_cast<Eigen::Index>(cols.size()));
-      for (std::size_t c = 0; c < cols.size(); ++c) sub.col(static_cast<Eigen::Index>(c)) = dense.col(cols[c]);
+      for (std::size_t c = 0; c < cols.size(); ++c)
+        sub.col(static_cast<Eigen::Index>(c)) = dense.col(cols[c]);
       const Vector z = sub.colPivHouseholderQr().solve(b);
       if (z.minCoeff() < 0.0) continue;
       best = std::min(best, (sub * z - b).norm());
@@ -99,13 +101,16 @@ std::string CaseName(const DirectCase& c) {
   return name + "_seed" + std::to_string(c.seed);
 }
 
-void PrintTo(const DirectCase& c, std::ostream* os) { *os << CaseName(c); }
+void PrintTo(const DirectCase& c, std::ostream* os) {
+  *os << CaseName(c);
+}
 
 class DirectRecovery : public ::testing::TestWithParam<DirectCase> {};
 
 TEST_P(DirectRecovery, TopologyExactlyAndStiffnessTo1e8) {
   // Stiffness over three decades, so that a uniform guess could not pass.
-  const Problem problem = Problem::Build(examples::ThinnedGrid(GetParam().grid, GetParam().seed, 3.0));
+  const Problem problem =
+      Problem::Build(examples::ThinnedGrid(GetParam().grid, GetParam().seed, 3.0));
   const DirectResult r = IdentifyDirect(problem);
   const auto difference = problem.CompareWithReference(r.genome);
   ASSERT_TRUE(difference);
@@ -119,14 +124,15 @@ TEST_P(DirectRecovery, TopologyExactlyAndStiffnessTo1e8) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Grids, DirectRecovery,
-                         ::testing::Values(DirectCase{{5, 5}, 1}, DirectCase{{6, 4}, 2}, DirectCase{{3, 3, 3}, 1},
-                                           DirectCase{{4, 3, 3}, 5}),
+                         ::testing::Values(DirectCase{{5, 5}, 1}, DirectCase{{6, 4}, 2},
+                                           DirectCase{{3, 3, 3}, 1}, DirectCase{{4, 3, 3}, 5}),
                          [](const ::testing::TestParamInfo<DirectCase>& param_info) {
                            return CaseName(param_info.param);
                          });
 
 TEST(Direct, RecoversEveryMssExampleTopologyExactly) {
-  for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d"}) {
+  for (const char* name :
+       {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d"}) {
     const Problem problem = Problem::Build(examples::Make(name));
     const DirectResult r = IdentifyDirect(problem);
     EXPECT_EQ(problem.CompareWithReference(r.genome)->hamming(), 0) << name;
@@ -149,14 +155,18 @@ TEST(Direct, NoisyPositionsGetStandardErrorsAndConfidences) {
   const Scene noisy = examples::WithMeasurementNoise(clean, 1e-3, 4);
   EXPECT_EQ(noisy.reference.kind, Reference::Kind::kPositions);
   // The same seed draws the same noise; another seed, other noise.
-  EXPECT_EQ(noisy.reference.positions[2], examples::WithMeasurementNoise(clean, 1e-3, 4).reference.positions[2]);
-  EXPECT_NE(noisy.reference.positions[2], examples::WithMeasurementNoise(clean, 1e-3, 5).reference.positions[2]);
+  EXPECT_EQ(noisy.reference.positions[2],
+            examples::WithMeasurementNoise(clean, 1e-3, 4).reference.positions[2]);
+  EXPECT_NE(noisy.reference.positions[2],
+            examples::WithMeasurementNoise(clean, 1e-3, 5).reference.positions[2]);
   const Problem truth = Problem::Build(clean);
   const Problem problem = Problem::Build(noisy);
   // The noise has the size asked for: 1e-3 of the RMS displacement per coordinate.
   const Vector delta = problem.load_cases()[0].reference - truth.load_cases()[0].reference;
-  const double rms_u = std::sqrt(truth.load_cases()[0].reference_norm2 / problem.free_sets()[problem.load_cases()[0].free_set].count);
-  const double rms_noise = delta.norm() / std::sqrt(2.0 * problem.free_sets()[problem.load_cases()[0].free_set].count);
+  const double rms_u = std::sqrt(truth.load_cases()[0].reference_norm2 /
+                                 problem.free_sets()[problem.load_cases()[0].free_set].count);
+  const double rms_noise =
+      delta.norm() / std::sqrt(2.0 * problem.free_sets()[problem.load_cases()[0].free_set].count);
   EXPECT_NEAR(rms_noise / rms_u, 1e-3, 0.4e-3);
 
   const DirectResult r = IdentifyDirect(problem);
@@ -231,19 +241,24 @@ TEST(Direct, SceneIdentifySettingChoosesWhatRunDirectFinds) {
   Scene scene = examples::Make("stiff-2d");  // per-spring reference stiffness
   scene.search.strategy = Strategy::kDirect;
   const Problem both = Problem::Build(scene);
-  const DirectRun per_spring = RunDirect(both, ResolveSearchOptions(both.scene().search, both.gene_count()));
-  EXPECT_EQ(per_spring.search.options.identify, Identify::kTopologyAndStiffness);  // direct's default
-  EXPECT_EQ(per_spring.search.exact(), true);
-  EXPECT_LT(per_spring.search.evaluation.normalized_error, 1e-12);
+  const IdentificationResult per_spring =
+      RunIdentification(both, ResolveSearchOptions(both.scene().search, both.gene_count()));
+  EXPECT_EQ(per_spring.options.identify,
+            Identify::kTopologyAndStiffness);  // direct's default
+  EXPECT_EQ(per_spring.exact(), true);
+  EXPECT_LT(per_spring.evaluation.normalized_error, 1e-12);
 
   scene.search.identify = Identify::kTopology;
   const Problem topology_only = Problem::Build(scene);
-  const DirectRun uniform = RunDirect(topology_only, ResolveSearchOptions(topology_only.scene().search, topology_only.gene_count()));
-  EXPECT_EQ(uniform.search.options.identify, Identify::kTopology);
-  EXPECT_EQ(uniform.search.exact(), true);  // the topology, yes
-  for (const double k : uniform.direct.springs.stiffness) EXPECT_EQ(k, topology_only.training_stiffness());
+  const IdentificationResult uniform = RunIdentification(
+      topology_only,
+      ResolveSearchOptions(topology_only.scene().search, topology_only.gene_count()));
+  EXPECT_EQ(uniform.options.identify, Identify::kTopology);
+  EXPECT_EQ(uniform.exact(), true);  // the topology, yes
+  for (const double k : uniform.direct->springs.stiffness)
+    EXPECT_EQ(k, topology_only.training_stiffness());
   // ... but uniform stiffness does not reproduce a reference whose stiffness varies.
-  EXPECT_GT(uniform.search.evaluation.normalized_error, 1e-6);
+  EXPECT_GT(uniform.evaluation.normalized_error, 1e-6);
 
   // The genetic strategies only know the training stiffness.
   scene.search.identify = Identify::kTopologyAndStiffness;
@@ -263,7 +278,8 @@ TEST(Direct, SceneIdentifySettingChoosesWhatRunDirectFinds) {
 TEST(Direct, SpringsUnderTheThresholdAreAddedBackUntilTheModelCarriesTheLoads) {
   // A threshold no weight passes leaves no spring: a mechanism. The guard then adds the
   // fewest springs, largest weights first, that carry every load case.
-  const Problem problem = Problem::Build(examples::WithMeasurementNoise(examples::Make("paper-aniso-5x5"), 0.01, 1));
+  const Problem problem =
+      Problem::Build(examples::WithMeasurementNoise(examples::Make("paper-aniso-5x5"), 0.01, 1));
   DirectOptions strict;
   strict.significance = 1e9;
   strict.refine = false;
@@ -377,12 +393,14 @@ TEST(Hybrid, SeedsTheGeneticSearchWithTheDirectTopology) {
   Scene scene = examples::Make("paper-aniso-5x5");
   scene.search.strategy = Strategy::kHybrid;
   const Problem exact = Problem::Build(scene);
-  const SearchResult clean = RunSearch(exact, ResolveSearchOptions(exact.scene().search, exact.gene_count()));
+  const IdentificationResult clean =
+      RunIdentification(exact, ResolveSearchOptions(exact.scene().search, exact.gene_count()));
   EXPECT_EQ(clean.stop, StopReason::kTargetReached);
   EXPECT_EQ(clean.generations, 0);
   ASSERT_TRUE(clean.direct_phase);
   EXPECT_EQ(clean.direct_phase->difference->hamming(), 0);
-  EXPECT_GE(clean.trace.front().wall_seconds, clean.direct_phase->seconds);  // one clock for both phases
+  EXPECT_GE(clean.trace.front().wall_seconds,
+            clean.direct_phase->seconds);  // one clock for both phases
 
   // 1% noise: direct alone misses springs of paper-iso-5x5; seeded, the GA's local search
   // finds the true topology.
@@ -391,7 +409,8 @@ TEST(Hybrid, SeedsTheGeneticSearchWithTheDirectTopology) {
   noisy.search.max_generations = 40;
   const Problem problem = Problem::Build(noisy);
   const Problem truth = Problem::Build(examples::Make("paper-iso-5x5"));
-  const SearchResult result = RunSearch(problem, ResolveSearchOptions(problem.scene().search, problem.gene_count()));
+  const IdentificationResult result = RunIdentification(
+      problem, ResolveSearchOptions(problem.scene().search, problem.gene_count()));
   ASSERT_TRUE(result.direct_phase);
   EXPECT_GT(truth.CompareWithReference(IdentifyDirect(problem).genome)->hamming(), 0);
   EXPECT_EQ(truth.CompareWithReference(result.best)->hamming(), 0);
@@ -416,12 +435,13 @@ TEST(Direct, ASceneWithoutGenesEndsCleanly) {
   f.value << 0.0, 0.05;
   lc.forces = {f};
   s.load_cases = {lc};
+  s.search.strategy = Strategy::kDirect;
   const Problem problem = Problem::Build(s);
   ASSERT_EQ(problem.gene_count(), 0);
-  const DirectRun run = RunDirect(problem, ResolveSearchOptions(s.search, 0));
-  EXPECT_TRUE(run.search.springs.empty());
-  EXPECT_EQ(run.search.stop, StopReason::kCompleted);
-  EXPECT_TRUE(run.search.evaluation.mechanism);
+  const IdentificationResult run = RunIdentification(problem, ResolveSearchOptions(s.search, 0));
+  EXPECT_TRUE(run.springs.empty());
+  EXPECT_EQ(run.stop, StopReason::kCompleted);
+  EXPECT_TRUE(run.evaluation.mechanism);
 }
 
 TEST(Direct, DependentColumnsGiveFiniteWeightsAndNoFalseConvergence) {
@@ -439,15 +459,21 @@ TEST(Direct, DependentColumnsGiveFiniteWeightsAndNoFalseConvergence) {
   }
 }
 
-TEST(Direct, RunDirectHasTheShapeOfASearchResult) {
-  const Problem problem = Problem::Build(examples::Make("paper-aniso-5x5"));
-  const DirectRun run = RunDirect(problem, ResolveSearchOptions(problem.scene().search, problem.gene_count()));
-  EXPECT_EQ(run.search.stop, StopReason::kTargetReached);
-  EXPECT_EQ(run.search.exact(), true);
-  ASSERT_EQ(run.search.trace.size(), 1u);
-  EXPECT_EQ(run.search.trace[0].missing, 0);
-  EXPECT_EQ(run.search.springs.size(), run.direct.springs.stiffness.size());
-  EXPECT_EQ(run.search.generations, 0);
+TEST(Direct, DirectHasTheShapeOfEveryResult) {
+  Scene scene = examples::Make("paper-aniso-5x5");
+  scene.search.strategy = Strategy::kDirect;
+  const Problem problem = Problem::Build(scene);
+  const IdentificationResult run = RunIdentification(
+      problem, ResolveSearchOptions(problem.scene().search, problem.gene_count()));
+  ASSERT_TRUE(run.direct);
+  EXPECT_EQ(run.stiffness.size(), run.springs.size());
+  EXPECT_NE(run.stop_message.find("target"), std::string::npos) << run.stop_message;
+  EXPECT_EQ(run.stop, StopReason::kTargetReached);
+  EXPECT_EQ(run.exact(), true);
+  ASSERT_EQ(run.trace.size(), 1u);
+  EXPECT_EQ(run.trace[0].missing, 0);
+  EXPECT_EQ(run.springs.size(), run.direct->springs.stiffness.size());
+  EXPECT_EQ(run.generations, 0);
 }
 
 }  // namespace

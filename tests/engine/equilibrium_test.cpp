@@ -3,8 +3,8 @@
 
 #include <cmath>
 
-#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
 
 #include "engine/problem.h"
 #include "tests/test_scenes.h"
@@ -79,10 +79,12 @@ TEST(Equilibrium, ChainUniformStretchUpToThreeTimesLength) {
     Vector prescribed = Vector::Zero(2 * (n + 1));
     prescribed[2 * n] = (stretch - 1.0) * 0.5 * n;
     Vector u = Vector::Zero(2 * (n + 1));
-    const EquilibriumSummary summary = solver.Solve(springs, Vector::Zero(2 * (n + 1)), prescribed, u);
+    const EquilibriumSummary summary =
+        solver.Solve(springs, Vector::Zero(2 * (n + 1)), prescribed, u);
     ASSERT_TRUE(summary.converged()) << stretch;
     for (int i = 0; i <= n; ++i) {
-      EXPECT_NEAR(u[2 * i], (stretch - 1.0) * 0.5 * i, 1e-12) << "stretch " << stretch << " node " << i;
+      EXPECT_NEAR(u[2 * i], (stretch - 1.0) * 0.5 * i, 1e-12)
+          << "stretch " << stretch << " node " << i;
       EXPECT_EQ(u[2 * i + 1], 0.0);
     }
   }
@@ -158,14 +160,16 @@ TEST(Equilibrium, SmallLoadLimitIsTheLinearSolve) {
       const Matrix k0 = solver.AssembledHessian();
       Vector f_free(k0.rows());
       for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
-        if (free.free_index[i] >= 0) f_free.segment(dim * free.free_index[i], dim) = force.segment(dim * i, dim);
+        if (free.free_index[i] >= 0)
+          f_free.segment(dim * free.free_index[i], dim) = force.segment(dim * i, dim);
       }
       const Vector u_linear = k0.ldlt().solve(f_free);
       Vector u = Vector::Zero(force.size());
       ASSERT_TRUE(solver.Solve(springs, force, Vector::Zero(force.size()), u).converged());
       Vector u_free(k0.rows());
       for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
-        if (free.free_index[i] >= 0) u_free.segment(dim * free.free_index[i], dim) = u.segment(dim * i, dim);
+        if (free.free_index[i] >= 0)
+          u_free.segment(dim * free.free_index[i], dim) = u.segment(dim * i, dim);
       }
       // The nonlinear correction is of relative order of the strain, here about 1e-8.
       EXPECT_LE((u_free - u_linear).norm(), 1e-6 * u_linear.norm());
@@ -209,9 +213,12 @@ TEST(Equilibrium, SparseAndBandedBackendsAgree) {
         const int modes = banded.RestMechanismModes(holes);
         const Matrix h = banded.AssembledHessian();
         // Scaled as the factorisations scale it (a node without springs has a zero diagonal).
-        const Vector scale = h.diagonal().unaryExpr([](double d) { return d > 0.0 ? 1.0 / std::sqrt(d) : 1.0; });
-        const Eigen::SelfAdjointEigenSolver<Matrix> eigen(scale.asDiagonal() * h * scale.asDiagonal());
-        EXPECT_EQ(modes, (eigen.eigenvalues().array() <= EquilibriumOptions{}.pivot_tolerance).count());
+        const Vector scale =
+            h.diagonal().unaryExpr([](double d) { return d > 0.0 ? 1.0 / std::sqrt(d) : 1.0; });
+        const Eigen::SelfAdjointEigenSolver<Matrix> eigen(scale.asDiagonal() * h *
+                                                          scale.asDiagonal());
+        EXPECT_EQ(modes,
+                  (eigen.eigenvalues().array() <= EquilibriumOptions{}.pivot_tolerance).count());
         EXPECT_EQ(modes > 0, sparse.RestMechanismModes(holes) > 0);
         mechanisms += modes;
       }
@@ -232,7 +239,8 @@ TEST(Equilibrium, EverySolveIsInForceBalance) {
       Vector gradient;
       solver.EnergyAndGradient(springs, lc.force, u, &gradient, false, false);
       // The gradient is the net force imbalance on each free node.
-      EXPECT_LE(gradient.lpNorm<Eigen::Infinity>(), kForceBalance * lc.force.lpNorm<Eigen::Infinity>());
+      EXPECT_LE(gradient.lpNorm<Eigen::Infinity>(),
+                kForceBalance * lc.force.lpNorm<Eigen::Infinity>());
     }
   }
 }

@@ -34,13 +34,15 @@ TEST(Examples, EveryExampleBuildsWithAConvergedReference) {
     const Problem p = Problem::Build(s);  // throws if the reference has no equilibrium
     EXPECT_GT(p.gene_count(), 0) << info.name;
     // An MSS reference's topology is known; an FEM reference has none to recover.
-    EXPECT_EQ(p.reference_mask().has_value(), s.reference.kind == Reference::Kind::kMss) << info.name;
+    EXPECT_EQ(p.reference_mask().has_value(), s.reference.kind == Reference::Kind::kMss)
+        << info.name;
   }
   const Scene kidney = examples::Make("kidney-2d");
   EXPECT_GE(kidney.node_count(), 60);
   EXPECT_LE(kidney.node_count(), 150);
   const Scene stiff = examples::Make("stiff-2d");
-  const auto [lo, hi] = std::minmax_element(stiff.reference.stiffness.begin(), stiff.reference.stiffness.end());
+  const auto [lo, hi] =
+      std::minmax_element(stiff.reference.stiffness.begin(), stiff.reference.stiffness.end());
   EXPECT_NEAR(*lo, 1e-4, 1e-16);
   EXPECT_NEAR(*hi, 1e4, 1e-8);
   EXPECT_EQ(examples::Make("grid3d-4x4x4").dimension, 3);
@@ -64,12 +66,14 @@ TEST(Examples, FemExamplesAreWhatTheCatalogueSays) {
   // 5% strain in the small-load limit: the largest displacement is 5% of the extent (4).
   const Problem p = Problem::Build(plate);
   double largest = 0.0;
-  for (const PreparedLoadCase& lc : p.load_cases()) largest = std::max(largest, lc.reference.cwiseAbs().maxCoeff());
+  for (const PreparedLoadCase& lc : p.load_cases())
+    largest = std::max(largest, lc.reference.cwiseAbs().maxCoeff());
   EXPECT_GT(largest, 0.05 * 4.0 * 0.7);
   EXPECT_LT(largest, 0.05 * 4.0 * 1.0 + 1e-12);
   const Scene nl = examples::Make("fem-kidney-2d-nl");
   EXPECT_EQ(nl.reference.fem.materials[0].model, MaterialModel::kStVenantKirchhoff);
-  EXPECT_EQ(examples::Make("fem-kidney-2d").reference.fem.materials[0].model, MaterialModel::kLinear);
+  EXPECT_EQ(examples::Make("fem-kidney-2d").reference.fem.materials[0].model,
+            MaterialModel::kLinear);
   const Scene block = examples::Make("fem-block-3d");
   EXPECT_EQ(block.dimension, 3);
   EXPECT_GE(block.node_count(), 500);

@@ -35,7 +35,8 @@ TEST(ClosedFormBaseline, VanGelderStiffnessSumsOverTheElementsOfAnEdge) {
   for (std::size_t e = 0; e < m.springs.size(); ++e) {
     const NodePair p = m.springs[e];
     const bool diagonal = p == NodePair{0, 2};
-    EXPECT_DOUBLE_EQ(m.stiffness[e], 0.5) << p.first << "-" << p.second << (diagonal ? " (diagonal)" : "");
+    EXPECT_DOUBLE_EQ(m.stiffness[e], 0.5)
+        << p.first << "-" << p.second << (diagonal ? " (diagonal)" : "");
   }
   // 3D: the cube's main diagonal (0, 7) belongs to all six tetrahedra of volume 1/6, length^2 3.
   const Scene cube = UnitSquare(3);

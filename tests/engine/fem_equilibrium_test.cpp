@@ -23,8 +23,8 @@ using examples::SimplexMesh;
 // displacements agree to about that relative to their size.
 constexpr double kClosedFormTolerance = 1e-9;
 
-Scene FemScene(const SimplexMesh& mesh, int d, Material material, PlaneMode plane = PlaneMode::kStress,
-               double thickness = 1.0) {
+Scene FemScene(const SimplexMesh& mesh, int d, Material material,
+               PlaneMode plane = PlaneMode::kStress, double thickness = 1.0) {
   Scene s;
   s.name = "fem-test";
   s.dimension = d;
@@ -51,7 +51,8 @@ std::vector<int> NodesAt(const Scene& s, int axis, double value) {
 // A bar along x: left end fixed, a total traction `total_x` on the right end.
 Scene Bar(int d, MaterialModel model, double total_x, double poisson = 0.0) {
   const double h = 0.25;
-  const SimplexMesh mesh = d == 2 ? examples::TriangulatedRectangle(8, 2, h, true) : examples::TetrahedralBlock(8, 2, 2, h);
+  const SimplexMesh mesh = d == 2 ? examples::TriangulatedRectangle(8, 2, h, true)
+                                  : examples::TetrahedralBlock(8, 2, 2, h);
   Scene s = FemScene(mesh, d, Material{model, 3.0, poisson}, PlaneMode::kStrain, 0.2);
   s.node_sets["left"] = NodesAt(s, 0, 0.0);
   s.node_sets["right"] = NodesAt(s, 0, 8 * h);
@@ -70,7 +71,9 @@ Scene Bar(int d, MaterialModel model, double total_x, double poisson = 0.0) {
 }
 
 // The bar's cross-section area (2D: width x thickness).
-double BarSection(int d) { return d == 2 ? 0.5 * 0.2 : 0.5 * 0.5; }
+double BarSection(int d) {
+  return d == 2 ? 0.5 * 0.2 : 0.5 * 0.5;
+}
 
 // Solves for the stretch lambda with nominal stress p: Newton on a monotone law.
 template <typename Law>
@@ -90,8 +93,10 @@ void ExpectUniformStretch(const Problem& p, double lambda) {
   const Vector& u = p.load_cases()[0].reference;
   const double umax = (lambda - 1.0) * 2.0;
   for (int i = 0; i < s.node_count(); ++i) {
-    EXPECT_NEAR(u[d * i], (lambda - 1.0) * s.rest[d * i], kClosedFormTolerance * std::abs(umax)) << "node " << i;
-    for (int a = 1; a < d; ++a) EXPECT_NEAR(u[d * i + a], 0.0, kClosedFormTolerance * std::abs(umax)) << "node " << i;
+    EXPECT_NEAR(u[d * i], (lambda - 1.0) * s.rest[d * i], kClosedFormTolerance * std::abs(umax))
+        << "node " << i;
+    for (int a = 1; a < d; ++a)
+      EXPECT_NEAR(u[d * i + a], 0.0, kClosedFormTolerance * std::abs(umax)) << "node " << i;
   }
 }
 
@@ -110,7 +115,8 @@ TEST(FemEquilibrium, StVenantKirchhoffBarMatchesClosedForm) {
     const double total = 0.05 * 3.0 * BarSection(d);  // nominal stress 5% of E
     const Problem p = Problem::Build(Bar(d, MaterialModel::kStVenantKirchhoff, total));
     // Poisson 0: S = E E_xx, P = F S = E l (l^2 - 1) / 2.
-    ExpectUniformStretch(p, Stretch(0.05 * 3.0, [](double l) { return 3.0 * l * (l * l - 1.0) / 2.0; }));
+    ExpectUniformStretch(
+        p, Stretch(0.05 * 3.0, [](double l) { return 3.0 * l * (l * l - 1.0) / 2.0; }));
   }
 }
 
@@ -128,7 +134,8 @@ TEST(FemEquilibrium, NeoHookeanBarMatchesClosedFormAtLargeStretch) {
 // free: the interior must follow the same field exactly (a constant F is an equilibrium of
 // any hyperelastic law), on a mesh with jittered interior nodes.
 void PatchTest(int d, MaterialModel model) {
-  SimplexMesh mesh = d == 2 ? examples::TriangulatedRectangle(4, 4, 1.0, true) : examples::TetrahedralBlock(3, 3, 3, 1.0);
+  SimplexMesh mesh = d == 2 ? examples::TriangulatedRectangle(4, 4, 1.0, true)
+                            : examples::TetrahedralBlock(3, 3, 3, 1.0);
   testing::TestRandom random(7);
   const int n = static_cast<int>(mesh.nodes.size()) / d;
   const double top = d == 2 ? 4.0 : 3.0;
@@ -167,7 +174,8 @@ void PatchTest(int d, MaterialModel model) {
 }
 
 TEST(FemEquilibrium, PatchTestReproducesConstantStrain) {
-  for (MaterialModel model : {MaterialModel::kLinear, MaterialModel::kStVenantKirchhoff, MaterialModel::kNeoHookean}) {
+  for (MaterialModel model :
+       {MaterialModel::kLinear, MaterialModel::kStVenantKirchhoff, MaterialModel::kNeoHookean}) {
     PatchTest(2, model);
     PatchTest(3, model);
   }
@@ -175,8 +183,10 @@ TEST(FemEquilibrium, PatchTestReproducesConstantStrain) {
 
 TEST(FemEquilibrium, GradientAndTangentMatchFiniteDifferences) {
   for (int d : {2, 3}) {
-    for (MaterialModel model : {MaterialModel::kLinear, MaterialModel::kStVenantKirchhoff, MaterialModel::kNeoHookean}) {
-      const SimplexMesh mesh = d == 2 ? examples::TriangulatedRectangle(3, 2, 1.0, false) : examples::TetrahedralBlock(2, 1, 1, 1.0);
+    for (MaterialModel model :
+         {MaterialModel::kLinear, MaterialModel::kStVenantKirchhoff, MaterialModel::kNeoHookean}) {
+      const SimplexMesh mesh = d == 2 ? examples::TriangulatedRectangle(3, 2, 1.0, false)
+                                      : examples::TetrahedralBlock(2, 1, 1, 1.0);
       const Scene s = FemScene(mesh, d, Material{model, 1.5, 0.25}, PlaneMode::kStress, 0.3);
       const fem::FemModel model_ = fem::FemModel::Build(s);
       std::vector<bool> constrained(s.node_count(), false);
@@ -198,7 +208,9 @@ TEST(FemEquilibrium, GradientAndTangentMatchFiniteDifferences) {
           Vector plus = u, minus = u;
           plus[d * i + a] += step;
           minus[d * i + a] -= step;
-          const double fd = (solver.EnergyAndGradient(f, plus, nullptr, false) - solver.EnergyAndGradient(f, minus, nullptr, false)) / (2 * step);
+          const double fd = (solver.EnergyAndGradient(f, plus, nullptr, false) -
+                             solver.EnergyAndGradient(f, minus, nullptr, false)) /
+                            (2 * step);
           const int row = d * (i - 1) + a;
           EXPECT_NEAR(fd, g[row], 1e-6 * (1.0 + g.cwiseAbs().maxCoeff()));
           Vector gp, gm;
@@ -229,7 +241,8 @@ TEST(FemEquilibrium, TractionsSpreadTheTotalForceConsistently) {
   Scene inner = s;
   inner.load_cases[0].tractions[0].nodes = {10};
   try {
-    fem::AddTractionForces(inner, inner.load_cases[0].tractions[0], "load_cases[0].tractions[0]", force);
+    fem::AddTractionForces(inner, inner.load_cases[0].tractions[0], "load_cases[0].tractions[0]",
+                           force);
     FAIL() << "expected an InputError";
   } catch (const InputError& e) {
     EXPECT_EQ(e.path(), "load_cases[0].tractions[0].on");
@@ -262,7 +275,8 @@ TEST(FemEquilibrium, CompressionBeyondTheLimitLoadHasNoEquilibrium) {
     EXPECT_NE(std::string(e.what()).find("load"), std::string::npos) << e.what();
   }
   // Below the bar's buckling load (Euler, clamped-free: about 0.013 E here) it converges.
-  EXPECT_NO_THROW(Problem::Build(Bar(2, MaterialModel::kStVenantKirchhoff, -0.005 * 3.0 * BarSection(2))));
+  EXPECT_NO_THROW(
+      Problem::Build(Bar(2, MaterialModel::kStVenantKirchhoff, -0.005 * 3.0 * BarSection(2))));
 }
 
 TEST(FemEquilibrium, AnIslandNotHeldByTheSupportsIsRefused) {
@@ -330,7 +344,9 @@ TEST(FemEquilibrium, ValidationNamesTheField) {
     const int last = s.node_count() - 1;
     auto& els = s.reference.fem.elements;
     els.erase(std::remove_if(els.begin(), els.end(),
-                             [&](const std::vector<int>& e) { return std::find(e.begin(), e.end(), last) != e.end(); }),
+                             [&](const std::vector<int>& e) {
+                               return std::find(e.begin(), e.end(), last) != e.end();
+                             }),
               els.end());
   }
   expect_path(s, "reference.elements", "belongs to no element");
@@ -350,7 +366,8 @@ TEST(FemEquilibrium, RegionsGiveEachElementItsMaterial) {
   // moves T L/2 / (E A) + T L/2 / (3 E A).
   Scene s = Bar(2, MaterialModel::kLinear, 0.01);
   s.reference.fem.regions = true;
-  s.reference.fem.materials = {Material{MaterialModel::kLinear, 3.0, 0.0}, Material{MaterialModel::kLinear, 9.0, 0.0}};
+  s.reference.fem.materials = {Material{MaterialModel::kLinear, 3.0, 0.0},
+                               Material{MaterialModel::kLinear, 9.0, 0.0}};
   for (const auto& e : s.reference.fem.elements) {
     double cx = 0.0;
     for (int node : e) cx += s.rest[2 * node] / 3.0;

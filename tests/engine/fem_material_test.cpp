@@ -53,7 +53,8 @@ void CheckDerivatives(const MaterialLaw<D>& law, const MatD<D>& h, const std::st
       const MaterialResponse<D> rp = law.Evaluate(plus, false);
       const MaterialResponse<D> rm = law.Evaluate(minus, false);
       const double dw = (rp.energy - rm.energy) / (2.0 * kStep);
-      EXPECT_NEAR(dw, r.stress(k, l), kFdTolerance * scale_p) << what << " P(" << k << "," << l << ")";
+      EXPECT_NEAR(dw, r.stress(k, l), kFdTolerance * scale_p)
+          << what << " P(" << k << "," << l << ")";
       const MatD<D> dp = (rp.stress - rm.stress) / (2.0 * kStep);
       for (int i = 0; i < D; ++i) {
         for (int j = 0; j < D; ++j) {
@@ -71,14 +72,17 @@ TEST(MaterialLaw, StressAndTangentAreTheEnergysDerivatives2D) {
     Material m = base;
     m.model = c.model;
     const MaterialLaw<2> law(m, c.plane);
-    for (std::uint64_t seed = 1; seed <= 4; ++seed) CheckDerivatives<2>(law, SomeDisplacementGradient<2>(seed, 0.3), c.name);
+    for (std::uint64_t seed = 1; seed <= 4; ++seed)
+      CheckDerivatives<2>(law, SomeDisplacementGradient<2>(seed, 0.3), c.name);
   }
 }
 
 TEST(MaterialLaw, StressAndTangentAreTheEnergysDerivatives3D) {
-  for (MaterialModel model : {MaterialModel::kLinear, MaterialModel::kStVenantKirchhoff, MaterialModel::kNeoHookean}) {
+  for (MaterialModel model :
+       {MaterialModel::kLinear, MaterialModel::kStVenantKirchhoff, MaterialModel::kNeoHookean}) {
     const MaterialLaw<3> law(Material{model, 3.0, 0.45}, PlaneMode::kStrain);
-    for (std::uint64_t seed = 1; seed <= 4; ++seed) CheckDerivatives<3>(law, SomeDisplacementGradient<3>(seed, 0.3), "3d");
+    for (std::uint64_t seed = 1; seed <= 4; ++seed)
+      CheckDerivatives<3>(law, SomeDisplacementGradient<3>(seed, 0.3), "3d");
   }
 }
 
@@ -145,7 +149,8 @@ TEST(MaterialLaw, NeoHookeanRefusesInvertedStates) {
   h(0, 0) = -1.5;  // F_xx = -0.5: J < 0
   EXPECT_FALSE(law.Evaluate(h, true).admissible);
   // St. Venant-Kirchhoff has a finite energy there (it does not resist inversion).
-  const MaterialLaw<2> svk(Material{MaterialModel::kStVenantKirchhoff, 1.0, 0.3}, PlaneMode::kStrain);
+  const MaterialLaw<2> svk(Material{MaterialModel::kStVenantKirchhoff, 1.0, 0.3},
+                           PlaneMode::kStrain);
   EXPECT_TRUE(svk.Evaluate(h, true).admissible);
 }
 

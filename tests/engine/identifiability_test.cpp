@@ -18,7 +18,7 @@ Scene ThreePieces() {
   Scene s;
   s.name = "three-pieces";
   s.dimension = 2;
-  const std::vector<std::array<double, 2>> xy = {{0, 0}, {2, 0}, {1, -1}, {1, 1},  {5, 0},  {7, 0},
+  const std::vector<std::array<double, 2>> xy = {{0, 0},  {2, 0}, {1, -1}, {1, 1},  {5, 0}, {7, 0},
                                                  {6, -1}, {6, 1}, {10, 0}, {12, 0}, {11, 1}};
   s.rest.resize(static_cast<Eigen::Index>(2 * xy.size()));
   for (std::size_t i = 0; i < xy.size(); ++i) {
@@ -101,7 +101,7 @@ TEST(Identifiability, SpringsOfAPieceNoLoadCaseLoadsAreUnseen) {
   ASSERT_EQ(problem.gene_count(), 10);  // both are genes: node 13 is free
   const IdentifiabilityReport report = AnalyseIdentifiability(problem);
   EXPECT_EQ(report.unseen, Pairs({{11, 13}, {12, 13}}));
-  EXPECT_EQ(report.rank, 6);  // as without the piece
+  EXPECT_EQ(report.rank, 6);            // as without the piece
   ASSERT_EQ(report.groups.size(), 2u);  // the unseen springs form no group of their own
 
   // Strategy direct leaves them out and says so; without them node 13 floats.
@@ -117,7 +117,8 @@ TEST(Identifiability, SpringsOfAPieceNoLoadCaseLoadsAreUnseen) {
 }
 
 TEST(Identifiability, TheExamplesAreFullyIdentifiable) {
-  for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d"}) {
+  for (const char* name :
+       {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d"}) {
     const Problem problem = Problem::Build(examples::Make(name));
     const IdentifiabilityReport report = AnalyseIdentifiability(problem);
     EXPECT_TRUE(report.groups_analysed) << name;
@@ -140,7 +141,8 @@ TEST(Identifiability, OneLoadCaseOnAGridLeavesGroupsWithSuggestions) {
     EXPECT_TRUE(g.suggestion) << "a group without a suggestion";
   }
   // Every seen gene is independent or in a group: rank + dependencies = seen genes.
-  EXPECT_EQ(report.rank + dependencies + static_cast<int>(report.unseen.size()), problem.gene_count());
+  EXPECT_EQ(report.rank + dependencies + static_cast<int>(report.unseen.size()),
+            problem.gene_count());
 }
 
 }  // namespace

@@ -39,7 +39,8 @@ TEST(Problem, ReferenceMechanismIsRejectedNamingTheLoadCase) {
     FAIL() << "expected an InputError";
   } catch (const InputError& e) {
     EXPECT_EQ(e.path(), "reference");
-    EXPECT_NE(std::string(e.what()).find("mechanism under load_cases[0]"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("mechanism under load_cases[0]"), std::string::npos)
+        << e.what();
   }
 }
 
@@ -47,7 +48,8 @@ TEST(Problem, PositionsReferenceMustAgreeWithPrescribedNodes) {
   Scene s = testing::GridScene(2, 3);
   const Problem mss = Problem::Build(s);
   s.reference.kind = Reference::Kind::kPositions;
-  for (const PreparedLoadCase& lc : mss.load_cases()) s.reference.positions.push_back(s.rest + lc.reference);
+  for (const PreparedLoadCase& lc : mss.load_cases())
+    s.reference.positions.push_back(s.rest + lc.reference);
   const Problem positions = Problem::Build(s);
   EXPECT_DOUBLE_EQ(positions.reference_norm2(), mss.reference_norm2());
   EXPECT_FALSE(positions.reference_mask());

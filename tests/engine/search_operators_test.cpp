@@ -131,10 +131,12 @@ TEST(GeneticOperators, RouletteSelectsInProportionToTheWeights) {
 
 TEST(GeneticOperators, RouletteWeightsArePowersOfTheInverseError) {
   // The paper strategy's exponent 1: exactly 1 / (e + kExactNormalizedError).
-  for (double e : {0.0, 1e-6, 0.3, 2e6}) EXPECT_EQ(RouletteWeight(e, 1.0), 1.0 / (e + kExactNormalizedError));
+  for (double e : {0.0, 1e-6, 0.3, 2e6})
+    EXPECT_EQ(RouletteWeight(e, 1.0), 1.0 / (e + kExactNormalizedError));
   // Exponent p: weight ratios are error ratios to the power p, so an individual ten times
   // closer to the reference is ten, a hundred, ... times as likely to be drawn.
-  EXPECT_NEAR(RouletteWeight(0.01, 2.0) / RouletteWeight(0.1, 2.0), 100.0, 1e-6);  // the offset 1e-12 moves it by 2e-8
+  EXPECT_NEAR(RouletteWeight(0.01, 2.0) / RouletteWeight(0.1, 2.0), 100.0,
+              1e-6);  // the offset 1e-12 moves it by 2e-8
   EXPECT_NEAR(RouletteWeight(0.01, 0.5) / RouletteWeight(0.1, 0.5), std::sqrt(10.0), 1e-8);
   // An exact topology's weight is finite.
   EXPECT_TRUE(std::isfinite(RouletteWeight(0.0, 3.0)));
@@ -158,7 +160,8 @@ TEST(FitnessCache, KeysAreDistinctAndEvictionIsFirstInFirstOut) {
   EXPECT_NE(FitnessCache::Key(Genome{1, 0, 0}), FitnessCache::Key(Genome{0, 1, 0}));
   EXPECT_EQ(FitnessCache::Key(Genome(9, 1)).size(), 2u);
   FitnessCache cache(2);
-  const std::string a = FitnessCache::Key({1, 0}), b = FitnessCache::Key({0, 1}), c = FitnessCache::Key({1, 1});
+  const std::string a = FitnessCache::Key({1, 0}), b = FitnessCache::Key({0, 1}),
+                    c = FitnessCache::Key({1, 1});
   cache.Insert(a, Fitness{1.0, 0.1});
   cache.Insert(b, Fitness{2.0, 0.2});
   cache.Insert(a, Fitness{9.0, 0.9});  // present: ignored

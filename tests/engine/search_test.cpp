@@ -5,7 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "engine/examples/catalog.h"
-#include "engine/search/run_search.h"
+#include "engine/identification/strategy.h"
 #include "tests/test_scenes.h"
 
 namespace springfit {
@@ -32,13 +32,19 @@ SearchOptions Options(Strategy strategy, const Problem& p, std::uint64_t seed, i
   SearchOptions o = StrategyDefaults(strategy, p.gene_count());
   o.seed = seed;
   o.max_generations = generations;
-  o.direct_seed = false;
   return o;
+}
+
+// The genetic algorithm alone (no direct seed), as the options configure it.
+IdentificationResult RunGa(const Problem& p, const SearchOptions& o,
+                           const RunContext& context = {}) {
+  return RunIdentification(p, o, context, GeneticStrategy());
 }
 
 void ExpectSameTrace(const std::vector<TraceRow>& a, const std::vector<TraceRow>& b) {
   ASSERT_EQ(a.size(), b.size());
-  for (std::size_t i = 0; i < a.size(); ++i) EXPECT_TRUE(a[i].SameSearch(b[i])) << "generation " << i;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    EXPECT_TRUE(a[i].SameSearch(b[i])) << "generation " << i;
 }
 
 TEST(Search, BothStrategiesRecoverASmallAnisotropicGridExactly) {
@@ -47,7 +53,7 @@ TEST(Search, BothStrategiesRecoverASmallAnisotropicGridExactly) {
   ASSERT_EQ(p.gene_count(), 20);
   for (Strategy strategy : {Strategy::kPaper, Strategy::kDefault}) {
     for (std::uint64_t seed : {1, 2, 3}) {
-      const SearchResult r = RunSearch(p, Options(strategy, p, seed, 1000));
+      const IdentificationResult r = RunGa(p, Options(strategy, p, seed, 1000));
       EXPECT_EQ(r.stop, StopReason::kTargetReached) << "seed " << seed;
       ASSERT_TRUE(r.exact());
       EXPECT_TRUE(*r.exact());
@@ -71,9 +77,12 @@ TEST(Search, DefaultStrategyStartsFromTheDirectTopology) {
   // An MSS reference: the direct topology is the reference, so the seeded GA ends at once.
   const Problem p = Problem::Build(examples::Make("kidney-2d"));
   const SearchOptions o = StrategyDefaults(Strategy::kDefault, p.gene_count());
-  EXPECT_TRUE(o.direct_seed);
-  EXPECT_FALSE(StrategyDefaults(Strategy::kPaper, p.gene_count()).direct_seed);  // the paper's GA, unchanged
-  const SearchResult r = RunSearch(p, o);
+  // default and hybrid compose direct and the GA; paper is the GA alone, unchanged.
+  EXPECT_NE(dynamic_cast<HybridStrategy*>(MakeStrategy(Strategy::kDefault).get()), nullptr);
+  EXPECT_NE(dynamic_cast<HybridStrategy*>(MakeStrategy(Strategy::kHybrid).get()), nullptr);
+  EXPECT_NE(dynamic_cast<GeneticStrategy*>(MakeStrategy(Strategy::kPaper).get()), nullptr);
+  EXPECT_NE(dynamic_cast<DirectStrategy*>(MakeStrategy(Strategy::kDirect).get()), nullptr);
+  const IdentificationResult r = RunIdentification(p, o);
   EXPECT_EQ(r.stop, StopReason::kTargetReached);
   EXPECT_EQ(r.generations, 0);
   ASSERT_TRUE(r.direct_phase);
@@ -98,11 +107,11 @@ TEST(Search, SameTraceAndResultWithOneOrTwoThreads) {
   const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
   for (Strategy strategy : {Strategy::kPaper, Strategy::kDefault}) {
     const SearchOptions o = Options(strategy, p, 7, 15);
-    RunOptions one, two;
+    RunContext one, two;
     one.threads = 1;
     two.threads = 2;
-    const SearchResult a = RunSearch(p, o, one);
-    const SearchResult b = RunSearch(p, o, two);
+    const IdentificationResult a = RunGa(p, o, one);
+    const IdentificationResult b = RunGa(p, o, two);
     ExpectSameTrace(a.trace, b.trace);
     EXPECT_EQ(a.best, b.best);
     EXPECT_EQ(a.evaluation.cost, b.evaluation.cost);
@@ -115,8 +124,8 @@ TEST(Search, ScalingTheSceneLeavesTheSearchUnchanged) {
   const Problem p1 = Problem::Build(base);
   const Problem p2 = Problem::Build(testing::ScaledScene(base, 1e3));
   for (Strategy strategy : {Strategy::kPaper, Strategy::kDefault}) {
-    const SearchResult a = RunSearch(p1, Options(strategy, p1, 5, 8));
-    const SearchResult b = RunSearch(p2, Options(strategy, p2, 5, 8));
+    const IdentificationResult a = RunGa(p1, Options(strategy, p1, 5, 8));
+    const IdentificationResult b = RunGa(p2, Options(strategy, p2, 5, 8));
     ASSERT_GT(a.trace.size(), 2u);
     ASSERT_EQ(a.trace.size(), b.trace.size());
     for (std::size_t i = 0; i < a.trace.size(); ++i) {
@@ -127,7 +136,8 @@ TEST(Search, ScalingTheSceneLeavesTheSearchUnchanged) {
       const double ea = a.trace[i].best_normalized_error, eb = b.trace[i].best_normalized_error;
       EXPECT_LE(std::abs(ea - eb), 1e-8 * std::max(ea, 1e-12)) << "generation " << i;
       // The cost carries the unit: length^2.
-      EXPECT_LE(std::abs(b.trace[i].best_cost - 1e6 * a.trace[i].best_cost), 1e-8 * 1e6 * a.trace[i].best_cost + 1e-20);
+      EXPECT_LE(std::abs(b.trace[i].best_cost - 1e6 * a.trace[i].best_cost),
+                1e-8 * 1e6 * a.trace[i].best_cost + 1e-20);
     }
     EXPECT_EQ(a.best, b.best);
   }
@@ -137,10 +147,10 @@ TEST(Search, TheCacheNeverChangesResults) {
   const Problem p = Problem::Build(examples::Make("paper-iso-5x5"));
   for (Strategy strategy : {Strategy::kPaper, Strategy::kDefault}) {
     const SearchOptions o = Options(strategy, p, 3, 25);
-    RunOptions cached, uncached;
+    RunContext cached, uncached;
     uncached.use_cache = false;
-    const SearchResult a = RunSearch(p, o, cached);
-    const SearchResult b = RunSearch(p, o, uncached);
+    const IdentificationResult a = RunGa(p, o, cached);
+    const IdentificationResult b = RunGa(p, o, uncached);
     ASSERT_EQ(a.trace.size(), b.trace.size());
     for (std::size_t i = 0; i < a.trace.size(); ++i) {
       EXPECT_EQ(a.trace[i].evaluations, b.trace[i].evaluations);
@@ -159,26 +169,28 @@ TEST(Search, RouletteExponentChangesSelectionAndIsBounded) {
   const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
   SearchOptions o = Options(Strategy::kPaper, p, 3, 20);
   o.stop_at_target = false;
-  const SearchResult inverse = RunSearch(p, o);
+  const IdentificationResult inverse = RunGa(p, o);
   o.roulette_exponent = 4.0;
-  const SearchResult steep = RunSearch(p, o);
+  const IdentificationResult steep = RunGa(p, o);
   // The initial population is the same draw; what the roulette breeds from it is not.
   ASSERT_EQ(inverse.trace.size(), steep.trace.size());
   EXPECT_TRUE(inverse.trace.front().SameSearch(steep.trace.front()));
   bool differ = false;
-  for (std::size_t g = 1; g < inverse.trace.size(); ++g) differ = differ || !inverse.trace[g].SameSearch(steep.trace[g]);
+  for (std::size_t g = 1; g < inverse.trace.size(); ++g)
+    differ = differ || !inverse.trace[g].SameSearch(steep.trace[g]);
   EXPECT_TRUE(differ);
-  for (double bad : {0.0, -1.0, std::nan(""), static_cast<double>(INFINITY), kMaxRouletteExponent * 1.1}) {
+  for (double bad :
+       {0.0, -1.0, std::nan(""), static_cast<double>(INFINITY), kMaxRouletteExponent * 1.1}) {
     o.roulette_exponent = bad;
-    EXPECT_THROW(RunSearch(p, o), std::invalid_argument) << "roulette_exponent " << bad;
+    EXPECT_THROW(RunGa(p, o), std::invalid_argument) << "roulette_exponent " << bad;
   }
 }
 
 TEST(Search, CancellationReturnsTheBestSoFar) {
   const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
-  RunOptions run;
-  run.on_generation = [](const TraceRow& row, const GeneticSearch&) { return row.generation < 3; };
-  const SearchResult r = RunSearch(p, Options(Strategy::kPaper, p, 1, 1000), run);
+  RunContext run;
+  run.on_iteration = [](const TraceRow& row, const IterationState&) { return row.generation < 3; };
+  const IdentificationResult r = RunGa(p, Options(Strategy::kPaper, p, 1, 1000), run);
   EXPECT_EQ(r.stop, StopReason::kCancelled);
   EXPECT_EQ(r.generations, 3);
   ASSERT_EQ(r.trace.size(), 4u);
@@ -190,23 +202,23 @@ TEST(Search, ResumingFromASnapshotEndsExactlyLikeAnUninterruptedRun) {
   const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
   for (Strategy strategy : {Strategy::kPaper, Strategy::kDefault}) {
     const SearchOptions o = Options(strategy, p, 9, 30);
-    const SearchResult whole = RunSearch(p, o);
+    const IdentificationResult whole = RunGa(p, o);
     ASSERT_GE(whole.generations, 2);
     const int stop_at = whole.generations / 2;
 
     std::optional<SearchState> snapshot;
-    RunOptions first;
-    first.on_generation = [&](const TraceRow& row, const GeneticSearch& search) {
+    RunContext first;
+    first.on_iteration = [&](const TraceRow& row, const IterationState& state) {
       if (row.generation < stop_at) return true;
-      snapshot = search.Snapshot();
+      snapshot = state.snapshot();
       return false;
     };
-    const SearchResult part = RunSearch(p, o, first);
+    const IdentificationResult part = RunGa(p, o, first);
     ASSERT_TRUE(snapshot);
-    RunOptions second;
+    RunContext second;
     second.resume_from = snapshot;
     second.trace = part.trace;
-    const SearchResult resumed = RunSearch(p, o, second);
+    const IdentificationResult resumed = RunGa(p, o, second);
     ExpectSameTrace(whole.trace, resumed.trace);
     EXPECT_EQ(whole.best, resumed.best);
     EXPECT_EQ(whole.counters, resumed.counters);

@@ -2,8 +2,8 @@
 // banded path's fallback to a pivoted LDLT where its Cholesky fails, and the empty system.
 #include "engine/symmetric_system.h"
 
-#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
 
 namespace springfit {
 namespace {
@@ -54,7 +54,8 @@ TEST(SymmetricSystem, IndefiniteMatricesAreCountedAndSolvedOnBothBackends) {
 
 // The graph Laplacian of an n x n grid (5-point stencil) plus `shift` on the diagonal: positive
 // definite for shift > 0, one null vector (the constant) for shift 0.
-SymmetricSystem GridLaplacian(int n, double shift, SymmetricSystem::Backend backend, Matrix* dense) {
+SymmetricSystem GridLaplacian(int n, double shift, SymmetricSystem::Backend backend,
+                              Matrix* dense) {
   const int size = n * n;
   std::vector<std::pair<int, int>> lower;
   for (int y = 0; y < n; ++y) {

@@ -57,7 +57,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   JsonFramer split(FuzzOptions());
   std::vector<JsonFramer::Frame> split_frames;
   for (std::size_t at = 0; at < stream.size(); at += chunk) {
-    for (auto& frame : split.Feed(stream.substr(at, chunk))) split_frames.push_back(std::move(frame));
+    for (auto& frame : split.Feed(stream.substr(at, chunk)))
+      split_frames.push_back(std::move(frame));
   }
   Check(SameFrames(frames, split_frames));
   Check(whole.pending_bytes() == split.pending_bytes());
@@ -94,16 +95,18 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   bool valid = true;
   try {
     // Iterators, not the view itself: a string_view could be read as a C string, up to a NUL.
-    (void)nlohmann::json::parse(value.begin(), value.end(), [&](int d, nlohmann::json::parse_event_t, nlohmann::json&) {
-      depth = std::max(depth, d);
-      return true;
-    });
+    (void)nlohmann::json::parse(value.begin(), value.end(),
+                                [&](int d, nlohmann::json::parse_event_t, nlohmann::json&) {
+                                  depth = std::max(depth, d);
+                                  return true;
+                                });
   } catch (const nlohmann::json::exception&) {
     valid = false;
   }
   // Two levels of margin below the framer's depth limit, so that the two depth counts need
   // not agree on where nesting starts.
   if (!valid || depth > FuzzOptions().max_depth - 2) return 0;
-  Check(frames.size() == 1 && frames[0].kind == JsonFramer::Frame::Kind::kMessage && frames[0].text == value);
+  Check(frames.size() == 1 && frames[0].kind == JsonFramer::Frame::Kind::kMessage &&
+        frames[0].text == value);
   return 0;
 }

@@ -2,7 +2,9 @@
 # Builds the libFuzzer targets with clang (a second build tree, instrumented with
 # AddressSanitizer and UndefinedBehaviorSanitizer) and runs each for a bounded time from its
 # seed corpus. Any crash, sanitizer report, leak, timeout or failed check fails the test;
-# libFuzzer writes the offending input to the build tree and its path is printed.
+# libFuzzer writes the offending input to the build tree and its path is printed. The same
+# instrumented tree then runs the engine's and the formats' unit tests (engine_tests,
+# proto_tests): a sanitizer report there fails the test too (UBSan does not recover).
 #
 # Reproducible: a fixed seed and a fixed number of inputs per target (SPRINGFIT_FUZZ_RUNS
 # scales them), so every machine tries the same inputs; a time bound stops a slow machine.
@@ -17,9 +19,9 @@ seconds=${SPRINGFIT_FUZZ_SECONDS:-60}
 runs_scale=${SPRINGFIT_FUZZ_RUNS:-1}
 
 CXX=clang++ cmake -S "$src" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSPRINGFIT_FUZZ=ON \
-  -DSPRINGFIT_BUILD_TESTS=OFF -DSPRINGFIT_BUILD_BENCHMARKS=OFF >"$build.configure.log" 2>&1 ||
+  -DSPRINGFIT_BUILD_TESTS=ON -DSPRINGFIT_BUILD_BENCHMARKS=OFF >"$build.configure.log" 2>&1 ||
   { cat "$build.configure.log"; exit 1; }
-cmake --build "$build" -j2 --target framer_fuzz scene_fuzz >"$build.build.log" 2>&1 ||
+cmake --build "$build" -j2 --target framer_fuzz scene_fuzz engine_tests proto_tests >"$build.build.log" 2>&1 ||
   { tail -50 "$build.build.log"; exit 1; }
 
 # A libFuzzer dictionary of the scene format's keys and enumerated values, from the schema,
@@ -64,6 +66,17 @@ run() {
   }
   grep -E '^stat::(number_of_executed_units|new_units_added)' "$work/log" || true
 }
+
+# The unit tests under AddressSanitizer and UndefinedBehaviorSanitizer.
+for tests in engine_tests proto_tests; do
+  echo "== $tests under ASan and UBSan"
+  "$build/tests/$tests" --gtest_brief=1 >"$build/$tests.log" 2>&1 || {
+    tail -60 "$build/$tests.log"
+    echo "$tests failed under the sanitizers (log: $build/$tests.log)"
+    exit 1
+  }
+  tail -1 "$build/$tests.log"
+done
 
 run framer_fuzz 200000 "" "$src"/tests/fuzz/corpus/framer/*
 run scene_fuzz 50000 "-dict=$scene_dict" "$src"/examples/*.json "$src"/tests/data/*.json

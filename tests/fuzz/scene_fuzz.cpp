@@ -25,7 +25,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   try {
     auto scene = springfit::proto::SceneFromText(text);
     const auto written = springfit::proto::SceneToJson(scene);
-    if (springfit::proto::SceneToJson(springfit::proto::SceneFromJson(written)) != written) std::abort();
+    if (springfit::proto::SceneToJson(springfit::proto::SceneFromJson(written)) != written)
+      std::abort();
     if (scene.node_count() > kMaxNodes || scene.search.max_generations > kMaxGenerations) return 0;
     (void)springfit::Problem::Build(std::move(scene));
   } catch (const springfit::InputError& e) {

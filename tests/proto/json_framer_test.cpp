@@ -7,16 +7,17 @@ namespace {
 
 using Kind = JsonFramer::Frame::Kind;
 
-
 std::vector<std::string> Messages(const std::vector<JsonFramer::Frame>& frames) {
   std::vector<std::string> out;
-  for (const auto& f : frames) out.push_back(f.kind == Kind::kMessage ? f.text : "<" + f.error + ">");
+  for (const auto& f : frames)
+    out.push_back(f.kind == Kind::kMessage ? f.text : "<" + f.error + ">");
   return out;
 }
 
 TEST(JsonFramer, OneMessagePerLine) {
   JsonFramer f;
-  EXPECT_EQ(Messages(f.Feed("{\"a\":1}\n[1,2]\n")), (std::vector<std::string>{"{\"a\":1}", "[1,2]"}));
+  EXPECT_EQ(Messages(f.Feed("{\"a\":1}\n[1,2]\n")),
+            (std::vector<std::string>{"{\"a\":1}", "[1,2]"}));
   EXPECT_TRUE(f.at_boundary());
 }
 
@@ -30,11 +31,13 @@ TEST(JsonFramer, BareMessageWithoutNewlineIsCompleteAtItsClosingBracket) {
 TEST(JsonFramer, PrettyPrintedMessagesAndBackToBackMessages) {
   JsonFramer f;
   const auto frames = f.Feed("{\n  \"a\": [\n    1,\n    2\n  ]\n}{\"b\":true}[]  \r\n\t{}");
-  EXPECT_EQ(Messages(frames), (std::vector<std::string>{"{\n  \"a\": [\n    1,\n    2\n  ]\n}", "{\"b\":true}", "[]", "{}"}));
+  EXPECT_EQ(Messages(frames), (std::vector<std::string>{"{\n  \"a\": [\n    1,\n    2\n  ]\n}",
+                                                        "{\"b\":true}", "[]", "{}"}));
 }
 
 TEST(JsonFramer, ByteByByteGivesTheSameMessages) {
-  const std::string text = R"({"s":"a}]\"\\\u00e9{[","n":[-0.5e+3,0,12E-2,true,false,null,{}]} [{"x":{"y":[]}}])";
+  const std::string text =
+      R"({"s":"a}]\"\\\u00e9{[","n":[-0.5e+3,0,12E-2,true,false,null,{}]} [{"x":{"y":[]}}])";
   JsonFramer whole;
   const auto expected = Messages(whole.Feed(text));
   ASSERT_EQ(expected.size(), 2u);
@@ -59,8 +62,9 @@ TEST(JsonFramer, GarbageIsReportedAndTheNextLineIsRead) {
 }
 
 TEST(JsonFramer, GrammarErrorsInsideAMessage) {
-  for (const char* bad : {"{\"a\" 1}\n", "{\"a\":01}\n", "[1,]\n", "{\"a\":tru}\n", "[\"\\x\"]\n", "[1.]\n",
-                          "[-]\n", "[1e]\n", "{\"a\":1,}\n", "[\"\\u12g4\"]\n", "[1 2]\n", "{]\n", "[}\n"}) {
+  for (const char* bad :
+       {"{\"a\" 1}\n", "{\"a\":01}\n", "[1,]\n", "{\"a\":tru}\n", "[\"\\x\"]\n", "[1.]\n", "[-]\n",
+        "[1e]\n", "{\"a\":1,}\n", "[\"\\u12g4\"]\n", "[1 2]\n", "{]\n", "[}\n"}) {
     JsonFramer f;
     const auto frames = f.Feed(bad);
     ASSERT_EQ(frames.size(), 1u) << bad;

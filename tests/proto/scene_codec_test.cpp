@@ -57,48 +57,149 @@ TEST(SceneCodec, MinimalSceneReadsWithDefaults) {
 TEST(SceneCodec, EveryRuleNamesTheField) {
   const std::vector<BadCase> cases = {
       {"unknown top-level field", [](Json& j) { j["nodez"] = 1; }, "nodez", "unknown field"},
-      {"unknown nested field", [](Json& j) { j["load_cases"][0]["forcez"] = Json::array(); }, "load_cases[0].forcez", "unknown field"},
+      {"unknown nested field", [](Json& j) { j["load_cases"][0]["forcez"] = Json::array(); },
+       "load_cases[0].forcez", "unknown field"},
       {"missing nodes", [](Json& j) { j.erase("nodes"); }, "nodes", "required"},
-      {"wrong dimension", [](Json& j) { j["nodes"][3] = {0, 1, 0}; }, "nodes[3]", "expected 2 components"},
-      {"4D node", [](Json& j) { j["nodes"][0] = {0, 0, 0, 0}; }, "nodes[0]", "2 or 3"},
-      {"non-number coordinate", [](Json& j) { j["nodes"][2][1] = "x"; }, "nodes[2][1]", "expected a number"},
-      {"infinite coordinate", [](Json& j) { j["nodes"][2][1] = 1e308 * 10; }, "nodes[2][1]", "finite"},
-      {"same position", [](Json& j) { j["nodes"][5] = {1, 0}; }, "nodes[5]", "same position as nodes[1]"},
-      {"spring index out of range", [](Json& j) { j["reference"]["springs"][3][1] = 9; }, "reference.springs[3][1]", "out of range"},
-      {"negative index", [](Json& j) { j["reference"]["springs"][0][0] = -1; }, "reference.springs[0][0]", "out of range"},
-      {"fractional index", [](Json& j) { j["reference"]["springs"][0][0] = 0.5; }, "reference.springs[0][0]", "expected an integer"},
-      {"self spring", [](Json& j) { j["reference"]["springs"][2] = {4, 4}; }, "reference.springs[2]", "self spring"},
-      {"duplicate spring", [](Json& j) { j["reference"]["springs"][2] = {1, 0}; }, "reference.springs[2]", "duplicate spring"},
-      {"negative stiffness", [](Json& j) { j["reference"]["stiffness"] = -2; }, "reference.stiffness", "must be > 0"},
-      {"negative per-spring stiffness", [](Json& j) {
+      {"wrong dimension",
+       [](Json& j) {
+         j["nodes"][3] = {0, 1, 0};
+       },
+       "nodes[3]", "expected 2 components"},
+      {"4D node",
+       [](Json& j) {
+         j["nodes"][0] = {0, 0, 0, 0};
+       },
+       "nodes[0]", "2 or 3"},
+      {"non-number coordinate", [](Json& j) { j["nodes"][2][1] = "x"; }, "nodes[2][1]",
+       "expected a number"},
+      {"infinite coordinate", [](Json& j) { j["nodes"][2][1] = 1e308 * 10; }, "nodes[2][1]",
+       "finite"},
+      {"same position",
+       [](Json& j) {
+         j["nodes"][5] = {1, 0};
+       },
+       "nodes[5]", "same position as nodes[1]"},
+      {"spring index out of range", [](Json& j) { j["reference"]["springs"][3][1] = 9; },
+       "reference.springs[3][1]", "out of range"},
+      {"negative index", [](Json& j) { j["reference"]["springs"][0][0] = -1; },
+       "reference.springs[0][0]", "out of range"},
+      {"fractional index", [](Json& j) { j["reference"]["springs"][0][0] = 0.5; },
+       "reference.springs[0][0]", "expected an integer"},
+      {"self spring",
+       [](Json& j) {
+         j["reference"]["springs"][2] = {4, 4};
+       },
+       "reference.springs[2]", "self spring"},
+      {"duplicate spring",
+       [](Json& j) {
+         j["reference"]["springs"][2] = {1, 0};
+       },
+       "reference.springs[2]", "duplicate spring"},
+      {"negative stiffness", [](Json& j) { j["reference"]["stiffness"] = -2; },
+       "reference.stiffness", "must be > 0"},
+      {"negative per-spring stiffness",
+       [](Json& j) {
          Json k = Json::array();
          for (int m = 0; m < 16; ++m) k.push_back(m == 7 ? -1.0 : 1.0);
          j["reference"]["stiffness"] = k;
-       }, "reference.stiffness[7]", "must be > 0"},
-      {"stiffness count", [](Json& j) { j["reference"]["stiffness"] = {1, 2}; }, "reference.stiffness", "one per spring"},
-      {"negative training stiffness", [](Json& j) { j["stiffness"] = -1; }, "stiffness", "must be > 0"},
-      {"empty load list", [](Json& j) { j["load_cases"] = Json::array(); }, "load_cases", "at least one load case"},
-      {"fixed out of range", [](Json& j) { j["load_cases"][0]["fixed"][2] = 12; }, "load_cases[0].fixed[2]", "out of range"},
-      {"force node out of range", [](Json& j) { j["load_cases"][1]["forces"][0]["node"] = 99; }, "load_cases[1].forces[0].node", "out of range"},
-      {"force on fixed node", [](Json& j) { j["load_cases"][0]["forces"][0]["nodes"][1] = 1; }, "load_cases[0].forces[0].nodes[1]", "constrained"},
-      {"force dimension", [](Json& j) { j["load_cases"][0]["forces"][0]["force"] = {0, 0, 1}; }, "load_cases[0].forces[0].force", "expected 2 components"},
-      {"node and nodes", [](Json& j) { j["load_cases"][1]["forces"][0]["nodes"] = {7}; }, "load_cases[1].forces[0]", "exactly one of"},
-      {"rigid motion free", [](Json& j) { j["load_cases"][0]["fixed"] = {1}; }, "load_cases[0]", "rigid motion"},
-      {"no load", [](Json& j) { j["load_cases"][0]["forces"][0]["force"] = {0, 0}; }, "load_cases[0]", "applies no load"},
-      {"fixed and displaced", [](Json& j) { j["load_cases"][1]["displacements"][0]["node"] = 3; }, "load_cases[1].displacements[0].node", "already fixed"},
-      {"unknown candidate type", [](Json& j) { j["candidates"] = {{"type", "delaunay"}}; }, "candidates.type", "unknown candidate type"},
-      {"nearest k", [](Json& j) { j["candidates"] = {{"type", "nearest"}, {"k", 0}}; }, "candidates.k", ">= 1"},
-      {"radius missing", [](Json& j) { j["candidates"] = {{"type", "radius"}}; }, "candidates.radius", "required"},
-      {"option of another type", [](Json& j) { j["candidates"] = {{"type", "grid"}, {"k", 3}}; }, "candidates.k", "only applies"},
-      {"candidate pair out of range", [](Json& j) { j["candidates"] = {{"type", "pairs"}, {"pairs", {{0, 1}, {1, 10}}}}; }, "candidates.pairs[1][1]", "out of range"},
-      {"grid off lattice", [](Json& j) { j["nodes"][4] = {1.3, 1}; }, "candidates", "off it"},
-      {"positions count", [](Json& j) { j["reference"] = {{"type", "positions"}, {"positions", Json::array()}}; }, "reference.positions", "one configuration per load case"},
-      {"unknown strategy", [](Json& j) { j["search"] = {{"strategy", "annealing"}}; }, "search.strategy", "unknown strategy"},
-      {"unknown identify", [](Json& j) { j["search"] = {{"identify", "stiffness"}}; }, "search.identify", "expected topology or topology_and_stiffness"},
-      {"stiffness for a GA", [](Json& j) { j["search"] = {{"strategy", "hybrid"}, {"identify", "topology_and_stiffness"}}; }, "search.identify", "needs strategy direct"},
-      {"population", [](Json& j) { j["search"] = {{"population", 1}}; }, "search.population", ">= 2"},
-      {"mutation probability", [](Json& j) { j["search"] = {{"mutation_probability", 1.5}}; }, "search.mutation_probability", "[0, 1]"},
-      {"negative seed", [](Json& j) { j["search"] = {{"seed", -3}}; }, "search.seed", ">= 0"},
+       },
+       "reference.stiffness[7]", "must be > 0"},
+      {"stiffness count",
+       [](Json& j) {
+         j["reference"]["stiffness"] = {1, 2};
+       },
+       "reference.stiffness", "one per spring"},
+      {"negative training stiffness", [](Json& j) { j["stiffness"] = -1; }, "stiffness",
+       "must be > 0"},
+      {"empty load list", [](Json& j) { j["load_cases"] = Json::array(); }, "load_cases",
+       "at least one load case"},
+      {"fixed out of range", [](Json& j) { j["load_cases"][0]["fixed"][2] = 12; },
+       "load_cases[0].fixed[2]", "out of range"},
+      {"force node out of range", [](Json& j) { j["load_cases"][1]["forces"][0]["node"] = 99; },
+       "load_cases[1].forces[0].node", "out of range"},
+      {"force on fixed node", [](Json& j) { j["load_cases"][0]["forces"][0]["nodes"][1] = 1; },
+       "load_cases[0].forces[0].nodes[1]", "constrained"},
+      {"force dimension",
+       [](Json& j) {
+         j["load_cases"][0]["forces"][0]["force"] = {0, 0, 1};
+       },
+       "load_cases[0].forces[0].force", "expected 2 components"},
+      {"node and nodes", [](Json& j) { j["load_cases"][1]["forces"][0]["nodes"] = {7}; },
+       "load_cases[1].forces[0]", "exactly one of"},
+      {"rigid motion free", [](Json& j) { j["load_cases"][0]["fixed"] = {1}; }, "load_cases[0]",
+       "rigid motion"},
+      {"no load",
+       [](Json& j) {
+         j["load_cases"][0]["forces"][0]["force"] = {0, 0};
+       },
+       "load_cases[0]", "applies no load"},
+      {"fixed and displaced", [](Json& j) { j["load_cases"][1]["displacements"][0]["node"] = 3; },
+       "load_cases[1].displacements[0].node", "already fixed"},
+      {"unknown candidate type",
+       [](Json& j) {
+         j["candidates"] = {{"type", "delaunay"}};
+       },
+       "candidates.type", "unknown candidate type"},
+      {"nearest k",
+       [](Json& j) {
+         j["candidates"] = {{"type", "nearest"}, {"k", 0}};
+       },
+       "candidates.k", ">= 1"},
+      {"radius missing",
+       [](Json& j) {
+         j["candidates"] = {{"type", "radius"}};
+       },
+       "candidates.radius", "required"},
+      {"option of another type",
+       [](Json& j) {
+         j["candidates"] = {{"type", "grid"}, {"k", 3}};
+       },
+       "candidates.k", "only applies"},
+      {"candidate pair out of range",
+       [](Json& j) {
+         j["candidates"] = {{"type", "pairs"}, {"pairs", {{0, 1}, {1, 10}}}};
+       },
+       "candidates.pairs[1][1]", "out of range"},
+      {"grid off lattice",
+       [](Json& j) {
+         j["nodes"][4] = {1.3, 1};
+       },
+       "candidates", "off it"},
+      {"positions count",
+       [](Json& j) {
+         j["reference"] = {{"type", "positions"}, {"positions", Json::array()}};
+       },
+       "reference.positions", "one configuration per load case"},
+      {"unknown strategy",
+       [](Json& j) {
+         j["search"] = {{"strategy", "annealing"}};
+       },
+       "search.strategy", "unknown strategy"},
+      {"unknown identify",
+       [](Json& j) {
+         j["search"] = {{"identify", "stiffness"}};
+       },
+       "search.identify", "expected topology or topology_and_stiffness"},
+      {"stiffness for a GA",
+       [](Json& j) {
+         j["search"] = {{"strategy", "hybrid"}, {"identify", "topology_and_stiffness"}};
+       },
+       "search.identify", "needs strategy direct"},
+      {"population",
+       [](Json& j) {
+         j["search"] = {{"population", 1}};
+       },
+       "search.population", ">= 2"},
+      {"mutation probability",
+       [](Json& j) {
+         j["search"] = {{"mutation_probability", 1.5}};
+       },
+       "search.mutation_probability", "[0, 1]"},
+      {"negative seed",
+       [](Json& j) {
+         j["search"] = {{"seed", -3}};
+       },
+       "search.seed", ">= 0"},
   };
   for (const BadCase& c : cases) {
     Json j = ParseJson(kMinimal);
@@ -106,7 +207,8 @@ TEST(SceneCodec, EveryRuleNamesTheField) {
     std::string message;
     EXPECT_EQ(ErrorPath(j, &message), c.path) << c.what << ": " << message;
     EXPECT_NE(message.find(c.message_snippet), std::string::npos) << c.what << ": " << message;
-    EXPECT_EQ(message.rfind(c.path, 0), 0u) << c.what << ": the message starts with the path: " << message;
+    EXPECT_EQ(message.rfind(c.path, 0), 0u)
+        << c.what << ": the message starts with the path: " << message;
   }
 }
 
@@ -195,35 +297,69 @@ TEST(SceneCodec, FemReferenceNodeSetsAndTractions) {
 
 TEST(SceneCodec, FemErrorsNameThePath) {
   const std::vector<BadCase> cases = {
-      {"unknown set", [](Json& j) { j["load_cases"][0]["fixed"] = "botom"; }, "load_cases[0].fixed", "unknown node set 'botom'"},
-      {"set out of range", [](Json& j) { j["node_sets"]["top"][1] = 12; }, "node_sets.top[1]", "out of range"},
-      {"empty set", [](Json& j) { j["node_sets"]["top"] = Json::array(); }, "node_sets.top", "must not be empty"},
-      {"traction on a list", [](Json& j) { j["load_cases"][0]["tractions"][0]["on"] = {6, 7}; },
+      {"unknown set", [](Json& j) { j["load_cases"][0]["fixed"] = "botom"; }, "load_cases[0].fixed",
+       "unknown node set 'botom'"},
+      {"set out of range", [](Json& j) { j["node_sets"]["top"][1] = 12; }, "node_sets.top[1]",
+       "out of range"},
+      {"empty set", [](Json& j) { j["node_sets"]["top"] = Json::array(); }, "node_sets.top",
+       "must not be empty"},
+      {"traction on a list",
+       [](Json& j) {
+         j["load_cases"][0]["tractions"][0]["on"] = {6, 7};
+       },
        "load_cases[0].tractions[0].on", "name of a node set"},
-      {"traction both", [](Json& j) { j["load_cases"][0]["tractions"][0]["per_length"] = {0, 1}; },
+      {"traction both",
+       [](Json& j) {
+         j["load_cases"][0]["tractions"][0]["per_length"] = {0, 1};
+       },
        "load_cases[0].tractions[0]", "exactly one of"},
-      {"traction per_area in 2D", [](Json& j) { j["load_cases"][0]["tractions"][0]["per_area"] = {0, 1}; },
+      {"traction per_area in 2D",
+       [](Json& j) {
+         j["load_cases"][0]["tractions"][0]["per_area"] = {0, 1};
+       },
        "load_cases[0].tractions[0].per_area", "unknown field"},
-      {"traction inside", [](Json& j) { j["node_sets"]["top"] = {4}; }, "load_cases[0].tractions[0].on",
-       "no boundary edge"},
-      {"two materials", [](Json& j) { j["reference"]["materials"] = Json::array(); }, "reference", "exactly one of"},
-      {"unknown model", [](Json& j) { j["reference"]["material"]["model"] = "mooney"; }, "reference.material.model",
-       "unknown material model"},
-      {"poisson", [](Json& j) { j["reference"]["material"]["poisson"] = 0.5; }, "reference.material.poisson", "(-1, 0.5)"},
-      {"young", [](Json& j) { j["reference"]["material"]["young"] = 0; }, "reference.material.young", "> 0"},
-      {"plane", [](Json& j) { j["reference"]["plane"] = "shell"; }, "reference.plane", "stress or strain"},
-      {"thickness", [](Json& j) { j["reference"]["thickness"] = -1; }, "reference.thickness", "> 0"},
-      {"springs on fem", [](Json& j) { j["reference"]["springs"] = {{0, 1}}; }, "reference.springs", "only applies to type mss"},
-      {"degenerate", [](Json& j) { j["reference"]["elements"][0] = {0, 1, 2}; }, "reference.elements[0]", "degenerate"},
-      {"element size", [](Json& j) { j["reference"]["elements"][2] = {1, 2}; }, "reference.elements[2]", "3-node triangle"},
-      {"mesh without fem", [](Json& j) {
+      {"traction inside", [](Json& j) { j["node_sets"]["top"] = {4}; },
+       "load_cases[0].tractions[0].on", "no boundary edge"},
+      {"two materials", [](Json& j) { j["reference"]["materials"] = Json::array(); }, "reference",
+       "exactly one of"},
+      {"unknown model", [](Json& j) { j["reference"]["material"]["model"] = "mooney"; },
+       "reference.material.model", "unknown material model"},
+      {"poisson", [](Json& j) { j["reference"]["material"]["poisson"] = 0.5; },
+       "reference.material.poisson", "(-1, 0.5)"},
+      {"young", [](Json& j) { j["reference"]["material"]["young"] = 0; },
+       "reference.material.young", "> 0"},
+      {"plane", [](Json& j) { j["reference"]["plane"] = "shell"; }, "reference.plane",
+       "stress or strain"},
+      {"thickness", [](Json& j) { j["reference"]["thickness"] = -1; }, "reference.thickness",
+       "> 0"},
+      {"springs on fem",
+       [](Json& j) {
+         j["reference"]["springs"] = {{0, 1}};
+       },
+       "reference.springs", "only applies to type mss"},
+      {"degenerate",
+       [](Json& j) {
+         j["reference"]["elements"][0] = {0, 1, 2};
+       },
+       "reference.elements[0]", "degenerate"},
+      {"element size",
+       [](Json& j) {
+         j["reference"]["elements"][2] = {1, 2};
+       },
+       "reference.elements[2]", "3-node triangle"},
+      {"mesh without fem",
+       [](Json& j) {
          j["reference"] = {{"type", "positions"}, {"positions", Json::array()}};
          j["candidates"] = {{"type", "mesh"}};
          j["load_cases"][0].erase("tractions");
          j["load_cases"][0]["forces"] = {{{"node", 7}, {"force", {0, 1}}}};
-       }, "candidates.type", "reference of type fem"},
-      {"k on radius", [](Json& j) { j["candidates"] = {{"type", "radius"}, {"radius", 1.5}, {"k", 3}}; }, "candidates.k",
-       "nearest and mesh"},
+       },
+       "candidates.type", "reference of type fem"},
+      {"k on radius",
+       [](Json& j) {
+         j["candidates"] = {{"type", "radius"}, {"radius", 1.5}, {"k", 3}};
+       },
+       "candidates.k", "nearest and mesh"},
   };
   for (const BadCase& c : cases) {
     Json j = ParseJson(kFemPlate);

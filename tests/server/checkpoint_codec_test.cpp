@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "engine/examples/catalog.h"
-#include "engine/search/run_search.h"
+#include "engine/identification/identify.h"
 
 namespace springfit::server {
 namespace {
@@ -19,28 +19,29 @@ SearchOptions PaperOptions(const Problem& p, std::uint64_t seed, int generations
 TEST(CheckpointCodec, ResumingFromDecodedBytesEndsExactlyLikeAnUninterruptedRun) {
   const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
   const SearchOptions o = PaperOptions(p, 4, 40);
-  const SearchResult whole = RunSearch(p, o);
+  const IdentificationResult whole = RunIdentification(p, o);
   ASSERT_EQ(whole.generations, 40);
 
   std::string bytes;
-  RunOptions first;
-  first.on_generation = [&](const TraceRow& row, const GeneticSearch& search) {
+  RunContext first;
+  first.on_iteration = [&](const TraceRow& row, const IterationState& state) {
     if (row.generation < 17) return true;
-    bytes = EncodeCheckpoint(search.Snapshot(), p.gene_count());
+    bytes = EncodeCheckpoint(state.snapshot(), p.gene_count());
     return false;
   };
-  const SearchResult part = RunSearch(p, o, first);
+  const IdentificationResult part = RunIdentification(p, o, first);
   ASSERT_FALSE(bytes.empty());
 
   const SearchState state = DecodeCheckpoint(bytes, p.gene_count());
   EXPECT_EQ(state.generation, 17);
   EXPECT_FALSE(state.cache.empty());
-  RunOptions second;
+  RunContext second;
   second.resume_from = state;
   second.trace = part.trace;
-  const SearchResult resumed = RunSearch(p, o, second);
+  const IdentificationResult resumed = RunIdentification(p, o, second);
   ASSERT_EQ(resumed.trace.size(), whole.trace.size());
-  for (std::size_t i = 0; i < whole.trace.size(); ++i) EXPECT_TRUE(whole.trace[i].SameSearch(resumed.trace[i])) << i;
+  for (std::size_t i = 0; i < whole.trace.size(); ++i)
+    EXPECT_TRUE(whole.trace[i].SameSearch(resumed.trace[i])) << i;
   EXPECT_EQ(resumed.best, whole.best);
   EXPECT_EQ(resumed.counters, whole.counters);
   EXPECT_EQ(resumed.evaluation.cost, whole.evaluation.cost);
@@ -51,7 +52,8 @@ TEST(CheckpointCodec, RoundTripKeepsEveryField) {
   s.generation = 7;
   s.random_state = "1 2 3";
   s.population = {{1, 0, 1}, {0, 0, 1}};
-  s.fitness = {{0.5, 1e-300, 2, true, false}, {std::numeric_limits<double>::max(), 0.1, 0, false, true}};
+  s.fitness = {{0.5, 1e-300, 2, true, false},
+               {std::numeric_limits<double>::max(), 0.1, 0, false, true}};
   s.best = {1, 1, 1};
   s.best_fitness = {0.25, 0.125, 0, false, true};
   s.best_generation = 3;

@@ -57,7 +57,8 @@ class RpcServiceTest : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = std::filesystem::temp_directory_path() /
-           (std::string("springfit-rpc-") + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+           (std::string("springfit-rpc-") +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
     std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_);
     store_ = std::make_unique<SqliteStore>((dir_ / "jobs.db").string());
@@ -101,21 +102,30 @@ class RpcServiceTest : public ::testing::Test {
 
 TEST_F(RpcServiceTest, StandardErrors) {
   MakeService(false);
-  auto raw = [&](const std::string& text) { return proto::ParseJson(service_->HandleMessage(text, session_)); };
-  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"server.info\"")), rpc::kParseError);
-  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"x\xff\"}")), rpc::kParseError);  // not UTF-8
+  auto raw = [&](const std::string& text) {
+    return proto::ParseJson(service_->HandleMessage(text, session_));
+  };
+  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"server.info\"")),
+            rpc::kParseError);
+  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"x\xff\"}")),
+            rpc::kParseError);  // not UTF-8
   EXPECT_EQ(Code(raw("{\"id\":1,\"method\":\"server.info\"}")), rpc::kInvalidRequest);
   EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":7}")), rpc::kInvalidRequest);
-  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":{},\"method\":\"server.info\"}")), rpc::kInvalidRequest);
-  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"server.info\",\"extra\":1}")), rpc::kInvalidRequest);
+  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":{},\"method\":\"server.info\"}")),
+            rpc::kInvalidRequest);
+  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"server.info\",\"extra\":1}")),
+            rpc::kInvalidRequest);
   EXPECT_EQ(Code(raw("[]")), rpc::kInvalidRequest);
-  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"job.nope\"}")), rpc::kMethodNotFound);
-  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"job.get\",\"params\":[1]}")), rpc::kInvalidParams);
+  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"job.nope\"}")),
+            rpc::kMethodNotFound);
+  EXPECT_EQ(Code(raw("{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"job.get\",\"params\":[1]}")),
+            rpc::kInvalidParams);
   const Json wrong_type = Call("job.get", {{"job_id", "12"}});
   EXPECT_EQ(Code(wrong_type), rpc::kInvalidParams);
   EXPECT_EQ(wrong_type["error"]["data"]["path"], "params.job_id");
   EXPECT_EQ(Call("job.get", Json::object())["error"]["data"]["path"], "params.job_id");
-  EXPECT_EQ(Call("job.get", {{"job_id", 1}, {"jobid", 1}})["error"]["data"]["path"], "params.jobid");
+  EXPECT_EQ(Call("job.get", {{"job_id", 1}, {"jobid", 1}})["error"]["data"]["path"],
+            "params.jobid");
   const Json missing = Call("job.get", {{"job_id", 404}});
   EXPECT_EQ(Code(missing), rpc::kNoSuchJob);
   EXPECT_EQ(missing["error"]["data"]["job_id"], 404);
@@ -126,10 +136,13 @@ TEST_F(RpcServiceTest, StandardErrors) {
 
 TEST_F(RpcServiceTest, NotificationsAndBatches) {
   MakeService(false);
-  EXPECT_EQ(service_->HandleMessage("{\"jsonrpc\":\"2.0\",\"method\":\"server.info\"}", session_), "");
-  EXPECT_EQ(service_->HandleMessage("[{\"jsonrpc\":\"2.0\",\"method\":\"server.info\"}]", session_), "");
+  EXPECT_EQ(service_->HandleMessage("{\"jsonrpc\":\"2.0\",\"method\":\"server.info\"}", session_),
+            "");
+  EXPECT_EQ(service_->HandleMessage("[{\"jsonrpc\":\"2.0\",\"method\":\"server.info\"}]", session_),
+            "");
   const Json batch = proto::ParseJson(service_->HandleMessage(
-      "[{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"server.info\"}, 5, {\"jsonrpc\":\"2.0\",\"method\":\"job.list\"},"
+      "[{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"server.info\"}, 5, "
+      "{\"jsonrpc\":\"2.0\",\"method\":\"job.list\"},"
       "{\"jsonrpc\":\"2.0\",\"id\":2,\"method\":\"job.get\",\"params\":{\"job_id\":9}}]",
       session_));
   ASSERT_TRUE(batch.is_array());
@@ -138,7 +151,8 @@ TEST_F(RpcServiceTest, NotificationsAndBatches) {
   EXPECT_EQ(Code(batch[1]), rpc::kInvalidRequest);
   EXPECT_EQ(Code(batch[2]), rpc::kNoSuchJob);
   std::string big = "[";
-  for (int i = 0; i < 101; ++i) big += std::string(i ? "," : "") + "{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"server.info\"}";
+  for (int i = 0; i < 101; ++i)
+    big += std::string(i ? "," : "") + "{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"server.info\"}";
   const Json too_big = proto::ParseJson(service_->HandleMessage(big + "]", session_));
   EXPECT_EQ(Code(too_big), rpc::kLimitExceeded);
   EXPECT_EQ(too_big["error"]["data"]["limit"], "max_batch");
@@ -150,7 +164,8 @@ TEST_F(RpcServiceTest, TokenIsRequiredForJobMethods) {
   MakeService(false, o);
   EXPECT_TRUE(Call("server.info")["result"]["auth_required"].get<bool>());
   EXPECT_EQ(Code(Call("job.list")), rpc::kUnauthorized);
-  EXPECT_EQ(Code(Call("session.auth", {{"token", "0123456789abcdef0123456789abcdeX"}})), rpc::kUnauthorized);
+  EXPECT_EQ(Code(Call("session.auth", {{"token", "0123456789abcdef0123456789abcdeX"}})),
+            rpc::kUnauthorized);
   EXPECT_EQ(Code(Call("session.auth", {{"token", "0123456789abcdef"}})), rpc::kUnauthorized);
   EXPECT_EQ(Code(Call("job.list")), rpc::kUnauthorized);
   EXPECT_TRUE(Call("session.auth", {{"token", o.token}})["result"]["authenticated"].get<bool>());
@@ -174,8 +189,10 @@ TEST_F(RpcServiceTest, BadScenesAndLimitsAreRefusedAtSubmission) {
   EXPECT_EQ(Code(bad), rpc::kInvalidScene);
   EXPECT_FALSE(bad["error"]["data"]["path"].get<std::string>().empty());
   EXPECT_EQ(Code(Call("job.submit", {{"scene", "file.json"}})), rpc::kInvalidParams);
-  EXPECT_EQ(Code(Call("job.submit", {{"scene", Json::object()}, {"label", 3}})), rpc::kInvalidParams);
-  EXPECT_EQ(Code(Call("job.submit", {{"scene", Json::object()}, {"priority", 5000}})), rpc::kInvalidParams);
+  EXPECT_EQ(Code(Call("job.submit", {{"scene", Json::object()}, {"label", 3}})),
+            rpc::kInvalidParams);
+  EXPECT_EQ(Code(Call("job.submit", {{"scene", Json::object()}, {"priority", 5000}})),
+            rpc::kInvalidParams);
   EXPECT_EQ(store_->ListJobs({}).jobs.size(), 0u);  // nothing stored
 
   ServiceOptions roomy;
@@ -281,7 +298,8 @@ TEST_F(RpcServiceTest, SceneAndImprovementsOfAFinishedJob) {
   ASSERT_GE(improvements.size(), 2u) << "the paper GA improves more than once in 40 generations";
   for (std::size_t i = 1; i < improvements.size(); ++i) {
     EXPECT_LT(improvements[i]["cost"].get<double>(), improvements[i - 1]["cost"].get<double>());
-    EXPECT_GT(improvements[i]["generation"].get<int>(), improvements[i - 1]["generation"].get<int>());
+    EXPECT_GT(improvements[i]["generation"].get<int>(),
+              improvements[i - 1]["generation"].get<int>());
   }
   const Json& last = improvements.back();
   EXPECT_EQ(last["cost"], result["cost"]);
@@ -321,7 +339,8 @@ TEST_F(RpcServiceTest, StrategyDirectRunsAsAJobWithOneTraceRow) {
   ASSERT_EQ(result["stiffness"].size(), result["springs"].size());
   // stiff-2d's stiffness spans 1e-4..1e4: the identified values are the reference's.
   const auto [lo, hi] = std::minmax_element(result["stiffness"].begin(), result["stiffness"].end());
-  EXPECT_NEAR(lo->get<double>(), 1e-4, 1e-6 * 1e-4);  // the softest: round-off of the stiff springs' forces
+  EXPECT_NEAR(lo->get<double>(), 1e-4,
+              1e-6 * 1e-4);  // the softest: round-off of the stiff springs' forces
   EXPECT_NEAR(hi->get<double>(), 1e4, 1e-8 * 1e4);
   EXPECT_EQ(Call("job.trace", {{"job_id", id}})["result"]["rows"].size(), 1u);
   EXPECT_EQ(Call("job.improvements", {{"job_id", id}})["result"]["improvements"].size(), 1u);

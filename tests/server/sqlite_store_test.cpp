@@ -12,8 +12,8 @@ class SqliteStoreTest : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = std::filesystem::temp_directory_path() /
-           ("springfit-store-" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "-" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+           ("springfit-store-" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+            "-" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
     std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_);
     path_ = (dir_ / "jobs.db").string();
@@ -115,7 +115,8 @@ TEST_F(SqliteStoreTest, ProgressCheckpointRewindAndFinish) {
   store.MarkRunning(id, 1.6e9);
   ProgressBatch first;
   for (int g = 0; g <= 4; ++g) first.trace.push_back(Row(g, 1.0 / (g + 1)));
-  first.improvements.push_back({0, 0.1, 2.0, 1.0, -1, 1, Genome{1, 0, 1, 1, 0, 0, 0, 0, 1, 1, 1, 0}});
+  first.improvements.push_back(
+      {0, 0.1, 2.0, 1.0, -1, 1, Genome{1, 0, 1, 1, 0, 0, 0, 0, 1, 1, 1, 0}});
   first.latest = first.trace.back();
   first.checkpoint = std::string("state\0with\0zeros", 16);
   first.checkpoint_generation = 4;

@@ -1,0 +1,59 @@
+// The one result of an identification, whatever the strategy (a Ceres-style summary): why it
+// stopped, the model it found (topology and per-spring stiffness), that model's evaluation
+// against the reference, the trace, the counters, what the load cases can tell apart, the
+// closed-form baseline of an FEM reference, and the details only one strategy has.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "engine/cost.h"
+#include "engine/direct/direct_identification.h"
+#include "engine/direct/identifiability.h"
+#include "engine/fem/closed_form_baseline.h"
+#include "engine/identification/trace.h"
+#include "engine/problem.h"
+#include "engine/search/fitness_evaluator.h"
+#include "engine/search/search_options.h"
+
+namespace springfit {
+
+struct IdentificationResult {
+  SearchOptions options;
+  StopReason stop = StopReason::kGenerationLimit;
+  std::string stop_message;  // one line: the stop reason's criterion, in words
+  Genome best;
+  std::vector<NodePair> springs;  // the best model's springs, in candidate order
+  std::vector<double> stiffness;  // per spring of `springs`: identified, or the training stiffness
+  Evaluation evaluation;          // of the best model, per load case
+  std::optional<TopologyDifference> difference;  // against the reference, when known
+  int generations = 0;                           // bred after the initial population
+  int best_generation = 0;                       // when the best was found
+  EvaluationCounters counters;
+  double wall_seconds = 0.0;
+  std::vector<TraceRow> trace;
+  // Strategies hybrid and default: the direct phase that seeded the GA (absent on a resumed
+  // run: it ran before the checkpoint).
+  struct DirectPhase {
+    double seconds = 0.0;
+    double normalized_error = 0.0;  // of the direct topology (training stiffness)
+    std::optional<TopologyDifference> difference;
+  };
+  std::optional<DirectPhase> direct_phase;
+  // Strategy direct: its weights, thresholds, confidences and residuals.
+  std::optional<DirectResult> direct;
+  // What the load cases can and cannot tell apart, analysed before the run's clock starts.
+  IdentifiabilityReport identifiability;
+  // An FEM reference: the closed-form MSS of its mesh, evaluated before the run (the model an
+  // identification must beat, engine/fem/closed_form_baseline.h).
+  std::optional<fem::BaselineReport> baseline;
+
+  // nullopt when the reference topology is unknown.
+  std::optional<bool> exact() const {
+    if (!difference) return std::nullopt;
+    return difference->hamming() == 0;
+  }
+};
+
+}  // namespace springfit

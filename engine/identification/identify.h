@@ -1,0 +1,51 @@
+// The engine's one entry point for an identification: `springfit run`, the daemon and the
+// benchmarks call RunIdentification() and read one IdentificationResult, whatever the strategy.
+//
+// RunIdentification() analyses the prepared problem (identifiability, the closed-form baseline of
+// an FEM reference) before the run's clock starts, runs the strategy that SearchOptions::strategy
+// names (strategy.h: the one place that maps strategies to code), and fills the parts of the
+// result every strategy shares (springs, stiffness, difference to the reference).
+#pragma once
+
+#include <functional>
+#include <optional>
+#include <vector>
+
+#include "engine/identification/identification_result.h"
+#include "engine/search/genetic_search.h"
+#include "engine/search/worker_pool.h"
+
+namespace springfit {
+
+class IdentificationStrategy;
+
+// What a run reports to its caller after each iteration.
+struct IterationState {
+  bool finished = false;         // the strategy has nothing more to do (target, limit, single shot)
+  const Genome* best = nullptr;  // the best model so far
+  // The state to checkpoint; empty for a strategy that cannot resume (direct).
+  std::function<SearchState()> snapshot;
+};
+
+struct RunContext {
+  // Threads for the fitness evaluations when `pool` is null (1 = the calling thread only).
+  int threads = 1;
+  WorkerPool* pool = nullptr;  // a shared pool (a daemon's); must outlive the run
+  bool use_cache = true;       // false: solve every genome (the results are the same)
+  // After every iteration (the initial population, every generation, a direct solve), with
+  // its trace row. Return false to stop: the result is the best so far, stop kCancelled.
+  std::function<bool(const TraceRow&, const IterationState&)> on_iteration;
+  // Continue a checkpointed genetic run instead of starting one; `trace` is the trace so far.
+  std::optional<SearchState> resume_from;
+  std::vector<TraceRow> trace;
+};
+
+IdentificationResult RunIdentification(const Problem& problem, const SearchOptions& options,
+                                       const RunContext& context = {});
+// The same with a strategy chosen by the caller instead of by options.strategy (experiments
+// that run one part of a composed strategy alone).
+IdentificationResult RunIdentification(const Problem& problem, const SearchOptions& options,
+                                       const RunContext& context,
+                                       const IdentificationStrategy& strategy);
+
+}  // namespace springfit
