@@ -8,6 +8,8 @@
 #include <optional>
 #include <thread>
 
+#include <unistd.h>
+
 #include "client/commands.h"
 #include "client/error_reporting.h"
 #include "client/exit_codes.h"
@@ -30,6 +32,10 @@ std::atomic<bool> g_interrupted{false};
 extern "C" void OnInterrupt(int signal) {
   g_interrupted.store(true);
   std::signal(signal, SIG_DFL);
+  // At once, from the handler: write(2) is async-signal-safe, stdio is not.
+  static const char kAck[] =
+      "\nspringfit: stopping within a second; the best so far is kept (again to quit at once)\n";
+  [[maybe_unused]] const auto written = write(STDERR_FILENO, kAck, sizeof kAck - 1);
 }
 
 struct RunArgs {
@@ -39,6 +45,8 @@ struct RunArgs {
   std::optional<std::uint64_t> seed;
   int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   std::optional<int> generations;
+  std::optional<double> time_limit;
+  std::optional<int> stall;
   std::optional<int> population;
   std::optional<double> crossover;
   std::optional<double> mutation;
@@ -56,6 +64,8 @@ int Run(const RunArgs& args) {
   if (args.identify) st.identify = proto::IdentifyFromName(*args.identify, "--identify");
   if (args.seed) st.seed = *args.seed;
   if (args.generations) st.max_generations = *args.generations;
+  if (args.time_limit) st.max_seconds = *args.time_limit;
+  if (args.stall) st.stall_generations = *args.stall;
   if (args.population) st.population = *args.population;
   if (args.crossover) st.crossover_probability = *args.crossover;
   if (args.mutation) st.mutation_probability = *args.mutation;
@@ -79,6 +89,16 @@ int Run(const RunArgs& args) {
   run.on_iteration = [&](const TraceRow& row, const IterationState& state) {
     if (trace.is_open()) trace << proto::TraceRowToCsv(row) << std::endl;  // on disk as it goes
     progress.Report(row, state.finished);
+    return !g_interrupted.load();
+  };
+  run.on_beat = [&](const ProgressBeat& beat) {
+    TraceRow row;  // the generation in progress, as far as it has got
+    row.generation = beat.generation;
+    row.wall_seconds = beat.wall_seconds;
+    row.evaluations = beat.evaluations;
+    row.best_normalized_error = beat.best_normalized_error;
+    row.best_cost = beat.best_normalized_error * problem.reference_norm2();
+    progress.Report(row, false);
     return !g_interrupted.load();
   };
   const IdentificationResult result = RunIdentification(problem, options, run);
@@ -121,6 +141,14 @@ void RegisterRun(CLI::App& app, int& exit_code) {
   cmd->add_option("--generations", args->generations,
                   "Generation limit (default: the scene's, else 1000)")
       ->check(CLI::Range(1, 100000000));
+  cmd->add_option("--time-limit", args->time_limit,
+                  "Stop after this many seconds of wall time, at the end of a step (default: the "
+                  "scene's, else none; a run it stops is not reproducible)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--stall", args->stall,
+                  "Stop when the best has not improved for this many generations; 0 = never "
+                  "(default: the scene's, else 200 for default and hybrid, never for paper)")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--population", args->population,
                   "Individuals per generation (default: the strategy's)")
       ->check(CLI::Range(2, 1000000));

@@ -24,6 +24,8 @@ struct SubmitArgs {
   std::optional<std::string> strategy;
   std::optional<std::string> identify;
   std::optional<int> generations;
+  std::optional<double> time_limit;
+  std::optional<int> stall;
   std::string idempotency_key;
   bool wait = false;
   bool watch = false;
@@ -33,7 +35,7 @@ struct SubmitArgs {
 int Submit(const SubmitArgs& args) {
   Json scene = proto::ParseJson(proto::ReadFile(args.scene));
   if (!scene.is_object()) throw InputError("", "a scene is a JSON object (proto/SCENE.md)");
-  if (args.strategy || args.identify || args.generations) {
+  if (args.strategy || args.identify || args.generations || args.time_limit || args.stall) {
     Json& search = scene["search"];
     if (search.is_null()) search = Json::object();
     if (args.strategy)
@@ -43,6 +45,8 @@ int Submit(const SubmitArgs& args) {
       search["identify"] =
           proto::IdentifyName(proto::IdentifyFromName(*args.identify, "--identify"));
     if (args.generations) search["max_generations"] = *args.generations;
+    if (args.time_limit) search["max_seconds"] = *args.time_limit;
+    if (args.stall) search["stall_generations"] = *args.stall;
   }
   Json params;
   params["scene"] = std::move(scene);
@@ -104,6 +108,14 @@ void RegisterSubmit(CLI::App& app, int& exit_code) {
   cmd->add_option("--generations", args->generations,
                   "Generation limit (default: the scene's, else 1000)")
       ->check(CLI::Range(1, 100000000));
+  cmd->add_option(
+         "--time-limit", args->time_limit,
+         "Stop after this many seconds of the job's run time (default: the scene's, else none)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--stall", args->stall,
+                  "Stop when the best has not improved for this many generations; 0 = never "
+                  "(default: the scene's, else 200 for default and hybrid, never for paper)")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--idempotency-key", args->idempotency_key,
                   "Submitting again with the same key returns the same job instead of a new one");
   auto* wait =

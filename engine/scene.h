@@ -146,6 +146,8 @@ struct SearchSettings {
   std::optional<double> crossover_probability;  // in [0, 1]
   std::optional<double> mutation_probability;   // bit-flip probability per gene, in [0, 1]
   int max_generations = 1000;                   // >= 1
+  std::optional<double> max_seconds;            // > 0; unset = no time limit
+  std::optional<int> stall_generations;         // >= 0 (0 = never); unset = the strategy's
   // The search stops when the normalised error reaches this value (0 = exact recovery,
   // judged within the solver's relative tolerance). Unit-free, >= 0.
   double target_normalized_error = 0.0;

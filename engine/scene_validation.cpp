@@ -294,6 +294,13 @@ void CheckSearch(const SearchSettings& s) {
     throw InputError("search.max_generations",
                      "must be >= 1, got " + std::to_string(s.max_generations));
   }
+  if (s.max_seconds && !(*s.max_seconds > 0.0 && std::isfinite(*s.max_seconds))) {
+    throw InputError("search.max_seconds", "must be a finite number > 0");
+  }
+  if (s.stall_generations && *s.stall_generations < 0) {
+    throw InputError("search.stall_generations",
+                     "must be >= 0 (0 = never), got " + std::to_string(*s.stall_generations));
+  }
   if (!(s.target_normalized_error >= 0.0) || !std::isfinite(s.target_normalized_error)) {
     throw InputError("search.target_normalized_error", "must be a finite number >= 0");
   }

@@ -145,6 +145,10 @@ std::string_view StopReasonName(StopReason reason) {
       return "target_reached";
     case StopReason::kGenerationLimit:
       return "generation_limit";
+    case StopReason::kTimeLimit:
+      return "time_limit";
+    case StopReason::kStalled:
+      return "stalled";
     case StopReason::kCompleted:
       return "completed";
     case StopReason::kCancelled:

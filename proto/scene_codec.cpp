@@ -262,7 +262,8 @@ void ReadSearch(const Json& v, SearchSettings& st) {
   const std::string path = "search";
   ExpectKeys(v, path,
              {"strategy", "identify", "seed", "population", "crossover_probability",
-              "mutation_probability", "max_generations", "target_normalized_error"});
+              "mutation_probability", "max_generations", "target_normalized_error", "max_seconds",
+              "stall_generations"});
   if (v.contains("strategy")) {
     st.strategy = StrategyFromName(ReadString(v["strategy"], JoinPath(path, "strategy")),
                                    JoinPath(path, "strategy"));
@@ -284,6 +285,11 @@ void ReadSearch(const Json& v, SearchSettings& st) {
   }
   if (v.contains("max_generations"))
     st.max_generations = ReadInt(v["max_generations"], JoinPath(path, "max_generations"));
+  if (v.contains("max_seconds"))
+    st.max_seconds = ReadNumber(v["max_seconds"], JoinPath(path, "max_seconds"));
+  if (v.contains("stall_generations")) {
+    st.stall_generations = ReadInt(v["stall_generations"], JoinPath(path, "stall_generations"));
+  }
   if (v.contains("target_normalized_error")) {
     st.target_normalized_error =
         ReadNumber(v["target_normalized_error"], JoinPath(path, "target_normalized_error"));
@@ -485,6 +491,8 @@ Json SceneToJson(const Scene& s) {
   if (st.crossover_probability) sj["crossover_probability"] = *st.crossover_probability;
   if (st.mutation_probability) sj["mutation_probability"] = *st.mutation_probability;
   if (st.max_generations != d.max_generations) sj["max_generations"] = st.max_generations;
+  if (st.max_seconds) sj["max_seconds"] = *st.max_seconds;
+  if (st.stall_generations) sj["stall_generations"] = *st.stall_generations;
   if (st.target_normalized_error != d.target_normalized_error)
     sj["target_normalized_error"] = st.target_normalized_error;
   if (!sj.empty()) j["search"] = std::move(sj);

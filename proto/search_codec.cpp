@@ -26,6 +26,8 @@ Json SearchOptionsToJson(const SearchOptions& o) {
   Json j;
   j["population"] = o.population;
   j["max_generations"] = o.max_generations;
+  j["max_seconds"] = o.max_seconds;
+  j["stall_generations"] = o.stall_generations;
   j["target_normalized_error"] = o.target_normalized_error;
   j["selection"] = o.selection == SearchOptions::Selection::kRoulette ? "roulette" : "tournament";
   if (o.selection == SearchOptions::Selection::kTournament)

@@ -122,6 +122,14 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
       interrupted = shutdown;
       return !cancel && !shutdown;
     };
+    // Inside a long generation: cancel and shutdown take effect within a second (a shutdown
+    // then resumes from the last checkpoint, at a generation's end).
+    run.on_beat = [&](const ProgressBeat&) {
+      const bool cancel = control.cancel && control.cancel->load();
+      const bool shutdown = !cancel && control.shutdown && control.shutdown->load();
+      if (shutdown) interrupted = true;
+      return !cancel && !shutdown;
+    };
     const IdentificationResult result = RunIdentification(problem, search_options, run);
     if (interrupted && result.stop == StopReason::kCancelled) {
       spdlog::info(

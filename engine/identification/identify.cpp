@@ -24,6 +24,18 @@ std::string StopMessage(const IdentificationResult& r) {
                     "stopped on request after %d generations; the best so far is kept",
                     r.generations);
       break;
+    case StopReason::kTimeLimit:
+      std::snprintf(
+          buf, sizeof buf,
+          "the time limit (%.3g s) was reached after %d generations; normalised error %.3g",
+          r.options.max_seconds, r.generations, r.evaluation.normalized_error);
+      break;
+    case StopReason::kStalled:
+      std::snprintf(
+          buf, sizeof buf,
+          "no improvement for %d generations (best found in generation %d); normalised error %.3g",
+          r.options.stall_generations, r.best_generation, r.evaluation.normalized_error);
+      break;
     case StopReason::kCompleted:
       std::snprintf(buf, sizeof buf,
                     "direct ran to its end; normalised error %.3g, above the target (<= %.3g)",

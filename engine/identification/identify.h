@@ -7,6 +7,7 @@
 // result every strategy shares (springs, stiffness, difference to the reference).
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <optional>
 #include <vector>
@@ -27,6 +28,14 @@ struct IterationState {
   std::function<SearchState()> snapshot;
 };
 
+// Between iterations: where a long step has got to (RunContext::on_beat).
+struct ProgressBeat {
+  double wall_seconds = 0.0;
+  int generation = 0;  // the generation in progress
+  std::int64_t evaluations = 0;
+  double best_normalized_error = 0.0;  // of the best model so far
+};
+
 struct RunContext {
   // Threads for the fitness evaluations when `pool` is null (1 = the calling thread only).
   int threads = 1;
@@ -35,6 +44,13 @@ struct RunContext {
   // After every iteration (the initial population, every generation, a direct solve), with
   // its trace row. Return false to stop: the result is the best so far, stop kCancelled.
   std::function<bool(const TraceRow&, const IterationState&)> on_iteration;
+  // Inside a long iteration (a genetic generation's evaluations and local search), at least
+  // every `beat_seconds` of wall time as long as each batch of evaluations takes less: progress
+  // for a live display, and a chance to stop. Return false to stop at once: the step is
+  // abandoned (no checkpoint can be taken of it), the result is the best so far, stop
+  // kCancelled. Not called when an iteration ends within `beat_seconds` of the last report.
+  std::function<bool(const ProgressBeat&)> on_beat;
+  double beat_seconds = 1.0;
   // Continue a checkpointed genetic run instead of starting one; `trace` is the trace so far.
   std::optional<SearchState> resume_from;
   std::vector<TraceRow> trace;

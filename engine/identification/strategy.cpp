@@ -30,13 +30,26 @@ IdentificationResult RunGenetic(const Problem& problem, const SearchOptions& opt
   result.options = options;
   result.trace = context.trace;
   bool cancelled = false;
+  auto last_report = std::chrono::steady_clock::now();
+  search.SetInterruptPoll([&] {
+    if (!context.on_beat || SecondsSince(last_report) < context.beat_seconds) return false;
+    last_report = std::chrono::steady_clock::now();
+    ProgressBeat beat;
+    beat.wall_seconds = search.ElapsedSeconds();
+    beat.generation = search.state().generation;
+    beat.evaluations = evaluator.counters().evaluations;
+    beat.best_normalized_error = search.state().best_fitness.normalized_error;
+    return !context.on_beat(beat);
+  });
   auto record = [&](const TraceRow& row) {
     result.trace.push_back(row);
+    last_report = std::chrono::steady_clock::now();
+    if (search.Interrupted()) cancelled = true;
     if (!context.on_iteration) return;
     IterationState state;
-    state.finished = search.Finished();
+    state.finished = search.Finished() || cancelled;
     state.best = &search.state().best;
-    state.snapshot = [&search] { return search.Snapshot(); };
+    if (!search.Interrupted()) state.snapshot = [&search] { return search.Snapshot(); };
     if (!context.on_iteration(row, state) && !search.Finished()) cancelled = true;
   };
   if (context.resume_from) {
@@ -48,9 +61,12 @@ IdentificationResult RunGenetic(const Problem& problem, const SearchOptions& opt
   while (!cancelled && !search.Finished()) record(search.Step());
 
   const SearchState& state = search.state();
-  result.stop = search.TargetReached() ? StopReason::kTargetReached
-                : cancelled            ? StopReason::kCancelled
-                                       : StopReason::kGenerationLimit;
+  result.stop = search.TargetReached()                        ? StopReason::kTargetReached
+                : cancelled                                   ? StopReason::kCancelled
+                : state.generation >= options.max_generations ? StopReason::kGenerationLimit
+                : search.Stalled()                            ? StopReason::kStalled
+                : search.TimeLimitReached()                   ? StopReason::kTimeLimit
+                                                              : StopReason::kGenerationLimit;
   result.best = state.best;
   result.evaluation = evaluator.EvaluateInDetail(state.best);
   result.generations = state.generation;

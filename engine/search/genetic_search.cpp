@@ -45,8 +45,13 @@ TraceRow GeneticSearch::Initialize() {
   state_.best = state_.population.front();
   state_.best_fitness = state_.fitness.front();
   UpdateBest();
-  if (options_.local_search && !TargetReached()) LocalSearch();
+  if (options_.local_search && !TargetReached() && !PollInterrupt()) LocalSearch();
   return Row();
+}
+
+bool GeneticSearch::PollInterrupt() {
+  if (!interrupted_ && interrupt_poll_ && interrupt_poll_()) interrupted_ = true;
+  return interrupted_;
 }
 
 void GeneticSearch::SeedInitialPopulation(std::vector<Genome> genomes, double elapsed_seconds) {
@@ -98,7 +103,7 @@ TraceRow GeneticSearch::Step() {
   state_.fitness = evaluator_->Evaluate(state_.population);
   ++state_.generation;
   UpdateBest();
-  if (options_.local_search && !TargetReached()) LocalSearch();
+  if (options_.local_search && !TargetReached() && !PollInterrupt()) LocalSearch();
   state_.stall =
       state_.best_fitness.normalized_error < before.normalized_error ? 0 : state_.stall + 1;
   if (options_.restart_after > 0 && state_.stall >= options_.restart_after && !Finished()) {
@@ -269,6 +274,7 @@ void GeneticSearch::LocalSearch() {
         break;
       }
     }
+    if (PollInterrupt()) break;  // mid-search: not a local optimum
     const std::size_t batch = std::min<std::size_t>(options_.local_search_batch, moves.size());
     neighbours.assign(batch, genome);
     for (std::size_t j = 0; j < batch; ++j) {

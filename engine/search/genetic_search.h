@@ -10,6 +10,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -61,8 +62,21 @@ class GeneticSearch {
   bool TargetReached() const;
   bool Finished() const {
     return (options_.stop_at_target && TargetReached()) ||
-           state_.generation >= options_.max_generations;
+           state_.generation >= options_.max_generations || Stalled() || TimeLimitReached();
   }
+  // The best has not improved for stall_generations generations.
+  bool Stalled() const {
+    return options_.stall_generations > 0 && state_.stall >= options_.stall_generations;
+  }
+  bool TimeLimitReached() const {
+    return options_.max_seconds > 0.0 && ElapsedSeconds() >= options_.max_seconds;
+  }
+
+  // Polled between batches of evaluations (after the population's, before every batch of
+  // local-search moves): returning true abandons the current step at once. The state is then
+  // mid-step: good for a best-so-far result, not for a checkpoint (Interrupted() says so).
+  void SetInterruptPoll(std::function<bool()> poll) { interrupt_poll_ = std::move(poll); }
+  bool Interrupted() const { return interrupted_; }
 
   // The state between generations, random stream and cache included (for a checkpoint).
   SearchState Snapshot() const;
@@ -95,6 +109,10 @@ class GeneticSearch {
   std::chrono::steady_clock::time_point started_;
   double elapsed_before_ = 0.0;  // wall time of the run before a Restore() or a seeding phase
   std::vector<Genome> seeds_;
+  std::function<bool()> interrupt_poll_;
+  bool interrupted_ = false;
+  // Polls the interrupt hook (once interrupted, stays so).
+  bool PollInterrupt();
 };
 
 }  // namespace springfit

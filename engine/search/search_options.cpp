@@ -19,6 +19,7 @@ SearchOptions StrategyDefaults(Strategy strategy, int genes) {
   o.initial_density_low = 0.5;
   o.initial_density_high = 1.0;
   o.local_search = true;
+  o.stall_generations = 200;
   return o;
 }
 
@@ -32,6 +33,8 @@ SearchOptions ResolveSearchOptions(const SearchSettings& settings, int genes) {
   if (settings.mutation_probability) o.mutation_probability = *settings.mutation_probability;
   o.max_generations = settings.max_generations;
   o.target_normalized_error = settings.target_normalized_error;
+  if (settings.max_seconds) o.max_seconds = *settings.max_seconds;
+  if (settings.stall_generations) o.stall_generations = *settings.stall_generations;
   return o;
 }
 

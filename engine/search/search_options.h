@@ -47,7 +47,15 @@ struct SearchOptions {
   Identify identify = Identify::kTopology;
   std::uint64_t seed = 1;
   int population = 20;
-  int max_generations = 1000;            // generations bred after the initial population
+  int max_generations = 1000;  // generations bred after the initial population
+  // Wall seconds after which the run stops at the end of its current step (0 = no limit).
+  // Unlike every other stop, where it stops depends on the machine: a run stopped by it is
+  // not reproducible.
+  double max_seconds = 0.0;
+  // Stop when the best has not improved for this many generations (0 = never): a noisy run
+  // whose best was found early does not spend its whole generation budget. `paper` has none
+  // (the paper's GA ran its 1000 generations); `default` and `hybrid` stop after 200.
+  int stall_generations = 0;
   double target_normalized_error = 0.0;  // stop at or below max(this, kExactNormalizedError)
   bool stop_at_target = true;            // false: run every generation (benchmarks of a full run)
 

@@ -186,6 +186,68 @@ TEST(Search, RouletteExponentChangesSelectionAndIsBounded) {
   }
 }
 
+TEST(Search, BeatsReportInsideAGenerationAndCanStopIt) {
+  // The memetic GA's generation 0 runs a local search of many batches: with a beat interval
+  // of 0 every batch reports, before the first iteration ends.
+  const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
+  const SearchOptions o = Options(Strategy::kDefault, p, 3, 5);
+  int beats = 0, beats_before_first_row = -1;
+  std::int64_t last_evaluations = -1;
+  RunContext watched;
+  watched.beat_seconds = 0.0;
+  watched.on_beat = [&](const ProgressBeat& beat) {
+    ++beats;
+    EXPECT_GE(beat.evaluations, last_evaluations);  // progress only grows
+    last_evaluations = beat.evaluations;
+    return true;
+  };
+  watched.on_iteration = [&](const TraceRow&, const IterationState&) {
+    if (beats_before_first_row < 0) beats_before_first_row = beats;
+    return true;
+  };
+  const IdentificationResult seen = RunGa(p, o, watched);
+  EXPECT_GT(beats_before_first_row, 0);
+  // Watching changes nothing: the same trace and result as a run without beats.
+  const IdentificationResult plain = RunGa(p, o);
+  ExpectSameTrace(plain.trace, seen.trace);
+  EXPECT_EQ(plain.best, seen.best);
+  // Refusing the first beat abandons generation 0 at once: cancelled, far fewer evaluations.
+  RunContext stopped;
+  stopped.beat_seconds = 0.0;
+  stopped.on_beat = [](const ProgressBeat&) { return false; };
+  bool snapshot_offered = false;
+  stopped.on_iteration = [&](const TraceRow&, const IterationState& state) {
+    snapshot_offered = snapshot_offered || static_cast<bool>(state.snapshot);
+    return true;
+  };
+  const IdentificationResult r = RunGa(p, o, stopped);
+  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  EXPECT_EQ(r.generations, 0);
+  EXPECT_LT(r.counters.evaluations, plain.trace.front().evaluations);
+  EXPECT_FALSE(snapshot_offered);  // a step abandoned midway is no state to resume from
+}
+
+TEST(Search, StallAndTimeLimitStopTheRun) {
+  const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
+  SearchOptions o = Options(Strategy::kPaper, p, 2, 1000);
+  o.stall_generations = 4;
+  const IdentificationResult stalled = RunGa(p, o);
+  if (stalled.stop != StopReason::kTargetReached) {
+    EXPECT_EQ(stalled.stop, StopReason::kStalled);
+    EXPECT_EQ(stalled.generations, stalled.best_generation + 4);
+    EXPECT_NE(stalled.stop_message.find("no improvement for 4 generations"), std::string::npos)
+        << stalled.stop_message;
+  }
+  o.stall_generations = 0;
+  o.max_seconds = 1e-9;  // over before the first generation ends
+  const IdentificationResult timed = RunGa(p, o);
+  EXPECT_EQ(timed.stop, StopReason::kTimeLimit);
+  EXPECT_EQ(timed.generations, 0);
+  // default and hybrid stop after 200 stalled generations; paper never does.
+  EXPECT_EQ(StrategyDefaults(Strategy::kDefault, 10).stall_generations, 200);
+  EXPECT_EQ(StrategyDefaults(Strategy::kPaper, 10).stall_generations, 0);
+}
+
 TEST(Search, CancellationReturnsTheBestSoFar) {
   const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
   RunContext run;
