@@ -6,11 +6,13 @@
 #include <type_traits>
 
 #include "engine/search/fitness_cache.h"
+#include "proto/search_codec.h"
+#include "server/version.h"
 
 namespace springfit::server {
 namespace {
 
-constexpr char kMagic[8] = {'S', 'F', 'C', 'K', 'P', 'T', '0', '1'};
+constexpr char kMagic[8] = {'S', 'F', 'C', 'K', 'P', 'T', '0', '2'};  // format version 2
 constexpr std::uint32_t kByteOrderMark = 0x01020304;
 
 class Writer {
@@ -97,10 +99,22 @@ class Reader {
 
 }  // namespace
 
-std::string EncodeCheckpoint(const SearchState& s, int genes) {
+std::uint64_t OptionsFingerprint(const SearchOptions& options) {
+  const std::string text = proto::SearchOptionsToJson(options).dump();
+  std::uint64_t h = 14695981039346656037ULL;
+  for (const unsigned char c : text) {
+    h ^= c;
+    h *= 1099511628211ULL;
+  }
+  return h;
+}
+
+std::string EncodeCheckpoint(const SearchState& s, int genes, std::uint64_t fingerprint) {
   Writer w;
   for (char c : kMagic) w.Put(c);
   w.Put(kByteOrderMark);
+  w.PutString(kVersion);
+  w.Put<std::uint64_t>(fingerprint);
   w.Put<std::int32_t>(genes);
   w.Put<std::int32_t>(s.generation);
   w.PutString(s.random_state);
@@ -124,14 +138,24 @@ std::string EncodeCheckpoint(const SearchState& s, int genes) {
   return w.Take();
 }
 
-SearchState DecodeCheckpoint(const std::string& bytes, int genes) {
+SearchState DecodeCheckpoint(const std::string& bytes, int genes, std::uint64_t fingerprint) {
   Reader r(bytes, genes);
   for (char c : kMagic) {
     if (r.Get<char>() != c)
-      throw std::runtime_error("checkpoint: not a springfit checkpoint of this version");
+      throw std::runtime_error("checkpoint: not a springfit checkpoint of format version 2");
   }
   if (r.Get<std::uint32_t>() != kByteOrderMark)
     throw std::runtime_error("checkpoint: written on another byte order");
+  const std::string version = r.GetString();
+  if (version != kVersion) {
+    throw std::runtime_error("checkpoint: written by springfitd " + version + ", this is " +
+                             kVersion);
+  }
+  if (r.Get<std::uint64_t>() != fingerprint) {
+    throw std::runtime_error(
+        "checkpoint: written for other search options (the strategy's operators or defaults "
+        "changed)");
+  }
   if (r.Get<std::int32_t>() != genes)
     throw std::runtime_error("checkpoint: written for another number of genes");
   SearchState s;

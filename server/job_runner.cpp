@@ -53,13 +53,14 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
     const SearchOptions search_options =
         ResolveSearchOptions(problem.scene().search, problem.gene_count());
     const int genes = problem.gene_count();
+    const std::uint64_t fingerprint = OptionsFingerprint(search_options);
 
     RunContext run;
     run.pool = &pool;
     int resumed_at = -1;
     if (const std::optional<std::string> bytes = store.GetCheckpoint(job.id)) {
       try {
-        run.resume_from = DecodeCheckpoint(*bytes, genes);
+        run.resume_from = DecodeCheckpoint(*bytes, genes, fingerprint);
         resumed_at = run.resume_from->generation;
       } catch (const std::exception& e) {
         spdlog::warn("job {}: checkpoint unusable ({}); starting again from generation 0", job.id,
@@ -107,7 +108,7 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
       if (state.snapshot &&
           (shutdown ||
            (!finished && !cancel && SecondsSince(last_checkpoint) >= options.checkpoint_seconds))) {
-        batch.checkpoint = EncodeCheckpoint(state.snapshot(), genes);
+        batch.checkpoint = EncodeCheckpoint(state.snapshot(), genes, fingerprint);
         batch.checkpoint_generation = row.generation;
         record.checkpoint_generation = row.generation;
         last_checkpoint = std::chrono::steady_clock::now();

@@ -1,5 +1,7 @@
 #include "server/rpc_service.h"
 
+#include "server/version.h"
+
 #include <algorithm>
 #include <limits>
 #include <memory>
@@ -21,7 +23,6 @@ using proto::Json;
 
 namespace {
 
-constexpr const char* kVersion = "0.1.0";
 constexpr int kProtocolVersion = 1;
 constexpr std::size_t kMaxLabelBytes = 200;
 

@@ -4,6 +4,7 @@
 
 #include "engine/examples/catalog.h"
 #include "engine/identification/identify.h"
+#include "server/version.h"
 
 namespace springfit::server {
 namespace {
@@ -26,13 +27,13 @@ TEST(CheckpointCodec, ResumingFromDecodedBytesEndsExactlyLikeAnUninterruptedRun)
   RunContext first;
   first.on_iteration = [&](const TraceRow& row, const IterationState& state) {
     if (row.generation < 17) return true;
-    bytes = EncodeCheckpoint(state.snapshot(), p.gene_count());
+    bytes = EncodeCheckpoint(state.snapshot(), p.gene_count(), OptionsFingerprint(o));
     return false;
   };
   const IdentificationResult part = RunIdentification(p, o, first);
   ASSERT_FALSE(bytes.empty());
 
-  const SearchState state = DecodeCheckpoint(bytes, p.gene_count());
+  const SearchState state = DecodeCheckpoint(bytes, p.gene_count(), OptionsFingerprint(o));
   EXPECT_EQ(state.generation, 17);
   EXPECT_FALSE(state.cache.empty());
   RunContext second;
@@ -61,7 +62,7 @@ TEST(CheckpointCodec, RoundTripKeepsEveryField) {
   s.counters = {100, 40};
   s.cache = {{std::string(1, '\x05'), {1.0, 2.0, 0, false, true}}};
   s.elapsed_seconds = 1.5;
-  const SearchState d = DecodeCheckpoint(EncodeCheckpoint(s, 3), 3);
+  const SearchState d = DecodeCheckpoint(EncodeCheckpoint(s, 3, 42), 3, 42);
   EXPECT_EQ(d.generation, 7);
   EXPECT_EQ(d.random_state, s.random_state);
   EXPECT_EQ(d.population, s.population);
@@ -81,14 +82,47 @@ TEST(CheckpointCodec, CorruptOrForeignBytesAreRefused) {
   s.population = {{1, 0, 1}};
   s.fitness = {{}};
   s.best = {1, 0, 1};
-  const std::string bytes = EncodeCheckpoint(s, 3);
-  EXPECT_THROW(DecodeCheckpoint(bytes, 4), std::runtime_error);  // another problem
-  EXPECT_THROW(DecodeCheckpoint(bytes.substr(0, bytes.size() - 1), 3), std::runtime_error);
-  EXPECT_THROW(DecodeCheckpoint(bytes + "x", 3), std::runtime_error);
-  EXPECT_THROW(DecodeCheckpoint("not a checkpoint", 3), std::runtime_error);
+  const std::string bytes = EncodeCheckpoint(s, 3, 42);
+  EXPECT_NO_THROW(DecodeCheckpoint(bytes, 3, 42));
+  EXPECT_THROW(DecodeCheckpoint(bytes, 4, 42), std::runtime_error);  // another problem
+  EXPECT_THROW(DecodeCheckpoint(bytes.substr(0, bytes.size() - 1), 3, 42), std::runtime_error);
+  EXPECT_THROW(DecodeCheckpoint(bytes + "x", 3, 42), std::runtime_error);
+  EXPECT_THROW(DecodeCheckpoint("not a checkpoint", 3, 42), std::runtime_error);
+  // magic 8, byte order 4, version (length 8 + text), fingerprint 8, genes 4, generation 4,
+  // random state (length 8 + 0): then the population count.
+  const std::size_t population_count = 8 + 4 + 8 + std::string(kVersion).size() + 8 + 4 + 4 + 8;
   std::string huge_count = bytes;
-  huge_count[8 + 4 + 4 + 4 + 8 + 5] = '\x7f';  // inside the population count: no giant allocation
-  EXPECT_THROW(DecodeCheckpoint(huge_count, 3), std::runtime_error);
+  huge_count[population_count + 5] = '\x7f';  // no giant allocation
+  EXPECT_THROW(DecodeCheckpoint(huge_count, 3, 42), std::runtime_error);
+}
+
+TEST(CheckpointCodec, AnotherVersionOrOtherOptionsAreRefusedSayingWhich) {
+  SearchState s;
+  s.population = {{1, 0, 1}};
+  s.fitness = {{}};
+  s.best = {1, 0, 1};
+  const std::string bytes = EncodeCheckpoint(s, 3, 42);
+  try {
+    DecodeCheckpoint(bytes, 3, 43);
+    FAIL() << "a checkpoint of other options was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("other search options"), std::string::npos) << e.what();
+  }
+  std::string older = bytes;
+  const std::size_t version_at = 8 + 4 + 8;
+  older[version_at] = older[version_at] == '9' ? '8' : '9';  // another daemon version
+  try {
+    DecodeCheckpoint(older, 3, 42);
+    FAIL() << "a checkpoint of another version was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("written by springfitd"), std::string::npos) << e.what();
+  }
+  // The fingerprint follows the resolved options: a changed operator changes it.
+  SearchOptions a = StrategyDefaults(Strategy::kDefault, 20);
+  SearchOptions b = a;
+  EXPECT_EQ(OptionsFingerprint(a), OptionsFingerprint(b));
+  b.crossover_probability = 0.8;
+  EXPECT_NE(OptionsFingerprint(a), OptionsFingerprint(b));
 }
 
 }  // namespace
