@@ -19,6 +19,7 @@
 #include "server/rpc_service.h"
 #include "server/scheduler.h"
 #include "server/sqlite_store.h"
+#include "server/version.h"
 #include "server/tcp_server.h"
 
 namespace {
@@ -150,7 +151,7 @@ int RunDaemon(const DaemonArgs& args) {
 
 int main(int argc, char** argv) {
   CLI::App app{"springfitd: the springfit identification daemon (JSON-RPC over TCP, proto/RPC.md)"};
-  app.set_version_flag("--version", "springfitd 0.1.0");
+  app.set_version_flag("--version", std::string("springfitd ") + springfit::server::kVersion);
   DaemonArgs args;
   app.add_option("--listen", args.listen, "Address to listen on, HOST:PORT (port 0: any free port)")
       ->capture_default_str();
