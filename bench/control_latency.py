@@ -60,12 +60,17 @@ def daemon_cancel(build, scene, after):
                                  check=True).stdout.strip()
             time.sleep(after)
             sent = time.monotonic()
-            subprocess.run([sf, "cancel", job], env=env, capture_output=True, check=True)
+            if subprocess.run([sf, "cancel", job], env=env, capture_output=True).returncode == 9:
+                return None  # the job had finished already
             subprocess.run([sf, "watch", job, "-q"], env=env, capture_output=True)
             return time.monotonic() - sent
         finally:
             daemon.send_signal(signal.SIGTERM)
             daemon.wait(timeout=60)
+
+
+def fmt(value):
+    return "-" if value is None else "%.3f" % value
 
 
 def main():
@@ -80,8 +85,7 @@ def main():
     for scene in args.scenes:
         first, stop, reason = first_line_and_interrupt(springfit, scene, args.after)
         cancel = daemon_cancel(args.build, scene, args.after)
-        fmt = lambda v: "-" if v is None else "%.3f" % v
-        print("| %s | %s | %s | %s | %.3f |" % (os.path.basename(scene), fmt(first), fmt(stop), reason, cancel))
+        print("| %s | %s | %s | %s | %s |" % (os.path.basename(scene), fmt(first), fmt(stop), reason, fmt(cancel)))
         sys.stdout.flush()
 
 

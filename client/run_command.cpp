@@ -101,6 +101,13 @@ int Run(const RunArgs& args) {
     progress.Report(row, false);
     return !g_interrupted.load();
   };
+  if (!args.quiet) {
+    // At once: the first step (a direct phase, generation 0) can take seconds on large scenes.
+    std::fprintf(stderr, "springfit: %s: strategy %s, %d genes: running\n",
+                 problem.scene().name.empty() ? args.scene.c_str() : problem.scene().name.c_str(),
+                 std::string(proto::StrategyName(options.strategy)).c_str(), problem.gene_count());
+    std::fflush(stderr);
+  }
   const IdentificationResult result = RunIdentification(problem, options, run);
   std::signal(SIGINT, previous_int);
   std::signal(SIGTERM, previous_term);

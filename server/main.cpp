@@ -19,8 +19,8 @@
 #include "server/rpc_service.h"
 #include "server/scheduler.h"
 #include "server/sqlite_store.h"
-#include "server/version.h"
 #include "server/tcp_server.h"
+#include "server/version.h"
 
 namespace {
 
