@@ -34,7 +34,8 @@ extern "C" void OnInterrupt(int signal) {
   std::signal(signal, SIG_DFL);
   // At once, from the handler: write(2) is async-signal-safe, stdio is not.
   static const char kAck[] =
-      "\nspringfit: stopping within a second; the best so far is kept (again to quit at once)\n";
+      "\nspringfit: stopping at the next check (within a second in the genetic phase); the best "
+      "so far is kept (again to quit at once)\n";
   [[maybe_unused]] const auto written = write(STDERR_FILENO, kAck, sizeof kAck - 1);
 }
 
