@@ -12,16 +12,10 @@ Json ReferenceSolutionToJson(const Problem& problem) {
   Json load_cases = Json::array();
   for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
     const PreparedLoadCase& lc = problem.load_cases()[k];
-    const Vector x = s.rest + lc.reference;
-    Json points = Json::array();
+    positions.push_back(PointsToJson(s.rest + lc.reference, d));
     double largest = 0.0;
-    for (int i = 0; i < s.node_count(); ++i) {
-      Json p = Json::array();
-      for (int a = 0; a < d; ++a) p.push_back(x[d * i + a]);
-      points.push_back(std::move(p));
+    for (int i = 0; i < s.node_count(); ++i)
       largest = std::max(largest, lc.reference.segment(d * i, d).norm());
-    }
-    positions.push_back(std::move(points));
     const LoadCase& original = s.load_cases[k];
     if (original.tractions.empty()) {
       load_cases.push_back(LoadCaseToJson(original, d));

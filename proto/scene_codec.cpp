@@ -296,16 +296,6 @@ void ReadSearch(const Json& v, SearchSettings& st) {
   }
 }
 
-Json PointsToJson(const Vector& flat, int d) {
-  Json a = Json::array();
-  for (Eigen::Index i = 0; i < flat.size() / d; ++i) {
-    Json p = Json::array();
-    for (int c = 0; c < d; ++c) p.push_back(flat[d * i + c]);
-    a.push_back(std::move(p));
-  }
-  return a;
-}
-
 Json VectorToJson(const Vector& v) {
   Json a = Json::array();
   for (Eigen::Index i = 0; i < v.size(); ++i) a.push_back(v[i]);
@@ -352,6 +342,16 @@ Json LoadCaseToJson(const LoadCase& lc, int dimension) {
     o["tractions"] = std::move(tractions);
   }
   return o;
+}
+
+Json PointsToJson(const Vector& flat, int d) {
+  Json a = Json::array();
+  for (Eigen::Index i = 0; i < flat.size() / d; ++i) {
+    Json p = Json::array();
+    for (int c = 0; c < d; ++c) p.push_back(flat[d * i + c]);
+    a.push_back(std::move(p));
+  }
+  return a;
 }
 
 CandidateSpec FemDefaultCandidates() {

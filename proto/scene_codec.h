@@ -24,6 +24,9 @@ Json SceneToJson(const Scene& scene);
 std::vector<NodePair> ReadNodePairs(const Json& json, const std::string& path);
 Json PairsToJson(const std::vector<NodePair>& pairs);
 
+// Flat d*n coordinates as an array of n points [[x, y], ...].
+Json PointsToJson(const Vector& flat, int dimension);
+
 // One load case as the scene format writes it (node sets by name where they were given so).
 Json LoadCaseToJson(const LoadCase& load_case, int dimension);
 

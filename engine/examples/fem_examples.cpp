@@ -38,6 +38,13 @@ void AddPaper7Tractions(Scene& s, double band) {
   }
 }
 
+// The paper7 tractions scaled to kStrain, and the check that no element inverts under them.
+void AddLoads(Scene& s, const SimplexMesh& mesh, double band) {
+  AddPaper7Tractions(s, band);
+  ScaleLoadsToStrain(s, kStrain);
+  CheckFoldFree(s, mesh.elements);
+}
+
 Scene FemScene(const std::string& name, const std::string& description, const SimplexMesh& mesh,
                int d, Material material, int k) {
   Scene s;
@@ -66,9 +73,7 @@ Scene FemPlate5x5() {
                      mesh, 2, Material{MaterialModel::kLinear, kYoung, 0.3}, 8);
   s.reference.fem.plane = PlaneMode::kStress;
   s.reference.fem.plane_given = true;
-  AddPaper7Tractions(s, 0.0);
-  ScaleLoadsToStrain(s, kStrain);
-  CheckFoldFree(s, mesh.elements);
+  AddLoads(s, mesh, 0.0);
   return s;
 }
 
@@ -85,9 +90,7 @@ Scene FemKidney2d(bool nonlinear) {
       mesh, 2, Material{model, kYoung, 0.45}, 8);
   s.reference.fem.plane = PlaneMode::kStrain;
   s.reference.fem.plane_given = true;
-  AddPaper7Tractions(s, 0.12);
-  ScaleLoadsToStrain(s, kStrain);
-  CheckFoldFree(s, mesh.elements);
+  AddLoads(s, mesh, 0.12);
   return s;
 }
 
@@ -98,9 +101,7 @@ Scene FemBlock3d() {
       "13x9x9-node block (1053 nodes, 4608 tetrahedra), linear elastic, poisson 0.3; candidates: "
       "mesh edges and 6 nearest neighbours; paper7 extended to 3D as tractions at 5% strain",
       mesh, 3, Material{MaterialModel::kLinear, kYoung, 0.3}, 6);
-  AddPaper7Tractions(s, 0.0);
-  ScaleLoadsToStrain(s, kStrain);
-  CheckFoldFree(s, mesh.elements);
+  AddLoads(s, mesh, 0.0);
   return s;
 }
 

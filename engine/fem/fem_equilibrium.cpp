@@ -20,13 +20,6 @@ constexpr double kShifts[] = {0.0, 1e-10, 1e-7, 1e-4, 1e-2, 1e-1, 1.0, 10.0};
 // pivot from stopping the sparse LDLT, and is far below any step's precision.
 constexpr double kRestShift = 1e-13;
 
-template <int D>
-MatD<D> DisplacementGradient(const Element<D>& el, const Vector& u) {
-  MatD<D> h = MatD<D>::Zero();
-  for (int a = 0; a <= D; ++a) h += u.segment<D>(D * el.nodes[a]) * el.gradients.row(a);
-  return h;
-}
-
 std::string Fraction(double f) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.4g%%", 100.0 * f);
@@ -101,14 +94,6 @@ FemEquilibriumSolver::FemEquilibriumSolver(const FemModel& model, FreeNodes free
                                 : SymmetricSystem::Backend::kSparse);
   slots_.assign(static_cast<std::size_t>(elements) * per_element, -1);
   for_each_entry([&](std::size_t at, int r, int c) { slots_[at] = system_.Slot(r, c); });
-  // The stiffness scale: the largest diagonal entry of the rest tangent.
-  const Vector zero = Vector::Zero(d * model.node_count());
-  double magnitude = 0.0;
-  Energy(zero, 0.0, zero, nullptr, true, &magnitude);
-  stiffness_scale_ = 0.0;
-  for (int r = 0; r < system_.size(); ++r) {
-    stiffness_scale_ = std::max(stiffness_scale_, std::abs(system_.values()[system_.Slot(r, r)]));
-  }
   extent_ = BoundingBox::Of(d, model.rest()).Diagonal();
 }
 
@@ -205,6 +190,11 @@ double FemEquilibriumSolver::EnergyAndGradient(const Vector& force, const Vector
 int FemEquilibriumSolver::RestFreeModes() {
   const Vector zero = Vector::Zero(dim_ * model_->node_count());
   Energy(zero, 0.0, zero, nullptr, true, nullptr);
+  // The stiffness scale: the largest diagonal entry of the rest tangent.
+  stiffness_scale_ = 0.0;
+  for (int r = 0; r < system_.size(); ++r) {
+    stiffness_scale_ = std::max(stiffness_scale_, std::abs(system_.values()[system_.Slot(r, r)]));
+  }
   // A tiny shift keeps an exact zero pivot from stopping the sparse LDLT (equilibrium.h).
   const int modes = system_.Factorize(kRestShift, options_.pivot_tolerance, true).small_pivots;
   rest_factor_valid_ = modes == 0;
@@ -214,7 +204,9 @@ int FemEquilibriumSolver::RestFreeModes() {
 bool FemEquilibriumSolver::Newton(const Vector& force, double load, double tolerance, Vector& u,
                                   FemSolveSummary& summary) {
   double magnitude = 0.0;
-  double energy = Energy(force, load, u, &gradient_, true, &magnitude);
+  // A linear material's tangent is the rest stiffness, already factorised: no need to assemble it.
+  const auto need_tangent = [&] { return !(model_->linear() && rest_factor_valid_); };
+  double energy = Energy(force, load, u, &gradient_, need_tangent(), &magnitude);
   if (!std::isfinite(energy)) return false;
   for (int it = 0; it < options_.max_iterations; ++it) {
     const double residual = gradient_.size() ? gradient_.cwiseAbs().maxCoeff() : 0.0;
@@ -257,7 +249,7 @@ bool FemEquilibriumSolver::Newton(const Vector& force, double load, double toler
     }
     if (!accepted) return false;
     u.swap(trial_);
-    energy = Energy(force, load, u, &gradient_, true, &magnitude);
+    energy = Energy(force, load, u, &gradient_, need_tangent(), &magnitude);
     if (!std::isfinite(energy)) return false;
   }
   summary.final_residual = gradient_.size() ? gradient_.cwiseAbs().maxCoeff() : 0.0;
@@ -270,7 +262,10 @@ FemSolveSummary FemEquilibriumSolver::Solve(const Vector& force, const Vector& p
   const int d = dim_;
   const int n = model_->node_count();
   u = Vector::Zero(d * n);
-  summary.free_modes = RestFreeModes();
+  // Once per solver (the constrained nodes fix the rest stiffness): load cases sharing these
+  // free nodes reuse the count, and with a linear material the factor too.
+  if (!rest_modes_) rest_modes_ = RestFreeModes();
+  summary.free_modes = *rest_modes_;
   if (summary.free_modes > 0) {
     summary.termination = FemTermination::kFreeModes;
     summary.message = std::to_string(summary.free_modes) +

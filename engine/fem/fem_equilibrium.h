@@ -19,6 +19,7 @@
 // Not thread-safe; one per thread.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -103,6 +104,8 @@ class FemEquilibriumSolver {
   // Newton at one load level from u (in place); true when converged.
   bool Newton(const Vector& force, double load, double tolerance, Vector& u,
               FemSolveSummary& summary);
+  // Assembles and factorises the rest stiffness: sets stiffness_scale_ and the factor, and
+  // returns the number of free modes.
   int RestFreeModes();
 
   const FemModel* model_ = nullptr;
@@ -117,6 +120,7 @@ class FemEquilibriumSolver {
   double extent_ = 0.0;
   // The system's factor is the rest stiffness's (from RestFreeModes).
   bool rest_factor_valid_ = false;
+  std::optional<int> rest_modes_;  // RestFreeModes(), computed at the first Solve
   Vector gradient_, step_, trial_, trial_gradient_;
 };
 

@@ -59,14 +59,10 @@ FemModel FemModel::Build(const Scene& scene) {
 }
 
 double FemModel::Jacobian(int e, const Vector& u) const {
-  const Vector x = rest_ + u;
-  if (dimension_ == 2) {
-    const Element<2>& el = elements2_[e];
-    // F = Ds Dm^-1: det F = det Ds / det Dm, and det Dm^-1 is det of gradients' bottom rows.
-    return EdgeMatrix<2>(x, el.nodes).determinant() * el.gradients.bottomRows<2>().determinant();
-  }
-  const Element<3>& el = elements3_[e];
-  return EdgeMatrix<3>(x, el.nodes).determinant() * el.gradients.bottomRows<3>().determinant();
+  // det F = det(I + H), from the element's own nodes (no deformed copy of the whole mesh).
+  if (dimension_ == 2)
+    return (MatD<2>::Identity() + DisplacementGradient(elements2_[e], u)).determinant();
+  return (MatD<3>::Identity() + DisplacementGradient(elements3_[e], u)).determinant();
 }
 
 int FemModel::FirstInvertedElement(const Vector& u) const {

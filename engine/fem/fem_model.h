@@ -11,6 +11,7 @@
 // Immutable after Build(); safe to share between threads.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <vector>
 
@@ -26,6 +27,34 @@ struct Element {
   double volume = 0.0;                        // V0 (2D: area x thickness)
   int law = 0;                                // index into FemModel's laws
 };
+
+// Calls visit(element, facet, opposite) for every facet of every element of `fem`: the edges
+// of triangles, the faces of tetrahedra, `facet` its d node indices ascending and `opposite`
+// the element's remaining node.
+template <typename Visit>
+void ForEachFacet(const FemReference& fem, int dimension, Visit&& visit) {
+  std::vector<int> facet;
+  for (std::size_t e = 0; e < fem.elements.size(); ++e) {
+    const std::vector<int>& element = fem.elements[e];
+    for (int skip = 0; skip <= dimension; ++skip) {
+      facet.clear();
+      for (int a = 0; a <= dimension; ++a) {
+        if (a != skip) facet.push_back(element[a]);
+      }
+      std::sort(facet.begin(), facet.end());
+      visit(e, facet, element[skip]);
+    }
+  }
+}
+
+// H = F - I = sum_a u_a G_a^T of an element at displacement u (flat d*n).
+template <int D>
+MatD<D> DisplacementGradient(const Element<D>& element, const Vector& u) {
+  MatD<D> h = MatD<D>::Zero();
+  for (int a = 0; a <= D; ++a)
+    h += u.template segment<D>(D * element.nodes[a]) * element.gradients.row(a);
+  return h;
+}
 
 class FemModel {
  public:

@@ -51,35 +51,25 @@ void CheckNoFold(const Scene& s) {
   const FemReference& fem = s.reference.fem;
   const int d = s.dimension;
   std::map<std::vector<int>, std::pair<int, int>> owner;  // facet -> (element, opposite node)
-  for (std::size_t e = 0; e < fem.elements.size(); ++e) {
-    for (int skip = 0; skip <= d; ++skip) {
-      std::vector<int> facet;
-      for (int a = 0; a <= d; ++a) {
-        if (a != skip) facet.push_back(fem.elements[e][a]);
-      }
-      std::sort(facet.begin(), facet.end());
-      const int opposite = fem.elements[e][skip];
-      const auto [it, inserted] =
-          owner.emplace(facet, std::make_pair(static_cast<int>(e), opposite));
-      if (inserted) continue;
-      const int other = it->second.first;
-      std::string nodes;
-      for (int node : facet) nodes += (nodes.empty() ? "" : ", ") + std::to_string(node);
-      if (other < 0) {
-        throw InputError(Index("reference.elements", e),
-                         std::string("a third element on the ") + (d == 2 ? "edge" : "face") +
-                             " (" + nodes + "): the mesh is not a manifold");
-      }
-      if (Side(d, s.rest, facet, opposite) == Side(d, s.rest, facet, it->second.second)) {
-        throw InputError(Index("reference.elements", e),
-                         "inverted at rest: it overlaps reference.elements[" +
-                             std::to_string(other) + "] across their " +
-                             (d == 2 ? "edge" : "face") + " (" + nodes +
-                             ") (the mesh folds over itself there)");
-      }
-      it->second.first = -1;  // two elements seen
+  ForEachFacet(fem, d, [&](std::size_t e, const std::vector<int>& facet, int opposite) {
+    const auto [it, inserted] = owner.emplace(facet, std::make_pair(static_cast<int>(e), opposite));
+    if (inserted) return;
+    const int other = it->second.first;
+    std::string nodes;
+    for (int node : facet) nodes += (nodes.empty() ? "" : ", ") + std::to_string(node);
+    if (other < 0) {
+      throw InputError(Index("reference.elements", e), std::string("a third element on the ") +
+                                                           (d == 2 ? "edge" : "face") + " (" +
+                                                           nodes + "): the mesh is not a manifold");
     }
-  }
+    if (Side(d, s.rest, facet, opposite) == Side(d, s.rest, facet, it->second.second)) {
+      throw InputError(Index("reference.elements", e),
+                       "inverted at rest: it overlaps reference.elements[" + std::to_string(other) +
+                           "] across their " + (d == 2 ? "edge" : "face") + " (" + nodes +
+                           ") (the mesh folds over itself there)");
+    }
+    it->second.first = -1;  // two elements seen
+  });
 }
 
 }  // namespace

@@ -3,23 +3,15 @@
 #include <algorithm>
 #include <map>
 
+#include "engine/fem/fem_model.h"
 #include "engine/input_error.h"
 
 namespace springfit::fem {
 
 std::vector<std::vector<int>> BoundaryFacets(const FemReference& fem, int dimension) {
   std::map<std::vector<int>, int> count;
-  for (const std::vector<int>& element : fem.elements) {
-    for (int skip = 0; skip <= dimension; ++skip) {
-      std::vector<int> facet;
-      facet.reserve(dimension);
-      for (int a = 0; a <= dimension; ++a) {
-        if (a != skip) facet.push_back(element[a]);
-      }
-      std::sort(facet.begin(), facet.end());
-      ++count[facet];
-    }
-  }
+  ForEachFacet(fem, dimension,
+               [&](std::size_t, const std::vector<int>& facet, int) { ++count[facet]; });
   std::vector<std::vector<int>> boundary;
   for (const auto& [facet, n] : count) {
     if (n == 1) boundary.push_back(facet);
