@@ -48,7 +48,9 @@ std::vector<std::uint8_t> ChooseTopology(const Problem& problem, const std::stri
 int Eval(const EvalArgs& args) {
   const Problem problem = Problem::Build(proto::LoadSceneFile(args.scene));
   const std::vector<std::uint8_t> mask = ChooseTopology(problem, args.topology);
-  CostFunction cost(problem);
+  CostOptions cost_options;
+  cost_options.solve_cases_of_mechanisms = true;  // a per-case report of every case
+  CostFunction cost(problem, cost_options);
   const auto start = std::chrono::steady_clock::now();
   const Evaluation e = cost.EvaluateMask(mask);
   const double seconds =

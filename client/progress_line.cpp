@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <string>
 
@@ -13,7 +14,9 @@ ProgressLine::ProgressLine(int max_generations, bool quiet)
 void ProgressLine::Report(const TraceRow& row, bool last) {
   if (quiet_) return;
   const double interval = terminal_ ? 0.1 : 2.0;
-  if (!last && row.generation != 0 && row.wall_seconds - shown_at_ < interval) return;
+  if (!last && row.generation != 0 && !shown_beat_ && row.wall_seconds - shown_at_ < interval)
+    return;
+  shown_beat_ = false;
   if (last && !terminal_ && row.generation == shown_generation_) return;  // already printed
   shown_at_ = row.wall_seconds;
   shown_generation_ = row.generation;
@@ -37,6 +40,40 @@ void ProgressLine::Report(const TraceRow& row, bool last) {
                 topology.c_str(), rate, row.wall_seconds, eta.c_str());
   if (terminal_) {
     std::fprintf(stderr, "\r\033[K%s%s", line, last ? "\n" : "");
+  } else {
+    std::fprintf(stderr, "%s\n", line);
+  }
+  std::fflush(stderr);
+}
+
+void ProgressLine::Beat(const ProgressBeat& beat, double reference_norm2) {
+  if (quiet_) return;
+  // Beats come about once a second: a terminal shows each, a log one every two seconds.
+  // (A new phase starts its own clock: its first beat is shown.)
+  if (!terminal_ && shown_beat_ && beat.phase == shown_phase_ &&
+      beat.wall_seconds - shown_at_ < 2.0)
+    return;
+  shown_phase_ = std::string(beat.phase);
+  char line[320];
+  if (beat.phase == "genetic" && !std::isnan(beat.best_normalized_error)) {
+    std::snprintf(line, sizeof line,
+                  "generation %d/%d in progress  best cost %.4g  normalized error %.4g  %lld "
+                  "evaluations  %.1f s",
+                  beat.generation, max_generations_, beat.best_normalized_error * reference_norm2,
+                  beat.best_normalized_error, static_cast<long long>(beat.evaluations),
+                  beat.wall_seconds);
+  } else if (beat.phase == "genetic") {
+    std::snprintf(line, sizeof line,
+                  "generation 0/%d: evaluating the initial population  %lld evaluations  %.1f s",
+                  max_generations_, static_cast<long long>(beat.evaluations), beat.wall_seconds);
+  } else {
+    std::snprintf(line, sizeof line, "%s phase  %.1f s", std::string(beat.phase).c_str(),
+                  beat.wall_seconds);
+  }
+  shown_at_ = beat.wall_seconds;
+  shown_beat_ = true;
+  if (terminal_) {
+    std::fprintf(stderr, "\r\033[K%s", line);
   } else {
     std::fprintf(stderr, "%s\n", line);
   }

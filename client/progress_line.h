@@ -1,8 +1,10 @@
 // Progress of a search on standard error: a live line redrawn in place on a terminal, plain
-// lines every two seconds otherwise. `springfit run` feeds it every generation, `springfit
-// watch` every job.progress notification.
+// lines every two seconds otherwise. `springfit run` feeds it every generation and every beat
+// inside a step (at least one a second), `springfit watch` every job.progress notification.
 #pragma once
-#include "engine/search/genetic_search.h"
+#include <string>
+
+#include "engine/identification/identify.h"
 
 namespace springfit::cli {
 
@@ -11,6 +13,9 @@ class ProgressLine {
   ProgressLine(int max_generations, bool quiet);
   // `last`: the final row (ends the live line).
   void Report(const TraceRow& row, bool last);
+  // Inside a step: the generation in progress as far as it has got, or the phase before the
+  // genetic one (analysis, direct) with its clock. `reference_norm2` turns errors into costs.
+  void Beat(const ProgressBeat& beat, double reference_norm2);
 
  private:
   int max_generations_;
@@ -18,6 +23,8 @@ class ProgressLine {
   bool terminal_;
   double shown_at_ = 0.0;
   int shown_generation_ = -1;
+  bool shown_beat_ = false;  // a beat was shown since the last row
+  std::string shown_phase_;  // of the last beat shown
 };
 
 }  // namespace springfit::cli

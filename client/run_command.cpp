@@ -34,8 +34,7 @@ extern "C" void OnInterrupt(int signal) {
   std::signal(signal, SIG_DFL);
   // At once, from the handler: write(2) is async-signal-safe, stdio is not.
   static const char kAck[] =
-      "\nspringfit: stopping at the next check (within a second in the genetic phase); the best "
-      "so far is kept (again to quit at once)\n";
+      "\nspringfit: stopping within a second; the best so far is kept (again to quit at once)\n";
   [[maybe_unused]] const auto written = write(STDERR_FILENO, kAck, sizeof kAck - 1);
 }
 
@@ -93,13 +92,7 @@ int Run(const RunArgs& args) {
     return !g_interrupted.load();
   };
   run.on_beat = [&](const ProgressBeat& beat) {
-    TraceRow row;  // the generation in progress, as far as it has got
-    row.generation = beat.generation;
-    row.wall_seconds = beat.wall_seconds;
-    row.evaluations = beat.evaluations;
-    row.best_normalized_error = beat.best_normalized_error;
-    row.best_cost = beat.best_normalized_error * problem.reference_norm2();
-    progress.Report(row, false);
+    progress.Beat(beat, problem.reference_norm2());
     return !g_interrupted.load();
   };
   if (!args.quiet) {
@@ -112,7 +105,8 @@ int Run(const RunArgs& args) {
   const IdentificationResult result = RunIdentification(problem, options, run);
   std::signal(SIGINT, previous_int);
   std::signal(SIGTERM, previous_term);
-  if (result.stop == StopReason::kCancelled) progress.Report(result.trace.back(), true);
+  if (result.stop == StopReason::kCancelled && !result.trace.empty())
+    progress.Report(result.trace.back(), true);
   if (trace.is_open()) {
     trace.close();
     if (!trace) throw std::runtime_error("cannot write the trace file " + args.trace_path);

@@ -17,6 +17,10 @@ CostFunction::CostFunction(const Problem& problem, CostOptions options)
   }
 }
 
+void CostFunction::set_interruption(Interruption* interruption) {
+  for (EquilibriumSolver& solver : solvers_) solver.set_interruption(interruption);
+}
+
 Evaluation CostFunction::EvaluateGenome(const Genome& genome) {
   return EvaluateMask(problem_->MaskFromGenome(genome));
 }
@@ -35,8 +39,11 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs,
 
   // Stability first: one rest factorisation per distinct set of constrained nodes.
   modes_.assign(solvers_.size(), 0);
-  for (std::size_t f = 0; f < solvers_.size(); ++f)
+  bool any_mechanism = false;
+  for (std::size_t f = 0; f < solvers_.size(); ++f) {
     modes_[f] = solvers_[f].RestMechanismModes(springs);
+    any_mechanism = any_mechanism || modes_[f] > 0;
+  }
 
   double stable_cost = 0.0;
   for (std::size_t k = 0; k < p.load_cases().size(); ++k) {
@@ -51,6 +58,10 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs,
       e.mechanism_modes += modes;
       continue;
     }
+    if (any_mechanism && !options_.solve_cases_of_mechanisms) {
+      out.solve.termination = Termination::kNotSolved;
+      continue;
+    }
     if (options_.warm_start == CostOptions::WarmStart::kReference) {
       u_ = lc.reference;
     } else {
@@ -58,6 +69,11 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs,
     }
     EquilibriumSolver& solver = solvers_[lc.free_set];
     out.solve = solver.Solve(springs, lc.force, lc.prescribed, u_);
+    if (out.solve.termination == Termination::kInterrupted) {
+      e.interrupted = true;
+      e.converged = false;
+      return e;
+    }
     if (!out.solve.converged()) {
       e.converged = false;
       continue;
@@ -85,6 +101,9 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs,
     if (out.solve.termination == Termination::kMechanism) {
       out.normalized_error = kPenaltyBase * (1.0 + out.solve.mechanism_modes);
       out.cost = out.normalized_error * norm2;
+    } else if (out.solve.termination == Termination::kNotSolved) {
+      out.normalized_error = 0.0;  // the verdict is another case's
+      out.cost = 0.0;
     } else if (!out.solve.converged()) {
       out.normalized_error = kNotConvergedPenalty;
       out.cost = out.normalized_error * norm2;

@@ -40,6 +40,9 @@ struct Evaluation {
   bool mechanism = false;   // some load case found a singular rest stiffness
   bool converged = true;    // every solve converged (false for mechanisms too)
   int mechanism_modes = 0;  // summed over load cases
+  // Stopped by the CostFunction's Interruption before it was complete: cost and error mean
+  // nothing (the caller abandons the evaluation).
+  bool interrupted = false;
   std::vector<LoadCaseEvaluation> load_cases;
 };
 
@@ -50,6 +53,10 @@ struct CostOptions {
     kRest,       // start from the rest configuration
   };
   WarmStart warm_start = WarmStart::kReference;
+  // A mechanism's penalty depends on its modes alone, known from the rest factorisations:
+  // false skips the other load cases' solves (termination kNotSolved), which a search never
+  // reads; true solves them for a per-case report (`springfit eval`).
+  bool solve_cases_of_mechanisms = false;
 };
 
 // Evaluates topologies of one Problem. Holds one EquilibriumSolver per distinct set of free
@@ -60,6 +67,8 @@ class CostFunction {
   explicit CostFunction(const Problem& problem, CostOptions options = {});
 
   const Problem& problem() const { return *problem_; }
+  // Checked between the Newton iterations of every solve (nullptr: never stopped).
+  void set_interruption(Interruption* interruption);
 
   Evaluation EvaluateGenome(const Genome& genome);
   Evaluation EvaluateMask(const std::vector<std::uint8_t>& candidate_mask);

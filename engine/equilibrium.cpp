@@ -232,6 +232,10 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, co
       break;
     }
     if (summary.iterations >= options_.max_iterations) break;
+    if (interruption_ && interruption_->Check()) {
+      summary.termination = Termination::kInterrupted;
+      break;
+    }
 
     // Newton direction: exact Hessian when positive definite, else the projected one, else
     // the projected one regularised.

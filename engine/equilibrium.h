@@ -20,6 +20,7 @@
 
 #include <vector>
 
+#include "engine/interruption.h"
 #include "engine/linalg.h"
 #include "engine/springs.h"
 #include "engine/symmetric_system.h"
@@ -41,6 +42,8 @@ enum class Termination {
   kConverged,     // |gradient|_inf <= tolerance (see EquilibriumOptions)
   kNotConverged,  // iteration limit reached or the line search found no decrease
   kMechanism,     // the rest stiffness is singular on the free nodes; no solve was attempted
+  kNotSolved,     // not attempted: another load case's mechanism already decided (cost.h)
+  kInterrupted,   // stopped between iterations by the solver's Interruption
 };
 
 struct EquilibriumOptions {
@@ -89,6 +92,8 @@ class EquilibriumSolver {
                     EquilibriumOptions options = {});
 
   const FreeNodes& free_nodes() const { return free_; }
+  // Checked between Newton iterations (nullptr: never stopped); must outlive its use.
+  void set_interruption(Interruption* interruption) { interruption_ = interruption; }
   const EquilibriumOptions& options() const { return options_; }
 
   // The number of mechanism modes of `springs` at rest with this solver's constrained nodes:
@@ -135,6 +140,7 @@ class EquilibriumSolver {
   // upper triangle of a diagonal block).
   std::vector<int> slots_;
   SymmetricSystem system_;
+  Interruption* interruption_ = nullptr;
   Vector gradient_, trial_gradient_, step_, trial_u_;
 };
 

@@ -26,8 +26,6 @@ SymmetricSystem::SymmetricSystem(int n, std::vector<std::pair<int, int>> lower, 
     }
     band_ = Matrix::Zero(bandwidth_ + 1, n);
     band_factor_ = band_;
-    RebindValues();
-    return;
   }
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(lower.size());
@@ -39,10 +37,12 @@ SymmetricSystem::SymmetricSystem(int n, std::vector<std::pair<int, int>> lower, 
   sparse_.setFromTriplets(triplets.begin(), triplets.end());
   sparse_.makeCompressed();
   RebindValues();
-  diagonal_slot_.resize(n);
-  for (int i = 0; i < n; ++i) diagonal_slot_[i] = Slot(i, i);
   sparse_work_ = sparse_;
-  AnalyseSparse();
+  diagonal_slot_.resize(n);
+  for (int i = 0; i < n; ++i) diagonal_slot_[i] = SparseSlot(i, i);
+  // The banded backend keeps the pattern only for the pivot count (CountPivots): its
+  // simplicial LDLT is analysed when first needed.
+  if (backend_ != Backend::kBanded) AnalyseSparse();
 }
 
 void SymmetricSystem::AnalyseSparse() {
@@ -66,6 +66,7 @@ SymmetricSystem::SymmetricSystem(const SymmetricSystem& other)
       diagonal_slot_(other.diagonal_slot_) {
   RebindValues();
   if (other.sldlt_ || other.supernodal_) AnalyseSparse();
+  // (a banded system analyses its counting pattern again when it first counts)
 }
 
 SymmetricSystem& SymmetricSystem::operator=(const SymmetricSystem& other) {
@@ -95,7 +96,6 @@ SymmetricSystem& SymmetricSystem::operator=(SymmetricSystem&& other) noexcept {
   bandwidth_ = other.bandwidth_;
   band_ = std::move(other.band_);
   band_factor_ = std::move(other.band_factor_);
-  used_ldlt_ = false;
   sparse_ = std::move(other.sparse_);
   sparse_work_ = std::move(other.sparse_work_);
   diagonal_slot_ = std::move(other.diagonal_slot_);
@@ -112,6 +112,10 @@ int SymmetricSystem::Slot(int row, int col) const {
     assert(row - col <= bandwidth_);
     return (row - col) + col * (bandwidth_ + 1);
   }
+  return SparseSlot(row, col);
+}
+
+int SymmetricSystem::SparseSlot(int row, int col) const {
   const int* inner = sparse_.innerIndexPtr();
   const int begin = sparse_.outerIndexPtr()[col];
   const int end = sparse_.outerIndexPtr()[col + 1];
@@ -154,83 +158,76 @@ SymmetricSystem::Factorization SymmetricSystem::Factorize(double shift, double t
                                                           bool count_pivots) {
   Factorization f;
   f.min_pivot = std::numeric_limits<double>::infinity();
-  if (n_ ==
-      0) {  // nothing free: trivially positive definite (LAPACK rejects order 0 leading dimensions)
+  used_sldlt_ = false;
+  if (n_ == 0) {
+    // Nothing free: trivially positive definite (LAPACK rejects order 0 leading dimensions).
     f.positive_definite = true;
     return f;
   }
   ComputeScaling();
+  const auto pivots_of = [&](const auto& pivot, bool factorised) {
+    if (!factorised) {
+      f.min_pivot = -1.0;  // stopped at a non-positive pivot
+      return;
+    }
+    for (int i = 0; i < n_; ++i) {
+      f.min_pivot = std::min(f.min_pivot, pivot(i));
+      if (pivot(i) <= tolerance) ++f.small_pivots;
+    }
+    f.positive_definite = f.small_pivots == 0;
+  };
   if (backend_ == Backend::kBanded) {
     const int width = bandwidth_ + 1;
-    const auto scale_into_factor = [&] {
-      band_factor_.resize(width, n_);  // no-op once sized (copies of a system start without it)
-      for (int c = 0; c < n_; ++c) {
-        const int rows = std::min(width, n_ - c);
-        for (int k = 0; k < rows; ++k) band_factor_(k, c) = scale_[c + k] * band_(k, c) * scale_[c];
-        band_factor_(0, c) += shift;
-      }
-    };
-    scale_into_factor();
-    used_ldlt_ = false;
+    band_factor_.resize(width, n_);  // no-op once sized (copies of a system start without it)
+    for (int c = 0; c < n_; ++c) {
+      const int rows = std::min(width, n_ - c);
+      for (int k = 0; k < rows; ++k) band_factor_(k, c) = scale_[c + k] * band_(k, c) * scale_[c];
+      band_factor_(0, c) += shift;
+    }
     int info = 0;
     dpbtf2_("L", &n_, &bandwidth_, band_factor_.data(), &width, &info, 1);
-    if (info == 0) {
-      for (int i = 0; i < n_; ++i) {
-        const double pivot = band_factor_(0, i) * band_factor_(0, i);
-        f.min_pivot = std::min(f.min_pivot, pivot);
-        if (pivot <= tolerance) ++f.small_pivots;
-      }
-      f.positive_definite = f.small_pivots == 0;
-      return f;
+    pivots_of([&](int i) { return band_factor_(0, i) * band_factor_(0, i); }, info == 0);
+  } else {
+    ScaleIntoWork(shift);
+    if (backend_ == Backend::kSupernodal) {
+      const bool factorised = supernodal_->Factorize(
+          sparse_work_.outerIndexPtr(), sparse_work_.innerIndexPtr(), sparse_work_.valuePtr());
+      const Vector pivots = factorised ? supernodal_->Pivots() : Vector();
+      pivots_of([&](int i) { return pivots[i]; }, factorised);
+    } else {
+      return CountPivots(shift, tolerance, /*scaled=*/true);  // its own solver is the counter
     }
-    if (!count_pivots) {
-      f.min_pivot = -1.0;
-      return f;
-    }
-    // Indefinite or singular beyond the shift: the pivoted LDLT still counts its pivots.
-    scale_into_factor();  // dpbtf2 left the columns before the failed pivot factored
-    ldlt_.compute(BandToDense(band_factor_));
-    used_ldlt_ = true;
-    const Vector d = ldlt_.vectorD();
-    for (int i = 0; i < n_; ++i) {
-      f.min_pivot = std::min(f.min_pivot, d[i]);
-      if (d[i] <= tolerance) ++f.small_pivots;
-    }
-    f.positive_definite = false;
-    return f;
   }
+  if (f.positive_definite || !count_pivots) return f;
+  // Singular or indefinite, and the pivots must be counted: by the one counter every backend
+  // shares, so that a mechanism's mode count does not depend on the backend.
+  return CountPivots(shift, tolerance, /*scaled=*/false);
+}
 
+void SymmetricSystem::ScaleIntoWork(double shift) {
   const int* outer = sparse_.outerIndexPtr();
   const int* inner = sparse_.innerIndexPtr();
-  const double* a = sparse_.valuePtr();
   double* w = sparse_work_.valuePtr();
   for (int c = 0; c < n_; ++c) {
-    for (int p = outer[c]; p < outer[c + 1]; ++p) w[p] = scale_[inner[p]] * a[p] * scale_[c];
+    for (int p = outer[c]; p < outer[c + 1]; ++p) {
+      const int r = inner[p];
+      const double a = backend_ == Backend::kBanded ? band_(r - c, c) : values_[p];
+      w[p] = scale_[r] * a * scale_[c];
+    }
   }
   for (int i = 0; i < n_; ++i) w[diagonal_slot_[i]] += shift;
-  if (backend_ == Backend::kSupernodal) {
-    used_sldlt_ = false;
-    if (supernodal_->Factorize(sparse_work_.outerIndexPtr(), sparse_work_.innerIndexPtr(), w)) {
-      const Vector pivots = supernodal_->Pivots();
-      for (int i = 0; i < n_; ++i) {
-        f.min_pivot = std::min(f.min_pivot, pivots[i]);
-        if (pivots[i] <= tolerance) ++f.small_pivots;
-      }
-      f.positive_definite = f.small_pivots == 0;
-      return f;
-    }
-    if (!count_pivots) {
-      f.min_pivot = -1.0;
-      return f;
-    }
-    // Indefinite beyond the shift: the simplicial LDLT still counts the pivots.
-    if (!sldlt_) {
-      sldlt_ = std::make_unique<SparseLdlt>();
-      sldlt_->analyzePattern(sparse_work_);
-    }
-    used_sldlt_ = true;
+}
+
+SymmetricSystem::Factorization SymmetricSystem::CountPivots(double shift, double tolerance,
+                                                            bool scaled) {
+  if (!scaled) ScaleIntoWork(shift);
+  if (!sldlt_) {
+    sldlt_ = std::make_unique<SparseLdlt>();
+    sldlt_->analyzePattern(sparse_work_);
   }
   sldlt_->factorize(sparse_work_);
+  used_sldlt_ = true;
+  Factorization f;
   if (sldlt_->info() != Eigen::Success) {
     // An exactly zero pivot stops Eigen's factorisation; with a positive shift this only
     // happens for a matrix far from positive definite.
@@ -239,6 +236,7 @@ SymmetricSystem::Factorization SymmetricSystem::Factorize(double shift, double t
     return f;
   }
   const Vector& d = sldlt_->vectorD();
+  f.min_pivot = std::numeric_limits<double>::infinity();
   for (int i = 0; i < n_; ++i) {
     f.min_pivot = std::min(f.min_pivot, d[i]);
     if (d[i] <= tolerance) ++f.small_pivots;
@@ -250,18 +248,14 @@ SymmetricSystem::Factorization SymmetricSystem::Factorize(double shift, double t
 void SymmetricSystem::Solve(Vector& b) const {
   if (n_ == 0) return;
   b.array() *= scale_.array();
-  if (backend_ == Backend::kBanded) {
-    if (used_ldlt_) {
-      b = ldlt_.solve(b);
-    } else {
-      const int width = bandwidth_ + 1, one = 1;
-      int info = 0;
-      dpbtrs_("L", &n_, &bandwidth_, &one, band_factor_.data(), &width, b.data(), &n_, &info, 1);
-    }
-  } else if (backend_ == Backend::kSupernodal && !used_sldlt_) {
-    supernodal_->Solve(b);
-  } else {
+  if (used_sldlt_) {
     b = sldlt_->solve(b);
+  } else if (backend_ == Backend::kBanded) {
+    const int width = bandwidth_ + 1, one = 1;
+    int info = 0;
+    dpbtrs_("L", &n_, &bandwidth_, &one, band_factor_.data(), &width, b.data(), &n_, &info, 1);
+  } else {
+    supernodal_->Solve(b);
   }
   b.array() *= scale_.array();
 }

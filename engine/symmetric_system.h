@@ -12,6 +12,13 @@
 // factorises it with LAPACK's unblocked band Cholesky: for the small scenes it serves, a grid
 // numbered row by row, the band is a third of the matrix and so is the work.
 //
+// Counting the pivots of a singular or indefinite matrix (a mechanism's modes) is done the same
+// way whatever the backend: a simplicial LDLT (AMD ordering) of the same scaled matrix. A count
+// that depended on the backend would make the graded mechanism penalty, hence a search's
+// trajectory, depend on a size threshold. The LDLT does not pivot: it never counts a mode that
+// is not there, and rarely misses one (1 of 55 in tests/engine/equilibrium_test.cpp); a
+// rank-revealing count would cost a dense factorisation.
+//
 // Not thread-safe; copy one per thread.
 #pragma once
 
@@ -19,7 +26,6 @@
 #include <utility>
 #include <vector>
 
-#include <Eigen/Cholesky>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 
@@ -58,7 +64,8 @@ class SymmetricSystem {
 
   // Factorises S A S + shift I. With `count_pivots` false the factorisation may stop at the
   // first non-positive pivot (positive_definite false, small_pivots meaningless), which is all
-  // a Newton step needs; with it true every pivot is examined.
+  // a Newton step needs; with it true every pivot is examined, by the shared counter when the
+  // backend's own factorisation is not positive definite.
   Factorization Factorize(double shift, double small_pivot_tolerance, bool count_pivots);
   // Overwrites b with the solution of (A + shift S^-2) x = b, using the last Factorize().
   void Solve(Vector& b) const;
@@ -67,6 +74,13 @@ class SymmetricSystem {
   void ComputeScaling();
   // The sparse backends' symbolic analysis of sparse_work_'s pattern.
   void AnalyseSparse();
+  // The position of (row, col) in the compressed lower triangle.
+  int SparseSlot(int row, int col) const;
+  // sparse_work_ = S A S + shift I, from whichever storage the backend assembles into.
+  void ScaleIntoWork(double shift);
+  // The shared pivot count: a simplicial LDLT of sparse_work_ (filled first unless `scaled`),
+  // which Solve() then uses.
+  Factorization CountPivots(double shift, double tolerance, bool scaled);
   // The lower triangle of a matrix in band storage, as a dense matrix (upper triangle zero).
   Matrix BandToDense(const Matrix& band) const;
 
@@ -80,12 +94,9 @@ class SymmetricSystem {
   Matrix band_;
   // The Cholesky factor L of S A S + shift I, in the same storage.
   Matrix band_factor_;
-  // Where the band Cholesky meets a non-positive pivot and the pivots must be counted, a
-  // pivoted dense LDLT of the same scaled matrix counts them (a mechanism's modes).
-  Eigen::LDLT<Matrix, Eigen::Lower> ldlt_;
-  bool used_ldlt_ = false;
 
-  // Sparse backend: lower triangle in compressed column storage.
+  // Sparse backends: lower triangle in compressed column storage (the banded backend keeps the
+  // pattern, with zero values, for the pivot count).
   Eigen::SparseMatrix<double> sparse_;
   Eigen::SparseMatrix<double> sparse_work_;
   std::vector<int> diagonal_slot_;
@@ -97,10 +108,9 @@ class SymmetricSystem {
   // which UBSan flags); a move may carry it or not. Factorize() before Solve(), as every
   // caller does.
   std::unique_ptr<SparseLdlt> sldlt_;
-  // Supernodal backend: CHOLMOD on the same compressed lower triangle (sparse_work_). Where it
-  // meets a non-positive pivot and the pivots must be counted, a simplicial LDLT counts them.
+  // Supernodal backend: CHOLMOD on the same compressed lower triangle (sparse_work_).
   std::unique_ptr<SupernodalCholesky> supernodal_;
-  bool used_sldlt_ = false;
+  bool used_sldlt_ = false;  // the last factorisation is sldlt_'s (the sparse backend, a count)
 
  public:
   SymmetricSystem(const SymmetricSystem& other);

@@ -86,6 +86,10 @@ std::string_view TerminationName(Termination termination) {
       return "not_converged";
     case Termination::kMechanism:
       return "mechanism";
+    case Termination::kNotSolved:
+      return "not_solved";
+    case Termination::kInterrupted:
+      return "interrupted";
   }
   return "?";
 }

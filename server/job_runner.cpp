@@ -123,8 +123,8 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
       interrupted = shutdown;
       return !cancel && !shutdown;
     };
-    // Inside a long generation: cancel and shutdown take effect within a second (a shutdown
-    // then resumes from the last checkpoint, at a generation's end).
+    // Inside any step (analysis, direct phase, a generation): cancel and shutdown take effect
+    // within a second (a shutdown then resumes from the last checkpoint, at a generation's end).
     run.on_beat = [&](const ProgressBeat&) {
       const bool cancel = control.cancel && control.cancel->load();
       const bool shutdown = !cancel && control.shutdown && control.shutdown->load();
@@ -132,6 +132,9 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
       return !cancel && !shutdown;
     };
     const IdentificationResult result = RunIdentification(problem, search_options, run);
+    // A stop inside a step reports no iteration: what the last ones left unflushed is stored now.
+    if (!batch.trace.empty() || !batch.improvements.empty() || batch.latest)
+      store.SaveProgress(job.id, batch);
     if (interrupted && result.stop == StopReason::kCancelled) {
       spdlog::info(
           "job {} interrupted by the shutdown at generation {}; it resumes from there at the next "

@@ -63,12 +63,14 @@ struct Reading {
 class WeightReader {
  public:
   WeightReader(const Problem& problem, const std::vector<bool>& usable,
-               const DirectOptions& options, bool exact_data)
+               const DirectOptions& options, bool exact_data, Interruption* interruption)
       : problem_(problem),
         usable_(usable),
         options_(options),
         exact_data_(exact_data),
-        cost_(problem) {}
+        cost_(problem) {
+    cost_.set_interruption(interruption);
+  }
 
   Reading Read(std::vector<double> weights, std::optional<Vector> sigma) {
     Reading r;
@@ -123,7 +125,9 @@ class WeightReader {
 
   Evaluation Evaluate(const ActiveSprings& springs) {
     ++evaluations_;
-    return cost_.Evaluate(springs);
+    Evaluation e = cost_.Evaluate(springs);
+    if (e.interrupted) throw Interrupted();
+    return e;
   }
 
   // Below-threshold genes by decreasing weight: the shortest prefix that carries the loads.
@@ -168,7 +172,8 @@ class WeightReader {
 
 }  // namespace
 
-DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options) {
+DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options,
+                            Interruption* interruption) {
   DirectResult r;
   auto start = std::chrono::steady_clock::now();
   const ForceBalance fb = AssembleForceBalance(problem);
@@ -186,14 +191,14 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
   std::vector<bool> columns = usable;
   r.displacement_only = problem.DisplacementOnly();
   std::optional<PinnedSolution> pinned;
-  if (r.displacement_only) pinned = SolvePinnedNnls(fb.a, usable, {}, options.nnls);
+  if (r.displacement_only) pinned = SolvePinnedNnls(fb.a, usable, {}, options.nnls, interruption);
   if (pinned) {
     r.pinned_gene = pinned->pinned_gene;
     r.nnls = std::move(pinned->nnls);
     rhs = std::move(pinned->rhs);
     columns = std::move(pinned->columns);
   } else {
-    r.nnls = SolveNnls(fb.a, fb.b, usable, options.nnls);
+    r.nnls = SolveNnls(fb.a, fb.b, usable, options.nnls, interruption);
   }
   std::vector<double> nnls_weights(r.nnls.x.data(), r.nnls.x.data() + r.nnls.x.size());
   if (r.pinned_gene >= 0) nnls_weights[r.pinned_gene] = 1.0;
@@ -210,19 +215,20 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
   r.nnls_residual = (fb.a * r.nnls.x - rhs).norm() / rhs_norm;
   std::optional<RefinementResult> refinement;
   if (!exact_data && options.refine) {
-    refinement = RefineWeights(problem, nnls_weights, usable, options.refinement);
+    refinement = RefineWeights(problem, nnls_weights, usable, options.refinement, interruption);
     if (!refinement->refined) refinement.reset();
   }
   if (refinement) r.refinement_iterations = refinement->iterations;
   r.solve_seconds = SecondsSince(start);
 
   start = std::chrono::steady_clock::now();
-  WeightReader reader(problem, usable, options, exact_data);
+  WeightReader reader(problem, usable, options, exact_data, interruption);
   // Noisy data never go without standard errors when they can be had: the relative floor
   // alone lets every spurious weight in.
   std::optional<Vector> nnls_sigma;
   if (!exact_data)
-    nnls_sigma = WeightStandardErrors(fb.a, columns, variance, options.uncertainty_max_genes);
+    nnls_sigma =
+        WeightStandardErrors(fb.a, columns, variance, options.uncertainty_max_genes, interruption);
   if (nnls_sigma && r.pinned_gene >= 0) (*nnls_sigma)[r.pinned_gene] = 0.0;  // fixed, not estimated
   Reading reading = reader.Read(std::move(nnls_weights), std::move(nnls_sigma));
   if (refinement) {

@@ -98,6 +98,8 @@ struct DirectResult {
   double evaluate_seconds = 0.0;
 };
 
-DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options = {});
+// Throws Interrupted when `interruption` stops it (checked inside every solve and loop).
+DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options = {},
+                            Interruption* interruption = nullptr);
 
 }  // namespace springfit

@@ -105,7 +105,7 @@ Vector UnitColumnScale(const MatrixType& a, const std::vector<bool>& usable) {
 // unconstrained problem on a free set.
 template <class MatrixType, class SolveOnFree>
 NnlsResult Pivot(const MatrixType& as, const Vector& b, const Vector& scale,
-                 const NnlsOptions& options, SolveOnFree&& solve_on) {
+                 const NnlsOptions& options, Interruption* interruption, SolveOnFree&& solve_on) {
   const auto n = static_cast<int>(as.cols());
   NnlsResult result;
   if (n == 0) {
@@ -126,6 +126,7 @@ NnlsResult Pivot(const MatrixType& as, const Vector& b, const Vector& scale,
   int fewest_violations = n + 1;
   int full_exchanges_left = options.full_exchange_budget;
   for (result.iterations = 1; result.iterations <= max_iterations; ++result.iterations) {
+    ThrowIfInterrupted(interruption);
     std::vector<int> free;
     for (int j = 0; j < n; ++j) {
       if (in_free[j]) free.push_back(j);
@@ -178,12 +179,13 @@ NnlsResult Pivot(const MatrixType& as, const Vector& b, const Vector& scale,
 }  // namespace
 
 NnlsResult SolveNnls(const SparseMatrix& a, const Vector& b, const std::vector<bool>& usable,
-                     const NnlsOptions& options) {
+                     const NnlsOptions& options, Interruption* interruption) {
   const Vector scale = UnitColumnScale(a, usable);
   const SparseMatrix as = a * scale.asDiagonal();
-  return Pivot(as, b, scale, options, [&](const std::vector<int>& free, int& factorizations) {
-    return SolveOn(as, b, free, options.refinement_steps, factorizations);
-  });
+  return Pivot(as, b, scale, options, interruption,
+               [&](const std::vector<int>& free, int& factorizations) {
+                 return SolveOn(as, b, free, options.refinement_steps, factorizations);
+               });
 }
 
 NnlsResult SolveDenseNnls(const Matrix& a, const Vector& b, const std::vector<bool>& usable,
@@ -191,9 +193,10 @@ NnlsResult SolveDenseNnls(const Matrix& a, const Vector& b, const std::vector<bo
   const Vector scale = UnitColumnScale(a, usable);
   const Matrix as = a * scale.asDiagonal();
   const Matrix normal = as.transpose() * as;
-  return Pivot(as, b, scale, options, [&](const std::vector<int>& free, int& factorizations) {
-    return SolveOn(as, normal, b, free, options.refinement_steps, factorizations);
-  });
+  return Pivot(as, b, scale, options, nullptr,
+               [&](const std::vector<int>& free, int& factorizations) {
+                 return SolveOn(as, normal, b, free, options.refinement_steps, factorizations);
+               });
 }
 
 }  // namespace springfit

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "engine/direct/force_balance.h"
+#include "engine/interruption.h"
 
 namespace springfit {
 
@@ -44,8 +45,9 @@ struct NnlsResult {
 };
 
 // Columns with `usable[j]` false are held at 0 (e.g. zero columns).
+// Throws Interrupted when `interruption` stops it (checked once per pivoting round).
 NnlsResult SolveNnls(const SparseMatrix& a, const Vector& b, const std::vector<bool>& usable,
-                     const NnlsOptions& options = {});
+                     const NnlsOptions& options = {}, Interruption* interruption = nullptr);
 // The same for a dense matrix (the Levenberg-Marquardt steps of stiffness_refinement.h, whose
 // Jacobians are dense): its normal matrix is formed once, with dense products, and each
 // round factorises the free set's block of it by a dense LDLT.

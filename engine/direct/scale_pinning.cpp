@@ -32,7 +32,8 @@ int LargestNullComponent(const SparseMatrix& a, const std::vector<bool>& usable,
 
 std::optional<PinnedSolution> SolvePinnedNnls(const SparseMatrix& a,
                                               const std::vector<bool>& usable,
-                                              const PinOptions& pins, const NnlsOptions& nnls) {
+                                              const PinOptions& pins, const NnlsOptions& nnls,
+                                              Interruption* interruption) {
   const int pin = LargestNullComponent(a, usable, pins);
   if (pin < 0) return std::nullopt;
   PinnedSolution s;
@@ -40,7 +41,7 @@ std::optional<PinnedSolution> SolvePinnedNnls(const SparseMatrix& a,
   s.rhs = -Vector(a.col(pin));
   s.columns = usable;
   s.columns[pin] = false;
-  s.nnls = SolveNnls(a, s.rhs, s.columns, nnls);
+  s.nnls = SolveNnls(a, s.rhs, s.columns, nnls, interruption);
   return s;
 }
 

@@ -34,6 +34,7 @@ struct PinnedSolution {
 std::optional<PinnedSolution> SolvePinnedNnls(const SparseMatrix& a,
                                               const std::vector<bool>& usable,
                                               const PinOptions& pins = {},
-                                              const NnlsOptions& nnls = {});
+                                              const NnlsOptions& nnls = {},
+                                              Interruption* interruption = nullptr);
 
 }  // namespace springfit

@@ -62,7 +62,8 @@ bool Jacobian(const Problem& problem, const std::vector<double>& w,
 }  // namespace
 
 RefinementResult RefineWeights(const Problem& problem, const std::vector<double>& start,
-                               const std::vector<bool>& usable, const RefinementOptions& options) {
+                               const std::vector<bool>& usable, const RefinementOptions& options,
+                               Interruption* interruption) {
   RefinementResult result;
   result.weights = start;
   const int genes = problem.gene_count();
@@ -70,15 +71,20 @@ RefinementResult RefineWeights(const Problem& problem, const std::vector<double>
   std::vector<EquilibriumSolver> solvers;
   for (const FreeNodes& free : problem.free_sets()) {
     solvers.emplace_back(problem.candidates(), free, problem.solver_options());
+    solvers.back().set_interruption(interruption);
   }
   CostFunction cost(problem);
+  cost.set_interruption(interruption);
+  // An interrupted solve reads as a failed one: every failure checks the interruption first.
 
   std::vector<double> w = start;
   std::vector<Vector> u(problem.load_cases().size());
   Vector r;
   Matrix jacobian;
-  if (!Equilibria(problem, w, solvers, u, r) || !Jacobian(problem, w, solvers, u, jacobian))
-    return result;
+  const bool started =
+      Equilibria(problem, w, solvers, u, r) && Jacobian(problem, w, solvers, u, jacobian);
+  ThrowIfInterrupted(interruption);
+  if (!started) return result;
   double f = r.squaredNorm();
   result.initial_cost = f;
   double lambda = options.initial_damping;
@@ -94,6 +100,7 @@ RefinementResult RefineWeights(const Problem& problem, const std::vector<double>
     const Vector target = jacobian * wv - r;
     bool accepted = false;
     for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
+      ThrowIfInterrupted(interruption);
       // [J; sqrt(lambda) D] w' = [J w - r; sqrt(lambda) D w], w' >= 0.
       Matrix stacked(jacobian.rows() + genes, genes);
       stacked.topRows(jacobian.rows()) = jacobian;
@@ -133,6 +140,7 @@ RefinementResult RefineWeights(const Problem& problem, const std::vector<double>
   result.refined = true;
   result.weights = w;
   result.evaluation = cost.Evaluate(problem.SpringsOfWeights(w));
+  ThrowIfInterrupted(interruption);
   // Standard errors from the Gauss-Newton approximation of the covariance at the optimum.
   int positive = 0;
   for (const double x : w) positive += x > 0.0;

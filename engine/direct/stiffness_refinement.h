@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "engine/cost.h"
+#include "engine/interruption.h"
 #include "engine/problem.h"
 
 namespace springfit {
@@ -44,8 +45,10 @@ struct RefinementResult {
 };
 
 // `usable[g]` false holds gene g at 0 (an unseen spring).
+// Throws Interrupted when `interruption` stops it.
 RefinementResult RefineWeights(const Problem& problem, const std::vector<double>& start,
                                const std::vector<bool>& usable,
-                               const RefinementOptions& options = {});
+                               const RefinementOptions& options = {},
+                               Interruption* interruption = nullptr);
 
 }  // namespace springfit

@@ -8,7 +8,8 @@
 namespace springfit {
 
 std::optional<Vector> WeightStandardErrors(const SparseMatrix& a, const std::vector<bool>& usable,
-                                           double residual_variance, int max_columns) {
+                                           double residual_variance, int max_columns,
+                                           Interruption* interruption) {
   const int n = static_cast<int>(a.cols());
   if (std::count(usable.begin(), usable.end(), true) > max_columns) return std::nullopt;
   Vector sigma = Vector::Constant(n, std::numeric_limits<double>::infinity());
@@ -28,6 +29,7 @@ std::optional<Vector> WeightStandardErrors(const SparseMatrix& a, const std::vec
 
   Vector unit = Vector::Zero(static_cast<Eigen::Index>(columns.size()));
   for (std::size_t c = 0; c < columns.size(); ++c) {
+    ThrowIfInterrupted(interruption);
     const auto i = static_cast<Eigen::Index>(c);
     unit[i] = 1.0;
     const double inverse_diagonal = ldlt.solve(unit)[i];

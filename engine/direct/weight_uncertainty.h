@@ -7,13 +7,16 @@
 #include <vector>
 
 #include "engine/direct/force_balance.h"
+#include "engine/interruption.h"
 
 namespace springfit {
 
 // One linear solve per usable column with the factorised normal matrix, so only up to
 // `max_columns` usable columns (nullopt beyond, or when the columns are linearly dependent:
-// then some weights are not determined at all). Unusable columns get +infinity.
+// then some weights are not determined at all). Unusable columns get +infinity. Throws
+// Interrupted when `interruption` stops it.
 std::optional<Vector> WeightStandardErrors(const SparseMatrix& a, const std::vector<bool>& usable,
-                                           double residual_variance, int max_columns);
+                                           double residual_variance, int max_columns,
+                                           Interruption* interruption = nullptr);
 
 }  // namespace springfit

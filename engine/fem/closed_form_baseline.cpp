@@ -36,7 +36,8 @@ ClosedFormModel VanGelderModel(const Scene& scene) {
   return out;
 }
 
-std::optional<BaselineReport> EvaluateClosedFormBaseline(const Problem& problem) {
+std::optional<BaselineReport> EvaluateClosedFormBaseline(const Problem& problem,
+                                                         Interruption* interruption) {
   const Scene& s = problem.scene();
   if (s.reference.kind != Reference::Kind::kFem) return std::nullopt;
   const ClosedFormModel model = VanGelderModel(s);
@@ -48,8 +49,10 @@ std::optional<BaselineReport> EvaluateClosedFormBaseline(const Problem& problem)
     springs.stiffness.push_back(model.stiffness[m]);
   }
   std::vector<EquilibriumSolver> solvers;
-  for (const FreeNodes& free : problem.free_sets())
+  for (const FreeNodes& free : problem.free_sets()) {
     solvers.emplace_back(geometry, free, problem.solver_options());
+    solvers.back().set_interruption(interruption);
+  }
   BaselineReport report;
   report.springs = geometry.size();
   double cost = 0.0;
@@ -61,6 +64,7 @@ std::optional<BaselineReport> EvaluateClosedFormBaseline(const Problem& problem)
     }
     Vector u = Vector::Zero(d * s.node_count());
     if (!solver.Solve(springs, lc.force, lc.prescribed, u).converged()) {
+      ThrowIfInterrupted(interruption);  // stopped, rather than without equilibrium
       report.converged = false;
       break;
     }

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/interruption.h"
 #include "engine/problem.h"
 
 namespace springfit::fem {
@@ -37,7 +38,9 @@ struct BaselineReport {
   bool converged = true;  // false: the baseline has no equilibrium under some load case
 };
 
-// nullopt unless the reference is an FEM model.
-std::optional<BaselineReport> EvaluateClosedFormBaseline(const Problem& problem);
+// nullopt unless the reference is an FEM model. Throws Interrupted when `interruption` stops
+// it (checked inside its solves).
+std::optional<BaselineReport> EvaluateClosedFormBaseline(const Problem& problem,
+                                                         Interruption* interruption = nullptr);
 
 }  // namespace springfit::fem

@@ -2,6 +2,7 @@
 
 #include <cstdio>
 
+#include "engine/identification/run_monitor.h"
 #include "engine/identification/strategy.h"
 
 namespace springfit {
@@ -9,6 +10,17 @@ namespace {
 
 std::string StopMessage(const IdentificationResult& r) {
   char buf[200];
+  if (r.trace.empty() && (r.stop == StopReason::kCancelled || r.stop == StopReason::kTimeLimit)) {
+    const char* why =
+        r.stop == StopReason::kCancelled ? "stopped on request" : "time limit reached";
+    if (r.direct_phase) {
+      std::snprintf(buf, sizeof buf,
+                    "%s during the first generation: the direct phase's topology is kept", why);
+    } else {
+      std::snprintf(buf, sizeof buf, "%s before any model was evaluated: no model found", why);
+    }
+    return buf;
+  }
   const double target = std::max(r.options.target_normalized_error, kExactNormalizedError);
   switch (r.stop) {
     case StopReason::kTargetReached:
@@ -45,6 +57,20 @@ std::string StopMessage(const IdentificationResult& r) {
   return buf;
 }
 
+// A run stopped before it had evaluated any model: the empty topology, evaluated (a mechanism:
+// rest factorisations only), and no new trace row.
+IdentificationResult NothingEvaluated(const Problem& problem, const SearchOptions& options,
+                                      const RunContext& context, const RunMonitor& monitor) {
+  IdentificationResult r;
+  r.options = options;
+  r.stop = monitor.time_limit_reached() ? StopReason::kTimeLimit : StopReason::kCancelled;
+  r.best.assign(static_cast<std::size_t>(problem.gene_count()), 0);
+  r.evaluation = CostFunction(problem).EvaluateGenome(r.best);
+  r.trace = context.trace;
+  r.wall_seconds = monitor.SecondsSinceStart();
+  return r;
+}
+
 }  // namespace
 
 IdentificationResult RunIdentification(const Problem& problem, const SearchOptions& options,
@@ -55,10 +81,18 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
 IdentificationResult RunIdentification(const Problem& problem, const SearchOptions& options,
                                        const RunContext& context,
                                        const IdentificationStrategy& strategy) {
-  // Before the run's clock starts (it starts inside the strategy): not part of its time.
-  IdentifiabilityReport identifiability = AnalyseIdentifiability(problem);
-  std::optional<fem::BaselineReport> baseline = fem::EvaluateClosedFormBaseline(problem);
-  IdentificationResult r = strategy.Run(problem, options, context);
+  RunMonitor monitor(context, options.max_seconds);
+  IdentifiabilityReport identifiability;
+  std::optional<fem::BaselineReport> baseline;
+  IdentificationResult r;
+  try {
+    // Before the run's clock starts (it starts inside the strategy): not part of its time.
+    identifiability = AnalyseIdentifiability(problem);
+    baseline = fem::EvaluateClosedFormBaseline(problem, &monitor.interruption());
+    r = strategy.Run(problem, options, context, monitor);
+  } catch (const Interrupted&) {
+    r = NothingEvaluated(problem, options, context, monitor);
+  }
   r.identifiability = std::move(identifiability);
   r.baseline = std::move(baseline);
   r.springs = problem.SpringsOfGenome(r.best);

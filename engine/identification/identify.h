@@ -5,11 +5,17 @@
 // an FEM reference) before the run's clock starts, runs the strategy that SearchOptions::strategy
 // names (strategy.h: the one place that maps strategies to code), and fills the parts of the
 // result every strategy shares (springs, stiffness, difference to the reference).
+//
+// Control: every phase reports beats and can be stopped within about a second (run_monitor.h).
+// A run stopped before it had evaluated any model (during the analysis, the direct phase or the
+// first population's evaluation without a seed) returns the empty topology, stop kCancelled or
+// kTimeLimit, and an empty trace.
 #pragma once
 
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <string_view>
 #include <vector>
 
 #include "engine/identification/identification_result.h"
@@ -30,8 +36,11 @@ struct IterationState {
 
 // Between iterations: where a long step has got to (RunContext::on_beat).
 struct ProgressBeat {
-  double wall_seconds = 0.0;
-  int generation = 0;  // the generation in progress
+  // "analysis" (identifiability, the FEM baseline: before the run's clock), "direct" (the
+  // force-balance solve of strategies direct, hybrid and default), "genetic".
+  std::string_view phase;
+  double wall_seconds = 0.0;  // on the run's clock (analysis: since the run began)
+  int generation = 0;         // the generation in progress
   std::int64_t evaluations = 0;
   double best_normalized_error = 0.0;  // of the best model so far
 };
@@ -44,13 +53,16 @@ struct RunContext {
   // After every iteration (the initial population, every generation, a direct solve), with
   // its trace row. Return false to stop: the result is the best so far, stop kCancelled.
   std::function<bool(const TraceRow&, const IterationState&)> on_iteration;
-  // Inside a long iteration (a genetic generation's evaluations and local search), at least
-  // every `beat_seconds` of wall time as long as each batch of evaluations takes less: progress
-  // for a live display, and a chance to stop. Return false to stop at once: the step is
-  // abandoned (no checkpoint can be taken of it), the result is the best so far, stop
-  // kCancelled. Not called when an iteration ends within `beat_seconds` of the last report.
+  // Inside every phase, about every `beat_seconds` of wall time without an iteration's report
+  // (the checks sit between Newton iterations, NNLS rounds and evaluations, each well under a
+  // second on the examples: bench/RESULTS.md): progress for a live display, and a chance to
+  // stop. Return false to stop at once: the step is abandoned (no checkpoint can be taken of
+  // it), the result is the best so far, stop kCancelled. Called on the thread that called
+  // RunIdentification().
   std::function<bool(const ProgressBeat&)> on_beat;
-  double beat_seconds = 1.0;
+  // Stop requests (on_beat's answer, the time limit) are read this often too: a quarter of a
+  // second keeps a stop within a second even behind a unit of work of half a second.
+  double beat_seconds = 0.25;
   // Continue a checkpointed genetic run instead of starting one; `trace` is the trace so far.
   std::optional<SearchState> resume_from;
   std::vector<TraceRow> trace;

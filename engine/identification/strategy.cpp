@@ -2,8 +2,11 @@
 
 #include <chrono>
 #include <functional>
+#include <limits>
 #include <map>
 #include <memory>
+#include <optional>
+#include <string_view>
 
 namespace springfit {
 namespace {
@@ -12,11 +15,20 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+// A model a phase before the GA found and evaluated in detail: the result when the run is
+// stopped before the GA's first population is evaluated.
+struct Seed {
+  Genome genome;
+  Evaluation evaluation;
+};
+
 // Before the GA's first generation (not on a resumed run): a hook that may seed it.
-using BeforeStart = std::function<void(GeneticSearch&, FitnessEvaluator&, IdentificationResult&)>;
+using BeforeStart =
+    std::function<std::optional<Seed>(GeneticSearch&, FitnessEvaluator&, IdentificationResult&)>;
 
 IdentificationResult RunGenetic(const Problem& problem, const SearchOptions& options,
-                                const RunContext& context, const BeforeStart& before_start) {
+                                const RunContext& context, RunMonitor& monitor,
+                                const BeforeStart& before_start) {
   std::unique_ptr<WorkerPool> own_pool;
   WorkerPool* pool = context.pool;
   if (!pool && context.threads > 1) {
@@ -24,26 +36,27 @@ IdentificationResult RunGenetic(const Problem& problem, const SearchOptions& opt
     pool = own_pool.get();
   }
   FitnessEvaluator evaluator(problem, pool, options.cache_capacity, context.use_cache);
+  evaluator.set_interruption(&monitor.interruption());
   GeneticSearch search(problem, options, evaluator);  // the run's clock starts here
+  search.set_interruption(&monitor.interruption());
 
   IdentificationResult result;
   result.options = options;
   result.trace = context.trace;
   bool cancelled = false;
-  auto last_report = std::chrono::steady_clock::now();
-  search.SetInterruptPoll([&] {
-    if (!context.on_beat || SecondsSince(last_report) < context.beat_seconds) return false;
-    last_report = std::chrono::steady_clock::now();
-    ProgressBeat beat;
-    beat.wall_seconds = search.ElapsedSeconds();
-    beat.generation = search.state().generation;
-    beat.evaluations = evaluator.counters().evaluations;
-    beat.best_normalized_error = search.state().best_fitness.normalized_error;
-    return !context.on_beat(beat);
-  });
+  const auto genetic_phase = [&] {
+    monitor.SetPhase("genetic", [&](ProgressBeat& beat) {
+      const SearchState& state = search.state();
+      beat.wall_seconds = search.ElapsedSeconds();
+      beat.generation = state.generation;
+      beat.evaluations = evaluator.counters().evaluations;
+      beat.best_normalized_error = state.best.empty() ? std::numeric_limits<double>::quiet_NaN()
+                                                      : state.best_fitness.normalized_error;
+    });
+  };
   auto record = [&](const TraceRow& row) {
     result.trace.push_back(row);
-    last_report = std::chrono::steady_clock::now();
+    monitor.Reported();
     if (search.Interrupted()) cancelled = true;
     if (!context.on_iteration) return;
     IterationState state;
@@ -52,17 +65,37 @@ IdentificationResult RunGenetic(const Problem& problem, const SearchOptions& opt
     if (!search.Interrupted()) state.snapshot = [&search] { return search.Snapshot(); };
     if (!context.on_iteration(row, state) && !search.Finished()) cancelled = true;
   };
-  if (context.resume_from) {
-    search.Restore(*context.resume_from);
-  } else {
-    if (before_start) before_start(search, evaluator, result);
-    record(search.Initialize());
+  std::optional<Seed> seed;
+  try {
+    genetic_phase();
+    if (context.resume_from) {
+      search.Restore(*context.resume_from);
+    } else {
+      if (before_start) seed = before_start(search, evaluator, result);
+      genetic_phase();
+      record(search.Initialize());
+    }
+    while (!cancelled && !search.Finished()) record(search.Step());
+  } catch (const Interrupted&) {
+    cancelled = true;  // mid-step: the best so far stands
   }
-  while (!cancelled && !search.Finished()) record(search.Step());
+  evaluator.set_interruption(nullptr);  // the best's evaluation below runs to its end
 
   const SearchState& state = search.state();
+  const StopReason stopped =
+      monitor.time_limit_reached() ? StopReason::kTimeLimit : StopReason::kCancelled;
+  result.counters = evaluator.counters();
+  result.wall_seconds = search.ElapsedSeconds();
+  if (state.best.empty()) {
+    // Stopped while the first population was being evaluated.
+    if (!seed) throw Interrupted();
+    result.stop = stopped;
+    result.best = seed->genome;
+    result.evaluation = std::move(seed->evaluation);
+    return result;
+  }
   result.stop = search.TargetReached()                        ? StopReason::kTargetReached
-                : cancelled                                   ? StopReason::kCancelled
+                : cancelled                                   ? stopped
                 : state.generation >= options.max_generations ? StopReason::kGenerationLimit
                 : search.Stalled()                            ? StopReason::kStalled
                 : search.TimeLimitReached()                   ? StopReason::kTimeLimit
@@ -71,46 +104,59 @@ IdentificationResult RunGenetic(const Problem& problem, const SearchOptions& opt
   result.evaluation = evaluator.EvaluateInDetail(state.best);
   result.generations = state.generation;
   result.best_generation = state.best_generation;
-  result.counters = evaluator.counters();
-  result.wall_seconds = search.ElapsedSeconds();
   return result;
+}
+
+// Beats of a phase that has only its own clock to report.
+void ClockPhase(RunMonitor& monitor, std::string_view phase,
+                std::chrono::steady_clock::time_point start) {
+  monitor.SetPhase(phase, [start](ProgressBeat& beat) {
+    beat.wall_seconds = SecondsSince(start);
+    beat.best_normalized_error = std::numeric_limits<double>::quiet_NaN();
+  });
 }
 
 }  // namespace
 
 IdentificationResult GeneticStrategy::Run(const Problem& problem, const SearchOptions& options,
-                                          const RunContext& context) const {
-  return RunGenetic(problem, options, context, nullptr);
+                                          const RunContext& context, RunMonitor& monitor) const {
+  return RunGenetic(problem, options, context, monitor, nullptr);
 }
 
 IdentificationResult HybridStrategy::Run(const Problem& problem, const SearchOptions& options,
-                                         const RunContext& context) const {
+                                         const RunContext& context, RunMonitor& monitor) const {
   return RunGenetic(
-      problem, options, context,
+      problem, options, context, monitor,
       [&](GeneticSearch& search, FitnessEvaluator& evaluator, IdentificationResult& result) {
         // The GA's models have the training stiffness: the direct phase identifies topology only.
         const auto start = std::chrono::steady_clock::now();
+        ClockPhase(monitor, "direct", start);
         DirectOptions direct_options;
         direct_options.known_stiffness = problem.training_stiffness();
-        const DirectResult direct = IdentifyDirect(problem, direct_options);
+        const DirectResult direct =
+            IdentifyDirect(problem, direct_options, &monitor.interruption());
+        Seed seed{direct.genome, evaluator.EvaluateInDetail(direct.genome)};
+        if (seed.evaluation.interrupted) throw Interrupted();
         IdentificationResult::DirectPhase phase;
         phase.seconds = SecondsSince(start);
-        phase.normalized_error = evaluator.EvaluateInDetail(direct.genome).normalized_error;
+        phase.normalized_error = seed.evaluation.normalized_error;
         phase.difference = problem.CompareWithReference(direct.genome);
         result.direct_phase = phase;
         search.SeedInitialPopulation({direct.genome}, phase.seconds);  // its time starts the clock
+        return seed;
       });
 }
 
 IdentificationResult DirectStrategy::Run(const Problem& problem, const SearchOptions& options,
-                                         const RunContext& context) const {
+                                         const RunContext& context, RunMonitor& monitor) const {
   IdentificationResult r;
   r.options = options;
   const auto start = std::chrono::steady_clock::now();
+  ClockPhase(monitor, "direct", start);
   DirectOptions direct_options;
   if (options.identify == Identify::kTopology)
     direct_options.known_stiffness = problem.training_stiffness();
-  DirectResult direct = IdentifyDirect(problem, direct_options);
+  DirectResult direct = IdentifyDirect(problem, direct_options, &monitor.interruption());
   r.best = direct.genome;
   r.evaluation = direct.evaluation;
   r.counters.evaluations = direct.evaluations;
@@ -144,7 +190,6 @@ IdentificationResult DirectStrategy::Run(const Problem& problem, const SearchOpt
     IterationState state;
     state.finished = true;
     state.best = &r.best;
-    // One solve: a cancel asked during it takes effect when it returns.
     if (!context.on_iteration(row, state) && r.stop != StopReason::kTargetReached)
       r.stop = StopReason::kCancelled;
   }

@@ -10,6 +10,7 @@
 #include <memory>
 
 #include "engine/identification/identify.h"
+#include "engine/identification/run_monitor.h"
 
 namespace springfit {
 
@@ -18,22 +19,23 @@ class IdentificationStrategy {
   virtual ~IdentificationStrategy() = default;
   // Runs on a prepared problem. Fills the strategy's part of the result: stop, best, trace,
   // evaluation, counters, generations, wall time, stiffness when it identifies it, and its
-  // own details; RunIdentification() fills the rest.
+  // own details; RunIdentification() fills the rest. Reports beats and checks for a stop
+  // through `monitor`; throws Interrupted when stopped before it had any model to return.
   virtual IdentificationResult Run(const Problem& problem, const SearchOptions& options,
-                                   const RunContext& context) const = 0;
+                                   const RunContext& context, RunMonitor& monitor) const = 0;
 };
 
 // The genetic algorithm as the options configure it (paper, or the memetic GA alone).
 class GeneticStrategy : public IdentificationStrategy {
  public:
   IdentificationResult Run(const Problem& problem, const SearchOptions& options,
-                           const RunContext& context) const override;
+                           const RunContext& context, RunMonitor& monitor) const override;
 };
 
 class DirectStrategy : public IdentificationStrategy {
  public:
   IdentificationResult Run(const Problem& problem, const SearchOptions& options,
-                           const RunContext& context) const override;
+                           const RunContext& context, RunMonitor& monitor) const override;
 };
 
 // Direct (topology only, at the training stiffness), then the GA seeded with its topology,
@@ -41,7 +43,7 @@ class DirectStrategy : public IdentificationStrategy {
 class HybridStrategy : public IdentificationStrategy {
  public:
   IdentificationResult Run(const Problem& problem, const SearchOptions& options,
-                           const RunContext& context) const override;
+                           const RunContext& context, RunMonitor& monitor) const override;
 };
 
 std::unique_ptr<IdentificationStrategy> MakeStrategy(Strategy strategy);

@@ -13,6 +13,11 @@ FitnessEvaluator::FitnessEvaluator(const Problem& problem, WorkerPool* pool,
   for (int s = 0; s < slots; ++s) costs_.push_back(std::make_unique<CostFunction>(problem));
 }
 
+void FitnessEvaluator::set_interruption(Interruption* interruption) {
+  interruption_ = interruption;
+  for (const auto& cost : costs_) cost->set_interruption(interruption);
+}
+
 std::vector<Fitness> FitnessEvaluator::Evaluate(const std::vector<Genome>& genomes) {
   const int n = static_cast<int>(genomes.size());
   std::vector<Fitness> out(n);
@@ -43,15 +48,20 @@ std::vector<Fitness> FitnessEvaluator::Evaluate(const std::vector<Genome>& genom
   auto work = [&](int slot) {
     CostFunction& cost = *costs_[slot];
     for (int t = next.fetch_add(1); t < static_cast<int>(to_solve.size()); t = next.fetch_add(1)) {
+      if (interruption_ && interruption_->Check()) return;
       out[to_solve[t]] = Fitness::From(cost.EvaluateGenome(genomes[to_solve[t]]));
     }
   };
   const int slots = std::min(static_cast<int>(costs_.size()), static_cast<int>(to_solve.size()));
   if (pool_ && slots > 1) {
-    pool_->Run(slots, work);
+    pool_->Run(slots, work, [this] {
+      if (interruption_) interruption_->Check();
+    });
   } else if (!to_solve.empty()) {
     work(0);
   }
+  // Some genomes of the batch went unevaluated, or were cut short: none of it is kept.
+  if (interruption_ && interruption_->requested()) throw Interrupted();
 
   for (int i = 0; i < n; ++i) {
     if (same_as[i] >= 0) out[i] = out[same_as[i]];

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "engine/cost.h"
+#include "engine/interruption.h"
 #include "engine/problem.h"
 #include "engine/search/fitness.h"
 #include "engine/search/fitness_cache.h"
@@ -34,7 +35,11 @@ class FitnessEvaluator {
                    std::size_t cache_capacity = FitnessCache::kDefaultCapacity,
                    bool use_cache = true);
 
+  // Throws Interrupted when the interruption stops the batch (nothing of it is cached).
   std::vector<Fitness> Evaluate(const std::vector<Genome>& genomes);
+  // Checked before each genome and inside its solves (nullptr: never stopped); must outlive
+  // the evaluations.
+  void set_interruption(Interruption* interruption);
 
   const EvaluationCounters& counters() const { return counters_; }
   void set_counters(const EvaluationCounters& counters) { counters_ = counters; }
@@ -51,6 +56,7 @@ class FitnessEvaluator {
   FitnessCache cache_;
   EvaluationCounters counters_;
   std::vector<std::unique_ptr<CostFunction>> costs_;  // one per worker slot
+  Interruption* interruption_ = nullptr;
 };
 
 }  // namespace springfit

@@ -50,7 +50,7 @@ TraceRow GeneticSearch::Initialize() {
 }
 
 bool GeneticSearch::PollInterrupt() {
-  if (!interrupted_ && interrupt_poll_ && interrupt_poll_()) interrupted_ = true;
+  if (!interrupted_ && interruption_ && interruption_->Check()) interrupted_ = true;
   return interrupted_;
 }
 
@@ -104,6 +104,7 @@ TraceRow GeneticSearch::Step() {
   ++state_.generation;
   UpdateBest();
   if (options_.local_search && !TargetReached() && !PollInterrupt()) LocalSearch();
+  if (interrupted_) return Row();
   state_.stall =
       state_.best_fitness.normalized_error < before.normalized_error ? 0 : state_.stall + 1;
   if (options_.restart_after > 0 && state_.stall >= options_.restart_after && !Finished()) {
@@ -282,7 +283,13 @@ void GeneticSearch::LocalSearch() {
       neighbours[j][m.a] ^= 1;
       if (m.b >= 0) neighbours[j][m.b] ^= 1;
     }
-    const std::vector<Fitness> results = evaluator_->Evaluate(neighbours);
+    std::vector<Fitness> results;
+    try {
+      results = evaluator_->Evaluate(neighbours);
+    } catch (const springfit::Interrupted&) {
+      interrupted_ = true;  // keep the genome reached so far
+      break;
+    }
     // The improving moves of the batch, best first (ties: batch order).
     std::vector<int> improving;
     for (std::size_t j = 0; j < batch; ++j) {
@@ -314,7 +321,12 @@ void GeneticSearch::LocalSearch() {
           touched[m.b] = 1;
         }
       }
-      const Fitness combined_fitness = evaluator_->Evaluate({combined}).front();
+      Fitness combined_fitness = next_fitness;
+      try {
+        combined_fitness = evaluator_->Evaluate({combined}).front();
+      } catch (const springfit::Interrupted&) {
+        interrupted_ = true;  // the batch's best move stands
+      }
       if (combined_fitness.normalized_error < next_fitness.normalized_error) {
         next = std::move(combined);
         next_fitness = combined_fitness;
@@ -322,7 +334,7 @@ void GeneticSearch::LocalSearch() {
     }
     genome = std::move(next);
     fitness = next_fitness;
-    if (fitness.normalized_error <= TargetError()) break;
+    if (interrupted_ || fitness.normalized_error <= TargetError()) break;
     // After any improvement, single flips again (a swap's moves also depend on the genome).
     const bool was_swaps = swaps;
     swaps = false;

@@ -72,11 +72,16 @@ class GeneticSearch {
     return options_.max_seconds > 0.0 && ElapsedSeconds() >= options_.max_seconds;
   }
 
-  // Polled between batches of evaluations (after the population's, before every batch of
-  // local-search moves): returning true abandons the current step at once. The state is then
+  // Checked between batches of evaluations (after the population's, before every batch of
+  // local-search moves) and, through the evaluator, inside them: a stop abandons the current
+  // step. A local search stopped mid-batch keeps what it had found; a population stopped
+  // mid-evaluation throws Interrupted out of Initialize() or Step(). The state is then
   // mid-step: good for a best-so-far result, not for a checkpoint (Interrupted() says so).
-  void SetInterruptPoll(std::function<bool()> poll) { interrupt_poll_ = std::move(poll); }
-  bool Interrupted() const { return interrupted_; }
+  // Must outlive the search.
+  void set_interruption(Interruption* interruption) { interruption_ = interruption; }
+  bool Interrupted() const {
+    return interrupted_ || (interruption_ != nullptr && interruption_->requested());
+  }
 
   // The state between generations, random stream and cache included (for a checkpoint).
   SearchState Snapshot() const;
@@ -109,9 +114,9 @@ class GeneticSearch {
   std::chrono::steady_clock::time_point started_;
   double elapsed_before_ = 0.0;  // wall time of the run before a Restore() or a seeding phase
   std::vector<Genome> seeds_;
-  std::function<bool()> interrupt_poll_;
+  Interruption* interruption_ = nullptr;
   bool interrupted_ = false;
-  // Polls the interrupt hook (once interrupted, stays so).
+  // Checks the interruption (once interrupted, stays so).
   bool PollInterrupt();
 };
 

@@ -58,7 +58,8 @@ WorkerPool::~WorkerPool() {
   if (pool_) pool_->join();
 }
 
-void WorkerPool::Run(int slots, const std::function<void(int slot)>& body) {
+void WorkerPool::Run(int slots, const std::function<void(int slot)>& body,
+                     const std::function<void()>& while_waiting) {
   if (slots <= 0) return;
   auto batch = std::make_shared<Batch>();
   batch->slots = slots;
@@ -71,7 +72,16 @@ void WorkerPool::Run(int slots, const std::function<void(int slot)>& body) {
   // The caller works too: when every pool thread is busy elsewhere it runs all the slots.
   batch->Work();
   std::unique_lock lock(batch->mutex);
-  batch->finished.wait(lock, [&] { return batch->running == 0; });
+  const auto done = [&] { return batch->running == 0; };
+  if (!while_waiting) {
+    batch->finished.wait(lock, done);
+  } else {
+    while (!batch->finished.wait_for(lock, kWaitingPeriod, done)) {
+      lock.unlock();
+      while_waiting();
+      lock.lock();
+    }
+  }
   if (batch->failure) std::rethrow_exception(batch->failure);
 }
 

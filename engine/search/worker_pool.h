@@ -8,6 +8,7 @@
 // make results independent of the thread that computed them.
 #pragma once
 
+#include <chrono>
 #include <functional>
 #include <memory>
 
@@ -26,8 +27,12 @@ class WorkerPool {
   WorkerPool& operator=(const WorkerPool&) = delete;
 
   int threads() const { return threads_; }
-  // Calls body(slot) for slot in [0, slots) in parallel; rethrows the first exception.
-  void Run(int slots, const std::function<void(int slot)>& body);
+  // Calls body(slot) for slot in [0, slots) in parallel; rethrows the first exception. While
+  // the calling thread waits for slots running on pool threads it calls `while_waiting`
+  // every kWaitingPeriod (a run's progress and stop checks go on during a long evaluation).
+  void Run(int slots, const std::function<void(int slot)>& body,
+           const std::function<void()>& while_waiting = {});
+  static constexpr std::chrono::milliseconds kWaitingPeriod{50};
 
  private:
   int threads_;

@@ -179,6 +179,7 @@ TEST(Equilibrium, SmallLoadLimitIsTheLinearSolve) {
 
 TEST(Equilibrium, SparseAndBandedBackendsAgree) {
   int mechanisms = 0;
+  long null_space = 0;
   for (int dim : {2, 3}) {
     for (std::uint32_t seed : {1u, 2u, 3u}) {
       const Problem p = Problem::Build(testing::JitteredScene(dim, dim == 2 ? 6 : 4, 0.15, seed));
@@ -200,10 +201,11 @@ TEST(Equilibrium, SparseAndBandedBackendsAgree) {
         EXPECT_EQ(sd.iterations, ss.iterations);
         EXPECT_LE((ud - us).lpNorm<Eigen::Infinity>(), 1e-10 * ud.lpNorm<Eigen::Infinity>());
       }
-      // Mechanisms: the banded Cholesky stops at the first bad pivot and hands the count to a
-      // pivoted LDLT, which must find the null space's dimension (the scaled matrix's
-      // eigenvalues at or below the pivot tolerance). The sparse LDLT does not pivot and
-      // may miss a mode (one of twelve here), so it is held only to the mechanism verdict.
+      // Mechanisms: whatever the backend, the modes are counted by the same simplicial LDLT of
+      // the same scaled matrix, so the counts are equal (a search's trajectory must not
+      // depend on banded_max_dofs). That LDLT does not pivot: it never counts a mode that is
+      // not in the null space (the scaled matrix's eigenvalues at or below the pivot
+      // tolerance) and misses few.
       std::vector<std::uint8_t> thinned(all.size(), 0);
       for (std::size_t s = 0; s < thinned.size(); s += 3) thinned[s] = 1;
       const ActiveSprings holes = p.SpringsFromMask(thinned);
@@ -217,14 +219,18 @@ TEST(Equilibrium, SparseAndBandedBackendsAgree) {
             h.diagonal().unaryExpr([](double d) { return d > 0.0 ? 1.0 / std::sqrt(d) : 1.0; });
         const Eigen::SelfAdjointEigenSolver<Matrix> eigen(scale.asDiagonal() * h *
                                                           scale.asDiagonal());
-        EXPECT_EQ(modes,
-                  (eigen.eigenvalues().array() <= EquilibriumOptions{}.pivot_tolerance).count());
-        EXPECT_EQ(modes > 0, sparse.RestMechanismModes(holes) > 0);
+        const auto zero_eigenvalues =
+            (eigen.eigenvalues().array() <= EquilibriumOptions{}.pivot_tolerance).count();
+        EXPECT_EQ(modes, sparse.RestMechanismModes(holes));
+        EXPECT_LE(modes, zero_eigenvalues);
+        EXPECT_EQ(modes > 0, zero_eigenvalues > 0);
         mechanisms += modes;
+        null_space += zero_eigenvalues;
       }
     }
   }
   EXPECT_GT(mechanisms, 0) << "a third of the candidates should leave mechanisms";
+  EXPECT_GE(mechanisms, null_space - 1) << "of " << null_space << " modes";
 }
 
 TEST(Equilibrium, EverySolveIsInForceBalance) {

@@ -1,0 +1,36 @@
+#include "engine/identification/run_monitor.h"
+
+#include <utility>
+
+namespace springfit {
+
+RunMonitor::RunMonitor(const RunContext& context, double max_seconds)
+    : context_(context),
+      max_seconds_(max_seconds),
+      start_(std::chrono::steady_clock::now()),
+      interruption_([this] { return Poll(); }, context.beat_seconds) {}
+
+void RunMonitor::SetPhase(std::string_view phase, std::function<void(ProgressBeat&)> fill) {
+  phase_ = phase;
+  fill_ = std::move(fill);
+}
+
+double RunMonitor::SecondsSinceStart() const {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+}
+
+bool RunMonitor::Poll() {
+  ProgressBeat beat;
+  beat.phase = phase_;
+  beat.wall_seconds = SecondsSinceStart();
+  if (fill_) fill_(beat);
+  // The time limit is on the wall clock from the run's start, its analysis included: what a
+  // user who asked for it waits (the trace's clock starts after the analysis).
+  if (max_seconds_ > 0.0 && SecondsSinceStart() >= max_seconds_) {
+    time_limit_reached_ = true;
+    return true;
+  }
+  return context_.on_beat && !context_.on_beat(beat);
+}
+
+}  // namespace springfit

@@ -1,0 +1,48 @@
+// Progress and stopping of one identification run, whatever the phase it is in.
+//
+// RunIdentification() makes one RunMonitor per run. Its Interruption (engine/interruption.h)
+// reaches every long loop of the run: the analysis before it, the direct phase's solves, the
+// genetic generations' evaluations. When due (RunContext::beat_seconds after the last report)
+// the poll describes where the run has got to as a ProgressBeat of the current phase, hands it
+// to RunContext::on_beat, and stops the run when that returns false or when the time limit
+// (SearchOptions::max_seconds of wall time since the run began) has passed.
+#pragma once
+
+#include <chrono>
+#include <functional>
+#include <string_view>
+
+#include "engine/identification/identify.h"
+#include "engine/interruption.h"
+
+namespace springfit {
+
+class RunMonitor {
+ public:
+  RunMonitor(const RunContext& context, double max_seconds);
+  RunMonitor(const RunMonitor&) = delete;
+  RunMonitor& operator=(const RunMonitor&) = delete;
+
+  Interruption& interruption() { return interruption_; }
+  // From now on beats describe `phase`; `fill` completes them (the run's clock, generation,
+  // evaluations, best so far). Without `fill` a beat carries the seconds since the run began.
+  void SetPhase(std::string_view phase, std::function<void(ProgressBeat&)> fill = {});
+  // The caller reported progress (an iteration's row): the next beat is due a period later.
+  void Reported() { interruption_.Postpone(); }
+  // The run was stopped by its time limit (rather than by the caller).
+  bool time_limit_reached() const { return time_limit_reached_; }
+  double SecondsSinceStart() const;
+
+ private:
+  bool Poll();
+
+  const RunContext& context_;
+  double max_seconds_;
+  std::chrono::steady_clock::time_point start_;
+  std::string_view phase_ = "analysis";
+  std::function<void(ProgressBeat&)> fill_;
+  bool time_limit_reached_ = false;
+  Interruption interruption_;  // last: its poll uses the members above
+};
+
+}  // namespace springfit

@@ -1,0 +1,431 @@
+// The scheduler's queue under cancellation: a job cancelled at the moment a runner claims it,
+// a job cancelled before any runner starts, and many jobs cancelled while several runners
+// claim them. Every job must end cancelled, finished exactly once (one MarkFinished, one
+// job.finished), never run to completion, never be lost (left queued or running).
+//
+// The claim itself happens under the scheduler's mutex and cannot be paused from outside.
+// What can be: the runner's first store call after taking a job off the queue (GetJob, in
+// Scheduler::RunnerLoop). HookedStore runs a hook there, so "cancelled at the moment of the
+// claim" is reproduced deterministically; the many-jobs test races the two sides for real.
+#include "server/scheduler.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <functional>
+#include <future>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "proto/job.h"
+#include "proto/rpc.h"
+#include "proto/scene_codec.h"
+#include "proto/search_codec.h"
+#include "server/sqlite_store.h"
+#include "tests/test_scenes.h"
+
+namespace springfit::server {
+namespace {
+using proto::Json;
+
+constexpr std::chrono::seconds kBound{60};
+
+// A small scene whose search cannot end by itself within a test: its training springs are
+// half as stiff as the reference's, so no topology reproduces the reference (the target is
+// never reached), nothing stops it for stalling, and its generation budget is out of reach.
+// Only a cancel ends it. max_seconds bounds the damage of a lost cancel: such a job ends
+// "succeeded" (time limit) after 20 s, which the tests report, instead of running forever.
+Scene EndlessScene() {
+  Scene s = springfit::testing::GridScene(2, 3);
+  s.training_stiffness = 0.5;
+  s.search.strategy = Strategy::kPaper;
+  s.search.max_generations = 1000000;
+  s.search.stall_generations = 0;
+  s.search.max_seconds = 20.0;
+  return s;
+}
+
+// The SQLite store with two test hooks: a hook at the first GetJob of an armed job (the
+// runner's read right after its claim), and a record of every MarkFinished.
+class HookedStore final : public JobStore {
+ public:
+  explicit HookedStore(JobStore& inner) : inner_(inner) {}
+
+  // Called with the job's id; set before Scheduler::Start().
+  std::function<void(std::int64_t)> on_claim;
+  void Arm(std::int64_t id) {
+    std::lock_guard lock(mutex_);
+    armed_.insert(id);
+  }
+  std::vector<JobState> Finishes(std::int64_t id) {
+    std::lock_guard lock(mutex_);
+    const auto it = finishes_.find(id);
+    return it == finishes_.end() ? std::vector<JobState>{} : it->second;
+  }
+
+  Created CreateJob(const NewJob& job) override { return inner_.CreateJob(job); }
+  std::optional<JobRecord> GetJob(std::int64_t id) override {
+    bool fire = false;
+    {
+      std::lock_guard lock(mutex_);
+      fire = armed_.erase(id) > 0;
+    }
+    if (fire && on_claim) on_claim(id);
+    return inner_.GetJob(id);
+  }
+  std::optional<std::string> GetScene(std::int64_t id) override { return inner_.GetScene(id); }
+  JobPage ListJobs(const JobFilter& filter) override { return inner_.ListJobs(filter); }
+  std::vector<JobRecord> UnfinishedJobs() override { return inner_.UnfinishedJobs(); }
+  int CountQueued() override { return inner_.CountQueued(); }
+  void MarkRunning(std::int64_t id, double started_at) override {
+    inner_.MarkRunning(id, started_at);
+  }
+  void SaveProgress(std::int64_t id, const ProgressBatch& batch) override {
+    inner_.SaveProgress(id, batch);
+  }
+  void MarkFinished(std::int64_t id, JobState state, const std::string& error,
+                    const std::string& result_json, std::optional<bool> exact,
+                    double finished_at) override {
+    {
+      std::lock_guard lock(mutex_);
+      finishes_[id].push_back(state);
+    }
+    inner_.MarkFinished(id, state, error, result_json, exact, finished_at);
+  }
+  std::optional<std::string> GetResult(std::int64_t id) override { return inner_.GetResult(id); }
+  std::vector<TraceRow> GetTrace(std::int64_t id, int after, int limit) override {
+    return inner_.GetTrace(id, after, limit);
+  }
+  std::vector<Improvement> GetImprovements(std::int64_t id) override {
+    return inner_.GetImprovements(id);
+  }
+  std::optional<std::string> GetCheckpoint(std::int64_t id) override {
+    return inner_.GetCheckpoint(id);
+  }
+  void RewindTo(std::int64_t id, int generation) override { inner_.RewindTo(id, generation); }
+  bool DeleteJob(std::int64_t id) override { return inner_.DeleteJob(id); }
+
+ private:
+  JobStore& inner_;
+  std::mutex mutex_;
+  std::set<std::int64_t> armed_;
+  std::map<std::int64_t, std::vector<JobState>> finishes_;
+};
+
+// The notifications of watched jobs, from any thread.
+class Notifications {
+ public:
+  Scheduler::Listener For(std::int64_t id) {
+    return [this, id](const Json& n) {
+      std::lock_guard lock(mutex_);
+      by_job_[id].push_back(n);
+      changed_.notify_all();
+    };
+  }
+  // Waits at most kBound for a job.finished of every job of `ids`.
+  bool WaitFinished(const std::vector<std::int64_t>& ids) {
+    std::unique_lock lock(mutex_);
+    return changed_.wait_for(lock, kBound, [&] {
+      return std::all_of(ids.begin(), ids.end(),
+                         [&](std::int64_t id) { return !OfLocked(id, "job.finished").empty(); });
+    });
+  }
+  std::vector<Json> Of(std::int64_t id, const std::string& method) {
+    std::lock_guard lock(mutex_);
+    return OfLocked(id, method);
+  }
+
+ private:
+  std::vector<Json> OfLocked(std::int64_t id, const std::string& method) const {
+    std::vector<Json> out;
+    const auto it = by_job_.find(id);
+    if (it == by_job_.end()) return out;
+    for (const Json& n : it->second) {
+      if (n.at("method").get<std::string>() == method) out.push_back(n);
+    }
+    return out;
+  }
+
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::map<std::int64_t, std::vector<Json>> by_job_;
+};
+
+// The value of a future within kBound; a deadlock aborts the test program (a failure) rather
+// than blocking it forever.
+template <typename T>
+T GetWithin(std::future<T>& future, const char* what) {
+  if (future.wait_for(kBound) != std::future_status::ready) {
+    std::fprintf(stderr, "%s: no answer within %lld s: aborting\n", what,
+                 static_cast<long long>(kBound.count()));
+    std::abort();
+  }
+  return future.get();
+}
+
+class SchedulerTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("springfit-scheduler-" +
+            std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "-" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::remove_all(dir_);
+    std::filesystem::create_directories(dir_);
+    path_ = (dir_ / "jobs.db").string();
+    scene_ = EndlessScene();
+    genes_ = Problem::Build(scene_).gene_count();
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+
+  NewJob Job(const std::string& label, int priority = 0) const {
+    NewJob j;
+    j.record.label = label;
+    j.record.priority = priority;
+    j.record.seed = scene_.search.seed;
+    j.record.scene_name = scene_.name;
+    j.record.genes = genes_;
+    j.record.strategy = "paper";
+    j.record.max_generations = scene_.search.max_generations;
+    j.record.created_at = 1.7e9;
+    j.scene_json = proto::SceneToJson(scene_).dump();
+    return j;
+  }
+
+  static SchedulerOptions Options(int max_running) {
+    SchedulerOptions o;
+    o.workers = 2;
+    o.max_running = max_running;
+    return o;
+  }
+
+  // The job's one job.finished notification, with state "cancelled".
+  static void ExpectFinishedOnceCancelled(Notifications& inbox, std::int64_t id) {
+    const std::vector<Json> finished = inbox.Of(id, "job.finished");
+    ASSERT_EQ(finished.size(), 1u) << "job " << id;
+    EXPECT_EQ(finished[0].at("params").at("state").get<std::string>(), "cancelled") << "job " << id;
+    EXPECT_EQ(finished[0].at("params").at("job_id").get<std::int64_t>(), id);
+  }
+
+  // Nothing queued or running, in the store and in the scheduler.
+  static void ExpectNothingLeft(SqliteStore& store, Scheduler& scheduler,
+                                const std::vector<std::int64_t>& ids) {
+    EXPECT_EQ(store.CountQueued(), 0);
+    EXPECT_TRUE(store.UnfinishedJobs().empty());
+    EXPECT_EQ(scheduler.running(), 0);
+    EXPECT_EQ(scheduler.queued(), 0);
+    for (const std::int64_t id : ids) {
+      EXPECT_FALSE(scheduler.IsActive(id)) << "job " << id;
+      EXPECT_EQ(scheduler.Cancel(id), Scheduler::CancelOutcome::kNotActive) << "job " << id;
+    }
+  }
+
+  std::filesystem::path dir_;
+  std::string path_;
+  Scene scene_;
+  int genes_ = 0;
+};
+
+TEST_F(SchedulerTest, AJobCancelledAsARunnerClaimsItEndsCancelledAtGenerationZero) {
+  SqliteStore sqlite(path_);
+  HookedStore store(sqlite);
+  const std::int64_t id = sqlite.CreateJob(Job("claimed")).job.id;
+  store.Arm(id);
+  // Declared before the scheduler, which calls into them until it is destroyed.
+  Notifications inbox;
+  std::atomic<int> outcome{-1};
+  Scheduler scheduler(store, Options(1));
+  scheduler.Watch(id, inbox.For(id));
+  store.on_claim = [&](std::int64_t claimed) {
+    // The runner has taken the job off the queue and has not read it yet.
+    outcome.store(static_cast<int>(scheduler.Cancel(claimed)));
+  };
+  scheduler.Start();
+  ASSERT_TRUE(inbox.WaitFinished({id})) << "no job.finished within 60 s";
+  ASSERT_TRUE(scheduler.Stop(std::chrono::seconds(30)));
+
+  // The cancel found the job claimed (running, not queued): the runner must see the flag.
+  EXPECT_EQ(outcome.load(), static_cast<int>(Scheduler::CancelOutcome::kCancelling));
+  const std::optional<JobRecord> job = sqlite.GetJob(id);
+  ASSERT_TRUE(job);
+  EXPECT_EQ(job->state, JobState::kCancelled) << proto::JobStateName(job->state);
+  EXPECT_GT(job->started_at, 0.0);  // it was claimed, so it started...
+  EXPECT_GT(job->finished_at, 0.0);
+  EXPECT_EQ(store.Finishes(id), std::vector<JobState>{JobState::kCancelled});
+  ExpectFinishedOnceCancelled(inbox, id);
+  // ... and stopped at its first look at the flag: at the end of the initial population (or
+  // before it, on a machine so loaded that the progress beat due a second into the run came
+  // first). Either way no generation was bred.
+  const std::optional<std::string> result = sqlite.GetResult(id);
+  ASSERT_TRUE(result);
+  const Json r = proto::ParseJson(*result);
+  EXPECT_EQ(r.at("stop").get<std::string>(), "cancelled");
+  EXPECT_EQ(r.at("generations").get<int>(), 0);
+  EXPECT_EQ(r.at("job_id").get<std::int64_t>(), id);
+  const std::vector<TraceRow> trace = sqlite.GetTrace(id, -1, 100);
+  ASSERT_LE(trace.size(), 1u);
+  if (!trace.empty()) {
+    EXPECT_EQ(trace[0].generation, 0);  // a cancelled job's last row is kept
+  }
+  // Generation 0 was announced if it was reached, and its wire form reads back as a row.
+  const std::vector<Json> progress = inbox.Of(id, "job.progress");
+  ASSERT_EQ(progress.size(), trace.size());
+  for (const Json& n : progress) {
+    Json row = proto::ParseJson(proto::rpc::Serialize(n)).at("params");
+    EXPECT_EQ(row.at("job_id").get<std::int64_t>(), id);
+    row.erase("job_id");
+    row.erase("max_generations");
+    EXPECT_EQ(proto::TraceRowFromJson(row, "params").generation, 0);
+  }
+  ExpectNothingLeft(sqlite, scheduler, {id});
+}
+
+TEST_F(SchedulerTest, AJobCancelledWhileQueuedIsNeverClaimed) {
+  SqliteStore sqlite(path_);
+  HookedStore store(sqlite);
+  // `first` would be claimed first (higher priority) if it were still queued.
+  const JobRecord first = sqlite.CreateJob(Job("first", 5)).job;
+  const std::int64_t second = sqlite.CreateJob(Job("second", 0)).job.id;
+  Notifications inbox;
+  std::mutex claimed_mutex;
+  std::vector<std::int64_t> claimed;
+  Scheduler scheduler(store, Options(1));
+  scheduler.Watch(first.id, inbox.For(first.id));
+  scheduler.Watch(second, inbox.For(second));
+  scheduler.Enqueue(first);
+  EXPECT_EQ(scheduler.Cancel(first.id), Scheduler::CancelOutcome::kCancelled);
+  EXPECT_EQ(sqlite.GetJob(first.id)->state, JobState::kCancelled);
+  ExpectFinishedOnceCancelled(inbox, first.id);
+
+  // Armed only now: Cancel() itself reads the job to announce it.
+  store.Arm(first.id);
+  store.Arm(second);
+  store.on_claim = [&](std::int64_t id) {
+    {
+      std::lock_guard lock(claimed_mutex);
+      claimed.push_back(id);
+    }
+    if (id == second) scheduler.Cancel(id);
+  };
+  scheduler.Start();
+  ASSERT_TRUE(inbox.WaitFinished({second})) << "no job.finished within 60 s";
+  ASSERT_TRUE(scheduler.Stop(std::chrono::seconds(30)));
+
+  {
+    std::lock_guard lock(claimed_mutex);
+    EXPECT_EQ(claimed, std::vector<std::int64_t>{second}) << "the cancelled job was claimed";
+  }
+  const std::optional<JobRecord> never = sqlite.GetJob(first.id);
+  ASSERT_TRUE(never);
+  EXPECT_EQ(never->state, JobState::kCancelled);
+  EXPECT_EQ(never->started_at, 0.0);
+  EXPECT_FALSE(sqlite.GetResult(first.id));
+  EXPECT_TRUE(sqlite.GetTrace(first.id, -1, 100).empty());
+  EXPECT_EQ(store.Finishes(first.id), std::vector<JobState>{JobState::kCancelled});
+  ExpectFinishedOnceCancelled(inbox, first.id);
+  EXPECT_TRUE(inbox.Of(first.id, "job.progress").empty());
+
+  EXPECT_EQ(sqlite.GetJob(second)->state, JobState::kCancelled);
+  EXPECT_EQ(store.Finishes(second), std::vector<JobState>{JobState::kCancelled});
+  ExpectFinishedOnceCancelled(inbox, second);
+  ExpectNothingLeft(sqlite, scheduler, {first.id, second});
+}
+
+// The race for real: 30 endless jobs, 3 runners claiming from the moment Start() returns, and
+// two threads cancelling every job, one in submission order and one in reverse. Where each
+// cancel lands (queued, claimed, running, finished) is up to the threads; whatever it is, the
+// end must be consistent.
+TEST_F(SchedulerTest, JobsCancelledWhileRunnersClaimThemAllEndCancelledExactlyOnce) {
+  constexpr int kJobs = 30;
+  SqliteStore sqlite(path_);
+  HookedStore store(sqlite);
+  std::vector<std::int64_t> ids;
+  for (int i = 0; i < kJobs; ++i)
+    ids.push_back(sqlite.CreateJob(Job("race-" + std::to_string(i))).job.id);
+  Notifications inbox;
+  Scheduler scheduler(store, Options(3));
+  for (const std::int64_t id : ids) scheduler.Watch(id, inbox.For(id));
+
+  using Outcomes = std::vector<Scheduler::CancelOutcome>;
+  scheduler.Start();  // queues every job and starts the runners
+  auto forward = std::async(std::launch::async, [&] {
+    Outcomes out;
+    for (const std::int64_t id : ids) out.push_back(scheduler.Cancel(id));
+    return out;
+  });
+  auto backward = std::async(std::launch::async, [&] {
+    Outcomes out;
+    for (auto it = ids.rbegin(); it != ids.rend(); ++it) out.push_back(scheduler.Cancel(*it));
+    std::reverse(out.begin(), out.end());  // in submission order, like `forward`'s
+    return out;
+  });
+  const Outcomes by_forward = GetWithin(forward, "cancelling in submission order");
+  const Outcomes by_backward = GetWithin(backward, "cancelling in reverse order");
+  ASSERT_TRUE(inbox.WaitFinished(ids)) << "some job did not finish within 60 s";
+  ASSERT_TRUE(scheduler.Stop(std::chrono::seconds(30)));
+
+  using Outcome = Scheduler::CancelOutcome;
+  int cancelled_queued = 0;
+  int cancelled_running = 0;
+  for (int i = 0; i < kJobs; ++i) {
+    const std::int64_t id = ids[i];
+    SCOPED_TRACE("job " + std::to_string(id));
+    const Outcome a = by_forward[i];
+    const Outcome b = by_backward[i];
+    // A job is queued or running until cancelled, so the first cancel always finds it active;
+    // and only one cancel can take it off the queue.
+    EXPECT_TRUE(a != Outcome::kNotActive || b != Outcome::kNotActive);
+    EXPECT_FALSE(a == Outcome::kCancelled && b == Outcome::kCancelled);
+
+    const std::optional<JobRecord> job = sqlite.GetJob(id);
+    ASSERT_TRUE(job);
+    EXPECT_EQ(job->state, JobState::kCancelled) << proto::JobStateName(job->state);
+    EXPECT_EQ(store.Finishes(id), std::vector<JobState>{JobState::kCancelled});
+    ExpectFinishedOnceCancelled(inbox, id);
+    const std::optional<std::string> result = sqlite.GetResult(id);
+    if (a == Outcome::kCancelled || b == Outcome::kCancelled) {
+      // Taken off the queue: no runner ever had it.
+      ++cancelled_queued;
+      EXPECT_EQ(job->started_at, 0.0);
+      EXPECT_FALSE(result);
+      EXPECT_TRUE(sqlite.GetTrace(id, -1, 100).empty());
+      EXPECT_TRUE(inbox.Of(id, "job.progress").empty());
+    } else {
+      // Claimed: it ran, and stopped early with its best so far. Its stored rows and its
+      // announcements agree: both empty only when stopped before generation 0 ended.
+      ++cancelled_running;
+      EXPECT_GT(job->started_at, 0.0);
+      ASSERT_TRUE(result);
+      EXPECT_EQ(proto::ParseJson(*result).at("stop").get<std::string>(), "cancelled");
+      EXPECT_EQ(sqlite.GetTrace(id, -1, 100).empty(), inbox.Of(id, "job.progress").empty());
+    }
+  }
+  EXPECT_EQ(cancelled_queued + cancelled_running, kJobs);
+  std::printf("%d jobs cancelled while queued, %d while claimed or running\n", cancelled_queued,
+              cancelled_running);
+
+  // The store's counts add up: every job cancelled, none in any other state.
+  for (const JobState state : {JobState::kQueued, JobState::kRunning, JobState::kSucceeded,
+                               JobState::kFailed, JobState::kCancelled}) {
+    JobFilter filter;
+    filter.state = state;
+    filter.limit = 1000;
+    EXPECT_EQ(sqlite.ListJobs(filter).jobs.size(),
+              state == JobState::kCancelled ? static_cast<std::size_t>(kJobs) : 0u)
+        << proto::JobStateName(state);
+  }
+  ExpectNothingLeft(sqlite, scheduler, ids);
+}
+
+}  // namespace
+}  // namespace springfit::server
