@@ -1,0 +1,175 @@
+// Control of a run in every phase (engine/interruption.h, engine/identification/run_monitor.h):
+// beats name their phase, a refused beat or the time limit stops the analysis, the direct
+// phase and a first population midway, and the result says what, if anything, was found.
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <future>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "engine/direct/direct_identification.h"
+#include "engine/examples/catalog.h"
+#include "engine/identification/strategy.h"
+#include "engine/interruption.h"
+#include "engine/search/worker_pool.h"
+
+namespace springfit {
+namespace {
+
+TEST(Interruption, PollsOnItsOwnThreadWhenDueAndStaysRequested) {
+  int polls = 0;
+  bool answer = false;
+  Interruption every_time([&] { return ++polls, answer; }, 0.0);
+  EXPECT_FALSE(every_time.Check());
+  EXPECT_FALSE(every_time.Check());
+  EXPECT_EQ(polls, 2);
+  // Another thread only reads the flag: the poll (a caller's callback) never runs there.
+  std::async(std::launch::async, [&] { EXPECT_FALSE(every_time.Check()); }).get();
+  EXPECT_EQ(polls, 2);
+  answer = true;
+  EXPECT_TRUE(every_time.Check());
+  answer = false;
+  EXPECT_TRUE(every_time.Check());  // once requested, stays so, without polling again
+  EXPECT_EQ(polls, 3);
+  std::async(std::launch::async, [&] { EXPECT_TRUE(every_time.Check()); }).get();
+
+  // Not due yet: no poll within the period, nor after Postpone().
+  int hourly_polls = 0;
+  Interruption hourly([&] { return ++hourly_polls, true; }, 3600.0);
+  EXPECT_FALSE(hourly.Check());
+  hourly.Postpone();
+  EXPECT_FALSE(hourly.Check());
+  EXPECT_EQ(hourly_polls, 0);
+  hourly.Request();
+  EXPECT_TRUE(hourly.Check());
+  EXPECT_THROW(ThrowIfInterrupted(&hourly), Interrupted);
+  EXPECT_NO_THROW(ThrowIfInterrupted(nullptr));
+}
+
+TEST(WorkerPool, TheWaitingCallerKeepsCheckingWhileAPoolThreadWorks) {
+  WorkerPool pool(2);
+  std::atomic<bool> pool_started{false};
+  std::atomic<bool> release{false};
+  std::atomic<int> checks{0};
+  const auto wait_for = [](const std::atomic<bool>& flag) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (!flag && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  };
+  // The caller's slot waits until a pool thread holds the other one; that one blocks until
+  // the caller, waiting for it, has checked three times. Without the waiting callback the
+  // caller would sleep until the slot ended: 30 s, then the expectations fail.
+  auto run = std::async(std::launch::async, [&] {
+    const std::thread::id caller = std::this_thread::get_id();
+    pool.Run(
+        2,
+        [&](int) {
+          if (std::this_thread::get_id() == caller) {
+            wait_for(pool_started);
+          } else {
+            pool_started = true;
+            wait_for(release);
+          }
+        },
+        [&] {
+          if (++checks >= 3) release = true;
+        });
+  });
+  ASSERT_EQ(run.wait_for(std::chrono::seconds(90)), std::future_status::ready);
+  run.get();
+  EXPECT_TRUE(pool_started.load());
+  EXPECT_GE(checks.load(), 3);
+  EXPECT_TRUE(release.load());
+}
+
+// Refuses the first beat of `phase` and records every beat's phase.
+struct StopAtPhase {
+  std::string phase;
+  std::vector<std::string> seen;
+  RunContext Context() {
+    RunContext c;
+    c.beat_seconds = 0.0;  // every check polls
+    c.on_beat = [this](const ProgressBeat& beat) {
+      seen.emplace_back(beat.phase);
+      return beat.phase != phase;
+    };
+    return c;
+  }
+};
+
+SearchOptions Resolved(const Problem& p, Strategy strategy) {
+  SearchSettings s = p.scene().search;
+  s.strategy = strategy;
+  return ResolveSearchOptions(s, p.gene_count());
+}
+
+TEST(RunControl, StoppingTheDirectPhaseReturnsNoModel) {
+  const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
+  StopAtPhase stop{"direct", {}};
+  const IdentificationResult r =
+      RunIdentification(p, Resolved(p, Strategy::kDirect), stop.Context());
+  ASSERT_FALSE(stop.seen.empty());
+  EXPECT_EQ(stop.seen.back(), "direct");
+  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  EXPECT_TRUE(r.trace.empty());
+  EXPECT_EQ(std::count(r.best.begin(), r.best.end(), 1), 0);
+  EXPECT_EQ(static_cast<int>(r.best.size()), p.gene_count());
+  EXPECT_TRUE(r.evaluation.mechanism);  // the empty topology, evaluated
+  EXPECT_NE(r.stop_message.find("before any model"), std::string::npos) << r.stop_message;
+}
+
+TEST(RunControl, StoppingTheFirstPopulationKeepsTheDirectSeed) {
+  const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
+  StopAtPhase stop{"genetic", {}};
+  const IdentificationResult r =
+      RunIdentification(p, Resolved(p, Strategy::kDefault), stop.Context());
+  ASSERT_FALSE(stop.seen.empty());
+  EXPECT_EQ(stop.seen.front(), "direct");  // the direct phase beat first
+  EXPECT_EQ(stop.seen.back(), "genetic");
+  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  EXPECT_TRUE(r.trace.empty());
+  ASSERT_TRUE(r.direct_phase);
+  DirectOptions topology_only;
+  topology_only.known_stiffness = p.training_stiffness();
+  EXPECT_EQ(r.best, IdentifyDirect(p, topology_only).genome);
+  EXPECT_EQ(r.evaluation.normalized_error, r.direct_phase->normalized_error);
+  EXPECT_NE(r.stop_message.find("direct phase's topology is kept"), std::string::npos)
+      << r.stop_message;
+}
+
+TEST(RunControl, TheTimeLimitStopsInsideTheDirectPhase) {
+  const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
+  SearchOptions o = Resolved(p, Strategy::kDirect);
+  o.max_seconds = 1e-9;
+  RunContext c;
+  c.beat_seconds = 0.0;
+  const IdentificationResult r = RunIdentification(p, o, c);
+  EXPECT_EQ(r.stop, StopReason::kTimeLimit);
+  EXPECT_TRUE(r.trace.empty());
+  EXPECT_NE(r.stop_message.find("time limit"), std::string::npos) << r.stop_message;
+  // Without a limit the same run completes with its one row.
+  o.max_seconds = 0.0;
+  const IdentificationResult whole = RunIdentification(p, o, c);
+  EXPECT_NE(whole.stop, StopReason::kTimeLimit);
+  EXPECT_EQ(whole.trace.size(), 1u);
+}
+
+TEST(RunControl, TheFemBaselineIsStoppableBeforeTheRun) {
+  const Problem p = Problem::Build(examples::Make("fem-plate-5x5"));
+  StopAtPhase stop{"analysis", {}};
+  const IdentificationResult r =
+      RunIdentification(p, Resolved(p, Strategy::kDefault), stop.Context());
+  ASSERT_EQ(stop.seen.size(), 1u);
+  EXPECT_EQ(stop.seen.front(), "analysis");
+  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  EXPECT_FALSE(r.baseline);  // stopped while evaluating it
+  EXPECT_FALSE(r.direct_phase);
+  EXPECT_TRUE(r.trace.empty());
+}
+
+}  // namespace
+}  // namespace springfit
