@@ -5,8 +5,9 @@ SIGINT sent mid-run; and for the daemon, how long a running job takes to end aft
 
 usage: bench/control_latency.py BUILD_DIR SCENE... [--after SECONDS]
 
-Times are wall seconds on this machine, one run each. The first progress line counts from the
-start of the process (scene reading and the reference's preparation included)."""
+Times are wall seconds on this machine, one run each. The first progress line (a generation's
+line, or a beat of the analysis or direct phase) counts from the start of the process (scene
+reading and the reference's preparation included)."""
 import argparse
 import json
 import os
@@ -30,7 +31,7 @@ def first_line_and_interrupt(springfit, scene, after):
             break
         chunk = proc.stderr.read() or b""
         buf += chunk
-        if first is None and re.search(rb"generation \d+/", buf):
+        if first is None and re.search(rb"generation \d+/|[a-z]+ phase ", buf):
             first = time.monotonic() - start
         time.sleep(0.005)
     if proc.poll() is not None:

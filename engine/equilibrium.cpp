@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 
+#include "engine/options_check.h"
+
 namespace springfit {
 namespace {
 
@@ -37,12 +39,23 @@ FreeNodes FreeNodes::FromConstrained(const std::vector<bool>& constrained) {
   return f;
 }
 
+void EquilibriumOptions::Validate() const {
+  const OptionsCheck check("EquilibriumOptions");
+  CheckNewtonSettings(check, *this);
+  check.Require(max_step > 0.0 && std::isfinite(max_step), "max_step", max_step,
+                "0 < value < infinity");
+  check.Require(mechanism_shift > 0.0 && mechanism_shift < pivot_tolerance, "mechanism_shift",
+                mechanism_shift, "0 < value < pivot_tolerance");
+  check.Require(banded_max_dofs >= 0, "banded_max_dofs", banded_max_dofs, "value >= 0");
+}
+
 EquilibriumSolver::EquilibriumSolver(const SpringGeometry& geometry, FreeNodes free_nodes,
                                      EquilibriumOptions options)
     : geometry_(&geometry),
       free_(std::move(free_nodes)),
       options_(options),
       dim_(geometry.dimension) {
+  options_.Validate();
   const int d = dim_;
   const int block = d * d;
   const int n = d * free_.count;

@@ -70,6 +70,9 @@ struct EquilibriumOptions {
   // sparse one. On grids numbered row by row the banded one also wins up to 20x20, not on
   // irregular meshes in their mesher's numbering (bench/RESULTS.md, solve section).
   int banded_max_dofs = 96;
+
+  // Throws std::invalid_argument naming the field, its value and the rule it breaks.
+  void Validate() const;
 };
 
 struct EquilibriumSummary {

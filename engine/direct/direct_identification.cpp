@@ -7,6 +7,7 @@
 
 #include "engine/direct/scale_pinning.h"
 #include "engine/direct/weight_uncertainty.h"
+#include "engine/options_check.h"
 
 namespace springfit {
 namespace {
@@ -172,8 +173,28 @@ class WeightReader {
 
 }  // namespace
 
+void DirectOptions::Validate() const {
+  const OptionsCheck check("DirectOptions");
+  check.Require(InOpenUnit(relative_threshold), "relative_threshold", relative_threshold,
+                "0 < value < 1");
+  check.Require(significance >= 0.0 && std::isfinite(significance), "significance", significance,
+                "0 <= value < infinity");
+  check.Require(uncertainty_max_genes >= 0, "uncertainty_max_genes", uncertainty_max_genes,
+                "value >= 0");
+  check.Require(InOpenUnit(exact_data_residual), "exact_data_residual", exact_data_residual,
+                "0 < value < 1");
+  check.Require(InOpenUnit(unseen_strain), "unseen_strain", unseen_strain, "0 < value < 1");
+  if (known_stiffness) {
+    check.Require(*known_stiffness > 0.0 && std::isfinite(*known_stiffness), "known_stiffness",
+                  *known_stiffness, "0 < value < infinity");
+  }
+  refinement.Validate(check.Nested("refinement"));
+  nnls.Validate(check.Nested("nnls"));
+}
+
 DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options,
                             Interruption* interruption) {
+  options.Validate();
   DirectResult r;
   auto start = std::chrono::steady_clock::now();
   const ForceBalance fb = AssembleForceBalance(problem);

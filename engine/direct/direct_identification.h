@@ -62,6 +62,9 @@ struct DirectOptions {
   std::optional<double> known_stiffness;
   bool carry_loads = true;  // add springs back until the model carries every load case
   NnlsOptions nnls;
+
+  // Throws std::invalid_argument naming the field (nested ones too), its value and the rule.
+  void Validate() const;
 };
 
 struct DirectResult {

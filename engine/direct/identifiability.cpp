@@ -9,6 +9,8 @@
 #include "engine/direct/force_balance.h"
 #include "engine/equilibrium.h"
 
+#include "engine/options_check.h"
+
 namespace springfit {
 namespace {
 
@@ -123,8 +125,19 @@ std::optional<LoadSuggestion> SuggestLoad(const Problem& problem,
 
 }  // namespace
 
+void IdentifiabilityOptions::Validate() const {
+  const OptionsCheck check("IdentifiabilityOptions");
+  check.Require(InOpenUnit(rank_tolerance), "rank_tolerance", rank_tolerance, "0 < value < 1");
+  check.Require(InOpenUnit(circuit_tolerance), "circuit_tolerance", circuit_tolerance,
+                "0 < value < 1");
+  check.Require(InOpenUnit(unseen_strain), "unseen_strain", unseen_strain, "0 < value < 1");
+  check.Require(max_genes >= 0, "max_genes", max_genes, "value >= 0");
+  check.Require(max_suggestion_size >= 0, "max_suggestion_size", max_suggestion_size, "value >= 0");
+}
+
 IdentifiabilityReport AnalyseIdentifiability(const Problem& problem,
                                              const IdentifiabilityOptions& options) {
+  options.Validate();
   IdentifiabilityReport report;
   for (const int c : problem.unidentifiable())
     report.unidentifiable.push_back(problem.candidates().pairs[c]);

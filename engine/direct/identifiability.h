@@ -37,6 +37,9 @@ struct IdentifiabilityOptions {
   // A group gets a suggestion when its springs times its dependencies stay below this: each
   // trial load multiplies a block of that size (a one-load-case 30x30 grid would take minutes).
   int max_suggestion_size = 5000;
+
+  // Throws std::invalid_argument naming the field, its value and the rule it breaks.
+  void Validate() const;
 };
 
 struct LoadSuggestion {

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "engine/options_check.h"
+
 namespace springfit {
 namespace {
 
@@ -178,8 +180,19 @@ NnlsResult Pivot(const MatrixType& as, const Vector& b, const Vector& scale,
 
 }  // namespace
 
+void NnlsOptions::Validate(const std::string& owner) const {
+  const OptionsCheck check(owner);
+  check.Require(max_iterations >= 0, "max_iterations", max_iterations, "value >= 0 (0: 10 + 3n)");
+  check.Require(InOpenUnit(tolerance), "tolerance", tolerance, "0 < value < 1");
+  check.Require(refinement_steps >= 0 && refinement_steps <= 100, "refinement_steps",
+                refinement_steps, "0 <= value <= 100");
+  check.Require(full_exchange_budget >= 0, "full_exchange_budget", full_exchange_budget,
+                "value >= 0");
+}
+
 NnlsResult SolveNnls(const SparseMatrix& a, const Vector& b, const std::vector<bool>& usable,
                      const NnlsOptions& options, Interruption* interruption) {
+  options.Validate();
   const Vector scale = UnitColumnScale(a, usable);
   const SparseMatrix as = a * scale.asDiagonal();
   return Pivot(as, b, scale, options, interruption,
@@ -190,6 +203,7 @@ NnlsResult SolveNnls(const SparseMatrix& a, const Vector& b, const std::vector<b
 
 NnlsResult SolveDenseNnls(const Matrix& a, const Vector& b, const std::vector<bool>& usable,
                           const NnlsOptions& options) {
+  options.Validate();
   const Vector scale = UnitColumnScale(a, usable);
   const Matrix as = a * scale.asDiagonal();
   const Matrix normal = as.transpose() * as;

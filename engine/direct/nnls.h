@@ -13,6 +13,7 @@
 // (Eigen's SimplicialLDLT, AMD ordering), then iterative refinement on the residual, which
 // recovers the accuracy the normal equations' squared condition number costs.
 #pragma once
+#include <string>
 #include <vector>
 
 #include "engine/direct/force_balance.h"
@@ -32,6 +33,10 @@ struct NnlsOptions {
   int refinement_steps = 2;
   // Rounds of exchanging whole violating sets before falling back to single exchanges.
   int full_exchange_budget = 3;
+
+  // Throws std::invalid_argument naming the field, its value and the rule it breaks; `owner`
+  // names the struct holding these options, if any.
+  void Validate(const std::string& owner = "NnlsOptions") const;
 };
 
 struct NnlsResult {

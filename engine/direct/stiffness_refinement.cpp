@@ -6,6 +6,8 @@
 #include "engine/direct/force_balance.h"
 #include "engine/direct/nnls.h"
 
+#include "engine/options_check.h"
+
 namespace springfit {
 namespace {
 
@@ -61,9 +63,20 @@ bool Jacobian(const Problem& problem, const std::vector<double>& w,
 
 }  // namespace
 
+void RefinementOptions::Validate(const std::string& owner) const {
+  const OptionsCheck check(owner);
+  check.Require(max_iterations >= 0, "max_iterations", max_iterations, "value >= 0");
+  check.Require(InOpenUnit(relative_tolerance), "relative_tolerance", relative_tolerance,
+                "0 < value < 1");
+  check.Require(initial_damping > 0.0 && std::isfinite(initial_damping), "initial_damping",
+                initial_damping, "0 < value < infinity");
+  check.Require(max_genes >= 0, "max_genes", max_genes, "value >= 0");
+}
+
 RefinementResult RefineWeights(const Problem& problem, const std::vector<double>& start,
                                const std::vector<bool>& usable, const RefinementOptions& options,
                                Interruption* interruption) {
+  options.Validate();
   RefinementResult result;
   result.weights = start;
   const int genes = problem.gene_count();

@@ -12,6 +12,7 @@
 // solved by SolveDenseNnls, and accepted when f decreases. A weight that reaches 0 has left the
 // model; one whose gradient points back in returns.
 #pragma once
+#include <string>
 #include <vector>
 
 #include "engine/cost.h"
@@ -29,6 +30,9 @@ struct RefinementOptions {
   // paper-aniso-5x5 (72 genes), 0.7 s on grid3d-4x4x4 (465), 1.9 s on kidney-2d (461, 15
   // steps); larger scenes keep the force-balance weights.
   int max_genes = 1000;
+
+  // Throws std::invalid_argument naming the field, its value and the rule it breaks.
+  void Validate(const std::string& owner = "RefinementOptions") const;
 };
 
 struct RefinementResult {

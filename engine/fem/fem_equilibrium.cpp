@@ -5,6 +5,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "engine/options_check.h"
+
 namespace springfit::fem {
 namespace {
 
@@ -29,27 +31,12 @@ std::string Fraction(double f) {
 }  // namespace
 
 void FemSolverOptions::Validate() const {
-  auto fail = [](const std::string& field, double value, const std::string& rule) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%.17g", value);
-    throw std::invalid_argument("FemSolverOptions::" + field + " = " + buf +
-                                ". Violated constraint: " + rule);
-  };
-  if (!(relative_force_tolerance > 0.0 && relative_force_tolerance < 1.0)) {
-    fail("relative_force_tolerance", relative_force_tolerance, "0 < value < 1");
-  }
-  if (!(roundoff_force_tolerance > 0.0 && roundoff_force_tolerance < 1.0)) {
-    fail("roundoff_force_tolerance", roundoff_force_tolerance, "0 < value < 1");
-  }
-  if (max_iterations < 1) fail("max_iterations", max_iterations, "value >= 1");
-  if (max_line_search_steps < 1) fail("max_line_search_steps", max_line_search_steps, "value >= 1");
-  if (!(armijo > 0.0 && armijo < 0.5)) fail("armijo", armijo, "0 < value < 0.5");
-  if (max_load_cuts < 0 || max_load_cuts > 40)
-    fail("max_load_cuts", max_load_cuts, "0 <= value <= 40");
-  if (max_load_steps < 1) fail("max_load_steps", max_load_steps, "value >= 1");
-  if (!(pivot_tolerance > 0.0 && pivot_tolerance < 1.0))
-    fail("pivot_tolerance", pivot_tolerance, "0 < value < 1");
-  if (supernodal_min_dofs < 0) fail("supernodal_min_dofs", supernodal_min_dofs, "value >= 0");
+  const OptionsCheck check("FemSolverOptions");
+  CheckNewtonSettings(check, *this);
+  check.Require(max_load_cuts >= 0 && max_load_cuts <= 40, "max_load_cuts", max_load_cuts,
+                "0 <= value <= 40");
+  check.Require(max_load_steps >= 1, "max_load_steps", max_load_steps, "value >= 1");
+  check.Require(supernodal_min_dofs >= 0, "supernodal_min_dofs", supernodal_min_dofs, "value >= 0");
 }
 
 FemEquilibriumSolver::FemEquilibriumSolver(const FemModel& model, FreeNodes free_nodes,

@@ -17,19 +17,9 @@ GeneticSearch::GeneticSearch(const Problem& problem, SearchOptions options,
       evaluator_(&evaluator),
       random_(options.seed),
       started_(std::chrono::steady_clock::now()) {
+  options_.Validate();
   if (options_.local_search && options_.local_search_swaps) {
     swap_partners_ = SwapPartners(problem, options_.swap_radius);
-  }
-  if (options_.population < 2)
-    throw std::invalid_argument("GeneticSearch: population must be >= 2");
-  if (options_.elites < 0 || options_.elites >= options_.population) {
-    throw std::invalid_argument("GeneticSearch: elites must be in [0, population)");
-  }
-  if (options_.local_search_batch < 1)
-    throw std::invalid_argument("GeneticSearch: local_search_batch must be >= 1");
-  if (!(options_.roulette_exponent > 0.0 && options_.roulette_exponent <= kMaxRouletteExponent)) {
-    throw std::invalid_argument("GeneticSearch: roulette_exponent must be in (0, " +
-                                std::to_string(static_cast<int>(kMaxRouletteExponent)) + "]");
   }
 }
 

@@ -1,8 +1,45 @@
 #include "engine/search/search_options.h"
 
 #include <algorithm>
+#include <cmath>
+
+#include "engine/options_check.h"
 
 namespace springfit {
+
+void SearchOptions::Validate() const {
+  const OptionsCheck check("SearchOptions");
+  const auto probability = [](double p) { return p >= 0.0 && p <= 1.0; };
+  check.Require(population >= 2, "population", population, "value >= 2");
+  check.Require(max_generations >= 0, "max_generations", max_generations, "value >= 0");
+  check.Require(max_seconds >= 0.0 && std::isfinite(max_seconds), "max_seconds", max_seconds,
+                "0 <= value < infinity (0: no limit)");
+  check.Require(stall_generations >= 0, "stall_generations", stall_generations,
+                "value >= 0 (0: never)");
+  check.Require(target_normalized_error >= 0.0 && std::isfinite(target_normalized_error),
+                "target_normalized_error", target_normalized_error, "0 <= value < infinity");
+  check.Require(tournament_size >= 1 && tournament_size <= population, "tournament_size",
+                tournament_size, "1 <= value <= population");
+  check.Require(roulette_exponent > 0.0 && roulette_exponent <= kMaxRouletteExponent,
+                "roulette_exponent", roulette_exponent, "0 < value <= 10");
+  check.Require(probability(crossover_probability), "crossover_probability", crossover_probability,
+                "0 <= value <= 1");
+  check.Require(probability(mutation_probability), "mutation_probability", mutation_probability,
+                "0 <= value <= 1");
+  check.Require(elites >= 0 && elites < population, "elites", elites, "0 <= value < population");
+  check.Require(probability(initial_density_low), "initial_density_low", initial_density_low,
+                "0 <= value <= 1");
+  check.Require(probability(initial_density_high) && initial_density_high >= initial_density_low,
+                "initial_density_high", initial_density_high, "initial_density_low <= value <= 1");
+  check.Require(local_search_batch >= 1, "local_search_batch", local_search_batch, "value >= 1");
+  check.Require(local_search_max_batches >= 0, "local_search_max_batches", local_search_max_batches,
+                "value >= 0 (0: no limit)");
+  check.Require(swap_radius >= 0.0 && std::isfinite(swap_radius), "swap_radius", swap_radius,
+                "0 <= value < infinity");
+  check.Require(restart_after >= 0, "restart_after", restart_after, "value >= 0 (0: never)");
+  check.Require(cache_capacity >= 1, "cache_capacity", static_cast<double>(cache_capacity),
+                "value >= 1");
+}
 
 SearchOptions StrategyDefaults(Strategy strategy, int genes) {
   SearchOptions o;  // the paper's GA

@@ -98,6 +98,9 @@ struct SearchOptions {
   int restart_after = 0;
 
   std::size_t cache_capacity = FitnessCache::kDefaultCapacity;
+
+  // Throws std::invalid_argument naming the field, its value and the rule it breaks.
+  void Validate() const;
 };
 
 // The strategy's defaults for a genome of `genes` genes.
