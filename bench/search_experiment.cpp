@@ -252,10 +252,10 @@ int Main(int argc, char** argv) {
   for (const std::string& scene : Split(scenes)) {
     const Scene clean = examples::Make(scene);
     const Problem truth = Problem::Build(clean);
-    std::vector<Problem> problems;  // per seed when noisy
+    std::vector<std::unique_ptr<Problem>> problems;  // per seed when noisy
     if (noise > 0.0) {
       for (int s = 1; s <= seeds; ++s) {
-        problems.push_back(Problem::Build(
+        problems.push_back(std::make_unique<Problem>(
             examples::WithMeasurementNoise(clean, noise, static_cast<std::uint64_t>(s))));
       }
     }
@@ -284,7 +284,7 @@ int Main(int argc, char** argv) {
       }
       std::vector<RunRecord> runs;
       for (int s = 1; s <= seeds; ++s) {
-        const Problem& problem = noise > 0.0 ? problems[static_cast<std::size_t>(s - 1)] : truth;
+        const Problem& problem = noise > 0.0 ? *problems[static_cast<std::size_t>(s - 1)] : truth;
         runs.push_back(RunOnce(problem, truth, strategy, static_cast<std::uint64_t>(s), threads,
                                time_limit, variant, topology_only, no_direct_seed));
         std::fprintf(stderr, "%s %s seed %d: exact %d, %d generations, %.3f s, e %.3g\n",
@@ -334,7 +334,7 @@ int Main(int argc, char** argv) {
         for (std::size_t i = 0; i < runs.size(); ++i) {
           if (runs[i].exact) continue;
           ++failed;
-          const Problem& problem = noise > 0.0 ? problems[i] : truth;
+          const Problem& problem = noise > 0.0 ? *problems[i] : truth;
           const Neighbourhood n = ExamineNeighbourhood(problem, runs[i].best);
           std::fprintf(stderr, "%s %s seed %zu: %d improving flips, %d improving pairs\n",
                        scene.c_str(), strategy_name.c_str(), i + 1, n.improving_flips,

@@ -35,7 +35,7 @@ Scene Grid(int dimension, int n) {
 const Problem& CachedProblem(int dimension, int n) {
   static std::map<std::pair<int, int>, std::unique_ptr<Problem>> cache;
   auto& slot = cache[{dimension, n}];
-  if (!slot) slot = std::make_unique<Problem>(Problem::Build(Grid(dimension, n)));
+  if (!slot) slot = std::make_unique<Problem>(Grid(dimension, n));
   return *slot;
 }
 

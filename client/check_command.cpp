@@ -99,7 +99,7 @@ int Check(const std::string& file) {
     std::cout << ")";
   }
   std::cout << "\n";
-  PrintIdentifiability(AnalyseIdentifiability(problem));
+  PrintIdentifiability(Identifiability(problem));
   if (s.reference.kind == Reference::Kind::kMss) {
     std::cout << "reference:              mss, " << s.reference.springs.size() << " springs";
     if (problem.reference_mask()) {

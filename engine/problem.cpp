@@ -72,9 +72,9 @@ void SolveFemReference(const Scene& s, const std::vector<FreeNodes>& free_sets,
 
 }  // namespace
 
-Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
+Problem::Problem(Scene scene, EquilibriumOptions solver_options) {
   ValidateScene(scene);
-  Problem p;
+  Problem& p = *this;
   p.scene_ = std::move(scene);
   p.solver_options_ = solver_options;
   const Scene& s = p.scene_;
@@ -221,7 +221,6 @@ Problem Problem::Build(Scene scene, EquilibriumOptions solver_options) {
   if (!(p.reference_norm2_ > 0.0)) {
     throw InputError("reference", "the reference does not move any free node: nothing to match");
   }
-  return p;
 }
 
 int Problem::CandidateIndex(NodePair pair) const {

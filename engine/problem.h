@@ -14,6 +14,8 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <vector>
 
@@ -22,6 +24,8 @@
 #include "engine/springs.h"
 
 namespace springfit {
+
+struct IdentifiabilityReport;  // engine/direct/identifiability.h
 
 // One bit per gene; 1 = the candidate spring is present.
 using Genome = std::vector<std::uint8_t>;
@@ -51,12 +55,25 @@ struct TopologyDifference {
   int hamming() const { return static_cast<int>(missing.size() + extra.size()); }
 };
 
+// A scene prepared for identification: validated (the one place a scene's rules are checked),
+// its reference's equilibria solved, its candidates and genes laid out. Prepared once per job
+// and shared by everything that reads it, from any number of threads. It cannot be copied or
+// moved: solvers and cost functions keep pointers into it (its candidate geometry), which a
+// move would leave dangling. Keep it where it was built, or behind a pointer.
 class Problem {
  public:
   // Validates `scene` (ValidateScene) and prepares it. Throws InputError when the scene is
   // invalid or its reference MSS has no equilibrium (a mechanism, or no convergence) under
   // some load case.
-  static Problem Build(Scene scene, EquilibriumOptions solver_options = {});
+  explicit Problem(Scene scene, EquilibriumOptions solver_options = {});
+  // The same, for `const Problem p = Problem::Build(scene);` (no copy or move is made).
+  static Problem Build(Scene scene, EquilibriumOptions solver_options = {}) {
+    return Problem(std::move(scene), solver_options);
+  }
+  Problem(const Problem&) = delete;
+  Problem& operator=(const Problem&) = delete;
+  Problem(Problem&&) = delete;
+  Problem& operator=(Problem&&) = delete;
 
   const Scene& scene() const { return scene_; }
   int dimension() const { return scene_.dimension; }
@@ -104,6 +121,8 @@ class Problem {
   bool DisplacementOnly() const;
 
  private:
+  friend const IdentifiabilityReport& Identifiability(const Problem& problem);
+
   Scene scene_;
   EquilibriumOptions solver_options_;
   SpringGeometry candidates_;
@@ -116,6 +135,9 @@ class Problem {
   std::optional<std::vector<std::uint8_t>> reference_mask_;
   std::optional<Genome> reference_genome_;
   std::vector<NodePair> reference_outside_;
+  // Identifiability(): computed on first use, once.
+  mutable std::once_flag identifiability_once_;
+  mutable std::shared_ptr<const IdentifiabilityReport> identifiability_;
 };
 
 }  // namespace springfit

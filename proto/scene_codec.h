@@ -1,5 +1,7 @@
-// The JSON scene format (proto/SCENE.md, proto/scene.schema.json): reading with full
-// validation, and writing only what differs from the defaults.
+// The JSON scene format (proto/SCENE.md, proto/scene.schema.json): reading, and writing only
+// what differs from the defaults. Reading checks the format (types, unknown fields, shapes);
+// the scene's rules (ValidateScene) are checked once, where the scene is prepared
+// (Problem::Build), so that a scene read, stored and run is not validated again at each step.
 #pragma once
 
 #include <string>
@@ -10,8 +12,8 @@
 
 namespace springfit::proto {
 
-// Reads and validates a scene (types, unknown fields, then ValidateScene's rules). Throws
-// InputError naming the JSON path of the first problem.
+// Reads a scene (types, unknown fields, shapes). Throws InputError naming the JSON path of the
+// first problem. The result is valid only once Problem::Build (or ValidateScene) accepts it.
 Scene SceneFromJson(const Json& json);
 Scene SceneFromText(std::string_view text);
 // Reads a file; a file that cannot be read is an InputError with an empty path.

@@ -44,12 +44,16 @@ JobRecord FinishJob(JobStore& store, JobRecord& record, FinishedRun finished) {
 }  // namespace
 
 JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
-                 const JobRunnerOptions& options, const JobControl& control) {
+                 std::shared_ptr<const Problem> prepared, const JobRunnerOptions& options,
+                 const JobControl& control) {
   JobRecord record = job;
   try {
-    const std::optional<std::string> scene = store.GetScene(job.id);
-    if (!scene) throw std::runtime_error("the job's scene is missing from the store");
-    const Problem problem = Problem::Build(proto::SceneFromText(*scene));
+    if (!prepared) {
+      const std::optional<std::string> scene = store.GetScene(job.id);
+      if (!scene) throw std::runtime_error("the job's scene is missing from the store");
+      prepared = std::make_shared<const Problem>(proto::SceneFromText(*scene));
+    }
+    const Problem& problem = *prepared;
     const SearchOptions search_options =
         ResolveSearchOptions(problem.scene().search, problem.gene_count());
     const int genes = problem.gene_count();

@@ -4,7 +4,9 @@
 #pragma once
 #include <atomic>
 #include <functional>
+#include <memory>
 
+#include "engine/problem.h"
 #include "engine/search/worker_pool.h"
 #include "server/job_store.h"
 
@@ -24,7 +26,10 @@ struct JobControl {
 
 // The job's record after the run: finished (succeeded, failed, cancelled), or still running
 // when a shutdown interrupted it (it resumes from its checkpoint at the next start).
+// `prepared`: the job's problem as its submission prepared it, or null to prepare it from the
+// stored scene.
 JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
-                 const JobRunnerOptions& options, const JobControl& control);
+                 std::shared_ptr<const Problem> prepared, const JobRunnerOptions& options,
+                 const JobControl& control);
 
 }  // namespace springfit::server

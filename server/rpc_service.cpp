@@ -270,7 +270,7 @@ Json RpcService::JobSubmit(const Json& params) {
 
   // The scene is validated in full here, so that a bad one is refused at the door rather
   // than failing later as a job.
-  std::optional<Problem> problem;
+  std::shared_ptr<const Problem> problem;
   try {
     Scene scene = proto::SceneFromJson(scene_json);
     if (scene.node_count() > options_.limits.max_nodes) {
@@ -281,7 +281,7 @@ Json RpcService::JobSubmit(const Json& params) {
                     options_.limits.max_generations);
     }
     if (seed) scene.search.seed = *seed;
-    problem = Problem::Build(std::move(scene));
+    problem = std::make_shared<const Problem>(std::move(scene));
   } catch (const InputError& e) {
     Json data;
     data["path"] = e.path();
@@ -307,7 +307,7 @@ Json RpcService::JobSubmit(const Json& params) {
   if (created.created) {
     spdlog::info("job {} queued ({}, label '{}', priority {}, seed {})", created.job.id,
                  r.scene_name, r.label, r.priority, r.seed);
-    scheduler_.Enqueue(created.job);
+    scheduler_.Enqueue(created.job, std::move(problem));
   }
   Json j;
   j["created"] = created.created;

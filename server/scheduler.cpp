@@ -25,12 +25,14 @@ void Scheduler::Start() {
   for (int i = 0; i < n; ++i) runners_.emplace_back([this] { RunnerLoop(); });
 }
 
-void Scheduler::Enqueue(const JobRecord& job) {
+void Scheduler::Enqueue(const JobRecord& job, std::shared_ptr<const Problem> prepared) {
   {
     std::lock_guard lock(mutex_);
     if (queued_priority_.contains(job.id) || running_.contains(job.id)) return;
     queue_.insert({-job.priority, job.id});
     queued_priority_[job.id] = job.priority;
+    if (prepared && static_cast<int>(prepared_.size()) < options_.max_prepared)
+      prepared_[job.id] = std::move(prepared);
   }
   wake_.notify_one();
 }
@@ -46,6 +48,7 @@ Scheduler::CancelOutcome Scheduler::Cancel(std::int64_t id) {
     if (q == queued_priority_.end()) return CancelOutcome::kNotActive;
     queue_.erase({-q->second, id});
     queued_priority_.erase(q);
+    prepared_.erase(id);
   }
   store_.MarkFinished(id, JobState::kCancelled, "", "", std::nullopt, UnixNow());
   spdlog::info("job {} cancelled while queued", id);
@@ -141,6 +144,7 @@ void Scheduler::RunnerLoop() {
   while (true) {
     JobRecord job;
     Running* running = nullptr;
+    std::shared_ptr<const Problem> prepared;
     {
       std::unique_lock lock(mutex_);
       wake_.wait(lock, [this] { return stopping_.load() || !queue_.empty(); });
@@ -148,6 +152,10 @@ void Scheduler::RunnerLoop() {
       const auto [neg_priority, id] = *queue_.begin();
       queue_.erase(queue_.begin());
       queued_priority_.erase(id);
+      if (const auto p = prepared_.find(id); p != prepared_.end()) {
+        prepared = std::move(p->second);
+        prepared_.erase(p);
+      }
       auto slot = std::make_unique<Running>();
       running = slot.get();
       running_[id] = std::move(slot);
@@ -177,7 +185,8 @@ void Scheduler::RunnerLoop() {
       control.on_generation = [&](const TraceRow& row) {
         OnGeneration(job.id, *running, *stored, row);
       };
-      const JobRecord after = RunJob(store_, pool_, *stored, options_.runner, control);
+      const JobRecord after =
+          RunJob(store_, pool_, *stored, std::move(prepared), options_.runner, control);
       if (proto::IsFinal(after.state)) {
         std::optional<JobRecord> final_record;
         try {

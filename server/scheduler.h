@@ -32,6 +32,10 @@ struct SchedulerOptions {
   int max_running = 1;  // jobs run at once
   JobRunnerOptions runner;
   double progress_seconds = 0.25;  // job.progress notifications per job at most this often
+  // Queued jobs whose prepared problem (built when they were submitted) is kept for their run,
+  // so that a job is prepared once; the others (beyond it, after a restart, or queued by
+  // another daemon) are prepared again from their stored scene when they start.
+  int max_prepared = 8;
 };
 
 class Scheduler {
@@ -47,8 +51,8 @@ class Scheduler {
 
   // Queues the store's unfinished jobs (interrupted ones resume) and starts the runners.
   void Start();
-  // Queues a job the store has just created.
-  void Enqueue(const JobRecord& job);
+  // Queues a job the store has just created, with its prepared problem when the caller has it.
+  void Enqueue(const JobRecord& job, std::shared_ptr<const Problem> prepared = nullptr);
 
   enum class CancelOutcome { kCancelled, kCancelling, kNotActive };
   // A queued job is cancelled at once; a running one after its current generation.
@@ -88,6 +92,7 @@ class Scheduler {
   std::condition_variable wake_;
   std::set<std::pair<int, std::int64_t>> queue_;  // (-priority, id)
   std::map<std::int64_t, int> queued_priority_;
+  std::map<std::int64_t, std::shared_ptr<const Problem>> prepared_;  // of queued jobs
   std::map<std::int64_t, std::unique_ptr<Running>> running_;
   std::atomic<bool> stopping_{false};
   int runners_alive_ = 0;

@@ -125,6 +125,14 @@ std::optional<LoadSuggestion> SuggestLoad(const Problem& problem,
 
 }  // namespace
 
+const IdentifiabilityReport& Identifiability(const Problem& problem) {
+  std::call_once(problem.identifiability_once_, [&] {
+    problem.identifiability_ =
+        std::make_shared<const IdentifiabilityReport>(AnalyseIdentifiability(problem));
+  });
+  return *problem.identifiability_;
+}
+
 void IdentifiabilityOptions::Validate() const {
   const OptionsCheck check("IdentifiabilityOptions");
   check.Require(InOpenUnit(rank_tolerance), "rank_tolerance", rank_tolerance, "0 < value < 1");

@@ -66,5 +66,8 @@ struct IdentifiabilityReport {
 
 IdentifiabilityReport AnalyseIdentifiability(const Problem& problem,
                                              const IdentifiabilityOptions& options = {});
+// The default analysis of a prepared problem, computed once on first use (thread-safe) and kept
+// with it: every run on the problem reports it without redoing the QR.
+const IdentifiabilityReport& Identifiability(const Problem& problem);
 
 }  // namespace springfit

@@ -87,7 +87,7 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
   IdentificationResult r;
   try {
     // Before the run's clock starts (it starts inside the strategy): not part of its time.
-    identifiability = AnalyseIdentifiability(problem);
+    identifiability = Identifiability(problem);
     baseline = fem::EvaluateClosedFormBaseline(problem, &monitor.interruption());
     r = strategy.Run(problem, options, context, monitor);
   } catch (const Interrupted&) {

@@ -83,7 +83,17 @@ class HookedStore final : public JobStore {
     if (fire && on_claim) on_claim(id);
     return inner_.GetJob(id);
   }
-  std::optional<std::string> GetScene(std::int64_t id) override { return inner_.GetScene(id); }
+  std::optional<std::string> GetScene(std::int64_t id) override {
+    {
+      std::lock_guard lock(mutex_);
+      ++scene_reads_[id];
+    }
+    return inner_.GetScene(id);
+  }
+  int SceneReads(std::int64_t id) {
+    std::lock_guard lock(mutex_);
+    return scene_reads_[id];
+  }
   JobPage ListJobs(const JobFilter& filter) override { return inner_.ListJobs(filter); }
   std::vector<JobRecord> UnfinishedJobs() override { return inner_.UnfinishedJobs(); }
   int CountQueued() override { return inner_.CountQueued(); }
@@ -117,6 +127,7 @@ class HookedStore final : public JobStore {
 
  private:
   JobStore& inner_;
+  std::map<std::int64_t, int> scene_reads_;
   std::mutex mutex_;
   std::set<std::int64_t> armed_;
   std::map<std::int64_t, std::vector<JobState>> finishes_;
@@ -339,6 +350,32 @@ TEST_F(SchedulerTest, AJobCancelledWhileQueuedIsNeverClaimed) {
   EXPECT_EQ(store.Finishes(second), std::vector<JobState>{JobState::kCancelled});
   ExpectFinishedOnceCancelled(inbox, second);
   ExpectNothingLeft(sqlite, scheduler, {first.id, second});
+}
+
+// A job queued with the problem its submission prepared runs on it: its scene is not read back
+// from the store and prepared again. One queued without it (a restart, another daemon) is.
+TEST_F(SchedulerTest, AJobRunsOnTheProblemItsSubmissionPrepared) {
+  SqliteStore sqlite(path_);
+  HookedStore store(sqlite);
+  const JobRecord prepared_job = sqlite.CreateJob(Job("prepared", 5)).job;
+  const JobRecord stored_job = sqlite.CreateJob(Job("stored", 0)).job;
+  Notifications inbox;
+  Scheduler scheduler(store, Options(1));
+  scheduler.Watch(prepared_job.id, inbox.For(prepared_job.id));
+  scheduler.Watch(stored_job.id, inbox.For(stored_job.id));
+  scheduler.Enqueue(prepared_job, std::make_shared<const Problem>(scene_));
+  scheduler.Enqueue(stored_job);
+  store.Arm(prepared_job.id);
+  store.Arm(stored_job.id);
+  store.on_claim = [&](std::int64_t id) { scheduler.Cancel(id); };  // endless otherwise
+  scheduler.Start();
+  ASSERT_TRUE(inbox.WaitFinished({prepared_job.id, stored_job.id}))
+      << "no job.finished within 60 s";
+  ASSERT_TRUE(scheduler.Stop(std::chrono::seconds(30)));
+  EXPECT_EQ(store.SceneReads(prepared_job.id), 0);
+  EXPECT_EQ(store.SceneReads(stored_job.id), 1);
+  EXPECT_EQ(sqlite.GetJob(prepared_job.id)->state, JobState::kCancelled);
+  EXPECT_EQ(sqlite.GetJob(stored_job.id)->state, JobState::kCancelled);
 }
 
 // The race for real: 30 endless jobs, 3 runners claiming from the moment Start() returns, and
