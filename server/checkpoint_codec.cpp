@@ -12,7 +12,7 @@
 namespace springfit::server {
 namespace {
 
-constexpr char kMagic[8] = {'S', 'F', 'C', 'K', 'P', 'T', '0', '2'};  // format version 2
+constexpr char kMagic[8] = {'S', 'F', 'C', 'K', 'P', 'T', '0', '3'};  // format version 3
 constexpr std::uint32_t kByteOrderMark = 0x01020304;
 
 class Writer {
@@ -129,11 +129,6 @@ std::string EncodeCheckpoint(const SearchState& s, int genes, std::uint64_t fing
   w.PutGenome(s.local_optimum);
   w.Put<std::int64_t>(s.counters.evaluations);
   w.Put<std::int64_t>(s.counters.cache_hits);
-  w.Put<std::uint64_t>(s.cache.size());
-  for (const auto& [key, fitness] : s.cache) {
-    w.PutString(key);
-    w.PutFitness(fitness);
-  }
   w.Put(s.elapsed_seconds);
   return w.Take();
 }
@@ -142,7 +137,7 @@ SearchState DecodeCheckpoint(const std::string& bytes, int genes, std::uint64_t 
   Reader r(bytes, genes);
   for (char c : kMagic) {
     if (r.Get<char>() != c)
-      throw std::runtime_error("checkpoint: not a springfit checkpoint of format version 2");
+      throw std::runtime_error("checkpoint: not a springfit checkpoint of format version 3");
   }
   if (r.Get<std::uint32_t>() != kByteOrderMark)
     throw std::runtime_error("checkpoint: written on another byte order");
@@ -172,11 +167,6 @@ SearchState DecodeCheckpoint(const std::string& bytes, int genes, std::uint64_t 
   s.local_optimum = r.GetGenome();
   s.counters.evaluations = r.Get<std::int64_t>();
   s.counters.cache_hits = r.Get<std::int64_t>();
-  s.cache.resize(r.GetCount(30));
-  for (auto& [key, fitness] : s.cache) {
-    key = r.GetString();
-    fitness = r.GetFitness();
-  }
   s.elapsed_seconds = r.Get<double>();
   if (!r.AtEnd()) throw std::runtime_error("checkpoint: trailing bytes");
   return s;

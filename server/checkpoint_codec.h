@@ -1,11 +1,12 @@
 // The byte form of a search's state (engine/search/genetic_search.h, SearchState), as the
 // store keeps it for a running job.
 //
-// Binary rather than JSON: a checkpoint carries the fitness cache (up to 2^18 genomes), and
-// it must round-trip every double exactly so that a resumed job repeats an uninterrupted
-// one bit for bit. Genomes are packed 8 genes per byte; numbers are the host's bytes, read
-// back on the same host (a checkpoint is not an exchange format: a daemon moved to another
-// architecture restarts interrupted jobs from generation 0, see DecodeCheckpoint).
+// Binary rather than JSON: it must round-trip every double exactly so that a resumed job
+// repeats an uninterrupted one bit for bit. It does not carry the fitness cache (format 2 did:
+// up to 23 MB every 10 s, bench/RESULTS.md), which changes no result, only how many
+// evaluations a resumed job answers from it. Genomes are packed 8 genes per byte; numbers are the
+// host's bytes, read back on the same host (a checkpoint is not an exchange format: a daemon moved
+// to another architecture restarts interrupted jobs from generation 0, see DecodeCheckpoint).
 //
 // A header says what wrote it: the format version, the daemon's version (version.h) and a
 // fingerprint of the resolved search options (OptionsFingerprint). A checkpoint whose header

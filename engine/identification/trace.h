@@ -27,6 +27,13 @@ struct TraceRow {
            best_normalized_error == o.best_normalized_error && mean_cost == o.mean_cost &&
            missing == o.missing && extra == o.extra;
   }
+  // The same but for cache hits: a run resumed from a checkpoint starts with an empty fitness
+  // cache, which changes how many evaluations it answers from the cache and nothing else.
+  bool SameSearchButCacheHits(const TraceRow& o) const {
+    TraceRow same_hits = *this;
+    same_hits.cache_hits = o.cache_hits;
+    return same_hits.SameSearch(o);
+  }
 };
 
 // Why an identification stopped; each value's criterion is exact.

@@ -34,11 +34,4 @@ void FitnessCache::Insert(const std::string& key, const Fitness& fitness) {
   order_.push_back(key);
 }
 
-std::vector<std::pair<std::string, Fitness>> FitnessCache::Entries() const {
-  std::vector<std::pair<std::string, Fitness>> out;
-  out.reserve(order_.size());
-  for (const std::string& key : order_) out.emplace_back(key, entries_.at(key));
-  return out;
-}
-
 }  // namespace springfit

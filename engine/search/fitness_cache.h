@@ -42,8 +42,6 @@ class FitnessCache {
   }
   std::size_t size() const { return entries_.size(); }
   std::size_t capacity() const { return capacity_; }
-  // Entries oldest first: Insert()ing them in this order into an empty cache restores it.
-  std::vector<std::pair<std::string, Fitness>> Entries() const;
 
  private:
   std::size_t capacity_;

@@ -81,8 +81,6 @@ void GeneticSearch::Restore(const SearchState& state) {
   random_.RestoreState(state.random_state);
   evaluator_->set_counters(state.counters);
   evaluator_->cache().Clear();
-  for (const auto& [key, fitness] : state.cache) evaluator_->cache().Insert(key, fitness);
-  state_.cache.clear();
   elapsed_before_ = state.elapsed_seconds;
   started_ = std::chrono::steady_clock::now();
 }
@@ -111,7 +109,6 @@ SearchState GeneticSearch::Snapshot() const {
   SearchState s = state_;
   s.random_state = random_.SaveState();
   s.counters = evaluator_->counters();
-  s.cache = evaluator_->cache().Entries();
   s.elapsed_seconds = ElapsedSeconds();
   return s;
 }

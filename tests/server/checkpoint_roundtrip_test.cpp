@@ -47,11 +47,6 @@ void ExpectSameState(const SearchState& a, const SearchState& b) {
   EXPECT_EQ(a.stall, b.stall);
   EXPECT_EQ(a.local_optimum, b.local_optimum);
   EXPECT_EQ(a.counters, b.counters);
-  ASSERT_EQ(a.cache.size(), b.cache.size());
-  for (std::size_t i = 0; i < a.cache.size(); ++i) {
-    EXPECT_EQ(a.cache[i].first, b.cache[i].first) << "cache[" << i << "] key";
-    ExpectSameFitness(a.cache[i].second, b.cache[i].second, "cache[" + std::to_string(i) + "]");
-  }
   EXPECT_EQ(Bits(a.elapsed_seconds), Bits(b.elapsed_seconds));
 }
 
@@ -83,7 +78,6 @@ TEST(CheckpointRoundTrip, SnapshotsOfARealSearchDecodeExactlyAndReencodeByteForB
   for (const SearchState& s : snapshots) {
     SCOPED_TRACE("generation " + std::to_string(s.generation));
     EXPECT_FALSE(s.population.empty());
-    EXPECT_FALSE(s.cache.empty());
     ExpectRoundTrip(s, p.gene_count(), fingerprint);
   }
 }
@@ -94,7 +88,7 @@ TEST(CheckpointRoundTrip, EdgeValuesSurviveBitForBit) {
   ends[0] = 1;
   ends[kGenes - 1] = 1;
   const Genome ones(kGenes, 1);
-  const Genome zeros(kGenes, 0);  // packs to the key "\0\0"
+  const Genome zeros(kGenes, 0);
   const double inf = std::numeric_limits<double>::infinity();
   const double tiny = std::numeric_limits<double>::denorm_min();
 
@@ -112,25 +106,20 @@ TEST(CheckpointRoundTrip, EdgeValuesSurviveBitForBit) {
   s.stall = 99;
   s.local_optimum = ends;
   s.counters = {std::numeric_limits<std::int64_t>::max(), 7};
-  s.cache = {{FitnessCache::Key(zeros), {1.0, -0.0, 0, false, true}},
-             {FitnessCache::Key(ends), {2.5, tiny, 1, true, false}},
-             {FitnessCache::Key(ones), {-inf, 1e-300, 2, false, false}}};
   s.elapsed_seconds = 86400.000000001;
   ExpectRoundTrip(s, kGenes, 0xfedcba9876543210ULL);
   const SearchState d = DecodeCheckpoint(EncodeCheckpoint(s, kGenes, 7), kGenes, 7);
   EXPECT_EQ(d.local_optimum, ends) << "the last genome the local search proved optimal is kept";
   EXPECT_TRUE(std::signbit(d.fitness[0].cost));
-  EXPECT_EQ(d.cache[0].first, std::string(2, '\0'));
 }
 
 TEST(CheckpointRoundTrip, EmptyPartsStayEmptyAndNonEmptyOnesStayNonEmpty) {
-  // A fresh state: no population, no best, no local optimum, no cache.
+  // A fresh state: no population, no best, no local optimum.
   ExpectRoundTrip(SearchState{}, 20, 1);
   const SearchState fresh = DecodeCheckpoint(EncodeCheckpoint(SearchState{}, 20, 1), 20, 1);
   EXPECT_TRUE(fresh.population.empty());
   EXPECT_TRUE(fresh.best.empty());
   EXPECT_TRUE(fresh.local_optimum.empty());
-  EXPECT_TRUE(fresh.cache.empty());
 
   // No best yet but a local optimum, and the other way round: each genome has its own flag.
   SearchState a;
