@@ -9,7 +9,7 @@
 int main(int argc, char** argv) {
   CLI::App app{"springfit: identify the topology of mass-spring models of soft tissue"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", "springfit 0.2.0");
+  app.set_version_flag("--version", "springfit 0.3.0");
   int exit_code = springfit::cli::kExitOk;
   springfit::cli::RegisterCheck(app, exit_code);
   springfit::cli::RegisterEval(app, exit_code);

@@ -4,6 +4,6 @@
 
 namespace springfit::server {
 
-inline constexpr const char* kVersion = "0.2.0";
+inline constexpr const char* kVersion = "0.3.0";
 
 }  // namespace springfit::server
