@@ -15,6 +15,7 @@
 #include "client/exit_codes.h"
 #include "client/progress_line.h"
 #include "client/result_summary.h"
+#include "client/search_flags.h"
 #include "engine/identification/identify.h"
 #include "engine/input_error.h"
 #include "engine/problem.h"
@@ -40,13 +41,8 @@ extern "C" void OnInterrupt(int signal) {
 
 struct RunArgs {
   std::string scene;
-  std::optional<std::string> strategy;
-  std::optional<std::string> identify;
-  std::optional<std::uint64_t> seed;
+  SearchFlags search;
   int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  std::optional<int> generations;
-  std::optional<double> time_limit;
-  std::optional<int> stall;
   std::optional<int> population;
   std::optional<double> crossover;
   std::optional<double> mutation;
@@ -60,12 +56,7 @@ struct RunArgs {
 int Run(const RunArgs& args) {
   Scene scene = proto::LoadSceneFile(args.scene);
   SearchSettings& st = scene.search;
-  if (args.strategy) st.strategy = proto::StrategyFromName(*args.strategy, "--strategy");
-  if (args.identify) st.identify = proto::IdentifyFromName(*args.identify, "--identify");
-  if (args.seed) st.seed = *args.seed;
-  if (args.generations) st.max_generations = *args.generations;
-  if (args.time_limit) st.max_seconds = *args.time_limit;
-  if (args.stall) st.stall_generations = *args.stall;
+  ApplySearchFlags(args.search, st);
   if (args.population) st.population = *args.population;
   if (args.crossover) st.crossover_probability = *args.crossover;
   if (args.mutation) st.mutation_probability = *args.mutation;
@@ -128,29 +119,11 @@ void RegisterRun(CLI::App& app, int& exit_code) {
   auto* cmd = app.add_subcommand("run", "Identify the topology: run a search in this process");
   auto args = std::make_shared<RunArgs>();
   cmd->add_option("SCENE", args->scene, "Scene file (JSON, proto/SCENE.md)")->required();
-  cmd->add_option("--strategy", args->strategy,
-                  "Search strategy: " + proto::StrategyNames() + " (default: the scene's)");
-  cmd->add_option("--identify", args->identify,
-                  "What to identify: " + proto::IdentifyNames() +
-                      " (the latter with strategy direct only; default: the scene's, else "
-                      "topology_and_stiffness for direct, "
-                      "topology otherwise)");
-  cmd->add_option("--seed", args->seed, "Random seed (default: the scene's, else 1)");
+  AddSearchFlags(cmd, args->search);
   cmd->add_option("--threads", args->threads,
                   "Threads for the fitness evaluations (the result does not depend on it)")
       ->check(CLI::Range(1, 1024))
       ->capture_default_str();
-  cmd->add_option("--generations", args->generations,
-                  "Generation limit (default: the scene's, else 1000)")
-      ->check(CLI::Range(1, 100000000));
-  cmd->add_option("--time-limit", args->time_limit,
-                  "Stop after this many seconds of wall time, at the end of a step (default: the "
-                  "scene's, else none; a run it stops is not reproducible)")
-      ->check(CLI::PositiveNumber);
-  cmd->add_option("--stall", args->stall,
-                  "Stop when the best has not improved for this many generations; 0 = never "
-                  "(default: the scene's, else 200 for default and hybrid, never for paper)")
-      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--population", args->population,
                   "Individuals per generation (default: the strategy's)")
       ->check(CLI::Range(2, 1000000));

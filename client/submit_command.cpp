@@ -7,6 +7,7 @@
 #include "client/exit_codes.h"
 #include "client/remote_job.h"
 #include "client/result_summary.h"
+#include "client/search_flags.h"
 #include "engine/input_error.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
@@ -20,12 +21,7 @@ struct SubmitArgs {
   std::string scene;
   std::string label;
   int priority = 0;
-  std::optional<std::uint64_t> seed;
-  std::optional<std::string> strategy;
-  std::optional<std::string> identify;
-  std::optional<int> generations;
-  std::optional<double> time_limit;
-  std::optional<int> stall;
+  SearchFlags search;
   std::string idempotency_key;
   bool wait = false;
   bool watch = false;
@@ -35,24 +31,12 @@ struct SubmitArgs {
 int Submit(const SubmitArgs& args) {
   Json scene = proto::ParseJson(proto::ReadFile(args.scene));
   if (!scene.is_object()) throw InputError("", "a scene is a JSON object (proto/SCENE.md)");
-  if (args.strategy || args.identify || args.generations || args.time_limit || args.stall) {
-    Json& search = scene["search"];
-    if (search.is_null()) search = Json::object();
-    if (args.strategy)
-      search["strategy"] =
-          proto::StrategyName(proto::StrategyFromName(*args.strategy, "--strategy"));
-    if (args.identify)
-      search["identify"] =
-          proto::IdentifyName(proto::IdentifyFromName(*args.identify, "--identify"));
-    if (args.generations) search["max_generations"] = *args.generations;
-    if (args.time_limit) search["max_seconds"] = *args.time_limit;
-    if (args.stall) search["stall_generations"] = *args.stall;
-  }
+  ApplySearchFlags(args.search, scene);
   Json params;
   params["scene"] = std::move(scene);
   if (!args.label.empty()) params["label"] = args.label;
   if (args.priority != 0) params["priority"] = args.priority;
-  if (args.seed) params["seed"] = *args.seed;
+  if (args.search.seed) params["seed"] = *args.search.seed;
   if (!args.idempotency_key.empty()) params["idempotency_key"] = args.idempotency_key;
 
   RpcClient client(args.server);
@@ -97,25 +81,7 @@ void RegisterSubmit(CLI::App& app, int& exit_code) {
   cmd->add_option("--label", args->label, "A label to find the job by (job.list --label)");
   cmd->add_option("--priority", args->priority, "Higher runs first (default 0)")
       ->check(CLI::Range(-1000, 1000));
-  cmd->add_option("--seed", args->seed, "Random seed (default: the scene's, else 1)");
-  cmd->add_option("--strategy", args->strategy,
-                  "Search strategy: " + proto::StrategyNames() + " (default: the scene's)");
-  cmd->add_option("--identify", args->identify,
-                  "What to identify: " + proto::IdentifyNames() +
-                      " (the latter with strategy direct only; default: the scene's, else "
-                      "topology_and_stiffness for direct, "
-                      "topology otherwise)");
-  cmd->add_option("--generations", args->generations,
-                  "Generation limit (default: the scene's, else 1000)")
-      ->check(CLI::Range(1, 100000000));
-  cmd->add_option(
-         "--time-limit", args->time_limit,
-         "Stop after this many seconds of the job's run time (default: the scene's, else none)")
-      ->check(CLI::PositiveNumber);
-  cmd->add_option("--stall", args->stall,
-                  "Stop when the best has not improved for this many generations; 0 = never "
-                  "(default: the scene's, else 200 for default and hybrid, never for paper)")
-      ->check(CLI::NonNegativeNumber);
+  AddSearchFlags(cmd, args->search);
   cmd->add_option("--idempotency-key", args->idempotency_key,
                   "Submitting again with the same key returns the same job instead of a new one");
   auto* wait =

@@ -90,6 +90,17 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
     double best_error = run.resume_from ? run.resume_from->best_fitness.normalized_error
                                         : std::numeric_limits<double>::infinity();
     bool interrupted = false;
+    // What the daemon asks of the job now: a cancel wins over a shutdown.
+    struct Requests {
+      bool cancel = false;
+      bool shutdown = false;
+    };
+    const auto requests = [&control] {
+      Requests r;
+      r.cancel = control.cancel && control.cancel->load();
+      r.shutdown = !r.cancel && control.shutdown && control.shutdown->load();
+      return r;
+    };
     // Strategy direct reports once, finished, with nothing to checkpoint; its single row and
     // improvement are stored like a GA's, so job.trace, job.improvements and job.watch behave
     // the same.
@@ -102,8 +113,9 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
                                       *state.best});
       }
       const bool finished = state.finished;
-      const bool cancel = control.cancel && control.cancel->load();
-      const bool shutdown = !finished && !cancel && control.shutdown && control.shutdown->load();
+      const Requests asked = requests();
+      const bool cancel = asked.cancel;
+      const bool shutdown = !finished && asked.shutdown;
       // A cancelled job's last row is kept; a shut-down job's is not special: it will be
       // produced again, and kept or not by the same rule, when the job resumes.
       if (KeepTraceRow(row.generation, improved, finished || cancel)) batch.trace.push_back(row);
@@ -130,10 +142,9 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
     // Inside any step (analysis, direct phase, a generation): cancel and shutdown take effect
     // within a second (a shutdown then resumes from the last checkpoint, at a generation's end).
     run.on_beat = [&](const ProgressBeat&) {
-      const bool cancel = control.cancel && control.cancel->load();
-      const bool shutdown = !cancel && control.shutdown && control.shutdown->load();
-      if (shutdown) interrupted = true;
-      return !cancel && !shutdown;
+      const Requests asked = requests();
+      if (asked.shutdown) interrupted = true;
+      return !asked.cancel && !asked.shutdown;
     };
     const IdentificationResult result = RunIdentification(problem, search_options, run);
     // A stop inside a step reports no iteration: what the last ones left unflushed is stored now.

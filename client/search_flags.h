@@ -1,0 +1,31 @@
+// The search options `run` and `submit` both take on the command line, defined once: the
+// same names, checks and help, applied over the scene's own `search` settings.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "engine/scene.h"
+#include "proto/json_reader.h"
+
+namespace springfit::cli {
+
+struct SearchFlags {
+  std::optional<std::string> strategy;
+  std::optional<std::string> identify;
+  std::optional<std::uint64_t> seed;
+  std::optional<int> generations;
+  std::optional<double> time_limit;
+  std::optional<int> stall;
+};
+
+void AddSearchFlags(CLI::App* command, SearchFlags& flags);
+// Over a scene read in this process (`run`).
+void ApplySearchFlags(const SearchFlags& flags, SearchSettings& settings);
+// Over a scene sent as JSON (`submit`; the seed travels as job.submit's own parameter).
+void ApplySearchFlags(const SearchFlags& flags, proto::Json& scene);
+
+}  // namespace springfit::cli
