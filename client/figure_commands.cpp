@@ -54,11 +54,19 @@ Json ReadResultFile(const std::string& path) {
   return j;
 }
 
-std::string Describe(const Json& result) {
-  std::string s = result.value("scene", std::string("?")) + ", strategy " +
-                  result.value("strategy", std::string("?"));
-  if (result.contains("seed")) s += ", seed " + result["seed"].dump();
+std::string Describe(const proto::StoredResult& result) {
+  std::string s = result.scene + ", strategy " + result.strategy;
+  if (result.seed) s += ", seed " + std::to_string(*result.seed);
   return s;
+}
+
+// The typed result; a file's errors name the file.
+proto::StoredResult Typed(const Json& result, const std::string& where) {
+  try {
+    return proto::StoredResultFromJson(result);
+  } catch (const InputError& e) {
+    throw InputError(e.path(), where + ": " + e.what());
+  }
 }
 
 std::vector<NodePair> Ordered(std::vector<NodePair> pairs) {
@@ -108,34 +116,24 @@ int Render(const RenderArgs& a) {
     }
     where = std::filesystem::path(source.name).filename().string();
   }
+  const proto::StoredResult typed = Typed(result, where);
   Scene scene =
       a.scene_path.empty() ? proto::SceneFromJson(scene_json) : proto::LoadSceneFile(a.scene_path);
   const Problem problem = Problem::Build(std::move(scene));
   // A result of another scene could still name valid node pairs: refuse what is detectable.
-  const std::string result_scene = result.value("scene", problem.scene().name);
-  const int result_genes = result.contains("genes") && result["genes"].is_number_integer()
-                               ? result["genes"].get<int>()
-                               : -1;
-  if (result_scene != problem.scene().name ||
-      (result_genes >= 0 && result_genes != problem.gene_count())) {
-    throw InputError("", "the result is of scene '" + result_scene + "' (" +
-                             std::to_string(result_genes) + " genes), the scene given is '" +
-                             problem.scene().name + "' (" + std::to_string(problem.gene_count()) +
-                             " genes)");
+  if (typed.scene != problem.scene().name ||
+      (typed.genes && *typed.genes != problem.gene_count())) {
+    throw InputError("", "the result is of scene '" + typed.scene + "' (" +
+                             std::to_string(typed.genes.value_or(-1)) +
+                             " genes), the scene given is '" + problem.scene().name + "' (" +
+                             std::to_string(problem.gene_count()) + " genes)");
   }
 
   TopologyFigureInput input;
-  input.title = Describe(result) + " (" + where + ")";
-  input.springs = Ordered(proto::ReadNodePairs(result.at("springs"), "springs"));
-  if (result.contains("stiffness")) {
-    proto::ExpectArray(result["stiffness"], "stiffness");
-    for (std::size_t s = 0; s < result["stiffness"].size(); ++s) {
-      input.stiffness.push_back(
-          proto::ReadNumber(result["stiffness"][s], "stiffness[" + std::to_string(s) + "]"));
-    }
-  }
-  if (result.value("stop", std::string()) == "cancelled")
-    input.note = "cancelled: the best topology so far";
+  input.title = Describe(typed) + " (" + where + ")";
+  input.springs = Ordered(typed.springs);
+  input.stiffness = typed.stiffness;
+  if (typed.stop == "cancelled") input.note = "cancelled: the best topology so far";
   TopologyFigureOptions options;
   options.load_cases = a.load_cases;
   options.magnify = a.magnify;
@@ -183,17 +181,13 @@ int Plot(const PlotArgs& a) {
               job.value("scene", std::string("?")) + ", strategy " +
               job.value("strategy", std::string("?")) + ", seed " + job["seed"].dump();
     } else {
-      const Json result = ReadResultFile(source.name);
-      if (!result.contains("trace")) {
+      const proto::StoredResult result = Typed(ReadResultFile(source.name), source.name);
+      if (!result.trace) {
         throw InputError(
             "",
             source.name + " has no trace: write the result with -o (springfit run -o, result -o)");
       }
-      const Json& trace = result["trace"];
-      proto::ExpectArray(trace, "trace");
-      for (std::size_t i = 0; i < trace.size(); ++i) {
-        rows.push_back(proto::TraceRowFromJson(trace[i], "trace[" + std::to_string(i) + "]"));
-      }
+      rows = *result.trace;
       label = std::filesystem::path(source.name).filename().string() + ": " + Describe(result);
     }
     if (rows.empty() && source.job_id) {

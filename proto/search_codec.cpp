@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "engine/input_error.h"
 #include "proto/evaluation_codec.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
@@ -238,6 +239,36 @@ std::string TraceRowToCsv(const TraceRow& r) {
                 r.best_cost, r.best_normalized_error, r.mean_cost);
   return std::to_string(r.generation) + "," + numbers + "," + count(r.missing) + "," +
          count(r.extra);
+}
+
+StoredResult StoredResultFromJson(const Json& json) {
+  if (!json.is_object()) throw InputError("", "a result is a JSON object (proto/RUN.md)");
+  for (const char* key : {"scene", "strategy", "stop", "springs"}) {
+    if (!json.contains(key)) throw InputError(key, "required in a result (proto/RUN.md)");
+  }
+  StoredResult r;
+  r.scene = ReadString(json["scene"], "scene");
+  r.strategy = ReadString(json["strategy"], "strategy");
+  r.stop = ReadString(json["stop"], "stop");
+  if (json.contains("seed")) r.seed = ReadUint64(json["seed"], "seed");
+  if (json.contains("genes")) r.genes = ReadInt(json["genes"], "genes");
+  r.springs = ReadNodePairs(json["springs"], "springs");
+  if (json.contains("stiffness")) {
+    const Json& k = json["stiffness"];
+    ExpectArray(k, "stiffness");
+    if (k.size() != r.springs.size())
+      throw InputError("stiffness", "must have one value per spring of `springs`");
+    for (std::size_t s = 0; s < k.size(); ++s)
+      r.stiffness.push_back(ReadNumber(k[s], "stiffness[" + std::to_string(s) + "]"));
+  }
+  if (json.contains("trace")) {
+    const Json& t = json["trace"];
+    ExpectArray(t, "trace");
+    r.trace.emplace();
+    for (std::size_t i = 0; i < t.size(); ++i)
+      r.trace->push_back(TraceRowFromJson(t[i], "trace[" + std::to_string(i) + "]"));
+  }
+  return r;
 }
 
 }  // namespace springfit::proto

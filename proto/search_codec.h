@@ -2,7 +2,10 @@
 // daemon's job.result and job.trace use the same forms.
 #pragma once
 
+#include <cstdint>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "engine/identification/identification_result.h"
 #include "engine/problem.h"
@@ -22,6 +25,21 @@ Json IdentifiabilityToJson(const IdentifiabilityReport& report);
 // strategy direct's `confidence` and `direct` details when it ran; the trace only when
 // `with_trace`.
 Json ResultToJson(const Problem& problem, const IdentificationResult& result, bool with_trace);
+
+// A result object read back (a file from `run -o` / `result -o`, or job.result): the parts a
+// figure draws, typed. The other fields are for people and other tools.
+struct StoredResult {
+  std::string scene;  // the scene's name
+  std::string strategy;
+  std::optional<std::uint64_t> seed;
+  std::optional<int> genes;
+  std::string stop;                            // StopReasonName()
+  std::vector<NodePair> springs;               // as written
+  std::vector<double> stiffness;               // per spring; empty when absent
+  std::optional<std::vector<TraceRow>> trace;  // results written with their trace only
+};
+// Throws InputError naming the JSON path of the first problem.
+StoredResult StoredResultFromJson(const Json& json);
 
 // One CSV line per trace row under a header line (no trailing newline in either).
 std::string TraceCsvHeader();

@@ -12,9 +12,11 @@
 
 #include "engine/examples/catalog.h"
 #include "engine/identification/identify.h"
+#include "engine/input_error.h"
 #include "engine/search/search_options.h"
 #include "proto/evaluation_codec.h"
 #include "proto/job.h"
+#include "proto/names.h"
 #include "proto/rpc.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
@@ -349,6 +351,45 @@ TEST(ResultCodecRoundTrip, ResultJsonSurvivesEveryTextFormAndItsTraceReadsBack) 
   EXPECT_EQ(back.at("stiffness").get<std::vector<double>>(), r.stiffness);
   EXPECT_EQ(back.at("seed").get<std::uint64_t>(), 5u);
   EXPECT_EQ(back.at("options"), SearchOptionsToJson(r.options));
+}
+
+// What `render` and `plot` read of a result: the typed StoredResult, from the text a result
+// file or job.result carries, equals the run's own result; what is missing or inconsistent is
+// named by its path.
+TEST(ResultCodecRoundTrip, TheTypedReadingOfAResultIsTheRunsResult) {
+  const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
+  SearchOptions o = StrategyDefaults(Strategy::kDirect, p.gene_count());
+  o.seed = 11;
+  const IdentificationResult r = RunIdentification(p, o);
+  const StoredResult typed = StoredResultFromJson(ParseJson(DumpCompact(ResultToJson(p, r, true))));
+  EXPECT_EQ(typed.scene, "paper-aniso-5x5");
+  EXPECT_EQ(typed.strategy, "direct");
+  EXPECT_EQ(typed.seed, std::optional<std::uint64_t>(11));
+  EXPECT_EQ(typed.genes, std::optional<int>(p.gene_count()));
+  EXPECT_EQ(typed.stop, StopReasonName(r.stop));
+  EXPECT_EQ(typed.springs, r.springs);
+  EXPECT_EQ(typed.stiffness, r.stiffness);
+  ASSERT_TRUE(typed.trace);
+  ASSERT_EQ(typed.trace->size(), r.trace.size());
+  EXPECT_TRUE(typed.trace->front().SameSearch(r.trace.front()));
+  EXPECT_FALSE(StoredResultFromJson(ResultToJson(p, r, false)).trace);
+
+  Json no_springs = ResultToJson(p, r, false);
+  no_springs.erase("springs");
+  try {
+    StoredResultFromJson(no_springs);
+    ADD_FAILURE() << "a result without springs was read";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.path(), "springs");
+  }
+  Json short_stiffness = ResultToJson(p, r, false);
+  short_stiffness["stiffness"].erase(0);
+  try {
+    StoredResultFromJson(short_stiffness);
+    ADD_FAILURE() << "a stiffness list shorter than the springs was read";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.path(), "stiffness");
+  }
 }
 
 TEST(TraceRowCodecRoundTrip, ExtremeValuesAndUnknownCountsSurviveText) {
