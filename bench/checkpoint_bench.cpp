@@ -26,7 +26,9 @@ int main(int argc, char** argv) {
   app.add_option("--scene", scene, "Example scene")->capture_default_str();
   app.add_option("--strategy", strategy, "Strategy")->capture_default_str();
   app.add_option("--generations", generations, "Generations to run")->capture_default_str();
-  app.add_option("--every", every, "Generations between checkpoints")->capture_default_str();
+  app.add_option("--every", every, "Generations between checkpoints")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
 
   const Problem p = Problem::Build(examples::Make(scene));

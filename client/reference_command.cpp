@@ -8,6 +8,7 @@
 #include "client/error_reporting.h"
 #include "client/exit_codes.h"
 #include "engine/problem.h"
+#include "engine/scene_validation.h"
 #include "proto/names.h"
 #include "proto/reference_codec.h"
 #include "proto/scene_codec.h"
@@ -22,7 +23,8 @@ struct ReferenceArgs {
 };
 
 int Reference(const ReferenceArgs& args) {
-  Scene scene = proto::LoadSceneFile(args.scene);  // a bad scene leaves no output file behind
+  Scene scene = proto::LoadSceneFile(args.scene);
+  ValidateScene(scene);  // before the probe: a bad scene leaves no output file behind
   if (!args.output.empty()) {
     // Before the solve: a reference of 100,000 DOFs takes seconds.
     std::ofstream probe(args.output, std::ios::binary | std::ios::app);

@@ -96,7 +96,9 @@ int Run(const RunArgs& args) {
   const IdentificationResult result = RunIdentification(problem, options, run);
   std::signal(SIGINT, previous_int);
   std::signal(SIGTERM, previous_term);
-  if (result.stop == StopReason::kCancelled && !result.trace.empty())
+  // A stop inside a step leaves the live line open: end it with the last row.
+  if ((result.stop == StopReason::kCancelled || result.stop == StopReason::kTimeLimit) &&
+      !result.trace.empty())
     progress.Report(result.trace.back(), true);
   if (trace.is_open()) {
     trace.close();

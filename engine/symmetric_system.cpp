@@ -176,6 +176,8 @@ SymmetricSystem::Factorization SymmetricSystem::Factorize(double shift, double t
     }
     f.positive_definite = f.small_pivots == 0;
   };
+  // (A positive-definite factorisation is kept even when counting: the FEM solver reuses its
+  // rest factor, which CHOLMOD's supernodal one makes fast.)
   if (backend_ == Backend::kBanded) {
     const int width = bandwidth_ + 1;
     band_factor_.resize(width, n_);  // no-op once sized (copies of a system start without it)

@@ -15,9 +15,11 @@
 // Counting the pivots of a singular or indefinite matrix (a mechanism's modes) is done the same
 // way whatever the backend: a simplicial LDLT (AMD ordering) of the same scaled matrix. A count
 // that depended on the backend would make the graded mechanism penalty, hence a search's
-// trajectory, depend on a size threshold. The LDLT does not pivot: it never counts a mode that
-// is not there, and rarely misses one (1 of 55 in tests/engine/equilibrium_test.cpp); a
-// rank-revealing count would cost a dense factorisation.
+// trajectory, depend on a size threshold. (A matrix within round-off of the pivot tolerance can
+// still pass one backend's positive-definite factorisation and not another's: the verdict at
+// that edge is the backend's; a genuine mechanism, pivots near the shift, fails every one.) The
+// LDLT does not pivot: it never counts a mode that is not there, and rarely misses one (1 of 55 in
+// tests/engine/equilibrium_test.cpp); a rank-revealing count would cost a dense factorisation.
 //
 // Not thread-safe; copy one per thread.
 #pragma once

@@ -136,7 +136,7 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
         last_flush = std::chrono::steady_clock::now();
       }
       record.progress = row;
-      interrupted = shutdown;
+      interrupted = interrupted || shutdown;  // once asked, a shutdown stays the reason
       return !cancel && !shutdown;
     };
     // Inside any step (analysis, direct phase, a generation): cancel and shutdown take effect

@@ -203,7 +203,9 @@ class FigureWriter {
       model.stiffness.push_back(k);
     }
     difference_ = problem_.CompareWithReference(problem_.GenomeFromMask(mask));
-    CostFunction cost(problem_);
+    CostOptions every_case;
+    every_case.solve_cases_of_mechanisms = true;  // each panel shows its own case's equilibrium
+    CostFunction cost(problem_, every_case);
     evaluation_ = cost.Evaluate(model, &identified_u_);
   }
 

@@ -10,15 +10,12 @@ namespace {
 
 std::string StopMessage(const IdentificationResult& r) {
   char buf[200];
-  if (r.trace.empty() && (r.stop == StopReason::kCancelled || r.stop == StopReason::kTimeLimit)) {
-    const char* why =
-        r.stop == StopReason::kCancelled ? "stopped on request" : "time limit reached";
-    if (r.direct_phase) {
-      std::snprintf(buf, sizeof buf,
-                    "%s during the first generation: the direct phase's topology is kept", why);
-    } else {
-      std::snprintf(buf, sizeof buf, "%s before any model was evaluated: no model found", why);
-    }
+  // (A run stopped before its strategy had a model has its message from StoppedBeforeAModel.)
+  if (r.trace.empty() && r.direct_phase &&
+      (r.stop == StopReason::kCancelled || r.stop == StopReason::kTimeLimit)) {
+    std::snprintf(buf, sizeof buf,
+                  "%s during the first generation: the direct phase's topology is kept",
+                  r.stop == StopReason::kCancelled ? "stopped on request" : "time limit reached");
     return buf;
   }
   const double target = std::max(r.options.target_normalized_error, kExactNormalizedError);
@@ -57,17 +54,34 @@ std::string StopMessage(const IdentificationResult& r) {
   return buf;
 }
 
-// A run stopped before it had evaluated any model: the empty topology, evaluated (a mechanism:
-// rest factorisations only), and no new trace row.
-IdentificationResult NothingEvaluated(const Problem& problem, const SearchOptions& options,
-                                      const RunContext& context, const RunMonitor& monitor) {
+// A run stopped before its strategy had a model: a resumed run's checkpointed best, else the
+// empty topology (a mechanism: its evaluation is rest factorisations only); no new trace row.
+IdentificationResult StoppedBeforeAModel(const Problem& problem, const SearchOptions& options,
+                                         const RunContext& context, const RunMonitor& monitor) {
   IdentificationResult r;
   r.options = options;
   r.stop = monitor.time_limit_reached() ? StopReason::kTimeLimit : StopReason::kCancelled;
-  r.best.assign(static_cast<std::size_t>(problem.gene_count()), 0);
-  r.evaluation = CostFunction(problem).EvaluateGenome(r.best);
   r.trace = context.trace;
   r.wall_seconds = monitor.SecondsSinceStart();
+  const char* why = r.stop == StopReason::kCancelled ? "stopped on request" : "time limit reached";
+  char message[200];
+  if (context.resume_from && !context.resume_from->best.empty()) {
+    const SearchState& s = *context.resume_from;
+    r.best = s.best;
+    r.generations = s.generation;
+    r.best_generation = s.best_generation;
+    r.counters = s.counters;
+    std::snprintf(message, sizeof message,
+                  "%s before the resumed run's first step: the checkpoint's best (generation %d) "
+                  "is kept",
+                  why, s.best_generation);
+  } else {
+    r.best.assign(static_cast<std::size_t>(problem.gene_count()), 0);
+    std::snprintf(message, sizeof message, "%s before any model was evaluated: no model found",
+                  why);
+  }
+  r.stop_message = message;
+  r.evaluation = CostFunction(problem).EvaluateGenome(r.best);
   return r;
 }
 
@@ -91,14 +105,14 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
     baseline = fem::EvaluateClosedFormBaseline(problem, &monitor.interruption());
     r = strategy.Run(problem, options, context, monitor);
   } catch (const Interrupted&) {
-    r = NothingEvaluated(problem, options, context, monitor);
+    r = StoppedBeforeAModel(problem, options, context, monitor);
   }
   r.identifiability = std::move(identifiability);
   r.baseline = std::move(baseline);
   r.springs = problem.SpringsOfGenome(r.best);
   r.difference = problem.CompareWithReference(r.best);
   if (r.stiffness.empty()) r.stiffness.assign(r.springs.size(), problem.training_stiffness());
-  r.stop_message = StopMessage(r);
+  if (r.stop_message.empty()) r.stop_message = StopMessage(r);
   return r;
 }
 

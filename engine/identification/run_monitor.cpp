@@ -19,6 +19,11 @@ double RunMonitor::SecondsSinceStart() const {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
 }
 
+bool RunMonitor::TimeLimitPassed() {
+  if (max_seconds_ > 0.0 && SecondsSinceStart() >= max_seconds_) time_limit_reached_ = true;
+  return time_limit_reached_;
+}
+
 bool RunMonitor::Poll() {
   ProgressBeat beat;
   beat.phase = phase_;
@@ -26,10 +31,7 @@ bool RunMonitor::Poll() {
   if (fill_) fill_(beat);
   // The time limit is on the wall clock from the run's start, its analysis included: what a
   // user who asked for it waits (the trace's clock starts after the analysis).
-  if (max_seconds_ > 0.0 && SecondsSinceStart() >= max_seconds_) {
-    time_limit_reached_ = true;
-    return true;
-  }
+  if (TimeLimitPassed()) return true;
   return context_.on_beat && !context_.on_beat(beat);
 }
 

@@ -31,6 +31,8 @@ class RunMonitor {
   void Reported() { interruption_.Postpone(); }
   // The run was stopped by its time limit (rather than by the caller).
   bool time_limit_reached() const { return time_limit_reached_; }
+  // Checks the time limit now (between iterations, where no poll may be due).
+  bool TimeLimitPassed();
   double SecondsSinceStart() const;
 
  private:

@@ -57,7 +57,8 @@ IdentificationResult RunGenetic(const Problem& problem, const SearchOptions& opt
   auto record = [&](const TraceRow& row) {
     result.trace.push_back(row);
     monitor.Reported();
-    if (search.Interrupted()) cancelled = true;
+    // (Short generations postpone every poll: the time limit is also checked here.)
+    if (search.Interrupted() || monitor.TimeLimitPassed()) cancelled = true;
     if (!context.on_iteration) return;
     IterationState state;
     state.finished = search.Finished() || cancelled;

@@ -26,8 +26,9 @@ std::vector<Fitness> FitnessEvaluator::Evaluate(const std::vector<Genome>& genom
   std::vector<int> same_as(n, -1);
   std::vector<std::string> keys(n);
   std::unordered_map<std::string, int> first_in_batch;
+  EvaluationCounters batch;  // added once the batch is complete
   for (int i = 0; i < n; ++i) {
-    ++counters_.evaluations;
+    ++batch.evaluations;
     if (!use_cache_) {
       to_solve.push_back(i);
       continue;
@@ -35,10 +36,10 @@ std::vector<Fitness> FitnessEvaluator::Evaluate(const std::vector<Genome>& genom
     keys[i] = FitnessCache::Key(genomes[i]);
     if (const auto hit = cache_.Find(keys[i])) {
       out[i] = *hit;
-      ++counters_.cache_hits;
+      ++batch.cache_hits;
     } else if (const auto [it, inserted] = first_in_batch.emplace(keys[i], i); !inserted) {
       same_as[i] = it->second;
-      ++counters_.cache_hits;
+      ++batch.cache_hits;
     } else {
       to_solve.push_back(i);
     }
@@ -62,6 +63,8 @@ std::vector<Fitness> FitnessEvaluator::Evaluate(const std::vector<Genome>& genom
   }
   // Some genomes of the batch went unevaluated, or were cut short: none of it is kept.
   if (interruption_ && interruption_->requested()) throw Interrupted();
+  counters_.evaluations += batch.evaluations;
+  counters_.cache_hits += batch.cache_hits;
 
   for (int i = 0; i < n; ++i) {
     if (same_as[i] >= 0) out[i] = out[same_as[i]];

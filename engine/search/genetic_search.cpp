@@ -343,8 +343,10 @@ void GeneticSearch::Restart() {
   std::vector<Genome> fresh;
   fresh.push_back(state_.best);
   for (int i = 1; i < n; ++i) fresh.push_back(InitialGenome(i));
+  // Evaluated before it replaces the population: an interruption leaves the old one whole.
+  std::vector<Fitness> fitness = evaluator_->Evaluate(fresh);
   state_.population = std::move(fresh);
-  state_.fitness = evaluator_->Evaluate(state_.population);
+  state_.fitness = std::move(fitness);
   UpdateBest();
   state_.stall = 0;
 }

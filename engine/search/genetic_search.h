@@ -83,7 +83,7 @@ class GeneticSearch {
     return interrupted_ || (interruption_ != nullptr && interruption_->requested());
   }
 
-  // The state between generations, random stream and cache included (for a checkpoint).
+  // The state between generations, random stream included (for a checkpoint).
   SearchState Snapshot() const;
   const SearchState& state() const { return state_; }
   const SearchOptions& options() const { return options_; }

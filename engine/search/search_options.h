@@ -48,9 +48,9 @@ struct SearchOptions {
   std::uint64_t seed = 1;
   int population = 20;
   int max_generations = 1000;  // generations bred after the initial population
-  // Wall seconds after which the run stops at the end of its current step (0 = no limit).
-  // Unlike every other stop, where it stops depends on the machine: a run stopped by it is
-  // not reproducible.
+  // Wall seconds from the run's start after which it stops, inside the step running then, with
+  // the best so far (0 = no limit; engine/identification/run_monitor.h). Unlike every other
+  // stop, where it stops depends on the machine: a run stopped by it is not reproducible.
   double max_seconds = 0.0;
   // Stop when the best has not improved for this many generations (0 = never): a noisy run
   // whose best was found early does not spend its whole generation budget. `paper` has none

@@ -76,11 +76,20 @@ void WorkerPool::Run(int slots, const std::function<void(int slot)>& body,
   if (!while_waiting) {
     batch->finished.wait(lock, done);
   } else {
+    // The slots still running use the caller's body and its captures: wait for them even
+    // when the callback throws, then rethrow.
+    std::exception_ptr waiting_failure;
     while (!batch->finished.wait_for(lock, kWaitingPeriod, done)) {
+      if (waiting_failure) continue;
       lock.unlock();
-      while_waiting();
+      try {
+        while_waiting();
+      } catch (...) {
+        waiting_failure = std::current_exception();
+      }
       lock.lock();
     }
+    if (waiting_failure && !batch->failure) batch->failure = waiting_failure;
   }
   if (batch->failure) std::rethrow_exception(batch->failure);
 }
