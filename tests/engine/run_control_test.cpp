@@ -5,6 +5,8 @@
 #include <atomic>
 #include <chrono>
 #include <future>
+#include <optional>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -169,6 +171,64 @@ TEST(RunControl, TheFemBaselineIsStoppableBeforeTheRun) {
   EXPECT_FALSE(r.baseline);  // stopped while evaluating it
   EXPECT_FALSE(r.direct_phase);
   EXPECT_TRUE(r.trace.empty());
+}
+
+TEST(RunControl, AResumedRunStoppedBeforeItsFirstStepKeepsTheCheckpointsBest) {
+  const Problem p = Problem::Build(examples::Make("fem-plate-5x5"));
+  SearchOptions o = Resolved(p, Strategy::kPaper);
+  o.max_generations = 6;
+  std::optional<SearchState> snapshot;
+  RunContext first;
+  first.on_iteration = [&](const TraceRow& row, const IterationState& state) {
+    if (row.generation < 3) return true;
+    snapshot = state.snapshot();
+    return false;
+  };
+  RunIdentification(p, o, first);
+  ASSERT_TRUE(snapshot);
+  // Stopped in the analysis (the FEM baseline) before the resumed GA's first step.
+  StopAtPhase stop{"analysis", {}};
+  RunContext resumed = stop.Context();
+  resumed.resume_from = snapshot;
+  const IdentificationResult r = RunIdentification(p, o, resumed);
+  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  EXPECT_EQ(r.best, snapshot->best);
+  EXPECT_EQ(r.generations, snapshot->generation);
+  EXPECT_EQ(r.evaluation.normalized_error, snapshot->best_fitness.normalized_error);
+  EXPECT_NE(r.stop_message.find("checkpoint's best"), std::string::npos) << r.stop_message;
+}
+
+TEST(WorkerPool, AThrowingWaitCallbackStillWaitsForTheRunningSlots) {
+  WorkerPool pool(2);
+  std::atomic<bool> pool_started{false};
+  std::atomic<bool> pool_done{false};
+  bool done_when_run_returned = false;
+  auto run = std::async(std::launch::async, [&] {
+    const std::thread::id caller = std::this_thread::get_id();
+    try {
+      pool.Run(
+          2,
+          [&](int) {
+            if (std::this_thread::get_id() == caller) {
+              const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+              while (!pool_started && std::chrono::steady_clock::now() < deadline)
+                std::this_thread::sleep_for(std::chrono::milliseconds(2));
+            } else {
+              pool_started = true;
+              std::this_thread::sleep_for(std::chrono::milliseconds(300));
+              pool_done = true;
+            }
+          },
+          [] { throw std::runtime_error("from the wait callback"); });
+    } catch (const std::runtime_error&) {
+      done_when_run_returned = pool_done.load();
+      return true;
+    }
+    return false;
+  });
+  ASSERT_EQ(run.wait_for(std::chrono::seconds(60)), std::future_status::ready);
+  EXPECT_TRUE(run.get()) << "the callback's exception was not rethrown";
+  EXPECT_TRUE(done_when_run_returned) << "Run returned while a slot was still running";
 }
 
 }  // namespace

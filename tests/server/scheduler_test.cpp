@@ -23,6 +23,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -376,6 +377,42 @@ TEST_F(SchedulerTest, AJobRunsOnTheProblemItsSubmissionPrepared) {
   EXPECT_EQ(store.SceneReads(stored_job.id), 1);
   EXPECT_EQ(sqlite.GetJob(prepared_job.id)->state, JobState::kCancelled);
   EXPECT_EQ(sqlite.GetJob(stored_job.id)->state, JobState::kCancelled);
+}
+
+// A shutdown that lands inside a step leaves the job to resume, never cancelled: with the
+// memetic GA (strategy default) the step is most often a local search, which keeps what it found
+// and reports its generation; that report must not clear the shutdown. Two rounds, since
+// where the stop lands is up to the clock.
+TEST_F(SchedulerTest, AShutdownInsideAGenerationLeavesTheJobToResume) {
+  for (int round = 0; round < 2; ++round) {
+    SCOPED_TRACE("round " + std::to_string(round));
+    const std::string path = (dir_ / ("shutdown-" + std::to_string(round) + ".db")).string();
+    SqliteStore sqlite(path);
+    HookedStore store(sqlite);
+    NewJob job = Job("memetic");
+    // Generations long enough (a local search over a 12x12 grid's 500 genes at the wrong
+    // stiffness) for the stop to land inside one: a beat comes only 0.25 s after a report.
+    Scene memetic = springfit::testing::GridScene(2, 12);
+    memetic.training_stiffness = 0.5;
+    memetic.search = scene_.search;
+    memetic.search.strategy = Strategy::kDefault;
+    job.scene_json = proto::SceneToJson(memetic).dump();
+    job.record.strategy = "default";
+    const std::int64_t id = sqlite.CreateJob(job).job.id;
+    Notifications inbox;
+    Scheduler scheduler(store, Options(1));
+    scheduler.Watch(id, inbox.For(id));
+    scheduler.Start();
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (inbox.Of(id, "job.progress").empty() && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(1 + round));
+    ASSERT_FALSE(inbox.Of(id, "job.progress").empty()) << "the job made no progress in 30 s";
+    std::this_thread::sleep_for(std::chrono::milliseconds(300 + 97 * round));
+    ASSERT_TRUE(scheduler.Stop(std::chrono::seconds(30)));
+    EXPECT_EQ(sqlite.GetJob(id)->state, JobState::kRunning) << "not left to resume";
+    EXPECT_TRUE(store.Finishes(id).empty());
+    EXPECT_TRUE(inbox.Of(id, "job.finished").empty());
+  }
 }
 
 // The race for real: 30 endless jobs, 3 runners claiming from the moment Start() returns, and
