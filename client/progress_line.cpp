@@ -38,6 +38,10 @@ void ProgressLine::Report(const TraceRow& row, bool last) {
                 "generation %d/%d  best cost %.4g  normalized error %.4g%s  %.0f eval/s  %.1f s%s",
                 row.generation, max_generations_, row.best_cost, row.best_normalized_error,
                 topology.c_str(), rate, row.wall_seconds, eta.c_str());
+  Show(line, last);
+}
+
+void ProgressLine::Show(const char* line, bool last) const {
   if (terminal_) {
     std::fprintf(stderr, "\r\033[K%s%s", line, last ? "\n" : "");
   } else {
@@ -72,12 +76,7 @@ void ProgressLine::Beat(const ProgressBeat& beat, double reference_norm2) {
   }
   shown_at_ = beat.wall_seconds;
   shown_beat_ = true;
-  if (terminal_) {
-    std::fprintf(stderr, "\r\033[K%s", line);
-  } else {
-    std::fprintf(stderr, "%s\n", line);
-  }
-  std::fflush(stderr);
+  Show(line, false);
 }
 
 }  // namespace springfit::cli

@@ -18,6 +18,9 @@ class ProgressLine {
   void Beat(const ProgressBeat& beat, double reference_norm2);
 
  private:
+  // Redrawn in place on a terminal (`last` ends the line), a line of its own otherwise.
+  void Show(const char* line, bool last) const;
+
   int max_generations_;
   bool quiet_;
   bool terminal_;

@@ -42,7 +42,7 @@ enum class StopReason {
   kGenerationLimit,  // max_generations generations were bred without reaching the target
   kCancelled,        // the run's callback returned false (cancel, shutdown, Ctrl-C)
   kCompleted,        // a single-shot strategy (direct) ran to its end short of the target
-  kTimeLimit,        // max_seconds of wall time had passed at the end of a step
+  kTimeLimit,        // max_seconds of wall time had passed since the run began (inside a step)
   kStalled,          // the best did not improve for stall_generations generations
 };
 

@@ -52,16 +52,18 @@ TEST(Interruption, PollsOnItsOwnThreadWhenDueAndStaysRequested) {
   EXPECT_NO_THROW(ThrowIfInterrupted(nullptr));
 }
 
+// Sleeps until `flag` is set, 30 s at most (the test's expectations then fail).
+void WaitFor(const std::atomic<bool>& flag) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (!flag && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+}
+
 TEST(WorkerPool, TheWaitingCallerKeepsCheckingWhileAPoolThreadWorks) {
   WorkerPool pool(2);
   std::atomic<bool> pool_started{false};
   std::atomic<bool> release{false};
   std::atomic<int> checks{0};
-  const auto wait_for = [](const std::atomic<bool>& flag) {
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    while (!flag && std::chrono::steady_clock::now() < deadline)
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  };
   // The caller's slot waits until a pool thread holds the other one; that one blocks until
   // the caller, waiting for it, has checked three times. Without the waiting callback the
   // caller would sleep until the slot ended: 30 s, then the expectations fail.
@@ -71,10 +73,10 @@ TEST(WorkerPool, TheWaitingCallerKeepsCheckingWhileAPoolThreadWorks) {
         2,
         [&](int) {
           if (std::this_thread::get_id() == caller) {
-            wait_for(pool_started);
+            WaitFor(pool_started);
           } else {
             pool_started = true;
-            wait_for(release);
+            WaitFor(release);
           }
         },
         [&] {
@@ -210,9 +212,7 @@ TEST(WorkerPool, AThrowingWaitCallbackStillWaitsForTheRunningSlots) {
           2,
           [&](int) {
             if (std::this_thread::get_id() == caller) {
-              const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-              while (!pool_started && std::chrono::steady_clock::now() < deadline)
-                std::this_thread::sleep_for(std::chrono::milliseconds(2));
+              WaitFor(pool_started);
             } else {
               pool_started = true;
               std::this_thread::sleep_for(std::chrono::milliseconds(300));
