@@ -125,9 +125,14 @@ double EquilibriumSolver::Assemble(const ActiveSprings& springs, const Vector& f
     const double k = springs.stiffness[a];
     const double l = g.rest_length[s];
     const int i = g.pairs[s].first, j = g.pairs[s].second;
-    const VecD<D> d = g.rest_separation.template segment<D>(D * s) + u.template segment<D>(D * i) -
-                      u.template segment<D>(D * j);
-    const SpringState<D> state(d, l, k);
+    const VecD<D> d0 = g.rest_separation.template segment<D>(D * s);
+    // (d0 + u_i) - u_j, in this order: the examples' loads were scaled with it, bit for bit.
+    const SpringState<D> state =
+        options_.response == Response::kLinear
+            ? SpringState<D>::Linearised(
+                  d0, u.template segment<D>(D * i) - u.template segment<D>(D * j), l, k)
+            : SpringState<D>(d0 + u.template segment<D>(D * i) - u.template segment<D>(D * j), l,
+                             k);
     const double e = state.Energy(l, k);
     energy += e;
     // L - l carries an absolute error of about eps L, so e carries about |k (L - l)| eps L:
@@ -176,12 +181,17 @@ double EquilibriumSolver::EnergyAndGradient(const ActiveSprings& springs, const 
   return Assemble<3>(springs, force, u, gradient, hessian, projected, nullptr);
 }
 
-bool EquilibriumSolver::SolveWithTangent(const ActiveSprings& springs, const Vector& force,
+bool EquilibriumSolver::FactorizeTangent(const ActiveSprings& springs, const Vector& u) {
+  if (free_.count == 0) return true;
+  // The Hessian does not depend on the external forces.
+  EnergyAndGradient(springs, Vector::Zero(u.size()), u, nullptr, true, false);
+  return system_.Factorize(0.0, options_.pivot_tolerance, false).positive_definite;
+}
+
+bool EquilibriumSolver::SolveWithTangent(const ActiveSprings& springs, const Vector& /*force*/,
                                          const Vector& u, Matrix& rhs) {
   if (free_.count == 0) return true;
-  EnergyAndGradient(springs, force, u, nullptr, true, false);
-  const SymmetricSystem::Factorization f = system_.Factorize(0.0, options_.pivot_tolerance, false);
-  if (!f.positive_definite) return false;
+  if (!FactorizeTangent(springs, u)) return false;
   Vector column(rhs.rows());
   for (Eigen::Index c = 0; c < rhs.cols(); ++c) {
     column = rhs.col(c);
@@ -279,7 +289,9 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, co
       if (fj >= 0) change -= step_.template segment<D>(D * fj);
       largest = std::max(largest, change.norm() / geometry_->rest_length[s]);
     }
-    if (largest > options_.max_step) step_ *= options_.max_step / largest;
+    // (The linearised model has no cone: its Newton step is the answer, whatever its size.)
+    if (largest > options_.max_step && options_.response == Response::kNonlinear)
+      step_ *= options_.max_step / largest;
     const double slope = gradient_.dot(step_);
     if (!(slope < 0.0)) break;  // not a descent direction (also catches NaN)
 

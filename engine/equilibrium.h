@@ -1,4 +1,5 @@
-// Static equilibrium of a mass-spring model under one load case.
+// Static equilibrium of a mass-spring model under one load case (or, with
+// EquilibriumOptions::response kLinear, its linearised response at rest).
 //
 // The equilibrium minimises the potential energy over the free nodes' displacements u:
 //   E(u) = sum_springs 1/2 k (L - l)^2 - sum_free F . u
@@ -47,6 +48,10 @@ enum class Termination {
 };
 
 struct EquilibriumOptions {
+  // kLinear: the springs' linearised response at rest (springs.h, SpringState::Linearised): the
+  // energy is quadratic, Newton's first step solves it and a second, if any, removes round-off.
+  // Set from the scene by Problem (search.response).
+  Response response = Response::kNonlinear;
   // Converged when the largest free-node force imbalance is at most
   //   max(relative_force_tolerance * force_scale, roundoff_force_tolerance * k_max * l_max),
   // force_scale = max(largest external force, k_max * largest prescribed displacement).
@@ -118,6 +123,12 @@ class EquilibriumSolver {
   // Returns false, leaving `rhs` unspecified, when H is not positive definite there.
   bool SolveWithTangent(const ActiveSprings& springs, const Vector& force, const Vector& u,
                         Matrix& rhs);
+  // The same in two parts, for callers that solve with H many times (sensitivities applied as
+  // operators): FactorizeTangent() factorises H at `u` and returns whether it is positive
+  // definite; SolveTangent() overwrites b (free degrees of freedom) with H^-1 b, using the
+  // last FactorizeTangent() as long as no other method of this solver has been called since.
+  bool FactorizeTangent(const ActiveSprings& springs, const Vector& u);
+  void SolveTangent(Vector& b) const { system_.Solve(b); }
 
   // E(u) and its gradient on the free degrees of freedom (flat, free-node order). Exposed for
   // tests; `hessian` true also assembles the Hessian into the system (`projected` clamps it).

@@ -72,12 +72,23 @@ void SolveFemReference(const Scene& s, const std::vector<FreeNodes>& free_sets,
 
 }  // namespace
 
+Response ResolveResponse(const Scene& scene) {
+  if (scene.search.response) return *scene.search.response;
+  if (scene.reference.kind != Reference::Kind::kFem) return Response::kNonlinear;
+  for (const Material& m : scene.reference.fem.materials) {
+    if (m.model != MaterialModel::kLinear) return Response::kNonlinear;
+  }
+  return Response::kLinear;
+}
+
 Problem::Problem(Scene scene, EquilibriumOptions solver_options) {
   ValidateScene(scene);
   Problem& p = *this;
   p.scene_ = std::move(scene);
-  p.solver_options_ = solver_options;
   const Scene& s = p.scene_;
+  p.response_ = ResolveResponse(s);
+  solver_options.response = p.response_;
+  p.solver_options_ = solver_options;
   const int d = s.dimension;
   const int n = s.node_count();
   p.training_stiffness_ = s.EffectiveTrainingStiffness();

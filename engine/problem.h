@@ -55,6 +55,11 @@ struct TopologyDifference {
   int hamming() const { return static_cast<int>(missing.size() + extra.size()); }
 };
 
+// search.response, or its default: linear for an FEM reference whose materials are all linear
+// (it describes the small-load limit: comparing it with springs that turn, stiffen and buckle
+// at the FEM's load would mix a load-level artefact into the model error), nonlinear otherwise.
+Response ResolveResponse(const Scene& scene);
+
 // A scene prepared for identification: validated (the one place a scene's rules are checked),
 // its reference's equilibria solved, its candidates and genes laid out. Prepared once per job
 // and shared by everything that reads it, from any number of threads. It cannot be copied or
@@ -80,7 +85,11 @@ class Problem {
   const SpringGeometry& candidates() const { return candidates_; }
   const std::vector<FreeNodes>& free_sets() const { return free_sets_; }
   const std::vector<PreparedLoadCase>& load_cases() const { return load_cases_; }
+  // Its `response` is the problem's.
   const EquilibriumOptions& solver_options() const { return solver_options_; }
+  // How the training model (and an MSS reference) responds to the loads: the scene's
+  // search.response, else ResolveResponse's rule.
+  Response response() const { return response_; }
 
   int gene_count() const { return static_cast<int>(gene_candidate_.size()); }
   // The candidate index of each gene, ascending.
@@ -125,6 +134,7 @@ class Problem {
 
   Scene scene_;
   EquilibriumOptions solver_options_;
+  Response response_ = Response::kNonlinear;
   SpringGeometry candidates_;
   std::vector<FreeNodes> free_sets_;
   std::vector<PreparedLoadCase> load_cases_;

@@ -135,12 +135,26 @@ enum class Identify {
   kTopologyAndStiffness,  // which springs and each one's stiffness (strategy direct only)
 };
 
+// How the training model responds to a load case (proto/SCENE.md, "search.response").
+enum class Response {
+  // The static equilibrium of the springs as they are (geometrically nonlinear: springs turn
+  // as they stretch, stiffen in tension and buckle in compression). The paper's model.
+  kNonlinear,
+  // The linearised response at rest, K(k) u = f with K = sum k n n^T over the rest directions
+  // n: the small-load limit, what a linear FEM reference describes. One factorisation per load
+  // case; displacements scale with the load.
+  kLinear,
+};
+
 // Settings of the topology search (DESIGN.md §1). An unset GA parameter takes the chosen
 // strategy's default (engine/search/search_options.h).
 struct SearchSettings {
   Strategy strategy = Strategy::kDefault;
   // nullopt: topology and stiffness for strategy direct, topology for the others.
   std::optional<Identify> identify;
+  // nullopt: linear for an FEM reference whose materials are all linear, nonlinear otherwise
+  // (Problem::response()).
+  std::optional<Response> response;
   std::uint64_t seed = 1;
   std::optional<int> population;                // individuals per generation, >= 2
   std::optional<double> crossover_probability;  // in [0, 1]

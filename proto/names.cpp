@@ -143,6 +143,17 @@ Identify IdentifyFromName(const std::string& name, const std::string& path) {
   throw InputError(path, "unknown value '" + name + "' (expected " + IdentifyNames() + ")");
 }
 
+std::string_view ResponseName(Response response) {
+  return response == Response::kLinear ? "linear" : "nonlinear";
+}
+
+Response ResponseFromName(const std::string& name, const std::string& path) {
+  for (Response r : {Response::kLinear, Response::kNonlinear}) {
+    if (ResponseName(r) == name) return r;
+  }
+  throw InputError(path, "unknown value '" + name + "' (expected linear or nonlinear)");
+}
+
 std::string_view StopReasonName(StopReason reason) {
   switch (reason) {
     case StopReason::kTargetReached:

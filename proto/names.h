@@ -41,6 +41,11 @@ std::string IdentifyNames();
 // InputError(path, "unknown value 'x' (expected topology or topology_and_stiffness)").
 Identify IdentifyFromName(const std::string& name, const std::string& path);
 
+// How the training model responds (proto/SCENE.md, "search.response").
+std::string_view ResponseName(Response response);
+// InputError(path, "unknown value 'x' (expected linear or nonlinear)").
+Response ResponseFromName(const std::string& name, const std::string& path);
+
 // "default, paper, direct or hybrid": the accepted names, for messages.
 std::string StrategyNames();
 std::vector<Strategy> AllStrategies();

@@ -260,7 +260,7 @@ void ReadLoadCases(const Json& v, Scene& s) {
 void ReadSearch(const Json& v, SearchSettings& st) {
   const std::string path = "search";
   ExpectKeys(v, path,
-             {"strategy", "identify", "seed", "population", "crossover_probability",
+             {"strategy", "identify", "response", "seed", "population", "crossover_probability",
               "mutation_probability", "max_generations", "target_normalized_error", "max_seconds",
               "stall_generations"});
   if (v.contains("strategy")) {
@@ -270,6 +270,10 @@ void ReadSearch(const Json& v, SearchSettings& st) {
   if (v.contains("identify")) {
     st.identify = IdentifyFromName(ReadString(v["identify"], JoinPath(path, "identify")),
                                    JoinPath(path, "identify"));
+  }
+  if (v.contains("response")) {
+    st.response = ResponseFromName(ReadString(v["response"], JoinPath(path, "response")),
+                                   JoinPath(path, "response"));
   }
   if (v.contains("seed")) st.seed = ReadUint64(v["seed"], JoinPath(path, "seed"));
   if (v.contains("population"))
@@ -484,6 +488,7 @@ Json SceneToJson(const Scene& s) {
   Json sj = Json::object();
   if (st.strategy != d.strategy) sj["strategy"] = StrategyName(st.strategy);
   if (st.identify) sj["identify"] = IdentifyName(*st.identify);
+  if (st.response) sj["response"] = ResponseName(*st.response);
   if (st.seed != d.seed) sj["seed"] = st.seed;
   if (st.population) sj["population"] = *st.population;
   if (st.crossover_probability) sj["crossover_probability"] = *st.crossover_probability;

@@ -11,6 +11,7 @@ ForceBalance AssembleForceBalance(const Problem& problem,
   const int genes = problem.gene_count();
   const SpringGeometry& geometry = problem.candidates();
   const Vector& rest = problem.scene().rest;
+  const bool linear = problem.response() == Response::kLinear;
 
   // Row offsets: each load case's free coordinates, in node order.
   std::vector<Eigen::Index> row_offset;
@@ -29,7 +30,8 @@ ForceBalance AssembleForceBalance(const Problem& problem,
   for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
     const PreparedLoadCase& lc = problem.load_cases()[k];
     const FreeNodes& free = problem.free_sets()[lc.free_set];
-    const Vector x = rest + (displacements ? (*displacements)[k] : lc.reference);
+    const Vector& u = displacements ? (*displacements)[k] : lc.reference;
+    const Vector x = rest + u;
     for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
       const int f = free.free_index[i];
       if (f < 0) continue;
@@ -38,9 +40,15 @@ ForceBalance AssembleForceBalance(const Problem& problem,
     for (int g = 0; g < genes; ++g) {
       const int c = problem.gene_candidates()[g];
       const NodePair pair = geometry.pairs[c];
-      const Vector sep = x.segment(d * pair.first, d) - x.segment(d * pair.second, d);
-      const double length = sep.norm();
-      const double stretch = length - geometry.rest_length[c];
+      Vector sep = x.segment(d * pair.first, d) - x.segment(d * pair.second, d);
+      double length = sep.norm();
+      double stretch = length - geometry.rest_length[c];
+      if (linear) {
+        // The linearised spring pulls along its rest direction by its stretch along it.
+        length = geometry.rest_length[c];
+        sep = geometry.rest_separation.segment(d * c, d);
+        stretch = sep.dot(u.segment(d * pair.first, d) - u.segment(d * pair.second, d)) / length;
+      }
       const int fi = free.free_index[pair.first];
       const int fj = free.free_index[pair.second];
       if (fi < 0 && fj < 0) continue;  // no free node: no equation sees this spring here

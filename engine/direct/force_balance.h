@@ -6,7 +6,9 @@
 //
 // w_ij >= 0 is the stiffness of spring (i, j), 0 when absent. One row per coordinate of a
 // free node per load case, one column per gene. For an MSS reference whose springs are all
-// candidates, A w = b holds exactly at the reference's stiffness.
+// candidates, A w = b holds exactly at the reference's stiffness. Under the linear response
+// (Problem::response()) g_ij is the linearised spring's: -(n0 . (u_i - u_j)) n0, n0 the rest
+// direction.
 #pragma once
 #include <Eigen/SparseCore>
 #include <optional>

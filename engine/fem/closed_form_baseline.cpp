@@ -1,5 +1,6 @@
 #include "engine/fem/closed_form_baseline.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 
@@ -34,6 +35,20 @@ ClosedFormModel VanGelderModel(const Scene& scene) {
     out.stiffness.push_back(k);
   }
   return out;
+}
+
+std::optional<std::vector<double>> BaselineGeneWeights(const Problem& problem) {
+  const ClosedFormModel model = VanGelderModel(problem.scene());
+  const std::vector<int>& genes = problem.gene_candidates();  // ascending
+  std::vector<double> w(genes.size(), 0.0);
+  for (std::size_t m = 0; m < model.springs.size(); ++m) {
+    const int c = problem.CandidateIndex(model.springs[m]);
+    if (c < 0) return std::nullopt;
+    const auto it = std::lower_bound(genes.begin(), genes.end(), c);
+    if (it == genes.end() || *it != c) continue;  // no load case sees it: no gene
+    w[static_cast<std::size_t>(it - genes.begin())] = model.stiffness[m];
+  }
+  return w;
 }
 
 std::optional<BaselineReport> EvaluateClosedFormBaseline(const Problem& problem,

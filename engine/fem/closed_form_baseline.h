@@ -27,6 +27,11 @@ struct ClosedFormModel {
 // Precondition: the scene's reference is an FEM model (validated).
 ClosedFormModel VanGelderModel(const Scene& scene);
 
+// The closed-form model as weights over the problem's genes: each mesh edge's stiffness on its
+// gene, 0 on the other genes. nullopt when some mesh edge that a load case can see is not a
+// candidate (the baseline is then not a model of the candidate set). Precondition as above.
+std::optional<std::vector<double>> BaselineGeneWeights(const Problem& problem);
+
 struct BaselineReport {
   std::string recipe = "van_gelder_1998";
   int springs = 0;

@@ -1,0 +1,92 @@
+// The continuous stiffness fit (engine/fit/stiffness_fit.h) on FEM references: the floor a
+// per-spring stiffness reaches on the mesh's own edges (the bounded least-squares fit the
+// closed-form recipe is judged against, issue 16) and on the whole candidate set, beside the
+// closed-form baseline (bench/RESULTS.md, "Identification on FEM references").
+//
+//   build/bench/fit_bench examples/fem-plate-5x5.json examples/fem-kidney-2d.json
+//   build/bench/fit_bench --response nonlinear examples/fem-kidney-2d.json
+//
+// E is the relative RMS nodal error sqrt(sum |u - u^R|^2 / sum |u^R|^2) over the free nodes of
+// every load case; times are wall seconds of one run on this machine.
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "engine/fem/closed_form_baseline.h"
+#include "engine/fit/stiffness_fit.h"
+#include "engine/problem.h"
+#include "proto/names.h"
+#include "proto/scene_codec.h"
+
+namespace springfit {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double Seconds(Clock::time_point since) {
+  return std::chrono::duration<double>(Clock::now() - since).count();
+}
+
+void Report(const char* what, const StiffnessFitResult& fit, int springs, double seconds) {
+  std::printf("  %-28s E %-10.4g springs %5d  steps %3d (%3d accepted)  solves %7lld  %7.2f s%s\n",
+              what, std::sqrt(fit.normalized_error), springs, fit.iterations, fit.accepted,
+              static_cast<long long>(fit.solves), seconds, fit.converged ? "" : "  (not converged)");
+}
+
+int Positive(const std::vector<double>& w) {
+  int n = 0;
+  for (double x : w) n += x > 0.0;
+  return n;
+}
+
+int Main(int argc, char** argv) {
+  CLI::App app{"Continuous stiffness fits on FEM references"};
+  std::vector<std::string> files;
+  std::string response;
+  int max_iterations = StiffnessFitOptions{}.max_iterations;
+  app.add_option("scenes", files, "FEM scene files")->required();
+  app.add_option("--response", response, "linear or nonlinear (default: the scene's)");
+  app.add_option("--max-iterations", max_iterations, "trust-region steps per fit");
+  CLI11_PARSE(app, argc, argv);
+
+  for (const std::string& file : files) {
+    Scene scene = proto::LoadSceneFile(file);
+    if (!response.empty()) scene.search.response = proto::ResponseFromName(response, "--response");
+    auto t0 = Clock::now();
+    const Problem problem(std::move(scene));
+    const double prepare = Seconds(t0);
+    std::printf("%s: %d nodes, %d genes, %zu load cases, response %s (prepared in %.2f s)\n",
+                file.c_str(), problem.scene().node_count(), problem.gene_count(),
+                problem.load_cases().size(),
+                std::string(proto::ResponseName(problem.response())).c_str(), prepare);
+    const auto baseline = fem::EvaluateClosedFormBaseline(problem);
+    const auto start = fem::BaselineGeneWeights(problem);
+    if (!baseline || !start) {
+      std::printf("  not an FEM reference whose mesh edges are all candidates: skipped\n");
+      continue;
+    }
+    std::printf("  %-28s E %-10.4g springs %5d\n", "closed form (van Gelder)",
+                baseline->converged ? baseline->rms_error : NAN, baseline->springs);
+    StiffnessFitOptions options;
+    options.max_iterations = max_iterations;
+    std::vector<bool> edges(start->size()), all(start->size(), true);
+    for (std::size_t g = 0; g < start->size(); ++g) edges[g] = (*start)[g] > 0.0;
+    t0 = Clock::now();
+    const StiffnessFitResult floor = FitStiffness(problem, *start, edges, options);
+    Report("fit on the mesh edges", floor, Positive(floor.weights), Seconds(t0));
+    t0 = Clock::now();
+    const StiffnessFitResult rich = FitStiffness(problem, *start, all, options);
+    Report("fit on all candidates", rich, Positive(rich.weights), Seconds(t0));
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace springfit
+
+int main(int argc, char** argv) {
+  return springfit::Main(argc, argv);
+}

@@ -1,0 +1,259 @@
+#include "engine/fit/stiffness_fit.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "engine/direct/force_balance.h"
+#include "engine/options_check.h"
+
+namespace springfit {
+namespace {
+
+// Below this normalised error the fit is exact (an MSS reference): nothing is left to fit.
+constexpr double kExactError = 1e-24;
+// A trust region this small (scaled units) has stopped moving the weights.
+constexpr double kSmallestRadius = 1e-12;
+
+// The model's response at one set of weights: equilibria, tangents factorised, residuals.
+class ResponseState {
+ public:
+  explicit ResponseState(const Problem& problem, Interruption* interruption)
+      : problem_(problem) {
+    // One solver per load case: each keeps its own tangent's factorisation for the operators.
+    for (const PreparedLoadCase& lc : problem.load_cases()) {
+      solvers_.emplace_back(problem.candidates(), problem.free_sets()[lc.free_set],
+                            problem.solver_options());
+      solvers_.back().set_interruption(interruption);
+      u_.push_back(lc.reference);  // warm start: the reference's equilibrium
+    }
+    Eigen::Index rows = 0;
+    for (const PreparedLoadCase& lc : problem.load_cases()) {
+      offset_.push_back(rows);
+      rows += problem.dimension() * problem.free_sets()[lc.free_set].count;
+    }
+    offset_.push_back(rows);
+    r_.resize(rows);
+  }
+
+  // Solves every load case at `w` (warm-started from the last state) and factorises its
+  // tangent. False when the model has no equilibrium (a mechanism, no convergence); the state
+  // is then unusable until the next successful Evaluate. Throws Interrupted.
+  bool Evaluate(const std::vector<double>& w) {
+    const Problem& p = problem_;
+    const int d = p.dimension();
+    const ActiveSprings springs = p.SpringsOfWeights(w);
+    for (std::size_t k = 0; k < p.load_cases().size(); ++k) {
+      const PreparedLoadCase& lc = p.load_cases()[k];
+      EquilibriumSolver& solver = solvers_[k];
+      if (p.response() == Response::kNonlinear && solver.RestMechanismModes(springs) > 0)
+        return false;
+      const EquilibriumSummary s = solver.Solve(springs, lc.force, lc.prescribed, u_[k]);
+      if (s.termination == Termination::kInterrupted) throw Interrupted();
+      // (Linear: a mechanism's singular tangent fails here.)
+      if (!s.converged() || !solver.FactorizeTangent(springs, u_[k])) return false;
+      const FreeNodes& free = p.free_sets()[lc.free_set];
+      for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
+        const int f = free.free_index[i];
+        if (f >= 0)
+          r_.segment(offset_[k] + d * f, d) = u_[k].segment(d * i, d) - lc.reference.segment(d * i, d);
+      }
+    }
+    return true;
+  }
+
+  const Vector& residual() const { return r_; }
+  const std::vector<Vector>& displacements() const { return u_; }
+  std::vector<Vector>& displacements() { return u_; }
+  std::int64_t solves() const { return solves_; }
+
+  // y <- H^-1 y, block by load case.
+  void ApplyInverseTangent(Vector& y) {
+    for (std::size_t k = 0; k < solvers_.size(); ++k) {
+      const Eigen::Index size = offset_[k + 1] - offset_[k];
+      if (size == 0) continue;
+      Vector block = y.segment(offset_[k], size);
+      solvers_[k].SolveTangent(block);
+      y.segment(offset_[k], size) = block;
+      ++solves_;
+    }
+  }
+
+ private:
+  const Problem& problem_;
+  std::vector<EquilibriumSolver> solvers_;
+  std::vector<Vector> u_;
+  std::vector<Eigen::Index> offset_;
+  Vector r_;
+  std::int64_t solves_ = 0;
+};
+
+double MedianPositive(const std::vector<double>& w) {
+  std::vector<double> positive;
+  for (double x : w) {
+    if (x > 0.0) positive.push_back(x);
+  }
+  if (positive.empty()) return 1.0;
+  const auto mid = positive.begin() + static_cast<std::ptrdiff_t>(positive.size() / 2);
+  std::nth_element(positive.begin(), mid, positive.end());
+  return *mid;
+}
+
+}  // namespace
+
+void StiffnessFitOptions::Validate(const std::string& owner) const {
+  const OptionsCheck check(owner);
+  check.Require(max_iterations >= 0, "max_iterations", max_iterations, "value >= 0");
+  check.Require(InOpenUnit(relative_tolerance), "relative_tolerance", relative_tolerance,
+                "0 < value < 1");
+  check.Require(max_cg_iterations >= 1, "max_cg_iterations", max_cg_iterations, "value >= 1");
+  check.Require(InOpenUnit(cg_tolerance), "cg_tolerance", cg_tolerance, "0 < value < 1");
+  check.Require(scale_floor > 0.0 && scale_floor <= 1.0, "scale_floor", scale_floor,
+                "0 < value <= 1");
+  check.Require(initial_radius > 0.0 && std::isfinite(initial_radius), "initial_radius",
+                initial_radius, "0 < value < infinity");
+}
+
+StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double>& start,
+                                const std::vector<bool>& usable,
+                                const StiffnessFitOptions& options, Interruption* interruption) {
+  options.Validate();
+  const int genes = problem.gene_count();
+  const double norm2 = problem.reference_norm2();
+  StiffnessFitResult result;
+  std::vector<double> w(start);
+  w.resize(static_cast<std::size_t>(genes), 0.0);
+  for (int g = 0; g < genes; ++g) {
+    if (!usable[g] || !(w[g] > 0.0)) w[g] = 0.0;
+  }
+  result.weights = w;
+
+  ResponseState state(problem, interruption);
+  if (!state.Evaluate(w)) {
+    result.feasible = false;
+    result.normalized_error = result.initial_normalized_error =
+        std::numeric_limits<double>::infinity();
+    return result;
+  }
+  double phi = 0.5 * state.residual().squaredNorm();
+  result.initial_normalized_error = 2.0 * phi / norm2;
+
+  double radius = options.initial_radius;
+  int small_decreases = 0;
+  ForceBalance fb;
+  Vector scale(genes), gradient(genes), z, cg_r, p, mp, t;
+  std::vector<bool> free(static_cast<std::size_t>(genes));
+  std::vector<double> trial(static_cast<std::size_t>(genes));
+  const auto apply_normal = [&](const Vector& v, Vector& out) {
+    // out = S J^T J S v on the free genes.
+    Vector sv = v.cwiseProduct(scale);
+    t = fb.a * sv;
+    state.ApplyInverseTangent(t);  // J S v = H^-1 A S v
+    state.ApplyInverseTangent(t);  // the adjoint: J^T y = A^T H^-1 y
+    out = scale.cwiseProduct(fb.a.transpose() * t);
+    for (int g = 0; g < genes; ++g) {
+      if (!free[g]) out[g] = 0.0;
+    }
+  };
+
+  while (result.iterations < options.max_iterations && 2.0 * phi / norm2 > kExactError) {
+    if (interruption && interruption->Check()) throw Interrupted();
+    ++result.iterations;
+    fb = AssembleForceBalance(problem, &state.displacements());
+    // The gradient J^T r by the adjoint: one solve per load case.
+    t = state.residual();
+    state.ApplyInverseTangent(t);
+    gradient = fb.a.transpose() * t;
+    const double typical = MedianPositive(w);
+    for (int g = 0; g < genes; ++g) {
+      free[g] = usable[g] && !(w[g] == 0.0 && gradient[g] >= 0.0);
+      scale[g] = free[g] ? std::max(w[g], options.scale_floor * typical) : 0.0;
+    }
+    const Vector gs = scale.cwiseProduct(gradient);  // zero off the free genes
+    const double gs_norm = gs.norm();
+    if (!(gs_norm > 0.0)) {
+      result.converged = true;
+      break;
+    }
+
+    // Steihaug's truncated CG on min gs.z + 1/2 z.M z, |z| <= radius.
+    z = Vector::Zero(genes);
+    cg_r = -gs;
+    p = cg_r;
+    double rr = cg_r.squaredNorm();
+    for (int it = 0; it < options.max_cg_iterations; ++it) {
+      if (interruption && interruption->Check()) throw Interrupted();
+      apply_normal(p, mp);
+      const double pmp = p.dot(mp);
+      // The step to the boundary along p: the largest tau with |z + tau p| = radius.
+      const auto to_boundary = [&]() {
+        const double a = p.squaredNorm(), b = 2.0 * z.dot(p), c = z.squaredNorm() - radius * radius;
+        return (-b + std::sqrt(std::max(b * b - 4.0 * a * c, 0.0))) / (2.0 * a);
+      };
+      if (!(pmp > 0.0)) {
+        const double tau = to_boundary();
+        z += tau * p;
+        cg_r -= tau * mp;
+        break;
+      }
+      const double alpha = rr / pmp;
+      if ((z + alpha * p).norm() >= radius) {
+        const double tau = to_boundary();
+        z += tau * p;
+        cg_r -= tau * mp;
+        break;
+      }
+      z += alpha * p;
+      cg_r -= alpha * mp;
+      const double rr_new = cg_r.squaredNorm();
+      if (std::sqrt(rr_new) <= options.cg_tolerance * gs_norm) break;
+      p = cg_r + (rr_new / rr) * p;
+      rr = rr_new;
+    }
+    // The model's decrease: -(gs.z + 1/2 z.M z), with M z = -gs - cg_r.
+    const double predicted = 0.5 * (cg_r.dot(z) - gs.dot(z));
+    const double step = z.norm();
+
+    for (int g = 0; g < genes; ++g) {
+      trial[g] = free[g] ? std::max(0.0, w[g] + scale[g] * z[g]) : w[g];
+    }
+    const std::vector<Vector> accepted_u = state.displacements();
+    const bool feasible = state.Evaluate(trial);
+    const double trial_phi = feasible ? 0.5 * state.residual().squaredNorm()
+                                      : std::numeric_limits<double>::infinity();
+    const double actual = phi - trial_phi;
+    const double rho = predicted > 0.0 ? actual / predicted : -1.0;
+    if (feasible && actual > 0.0 && rho > 1e-4) {
+      ++result.accepted;
+      small_decreases = actual < options.relative_tolerance * phi ? small_decreases + 1 : 0;
+      w = trial;
+      phi = trial_phi;
+      if (rho > 0.75 && step >= 0.99 * radius) radius *= 2.0;
+      if (rho < 0.25) radius = 0.25 * step;
+      if (small_decreases >= 2) {
+        result.converged = true;
+        break;
+      }
+    } else {
+      // Back to the accepted weights (their equilibria solve at once from where they were).
+      state.displacements() = accepted_u;
+      if (!state.Evaluate(w)) break;  // cannot happen: w had an equilibrium
+      radius = 0.25 * step;
+      if (radius < kSmallestRadius) {
+        result.converged = true;
+        break;
+      }
+    }
+  }
+  if (2.0 * phi / norm2 <= kExactError) result.converged = true;
+
+  result.weights = w;
+  result.normalized_error = 2.0 * phi / norm2;
+  result.solves = state.solves();
+  fb = AssembleForceBalance(problem, &state.displacements());
+  result.importance.assign(static_cast<std::size_t>(genes), 0.0);
+  for (int g = 0; g < genes; ++g) result.importance[g] = w[g] * fb.a.col(g).squaredNorm();
+  return result;
+}
+
+}  // namespace springfit

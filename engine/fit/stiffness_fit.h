@@ -1,0 +1,64 @@
+// Per-spring stiffness (k >= 0) on a candidate set, fitted to the reference's displacements:
+//   f(w) = 1/2 sum_k sum_i |u^M_ik(w) - u^R_ik|^2,   w >= 0,
+// over load cases k and free nodes i, u^M the model's response (linear or nonlinear, as the
+// problem's solver options say). A weight that reaches 0 has left the model; one whose
+// gradient points back in returns, so the gradient ranks every absent candidate in one pass.
+//
+// Sparse throughout, with no dense Jacobian and no cap on the genes. The Jacobian
+// J = du/dw is only ever applied: per load case, the equilibrium's tangent H gives
+// du/dw_j = H^-1 a_j, a_j the force spring j exerts per unit stiffness (the force balance's
+// column, force_balance.h), so
+//   J v   = H^-1 (A v)       one solve per load case,
+//   J^T y = A^T (H^-1 y)     one solve per load case (H symmetric): the adjoint; J^T r is the
+//                            gradient for every spring at the price of one solve per case.
+// Each step is a projected Gauss-Newton step in a trust region (Steihaug's truncated
+// conjugate gradients on J^T J, weights at 0 whose gradient pushes them out held there), in
+// variables scaled by the weights themselves, so that a step's size is relative to the
+// stiffness it changes and the result does not depend on the units.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "engine/interruption.h"
+#include "engine/problem.h"
+
+namespace springfit {
+
+struct StiffnessFitOptions {
+  int max_iterations = 60;  // trust-region steps tried, accepted or not
+  // Converged when two accepted steps in a row lower f by less than this fraction of f.
+  double relative_tolerance = 1e-6;
+  int max_cg_iterations = 40;  // conjugate-gradient iterations per step (2 solves per case each)
+  double cg_tolerance = 1e-3;  // CG stops below this fraction of its initial residual
+  // Step scaling: weight j moves in units of max(w_j, scale_floor * median positive weight),
+  // so that an absent spring can enter at a typical stiffness.
+  double scale_floor = 0.1;
+  double initial_radius = 1.0;  // the trust region, in scaled units (1 = weights change by 100%)
+
+  // Throws std::invalid_argument naming the field, its value and the rule it breaks.
+  void Validate(const std::string& owner = "StiffnessFitOptions") const;
+};
+
+struct StiffnessFitResult {
+  std::vector<double> weights;  // per gene, >= 0 (0 = absent)
+  bool feasible = true;         // false: the start has no equilibrium; weights are the start
+  double normalized_error = 0.0;          // sum |u^M - u^R|^2 / sum |u^R|^2 at the result
+  double initial_normalized_error = 0.0;  // at the start
+  int iterations = 0;                     // steps tried
+  int accepted = 0;                       // steps accepted
+  std::int64_t solves = 0;                // tangent solves (back-substitutions)
+  bool converged = false;  // stopped by the tolerance rather than the iteration limit
+  // Per gene, at the result: w_j |a_j|^2, twice the strain energy spring j stores summed over
+  // the load cases (up to its constrained ends): how much the model leans on it.
+  std::vector<double> importance;
+};
+
+// `usable[g]` false holds gene g at 0. Throws Interrupted when `interruption` stops it
+// (checked inside every solve and between conjugate-gradient iterations).
+StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double>& start,
+                                const std::vector<bool>& usable,
+                                const StiffnessFitOptions& options = {},
+                                Interruption* interruption = nullptr);
+
+}  // namespace springfit
