@@ -75,10 +75,10 @@ int Main(int argc, char** argv) {
     std::vector<bool> edges(start->size()), all(start->size(), true);
     for (std::size_t g = 0; g < start->size(); ++g) edges[g] = (*start)[g] > 0.0;
     t0 = Clock::now();
-    const StiffnessFitResult floor = FitStiffness(problem, *start, edges, options);
+    const StiffnessFitResult floor = FitStiffness(problem, *start, FitScope{edges, {}}, options);
     Report("fit on the mesh edges", floor, Positive(floor.weights), Seconds(t0));
     t0 = Clock::now();
-    const StiffnessFitResult rich = FitStiffness(problem, *start, all, options);
+    const StiffnessFitResult rich = FitStiffness(problem, *start, FitScope{all, {}}, options);
     Report("fit on all candidates", rich, Positive(rich.weights), Seconds(t0));
   }
   return 0;

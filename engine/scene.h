@@ -123,16 +123,21 @@ struct Reference {
 
 // The topology search strategies (engine/search/search_options.h has what each does).
 enum class Strategy {
-  kDefault,  // the fastest measured (bench/RESULTS.md): today the memetic GA seeded by direct
-  kPaper,    // the paper's GA, unchanged (Bianchi et al. 2003)
-  kDirect,   // non-negative least squares on the force balance (engine/direct/)
-  kHybrid,   // direct, then the memetic GA seeded with its topology (today's default)
+  // The best measured for the reference (bench/RESULTS.md): continuous on an FEM reference,
+  // hybrid otherwise (engine/identification/strategy.h).
+  kDefault,
+  kPaper,   // the paper's GA, unchanged (Bianchi et al. 2003)
+  kDirect,  // non-negative least squares on the force balance (engine/direct/)
+  kHybrid,  // direct, then the memetic GA seeded with its topology
+  // Per-spring stiffness on every candidate by sensitivities, then a sparsity path
+  // (engine/fit/sparsity_path.h)
+  kContinuous,
 };
 
 // What an identification finds (proto/SCENE.md, "search.identify").
 enum class Identify {
   kTopology,              // which springs: every spring has the training stiffness (the paper)
-  kTopologyAndStiffness,  // which springs and each one's stiffness (strategy direct only)
+  kTopologyAndStiffness,  // which springs and each one's stiffness (direct and continuous)
 };
 
 // How the training model responds to a load case (proto/SCENE.md, "search.response").
@@ -162,6 +167,11 @@ struct SearchSettings {
   int max_generations = 1000;                   // >= 1
   std::optional<double> max_seconds;            // > 0; unset = no time limit
   std::optional<int> stall_generations;         // >= 0 (0 = never); unset = the strategy's
+  // Strategy continuous (and default on an FEM reference): the model returned from the
+  // sparsity path. At most this many springs (>= 1) ...
+  std::optional<int> max_springs;
+  // ... or the fewest springs whose relative RMS nodal error E is at most this (> 0).
+  std::optional<double> target_error;
   // The search stops when the normalised error reaches this value (0 = exact recovery,
   // judged within the solver's relative tolerance). Unit-free, >= 0.
   double target_normalized_error = 0.0;

@@ -270,14 +270,36 @@ void CheckLoadCases(const Scene& s) {
   }
 }
 
-void CheckSearch(const SearchSettings& s) {
-  if (s.identify == Identify::kTopologyAndStiffness && s.strategy != Strategy::kDirect) {
+void CheckSearch(const SearchSettings& s, Reference::Kind reference) {
+  // Strategy default is continuous on an FEM reference, hybrid otherwise.
+  const bool continuous = s.strategy == Strategy::kContinuous ||
+                          (s.strategy == Strategy::kDefault && reference == Reference::Kind::kFem);
+  if (s.identify == Identify::kTopologyAndStiffness && s.strategy != Strategy::kDirect &&
+      !continuous) {
     // The genetic strategies compare topologies whose springs all have the training
     // stiffness; they have nothing to say about each spring's stiffness.
     throw InputError(
         "search.identify",
-        "topology_and_stiffness needs strategy direct (paper, default and hybrid identify the "
-        "topology with the one training stiffness)");
+        "topology_and_stiffness needs strategy direct or continuous (paper and hybrid, and "
+        "default on a reference other than FEM, identify the topology with the one training "
+        "stiffness)");
+  }
+  if (s.identify == Identify::kTopology && continuous) {
+    throw InputError("search.identify",
+                     "strategy continuous (default on an FEM reference) identifies each spring's "
+                     "stiffness: use topology_and_stiffness, or strategy hybrid for the topology "
+                     "alone");
+  }
+  if ((s.max_springs || s.target_error) && !continuous) {
+    throw InputError(s.max_springs ? "search.max_springs" : "search.target_error",
+                     "chooses a point of the sparsity path: it needs strategy continuous (or "
+                     "default on an FEM reference)");
+  }
+  if (s.max_springs && *s.max_springs < 1) {
+    throw InputError("search.max_springs", "must be >= 1, got " + std::to_string(*s.max_springs));
+  }
+  if (s.target_error && !(*s.target_error > 0.0 && std::isfinite(*s.target_error))) {
+    throw InputError("search.target_error", "must be a finite number > 0");
   }
   if (s.population && *s.population < 2) {
     throw InputError("search.population", "must be >= 2, got " + std::to_string(*s.population));
@@ -328,7 +350,7 @@ void ValidateScene(const Scene& s) {
                        "stiffness must be > 0, got " + std::to_string(*s.training_stiffness));
     }
   }
-  CheckSearch(s.search);
+  CheckSearch(s.search, s.reference.kind);
 }
 
 }  // namespace springfit

@@ -96,7 +96,7 @@ std::string_view TerminationName(Termination termination) {
 
 namespace {
 constexpr Strategy kAllStrategies[] = {Strategy::kDefault, Strategy::kPaper, Strategy::kDirect,
-                                       Strategy::kHybrid};
+                                       Strategy::kHybrid, Strategy::kContinuous};
 }  // namespace
 
 std::string_view StrategyName(Strategy strategy) {
@@ -109,6 +109,8 @@ std::string_view StrategyName(Strategy strategy) {
       return "direct";
     case Strategy::kHybrid:
       return "hybrid";
+    case Strategy::kContinuous:
+      return "continuous";
   }
   return "?";
 }

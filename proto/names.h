@@ -29,8 +29,8 @@ std::string_view TerminationName(Termination termination);
 // Search strategies (proto/SCENE.md, "search").
 std::string_view StrategyName(Strategy strategy);
 std::optional<Strategy> ParseStrategy(std::string_view name);
-// ParseStrategy, or InputError(path, "unknown strategy 'x' (expected default, paper, direct or
-// hybrid)").
+// ParseStrategy, or InputError(path, "unknown strategy 'x' (expected default, paper, direct,
+// hybrid or continuous)").
 Strategy StrategyFromName(const std::string& name, const std::string& path);
 std::string_view StopReasonName(StopReason reason);
 
@@ -46,7 +46,7 @@ std::string_view ResponseName(Response response);
 // InputError(path, "unknown value 'x' (expected linear or nonlinear)").
 Response ResponseFromName(const std::string& name, const std::string& path);
 
-// "default, paper, direct or hybrid": the accepted names, for messages.
+// "default, paper, direct, hybrid or continuous": the accepted names, for messages.
 std::string StrategyNames();
 std::vector<Strategy> AllStrategies();
 

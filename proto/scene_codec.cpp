@@ -262,7 +262,7 @@ void ReadSearch(const Json& v, SearchSettings& st) {
   ExpectKeys(v, path,
              {"strategy", "identify", "response", "seed", "population", "crossover_probability",
               "mutation_probability", "max_generations", "target_normalized_error", "max_seconds",
-              "stall_generations"});
+              "stall_generations", "max_springs", "target_error"});
   if (v.contains("strategy")) {
     st.strategy = StrategyFromName(ReadString(v["strategy"], JoinPath(path, "strategy")),
                                    JoinPath(path, "strategy"));
@@ -293,6 +293,10 @@ void ReadSearch(const Json& v, SearchSettings& st) {
   if (v.contains("stall_generations")) {
     st.stall_generations = ReadInt(v["stall_generations"], JoinPath(path, "stall_generations"));
   }
+  if (v.contains("max_springs"))
+    st.max_springs = ReadInt(v["max_springs"], JoinPath(path, "max_springs"));
+  if (v.contains("target_error"))
+    st.target_error = ReadNumber(v["target_error"], JoinPath(path, "target_error"));
   if (v.contains("target_normalized_error")) {
     st.target_normalized_error =
         ReadNumber(v["target_normalized_error"], JoinPath(path, "target_normalized_error"));
@@ -496,6 +500,8 @@ Json SceneToJson(const Scene& s) {
   if (st.max_generations != d.max_generations) sj["max_generations"] = st.max_generations;
   if (st.max_seconds) sj["max_seconds"] = *st.max_seconds;
   if (st.stall_generations) sj["stall_generations"] = *st.stall_generations;
+  if (st.max_springs) sj["max_springs"] = *st.max_springs;
+  if (st.target_error) sj["target_error"] = *st.target_error;
   if (st.target_normalized_error != d.target_normalized_error)
     sj["target_normalized_error"] = st.target_normalized_error;
   if (!sj.empty()) j["search"] = std::move(sj);

@@ -18,8 +18,9 @@ constexpr double kSmallestRadius = 1e-12;
 // The model's response at one set of weights: equilibria, tangents factorised, residuals.
 class ResponseState {
  public:
-  explicit ResponseState(const Problem& problem, Interruption* interruption)
-      : problem_(problem) {
+  ResponseState(const Problem& problem, std::vector<bool> cases, Interruption* interruption)
+      : problem_(problem), cases_(std::move(cases)) {
+    if (cases_.empty()) cases_.assign(problem.load_cases().size(), true);
     // One solver per load case: each keeps its own tangent's factorisation for the operators.
     for (const PreparedLoadCase& lc : problem.load_cases()) {
       solvers_.emplace_back(problem.candidates(), problem.free_sets()[lc.free_set],
@@ -33,7 +34,16 @@ class ResponseState {
       rows += problem.dimension() * problem.free_sets()[lc.free_set].count;
     }
     offset_.push_back(rows);
-    r_.resize(rows);
+    r_ = Vector::Zero(rows);  // a case left out keeps its rows at 0
+  }
+
+  // sum over the fitted cases of |u^R|^2: the normaliser of their error.
+  double ReferenceNorm2() const {
+    double sum = 0.0;
+    for (std::size_t k = 0; k < cases_.size(); ++k) {
+      if (cases_[k]) sum += problem_.load_cases()[k].reference_norm2;
+    }
+    return sum;
   }
 
   // Solves every load case at `w` (warm-started from the last state) and factorises its
@@ -44,6 +54,7 @@ class ResponseState {
     const int d = p.dimension();
     const ActiveSprings springs = p.SpringsOfWeights(w);
     for (std::size_t k = 0; k < p.load_cases().size(); ++k) {
+      if (!cases_[k]) continue;
       const PreparedLoadCase& lc = p.load_cases()[k];
       EquilibriumSolver& solver = solvers_[k];
       if (p.response() == Response::kNonlinear && solver.RestMechanismModes(springs) > 0)
@@ -71,7 +82,7 @@ class ResponseState {
   void ApplyInverseTangent(Vector& y) {
     for (std::size_t k = 0; k < solvers_.size(); ++k) {
       const Eigen::Index size = offset_[k + 1] - offset_[k];
-      if (size == 0) continue;
+      if (size == 0 || !cases_[k]) continue;  // (rows of a left-out case stay 0)
       Vector block = y.segment(offset_[k], size);
       solvers_[k].SolveTangent(block);
       y.segment(offset_[k], size) = block;
@@ -81,6 +92,7 @@ class ResponseState {
 
  private:
   const Problem& problem_;
+  std::vector<bool> cases_;
   std::vector<EquilibriumSolver> solvers_;
   std::vector<Vector> u_;
   std::vector<Eigen::Index> offset_;
@@ -115,11 +127,11 @@ void StiffnessFitOptions::Validate(const std::string& owner) const {
 }
 
 StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double>& start,
-                                const std::vector<bool>& usable,
-                                const StiffnessFitOptions& options, Interruption* interruption) {
+                                const FitScope& scope, const StiffnessFitOptions& options,
+                                Interruption* interruption, const FitStepCallback& on_step) {
   options.Validate();
   const int genes = problem.gene_count();
-  const double norm2 = problem.reference_norm2();
+  const std::vector<bool>& usable = scope.usable;
   StiffnessFitResult result;
   std::vector<double> w(start);
   w.resize(static_cast<std::size_t>(genes), 0.0);
@@ -128,7 +140,8 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
   }
   result.weights = w;
 
-  ResponseState state(problem, interruption);
+  ResponseState state(problem, scope.cases, interruption);
+  const double norm2 = state.ReferenceNorm2();
   if (!state.Evaluate(w)) {
     result.feasible = false;
     result.normalized_error = result.initial_normalized_error =
@@ -156,6 +169,7 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
     }
   };
 
+  try {
   while (result.iterations < options.max_iterations && 2.0 * phi / norm2 > kExactError) {
     if (interruption && interruption->Check()) throw Interrupted();
     ++result.iterations;
@@ -230,6 +244,7 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
       phi = trial_phi;
       if (rho > 0.75 && step >= 0.99 * radius) radius *= 2.0;
       if (rho < 0.25) radius = 0.25 * step;
+      if (on_step) on_step(w, 2.0 * phi / norm2, result.accepted);
       if (small_decreases >= 2) {
         result.converged = true;
         break;
@@ -245,11 +260,15 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
       }
     }
   }
+  } catch (const Interrupted&) {
+    result.interrupted = true;  // w and phi are the last accepted step's
+  }
   if (2.0 * phi / norm2 <= kExactError) result.converged = true;
 
   result.weights = w;
   result.normalized_error = 2.0 * phi / norm2;
   result.solves = state.solves();
+  if (result.interrupted) return result;
   fb = AssembleForceBalance(problem, &state.displacements());
   result.importance.assign(static_cast<std::size_t>(genes), 0.0);
   for (int g = 0; g < genes; ++g) result.importance[g] = w[g] * fb.a.col(g).squaredNorm();

@@ -17,6 +17,8 @@
 // stiffness it changes and the result does not depend on the units.
 #pragma once
 
+#include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -43,22 +45,38 @@ struct StiffnessFitOptions {
 struct StiffnessFitResult {
   std::vector<double> weights;  // per gene, >= 0 (0 = absent)
   bool feasible = true;         // false: the start has no equilibrium; weights are the start
-  double normalized_error = 0.0;          // sum |u^M - u^R|^2 / sum |u^R|^2 at the result
+  // sum |u^M - u^R|^2 / sum |u^R|^2 over the fitted cases, at the result
+  double normalized_error = 0.0;
   double initial_normalized_error = 0.0;  // at the start
   int iterations = 0;                     // steps tried
   int accepted = 0;                       // steps accepted
   std::int64_t solves = 0;                // tangent solves (back-substitutions)
   bool converged = false;  // stopped by the tolerance rather than the iteration limit
+  // Stopped by the Interruption after the start's evaluation: `weights` are the last accepted
+  // step's (a model with an equilibrium in every fitted case), `importance` is empty.
+  bool interrupted = false;
   // Per gene, at the result: w_j |a_j|^2, twice the strain energy spring j stores summed over
   // the load cases (up to its constrained ends): how much the model leans on it.
   std::vector<double> importance;
 };
 
-// `usable[g]` false holds gene g at 0. Throws Interrupted when `interruption` stops it
-// (checked inside every solve and between conjugate-gradient iterations).
+// After every accepted step: the weights and their normalised error (over the fitted cases).
+using FitStepCallback = std::function<void(const std::vector<double>& weights,
+                                           double normalized_error, int accepted_steps)>;
+
+// What a fit sees: `usable[g]` false holds gene g at 0; `cases[k]` false leaves load case k
+// out of f (empty: every case), to judge the model on it afterwards (cross-validation).
+struct FitScope {
+  std::vector<bool> usable;
+  std::vector<bool> cases;
+};
+
+// Checks `interruption` inside every solve and between conjugate-gradient iterations: stopped
+// while the start is evaluated it throws Interrupted; later it returns the last accepted
+// weights (`interrupted`).
 StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double>& start,
-                                const std::vector<bool>& usable,
-                                const StiffnessFitOptions& options = {},
-                                Interruption* interruption = nullptr);
+                                const FitScope& scope, const StiffnessFitOptions& options = {},
+                                Interruption* interruption = nullptr,
+                                const FitStepCallback& on_step = {});
 
 }  // namespace springfit

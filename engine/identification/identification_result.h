@@ -43,6 +43,26 @@ struct IdentificationResult {
   std::optional<DirectPhase> direct_phase;
   // Strategy direct: its weights, thresholds, confidences and residuals.
   std::optional<DirectResult> direct;
+  // Strategy continuous (and default on an FEM reference): the fit, the sparsity path and the
+  // held-out error of the returned model.
+  struct Continuous {
+    struct Point {
+      int springs = 0;
+      double normalized_error = 0.0;
+    };
+    std::vector<Point> path;       // the trade-off: springs decrease along it
+    int chosen = 0;                // the path point the returned model was refitted from
+    double fit_normalized_error = 0.0;  // the first fit's, on every candidate (path[0]'s)
+    double start_normalized_error = 0.0;  // its start's (the closed-form baseline on FEM)
+    bool started_from_baseline = false;
+    int steps = 0;                 // trust-region steps in all (fit, path, refit)
+    std::int64_t solves = 0;       // tangent solves in all
+    // Cross-validation over the load cases (sparsity_path.h, HeldOutErrors); absent with one
+    // load case or when the run was stopped before it.
+    std::optional<double> held_out_normalized_error;
+    std::vector<double> held_out_per_case;
+  };
+  std::optional<Continuous> continuous;
   // What the load cases can and cannot tell apart, analysed before the run's clock starts.
   IdentifiabilityReport identifiability;
   // An FEM reference: the closed-form MSS of its mesh, evaluated before the run (the model an

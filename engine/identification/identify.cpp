@@ -89,7 +89,7 @@ IdentificationResult StoppedBeforeAModel(const Problem& problem, const SearchOpt
 
 IdentificationResult RunIdentification(const Problem& problem, const SearchOptions& options,
                                        const RunContext& context) {
-  return RunIdentification(problem, options, context, *MakeStrategy(options.strategy));
+  return RunIdentification(problem, options, context, *MakeStrategy(options.strategy, problem));
 }
 
 IdentificationResult RunIdentification(const Problem& problem, const SearchOptions& options,

@@ -8,6 +8,8 @@
 #include <optional>
 #include <string_view>
 
+#include "engine/fit/sparsity_path.h"
+
 namespace springfit {
 namespace {
 
@@ -197,14 +199,183 @@ IdentificationResult DirectStrategy::Run(const Problem& problem, const SearchOpt
   return r;
 }
 
-std::unique_ptr<IdentificationStrategy> MakeStrategy(Strategy strategy) {
+IdentificationResult ContinuousStrategy::Run(const Problem& problem, const SearchOptions& options,
+                                             const RunContext& context, RunMonitor& monitor) const {
+  IdentificationResult r;
+  r.options = options;
+  r.options.identify = Identify::kTopologyAndStiffness;
+  r.trace = context.trace;
+  const auto start_time = std::chrono::steady_clock::now();
+  const int genes = problem.gene_count();
+  const SparsityPathOptions path_options;
+
+  // The start: the closed-form baseline where it is a model of the candidates.
+  IdentificationResult::Continuous details;
+  std::optional<std::vector<double>> start;
+  if (problem.scene().reference.kind == Reference::Kind::kFem)
+    start = fem::BaselineGeneWeights(problem);
+  details.started_from_baseline = start.has_value();
+  if (!start) start = std::vector<double>(static_cast<std::size_t>(genes), problem.training_stiffness());
+
+  // Progress: beats carry the error of the last accepted step; trace rows follow the first fit.
+  double current_error = std::numeric_limits<double>::quiet_NaN();
+  int fit_steps = 0;
+  bool cancelled = false;
+  monitor.SetPhase("fit", [&](ProgressBeat& beat) {
+    beat.wall_seconds = SecondsSince(start_time);
+    beat.generation = static_cast<int>(r.trace.size());
+    beat.evaluations = fit_steps;
+    beat.best_normalized_error = current_error;
+  });
+  const auto report = [&](const std::vector<double>& weights, double normalized_error,
+                          int steps) {
+    TraceRow row;
+    row.generation = static_cast<int>(r.trace.size());
+    row.wall_seconds = SecondsSince(start_time);
+    row.evaluations = steps;
+    row.best_normalized_error = normalized_error;
+    row.best_cost = normalized_error * problem.reference_norm2();
+    row.mean_cost = row.best_cost;
+    r.trace.push_back(row);
+    monitor.Reported();
+    if (monitor.TimeLimitPassed()) cancelled = true;
+    if (!context.on_iteration) return;
+    Genome best(static_cast<std::size_t>(genes), 0);
+    for (int g = 0; g < genes; ++g) best[g] = weights[g] > 0.0;
+    IterationState state;
+    state.best = &best;
+    if (!context.on_iteration(row, state)) cancelled = true;
+  };
+  int next_row = 1;
+  int reported_steps = 0;
+  const FitStepCallback on_step = [&](const std::vector<double>& w, double e, int accepted) {
+    current_error = e;
+    fit_steps = accepted;
+    if (accepted == next_row) {
+      next_row *= 2;
+      reported_steps = accepted;
+      report(w, e, accepted);
+      if (cancelled) throw Interrupted();  // the fit returns its last accepted step
+    }
+  };
+  const PathProgress on_point = [&](const SparsityPath& path) {
+    if (path.points.size() == 1 && reported_steps != path.fit.accepted) {
+      reported_steps = path.fit.accepted;
+      report(path.fit.weights, path.fit.normalized_error, path.fit.accepted);  // the fit's end
+    }
+    if (cancelled) throw Interrupted();  // the path so far stands
+  };
+
+  // Sizes and errors: a size limit traces the path at least that far.
+  const double target = options.target_error * options.target_error;
+  const double stop = options.max_springs > 0 ? std::numeric_limits<double>::infinity() : target;
+  std::vector<bool> usable(static_cast<std::size_t>(genes), true);
+  SparsityPath path = TraceSparsityPath(problem, *start, usable, path_options, stop,
+                                        options.max_springs, &monitor.interruption(), on_step,
+                                        on_point);
+  if (path.points.empty() && details.started_from_baseline) {
+    // The baseline has no equilibrium (a nonlinear response at a large load): the training
+    // stiffness on every candidate instead.
+    details.started_from_baseline = false;
+    start = std::vector<double>(static_cast<std::size_t>(genes), problem.training_stiffness());
+    path = TraceSparsityPath(problem, *start, usable, path_options, stop, options.max_springs,
+                             &monitor.interruption(), on_step, on_point);
+  }
+  details.steps = path.steps;
+  details.solves = path.solves;
+  bool stopped = path.interrupted || cancelled;
+  std::vector<double> weights = *start;
+  if (!path.points.empty()) {
+    details.fit_normalized_error = path.fit.normalized_error;
+    details.start_normalized_error = path.fit.initial_normalized_error;
+    for (const PathPoint& point : path.points)
+      details.path.push_back({point.springs, point.normalized_error});
+    const std::size_t chosen =
+        SelectPathPoint(path, options.max_springs, target, path_options.tolerance);
+    details.chosen = static_cast<int>(chosen);
+    weights = path.points[chosen].weights;
+    try {
+      if (!stopped) {
+        // The chosen point, refitted to convergence on its own springs.
+        std::vector<bool> support(weights.size());
+        for (std::size_t g = 0; g < weights.size(); ++g) support[g] = weights[g] > 0.0;
+        const StiffnessFitResult refit = FitStiffness(
+            problem, weights, FitScope{support, {}}, path_options.fit, &monitor.interruption());
+        details.steps += refit.iterations;
+        details.solves += refit.solves;
+        if (refit.feasible) weights = refit.weights;
+        stopped = refit.interrupted;
+      }
+      if (!stopped) {
+        StiffnessFitOptions held_out_fit = path_options.fit;
+        held_out_fit.max_iterations = path_options.refit_iterations;
+        if (const auto held_out =
+                HeldOutErrors(problem, weights, held_out_fit, &monitor.interruption())) {
+          details.held_out_normalized_error = held_out->normalized_error;
+          details.held_out_per_case = held_out->per_case;
+        }
+      }
+    } catch (const Interrupted&) {
+      stopped = true;
+    }
+  }
+
+  r.best.assign(static_cast<std::size_t>(genes), 0);
+  for (int g = 0; g < genes; ++g) {
+    if (weights[g] > 0.0) {
+      r.best[g] = 1;
+      r.stiffness.push_back(weights[g]);  // gene order is candidate order
+    }
+  }
+  CostOptions cost_options;
+  cost_options.solve_cases_of_mechanisms = true;
+  r.evaluation = CostFunction(problem, cost_options).Evaluate(problem.SpringsOfWeights(weights));
+  r.counters.evaluations = details.steps;
+  r.wall_seconds = SecondsSince(start_time);
+  const double e = r.evaluation.normalized_error;
+  r.stop = stopped ? (monitor.time_limit_reached() ? StopReason::kTimeLimit : StopReason::kCancelled)
+           : target > 0.0 && e <= target ? StopReason::kTargetReached
+                                         : StopReason::kCompleted;
+  char message[400];
+  if (path.points.empty()) {
+    std::snprintf(message, sizeof message,
+                  "no model with an equilibrium in every load case to start from (the start is a "
+                  "mechanism or does not converge): try the linear response or smaller loads");
+  } else {
+    const PathPoint& chosen = path.points[static_cast<std::size_t>(details.chosen)];
+    std::snprintf(
+        message, sizeof message,
+        "%s%d springs at E %.3g (path point %d of %zu: %s); the fit on every candidate reached E "
+        "%.3g from %.3g at its start (%s)",
+        stopped ? (r.stop == StopReason::kTimeLimit ? "time limit reached; the best so far: "
+                                                    : "stopped on request; the best so far: ")
+                : "",
+        chosen.springs, std::sqrt(e), details.chosen, path.points.size(),
+        options.max_springs > 0 ? "the lowest E within max_springs"
+        : target > 0.0          ? "the fewest springs within target_error"
+                                : "the fewest springs within 5% of the lowest E",
+        std::sqrt(details.fit_normalized_error), std::sqrt(details.start_normalized_error),
+        details.started_from_baseline ? "the closed-form baseline"
+                                      : "the training stiffness on every candidate");
+  }
+  r.stop_message = message;
+  r.continuous = std::move(details);
+  return r;
+}
+
+std::unique_ptr<IdentificationStrategy> MakeStrategy(Strategy strategy, const Problem& problem) {
   switch (strategy) {
     case Strategy::kPaper:
       return std::make_unique<GeneticStrategy>();
     case Strategy::kDirect:
       return std::make_unique<DirectStrategy>();
     case Strategy::kHybrid:
+      return std::make_unique<HybridStrategy>();
+    case Strategy::kContinuous:
+      return std::make_unique<ContinuousStrategy>();
     case Strategy::kDefault:
+      if (problem.scene().reference.kind == Reference::Kind::kFem)
+        return std::make_unique<ContinuousStrategy>();
       return std::make_unique<HybridStrategy>();
   }
   return std::make_unique<GeneticStrategy>();

@@ -3,8 +3,12 @@
 //
 //   paper    GeneticStrategy: the paper's GA (search_options.h)
 //   direct   DirectStrategy: non-negative least squares on the force balance (engine/direct/)
-//   hybrid   HybridStrategy: direct's topology seeds the memetic GA, on one clock
-//   default  HybridStrategy today (bench/RESULTS.md: the fastest measured)
+//   hybrid      HybridStrategy: direct's topology seeds the memetic GA, on one clock
+//   continuous  ContinuousStrategy: per-spring stiffness on every candidate by sensitivities,
+//               then the sparsity path (engine/fit/sparsity_path.h)
+//   default     ContinuousStrategy on an FEM reference (its models beat the closed-form
+//               recipes; the GA's single training stiffness cannot), HybridStrategy otherwise
+//               (exact recovery of an MSS reference, the fastest measured: bench/RESULTS.md)
 #pragma once
 
 #include <memory>
@@ -46,6 +50,17 @@ class HybridStrategy : public IdentificationStrategy {
                            const RunContext& context, RunMonitor& monitor) const override;
 };
 
-std::unique_ptr<IdentificationStrategy> MakeStrategy(Strategy strategy);
+// Runs the sparsity path from the closed-form baseline (FEM reference) or from the training
+// stiffness on every candidate (otherwise), returns the chosen point refitted to convergence,
+// and its held-out error. Identifies topology and stiffness; its trace follows the first fit
+// (rows after accepted steps 1, 2, 4, 8, ... and at its end: the lowest error so far).
+class ContinuousStrategy : public IdentificationStrategy {
+ public:
+  IdentificationResult Run(const Problem& problem, const SearchOptions& options,
+                           const RunContext& context, RunMonitor& monitor) const override;
+};
+
+// `default` depends on the reference: hence the problem.
+std::unique_ptr<IdentificationStrategy> MakeStrategy(Strategy strategy, const Problem& problem);
 
 }  // namespace springfit

@@ -37,6 +37,9 @@ void SearchOptions::Validate() const {
   check.Require(swap_radius >= 0.0 && std::isfinite(swap_radius), "swap_radius", swap_radius,
                 "0 <= value < infinity");
   check.Require(restart_after >= 0, "restart_after", restart_after, "value >= 0 (0: never)");
+  check.Require(max_springs >= 0, "max_springs", max_springs, "value >= 0 (0: no limit)");
+  check.Require(target_error >= 0.0 && std::isfinite(target_error), "target_error", target_error,
+                "0 <= value < infinity (0: none)");
   check.Require(cache_capacity >= 1, "cache_capacity", static_cast<double>(cache_capacity),
                 "value >= 1");
 }
@@ -44,9 +47,10 @@ void SearchOptions::Validate() const {
 SearchOptions StrategyDefaults(Strategy strategy, int genes) {
   SearchOptions o;  // the paper's GA
   o.strategy = strategy;
-  o.identify =
-      strategy == Strategy::kDirect ? Identify::kTopologyAndStiffness : Identify::kTopology;
-  if (strategy == Strategy::kPaper) return o;
+  o.identify = strategy == Strategy::kDirect || strategy == Strategy::kContinuous
+                   ? Identify::kTopologyAndStiffness
+                   : Identify::kTopology;
+  if (strategy == Strategy::kPaper || strategy == Strategy::kContinuous) return o;
   o.selection = SearchOptions::Selection::kTournament;
   o.tournament_size = 2;
   o.crossover = SearchOptions::Crossover::kUniform;
@@ -72,6 +76,8 @@ SearchOptions ResolveSearchOptions(const SearchSettings& settings, int genes) {
   o.target_normalized_error = settings.target_normalized_error;
   if (settings.max_seconds) o.max_seconds = *settings.max_seconds;
   if (settings.stall_generations) o.stall_generations = *settings.stall_generations;
+  if (settings.max_springs) o.max_springs = *settings.max_springs;
+  if (settings.target_error) o.target_error = *settings.target_error;
   return o;
 }
 

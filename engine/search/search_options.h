@@ -99,11 +99,19 @@ struct SearchOptions {
 
   std::size_t cache_capacity = FitnessCache::kDefaultCapacity;
 
+  // Strategy continuous: which point of the sparsity path to return (engine/fit/
+  // sparsity_path.h, SelectPathPoint): the lowest error with at most `max_springs` springs
+  // (0: no limit), else the fewest springs with E <= `target_error` (0: none), else the fewest
+  // within 5% of the lowest E.
+  int max_springs = 0;
+  double target_error = 0.0;
+
   // Throws std::invalid_argument naming the field, its value and the rule it breaks.
   void Validate() const;
 };
 
-// The strategy's defaults for a genome of `genes` genes.
+// The strategy's defaults for a genome of `genes` genes. (Strategy default has the GA's: on an
+// FEM reference it runs continuous, which reads none of them.)
 SearchOptions StrategyDefaults(Strategy strategy, int genes);
 // The strategy's defaults with every field the settings set applied.
 SearchOptions ResolveSearchOptions(const SearchSettings& settings, int genes);

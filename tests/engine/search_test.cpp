@@ -78,10 +78,16 @@ TEST(Search, DefaultStrategyStartsFromTheDirectTopology) {
   const Problem p = Problem::Build(examples::Make("kidney-2d"));
   const SearchOptions o = StrategyDefaults(Strategy::kDefault, p.gene_count());
   // default and hybrid compose direct and the GA; paper is the GA alone, unchanged.
-  EXPECT_NE(dynamic_cast<HybridStrategy*>(MakeStrategy(Strategy::kDefault).get()), nullptr);
-  EXPECT_NE(dynamic_cast<HybridStrategy*>(MakeStrategy(Strategy::kHybrid).get()), nullptr);
-  EXPECT_NE(dynamic_cast<GeneticStrategy*>(MakeStrategy(Strategy::kPaper).get()), nullptr);
-  EXPECT_NE(dynamic_cast<DirectStrategy*>(MakeStrategy(Strategy::kDirect).get()), nullptr);
+  EXPECT_NE(dynamic_cast<HybridStrategy*>(MakeStrategy(Strategy::kDefault, p).get()), nullptr);
+  EXPECT_NE(dynamic_cast<HybridStrategy*>(MakeStrategy(Strategy::kHybrid, p).get()), nullptr);
+  EXPECT_NE(dynamic_cast<GeneticStrategy*>(MakeStrategy(Strategy::kPaper, p).get()), nullptr);
+  EXPECT_NE(dynamic_cast<DirectStrategy*>(MakeStrategy(Strategy::kDirect, p).get()), nullptr);
+  EXPECT_NE(dynamic_cast<ContinuousStrategy*>(MakeStrategy(Strategy::kContinuous, p).get()),
+            nullptr);
+  // On an FEM reference default is continuous.
+  const Problem fem = Problem::Build(examples::Make("fem-plate-5x5"));
+  EXPECT_NE(dynamic_cast<ContinuousStrategy*>(MakeStrategy(Strategy::kDefault, fem).get()),
+            nullptr);
   const IdentificationResult r = RunIdentification(p, o);
   EXPECT_EQ(r.stop, StopReason::kTargetReached);
   EXPECT_EQ(r.generations, 0);

@@ -1,0 +1,172 @@
+#include "engine/fit/sparsity_path.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include "engine/cost.h"
+#include "engine/options_check.h"
+
+namespace springfit {
+namespace {
+
+int PositiveCount(const std::vector<double>& w) {
+  return static_cast<int>(std::count_if(w.begin(), w.end(), [](double x) { return x > 0.0; }));
+}
+
+PathPoint PointOf(const StiffnessFitResult& fit) {
+  return PathPoint{PositiveCount(fit.weights), fit.normalized_error, fit.weights};
+}
+
+}  // namespace
+
+void SparsityPathOptions::Validate(const std::string& owner) const {
+  const OptionsCheck check(owner);
+  fit.Validate(check.Nested("fit"));
+  check.Require(refit_iterations >= 1, "refit_iterations", refit_iterations, "value >= 1");
+  check.Require(InOpenUnit(prune_fraction), "prune_fraction", prune_fraction, "0 < value < 1");
+  check.Require(tolerance >= 0.0 && std::isfinite(tolerance), "tolerance", tolerance,
+                "0 <= value < infinity");
+  check.Require(max_points >= 1, "max_points", max_points, "value >= 1");
+}
+
+SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>& start,
+                               const std::vector<bool>& usable, const SparsityPathOptions& options,
+                               double stop_normalized_error, int min_springs,
+                               Interruption* interruption, const FitStepCallback& on_step,
+                               const PathProgress& progress) {
+  options.Validate();
+  SparsityPath path;
+  path.fit = FitStiffness(problem, start, FitScope{usable, {}}, options.fit, interruption, on_step);
+  path.solves = path.fit.solves;
+  path.steps = path.fit.iterations;
+  if (!path.fit.feasible) return path;
+  path.points.push_back(PointOf(path.fit));
+  if (path.fit.interrupted) {
+    path.interrupted = true;
+    return path;
+  }
+  if (progress) progress(path);
+
+  const double stop = std::max(stop_normalized_error, path.fit.initial_normalized_error);
+  StiffnessFitOptions refit = options.fit;
+  refit.max_iterations = options.refit_iterations;
+  std::vector<bool> allowed = usable;
+  StiffnessFitResult current = path.fit;
+  try {
+    while (static_cast<int>(path.points.size()) < options.max_points) {
+      const PathPoint& last = path.points.back();
+      if (last.normalized_error > stop || last.springs <= min_springs) break;
+      // The present springs, least leaned on first (ties by gene: deterministic).
+      std::vector<int> present;
+      for (int g = 0; g < static_cast<int>(current.weights.size()); ++g) {
+        if (current.weights[g] > 0.0) present.push_back(g);
+      }
+      std::stable_sort(present.begin(), present.end(), [&](int a, int b) {
+        return current.importance[a] < current.importance[b];
+      });
+      int remove = std::max(1, static_cast<int>(options.prune_fraction * present.size()));
+      remove = std::min(remove, std::max(1, last.springs - min_springs));
+      bool moved = false;
+      for (;;) {
+        std::vector<bool> trial_allowed = allowed;
+        std::vector<double> trial_start = current.weights;
+        for (int i = 0; i < remove; ++i) {
+          trial_allowed[present[i]] = false;
+          trial_start[present[i]] = 0.0;
+        }
+        StiffnessFitResult fit =
+            FitStiffness(problem, trial_start, FitScope{trial_allowed, {}}, refit, interruption);
+        path.solves += fit.solves;
+        path.steps += fit.iterations;
+        if (fit.interrupted) throw Interrupted();  // a half-done refit is not a path point
+        if (fit.feasible) {
+          allowed = std::move(trial_allowed);
+          current = std::move(fit);
+          moved = true;
+          break;
+        }
+        if (remove == 1) break;  // even one spring less is a mechanism: the path ends
+        remove /= 2;
+      }
+      if (!moved) break;
+      path.points.push_back(PointOf(current));
+      if (progress) progress(path);
+    }
+  } catch (const Interrupted&) {
+    path.interrupted = true;  // the path so far stands (it has the fit's point)
+  }
+  return path;
+}
+
+std::optional<HeldOutError> HeldOutErrors(const Problem& problem,
+                                          const std::vector<double>& weights,
+                                          const StiffnessFitOptions& options,
+                                          Interruption* interruption) {
+  const std::size_t cases = problem.load_cases().size();
+  if (cases < 2) return std::nullopt;
+  std::vector<bool> support(weights.size());
+  for (std::size_t g = 0; g < weights.size(); ++g) support[g] = weights[g] > 0.0;
+  CostOptions cost_options;
+  cost_options.solve_cases_of_mechanisms = true;  // judge case k whatever the others say
+  CostFunction cost(problem, cost_options);
+  cost.set_interruption(interruption);
+  HeldOutError out;
+  double numerator = 0.0, denominator = 0.0;
+  for (std::size_t k = 0; k < cases; ++k) {
+    std::vector<bool> fitted(cases, true);
+    fitted[k] = false;
+    const StiffnessFitResult fit =
+        FitStiffness(problem, weights, FitScope{support, fitted}, options, interruption);
+    if (fit.interrupted) throw Interrupted();
+    const Evaluation e = cost.Evaluate(problem.SpringsOfWeights(fit.weights));
+    if (e.interrupted) throw Interrupted();
+    const PreparedLoadCase& lc = problem.load_cases()[k];
+    const double norm2 = lc.reference_norm2 > 0.0 ? lc.reference_norm2 : problem.reference_norm2();
+    const LoadCaseEvaluation& judged = e.load_cases[k];
+    const double case_cost = judged.solve.converged() ? judged.cost
+                                                      : std::numeric_limits<double>::infinity();
+    out.per_case.push_back(case_cost / norm2);
+    numerator += case_cost;
+    denominator += lc.reference_norm2;
+  }
+  out.normalized_error = numerator / denominator;
+  return out;
+}
+
+std::size_t SelectPathPoint(const SparsityPath& path, int max_springs,
+                            double target_normalized_error, double tolerance) {
+  const std::vector<PathPoint>& points = path.points;
+  std::size_t lowest = 0, smallest = 0;
+  for (std::size_t i = 1; i < points.size(); ++i) {
+    if (points[i].normalized_error < points[lowest].normalized_error) lowest = i;
+    if (points[i].springs < points[smallest].springs) smallest = i;
+  }
+  // The fewest springs among the points that satisfy `ok`, or `fallback` when none does.
+  const auto fewest = [&](auto ok, std::size_t fallback) {
+    std::size_t best = points.size();
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (ok(points[i]) && (best == points.size() || points[i].springs < points[best].springs))
+        best = i;
+    }
+    return best == points.size() ? fallback : best;
+  };
+  if (max_springs > 0) {
+    std::size_t best = points.size();
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (points[i].springs <= max_springs &&
+          (best == points.size() || points[i].normalized_error < points[best].normalized_error))
+        best = i;
+    }
+    return best == points.size() ? smallest : best;
+  }
+  if (target_normalized_error > 0.0) {
+    return fewest([&](const PathPoint& p) { return p.normalized_error <= target_normalized_error; },
+                  lowest);
+  }
+  const double bound = std::pow(1.0 + tolerance, 2) * points[lowest].normalized_error;
+  return fewest([&](const PathPoint& p) { return p.normalized_error <= bound; }, lowest);
+}
+
+}  // namespace springfit

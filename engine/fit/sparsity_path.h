@@ -1,0 +1,92 @@
+// Strategy `continuous`: topology and per-spring stiffness by sensitivities, and the trade-off
+// between a model's size and its error (issue 16).
+//
+// 1. Fit: every candidate gets a stiffness >= 0 by the continuous fit (stiffness_fit.h),
+//    started from `start` (the closed-form baseline on an FEM reference's mesh edges, 0 on the
+//    other candidates). Candidates enter by their gradient, which ranks all of them in one
+//    adjoint pass; those the fit drives to 0 leave. The fit only ever accepts steps that lower
+//    the error, so the result is at least as good as the start.
+// 2. Path: the springs the model leans on least (the lowest strain energy over the load cases,
+//    StiffnessFitResult::importance) are removed, `prune_fraction` of them at a time, and the
+//    rest refitted from where they were; each refit is one point of the sparsity path
+//    (springs, E). A removal that would leave a mechanism is retried with fewer springs; the
+//    path ends where even one cannot be removed, or where E passes `stop_error`.
+// 3. Choice (SelectPathPoint): the fewest springs whose E is within `tolerance` of the best
+//    on the path, or the user's size or error target; then refitted to convergence.
+#pragma once
+
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "engine/fit/stiffness_fit.h"
+#include "engine/interruption.h"
+#include "engine/problem.h"
+
+namespace springfit {
+
+struct SparsityPathOptions {
+  StiffnessFitOptions fit;  // the first fit and the final one
+  // Trust-region steps of each refit along the path (its points are then near-optimal; the
+  // chosen one is refitted to convergence).
+  int refit_iterations = 30;
+  double prune_fraction = 0.1;  // of the present springs removed per path step, in (0, 1)
+  // The default choice: the fewest springs whose E <= (1 + tolerance) x the lowest E on the
+  // path.
+  double tolerance = 0.05;
+  int max_points = 200;  // path points at most (the path is at most this long)
+
+  void Validate(const std::string& owner = "SparsityPathOptions") const;
+};
+
+struct PathPoint {
+  int springs = 0;
+  double normalized_error = 0.0;  // e = E^2
+  std::vector<double> weights;    // per gene
+};
+
+struct SparsityPath {
+  StiffnessFitResult fit;         // step 1, on every usable candidate
+  std::vector<PathPoint> points;  // points[0] is the fit's model; springs decrease
+  std::int64_t solves = 0;        // tangent solves, fit and path
+  int steps = 0;                  // trust-region steps, fit and path
+  bool interrupted = false;
+};
+
+// Called after step 1 and after every path point, with the path so far.
+using PathProgress = std::function<void(const SparsityPath&)>;
+
+// Stops tracing when E^2 passes max(`stop_normalized_error`, the start's) (after recording that
+// point) or the model reaches `min_springs` springs. `on_step` follows step 1's fit. Stopped by
+// `interruption` while the start is evaluated it throws Interrupted; later it returns the path
+// so far, `interrupted` set (stopped in step 1: its one point is the fit's last step).
+SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>& start,
+                               const std::vector<bool>& usable, const SparsityPathOptions& options,
+                               double stop_normalized_error, int min_springs,
+                               Interruption* interruption = nullptr,
+                               const FitStepCallback& on_step = {},
+                               const PathProgress& progress = {});
+
+// Cross-validation over the load cases: for each case k, the model's springs refitted (from
+// `weights`, on its own support) to the other cases, then judged on case k. Per case the
+// normalised error sum |u - u^R|^2 / sum |u^R|^2 over case k's free nodes (infinity where the
+// refitted model has no equilibrium in case k); nullopt with fewer than two cases. Throws
+// Interrupted.
+struct HeldOutError {
+  std::vector<double> per_case;
+  double normalized_error = 0.0;  // over all cases: sum of their errors' numerators / norms
+};
+std::optional<HeldOutError> HeldOutErrors(const Problem& problem,
+                                          const std::vector<double>& weights,
+                                          const StiffnessFitOptions& options,
+                                          Interruption* interruption = nullptr);
+
+// The point to return: with `max_springs` > 0, the lowest E with at most that many springs
+// (the smallest model when none has); else with `target_normalized_error` > 0, the fewest
+// springs with e <= it (the lowest e when none has); else the fewest springs with
+// E <= (1 + tolerance) x the lowest E. Precondition: the path has a point.
+std::size_t SelectPathPoint(const SparsityPath& path, int max_springs,
+                            double target_normalized_error, double tolerance);
+
+}  // namespace springfit
