@@ -33,7 +33,8 @@ double Seconds(Clock::time_point since) {
 void Report(const char* what, const StiffnessFitResult& fit, int springs, double seconds) {
   std::printf("  %-28s E %-10.4g springs %5d  steps %3d (%3d accepted)  solves %7lld  %7.2f s%s\n",
               what, std::sqrt(fit.normalized_error), springs, fit.iterations, fit.accepted,
-              static_cast<long long>(fit.solves), seconds, fit.converged ? "" : "  (not converged)");
+              static_cast<long long>(fit.solves), seconds,
+              fit.converged ? "" : "  (not converged)");
 }
 
 int Positive(const std::vector<double>& w) {

@@ -1,5 +1,6 @@
 #include "client/result_summary.h"
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -34,9 +35,17 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
       << r.value("seed", std::uint64_t{0}) << ")\n";
   if (r.contains("identify"))
     out << "identified:        " << r.value("identify", std::string()) << "\n";
-  out << "stopped:           " << r.value("stop", std::string()) << " after "
-      << r.value("generations", 0) << " generations (best found in generation "
-      << r.value("best_generation", 0) << ")\n";
+  if (r.contains("response"))
+    out << "response:          " << r.value("response", std::string()) << "\n";
+  const bool continuous = r.contains("continuous") && r["continuous"].is_object();
+  if (continuous) {
+    out << "stopped:           " << r.value("stop", std::string()) << ": "
+        << r.value("stop_message", std::string()) << "\n";
+  } else {
+    out << "stopped:           " << r.value("stop", std::string()) << " after "
+        << r.value("generations", 0) << " generations (best found in generation "
+        << r.value("best_generation", 0) << ")\n";
+  }
   out << "evaluations:       " << r.value("evaluations", 0LL) << " (" << r.value("cache_hits", 0LL)
       << " from the cache)\n";
   out << "wall time:         " << Format("%.3f", r.value("wall_seconds", 0.0)) << " s\n";
@@ -58,6 +67,24 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
   if (r.contains("rms_error")) {
     out << "E (RMS nodal):     " << Format("%.6g", r["rms_error"].get<double>())
         << " (relative RMS nodal error against the reference)\n";
+  }
+  if (continuous) {
+    const proto::Json& c = r["continuous"];
+    const proto::Json& path = c["path"];
+    if (!path.empty()) {
+      out << "sparsity path:     " << path.size() << " points, from "
+          << path.front().value("springs", 0) << " springs (E "
+          << Format("%.4g", path.front().value("normalized_error", 0.0) >= 0.0
+                                ? std::sqrt(path.front().value("normalized_error", 0.0))
+                                : 0.0)
+          << ") to " << path.back().value("springs", 0) << " (E "
+          << Format("%.4g", std::sqrt(path.back().value("normalized_error", 0.0)))
+          << "); springfit plot --tradeoff draws it\n";
+    }
+    if (c.contains("held_out_rms_error") && c["held_out_rms_error"].is_number()) {
+      out << "held-out E:        " << Format("%.6g", c["held_out_rms_error"].get<double>())
+          << " (each load case predicted by the springs refitted to the others)\n";
+    }
   }
   if (r.contains("baseline") && r["baseline"].is_object()) {
     const proto::Json& b = r["baseline"];

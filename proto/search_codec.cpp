@@ -158,6 +158,34 @@ void DirectDetailsToJson(const Problem& problem, const DirectResult& d, Json& j)
   j["direct"] = std::move(direct);
 }
 
+// E = sqrt(e), or null where there is no equilibrium (e infinite).
+Json RmsOrNull(double normalized_error) {
+  return std::isfinite(normalized_error) ? Json(std::sqrt(normalized_error)) : Json(nullptr);
+}
+
+Json ContinuousDetailsToJson(const IdentificationResult::Continuous& c) {
+  Json j;
+  Json path = Json::array();
+  for (const auto& point : c.path) {
+    path.push_back({{"springs", point.springs},
+                    {"normalized_error", point.normalized_error},
+                    {"rms_error", RmsOrNull(point.normalized_error)}});
+  }
+  j["path"] = std::move(path);
+  j["chosen"] = c.chosen;
+  j["started_from"] = c.started_from_baseline ? "baseline" : "training_stiffness";
+  j["start_rms_error"] = RmsOrNull(c.start_normalized_error);
+  j["fit_rms_error"] = RmsOrNull(c.fit_normalized_error);
+  j["steps"] = c.steps;
+  j["solves"] = c.solves;
+  j["held_out_rms_error"] =
+      c.held_out_normalized_error ? RmsOrNull(*c.held_out_normalized_error) : Json(nullptr);
+  Json per_case = Json::array();
+  for (double e : c.held_out_per_case) per_case.push_back(RmsOrNull(e));
+  j["held_out_rms_error_per_case"] = std::move(per_case);
+  return j;
+}
+
 }  // namespace
 
 Json ResultToJson(const Problem& problem, const IdentificationResult& r, bool with_trace) {
@@ -165,6 +193,7 @@ Json ResultToJson(const Problem& problem, const IdentificationResult& r, bool wi
   j["scene"] = problem.scene().name;
   j["strategy"] = StrategyName(r.options.strategy);
   j["identify"] = IdentifyName(r.options.identify);
+  j["response"] = ResponseName(problem.response());
   j["seed"] = r.options.seed;
   j["stop"] = StopReasonName(r.stop);
   j["stop_message"] = r.stop_message;
@@ -222,6 +251,7 @@ Json ResultToJson(const Problem& problem, const IdentificationResult& r, bool wi
     j["direct_phase"] = std::move(phase);
   }
   if (r.direct) DirectDetailsToJson(problem, *r.direct, j);
+  if (r.continuous) j["continuous"] = ContinuousDetailsToJson(*r.continuous);
   if (with_trace) j["trace"] = TraceToJson(r.trace);
   return j;
 }

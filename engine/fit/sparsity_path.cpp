@@ -54,27 +54,30 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
   refit.max_iterations = options.refit_iterations;
   std::vector<bool> allowed = usable;
   StiffnessFitResult current = path.fit;
+  // Springs whose removal alone leaves a mechanism: the model keeps them whatever they carry
+  // (a spring can hold a mode no load case loads).
+  std::vector<bool> structural(usable.size(), false);
   try {
     while (static_cast<int>(path.points.size()) < options.max_points) {
       const PathPoint& last = path.points.back();
       if (last.normalized_error > stop || last.springs <= min_springs) break;
-      // The present springs, least leaned on first (ties by gene: deterministic).
-      std::vector<int> present;
+      // The removable springs, least leaned on first (ties by gene: deterministic).
+      std::vector<int> removable;
       for (int g = 0; g < static_cast<int>(current.weights.size()); ++g) {
-        if (current.weights[g] > 0.0) present.push_back(g);
+        if (current.weights[g] > 0.0 && !structural[g]) removable.push_back(g);
       }
-      std::stable_sort(present.begin(), present.end(), [&](int a, int b) {
-        return current.importance[a] < current.importance[b];
-      });
-      int remove = std::max(1, static_cast<int>(options.prune_fraction * present.size()));
-      remove = std::min(remove, std::max(1, last.springs - min_springs));
-      bool moved = false;
+      if (removable.empty()) break;
+      std::stable_sort(removable.begin(), removable.end(),
+                       [&](int a, int b) { return current.importance[a] < current.importance[b]; });
+      int remove = std::max(1, static_cast<int>(options.prune_fraction * last.springs));
+      remove = std::min(
+          {remove, std::max(1, last.springs - min_springs), static_cast<int>(removable.size())});
       for (;;) {
         std::vector<bool> trial_allowed = allowed;
         std::vector<double> trial_start = current.weights;
         for (int i = 0; i < remove; ++i) {
-          trial_allowed[present[i]] = false;
-          trial_start[present[i]] = 0.0;
+          trial_allowed[removable[i]] = false;
+          trial_start[removable[i]] = 0.0;
         }
         StiffnessFitResult fit =
             FitStiffness(problem, trial_start, FitScope{trial_allowed, {}}, refit, interruption);
@@ -84,15 +87,16 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
         if (fit.feasible) {
           allowed = std::move(trial_allowed);
           current = std::move(fit);
-          moved = true;
+          path.points.push_back(PointOf(current));
+          if (progress) progress(path);
           break;
         }
-        if (remove == 1) break;  // even one spring less is a mechanism: the path ends
+        if (remove == 1) {
+          structural[removable[0]] = true;  // try the next one in the next round
+          break;
+        }
         remove /= 2;
       }
-      if (!moved) break;
-      path.points.push_back(PointOf(current));
-      if (progress) progress(path);
     }
   } catch (const Interrupted&) {
     path.interrupted = true;  // the path so far stands (it has the fit's point)
@@ -125,8 +129,8 @@ std::optional<HeldOutError> HeldOutErrors(const Problem& problem,
     const PreparedLoadCase& lc = problem.load_cases()[k];
     const double norm2 = lc.reference_norm2 > 0.0 ? lc.reference_norm2 : problem.reference_norm2();
     const LoadCaseEvaluation& judged = e.load_cases[k];
-    const double case_cost = judged.solve.converged() ? judged.cost
-                                                      : std::numeric_limits<double>::infinity();
+    const double case_cost =
+        judged.solve.converged() ? judged.cost : std::numeric_limits<double>::infinity();
     out.per_case.push_back(case_cost / norm2);
     numerator += case_cost;
     denominator += lc.reference_norm2;

@@ -9,8 +9,9 @@
 // 2. Path: the springs the model leans on least (the lowest strain energy over the load cases,
 //    StiffnessFitResult::importance) are removed, `prune_fraction` of them at a time, and the
 //    rest refitted from where they were; each refit is one point of the sparsity path
-//    (springs, E). A removal that would leave a mechanism is retried with fewer springs; the
-//    path ends where even one cannot be removed, or where E passes `stop_error`.
+//    (springs, E). A removal that would leave a mechanism is retried with fewer springs; a
+//    single spring whose removal leaves one is kept for good (it holds a mode no load case
+//    loads). The path ends where no spring can be removed, or where E passes the stop.
 // 3. Choice (SelectPathPoint): the fewest springs whose E is within `tolerance` of the best
 //    on the path, or the user's size or error target; then refitted to convergence.
 #pragma once

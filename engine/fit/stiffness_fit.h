@@ -1,5 +1,5 @@
 // Per-spring stiffness (k >= 0) on a candidate set, fitted to the reference's displacements:
-//   f(w) = 1/2 sum_k sum_i |u^M_ik(w) - u^R_ik|^2,   w >= 0,
+//   f(w) = 1/2 sum_k sum_i |u^M_ik(w) - u^R_ik|^2,   0 <= w <= w_max,
 // over load cases k and free nodes i, u^M the model's response (linear or nonlinear, as the
 // problem's solver options say). A weight that reaches 0 has left the model; one whose
 // gradient points back in returns, so the gradient ranks every absent candidate in one pass.
@@ -12,9 +12,11 @@
 //   J^T y = A^T (H^-1 y)     one solve per load case (H symmetric): the adjoint; J^T r is the
 //                            gradient for every spring at the price of one solve per case.
 // Each step is a projected Gauss-Newton step in a trust region (Steihaug's truncated
-// conjugate gradients on J^T J, weights at 0 whose gradient pushes them out held there), in
-// variables scaled by the weights themselves, so that a step's size is relative to the
-// stiffness it changes and the result does not depend on the units.
+// conjugate gradients on J^T J; weights at a bound whose gradient pushes them out held there),
+// in variables scaled by the
+// weights themselves, so that a step's size is relative to the stiffness it changes and the
+// result does not depend on the units. A projected step that fails (near a mechanism the
+// displacements grow like 1 / k) is retried stopped short of the bounds.
 #pragma once
 
 #include <cstdint>
@@ -28,7 +30,7 @@
 namespace springfit {
 
 struct StiffnessFitOptions {
-  int max_iterations = 60;  // trust-region steps tried, accepted or not
+  int max_iterations = 200;  // trust-region steps tried, accepted or not
   // Converged when two accepted steps in a row lower f by less than this fraction of f.
   double relative_tolerance = 1e-6;
   int max_cg_iterations = 40;  // conjugate-gradient iterations per step (2 solves per case each)
@@ -37,6 +39,13 @@ struct StiffnessFitOptions {
   // so that an absent spring can enter at a typical stiffness.
   double scale_floor = 0.1;
   double initial_radius = 1.0;  // the trust region, in scaled units (1 = weights change by 100%)
+  // The largest trust region: a weight at most doubles per step. Near a rigid or a mechanism
+  // limit (k -> infinity or 0) the displacements stop responding to it, which the
+  // Gauss-Newton model cannot see; an unbounded region sends weights there in one stride.
+  double max_radius = 1e3;
+  // Weights are bounded above by this times the largest weight of the start: beyond, a spring
+  // is rigid for the data and the displacements stop responding to it.
+  double max_stiffness_ratio = 1e4;
 
   // Throws std::invalid_argument naming the field, its value and the rule it breaks.
   void Validate(const std::string& owner = "StiffnessFitOptions") const;

@@ -50,13 +50,13 @@ struct IdentificationResult {
       int springs = 0;
       double normalized_error = 0.0;
     };
-    std::vector<Point> path;       // the trade-off: springs decrease along it
-    int chosen = 0;                // the path point the returned model was refitted from
-    double fit_normalized_error = 0.0;  // the first fit's, on every candidate (path[0]'s)
+    std::vector<Point> path;              // the trade-off: springs decrease along it
+    int chosen = 0;                       // the path point the returned model was refitted from
+    double fit_normalized_error = 0.0;    // the first fit's, on every candidate (path[0]'s)
     double start_normalized_error = 0.0;  // its start's (the closed-form baseline on FEM)
     bool started_from_baseline = false;
-    int steps = 0;                 // trust-region steps in all (fit, path, refit)
-    std::int64_t solves = 0;       // tangent solves in all
+    int steps = 0;            // trust-region steps in all (fit, path, refit)
+    std::int64_t solves = 0;  // tangent solves in all
     // Cross-validation over the load cases (sparsity_path.h, HeldOutErrors); absent with one
     // load case or when the run was stopped before it.
     std::optional<double> held_out_normalized_error;

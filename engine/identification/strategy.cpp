@@ -215,7 +215,8 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
   if (problem.scene().reference.kind == Reference::Kind::kFem)
     start = fem::BaselineGeneWeights(problem);
   details.started_from_baseline = start.has_value();
-  if (!start) start = std::vector<double>(static_cast<std::size_t>(genes), problem.training_stiffness());
+  if (!start)
+    start = std::vector<double>(static_cast<std::size_t>(genes), problem.training_stiffness());
 
   // Progress: beats carry the error of the last accepted step; trace rows follow the first fit.
   double current_error = std::numeric_limits<double>::quiet_NaN();
@@ -227,8 +228,7 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
     beat.evaluations = fit_steps;
     beat.best_normalized_error = current_error;
   });
-  const auto report = [&](const std::vector<double>& weights, double normalized_error,
-                          int steps) {
+  const auto report = [&](const std::vector<double>& weights, double normalized_error, int steps) {
     TraceRow row;
     row.generation = static_cast<int>(r.trace.size());
     row.wall_seconds = SecondsSince(start_time);
@@ -270,9 +270,9 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
   const double target = options.target_error * options.target_error;
   const double stop = options.max_springs > 0 ? std::numeric_limits<double>::infinity() : target;
   std::vector<bool> usable(static_cast<std::size_t>(genes), true);
-  SparsityPath path = TraceSparsityPath(problem, *start, usable, path_options, stop,
-                                        options.max_springs, &monitor.interruption(), on_step,
-                                        on_point);
+  SparsityPath path =
+      TraceSparsityPath(problem, *start, usable, path_options, stop, options.max_springs,
+                        &monitor.interruption(), on_step, on_point);
   if (path.points.empty() && details.started_from_baseline) {
     // The baseline has no equilibrium (a nonlinear response at a large load): the training
     // stiffness on every candidate instead.
@@ -299,8 +299,8 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
         // The chosen point, refitted to convergence on its own springs.
         std::vector<bool> support(weights.size());
         for (std::size_t g = 0; g < weights.size(); ++g) support[g] = weights[g] > 0.0;
-        const StiffnessFitResult refit = FitStiffness(
-            problem, weights, FitScope{support, {}}, path_options.fit, &monitor.interruption());
+        const StiffnessFitResult refit = FitStiffness(problem, weights, FitScope{support, {}},
+                                                      path_options.fit, &monitor.interruption());
         details.steps += refit.iterations;
         details.solves += refit.solves;
         if (refit.feasible) weights = refit.weights;
@@ -333,7 +333,8 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
   r.counters.evaluations = details.steps;
   r.wall_seconds = SecondsSince(start_time);
   const double e = r.evaluation.normalized_error;
-  r.stop = stopped ? (monitor.time_limit_reached() ? StopReason::kTimeLimit : StopReason::kCancelled)
+  r.stop = stopped
+               ? (monitor.time_limit_reached() ? StopReason::kTimeLimit : StopReason::kCancelled)
            : target > 0.0 && e <= target ? StopReason::kTargetReached
                                          : StopReason::kCompleted;
   char message[400];

@@ -77,7 +77,7 @@ full = json.load(open(sys.argv[3]))
 assert len(full["trace"]) == len(rows) and full["springs"] == j["springs"]
 PY
 expect_exit 2 "run unknown strategy" "$sf" run "$src/examples/paper-iso-5x5.json" --strategy annealing
-grep -q -- "--strategy: unknown strategy 'annealing' (expected default, paper, direct or hybrid)" "$tmp/err" || fail "strategy error: $(cat "$tmp/err")"
+grep -q -- "--strategy: unknown strategy 'annealing' (expected default, paper, direct, hybrid or continuous)" "$tmp/err" || fail "strategy error: $(cat "$tmp/err")"
 expect_exit 64 "run population 1" "$sf" run "$src/examples/paper-iso-5x5.json" --population 1
 expect_exit 2 "run invalid scene" "$sf" run "$src/tests/data/invalid-index.json"
 # Ctrl-C: stops, still writes the best so far, exit 130.

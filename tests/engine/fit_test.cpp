@@ -1,0 +1,311 @@
+// The linear response, the continuous stiffness fit, the sparsity path and strategy continuous
+// (engine/fit/, issue 16).
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "engine/cost.h"
+#include "engine/direct/force_balance.h"
+#include "engine/examples/catalog.h"
+#include "engine/fem/closed_form_baseline.h"
+#include "engine/fit/sparsity_path.h"
+#include "engine/fit/stiffness_fit.h"
+#include "engine/identification/identify.h"
+#include "engine/identification/strategy.h"
+#include "engine/input_error.h"
+#include "tests/test_scenes.h"
+
+namespace springfit {
+namespace {
+
+Scene WithResponse(Scene s, Response response) {
+  s.search.response = response;
+  return s;
+}
+
+// The reference's springs of an MSS scene, over its own geometry.
+ActiveSprings ReferenceSprings(const Scene& s) {
+  ActiveSprings springs;
+  for (int m = 0; m < static_cast<int>(s.reference.springs.size()); ++m) {
+    springs.index.push_back(m);
+    springs.stiffness.push_back(s.reference.stiffness.size() == 1 ? s.reference.stiffness[0]
+                                                                  : s.reference.stiffness[m]);
+  }
+  return springs;
+}
+
+TEST(Response, DefaultsToLinearForALinearFemReferenceOnly) {
+  EXPECT_EQ(ResolveResponse(examples::Make("fem-plate-5x5")), Response::kLinear);
+  EXPECT_EQ(ResolveResponse(examples::Make("fem-kidney-2d-nl")), Response::kNonlinear);
+  EXPECT_EQ(ResolveResponse(examples::Make("paper-iso-5x5")), Response::kNonlinear);
+  EXPECT_EQ(ResolveResponse(WithResponse(examples::Make("fem-plate-5x5"), Response::kNonlinear)),
+            Response::kNonlinear);
+  const Problem p =
+      Problem::Build(WithResponse(examples::Make("paper-iso-5x5"), Response::kLinear));
+  EXPECT_EQ(p.response(), Response::kLinear);
+  EXPECT_EQ(p.solver_options().response, Response::kLinear);
+}
+
+TEST(Response, TheLinearSolveIsTheRestStiffnessSolve) {
+  // u = K^-1 f with K = sum k n0 n0^T, assembled here by hand and solved densely.
+  const Scene scene = examples::ThinnedGrid({4, 4}, 5, 2.0);
+  const int d = scene.dimension, n = scene.node_count();
+  const SpringGeometry geometry(d, scene.rest, scene.reference.springs);
+  const ActiveSprings springs = ReferenceSprings(scene);
+  const Problem problem = Problem::Build(WithResponse(scene, Response::kLinear));
+  for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
+    const PreparedLoadCase& lc = problem.load_cases()[k];
+    const FreeNodes& free = problem.free_sets()[lc.free_set];
+    Matrix K = Matrix::Zero(d * n, d * n);
+    for (int m = 0; m < geometry.size(); ++m) {
+      const Vector n0 = geometry.rest_separation.segment(d * m, d) / geometry.rest_length[m];
+      const Matrix block = springs.stiffness[m] * n0 * n0.transpose();
+      const int i = geometry.pairs[m].first, j = geometry.pairs[m].second;
+      K.block(d * i, d * i, d, d) += block;
+      K.block(d * j, d * j, d, d) += block;
+      K.block(d * i, d * j, d, d) -= block;
+      K.block(d * j, d * i, d, d) -= block;
+    }
+    std::vector<int> dofs;
+    for (int i = 0; i < n; ++i) {
+      if (free.free_index[i] >= 0)
+        for (int a = 0; a < d; ++a) dofs.push_back(d * i + a);
+    }
+    const Vector rhs = lc.force - K * lc.prescribed;  // prescribed is zero on free nodes
+    Matrix Kff(dofs.size(), dofs.size());
+    Vector fff(dofs.size());
+    for (std::size_t r = 0; r < dofs.size(); ++r) {
+      fff[r] = rhs[dofs[r]];
+      for (std::size_t c = 0; c < dofs.size(); ++c) Kff(r, c) = K(dofs[r], dofs[c]);
+    }
+    const Vector expected = Kff.ldlt().solve(fff);
+    for (std::size_t r = 0; r < dofs.size(); ++r)
+      EXPECT_NEAR(lc.reference[dofs[r]], expected[r], 1e-9 * expected.lpNorm<Eigen::Infinity>())
+          << "load case " << k << ", dof " << dofs[r];
+  }
+}
+
+TEST(Response, LinearDisplacementsScaleWithTheLoadNonlinearOnesDoNot) {
+  const auto displacement = [](Response response, double factor) {
+    Scene s = WithResponse(examples::Make("paper-iso-5x5"), response);
+    for (LoadCase& lc : s.load_cases) {
+      for (NodalLoad& f : lc.forces) f.value *= factor;
+    }
+    return Problem::Build(std::move(s)).load_cases()[0].reference;
+  };
+  const Vector lin1 = displacement(Response::kLinear, 1.0);
+  const Vector lin4 = displacement(Response::kLinear, 4.0);
+  EXPECT_LT((lin4 - 4.0 * lin1).norm(), 1e-10 * lin4.norm());
+  const Vector nl1 = displacement(Response::kNonlinear, 1.0);
+  const Vector nl4 = displacement(Response::kNonlinear, 4.0);
+  EXPECT_GT((nl4 - 4.0 * nl1).norm(), 1e-3 * nl4.norm());
+}
+
+TEST(Response, TheForceBalanceHoldsAtTheLinearReferenceStiffness) {
+  // The linearised spring's force per unit stiffness, at the linear equilibria: A w = b exactly.
+  const Problem problem =
+      Problem::Build(WithResponse(examples::ThinnedGrid({4, 4}, 3, 2.0), Response::kLinear));
+  const ForceBalance fb = AssembleForceBalance(problem);
+  const std::vector<double> truth = problem.ReferenceWeights();
+  const Vector w = Eigen::Map<const Vector>(truth.data(), static_cast<Eigen::Index>(truth.size()));
+  EXPECT_LT((fb.a * w - fb.b).norm(), 1e-10 * fb.b.norm());
+}
+
+// An MSS reference with per-spring stiffness over 4 decades: the fit from a uniform start on the
+// reference's springs finds every stiffness (the sensitivities are exact, or Gauss-Newton would
+// stall short of it).
+void ExpectTheFitRecoversTheStiffness(Response response) {
+  const Problem problem =
+      Problem::Build(WithResponse(examples::ThinnedGrid({5, 5}, 7, 4.0), response));
+  const std::vector<double> truth = problem.ReferenceWeights();
+  std::vector<bool> usable(truth.size());
+  std::vector<double> start(truth.size(), 0.0);
+  for (std::size_t g = 0; g < truth.size(); ++g) {
+    usable[g] = truth[g] > 0.0;
+    start[g] = usable[g] ? 1.0 : 0.0;
+  }
+  StiffnessFitOptions options;
+  options.max_iterations = 500;
+  options.max_cg_iterations = 1000;
+  options.cg_tolerance = 1e-12;
+  const StiffnessFitResult fit = FitStiffness(problem, start, FitScope{usable, {}}, options);
+  ASSERT_TRUE(fit.feasible);
+  EXPECT_GT(fit.initial_normalized_error, 1e-3);
+  EXPECT_LT(fit.normalized_error, 1e-16);
+  EXPECT_TRUE(fit.converged);
+  for (std::size_t g = 0; g < truth.size(); ++g) {
+    if (usable[g]) {
+      EXPECT_NEAR(fit.weights[g], truth[g], 1e-5 * truth[g]) << "gene " << g;
+    } else {
+      EXPECT_EQ(fit.weights[g], 0.0) << "gene " << g;
+    }
+  }
+}
+
+TEST(StiffnessFit, RecoversPerSpringStiffnessLinear) {
+  ExpectTheFitRecoversTheStiffness(Response::kLinear);
+}
+
+TEST(StiffnessFit, RecoversPerSpringStiffnessNonlinear) {
+  ExpectTheFitRecoversTheStiffness(Response::kNonlinear);
+}
+
+TEST(StiffnessFit, NeverRaisesTheErrorAndKeepsTheBounds) {
+  const Problem problem = Problem::Build(examples::Make("fem-plate-5x5"));
+  const std::optional<std::vector<double>> start = fem::BaselineGeneWeights(problem);
+  ASSERT_TRUE(start);
+  std::vector<bool> usable(start->size(), true);
+  // A candidate off the mesh edges is held at 0 whatever its gradient says.
+  std::size_t held = 0;
+  while ((*start)[held] > 0.0) ++held;
+  usable[held] = false;
+  StiffnessFitOptions options;
+  options.max_iterations = 25;
+  const StiffnessFitResult fit = FitStiffness(problem, *start, FitScope{usable, {}}, options);
+  const fem::BaselineReport baseline = *fem::EvaluateClosedFormBaseline(problem);
+  EXPECT_NEAR(fit.initial_normalized_error, baseline.normalized_error,
+              1e-9 * baseline.normalized_error);
+  EXPECT_LT(fit.normalized_error, 0.1 * fit.initial_normalized_error);
+  EXPECT_EQ(fit.weights[held], 0.0);
+  int entered = 0;
+  for (std::size_t g = 0; g < fit.weights.size(); ++g) {
+    EXPECT_GE(fit.weights[g], 0.0);
+    if ((*start)[g] == 0.0 && fit.weights[g] > 0.0) ++entered;
+  }
+  EXPECT_GT(entered, 0) << "no candidate off the mesh edges entered by its gradient";
+  // The reported error is the model's, as the cost function computes it.
+  const Evaluation e = CostFunction(problem).Evaluate(problem.SpringsOfWeights(fit.weights));
+  // (Both solve to the solver's tolerance, from different starts.)
+  EXPECT_NEAR(e.normalized_error, fit.normalized_error, 1e-6 * fit.normalized_error);
+}
+
+TEST(StiffnessFit, ALeftOutLoadCaseIsNotFitted) {
+  const Problem problem = Problem::Build(examples::Make("fem-plate-5x5"));
+  const std::vector<double> start = *fem::BaselineGeneWeights(problem);
+  std::vector<bool> usable(start.size(), true);
+  std::vector<bool> cases(problem.load_cases().size(), true);
+  cases[0] = false;
+  StiffnessFitOptions options;
+  options.max_iterations = 10;
+  const StiffnessFitResult fit = FitStiffness(problem, start, FitScope{usable, cases}, options);
+  CostOptions all;
+  all.solve_cases_of_mechanisms = true;
+  const Evaluation e = CostFunction(problem, all).Evaluate(problem.SpringsOfWeights(fit.weights));
+  double cost = 0.0, norm2 = 0.0;
+  for (std::size_t k = 1; k < problem.load_cases().size(); ++k) {
+    cost += e.load_cases[k].cost;
+    norm2 += problem.load_cases()[k].reference_norm2;
+  }
+  EXPECT_NEAR(fit.normalized_error, cost / norm2, 1e-6 * fit.normalized_error);
+}
+
+TEST(SparsityPath, SelectsBySizeErrorOrTolerance) {
+  SparsityPath path;
+  const std::vector<std::pair<int, double>> points = {
+      {100, 1.0e-4}, {90, 1.05e-4}, {80, 1.2e-4}, {70, 4e-4}, {60, 1e-2}};
+  for (const auto& [springs, e] : points) path.points.push_back({springs, e, {}});
+  EXPECT_EQ(SelectPathPoint(path, 0, 0.0, 0.05), 1u);  // (1.05)^2 e_min = 1.1025e-4
+  EXPECT_EQ(SelectPathPoint(path, 0, 0.0, 0.0), 0u);
+  EXPECT_EQ(SelectPathPoint(path, 75, 0.0, 0.05), 3u);  // the lowest error with <= 75 springs
+  EXPECT_EQ(SelectPathPoint(path, 10, 0.0, 0.05), 4u);  // none that small: the smallest
+  EXPECT_EQ(SelectPathPoint(path, 0, 5e-4, 0.05), 3u);  // the fewest springs with e <= 5e-4
+  EXPECT_EQ(SelectPathPoint(path, 0, 1e-6, 0.05), 0u);  // none: the lowest error
+}
+
+TEST(SparsityPath, EveryPointCarriesTheLoadsAndTheSizeFalls) {
+  const Problem problem = Problem::Build(examples::Make("fem-plate-5x5"));
+  const std::vector<double> start = *fem::BaselineGeneWeights(problem);
+  SparsityPathOptions options;
+  options.fit.max_iterations = 60;
+  const SparsityPath path =
+      TraceSparsityPath(problem, start, std::vector<bool>(start.size(), true), options, 0.0, 0);
+  ASSERT_GE(path.points.size(), 5u);
+  EXPECT_FALSE(path.interrupted);
+  CostFunction cost(problem);
+  for (std::size_t i = 0; i < path.points.size(); ++i) {
+    const PathPoint& p = path.points[i];
+    const Evaluation e = cost.Evaluate(problem.SpringsOfWeights(p.weights));
+    EXPECT_FALSE(e.mechanism) << "point " << i;
+    EXPECT_NEAR(e.normalized_error, p.normalized_error, 1e-6 * p.normalized_error) << "point " << i;
+  }
+  EXPECT_LT(path.points.back().springs, path.points.front().springs);
+  // The path runs until it passes the start's error (the baseline's).
+  EXPECT_GT(path.points.back().normalized_error, path.fit.initial_normalized_error);
+}
+
+TEST(ContinuousStrategy, BeatsTheBaselineOnTheFemPlate) {
+  const Problem problem = Problem::Build(examples::Make("fem-plate-5x5"));
+  const SearchOptions options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
+  ASSERT_EQ(options.strategy, Strategy::kDefault);
+  const IdentificationResult r = RunIdentification(problem, options);
+  ASSERT_TRUE(r.continuous);
+  ASSERT_TRUE(r.baseline);
+  EXPECT_EQ(r.options.identify, Identify::kTopologyAndStiffness);
+  EXPECT_EQ(r.stop, StopReason::kCompleted);
+  EXPECT_FALSE(r.evaluation.mechanism);
+  // The issue's figure: E <= 0.011 with 8 nearest neighbours, against 0.82 for van Gelder.
+  EXPECT_LT(std::sqrt(r.evaluation.normalized_error), 0.0115);
+  EXPECT_LT(r.evaluation.normalized_error, 1e-3 * r.baseline->normalized_error);
+  ASSERT_EQ(r.stiffness.size(), r.springs.size());
+  for (double k : r.stiffness) EXPECT_GT(k, 0.0);
+  EXPECT_TRUE(r.continuous->started_from_baseline);
+  EXPECT_NEAR(r.continuous->start_normalized_error, r.baseline->normalized_error,
+              1e-9 * r.baseline->normalized_error);
+  ASSERT_TRUE(r.continuous->held_out_normalized_error);
+  EXPECT_EQ(r.continuous->held_out_per_case.size(), problem.load_cases().size());
+  // Deterministic: the same run again gives the same model.
+  const IdentificationResult again = RunIdentification(problem, options);
+  EXPECT_EQ(again.best, r.best);
+  EXPECT_EQ(again.stiffness, r.stiffness);
+}
+
+TEST(ContinuousStrategy, MaxSpringsAndTargetErrorChooseThePoint) {
+  Scene scene = examples::Make("fem-plate-5x5");
+  scene.search.max_springs = 60;
+  const Problem problem = Problem::Build(scene);
+  const IdentificationResult r = RunIdentification(
+      problem, ResolveSearchOptions(problem.scene().search, problem.gene_count()));
+  EXPECT_LE(static_cast<int>(r.springs.size()), 60);
+  scene.search.max_springs.reset();
+  scene.search.target_error = 0.05;
+  const Problem targeted = Problem::Build(scene);
+  const IdentificationResult t = RunIdentification(
+      targeted, ResolveSearchOptions(targeted.scene().search, targeted.gene_count()));
+  EXPECT_LE(std::sqrt(t.evaluation.normalized_error), 0.05);
+  EXPECT_EQ(t.stop, StopReason::kTargetReached);
+  ASSERT_TRUE(t.continuous);
+  // The fewest springs within the target: every smaller point of the path misses it.
+  for (const auto& p : t.continuous->path) {
+    if (p.springs < t.continuous->path[t.continuous->chosen].springs)
+      EXPECT_GT(p.normalized_error, 0.05 * 0.05);
+  }
+}
+
+TEST(ContinuousStrategy, StoppedAfterItsFirstRowKeepsAModelBetterThanTheBaseline) {
+  const Problem problem = Problem::Build(examples::Make("fem-kidney-2d"));
+  RunContext context;
+  context.on_iteration = [](const TraceRow&, const IterationState&) { return false; };
+  const IdentificationResult r = RunIdentification(
+      problem, ResolveSearchOptions(problem.scene().search, problem.gene_count()), context);
+  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  ASSERT_TRUE(r.baseline);
+  EXPECT_FALSE(r.evaluation.mechanism);
+  EXPECT_LT(r.evaluation.normalized_error, r.baseline->normalized_error);
+  EXPECT_EQ(r.trace.size(), 1u);
+}
+
+TEST(ContinuousStrategy, SettingsThatDoNotFitTheStrategyAreRefused) {
+  Scene s = examples::Make("fem-plate-5x5");
+  s.search.identify = Identify::kTopology;
+  EXPECT_THROW(Problem::Build(s), InputError);
+  s = examples::Make("paper-iso-5x5");
+  s.search.max_springs = 10;  // default is hybrid on an MSS reference
+  EXPECT_THROW(Problem::Build(s), InputError);
+  s.search.strategy = Strategy::kContinuous;
+  EXPECT_NO_THROW(Problem::Build(s));
+  s.search.max_springs = 0;
+  EXPECT_THROW(Problem::Build(s), InputError);
+}
+
+}  // namespace
+}  // namespace springfit
