@@ -57,6 +57,7 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
   // Springs whose removal alone leaves a mechanism: the model keeps them whatever they carry
   // (a spring can hold a mode no load case loads).
   std::vector<bool> structural(usable.size(), false);
+  bool moved_since_reset = false;
   try {
     while (static_cast<int>(path.points.size()) < options.max_points) {
       const PathPoint& last = path.points.back();
@@ -66,7 +67,14 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
       for (int g = 0; g < static_cast<int>(current.weights.size()); ++g) {
         if (current.weights[g] > 0.0 && !structural[g]) removable.push_back(g);
       }
-      if (removable.empty()) break;
+      if (removable.empty()) {
+        // Springs that re-entered since may have freed one that was needed: test them all
+        // again once, and end only when a whole round removes nothing.
+        if (!moved_since_reset) break;
+        structural.assign(structural.size(), false);
+        moved_since_reset = false;
+        continue;
+      }
       std::stable_sort(removable.begin(), removable.end(),
                        [&](int a, int b) { return current.importance[a] < current.importance[b]; });
       int remove = std::max(1, static_cast<int>(options.prune_fraction * last.springs));
@@ -88,6 +96,7 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
           allowed = std::move(trial_allowed);
           current = std::move(fit);
           path.points.push_back(PointOf(current));
+          moved_since_reset = true;
           if (progress) progress(path);
           break;
         }

@@ -10,8 +10,10 @@
 //    StiffnessFitResult::importance) are removed, `prune_fraction` of them at a time, and the
 //    rest refitted from where they were; each refit is one point of the sparsity path
 //    (springs, E). A removal that would leave a mechanism is retried with fewer springs; a
-//    single spring whose removal leaves one is kept for good (it holds a mode no load case
-//    loads). The path ends where no spring can be removed, or where E passes the stop.
+//    single spring whose removal leaves one is kept (it holds a mode no load case loads) until
+//    every spring is so marked, when all are tried once more (springs that re-entered in a
+//    refit may have freed one). The path ends where a whole round removes no spring, or where
+//    E passes the stop.
 // 3. Choice (SelectPathPoint): the fewest springs whose E is within `tolerance` of the best
 //    on the path, or the user's size or error target; then refitted to convergence.
 #pragma once

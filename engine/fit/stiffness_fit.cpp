@@ -21,13 +21,22 @@ constexpr double kShortFraction = 0.1;
 class ResponseState {
  public:
   ResponseState(const Problem& problem, std::vector<bool> cases, Interruption* interruption)
-      : problem_(problem), cases_(std::move(cases)) {
+      : problem_(problem), cases_(std::move(cases)), interruption_(interruption) {
     if (cases_.empty()) cases_.assign(problem.load_cases().size(), true);
-    // One solver per load case: each keeps its own tangent's factorisation for the operators.
-    for (const PreparedLoadCase& lc : problem.load_cases()) {
-      solvers_.emplace_back(problem.candidates(), problem.free_sets()[lc.free_set],
-                            problem.solver_options());
+    // The linear response's tangent is the rest stiffness, the same for every case with the
+    // same free nodes: one solver (one factorisation) per set of free nodes. The nonlinear
+    // one's depends on the case's equilibrium: one solver per case.
+    linear_ = problem.response() == Response::kLinear;
+    const auto add_solver = [&](const FreeNodes& free) {
+      solvers_.emplace_back(problem.candidates(), free, problem.solver_options());
       solvers_.back().set_interruption(interruption);
+    };
+    if (linear_) {
+      for (const FreeNodes& free : problem.free_sets()) add_solver(free);
+    }
+    for (const PreparedLoadCase& lc : problem.load_cases()) {
+      if (!linear_) add_solver(problem.free_sets()[lc.free_set]);
+      solver_of_case_.push_back(linear_ ? lc.free_set : static_cast<int>(solvers_.size()) - 1);
       u_.push_back(lc.reference);  // warm start: the reference's equilibrium
     }
     Eigen::Index rows = 0;
@@ -53,19 +62,27 @@ class ResponseState {
   // is then unusable until the next successful Evaluate. Throws Interrupted.
   bool Evaluate(const std::vector<double>& w) {
     const Problem& p = problem_;
-    const int d = p.dimension();
     const ActiveSprings springs = p.SpringsOfWeights(w);
+    // Stability first, once per set of free nodes (linear: the factorisation every case of the
+    // set then solves with).
+    std::vector<bool> checked(p.free_sets().size(), false);
+    for (std::size_t k = 0; k < p.load_cases().size(); ++k) {
+      const int set = p.load_cases()[k].free_set;
+      if (!cases_[k] || checked[set]) continue;
+      checked[set] = true;
+      EquilibriumSolver& solver = solvers_[solver_of_case_[k]];
+      // The mechanism verdict of every evaluation (cost.h), then, linear, the factorisation.
+      if (solver.RestMechanismModes(springs) > 0) return false;
+      if (linear_ && !solver.FactorizeTangent(springs, Vector::Zero(p.scene().rest.size())))
+        return false;
+    }
     for (std::size_t k = 0; k < p.load_cases().size(); ++k) {
       if (!cases_[k]) continue;
+      if (interruption_ && interruption_->Check()) throw Interrupted();
+      if (!(linear_ ? SolveLinear(k, springs) : SolveNonlinear(k, springs))) return false;
       const PreparedLoadCase& lc = p.load_cases()[k];
-      EquilibriumSolver& solver = solvers_[k];
-      if (p.response() == Response::kNonlinear && solver.RestMechanismModes(springs) > 0)
-        return false;
-      const EquilibriumSummary s = solver.Solve(springs, lc.force, lc.prescribed, u_[k]);
-      if (s.termination == Termination::kInterrupted) throw Interrupted();
-      // (Linear: a mechanism's singular tangent fails here.)
-      if (!s.converged() || !solver.FactorizeTangent(springs, u_[k])) return false;
       const FreeNodes& free = p.free_sets()[lc.free_set];
+      const int d = p.dimension();
       for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
         const int f = free.free_index[i];
         if (f >= 0)
@@ -83,20 +100,53 @@ class ResponseState {
 
   // y <- H^-1 y, block by load case.
   void ApplyInverseTangent(Vector& y) {
-    for (std::size_t k = 0; k < solvers_.size(); ++k) {
+    for (std::size_t k = 0; k < cases_.size(); ++k) {
       const Eigen::Index size = offset_[k + 1] - offset_[k];
       if (size == 0 || !cases_[k]) continue;  // (rows of a left-out case stay 0)
       Vector block = y.segment(offset_[k], size);
-      solvers_[k].SolveTangent(block);
+      solvers_[solver_of_case_[k]].SolveTangent(block);
       y.segment(offset_[k], size) = block;
       ++solves_;
     }
   }
 
  private:
+  // Linear: u = u_p - K^-1 g(u_p), g the energy's gradient with the free nodes at rest (one
+  // Newton step is exact on the quadratic energy), with the set's factorisation.
+  bool SolveLinear(std::size_t k, const ActiveSprings& springs) {
+    const PreparedLoadCase& lc = problem_.load_cases()[k];
+    const FreeNodes& free = problem_.free_sets()[lc.free_set];
+    EquilibriumSolver& solver = solvers_[solver_of_case_[k]];
+    const int d = problem_.dimension();
+    Vector& u = u_[k];
+    u = lc.prescribed;  // zero on the free nodes
+    Vector step;
+    solver.EnergyAndGradient(springs, lc.force, u, &step, false, false);
+    step = -step;
+    solver.SolveTangent(step);
+    ++solves_;
+    for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
+      const int f = free.free_index[i];
+      if (f >= 0) u.segment(d * i, d) = step.segment(d * f, d);
+    }
+    return step.allFinite();
+  }
+
+  // Nonlinear: Newton from the last equilibrium, then the tangent there factorised.
+  bool SolveNonlinear(std::size_t k, const ActiveSprings& springs) {
+    const PreparedLoadCase& lc = problem_.load_cases()[k];
+    EquilibriumSolver& solver = solvers_[solver_of_case_[k]];
+    const EquilibriumSummary s = solver.Solve(springs, lc.force, lc.prescribed, u_[k]);
+    if (s.termination == Termination::kInterrupted) throw Interrupted();
+    return s.converged() && solver.FactorizeTangent(springs, u_[k]);
+  }
+
   const Problem& problem_;
   std::vector<bool> cases_;
+  Interruption* interruption_ = nullptr;
+  bool linear_ = false;
   std::vector<EquilibriumSolver> solvers_;
+  std::vector<int> solver_of_case_;
   std::vector<Vector> u_;
   std::vector<Eigen::Index> offset_;
   Vector r_;
