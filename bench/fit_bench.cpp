@@ -5,6 +5,7 @@
 //
 //   build/bench/fit_bench examples/fem-plate-5x5.json examples/fem-kidney-2d.json
 //   build/bench/fit_bench --response nonlinear examples/fem-kidney-2d.json
+//   build/bench/fit_bench --threads 2 --max-iterations 300 examples/fem-block-3d.json
 //
 // E is the relative RMS nodal error sqrt(sum |u - u^R|^2 / sum |u^R|^2) over the free nodes of
 // every load case; times are wall seconds of one run on this machine.
@@ -48,10 +49,15 @@ int Main(int argc, char** argv) {
   std::vector<std::string> files;
   std::string response;
   int max_iterations = StiffnessFitOptions{}.max_iterations;
+  int threads = 1;
   app.add_option("scenes", files, "FEM scene files")->required();
   app.add_option("--response", response, "linear or nonlinear (default: the scene's)");
   app.add_option("--max-iterations", max_iterations, "trust-region steps per fit");
+  app.add_option("--threads", threads, "threads for the load cases' solves");
   CLI11_PARSE(app, argc, argv);
+  WorkerPool pool(threads);
+  FitContext fit_context;
+  fit_context.pool = &pool;
 
   for (const std::string& file : files) {
     Scene scene = proto::LoadSceneFile(file);
@@ -76,10 +82,10 @@ int Main(int argc, char** argv) {
     std::vector<bool> edges(start->size()), all(start->size(), true);
     for (std::size_t g = 0; g < start->size(); ++g) edges[g] = (*start)[g] > 0.0;
     t0 = Clock::now();
-    const StiffnessFitResult floor = FitStiffness(problem, *start, FitScope{edges, {}}, options);
+    const StiffnessFitResult floor = FitStiffness(problem, *start, FitScope{edges, {}}, options, fit_context);
     Report("fit on the mesh edges", floor, Positive(floor.weights), Seconds(t0));
     t0 = Clock::now();
-    const StiffnessFitResult rich = FitStiffness(problem, *start, FitScope{all, {}}, options);
+    const StiffnessFitResult rich = FitStiffness(problem, *start, FitScope{all, {}}, options, fit_context);
     Report("fit on all candidates", rich, Positive(rich.weights), Seconds(t0));
   }
   return 0;

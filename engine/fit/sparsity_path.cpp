@@ -34,11 +34,12 @@ void SparsityPathOptions::Validate(const std::string& owner) const {
 SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>& start,
                                const std::vector<bool>& usable, const SparsityPathOptions& options,
                                double stop_normalized_error, int min_springs,
-                               Interruption* interruption, const FitStepCallback& on_step,
-                               const PathProgress& progress) {
+                               const FitContext& context, const PathProgress& progress) {
+  FitContext quiet = context;  // the refits report no steps
+  quiet.on_step = nullptr;
   options.Validate();
   SparsityPath path;
-  path.fit = FitStiffness(problem, start, FitScope{usable, {}}, options.fit, interruption, on_step);
+  path.fit = FitStiffness(problem, start, FitScope{usable, {}}, options.fit, context);
   path.solves = path.fit.solves;
   path.steps = path.fit.iterations;
   if (!path.fit.feasible) return path;
@@ -88,7 +89,7 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
           trial_start[removable[i]] = 0.0;
         }
         StiffnessFitResult fit =
-            FitStiffness(problem, trial_start, FitScope{trial_allowed, {}}, refit, interruption);
+            FitStiffness(problem, trial_start, FitScope{trial_allowed, {}}, refit, quiet);
         path.solves += fit.solves;
         path.steps += fit.iterations;
         if (fit.interrupted) throw Interrupted();  // a half-done refit is not a path point
@@ -116,7 +117,7 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
 std::optional<HeldOutError> HeldOutErrors(const Problem& problem,
                                           const std::vector<double>& weights,
                                           const StiffnessFitOptions& options,
-                                          Interruption* interruption) {
+                                          const FitContext& context) {
   const std::size_t cases = problem.load_cases().size();
   if (cases < 2) return std::nullopt;
   std::vector<bool> support(weights.size());
@@ -124,14 +125,16 @@ std::optional<HeldOutError> HeldOutErrors(const Problem& problem,
   CostOptions cost_options;
   cost_options.solve_cases_of_mechanisms = true;  // judge case k whatever the others say
   CostFunction cost(problem, cost_options);
-  cost.set_interruption(interruption);
+  cost.set_interruption(context.interruption);
+  FitContext quiet = context;
+  quiet.on_step = nullptr;
   HeldOutError out;
   double numerator = 0.0, denominator = 0.0;
   for (std::size_t k = 0; k < cases; ++k) {
     std::vector<bool> fitted(cases, true);
     fitted[k] = false;
     const StiffnessFitResult fit =
-        FitStiffness(problem, weights, FitScope{support, fitted}, options, interruption);
+        FitStiffness(problem, weights, FitScope{support, fitted}, options, quiet);
     if (fit.interrupted) throw Interrupted();
     const Evaluation e = cost.Evaluate(problem.SpringsOfWeights(fit.weights));
     if (e.interrupted) throw Interrupted();

@@ -67,9 +67,7 @@ using PathProgress = std::function<void(const SparsityPath&)>;
 SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>& start,
                                const std::vector<bool>& usable, const SparsityPathOptions& options,
                                double stop_normalized_error, int min_springs,
-                               Interruption* interruption = nullptr,
-                               const FitStepCallback& on_step = {},
-                               const PathProgress& progress = {});
+                               const FitContext& context = {}, const PathProgress& progress = {});
 
 // Cross-validation over the load cases: for each case k, the model's springs refitted (from
 // `weights`, on its own support) to the other cases, then judged on case k. Per case the
@@ -83,7 +81,7 @@ struct HeldOutError {
 std::optional<HeldOutError> HeldOutErrors(const Problem& problem,
                                           const std::vector<double>& weights,
                                           const StiffnessFitOptions& options,
-                                          Interruption* interruption = nullptr);
+                                          const FitContext& context = {});
 
 // The point to return: with `max_springs` > 0, the lowest E with at most that many springs
 // (the smallest model when none has); else with `target_normalized_error` > 0, the fewest

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 
 #include "engine/direct/force_balance.h"
@@ -14,14 +15,22 @@ namespace {
 constexpr double kExactError = 1e-24;
 // A trust region this small, relative to the residual, has stopped moving the weights.
 constexpr double kSmallestRadius = 1e-12;
+// Linear solves: passes of iterative refinement at most, and the gradient, relative to the
+// load's, at which they stop.
+constexpr int kRefinementPasses = 4;
+constexpr double kRefinedResidual = 1e-14;
 // The fraction of itself a weight keeps, at least, in a step stopped short of the bounds.
 constexpr double kShortFraction = 0.1;
 
 // The model's response at one set of weights: equilibria, tangents factorised, residuals.
 class ResponseState {
  public:
-  ResponseState(const Problem& problem, std::vector<bool> cases, Interruption* interruption)
-      : problem_(problem), cases_(std::move(cases)), interruption_(interruption) {
+  ResponseState(const Problem& problem, std::vector<bool> cases, const FitContext& context)
+      : problem_(problem),
+        cases_(std::move(cases)),
+        interruption_(context.interruption),
+        pool_(context.pool) {
+    Interruption* interruption = context.interruption;
     if (cases_.empty()) cases_.assign(problem.load_cases().size(), true);
     // The linear response's tangent is the rest stiffness, the same for every case with the
     // same free nodes: one solver (one factorisation) per set of free nodes. The nonlinear
@@ -71,15 +80,18 @@ class ResponseState {
       if (!cases_[k] || checked[set]) continue;
       checked[set] = true;
       EquilibriumSolver& solver = solvers_[solver_of_case_[k]];
-      // The mechanism verdict of every evaluation (cost.h), then, linear, the factorisation.
+      // The mechanism verdict of every evaluation (cost.h). Linear: its factorisation of the
+      // rest stiffness (shifted by the solver's mechanism_shift) is also the one the cases
+      // solve with, refined to round-off (SolveLinear).
       if (solver.RestMechanismModes(springs) > 0) return false;
-      if (linear_ && !solver.FactorizeTangent(springs, Vector::Zero(p.scene().rest.size())))
-        return false;
     }
+    std::vector<std::uint8_t> solved(p.load_cases().size(), 1);
+    ForEachCase([&](std::size_t k) {
+      solved[k] = linear_ ? SolveLinear(k, springs) : SolveNonlinear(k, springs);
+    });
     for (std::size_t k = 0; k < p.load_cases().size(); ++k) {
       if (!cases_[k]) continue;
-      if (interruption_ && interruption_->Check()) throw Interrupted();
-      if (!(linear_ ? SolveLinear(k, springs) : SolveNonlinear(k, springs))) return false;
+      if (!solved[k]) return false;
       const PreparedLoadCase& lc = p.load_cases()[k];
       const FreeNodes& free = p.free_sets()[lc.free_set];
       const int d = p.dimension();
@@ -100,19 +112,45 @@ class ResponseState {
 
   // y <- H^-1 y, block by load case.
   void ApplyInverseTangent(Vector& y) {
-    for (std::size_t k = 0; k < cases_.size(); ++k) {
+    ForEachCase([&](std::size_t k) {
       const Eigen::Index size = offset_[k + 1] - offset_[k];
-      if (size == 0 || !cases_[k]) continue;  // (rows of a left-out case stay 0)
+      if (size == 0) return;
       Vector block = y.segment(offset_[k], size);
       solvers_[solver_of_case_[k]].SolveTangent(block);
       y.segment(offset_[k], size) = block;
-      ++solves_;
-    }
+    });
+    for (std::size_t k = 0; k < cases_.size(); ++k) solves_ += cases_[k] ? 1 : 0;
   }
 
  private:
+  // body(k) for every fitted case, on the pool's threads when there is one (each case writes
+  // only its own state; the linear cases of one set of free nodes share a factorisation,
+  // which solves only read). Between the owner's waits the interruption is polled.
+  void ForEachCase(const std::function<void(std::size_t)>& body) {
+    std::vector<std::size_t> fitted;
+    for (std::size_t k = 0; k < cases_.size(); ++k) {
+      if (cases_[k]) fitted.push_back(k);
+    }
+    if (!pool_ || pool_->threads() <= 1 || fitted.size() <= 1) {
+      for (std::size_t k : fitted) {
+        if (interruption_ && interruption_->Check()) throw Interrupted();
+        body(k);
+      }
+      return;
+    }
+    pool_->Run(
+        static_cast<int>(fitted.size()), [&](int slot) { body(fitted[slot]); },
+        [this] {
+          if (interruption_) interruption_->Check();
+        });
+    if (interruption_ && interruption_->Check()) throw Interrupted();
+  }
+
   // Linear: u = u_p - K^-1 g(u_p), g the energy's gradient with the free nodes at rest (one
-  // Newton step is exact on the quadratic energy), with the set's factorisation.
+  // Newton step is exact on the quadratic energy), with the set's factorisation. That
+  // factorisation is of K + shift (RestMechanismModes), so the step is repeated on the
+  // remaining gradient (iterative refinement: each pass multiplies the error by about
+  // shift x cond(K)) until the gradient is at round-off of the load.
   bool SolveLinear(std::size_t k, const ActiveSprings& springs) {
     const PreparedLoadCase& lc = problem_.load_cases()[k];
     const FreeNodes& free = problem_.free_sets()[lc.free_set];
@@ -121,15 +159,20 @@ class ResponseState {
     Vector& u = u_[k];
     u = lc.prescribed;  // zero on the free nodes
     Vector step;
-    solver.EnergyAndGradient(springs, lc.force, u, &step, false, false);
-    step = -step;
-    solver.SolveTangent(step);
-    ++solves_;
-    for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
-      const int f = free.free_index[i];
-      if (f >= 0) u.segment(d * i, d) = step.segment(d * f, d);
+    double load = 0.0;
+    for (int pass = 0; pass < kRefinementPasses; ++pass) {
+      solver.EnergyAndGradient(springs, lc.force, u, &step, false, false);
+      const double residual = step.lpNorm<Eigen::Infinity>();
+      if (pass == 0) load = residual;
+      if (!(residual > kRefinedResidual * load)) break;
+      step = -step;
+      solver.SolveTangent(step);
+      for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
+        const int f = free.free_index[i];
+        if (f >= 0) u.segment(d * i, d) += step.segment(d * f, d);
+      }
     }
-    return step.allFinite();
+    return u.allFinite();
   }
 
   // Nonlinear: Newton from the last equilibrium, then the tangent there factorised.
@@ -144,6 +187,7 @@ class ResponseState {
   const Problem& problem_;
   std::vector<bool> cases_;
   Interruption* interruption_ = nullptr;
+  WorkerPool* pool_ = nullptr;
   bool linear_ = false;
   std::vector<EquilibriumSolver> solvers_;
   std::vector<int> solver_of_case_;
@@ -185,7 +229,8 @@ void StiffnessFitOptions::Validate(const std::string& owner) const {
 
 StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double>& start,
                                 const FitScope& scope, const StiffnessFitOptions& options,
-                                Interruption* interruption, const FitStepCallback& on_step) {
+                                const FitContext& context) {
+  Interruption* interruption = context.interruption;
   options.Validate();
   const int genes = problem.gene_count();
   const std::vector<bool>& usable = scope.usable;
@@ -200,7 +245,7 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
   // The upper bound: a spring this much stiffer than the stiffest at the start is rigid for
   // the data (a rigid limit, where the displacements no longer respond to it).
   const double upper = options.max_stiffness_ratio * *std::max_element(w.begin(), w.end());
-  ResponseState state(problem, scope.cases, interruption);
+  ResponseState state(problem, scope.cases, context);
   const double norm2 = state.ReferenceNorm2();
   if (!state.Evaluate(w)) {
     result.feasible = false;
@@ -369,7 +414,7 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
         if (rho > 0.75 && step >= 0.99 * radius)
           radius = std::min(2.0 * radius, options.max_radius);
         if (rho < 0.25) radius = 0.25 * step;
-        if (on_step) on_step(w, 2.0 * phi / norm2, result.accepted);
+        if (context.on_step) context.on_step(w, 2.0 * phi / norm2, result.accepted);
         if (small_decreases >= 2) {
           result.converged = true;
           break;

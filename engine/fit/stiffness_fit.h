@@ -26,6 +26,7 @@
 
 #include "engine/interruption.h"
 #include "engine/problem.h"
+#include "engine/search/worker_pool.h"
 
 namespace springfit {
 
@@ -80,12 +81,20 @@ struct FitScope {
   std::vector<bool> cases;
 };
 
-// Checks `interruption` inside every solve and between conjugate-gradient iterations: stopped
-// while the start is evaluated it throws Interrupted; later it returns the last accepted
-// weights (`interrupted`).
+// How a fit runs: where it checks for a stop, on which threads, whom it tells.
+struct FitContext {
+  // Checked inside every solve and between conjugate-gradient iterations (nullptr: never).
+  Interruption* interruption = nullptr;
+  // The load cases' solves in parallel (nullptr: the calling thread alone). Each case has its
+  // own state: the result does not depend on the threads.
+  WorkerPool* pool = nullptr;
+  FitStepCallback on_step;
+};
+
+// Stopped while the start is evaluated it throws Interrupted; later it returns the last
+// accepted weights (`interrupted`).
 StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double>& start,
                                 const FitScope& scope, const StiffnessFitOptions& options = {},
-                                Interruption* interruption = nullptr,
-                                const FitStepCallback& on_step = {});
+                                const FitContext& context = {});
 
 }  // namespace springfit

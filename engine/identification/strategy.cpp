@@ -24,6 +24,14 @@ struct Seed {
   Evaluation evaluation;
 };
 
+// The run's threads: the caller's pool, else one of context.threads kept in `own` (none for
+// one thread).
+WorkerPool* PoolOf(const RunContext& context, std::unique_ptr<WorkerPool>& own) {
+  if (context.pool || context.threads <= 1) return context.pool;
+  own = std::make_unique<WorkerPool>(context.threads);
+  return own.get();
+}
+
 // Before the GA's first generation (not on a resumed run): a hook that may seed it.
 using BeforeStart =
     std::function<std::optional<Seed>(GeneticSearch&, FitnessEvaluator&, IdentificationResult&)>;
@@ -32,11 +40,7 @@ IdentificationResult RunGenetic(const Problem& problem, const SearchOptions& opt
                                 const RunContext& context, RunMonitor& monitor,
                                 const BeforeStart& before_start) {
   std::unique_ptr<WorkerPool> own_pool;
-  WorkerPool* pool = context.pool;
-  if (!pool && context.threads > 1) {
-    own_pool = std::make_unique<WorkerPool>(context.threads);
-    pool = own_pool.get();
-  }
+  WorkerPool* pool = PoolOf(context, own_pool);
   FitnessEvaluator evaluator(problem, pool, options.cache_capacity, context.use_cache);
   evaluator.set_interruption(&monitor.interruption());
   GeneticSearch search(problem, options, evaluator);  // the run's clock starts here
@@ -266,20 +270,24 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
     if (cancelled) throw Interrupted();  // the path so far stands
   };
 
+  std::unique_ptr<WorkerPool> own_pool;
+  WorkerPool* pool = PoolOf(context, own_pool);
+  const FitContext fit_context{&monitor.interruption(), pool, on_step};
+  const FitContext quiet{&monitor.interruption(), pool, {}};
+
   // Sizes and errors: a size limit traces the path at least that far.
   const double target = options.target_error * options.target_error;
   const double stop = options.max_springs > 0 ? std::numeric_limits<double>::infinity() : target;
   std::vector<bool> usable(static_cast<std::size_t>(genes), true);
-  SparsityPath path =
-      TraceSparsityPath(problem, *start, usable, path_options, stop, options.max_springs,
-                        &monitor.interruption(), on_step, on_point);
+  SparsityPath path = TraceSparsityPath(problem, *start, usable, path_options, stop,
+                                        options.max_springs, fit_context, on_point);
   if (path.points.empty() && details.started_from_baseline) {
     // The baseline has no equilibrium (a nonlinear response at a large load): the training
     // stiffness on every candidate instead.
     details.started_from_baseline = false;
     start = std::vector<double>(static_cast<std::size_t>(genes), problem.training_stiffness());
     path = TraceSparsityPath(problem, *start, usable, path_options, stop, options.max_springs,
-                             &monitor.interruption(), on_step, on_point);
+                             fit_context, on_point);
   }
   details.steps = path.steps;
   details.solves = path.solves;
@@ -299,8 +307,8 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
         // The chosen point, refitted to convergence on its own springs.
         std::vector<bool> support(weights.size());
         for (std::size_t g = 0; g < weights.size(); ++g) support[g] = weights[g] > 0.0;
-        const StiffnessFitResult refit = FitStiffness(problem, weights, FitScope{support, {}},
-                                                      path_options.fit, &monitor.interruption());
+        const StiffnessFitResult refit =
+            FitStiffness(problem, weights, FitScope{support, {}}, path_options.fit, quiet);
         details.steps += refit.iterations;
         details.solves += refit.solves;
         if (refit.feasible) weights = refit.weights;
@@ -310,7 +318,7 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
         StiffnessFitOptions held_out_fit = path_options.fit;
         held_out_fit.max_iterations = path_options.refit_iterations;
         if (const auto held_out =
-                HeldOutErrors(problem, weights, held_out_fit, &monitor.interruption())) {
+                HeldOutErrors(problem, weights, held_out_fit, quiet)) {
           details.held_out_normalized_error = held_out->normalized_error;
           details.held_out_per_case = held_out->per_case;
         }
