@@ -6,6 +6,7 @@
 //   build/bench/fit_bench examples/fem-plate-5x5.json examples/fem-kidney-2d.json
 //   build/bench/fit_bench --response nonlinear examples/fem-kidney-2d.json
 //   build/bench/fit_bench --threads 2 --max-iterations 300 examples/fem-block-3d.json
+//   build/bench/fit_bench --path examples/fem-plate-5x5.json   # with the sparsity path
 //
 // E is the relative RMS nodal error sqrt(sum |u - u^R|^2 / sum |u^R|^2) over the free nodes of
 // every load case; times are wall seconds of one run on this machine.
@@ -18,6 +19,7 @@
 #include <vector>
 
 #include "engine/fem/closed_form_baseline.h"
+#include "engine/fit/sparsity_path.h"
 #include "engine/fit/stiffness_fit.h"
 #include "engine/problem.h"
 #include "proto/names.h"
@@ -50,10 +52,13 @@ int Main(int argc, char** argv) {
   std::string response;
   int max_iterations = StiffnessFitOptions{}.max_iterations;
   int threads = 1;
+  bool path_flag = false;
   app.add_option("scenes", files, "FEM scene files")->required();
   app.add_option("--response", response, "linear or nonlinear (default: the scene's)");
   app.add_option("--max-iterations", max_iterations, "trust-region steps per fit");
   app.add_option("--threads", threads, "threads for the load cases' solves");
+  app.add_flag("--path", path_flag,
+               "also trace the sparsity path and the held-out error of each of its points");
   CLI11_PARSE(app, argc, argv);
   WorkerPool pool(threads);
   FitContext fit_context;
@@ -82,11 +87,31 @@ int Main(int argc, char** argv) {
     std::vector<bool> edges(start->size()), all(start->size(), true);
     for (std::size_t g = 0; g < start->size(); ++g) edges[g] = (*start)[g] > 0.0;
     t0 = Clock::now();
-    const StiffnessFitResult floor = FitStiffness(problem, *start, FitScope{edges, {}}, options, fit_context);
+    const StiffnessFitResult floor =
+        FitStiffness(problem, *start, FitScope{edges, {}}, options, fit_context);
     Report("fit on the mesh edges", floor, Positive(floor.weights), Seconds(t0));
     t0 = Clock::now();
-    const StiffnessFitResult rich = FitStiffness(problem, *start, FitScope{all, {}}, options, fit_context);
+    const StiffnessFitResult rich =
+        FitStiffness(problem, *start, FitScope{all, {}}, options, fit_context);
     Report("fit on all candidates", rich, Positive(rich.weights), Seconds(t0));
+    if (path_flag) {
+      t0 = Clock::now();
+      SparsityPathOptions path_options;
+      path_options.fit = options;
+      const SparsityPath path =
+          TraceSparsityPath(problem, *start, all, path_options, 0.0, 0, fit_context);
+      std::printf(
+          "  sparsity path: %zu points in %.2f s; per point E, held-out E (refits of %d "
+          "steps):\n",
+          path.points.size(), Seconds(t0), path_options.refit_iterations);
+      StiffnessFitOptions held_out = options;
+      held_out.max_iterations = path_options.refit_iterations;
+      for (const PathPoint& point : path.points) {
+        const auto h = HeldOutErrors(problem, point.weights, held_out, fit_context);
+        std::printf("    %5d springs  E %-10.4g held-out E %.4g\n", point.springs,
+                    std::sqrt(point.normalized_error), h ? std::sqrt(h->normalized_error) : NAN);
+      }
+    }
   }
   return 0;
 }

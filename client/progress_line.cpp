@@ -8,8 +8,11 @@
 
 namespace springfit::cli {
 
-ProgressLine::ProgressLine(int max_generations, bool quiet)
-    : max_generations_(max_generations), quiet_(quiet), terminal_(isatty(fileno(stderr)) != 0) {}
+ProgressLine::ProgressLine(int max_generations, bool quiet, bool fit)
+    : max_generations_(max_generations),
+      quiet_(quiet),
+      fit_(fit),
+      terminal_(isatty(fileno(stderr)) != 0) {}
 
 void ProgressLine::Report(const TraceRow& row, bool last) {
   if (quiet_) return;
@@ -20,6 +23,14 @@ void ProgressLine::Report(const TraceRow& row, bool last) {
   if (last && !terminal_ && row.generation == shown_generation_) return;  // already printed
   shown_at_ = row.wall_seconds;
   shown_generation_ = row.generation;
+  if (fit_) {
+    char line[160];
+    std::snprintf(line, sizeof line, "fit step %lld  E %.4g  %.1f s",
+                  static_cast<long long>(row.evaluations), std::sqrt(row.best_normalized_error),
+                  row.wall_seconds);
+    Show(line, last);
+    return;
+  }
   const double rate =
       row.wall_seconds > 0.0 ? static_cast<double>(row.evaluations) / row.wall_seconds : 0.0;
   std::string topology;
@@ -65,6 +76,11 @@ void ProgressLine::Beat(const ProgressBeat& beat, double reference_norm2) {
                   "evaluations  %.1f s",
                   beat.generation, max_generations_, beat.best_normalized_error * reference_norm2,
                   beat.best_normalized_error, static_cast<long long>(beat.evaluations),
+                  beat.wall_seconds);
+  } else if (beat.phase == "fit" && !std::isnan(beat.best_normalized_error)) {
+    // (After the first fit: the sparsity path, its chosen point's refit, the held-out fits.)
+    std::snprintf(line, sizeof line, "fit: %lld steps of the first fit, E %.4g; %.1f s",
+                  static_cast<long long>(beat.evaluations), std::sqrt(beat.best_normalized_error),
                   beat.wall_seconds);
   } else if (beat.phase == "genetic") {
     std::snprintf(line, sizeof line,

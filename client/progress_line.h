@@ -10,7 +10,8 @@ namespace springfit::cli {
 
 class ProgressLine {
  public:
-  ProgressLine(int max_generations, bool quiet);
+  // `fit`: the run is strategy continuous, whose rows are steps of its fit, not generations.
+  ProgressLine(int max_generations, bool quiet, bool fit = false);
   // `last`: the final row (ends the live line).
   void Report(const TraceRow& row, bool last);
   // Inside a step: the generation in progress as far as it has got, or the phase before the
@@ -23,6 +24,7 @@ class ProgressLine {
 
   int max_generations_;
   bool quiet_;
+  bool fit_;
   bool terminal_;
   double shown_at_ = 0.0;
   int shown_generation_ = -1;

@@ -17,6 +17,7 @@
 #include "client/result_summary.h"
 #include "client/search_flags.h"
 #include "engine/identification/identify.h"
+#include "engine/identification/strategy.h"
 #include "engine/input_error.h"
 #include "engine/problem.h"
 #include "proto/names.h"
@@ -70,7 +71,8 @@ int Run(const RunArgs& args) {
     if (!trace) throw std::runtime_error("cannot write the trace file " + args.trace_path);
     trace << proto::TraceCsvHeader() << "\n";
   }
-  ProgressLine progress(options.max_generations, args.quiet);
+  ProgressLine progress(options.max_generations, args.quiet,
+                        ResolvedStrategy(options.strategy, problem) == Strategy::kContinuous);
   g_interrupted.store(false);
   auto previous_int = std::signal(SIGINT, OnInterrupt);
   auto previous_term = std::signal(SIGTERM, OnInterrupt);

@@ -27,6 +27,20 @@ void AddSearchFlags(CLI::App* command, SearchFlags& flags) {
                    "Stop when the best has not improved for this many generations; 0 = never "
                    "(default: the scene's, else 200 for default and hybrid, never for paper)")
       ->check(CLI::NonNegativeNumber);
+  command->add_option("--response", flags.response,
+                      "How the model responds: linear (at rest, the small-load limit) or "
+                      "nonlinear (default: the scene's, else linear for a linear FEM reference, "
+                      "nonlinear otherwise)");
+  command
+      ->add_option("--max-springs", flags.max_springs,
+                   "Strategy continuous (default on an FEM reference): the lowest error with at "
+                   "most this many springs")
+      ->check(CLI::Range(1, 100000000));
+  command
+      ->add_option("--target-error", flags.target_error,
+                   "Strategy continuous (default on an FEM reference): the fewest springs with "
+                   "a relative RMS nodal error E at most this")
+      ->check(CLI::PositiveNumber);
 }
 
 void ApplySearchFlags(const SearchFlags& flags, SearchSettings& st) {
@@ -36,10 +50,14 @@ void ApplySearchFlags(const SearchFlags& flags, SearchSettings& st) {
   if (flags.generations) st.max_generations = *flags.generations;
   if (flags.time_limit) st.max_seconds = *flags.time_limit;
   if (flags.stall) st.stall_generations = *flags.stall;
+  if (flags.response) st.response = proto::ResponseFromName(*flags.response, "--response");
+  if (flags.max_springs) st.max_springs = *flags.max_springs;
+  if (flags.target_error) st.target_error = *flags.target_error;
 }
 
 void ApplySearchFlags(const SearchFlags& flags, proto::Json& scene) {
-  if (!(flags.strategy || flags.identify || flags.generations || flags.time_limit || flags.stall))
+  if (!(flags.strategy || flags.identify || flags.generations || flags.time_limit || flags.stall ||
+        flags.response || flags.max_springs || flags.target_error))
     return;
   proto::Json& search = scene["search"];
   if (search.is_null()) search = proto::Json::object();
@@ -52,6 +70,11 @@ void ApplySearchFlags(const SearchFlags& flags, proto::Json& scene) {
   if (flags.generations) search["max_generations"] = *flags.generations;
   if (flags.time_limit) search["max_seconds"] = *flags.time_limit;
   if (flags.stall) search["stall_generations"] = *flags.stall;
+  if (flags.response)
+    search["response"] =
+        proto::ResponseName(proto::ResponseFromName(*flags.response, "--response"));
+  if (flags.max_springs) search["max_springs"] = *flags.max_springs;
+  if (flags.target_error) search["target_error"] = *flags.target_error;
 }
 
 }  // namespace springfit::cli

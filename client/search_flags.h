@@ -20,6 +20,9 @@ struct SearchFlags {
   std::optional<int> generations;
   std::optional<double> time_limit;
   std::optional<int> stall;
+  std::optional<std::string> response;
+  std::optional<int> max_springs;
+  std::optional<double> target_error;
 };
 
 void AddSearchFlags(CLI::App* command, SearchFlags& flags);

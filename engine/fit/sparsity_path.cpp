@@ -29,6 +29,10 @@ void SparsityPathOptions::Validate(const std::string& owner) const {
   check.Require(tolerance >= 0.0 && std::isfinite(tolerance), "tolerance", tolerance,
                 "0 <= value < infinity");
   check.Require(max_points >= 1, "max_points", max_points, "value >= 1");
+  check.Require(stop_error_factor > 1.0 && std::isfinite(stop_error_factor), "stop_error_factor",
+                stop_error_factor, "1 < value < infinity");
+  check.Require(max_error_growth > 1.0 && std::isfinite(max_error_growth), "max_error_growth",
+                max_error_growth, "1 < value < infinity");
 }
 
 SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>& start,
@@ -50,10 +54,17 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
   }
   if (progress) progress(path);
 
-  const double stop = std::max(stop_normalized_error, path.fit.initial_normalized_error);
+  const double stop =
+      std::max(stop_normalized_error,
+               options.stop_error_factor * options.stop_error_factor * path.fit.normalized_error);
+  const double max_growth2 = options.max_error_growth * options.max_error_growth;
   StiffnessFitOptions refit = options.fit;
   refit.max_iterations = options.refit_iterations;
-  std::vector<bool> allowed = usable;
+  // Along the path only the springs present may be refitted: the model shrinks at every point
+  // (absent candidates had their chance, by their gradient, in step 1).
+  std::vector<bool> allowed(usable.size());
+  for (std::size_t g = 0; g < usable.size(); ++g)
+    allowed[g] = usable[g] && path.fit.weights[g] > 0.0;
   StiffnessFitResult current = path.fit;
   // Springs whose removal alone leaves a mechanism: the model keeps them whatever they carry
   // (a spring can hold a mode no load case loads).
@@ -93,9 +104,15 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
         path.solves += fit.solves;
         path.steps += fit.iterations;
         if (fit.interrupted) throw Interrupted();  // a half-done refit is not a path point
-        if (fit.feasible) {
-          allowed = std::move(trial_allowed);
+        // A removal that multiplies the error by more than `max_error_growth` is retried with
+        // half as many springs (the saliencies are first-order: many springs at once can
+        // matter together); a single spring's removal is taken whatever it costs.
+        const bool too_costly = fit.feasible && remove > 1 &&
+                                fit.normalized_error > max_growth2 * last.normalized_error;
+        if (fit.feasible && !too_costly) {
           current = std::move(fit);
+          for (std::size_t g = 0; g < allowed.size(); ++g)
+            allowed[g] = trial_allowed[g] && current.weights[g] > 0.0;
           path.points.push_back(PointOf(current));
           moved_since_reset = true;
           if (progress) progress(path);
@@ -106,6 +123,7 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
           break;
         }
         remove /= 2;
+        (void)too_costly;
       }
     }
   } catch (const Interrupted&) {

@@ -6,7 +6,7 @@
 //    other candidates). Candidates enter by their gradient, which ranks all of them in one
 //    adjoint pass; those the fit drives to 0 leave. The fit only ever accepts steps that lower
 //    the error, so the result is at least as good as the start.
-// 2. Path: the springs the model leans on least (the lowest strain energy over the load cases,
+// 2. Path: the springs whose removal raises the error least (the lowest saliency,
 //    StiffnessFitResult::importance) are removed, `prune_fraction` of them at a time, and the
 //    rest refitted from where they were; each refit is one point of the sparsity path
 //    (springs, E). A removal that would leave a mechanism is retried with fewer springs; a
@@ -35,6 +35,13 @@ struct SparsityPathOptions {
   // chosen one is refitted to convergence).
   int refit_iterations = 30;
   double prune_fraction = 0.1;  // of the present springs removed per path step, in (0, 1)
+  // A removal of several springs that multiplies E by more than this is retried with half as
+  // many (> 1).
+  double max_error_growth = 1.5;
+  // The path ends once E passes this many times the fit's E (> 1; a caller's size or error
+  // target takes it further): far enough for the trade-off near the best models, which is
+  // where the choice is made, without spending on models no one would pick.
+  double stop_error_factor = 2.0;
   // The default choice: the fewest springs whose E <= (1 + tolerance) x the lowest E on the
   // path.
   double tolerance = 0.05;
@@ -60,10 +67,11 @@ struct SparsityPath {
 // Called after step 1 and after every path point, with the path so far.
 using PathProgress = std::function<void(const SparsityPath&)>;
 
-// Stops tracing when E^2 passes max(`stop_normalized_error`, the start's) (after recording that
-// point) or the model reaches `min_springs` springs. `on_step` follows step 1's fit. Stopped by
-// `interruption` while the start is evaluated it throws Interrupted; later it returns the path
-// so far, `interrupted` set (stopped in step 1: its one point is the fit's last step).
+// Stops tracing when E passes max(sqrt(`stop_normalized_error`), `stop_error_factor` x the
+// fit's E) (after recording that point) or the model reaches `min_springs` springs. `on_step`
+// follows step 1's fit. Stopped by `interruption` while the start is evaluated it throws
+// Interrupted; later it returns the path so far, `interrupted` set (stopped in step 1: its one
+// point is the fit's last step).
 SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>& start,
                                const std::vector<bool>& usable, const SparsityPathOptions& options,
                                double stop_normalized_error, int min_springs,

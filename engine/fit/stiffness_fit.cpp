@@ -4,6 +4,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <random>
 
 #include "engine/direct/force_balance.h"
 #include "engine/options_check.h"
@@ -15,6 +16,8 @@ namespace {
 constexpr double kExactError = 1e-24;
 // A trust region this small, relative to the residual, has stopped moving the weights.
 constexpr double kSmallestRadius = 1e-12;
+// The saliency probes' signs.
+constexpr std::uint64_t kSaliencySeed = 20031116;
 // Linear solves: passes of iterative refinement at most, and the gradient, relative to the
 // load's, at which they stop.
 constexpr int kRefinementPasses = 4;
@@ -119,6 +122,10 @@ class ResponseState {
       solvers_[solver_of_case_[k]].SolveTangent(block);
       y.segment(offset_[k], size) = block;
     });
+    // A left-out case has no tangent here: its rows of J are 0.
+    for (std::size_t k = 0; k < cases_.size(); ++k) {
+      if (!cases_[k]) y.segment(offset_[k], offset_[k + 1] - offset_[k]).setZero();
+    }
     for (std::size_t k = 0; k < cases_.size(); ++k) solves_ += cases_[k] ? 1 : 0;
   }
 
@@ -159,12 +166,12 @@ class ResponseState {
     Vector& u = u_[k];
     u = lc.prescribed;  // zero on the free nodes
     Vector step;
-    double load = 0.0;
-    for (int pass = 0; pass < kRefinementPasses; ++pass) {
+    double load = 0.0, residual = 0.0;
+    for (int pass = 0;; ++pass) {
       solver.EnergyAndGradient(springs, lc.force, u, &step, false, false);
-      const double residual = step.lpNorm<Eigen::Infinity>();
+      residual = step.lpNorm<Eigen::Infinity>();
       if (pass == 0) load = residual;
-      if (!(residual > kRefinedResidual * load)) break;
+      if (!(residual > kRefinedResidual * load) || pass == kRefinementPasses) break;
       step = -step;
       solver.SolveTangent(step);
       for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
@@ -172,7 +179,9 @@ class ResponseState {
         if (f >= 0) u.segment(d * i, d) += step.segment(d * f, d);
       }
     }
-    return u.allFinite();
+    // A model so near a mechanism that refinement cannot balance the load has no usable
+    // equilibrium (the equilibrium solver's criterion, as the cost function would judge it).
+    return u.allFinite() && residual <= problem_.solver_options().relative_force_tolerance * load;
   }
 
   // Nonlinear: Newton from the last equilibrium, then the tangent there factorised.
@@ -221,6 +230,7 @@ void StiffnessFitOptions::Validate(const std::string& owner) const {
                 "max_stiffness_ratio", max_stiffness_ratio, "1 < value < infinity");
   check.Require(scale_floor > 0.0 && scale_floor <= 1.0, "scale_floor", scale_floor,
                 "0 < value <= 1");
+  check.Require(saliency_probes >= 1, "saliency_probes", saliency_probes, "value >= 1");
   check.Require(max_radius > 0.0 && std::isfinite(max_radius), "max_radius", max_radius,
                 "0 < value < infinity");
   check.Require(initial_radius > 0.0 && initial_radius <= max_radius, "initial_radius",
@@ -439,9 +449,23 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
   result.normalized_error = 2.0 * phi / norm2;
   result.solves = state.solves();
   if (result.interrupted) return result;
+  // Saliency (optimal brain damage, LeCun, Denker and Solla 1990): at an optimum the gradient
+  // of a positive weight vanishes, so removing spring j raises f by about 1/2 w_j^2 |J e_j|^2.
+  // The column norms are estimated from random-sign products J^T z (E[(J^T z)_j^2] =
+  // |J e_j|^2): one solve per load case each, where the exact ones would cost one per gene.
+  // The signs come from a fixed seed: deterministic.
   fb = AssembleForceBalance(problem, &state.displacements());
+  Vector column2 = Vector::Zero(genes);
+  std::mt19937_64 signs(kSaliencySeed);
+  for (int probe = 0; probe < options.saliency_probes; ++probe) {
+    for (Eigen::Index row = 0; row < t.size(); ++row) t[row] = (signs() >> 63) ? 1.0 : -1.0;
+    state.ApplyInverseTangent(t);
+    column2 += (fb.a.transpose() * t).cwiseAbs2();
+  }
+  result.solves = state.solves();
   result.importance.assign(static_cast<std::size_t>(genes), 0.0);
-  for (int g = 0; g < genes; ++g) result.importance[g] = w[g] * fb.a.col(g).squaredNorm();
+  for (int g = 0; g < genes; ++g)
+    result.importance[g] = 0.5 * w[g] * w[g] * column2[g] / options.saliency_probes;
   return result;
 }
 

@@ -44,6 +44,9 @@ struct StiffnessFitOptions {
   // limit (k -> infinity or 0) the displacements stop responding to it, which the
   // Gauss-Newton model cannot see; an unbounded region sends weights there in one stride.
   double max_radius = 1e3;
+  // Random-sign products that estimate the saliencies' Jacobian column norms (one solve per
+  // load case each, once per fit).
+  int saliency_probes = 16;
   // Weights are bounded above by this times the largest weight of the start: beyond, a spring
   // is rigid for the data and the displacements stop responding to it.
   double max_stiffness_ratio = 1e4;
@@ -65,8 +68,8 @@ struct StiffnessFitResult {
   // Stopped by the Interruption after the start's evaluation: `weights` are the last accepted
   // step's (a model with an equilibrium in every fitted case), `importance` is empty.
   bool interrupted = false;
-  // Per gene, at the result: w_j |a_j|^2, twice the strain energy spring j stores summed over
-  // the load cases (up to its constrained ends): how much the model leans on it.
+  // Per gene, at the result: its saliency 1/2 w_j^2 |J e_j|^2, about how much f would rise
+  // without spring j (optimal brain damage), |J e_j| estimated by random probes.
   std::vector<double> importance;
 };
 

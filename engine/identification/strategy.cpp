@@ -24,6 +24,9 @@ struct Seed {
   Evaluation evaluation;
 };
 
+// Steps of each held-out refit (from the returned model: a few steps reach its optimum).
+constexpr int kHeldOutIterations = 10;
+
 // The run's threads: the caller's pool, else one of context.threads kept in `own` (none for
 // one thread).
 WorkerPool* PoolOf(const RunContext& context, std::unique_ptr<WorkerPool>& own) {
@@ -316,9 +319,8 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
       }
       if (!stopped) {
         StiffnessFitOptions held_out_fit = path_options.fit;
-        held_out_fit.max_iterations = path_options.refit_iterations;
-        if (const auto held_out =
-                HeldOutErrors(problem, weights, held_out_fit, quiet)) {
+        held_out_fit.max_iterations = kHeldOutIterations;
+        if (const auto held_out = HeldOutErrors(problem, weights, held_out_fit, quiet)) {
           details.held_out_normalized_error = held_out->normalized_error;
           details.held_out_per_case = held_out->per_case;
         }
@@ -372,8 +374,14 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
   return r;
 }
 
+Strategy ResolvedStrategy(Strategy strategy, const Problem& problem) {
+  if (strategy != Strategy::kDefault) return strategy;
+  return problem.scene().reference.kind == Reference::Kind::kFem ? Strategy::kContinuous
+                                                                 : Strategy::kHybrid;
+}
+
 std::unique_ptr<IdentificationStrategy> MakeStrategy(Strategy strategy, const Problem& problem) {
-  switch (strategy) {
+  switch (ResolvedStrategy(strategy, problem)) {
     case Strategy::kPaper:
       return std::make_unique<GeneticStrategy>();
     case Strategy::kDirect:
@@ -382,10 +390,8 @@ std::unique_ptr<IdentificationStrategy> MakeStrategy(Strategy strategy, const Pr
       return std::make_unique<HybridStrategy>();
     case Strategy::kContinuous:
       return std::make_unique<ContinuousStrategy>();
-    case Strategy::kDefault:
-      if (problem.scene().reference.kind == Reference::Kind::kFem)
-        return std::make_unique<ContinuousStrategy>();
-      return std::make_unique<HybridStrategy>();
+    case Strategy::kDefault:  // (resolved above)
+      break;
   }
   return std::make_unique<GeneticStrategy>();
 }

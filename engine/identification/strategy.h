@@ -60,7 +60,9 @@ class ContinuousStrategy : public IdentificationStrategy {
                            const RunContext& context, RunMonitor& monitor) const override;
 };
 
-// `default` depends on the reference: hence the problem.
+// The strategy that runs: `default` becomes continuous on an FEM reference, hybrid otherwise;
+// the others are themselves.
+Strategy ResolvedStrategy(Strategy strategy, const Problem& problem);
 std::unique_ptr<IdentificationStrategy> MakeStrategy(Strategy strategy, const Problem& problem);
 
 }  // namespace springfit

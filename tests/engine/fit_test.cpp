@@ -215,10 +215,12 @@ TEST(SparsityPath, SelectsBySizeErrorOrTolerance) {
 TEST(SparsityPath, EveryPointCarriesTheLoadsAndTheSizeFalls) {
   const Problem problem = Problem::Build(examples::Make("fem-plate-5x5"));
   const std::vector<double> start = *fem::BaselineGeneWeights(problem);
+  const std::vector<bool> usable(start.size(), true);
   SparsityPathOptions options;
   options.fit.max_iterations = 60;
-  const SparsityPath path =
-      TraceSparsityPath(problem, start, std::vector<bool>(start.size(), true), options, 0.0, 0);
+  // Asked to go as far as the baseline's error.
+  const double baseline = fem::EvaluateClosedFormBaseline(problem)->normalized_error;
+  const SparsityPath path = TraceSparsityPath(problem, start, usable, options, baseline, 0);
   ASSERT_GE(path.points.size(), 5u);
   EXPECT_FALSE(path.interrupted);
   CostFunction cost(problem);
@@ -227,13 +229,15 @@ TEST(SparsityPath, EveryPointCarriesTheLoadsAndTheSizeFalls) {
     const Evaluation e = cost.Evaluate(problem.SpringsOfWeights(p.weights));
     EXPECT_FALSE(e.mechanism) << "point " << i;
     EXPECT_NEAR(e.normalized_error, p.normalized_error, 1e-6 * p.normalized_error) << "point " << i;
+    if (i > 0) {
+      EXPECT_LT(p.springs, path.points[i - 1].springs) << "point " << i;
+    }
   }
-  EXPECT_LT(path.points.back().springs, path.points.front().springs);
-  // The path runs until it passes the start's error (the baseline's), or until no spring can
-  // be removed alone without leaving a model with no equilibrium (a mechanism, or one so near
-  // it that the solve fails).
+  // It runs until it passes the baseline's error, or until no spring can be removed alone
+  // without leaving a model with no equilibrium (a mechanism, or one so near it that the
+  // solve fails).
   const PathPoint& last = path.points.back();
-  if (last.normalized_error <= path.fit.initial_normalized_error) {
+  if (last.normalized_error <= baseline) {
     for (std::size_t g = 0; g < last.weights.size(); ++g) {
       if (last.weights[g] == 0.0) continue;
       std::vector<double> without = last.weights;
@@ -241,10 +245,16 @@ TEST(SparsityPath, EveryPointCarriesTheLoadsAndTheSizeFalls) {
       const Evaluation e = cost.Evaluate(problem.SpringsOfWeights(without));
       EXPECT_TRUE(e.mechanism || !e.converged)  // no equilibrium either way
           << "the path ended at " << last.springs << " springs after " << path.points.size()
-          << " points, but gene " << g
-          << " can be removed";
+          << " points, but gene " << g << " can be removed";
     }
   }
+  // Left to itself it ends at the first point whose E passes twice the fit's.
+  const SparsityPath near = TraceSparsityPath(problem, start, usable, options, 0.0, 0);
+  const double bound = 4.0 * near.fit.normalized_error;
+  ASSERT_GE(near.points.size(), 2u);
+  EXPECT_GT(near.points.back().normalized_error, bound);
+  for (std::size_t i = 0; i + 1 < near.points.size(); ++i)
+    EXPECT_LE(near.points[i].normalized_error, bound) << "point " << i;
 }
 
 TEST(ContinuousStrategy, BeatsTheBaselineOnTheFemPlate) {
