@@ -176,6 +176,7 @@ Json ContinuousDetailsToJson(const IdentificationResult::Continuous& c) {
   j["started_from"] = c.started_from_baseline ? "baseline" : "training_stiffness";
   j["start_rms_error"] = RmsOrNull(c.start_normalized_error);
   j["fit_rms_error"] = RmsOrNull(c.fit_normalized_error);
+  j["rejected"] = c.rejected;
   j["steps"] = c.steps;
   j["solves"] = c.solves;
   j["held_out_rms_error"] =

@@ -13,6 +13,7 @@ namespace springfit::examples {
 namespace {
 
 #include "engine/examples/kidney_mesh.inc"
+#include "engine/examples/kidney_mesh_fine.inc"
 
 // A simplex whose signed measure keeps less than this fraction of its rest value is flattened.
 constexpr double kFlattenedRatio = 1e-3;
@@ -131,16 +132,28 @@ Scene Kidney2d() {
 
 }  // namespace
 
-SimplexMesh KidneyMesh() {
+namespace {
+
+template <std::size_t N, std::size_t T>
+SimplexMesh MeshOf(const double (&nodes)[N][2], const int (&triangles)[T][3]) {
   SimplexMesh mesh;
-  const int nodes = static_cast<int>(std::size(kKidneyNodes));
-  mesh.nodes.resize(2 * nodes);
-  for (int i = 0; i < nodes; ++i) {
-    mesh.nodes[2 * i] = kKidneyNodes[i][0];
-    mesh.nodes[2 * i + 1] = kKidneyNodes[i][1];
+  mesh.nodes.resize(2 * static_cast<Eigen::Index>(N));
+  for (std::size_t i = 0; i < N; ++i) {
+    mesh.nodes[2 * i] = nodes[i][0];
+    mesh.nodes[2 * i + 1] = nodes[i][1];
   }
-  for (const auto& t : kKidneyTriangles) mesh.elements.push_back({t[0], t[1], t[2]});
+  for (const auto& t : triangles) mesh.elements.push_back({t[0], t[1], t[2]});
   return mesh;
+}
+
+}  // namespace
+
+SimplexMesh KidneyMesh() {
+  return MeshOf(kKidneyNodes, kKidneyTriangles);
+}
+
+SimplexMesh KidneyMeshFine() {
+  return MeshOf(kKidneyFineNodes, kKidneyFineTriangles);
 }
 
 namespace {
@@ -261,7 +274,8 @@ const std::vector<ExampleInfo>& Catalog() {
     std::vector<ExampleInfo> c;
     for (const char* name :
          {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d",
-          "fem-plate-5x5", "fem-kidney-2d", "fem-kidney-2d-nl", "fem-block-3d"}) {
+          "fem-plate-5x5", "fem-kidney-2d", "fem-kidney-2d-nl", "fem-kidney-2d-fine",
+          "fem-block-3d"}) {
       c.push_back({name, Make(name).description});
     }
     return c;
@@ -278,6 +292,7 @@ Scene Make(const std::string& name) {
   if (name == "fem-plate-5x5") return FemPlate5x5();
   if (name == "fem-kidney-2d") return FemKidney2d(false);
   if (name == "fem-kidney-2d-nl") return FemKidney2d(true);
+  if (name == "fem-kidney-2d-fine") return FemKidney2dFine();
   if (name == "fem-block-3d") return FemBlock3d();
   throw std::invalid_argument("unknown example '" + name + "'");
 }

@@ -57,11 +57,15 @@ std::vector<int> SideNodes(int dimension, const Vector& rest, int axis, bool low
 
 // The kidney cross-section meshed by gmsh (examples/meshes/kidney-2d.geo): 99 nodes, triangles.
 SimplexMesh KidneyMesh();
+// The same outline meshed finer (lc 0.325): 626 nodes, 1164 triangles.
+SimplexMesh KidneyMeshFine();
 
 // The FEM examples (fem_examples.cpp): the paper7 patterns as tractions on named node sets,
 // scaled to 5% strain in the small-load limit.
 Scene FemPlate5x5();
 Scene FemKidney2d(bool nonlinear);
+// fem-kidney-2d on the fine mesh: the size of a simulator's organ section.
+Scene FemKidney2dFine();
 Scene FemBlock3d();
 
 // Rescales every load case's forces and tractions so that the reference's largest nodal

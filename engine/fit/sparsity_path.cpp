@@ -31,6 +31,7 @@ void SparsityPathOptions::Validate(const std::string& owner) const {
   check.Require(max_points >= 1, "max_points", max_points, "value >= 1");
   check.Require(stop_error_factor > 1.0 && std::isfinite(stop_error_factor), "stop_error_factor",
                 stop_error_factor, "1 < value < infinity");
+  check.Require(max_retries >= 0, "max_retries", max_retries, "value >= 0");
   check.Require(max_error_growth > 1.0 && std::isfinite(max_error_growth), "max_error_growth",
                 max_error_growth, "1 < value < infinity");
 }
@@ -92,6 +93,7 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
       int remove = std::max(1, static_cast<int>(options.prune_fraction * last.springs));
       remove = std::min(
           {remove, std::max(1, last.springs - min_springs), static_cast<int>(removable.size())});
+      int retries = 0;
       for (;;) {
         std::vector<bool> trial_allowed = allowed;
         std::vector<double> trial_start = current.weights;
@@ -106,8 +108,8 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
         if (fit.interrupted) throw Interrupted();  // a half-done refit is not a path point
         // A removal that multiplies the error by more than `max_error_growth` is retried with
         // half as many springs (the saliencies are first-order: many springs at once can
-        // matter together); a single spring's removal is taken whatever it costs.
-        const bool too_costly = fit.feasible && remove > 1 &&
+        // matter together), `max_retries` times at most; then the last try stands.
+        const bool too_costly = fit.feasible && remove > 1 && retries < options.max_retries &&
                                 fit.normalized_error > max_growth2 * last.normalized_error;
         if (fit.feasible && !too_costly) {
           current = std::move(fit);
@@ -123,7 +125,7 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
           break;
         }
         remove /= 2;
-        (void)too_costly;
+        if (too_costly) ++retries;
       }
     }
   } catch (const Interrupted&) {

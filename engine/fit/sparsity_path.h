@@ -33,11 +33,13 @@ struct SparsityPathOptions {
   StiffnessFitOptions fit;  // the first fit and the final one
   // Trust-region steps of each refit along the path (its points are then near-optimal; the
   // chosen one is refitted to convergence).
-  int refit_iterations = 30;
+  int refit_iterations = 15;
   double prune_fraction = 0.1;  // of the present springs removed per path step, in (0, 1)
   // A removal of several springs that multiplies E by more than this is retried with half as
-  // many (> 1).
+  // many (> 1), at most `max_retries` times per point (then the last try stands): each retry
+  // is a refit.
   double max_error_growth = 1.5;
+  int max_retries = 2;
   // The path ends once E passes this many times the fit's E (> 1; a caller's size or error
   // target takes it further): far enough for the trade-off near the best models, which is
   // where the choice is made, without spending on models no one would pick.

@@ -55,6 +55,9 @@ struct IdentificationResult {
     double fit_normalized_error = 0.0;    // the first fit's, on every candidate (path[0]'s)
     double start_normalized_error = 0.0;  // its start's (the closed-form baseline on FEM)
     bool started_from_baseline = false;
+    // Models refused by the final evaluation (no equilibrium from the reference's, or worse
+    // than the start) before the returned one.
+    int rejected = 0;
     int steps = 0;            // trust-region steps in all (fit, path, refit)
     std::int64_t solves = 0;  // tangent solves in all
     // Cross-validation over the load cases (sparsity_path.h, HeldOutErrors); absent with one

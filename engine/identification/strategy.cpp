@@ -317,13 +317,53 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
         if (refit.feasible) weights = refit.weights;
         stopped = refit.interrupted;
       }
-      if (!stopped) {
-        StiffnessFitOptions held_out_fit = path_options.fit;
-        held_out_fit.max_iterations = kHeldOutIterations;
-        if (const auto held_out = HeldOutErrors(problem, weights, held_out_fit, quiet)) {
-          details.held_out_normalized_error = held_out->normalized_error;
-          details.held_out_per_case = held_out->per_case;
-        }
+    } catch (const Interrupted&) {
+      stopped = true;
+    }
+  }
+
+  // The returned model is judged by the evaluation every strategy's is (each case solved
+  // from the reference's equilibrium, cost.h). The fit's solves start from the last step's
+  // equilibria, and a nonlinear model near a mechanism can have an equilibrium there that
+  // Newton from the reference does not reach: a model without equilibrium in that evaluation,
+  // or worse than the start, is not returned. The next in line are the chosen point as the path
+  // left it, the other points by error, and the start (the baseline).
+  CostOptions cost_options;
+  cost_options.solve_cases_of_mechanisms = true;
+  CostFunction cost(problem, cost_options);
+  std::vector<std::vector<double>> next_in_line;
+  if (!path.points.empty()) {
+    std::vector<std::size_t> order(path.points.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      return path.points[a].normalized_error < path.points[b].normalized_error;
+    });
+    std::stable_partition(order.begin(), order.end(), [&](std::size_t i) {
+      return static_cast<int>(i) == details.chosen;
+    });
+    for (std::size_t i : order) next_in_line.push_back(path.points[i].weights);
+  }
+  next_in_line.push_back(*start);
+  const auto acceptable = [&](const Evaluation& e) {
+    return e.converged && !e.mechanism &&
+           (path.points.empty() ||
+            e.normalized_error <= details.start_normalized_error * (1.0 + 1e-9));
+  };
+  r.evaluation = cost.Evaluate(problem.SpringsOfWeights(weights));
+  for (std::size_t i = 0; i < next_in_line.size() && !acceptable(r.evaluation); ++i) {
+    ++details.rejected;
+    weights = next_in_line[i];
+    r.evaluation = cost.Evaluate(problem.SpringsOfWeights(weights));
+  }
+  // The returned model's generalisation: each load case predicted by its springs refitted to
+  // the others.
+  if (!stopped && !path.points.empty()) {
+    StiffnessFitOptions held_out_fit = path_options.fit;
+    held_out_fit.max_iterations = kHeldOutIterations;
+    try {
+      if (const auto held_out = HeldOutErrors(problem, weights, held_out_fit, quiet)) {
+        details.held_out_normalized_error = held_out->normalized_error;
+        details.held_out_per_case = held_out->per_case;
       }
     } catch (const Interrupted&) {
       stopped = true;
@@ -337,9 +377,6 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
       r.stiffness.push_back(weights[g]);  // gene order is candidate order
     }
   }
-  CostOptions cost_options;
-  cost_options.solve_cases_of_mechanisms = true;
-  r.evaluation = CostFunction(problem, cost_options).Evaluate(problem.SpringsOfWeights(weights));
   r.counters.evaluations = details.steps;
   r.wall_seconds = SecondsSince(start_time);
   const double e = r.evaluation.normalized_error;

@@ -36,7 +36,7 @@ expect_exit 64 "check no argument" "$sf" check
 expect_exit 64 "unknown subcommand" "$sf" frobnicate
 
 # example: writes what is committed under examples/.
-for name in paper-iso-5x5 paper-aniso-5x5 kidney-2d grid3d-4x4x4 stiff-2d fem-plate-5x5 fem-kidney-2d fem-kidney-2d-nl fem-block-3d; do
+for name in paper-iso-5x5 paper-aniso-5x5 kidney-2d grid3d-4x4x4 stiff-2d fem-plate-5x5 fem-kidney-2d fem-kidney-2d-nl fem-kidney-2d-fine fem-block-3d; do
   expect_exit 0 "example $name" "$sf" example "$name" -o "$tmp/$name.json"
   cmp -s "$tmp/$name.json" "$src/examples/$name.json" || fail "examples/$name.json differs from 'springfit example $name'"
 done
