@@ -12,6 +12,7 @@
 #include "client/exit_codes.h"
 #include "client/figures/error_plot.h"
 #include "client/figures/topology_figure.h"
+#include "client/figures/tradeoff_plot.h"
 #include "client/remote_job.h"
 #include "engine/input_error.h"
 #include "engine/search/search_options.h"
@@ -146,7 +147,44 @@ struct PlotArgs {
   std::vector<std::string> sources;
   std::string output;
   std::string title;
+  bool tradeoff = false;
 };
+
+// `plot --tradeoff`: the sparsity path of each result (strategy continuous).
+int PlotTradeoff(const PlotArgs& a) {
+  std::vector<TradeoffCurve> curves;
+  std::unique_ptr<RpcClient> client;
+  for (const std::string& text : a.sources) {
+    const Source source = ParseSource(text);
+    Json result;
+    std::string where;
+    if (source.job_id) {
+      if (!client) client = std::make_unique<RpcClient>(a.server);
+      result = client->Call("job.result", JobIdParams(*source.job_id));
+      where = "job " + std::to_string(*source.job_id);
+    } else {
+      result = ReadResultFile(source.name);
+      where = std::filesystem::path(source.name).filename().string();
+    }
+    const proto::StoredResult typed = Typed(result, where);
+    if (typed.path.empty()) {
+      throw InputError("continuous.path",
+                       where +
+                           " has no sparsity path: only strategy continuous (default on an "
+                           "FEM reference) traces one");
+    }
+    TradeoffCurve curve;
+    curve.label = where + ": " + Describe(typed);
+    for (const auto& p : typed.path) curve.points.emplace_back(p.springs, p.rms_error);
+    if (typed.chosen) curve.chosen = static_cast<std::size_t>(*typed.chosen);
+    curve.baseline_error = typed.baseline_rms_error;
+    curve.baseline_springs = typed.baseline_springs;
+    curves.push_back(std::move(curve));
+  }
+  const std::string title = a.title.empty() ? "Error against model size" : a.title;
+  WriteSvg(a.output, RenderTradeoffPlot(curves, title));
+  return kExitOk;
+}
 
 ErrorCurve CurveOf(const std::vector<TraceRow>& rows, std::string label) {
   ErrorCurve curve;
@@ -167,6 +205,7 @@ ErrorCurve CurveOf(const std::vector<TraceRow>& rows, std::string label) {
 }
 
 int Plot(const PlotArgs& a) {
+  if (a.tradeoff) return PlotTradeoff(a);
   std::vector<ErrorCurve> curves;
   std::unique_ptr<RpcClient> client;
   for (const std::string& text : a.sources) {
@@ -225,13 +264,17 @@ void RegisterFigureCommands(CLI::App& app, int& exit_code) {
   }
   {
     auto args = std::make_shared<PlotArgs>();
-    auto* cmd =
-        app.add_subcommand("plot", "Draw normalized error against wall time, log scales (SVG)");
+    auto* cmd = app.add_subcommand("plot",
+                                   "Draw normalized error against wall time, log scales, or with "
+                                   "--tradeoff E against the number of springs (SVG)");
     cmd->add_option("RESULT_OR_ID", args->sources,
                     "Result files (run -o, result -o) or job ids, one curve each")
         ->required();
     cmd->add_option("-o,--output", args->output, "The SVG file to write")->required();
     cmd->add_option("--title", args->title, "The plot's title");
+    cmd->add_flag("--tradeoff", args->tradeoff,
+                  "The sparsity path instead (strategy continuous): E against springs, the "
+                  "returned model and the closed-form baseline marked");
     AddServerFlags(cmd, args->server);
     cmd->callback([args, &exit_code] {
       exit_code = RunReportingErrors("plot", [&] { return Plot(*args); });

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 #include "engine/input_error.h"
 #include "proto/evaluation_codec.h"
@@ -298,6 +299,31 @@ StoredResult StoredResultFromJson(const Json& json) {
     r.trace.emplace();
     for (std::size_t i = 0; i < t.size(); ++i)
       r.trace->push_back(TraceRowFromJson(t[i], "trace[" + std::to_string(i) + "]"));
+  }
+  if (json.contains("continuous") && json["continuous"].is_object()) {
+    const Json& c = json["continuous"];
+    if (c.contains("path")) {
+      ExpectArray(c["path"], "continuous.path");
+      for (std::size_t i = 0; i < c["path"].size(); ++i) {
+        const std::string at = "continuous.path[" + std::to_string(i) + "]";
+        const Json& p = c["path"][i];
+        ExpectObject(p, at);
+        StoredResult::PathPoint point;
+        point.springs = ReadInt(p.value("springs", Json()), at + ".springs");
+        // (null where the point had no equilibrium: NaN, not drawn.)
+        point.rms_error = p.contains("rms_error") && !p["rms_error"].is_null()
+                              ? ReadNumber(p["rms_error"], at + ".rms_error")
+                              : std::numeric_limits<double>::quiet_NaN();
+        r.path.push_back(point);
+      }
+    }
+    if (c.contains("chosen")) r.chosen = ReadInt(c["chosen"], "continuous.chosen");
+  }
+  if (json.contains("baseline") && json["baseline"].is_object()) {
+    const Json& b = json["baseline"];
+    if (b.contains("rms_error"))
+      r.baseline_rms_error = ReadNumber(b["rms_error"], "baseline.rms_error");
+    if (b.contains("springs")) r.baseline_springs = ReadInt(b["springs"], "baseline.springs");
   }
   return r;
 }

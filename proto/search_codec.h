@@ -37,6 +37,16 @@ struct StoredResult {
   std::vector<NodePair> springs;               // as written
   std::vector<double> stiffness;               // per spring; empty when absent
   std::optional<std::vector<TraceRow>> trace;  // results written with their trace only
+  // Strategy continuous: the sparsity path (springs, E) and the point returned from; the
+  // closed-form baseline's E of an FEM reference.
+  struct PathPoint {
+    int springs = 0;
+    double rms_error = 0.0;
+  };
+  std::vector<PathPoint> path;
+  std::optional<int> chosen;
+  std::optional<double> baseline_rms_error;
+  std::optional<int> baseline_springs;
 };
 // Throws InputError naming the JSON path of the first problem.
 StoredResult StoredResultFromJson(const Json& json);

@@ -6,6 +6,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "client/figures/plot_axes.h"
 #include "client/figures/svg_document.h"
 
 namespace springfit::cli {
@@ -13,43 +14,6 @@ namespace {
 
 constexpr double kLeft = 78.0, kRight = 24.0, kTop = 48.0, kBottom = 56.0;
 constexpr double kLegendRow = 18.0;
-
-// Eight colours that stay apart for colour-blind readers (Okabe and Ito).
-constexpr const char* kColours[] = {"#0072b2", "#d55e00", "#009e73", "#cc79a7",
-                                    "#e69f00", "#56b4e9", "#000000", "#f0e442"};
-
-std::string Css(std::size_t curves) {
-  std::string css =
-      "text{font-family:sans-serif;font-size:12px;fill:#222}\n"
-      ".title{font-size:15px;font-weight:bold}\n"
-      ".grid{stroke:#e6e6e6;stroke-width:1}\n"
-      ".frame{fill:none;stroke:#222;stroke-width:1}\n";
-  for (std::size_t i = 0; i < curves; ++i) {
-    const char* c = kColours[i % std::size(kColours)];
-    css += ".curve" + std::to_string(i) + "{fill:none;stroke:" + c + ";stroke-width:1.8}\n";
-    css += ".exact" + std::to_string(i) + "{fill:" + c + "}\n";
-  }
-  return css;
-}
-
-std::string Decade(int exponent) {
-  if (exponent == 0) return "1";
-  if (exponent == 1) return "10";
-  return "1e" + std::to_string(exponent);
-}
-
-struct LogAxis {
-  int lo = 0, hi = 1;  // decades
-  double Fraction(double v) const { return (std::log10(v) - lo) / (hi - lo); }
-};
-
-LogAxis AxisOver(double lo, double hi) {
-  LogAxis axis;
-  axis.lo = static_cast<int>(std::floor(std::log10(lo)));
-  axis.hi = static_cast<int>(std::ceil(std::log10(hi)));
-  if (axis.hi <= axis.lo) axis.hi = axis.lo + 1;
-  return axis;
-}
 
 }  // namespace
 
@@ -70,9 +34,9 @@ std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::st
   if (!any) throw std::invalid_argument("nothing to plot: no trace rows");
   if (!(t_hi > 0.0)) t_lo = 1e-3, t_hi = 1.0;
   if (!(e_hi > 0.0)) e_lo = 1e-12, e_hi = 1.0;
-  const LogAxis x_axis = AxisOver(t_lo, t_hi);
+  const LogAxis x_axis = LogAxis::Over(t_lo, t_hi);
   // One decade of room below the smallest error for exact recoveries.
-  LogAxis y_axis = AxisOver(e_lo, e_hi);
+  LogAxis y_axis = LogAxis::Over(e_lo, e_hi);
   y_axis.lo -= 1;
 
   const double legend_height = kLegendRow * static_cast<double>(curves.size()) + 10;
@@ -88,18 +52,18 @@ std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::st
   };
 
   SvgDocument svg(options.width, options.height + legend_height);
-  svg.Style(Css(curves.size()));
+  svg.Style(PlotCss(curves.size()));
   svg.Text({kLeft, 26}, title, "title");
 
   for (int d = x_axis.lo; d <= x_axis.hi; ++d) {
     const double x = px(std::pow(10.0, d));
     svg.Line({x, kTop}, {x, kTop + plot_h}, "grid");
-    svg.Text({x, kTop + plot_h + 18}, Decade(d), "", SvgDocument::Anchor::kMiddle);
+    svg.Text({x, kTop + plot_h + 18}, DecadeLabel(d), "", SvgDocument::Anchor::kMiddle);
   }
   for (int d = y_axis.lo; d <= y_axis.hi; ++d) {
     const double y = py(std::pow(10.0, d));
     svg.Line({kLeft, y}, {kLeft + plot_w, y}, "grid");
-    svg.Text({kLeft - 8, y + 4}, d == y_axis.lo ? "exact" : Decade(d), "",
+    svg.Text({kLeft - 8, y + 4}, d == y_axis.lo ? "exact" : DecadeLabel(d), "",
              SvgDocument::Anchor::kEnd);
   }
   svg.Rect({kLeft, kTop}, plot_w, plot_h, "frame");

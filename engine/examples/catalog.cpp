@@ -272,10 +272,9 @@ Scene WithMeasurementNoise(const Scene& scene, double fraction, std::uint64_t se
 const std::vector<ExampleInfo>& Catalog() {
   static const std::vector<ExampleInfo> catalog = [] {
     std::vector<ExampleInfo> c;
-    for (const char* name :
-         {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4", "stiff-2d",
-          "fem-plate-5x5", "fem-kidney-2d", "fem-kidney-2d-nl", "fem-kidney-2d-fine",
-          "fem-block-3d"}) {
+    for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4",
+                             "stiff-2d", "fem-plate-5x5", "fem-kidney-2d", "fem-kidney-2d-nl",
+                             "fem-kidney-2d-fine", "fem-block-3d"}) {
       c.push_back({name, Make(name).description});
     }
     return c;

@@ -338,9 +338,8 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
     std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
       return path.points[a].normalized_error < path.points[b].normalized_error;
     });
-    std::stable_partition(order.begin(), order.end(), [&](std::size_t i) {
-      return static_cast<int>(i) == details.chosen;
-    });
+    std::stable_partition(order.begin(), order.end(),
+                          [&](std::size_t i) { return static_cast<int>(i) == details.chosen; });
     for (std::size_t i : order) next_in_line.push_back(path.points[i].weights);
   }
   next_in_line.push_back(*start);

@@ -210,5 +210,39 @@ assert b["recipe"] == "van_gelder_1998" and b["springs"] == 263 and b["converged
 assert b["worse_than_baseline"] == (r["normalized_error"] > b["normalized_error"]), b
 PY
 
+# Strategy continuous (default on an FEM reference): the response, the sparsity path, the
+# size limit from the command line, and the trade-off figure.
+expect_exit 0 "run fem continuous" "$sf" run "$src/examples/fem-plate-5x5.json" --max-springs 70 -q -o "$tmp/continuous.json"
+grep -q "^response:          linear" "$tmp/out" || fail "run prints the response: $(cat "$tmp/out")"
+grep -q "^sparsity path:" "$tmp/out" || fail "run prints the sparsity path: $(cat "$tmp/out")"
+python3 - "$tmp/continuous.json" <<'PY' || fail "continuous result: $(head -c 300 "$tmp/continuous.json")"
+import json, sys
+r = json.load(open(sys.argv[1]))
+c = r["continuous"]
+assert r["identify"] == "topology_and_stiffness" and r["response"] == "linear", r["identify"]
+assert len(r["springs"]) <= 70 and len(r["stiffness"]) == len(r["springs"])
+assert c["started_from"] == "baseline" and len(c["path"]) >= 2
+assert c["path"][c["chosen"]]["springs"] <= 70
+assert all(a["springs"] > b["springs"] for a, b in zip(c["path"], c["path"][1:]))
+assert r["rms_error"] < r["baseline"]["rms_error"]
+assert r["scene_definition"]["search"]["max_springs"] == 70
+PY
+expect_exit 0 "plot tradeoff" "$sf" plot --tradeoff "$tmp/continuous.json" -o "$tmp/tradeoff.svg"
+python3 - "$tmp/tradeoff.svg" "$tmp/continuous.json" <<'PY' || fail "tradeoff plot content"
+import json, sys, xml.etree.ElementTree as ET
+ns = "{http://www.w3.org/2000/svg}"
+svg = ET.parse(sys.argv[1])
+path = json.load(open(sys.argv[2]))["continuous"]["path"]
+lines = [e for e in svg.iter(ns + "polyline") if e.get("class") == "curve0"]
+assert len(lines) == 1 and len(lines[0].get("points").split()) == len(path)
+assert sum(1 for e in svg.iter(ns + "line") if e.get("class") == "reference") == 2  # level + legend
+PY
+expect_exit 2 "plot tradeoff without a path" "$sf" plot --tradeoff "$tmp/result.json" -o "$tmp/x.svg"
+grep -q "has no sparsity path" "$tmp/err" || fail "tradeoff names what is missing: $(cat "$tmp/err")"
+expect_exit 2 "max-springs with hybrid" "$sf" run "$src/examples/paper-iso-5x5.json" --strategy hybrid --max-springs 5
+grep -q "search.max_springs: chooses a point of the sparsity path" "$tmp/err" || fail "max-springs needs continuous: $(cat "$tmp/err")"
+expect_exit 2 "bad response" "$sf" run "$src/examples/fem-plate-5x5.json" --response small
+grep -q -- "--response: unknown value 'small' (expected linear or nonlinear)" "$tmp/err" || fail "response names the value: $(cat "$tmp/err")"
+
 if [ "$failures" -eq 0 ]; then echo "cli: all checks passed"; else echo "cli: $failures failed"; fi
 [ "$failures" -eq 0 ]

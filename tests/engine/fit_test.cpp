@@ -283,6 +283,20 @@ TEST(ContinuousStrategy, BeatsTheBaselineOnTheFemPlate) {
   EXPECT_EQ(again.stiffness, r.stiffness);
 }
 
+TEST(ContinuousStrategy, ReturnsOnlyAModelTheStandardEvaluationConfirms) {
+  // On the nonlinear kidney the refit of the chosen point has an equilibrium along the fit's
+  // path of warm starts but none from the reference's: it is refused, the path's point taken.
+  const Problem problem = Problem::Build(examples::Make("fem-kidney-2d-nl"));
+  const IdentificationResult r = RunIdentification(
+      problem, ResolveSearchOptions(problem.scene().search, problem.gene_count()));
+  ASSERT_TRUE(r.continuous);
+  ASSERT_TRUE(r.baseline);
+  EXPECT_TRUE(r.evaluation.converged);
+  EXPECT_FALSE(r.evaluation.mechanism);
+  EXPECT_LT(r.evaluation.normalized_error, 0.05 * r.baseline->normalized_error);
+  EXPECT_GE(r.continuous->rejected, 1);
+}
+
 TEST(ContinuousStrategy, MaxSpringsAndTargetErrorChooseThePoint) {
   Scene scene = examples::Make("fem-plate-5x5");
   scene.search.max_springs = 60;
