@@ -40,12 +40,6 @@ void Report(const char* what, const StiffnessFitResult& fit, int springs, double
               fit.converged ? "" : "  (not converged)");
 }
 
-int Positive(const std::vector<double>& w) {
-  int n = 0;
-  for (double x : w) n += x > 0.0;
-  return n;
-}
-
 int Main(int argc, char** argv) {
   CLI::App app{"Continuous stiffness fits on FEM references"};
   std::vector<std::string> files;
@@ -89,11 +83,11 @@ int Main(int argc, char** argv) {
     t0 = Clock::now();
     const StiffnessFitResult floor =
         FitStiffness(problem, *start, FitScope{edges, {}}, options, fit_context);
-    Report("fit on the mesh edges", floor, Positive(floor.weights), Seconds(t0));
+    Report("fit on the mesh edges", floor, PresentSprings(floor.weights), Seconds(t0));
     t0 = Clock::now();
     const StiffnessFitResult rich =
         FitStiffness(problem, *start, FitScope{all, {}}, options, fit_context);
-    Report("fit on all candidates", rich, Positive(rich.weights), Seconds(t0));
+    Report("fit on all candidates", rich, PresentSprings(rich.weights), Seconds(t0));
     if (path_flag) {
       t0 = Clock::now();
       SparsityPathOptions path_options;
@@ -104,10 +98,8 @@ int Main(int argc, char** argv) {
           "  sparsity path: %zu points in %.2f s; per point E, held-out E (refits of %d "
           "steps):\n",
           path.points.size(), Seconds(t0), path_options.refit_iterations);
-      StiffnessFitOptions held_out = options;
-      held_out.max_iterations = path_options.refit_iterations;
       for (const PathPoint& point : path.points) {
-        const auto h = HeldOutErrors(problem, point.weights, held_out, fit_context);
+        const auto h = HeldOutErrors(problem, point.weights, path_options, fit_context);
         std::printf("    %5d springs  E %-10.4g held-out E %.4g\n", point.springs,
                     std::sqrt(point.normalized_error), h ? std::sqrt(h->normalized_error) : NAN);
       }

@@ -8,6 +8,7 @@
 #include "client/exit_codes.h"
 #include "engine/direct/identifiability.h"
 #include "engine/fem/fem_model.h"
+#include "engine/identification/strategy.h"
 #include "engine/problem.h"
 #include "engine/search/search_options.h"
 #include "proto/names.h"
@@ -134,12 +135,15 @@ int Check(const std::string& file) {
         << "  no load case applies a force: the data fix the stiffness only up to one factor\n";
   }
   const SearchOptions options = ResolveSearchOptions(s.search, problem.gene_count());
-  std::cout << "search:                 strategy " << proto::StrategyName(options.strategy)
-            << ", identifies "
-            << (options.identify == Identify::kTopology
+  // `default` runs continuous on an FEM reference, which identifies each spring's stiffness.
+  const Strategy runs = ResolvedStrategy(options.strategy, problem);
+  std::cout << "search:                 strategy " << proto::StrategyName(options.strategy);
+  if (runs != options.strategy) std::cout << " (" << proto::StrategyName(runs) << " here)";
+  std::cout << ", identifies "
+            << (options.identify == Identify::kTopology && runs != Strategy::kContinuous
                     ? "the topology (every spring at the training stiffness)"
                     : "the topology and each spring's stiffness")
-            << "\n";
+            << ", response " << proto::ResponseName(problem.response()) << "\n";
   return kExitOk;
 }
 

@@ -78,10 +78,12 @@ void ProgressLine::Beat(const ProgressBeat& beat, double reference_norm2) {
                   beat.best_normalized_error, static_cast<long long>(beat.evaluations),
                   beat.wall_seconds);
   } else if (beat.phase == "fit" && !std::isnan(beat.best_normalized_error)) {
-    // (After the first fit: the sparsity path, its chosen point's refit, the held-out fits.)
-    std::snprintf(line, sizeof line, "fit: %lld steps of the first fit, E %.4g; %.1f s",
+    std::snprintf(line, sizeof line, "fit step %lld in progress  E %.4g  %.1f s",
                   static_cast<long long>(beat.evaluations), std::sqrt(beat.best_normalized_error),
                   beat.wall_seconds);
+  } else if (beat.phase == "path" && !std::isnan(beat.best_normalized_error)) {
+    std::snprintf(line, sizeof line, "sparsity path: %d points, the last at E %.4g  %.1f s",
+                  beat.generation, std::sqrt(beat.best_normalized_error), beat.wall_seconds);
   } else if (beat.phase == "genetic") {
     std::snprintf(line, sizeof line,
                   "generation 0/%d: evaluating the initial population  %lld evaluations  %.1f s",

@@ -1,6 +1,5 @@
 #include "client/result_summary.h"
 
-#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -46,8 +45,13 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
         << r.value("generations", 0) << " generations (best found in generation "
         << r.value("best_generation", 0) << ")\n";
   }
-  out << "evaluations:       " << r.value("evaluations", 0LL) << " (" << r.value("cache_hits", 0LL)
-      << " from the cache)\n";
+  if (continuous) {
+    out << "steps:             " << r.value("evaluations", 0LL)
+        << " (trust-region steps: the fit, the path's refits, the returned model's refit)\n";
+  } else {
+    out << "evaluations:       " << r.value("evaluations", 0LL) << " ("
+        << r.value("cache_hits", 0LL) << " from the cache)\n";
+  }
   out << "wall time:         " << Format("%.3f", r.value("wall_seconds", 0.0)) << " s\n";
   if (r.contains("direct_phase") && r["direct_phase"].is_object()) {
     const proto::Json& phase = r["direct_phase"];
@@ -72,13 +76,14 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
     const proto::Json& c = r["continuous"];
     const proto::Json& path = c["path"];
     if (!path.empty()) {
+      const auto error = [](const proto::Json& point) {
+        return point.contains("rms_error") && point["rms_error"].is_number()
+                   ? Format("%.4g", point["rms_error"].get<double>())
+                   : std::string("-");
+      };
       out << "sparsity path:     " << path.size() << " points, from "
-          << path.front().value("springs", 0) << " springs (E "
-          << Format("%.4g", path.front().value("normalized_error", 0.0) >= 0.0
-                                ? std::sqrt(path.front().value("normalized_error", 0.0))
-                                : 0.0)
-          << ") to " << path.back().value("springs", 0) << " (E "
-          << Format("%.4g", std::sqrt(path.back().value("normalized_error", 0.0)))
+          << path.front().value("springs", 0) << " springs (E " << error(path.front()) << ") to "
+          << path.back().value("springs", 0) << " (E " << error(path.back())
           << "); springfit plot --tradeoff draws it\n";
     }
     if (c.contains("held_out_rms_error") && c["held_out_rms_error"].is_number()) {

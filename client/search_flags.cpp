@@ -9,8 +9,9 @@ void AddSearchFlags(CLI::App* command, SearchFlags& flags) {
                       "Search strategy: " + proto::StrategyNames() + " (default: the scene's)");
   command->add_option("--identify", flags.identify,
                       "What to identify: " + proto::IdentifyNames() +
-                          " (the latter with strategy direct only; default: the scene's, else "
-                          "topology_and_stiffness for direct, topology otherwise)");
+                          " (the latter with strategies direct and continuous, which is default "
+                          "on an FEM reference; default: the scene's, else "
+                          "topology_and_stiffness for direct and continuous, topology otherwise)");
   command->add_option("--seed", flags.seed, "Random seed (default: the scene's, else 1)");
   command
       ->add_option("--generations", flags.generations,

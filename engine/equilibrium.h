@@ -128,6 +128,12 @@ class EquilibriumSolver {
   // definite; SolveTangent() overwrites b (free degrees of freedom) with H^-1 b, using the
   // last FactorizeTangent() as long as no other method of this solver has been called since.
   bool FactorizeTangent(const ActiveSprings& springs, const Vector& u);
+  // RestMechanismModes() leaves its factorisation of the rest stiffness (shifted by
+  // mechanism_shift) for SolveTangent() too, which is the linear response's tangent, and
+  // EnergyAndGradient() without the Hessian does not touch it. SolveTangent() and
+  // EnergyAndGradient() without the Hessian only read the solver: several threads may call
+  // them at once (the sparse and banded backends' solves are const), as long as no other
+  // method runs meanwhile.
   void SolveTangent(Vector& b) const { system_.Solve(b); }
 
   // E(u) and its gradient on the free degrees of freedom (flat, free-node order). Exposed for

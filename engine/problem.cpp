@@ -1,10 +1,13 @@
 #include "engine/problem.h"
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <string>
 
 #include "engine/candidates.h"
+#include "engine/direct/force_balance.h"
+#include "engine/direct/nnls.h"
 #include "engine/fem/closed_form_baseline.h"
 #include "engine/fem/fem_equilibrium.h"
 #include "engine/fem/traction.h"
@@ -13,6 +16,10 @@
 
 namespace springfit {
 namespace {
+
+// A force-balance weight below this fraction of the largest is an absent spring's (round-off or
+// noise), left out of the positions reference's training stiffness.
+constexpr double kPresentWeight = 1e-3;
 
 // Reference positions of a constrained node may differ from its prescribed position by this
 // fraction of the scene's longest candidate (round-off in exported data), no more.
@@ -232,6 +239,24 @@ Problem::Problem(Scene scene, EquilibriumOptions solver_options) {
   if (!(p.reference_norm2_ > 0.0)) {
     throw InputError("reference", "the reference does not move any free node: nothing to match");
   }
+  if (!s.training_stiffness && ref.kind == Reference::Kind::kPositions)
+    p.training_stiffness_ = PositionsTrainingStiffness(p);
+}
+
+double PositionsTrainingStiffness(const Problem& problem) {
+  // Loads that only prescribe displacements fix no scale (scale_pinning.h).
+  if (problem.DisplacementOnly()) return 1.0;
+  const ForceBalance fb = AssembleForceBalance(problem);
+  const NnlsResult nnls = SolveNnls(fb.a, fb.b, SeenGenes(fb, kUnseenStrain));
+  std::vector<double> present;
+  const double largest = nnls.x.size() > 0 ? nnls.x.maxCoeff() : 0.0;
+  for (Eigen::Index g = 0; g < nnls.x.size(); ++g) {
+    if (nnls.x[g] > kPresentWeight * largest) present.push_back(nnls.x[g]);
+  }
+  if (present.empty() || !std::isfinite(largest)) return 1.0;
+  const auto mid = present.begin() + static_cast<std::ptrdiff_t>(present.size() / 2);
+  std::nth_element(present.begin(), mid, present.end());
+  return *mid;
 }
 
 int Problem::CandidateIndex(NodePair pair) const {

@@ -26,6 +26,7 @@
 namespace springfit {
 
 struct IdentifiabilityReport;  // engine/direct/identifiability.h
+class Problem;
 
 // One bit per gene; 1 = the candidate spring is present.
 using Genome = std::vector<std::uint8_t>;
@@ -59,6 +60,13 @@ struct TopologyDifference {
 // (it describes the small-load limit: comparing it with springs that turn, stiffen and buckle
 // at the FEM's load would mix a load-level artefact into the model error), nonlinear otherwise.
 Response ResolveResponse(const Scene& scene);
+
+// The training stiffness of a positions reference given without one: the median of the
+// springs the force balance at the reference's positions keeps (its non-negative
+// least-squares weights above 1e-3 of the largest, engine/direct/nnls.h): the stiffness the
+// data give the springs they need, in the data's units. 1 when the loads only prescribe
+// displacements (the data fix no scale).
+double PositionsTrainingStiffness(const Problem& problem);
 
 // A scene prepared for identification: validated (the one place a scene's rules are checked),
 // its reference's equilibria solved, its candidates and genes laid out. Prepared once per job
@@ -96,6 +104,8 @@ class Problem {
   const std::vector<int>& gene_candidates() const { return gene_candidate_; }
   // Candidates no load case can see.
   const std::vector<int>& unidentifiable() const { return unidentifiable_; }
+  // The scene's `stiffness`, else: an MSS reference's single stiffness, the closed-form
+  // baseline's median on an FEM reference, PositionsTrainingStiffness on a positions one.
   double training_stiffness() const { return training_stiffness_; }
   // sum over load cases of reference_norm2: the normaliser of the cost.
   double reference_norm2() const { return reference_norm2_; }

@@ -11,6 +11,11 @@ BoundingBox BoundingBox::Of(int dimension, const Vector& flat_points) {
   return box;
 }
 
+Strategy ResolvedStrategy(Strategy strategy, Reference::Kind reference) {
+  if (strategy != Strategy::kDefault) return strategy;
+  return reference == Reference::Kind::kFem ? Strategy::kContinuous : Strategy::kHybrid;
+}
+
 double Scene::EffectiveTrainingStiffness() const {
   if (training_stiffness) return *training_stiffness;
   if (reference.kind == Reference::Kind::kMss && reference.stiffness.size() == 1) {

@@ -134,6 +134,10 @@ enum class Strategy {
   kContinuous,
 };
 
+// The strategy that runs for a reference: `default` is continuous on an FEM reference, hybrid
+// otherwise (the one place of that rule); the others are themselves.
+Strategy ResolvedStrategy(Strategy strategy, Reference::Kind reference);
+
 // What an identification finds (proto/SCENE.md, "search.identify").
 enum class Identify {
   kTopology,              // which springs: every spring has the training stiffness (the paper)
@@ -146,8 +150,9 @@ enum class Response {
   // as they stretch, stiffen in tension and buckle in compression). The paper's model.
   kNonlinear,
   // The linearised response at rest, K(k) u = f with K = sum k n n^T over the rest directions
-  // n: the small-load limit, what a linear FEM reference describes. One factorisation per load
-  // case; displacements scale with the load.
+  // n: the small-load limit, what a linear FEM reference describes. K does not depend on the
+  // load: cases with the same fixed nodes can share a factorisation; displacements scale with
+  // the load.
   kLinear,
 };
 

@@ -272,8 +272,7 @@ void CheckLoadCases(const Scene& s) {
 
 void CheckSearch(const SearchSettings& s, Reference::Kind reference) {
   // Strategy default is continuous on an FEM reference, hybrid otherwise.
-  const bool continuous = s.strategy == Strategy::kContinuous ||
-                          (s.strategy == Strategy::kDefault && reference == Reference::Kind::kFem);
+  const bool continuous = ResolvedStrategy(s.strategy, reference) == Strategy::kContinuous;
   if (s.identify == Identify::kTopologyAndStiffness && s.strategy != Strategy::kDirect &&
       !continuous) {
     // The genetic strategies compare topologies whose springs all have the training

@@ -31,6 +31,8 @@ Json SearchOptionsToJson(const SearchOptions& o) {
   j["max_seconds"] = o.max_seconds;
   j["stall_generations"] = o.stall_generations;
   j["target_normalized_error"] = o.target_normalized_error;
+  j["max_springs"] = o.max_springs;
+  j["target_error"] = o.target_error;
   j["selection"] = o.selection == SearchOptions::Selection::kRoulette ? "roulette" : "tournament";
   if (o.selection == SearchOptions::Selection::kTournament)
     j["tournament_size"] = o.tournament_size;
@@ -173,7 +175,7 @@ Json ContinuousDetailsToJson(const IdentificationResult::Continuous& c) {
                     {"rms_error", RmsOrNull(point.normalized_error)}});
   }
   j["path"] = std::move(path);
-  j["chosen"] = c.chosen;
+  j["chosen"] = c.chosen >= 0 ? Json(c.chosen) : Json(nullptr);  // null: the start
   j["started_from"] = c.started_from_baseline ? "baseline" : "training_stiffness";
   j["start_rms_error"] = RmsOrNull(c.start_normalized_error);
   j["fit_rms_error"] = RmsOrNull(c.fit_normalized_error);
@@ -317,7 +319,8 @@ StoredResult StoredResultFromJson(const Json& json) {
         r.path.push_back(point);
       }
     }
-    if (c.contains("chosen")) r.chosen = ReadInt(c["chosen"], "continuous.chosen");
+    if (c.contains("chosen") && !c["chosen"].is_null())
+      r.chosen = ReadInt(c["chosen"], "continuous.chosen");
   }
   if (json.contains("baseline") && json["baseline"].is_object()) {
     const Json& b = json["baseline"];

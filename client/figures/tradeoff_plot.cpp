@@ -116,15 +116,20 @@ std::string RenderTradeoffPlot(const std::vector<TradeoffCurve>& curves, const s
     if (curves[i].chosen && *curves[i].chosen < curves[i].points.size()) {
       const auto& [springs, e] = curves[i].points[*curves[i].chosen];
       char tail[96];
-      std::snprintf(tail, sizeof tail, "  (returned from %d springs, E %.3g: large dot)", springs,
-                    e);
+      std::snprintf(tail, sizeof tail,
+                    "  (returned from the point of %d springs, E %.3g: large dot)", springs, e);
       label += tail;
     }
     svg.Text({kLeft + 32, y}, label, "");
   }
-  const double y = legend_top + kLegendRow * static_cast<double>(curves.size());
-  svg.Line({kLeft, y - 4}, {kLeft + 26, y - 4}, "reference");
-  svg.Text({kLeft + 32, y}, "closed-form baseline (van Gelder 1998) on the mesh edges", "");
+  const bool any_baseline = std::any_of(curves.begin(), curves.end(), [](const TradeoffCurve& c) {
+    return c.baseline_error && Drawable(*c.baseline_error);
+  });
+  if (any_baseline) {
+    const double y = legend_top + kLegendRow * static_cast<double>(curves.size());
+    svg.Line({kLeft, y - 4}, {kLeft + 26, y - 4}, "reference");
+    svg.Text({kLeft + 32, y}, "closed-form baseline (van Gelder 1998) on the mesh edges", "");
+  }
   return svg.str();
 }
 

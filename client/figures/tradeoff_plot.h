@@ -12,8 +12,8 @@ namespace springfit::cli {
 struct TradeoffCurve {
   std::string label;
   std::vector<std::pair<int, double>> points;  // (springs, E); E not finite: not drawn
-  std::optional<std::size_t> chosen;           // the point the returned model came from
-  std::optional<double> baseline_error;        // the baseline's E
+  std::optional<std::size_t> chosen;     // the point the returned model came from (none: the start)
+  std::optional<double> baseline_error;  // the baseline's E
   std::optional<int> baseline_springs;
 };
 

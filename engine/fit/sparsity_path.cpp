@@ -11,12 +11,8 @@
 namespace springfit {
 namespace {
 
-int PositiveCount(const std::vector<double>& w) {
-  return static_cast<int>(std::count_if(w.begin(), w.end(), [](double x) { return x > 0.0; }));
-}
-
 PathPoint PointOf(const StiffnessFitResult& fit) {
-  return PathPoint{PositiveCount(fit.weights), fit.normalized_error, fit.weights};
+  return PathPoint{PresentSprings(fit.weights), fit.normalized_error, fit.weights};
 }
 
 }  // namespace
@@ -32,6 +28,7 @@ void SparsityPathOptions::Validate(const std::string& owner) const {
   check.Require(stop_error_factor > 1.0 && std::isfinite(stop_error_factor), "stop_error_factor",
                 stop_error_factor, "1 < value < infinity");
   check.Require(max_retries >= 0, "max_retries", max_retries, "value >= 0");
+  check.Require(held_out_iterations >= 1, "held_out_iterations", held_out_iterations, "value >= 1");
   check.Require(max_error_growth > 1.0 && std::isfinite(max_error_growth), "max_error_growth",
                 max_error_growth, "1 < value < infinity");
 }
@@ -44,7 +41,14 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
   quiet.on_step = nullptr;
   options.Validate();
   SparsityPath path;
-  path.fit = FitStiffness(problem, start, FitScope{usable, {}}, options.fit, context);
+  // One bound for every fit of the path (a refit's own start would raise it each time).
+  path.upper_bound =
+      options.fit.upper_bound > 0.0
+          ? options.fit.upper_bound
+          : options.fit.max_stiffness_ratio * *std::max_element(start.begin(), start.end());
+  StiffnessFitOptions first = options.fit;
+  first.upper_bound = path.upper_bound;
+  path.fit = FitStiffness(problem, start, FitScope{usable, {}}, first, context);
   path.solves = path.fit.solves;
   path.steps = path.fit.iterations;
   if (!path.fit.feasible) return path;
@@ -53,13 +57,12 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
     path.interrupted = true;
     return path;
   }
-  if (progress) progress(path);
 
   const double stop =
       std::max(stop_normalized_error,
                options.stop_error_factor * options.stop_error_factor * path.fit.normalized_error);
   const double max_growth2 = options.max_error_growth * options.max_error_growth;
-  StiffnessFitOptions refit = options.fit;
+  StiffnessFitOptions refit = first;
   refit.max_iterations = options.refit_iterations;
   // Along the path only the springs present may be refitted: the model shrinks at every point
   // (absent candidates had their chance, by their gradient, in step 1).
@@ -72,17 +75,21 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
   std::vector<bool> structural(usable.size(), false);
   bool moved_since_reset = false;
   try {
+    if (progress) progress(path);  // (its stop request stops the path: the fit's point stands)
     while (static_cast<int>(path.points.size()) < options.max_points) {
-      const PathPoint& last = path.points.back();
-      if (last.normalized_error > stop || last.springs <= min_springs) break;
+      // (Copies: the path is appended to below.)
+      const int last_springs = path.points.back().springs;
+      const double last_error = path.points.back().normalized_error;
+      if (last_error > stop || last_springs <= min_springs) break;
       // The removable springs, least leaned on first (ties by gene: deterministic).
       std::vector<int> removable;
       for (int g = 0; g < static_cast<int>(current.weights.size()); ++g) {
         if (current.weights[g] > 0.0 && !structural[g]) removable.push_back(g);
       }
       if (removable.empty()) {
-        // Springs that re-entered since may have freed one that was needed: test them all
-        // again once, and end only when a whole round removes nothing.
+        // A removal refused once can pass later (a nonlinear model's solves depend on the
+        // stiffness the refits changed): test them all again once, and end only when a whole
+        // round removes nothing.
         if (!moved_since_reset) break;
         structural.assign(structural.size(), false);
         moved_since_reset = false;
@@ -90,9 +97,9 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
       }
       std::stable_sort(removable.begin(), removable.end(),
                        [&](int a, int b) { return current.importance[a] < current.importance[b]; });
-      int remove = std::max(1, static_cast<int>(options.prune_fraction * last.springs));
+      int remove = std::max(1, static_cast<int>(options.prune_fraction * last_springs));
       remove = std::min(
-          {remove, std::max(1, last.springs - min_springs), static_cast<int>(removable.size())});
+          {remove, std::max(1, last_springs - min_springs), static_cast<int>(removable.size())});
       int retries = 0;
       for (;;) {
         std::vector<bool> trial_allowed = allowed;
@@ -110,7 +117,7 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
         // half as many springs (the saliencies are first-order: many springs at once can
         // matter together), `max_retries` times at most; then the last try stands.
         const bool too_costly = fit.feasible && remove > 1 && retries < options.max_retries &&
-                                fit.normalized_error > max_growth2 * last.normalized_error;
+                                fit.normalized_error > max_growth2 * last_error;
         if (fit.feasible && !too_costly) {
           current = std::move(fit);
           for (std::size_t g = 0; g < allowed.size(); ++g)
@@ -136,9 +143,12 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
 
 std::optional<HeldOutError> HeldOutErrors(const Problem& problem,
                                           const std::vector<double>& weights,
-                                          const StiffnessFitOptions& options,
+                                          const SparsityPathOptions& path_options,
                                           const FitContext& context) {
   const std::size_t cases = problem.load_cases().size();
+  StiffnessFitOptions options = path_options.fit;
+  options.max_iterations = path_options.held_out_iterations;
+  options.saliency_probes = 0;
   if (cases < 2) return std::nullopt;
   std::vector<bool> support(weights.size());
   for (std::size_t g = 0; g < weights.size(); ++g) support[g] = weights[g] > 0.0;
@@ -159,6 +169,8 @@ std::optional<HeldOutError> HeldOutErrors(const Problem& problem,
     const Evaluation e = cost.Evaluate(problem.SpringsOfWeights(fit.weights));
     if (e.interrupted) throw Interrupted();
     const PreparedLoadCase& lc = problem.load_cases()[k];
+    // (A case that moves no free node is normalised by the whole reference, as in cost.h, and
+    // adds nothing to the total's denominator: its error counts in the numerator only.)
     const double norm2 = lc.reference_norm2 > 0.0 ? lc.reference_norm2 : problem.reference_norm2();
     const LoadCaseEvaluation& judged = e.load_cases[k];
     const double case_cost =

@@ -11,9 +11,9 @@
 //    rest refitted from where they were; each refit is one point of the sparsity path
 //    (springs, E). A removal that would leave a mechanism is retried with fewer springs; a
 //    single spring whose removal leaves one is kept (it holds a mode no load case loads) until
-//    every spring is so marked, when all are tried once more (springs that re-entered in a
-//    refit may have freed one). The path ends where a whole round removes no spring, or where
-//    E passes the stop.
+//    every spring is so marked, when all are tried once more (a nonlinear model's solves
+//    depend on the stiffness the refits changed). The path ends where a whole round removes no
+//    spring, or where E passes the stop.
 // 3. Choice (SelectPathPoint): the fewest springs whose E is within `tolerance` of the best
 //    on the path, or the user's size or error target; then refitted to convergence.
 #pragma once
@@ -40,6 +40,9 @@ struct SparsityPathOptions {
   // is a refit.
   double max_error_growth = 1.5;
   int max_retries = 2;
+  // Steps of each held-out refit (HeldOutErrors: from the model judged, a few steps reach its
+  // optimum on the other cases).
+  int held_out_iterations = 10;
   // The path ends once E passes this many times the fit's E (> 1; a caller's size or error
   // target takes it further): far enough for the trade-off near the best models, which is
   // where the choice is made, without spending on models no one would pick.
@@ -63,6 +66,7 @@ struct SparsityPath {
   std::vector<PathPoint> points;  // points[0] is the fit's model; springs decrease
   std::int64_t solves = 0;        // tangent solves, fit and path
   int steps = 0;                  // trust-region steps, fit and path
+  double upper_bound = 0.0;       // the stiffness bound of every fit of the path
   bool interrupted = false;
 };
 
@@ -82,15 +86,15 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
 // Cross-validation over the load cases: for each case k, the model's springs refitted (from
 // `weights`, on its own support) to the other cases, then judged on case k. Per case the
 // normalised error sum |u - u^R|^2 / sum |u^R|^2 over case k's free nodes (infinity where the
-// refitted model has no equilibrium in case k); nullopt with fewer than two cases. Throws
-// Interrupted.
+// refitted model has no equilibrium in case k); nullopt with fewer than two cases. The refits
+// take `options.held_out_iterations` steps of `options.fit` (no saliency). Throws Interrupted.
 struct HeldOutError {
   std::vector<double> per_case;
   double normalized_error = 0.0;  // over all cases: sum of their errors' numerators / norms
 };
 std::optional<HeldOutError> HeldOutErrors(const Problem& problem,
                                           const std::vector<double>& weights,
-                                          const StiffnessFitOptions& options,
+                                          const SparsityPathOptions& options,
                                           const FitContext& context = {});
 
 // The point to return: with `max_springs` > 0, the lowest E with at most that many springs

@@ -14,7 +14,7 @@ namespace {
 
 // Below this normalised error the fit is exact (an MSS reference): nothing is left to fit.
 constexpr double kExactError = 1e-24;
-// A trust region this small, relative to the residual, has stopped moving the weights.
+// A trust region this small (in the scaled weights' units) has stopped moving the weights.
 constexpr double kSmallestRadius = 1e-12;
 // The saliency probes' signs.
 constexpr std::uint64_t kSaliencySeed = 20031116;
@@ -180,7 +180,9 @@ class ResponseState {
       }
     }
     // A model so near a mechanism that refinement cannot balance the load has no usable
-    // equilibrium (the equilibrium solver's criterion, as the cost function would judge it).
+    // equilibrium: the solver's relative force tolerance, relative here to the load's gradient
+    // (without the solver's round-off floor, so the fit can refuse a model at that edge which
+    // the final evaluation would accept, never the reverse).
     return u.allFinite() && residual <= problem_.solver_options().relative_force_tolerance * load;
   }
 
@@ -219,6 +221,11 @@ double MedianPositive(const std::vector<double>& w) {
 
 }  // namespace
 
+int PresentSprings(const std::vector<double>& weights) {
+  return static_cast<int>(
+      std::count_if(weights.begin(), weights.end(), [](double w) { return w > 0.0; }));
+}
+
 void StiffnessFitOptions::Validate(const std::string& owner) const {
   const OptionsCheck check(owner);
   check.Require(max_iterations >= 0, "max_iterations", max_iterations, "value >= 0");
@@ -230,7 +237,9 @@ void StiffnessFitOptions::Validate(const std::string& owner) const {
                 "max_stiffness_ratio", max_stiffness_ratio, "1 < value < infinity");
   check.Require(scale_floor > 0.0 && scale_floor <= 1.0, "scale_floor", scale_floor,
                 "0 < value <= 1");
-  check.Require(saliency_probes >= 1, "saliency_probes", saliency_probes, "value >= 1");
+  check.Require(saliency_probes >= 0, "saliency_probes", saliency_probes, "value >= 0");
+  check.Require(upper_bound >= 0.0 && std::isfinite(upper_bound), "upper_bound", upper_bound,
+                "0 <= value < infinity (0: from max_stiffness_ratio)");
   check.Require(max_radius > 0.0 && std::isfinite(max_radius), "max_radius", max_radius,
                 "0 < value < infinity");
   check.Require(initial_radius > 0.0 && initial_radius <= max_radius, "initial_radius",
@@ -254,7 +263,9 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
 
   // The upper bound: a spring this much stiffer than the stiffest at the start is rigid for
   // the data (a rigid limit, where the displacements no longer respond to it).
-  const double upper = options.max_stiffness_ratio * *std::max_element(w.begin(), w.end());
+  const double upper = options.upper_bound > 0.0
+                           ? options.upper_bound
+                           : options.max_stiffness_ratio * *std::max_element(w.begin(), w.end());
   ResponseState state(problem, scope.cases, context);
   const double norm2 = state.ReferenceNorm2();
   if (!state.Evaluate(w)) {
@@ -448,7 +459,7 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
   result.weights = w;
   result.normalized_error = 2.0 * phi / norm2;
   result.solves = state.solves();
-  if (result.interrupted) return result;
+  if (result.interrupted || options.saliency_probes == 0) return result;
   // Saliency (optimal brain damage, LeCun, Denker and Solla 1990): at an optimum the gradient
   // of a positive weight vanishes, so removing spring j raises f by about 1/2 w_j^2 |J e_j|^2.
   // The column norms are estimated from random-sign products J^T z (E[(J^T z)_j^2] =
@@ -456,6 +467,7 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
   // The signs come from a fixed seed: deterministic.
   fb = AssembleForceBalance(problem, &state.displacements());
   Vector column2 = Vector::Zero(genes);
+  t.resize(state.residual().size());  // (the loop above may not have run)
   std::mt19937_64 signs(kSaliencySeed);
   for (int probe = 0; probe < options.saliency_probes; ++probe) {
     for (Eigen::Index row = 0; row < t.size(); ++row) t[row] = (signs() >> 63) ? 1.0 : -1.0;

@@ -40,13 +40,19 @@ struct StiffnessFitOptions {
   // so that an absent spring can enter at a typical stiffness.
   double scale_floor = 0.1;
   double initial_radius = 1.0;  // the trust region, in scaled units (1 = weights change by 100%)
-  // The largest trust region: a weight at most doubles per step. Near a rigid or a mechanism
-  // limit (k -> infinity or 0) the displacements stop responding to it, which the
-  // Gauss-Newton model cannot see; an unbounded region sends weights there in one stride.
+  // The largest trust region, in the same units. Near a rigid or a mechanism limit
+  // (k -> infinity or 0) the displacements stop responding to a weight, which the Gauss-Newton
+  // model cannot see; the bounds (upper_bound, 0) keep weights out of those limits, this only
+  // keeps a step finite.
   double max_radius = 1e3;
   // Random-sign products that estimate the saliencies' Jacobian column norms (one solve per
-  // load case each, once per fit).
+  // load case each, once per fit); 0: no saliency (`importance` empty), for fits whose caller
+  // does not prune.
   int saliency_probes = 16;
+  // The weights' upper bound; 0: max_stiffness_ratio times the start's largest weight. A
+  // sequence of fits (the sparsity path, its refits) passes its first fit's bound, or the
+  // bound would grow by that ratio with every fit.
+  double upper_bound = 0.0;
   // Weights are bounded above by this times the largest weight of the start: beyond, a spring
   // is rigid for the data and the displacements stop responding to it.
   double max_stiffness_ratio = 1e4;
@@ -84,9 +90,13 @@ struct FitScope {
   std::vector<bool> cases;
 };
 
+// The springs present (weight > 0) in per-gene weights.
+int PresentSprings(const std::vector<double>& weights);
+
 // How a fit runs: where it checks for a stop, on which threads, whom it tells.
 struct FitContext {
-  // Checked inside every solve and between conjugate-gradient iterations (nullptr: never).
+  // Checked inside every nonlinear solve, between load cases and between conjugate-gradient
+  // iterations; with a pool, while the owner waits for the cases (nullptr: never).
   Interruption* interruption = nullptr;
   // The load cases' solves in parallel (nullptr: the calling thread alone). Each case has its
   // own state: the result does not depend on the threads.

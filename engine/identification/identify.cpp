@@ -107,6 +107,10 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
   } catch (const Interrupted&) {
     r = StoppedBeforeAModel(problem, options, context, monitor);
   }
+  // Continuous identifies each spring's stiffness, whatever the resolved options said of
+  // `default` (they do not know the reference).
+  if (ResolvedStrategy(options.strategy, problem) == Strategy::kContinuous)
+    r.options.identify = Identify::kTopologyAndStiffness;
   r.identifiability = std::move(identifiability);
   r.baseline = std::move(baseline);
   r.springs = problem.SpringsOfGenome(r.best);

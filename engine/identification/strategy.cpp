@@ -24,9 +24,6 @@ struct Seed {
   Evaluation evaluation;
 };
 
-// Steps of each held-out refit (from the returned model: a few steps reach its optimum).
-constexpr int kHeldOutIterations = 10;
-
 // The run's threads: the caller's pool, else one of context.threads kept in `own` (none for
 // one thread).
 WorkerPool* PoolOf(const RunContext& context, std::unique_ptr<WorkerPool>& own) {
@@ -209,8 +206,7 @@ IdentificationResult DirectStrategy::Run(const Problem& problem, const SearchOpt
 IdentificationResult ContinuousStrategy::Run(const Problem& problem, const SearchOptions& options,
                                              const RunContext& context, RunMonitor& monitor) const {
   IdentificationResult r;
-  r.options = options;
-  r.options.identify = Identify::kTopologyAndStiffness;
+  r.options = options;  // (RunIdentification sets identify: continuous identifies stiffness)
   r.trace = context.trace;
   const auto start_time = std::chrono::steady_clock::now();
   const int genes = problem.gene_count();
@@ -265,11 +261,24 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
       if (cancelled) throw Interrupted();  // the fit returns its last accepted step
     }
   };
+  std::size_t path_points = 0;
+  double path_error = std::numeric_limits<double>::quiet_NaN();
   const PathProgress on_point = [&](const SparsityPath& path) {
-    if (path.points.size() == 1 && reported_steps != path.fit.accepted) {
-      reported_steps = path.fit.accepted;
-      report(path.fit.weights, path.fit.normalized_error, path.fit.accepted);  // the fit's end
+    if (path.points.size() == 1) {
+      if (reported_steps != path.fit.accepted) {
+        reported_steps = path.fit.accepted;
+        report(path.fit.weights, path.fit.normalized_error, path.fit.accepted);  // the fit's end
+      }
+      // Beats now describe the path: its points so far and the last one's error.
+      monitor.SetPhase("path", [&](ProgressBeat& beat) {
+        beat.wall_seconds = SecondsSince(start_time);
+        beat.generation = static_cast<int>(path_points);
+        beat.evaluations = fit_steps;
+        beat.best_normalized_error = path_error;
+      });
     }
+    path_points = path.points.size();
+    path_error = path.points.back().normalized_error;
     if (cancelled) throw Interrupted();  // the path so far stands
   };
 
@@ -296,25 +305,35 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
   details.solves = path.solves;
   bool stopped = path.interrupted || cancelled;
   std::vector<double> weights = *start;
+  // Where the returned model comes from: a path point (refitted, or as the path left it), or
+  // the start (index -1).
+  bool refitted = false;
+  int returned = -1;
   if (!path.points.empty()) {
-    details.fit_normalized_error = path.fit.normalized_error;
-    details.start_normalized_error = path.fit.initial_normalized_error;
     for (const PathPoint& point : path.points)
       details.path.push_back({point.springs, point.normalized_error});
-    const std::size_t chosen =
-        SelectPathPoint(path, options.max_springs, target, path_options.tolerance);
-    details.chosen = static_cast<int>(chosen);
-    weights = path.points[chosen].weights;
+    details.fit_normalized_error = path.fit.normalized_error;
+    details.start_normalized_error = path.fit.initial_normalized_error;
+    returned = static_cast<int>(
+        SelectPathPoint(path, options.max_springs, target, path_options.tolerance));
+    weights = path.points[static_cast<std::size_t>(returned)].weights;
     try {
       if (!stopped) {
-        // The chosen point, refitted to convergence on its own springs.
+        // The chosen point, refitted on its own springs (no pruning follows: no saliency).
+        ClockPhase(monitor, "refit", std::chrono::steady_clock::now());
         std::vector<bool> support(weights.size());
         for (std::size_t g = 0; g < weights.size(); ++g) support[g] = weights[g] > 0.0;
+        StiffnessFitOptions refit_options = path_options.fit;
+        refit_options.upper_bound = path.upper_bound;
+        refit_options.saliency_probes = 0;
         const StiffnessFitResult refit =
-            FitStiffness(problem, weights, FitScope{support, {}}, path_options.fit, quiet);
+            FitStiffness(problem, weights, FitScope{support, {}}, refit_options, quiet);
         details.steps += refit.iterations;
         details.solves += refit.solves;
-        if (refit.feasible) weights = refit.weights;
+        if (refit.feasible) {
+          weights = refit.weights;
+          refitted = true;
+        }
         stopped = refit.interrupted;
       }
     } catch (const Interrupted&) {
@@ -331,18 +350,17 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
   CostOptions cost_options;
   cost_options.solve_cases_of_mechanisms = true;
   CostFunction cost(problem, cost_options);
-  std::vector<std::vector<double>> next_in_line;
+  std::vector<int> next_in_line;  // path points, then -1: the start
   if (!path.points.empty()) {
-    std::vector<std::size_t> order(path.points.size());
-    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    for (int i = 0; i < static_cast<int>(path.points.size()); ++i) next_in_line.push_back(i);
+    std::stable_sort(next_in_line.begin(), next_in_line.end(), [&](int a, int b) {
       return path.points[a].normalized_error < path.points[b].normalized_error;
     });
-    std::stable_partition(order.begin(), order.end(),
-                          [&](std::size_t i) { return static_cast<int>(i) == details.chosen; });
-    for (std::size_t i : order) next_in_line.push_back(path.points[i].weights);
+    std::stable_partition(next_in_line.begin(), next_in_line.end(),
+                          [&](int i) { return i == returned; });
+    if (!refitted) next_in_line.erase(next_in_line.begin());  // (the point itself failed)
   }
-  next_in_line.push_back(*start);
+  next_in_line.push_back(-1);
   const auto acceptable = [&](const Evaluation& e) {
     return e.converged && !e.mechanism &&
            (path.points.empty() ||
@@ -351,16 +369,18 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
   r.evaluation = cost.Evaluate(problem.SpringsOfWeights(weights));
   for (std::size_t i = 0; i < next_in_line.size() && !acceptable(r.evaluation); ++i) {
     ++details.rejected;
-    weights = next_in_line[i];
+    returned = next_in_line[i];
+    refitted = false;
+    weights = returned >= 0 ? path.points[static_cast<std::size_t>(returned)].weights : *start;
     r.evaluation = cost.Evaluate(problem.SpringsOfWeights(weights));
   }
+  details.chosen = returned;
   // The returned model's generalisation: each load case predicted by its springs refitted to
   // the others.
   if (!stopped && !path.points.empty()) {
-    StiffnessFitOptions held_out_fit = path_options.fit;
-    held_out_fit.max_iterations = kHeldOutIterations;
+    ClockPhase(monitor, "held_out", std::chrono::steady_clock::now());
     try {
-      if (const auto held_out = HeldOutErrors(problem, weights, held_out_fit, quiet)) {
+      if (const auto held_out = HeldOutErrors(problem, weights, path_options, quiet)) {
         details.held_out_normalized_error = held_out->normalized_error;
         details.held_out_per_case = held_out->per_case;
       }
@@ -383,27 +403,61 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
                ? (monitor.time_limit_reached() ? StopReason::kTimeLimit : StopReason::kCancelled)
            : target > 0.0 && e <= target ? StopReason::kTargetReached
                                          : StopReason::kCompleted;
-  char message[400];
+  char message[512];
   if (path.points.empty()) {
     std::snprintf(message, sizeof message,
                   "no model with an equilibrium in every load case to start from (the start is a "
-                  "mechanism or does not converge): try the linear response or smaller loads");
+                  "mechanism or does not converge)%s",
+                  problem.response() == Response::kNonlinear
+                      ? ": try the linear response (search.response) or smaller loads"
+                      : ": try more candidates");
   } else {
-    const PathPoint& chosen = path.points[static_cast<std::size_t>(details.chosen)];
+    // Which point, by which rule (and whether the rule was met).
+    char rule[160];
+    const PathPoint* point =
+        returned >= 0 ? &path.points[static_cast<std::size_t>(returned)] : nullptr;
+    if (options.max_springs > 0) {
+      std::snprintf(rule, sizeof rule,
+                    point && point->springs <= options.max_springs
+                        ? "the lowest E with at most %d springs"
+                        : "no point has at most %d springs: the smallest",
+                    options.max_springs);
+    } else if (target > 0.0) {
+      std::snprintf(rule, sizeof rule,
+                    point && point->normalized_error <= target
+                        ? "the fewest springs with E <= %.3g"
+                        : "no point reaches E %.3g: the lowest E",
+                    options.target_error);
+    } else {
+      std::snprintf(rule, sizeof rule, "the fewest springs within 5%% of the lowest E");
+    }
+    char from[240];
+    if (returned >= 0) {
+      std::snprintf(from, sizeof from, "path point %d of %zu (%s)%s", returned + 1,
+                    path.points.size(), rule, refitted ? ", refitted" : "");
+    } else {
+      std::snprintf(from, sizeof from,
+                    "the start: no point of the path passed the final "
+                    "evaluation");
+    }
+    char refused[160] = "";
+    if (details.rejected > 0)
+      std::snprintf(refused, sizeof refused,
+                    "; %d model(s) refused by the final evaluation (no equilibrium from the "
+                    "reference's, or worse than the start)",
+                    details.rejected);
     std::snprintf(
         message, sizeof message,
-        "%s%d springs at E %.3g (path point %d of %zu: %s); the fit on every candidate reached E "
-        "%.3g from %.3g at its start (%s)",
+        "%s%d springs at E %.3g, from %s; the fit on every candidate reached E %.3g from %.3g "
+        "at its start (%s)%s",
         stopped ? (r.stop == StopReason::kTimeLimit ? "time limit reached; the best so far: "
                                                     : "stopped on request; the best so far: ")
                 : "",
-        chosen.springs, std::sqrt(e), details.chosen, path.points.size(),
-        options.max_springs > 0 ? "the lowest E within max_springs"
-        : target > 0.0          ? "the fewest springs within target_error"
-                                : "the fewest springs within 5% of the lowest E",
-        std::sqrt(details.fit_normalized_error), std::sqrt(details.start_normalized_error),
+        PresentSprings(weights), std::sqrt(e), from, std::sqrt(details.fit_normalized_error),
+        std::sqrt(details.start_normalized_error),
         details.started_from_baseline ? "the closed-form baseline"
-                                      : "the training stiffness on every candidate");
+                                      : "the training stiffness on every candidate",
+        refused);
   }
   r.stop_message = message;
   r.continuous = std::move(details);
@@ -411,9 +465,7 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
 }
 
 Strategy ResolvedStrategy(Strategy strategy, const Problem& problem) {
-  if (strategy != Strategy::kDefault) return strategy;
-  return problem.scene().reference.kind == Reference::Kind::kFem ? Strategy::kContinuous
-                                                                 : Strategy::kHybrid;
+  return ResolvedStrategy(strategy, problem.scene().reference.kind);
 }
 
 std::unique_ptr<IdentificationStrategy> MakeStrategy(Strategy strategy, const Problem& problem) {

@@ -60,8 +60,7 @@ class ContinuousStrategy : public IdentificationStrategy {
                            const RunContext& context, RunMonitor& monitor) const override;
 };
 
-// The strategy that runs: `default` becomes continuous on an FEM reference, hybrid otherwise;
-// the others are themselves.
+// ResolvedStrategy (scene.h) for the problem's reference.
 Strategy ResolvedStrategy(Strategy strategy, const Problem& problem);
 std::unique_ptr<IdentificationStrategy> MakeStrategy(Strategy strategy, const Problem& problem);
 

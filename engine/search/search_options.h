@@ -12,14 +12,15 @@
 // Other powers of it and elitism, which the paper does not describe either, are variants
 // for the experiments (bench/search_experiment --roulette-exponent, --elites).
 //
-// Strategy `default` is what the experiments in bench/RESULTS.md measured fastest (issues 3
-// and 4): the direct identification's topology (engine/direct/, topology only) seeds a
-// memetic GA: one elite, binary tournament selection, uniform crossover with probability 0.9,
-// mutation of one gene per child on average (1 / genes), an initial population spread in
-// density over [0.5, 1), and in every generation a local search (single flips, then swaps of
-// nearby springs) on the best new individual. For an MSS reference the seed is the answer and
-// the run ends in generation 0; for noisy data the GA corrects it. Strategy `hybrid` is the
-// same combination by name, fixed whatever `default` becomes.
+// Strategy `hybrid` (and `default` on a reference other than FEM, what the experiments in
+// bench/RESULTS.md measured fastest there, issues 3 and 4): the direct identification's topology
+// (engine/direct/, topology only) seeds a memetic GA: one elite, binary tournament selection,
+// uniform crossover with probability 0.9, mutation of one gene per child on average (1 / genes), an
+// initial population spread in density over [0.5, 1), and in every generation a local search
+// (single flips, then swaps of nearby springs) on the best new individual. For an MSS reference the
+// seed is the answer and the run ends in generation 0; for noisy data the GA corrects it. On an FEM
+// reference `default` is strategy continuous (engine/fit/), which reads none of these settings but
+// max_springs and target_error.
 #pragma once
 
 #include <cstddef>

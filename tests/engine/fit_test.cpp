@@ -336,6 +336,26 @@ TEST(ContinuousStrategy, StoppedAfterItsFirstRowKeepsAModelBetterThanTheBaseline
   EXPECT_EQ(r.trace.size(), 1u);
 }
 
+TEST(ContinuousStrategy, StoppedAtTheFitsLastRowKeepsTheFit) {
+  // The fit's last row is written when the path begins: a stop there keeps the fit's model.
+  const Problem problem = Problem::Build(examples::Make("fem-plate-5x5"));
+  const SearchOptions options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
+  const IdentificationResult whole = RunIdentification(problem, options);
+  ASSERT_GE(whole.trace.size(), 2u);
+  const int last = whole.trace.back().generation;
+  RunContext context;
+  context.on_iteration = [last](const TraceRow& row, const IterationState&) {
+    return row.generation < last;
+  };
+  const IdentificationResult r = RunIdentification(problem, options, context);
+  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  ASSERT_TRUE(r.continuous);
+  ASSERT_EQ(r.continuous->path.size(), 1u);  // the fit's point, no more
+  EXPECT_FALSE(r.evaluation.mechanism);
+  EXPECT_NEAR(r.evaluation.normalized_error, whole.continuous->fit_normalized_error,
+              1e-6 * whole.continuous->fit_normalized_error);
+}
+
 TEST(ContinuousStrategy, SettingsThatDoNotFitTheStrategyAreRefused) {
   Scene s = examples::Make("fem-plate-5x5");
   s.search.identify = Identify::kTopology;

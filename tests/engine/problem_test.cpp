@@ -64,3 +64,35 @@ TEST(Problem, PositionsReferenceMustAgreeWithPrescribedNodes) {
 
 }  // namespace
 }  // namespace springfit
+
+namespace springfit {
+namespace {
+
+// The reference's equilibria of `mss` as a positions scene without a training stiffness.
+Scene AsPositions(const Scene& mss) {
+  const Problem p = Problem::Build(mss);
+  Scene s = mss;
+  s.reference = Reference{};
+  s.reference.kind = Reference::Kind::kPositions;
+  for (const PreparedLoadCase& lc : p.load_cases())
+    s.reference.positions.push_back(mss.rest + lc.reference);
+  s.training_stiffness.reset();
+  return s;
+}
+
+TEST(Problem, APositionsReferenceTakesItsStiffnessFromItsForceBalance) {
+  // Uniform stiffness 7 in the reference: the training springs get 7, not 1.
+  const Scene mss = testing::GridScene(2, 5, 1.0, 7.0);
+  const Problem positions = Problem::Build(AsPositions(mss));
+  EXPECT_NEAR(positions.training_stiffness(), 7.0, 1e-6 * 7.0);
+  // Scaling the loads and the stiffness together leaves the positions: the scale is the data's.
+  const Problem scaled = Problem::Build(AsPositions(testing::GridScene(2, 5, 1.0, 0.02)));
+  EXPECT_NEAR(scaled.training_stiffness(), 0.02, 1e-6 * 0.02);
+  // A given stiffness wins.
+  Scene given = AsPositions(mss);
+  given.training_stiffness = 3.0;
+  EXPECT_EQ(Problem::Build(given).training_stiffness(), 3.0);
+}
+
+}  // namespace
+}  // namespace springfit

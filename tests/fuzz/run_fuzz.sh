@@ -67,13 +67,15 @@ run() {
   grep -E '^stat::(number_of_executed_units|new_units_added)' "$work/log" || true
 }
 
-# The unit tests under AddressSanitizer and UndefinedBehaviorSanitizer, but for the five
-# longest (whole searches repeated to compare traces, every example prepared: 4 of the 5
-# minutes the suite takes instrumented; the Release run covers them, and their code paths
-# run instrumented in the other tests).
+# The unit tests under AddressSanitizer and UndefinedBehaviorSanitizer, but for the seven
+# longest (whole searches repeated to compare traces, every example prepared, whole continuous
+# runs on the kidney and the plate: 80 s and 8 s instrumented; the Release run covers them, and
+# their code paths run instrumented in the other tests).
 slow="Cost.ReferenceTopologyCostsExactlyZeroAndEverySingleFlipCostsMore:Search.ResumingFromASnapshot*"
 slow="$slow:Search.SameTraceAndResultWithOneOrTwoThreads:Search.ScalingTheSceneLeavesTheSearchUnchanged"
 slow="$slow:Examples.EveryExampleBuildsWithAConvergedReference"
+slow="$slow:ContinuousStrategy.ReturnsOnlyAModelTheStandardEvaluationConfirms"
+slow="$slow:ContinuousStrategy.BeatsTheBaselineOnTheFemPlate"
 for tests in engine_tests proto_tests; do
   echo "== $tests under ASan and UBSan"
   "$build/tests/$tests" --gtest_brief=1 --gtest_filter="-$slow" >"$build/$tests.log" 2>&1 || {
