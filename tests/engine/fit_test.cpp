@@ -356,6 +356,21 @@ TEST(ContinuousStrategy, StoppedAtTheFitsLastRowKeepsTheFit) {
               1e-6 * whole.continuous->fit_normalized_error);
 }
 
+TEST(ContinuousStrategy, SameResultWithOneOrTwoThreads) {
+  // The load cases' solves run on the pool: each case has its own state.
+  const Problem problem = Problem::Build(examples::Make("fem-plate-5x5"));
+  const SearchOptions options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
+  RunContext one, two;
+  two.threads = 2;
+  const IdentificationResult a = RunIdentification(problem, options, one);
+  const IdentificationResult b = RunIdentification(problem, options, two);
+  EXPECT_EQ(a.best, b.best);
+  EXPECT_EQ(a.stiffness, b.stiffness);
+  EXPECT_EQ(a.evaluation.normalized_error, b.evaluation.normalized_error);
+  ASSERT_EQ(a.trace.size(), b.trace.size());
+  for (std::size_t i = 0; i < a.trace.size(); ++i) EXPECT_TRUE(a.trace[i].SameSearch(b.trace[i]));
+}
+
 TEST(ContinuousStrategy, SettingsThatDoNotFitTheStrategyAreRefused) {
   Scene s = examples::Make("fem-plate-5x5");
   s.search.identify = Identify::kTopology;
