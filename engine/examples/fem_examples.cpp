@@ -60,6 +60,17 @@ Scene FemScene(const std::string& name, const std::string& description, const Si
   return s;
 }
 
+// A kidney cross-section scene: poisson 0.45, plane strain, mesh edges and 8 nearest
+// neighbours, paper7 tractions on the ends (a band of 0.12 of the extent).
+Scene KidneyScene(const std::string& name, const std::string& description, const SimplexMesh& mesh,
+                  MaterialModel model) {
+  Scene s = FemScene(name, description, mesh, 2, Material{model, kYoung, 0.45}, 8);
+  s.reference.fem.plane = PlaneMode::kStrain;
+  s.reference.fem.plane_given = true;
+  AddLoads(s, mesh, 0.12);
+  return s;
+}
+
 }  // namespace
 
 Scene FemPlate5x5() {
@@ -78,33 +89,21 @@ Scene FemPlate5x5() {
 }
 
 Scene FemKidney2d(bool nonlinear) {
-  const SimplexMesh mesh = KidneyMesh();
-  const MaterialModel model =
-      nonlinear ? MaterialModel::kStVenantKirchhoff : MaterialModel::kLinear;
-  Scene s = FemScene(
+  return KidneyScene(
       nonlinear ? "fem-kidney-2d-nl" : "fem-kidney-2d",
       std::string("kidney cross-section meshed by gmsh (99 nodes, 165 triangles), ") +
           (nonlinear ? "St. Venant-Kirchhoff" : "linear elastic") +
           ", poisson 0.45, plane strain; candidates: mesh edges and 8 nearest neighbours; paper7 "
           "loads as tractions on opposite ends at 5% strain",
-      mesh, 2, Material{model, kYoung, 0.45}, 8);
-  s.reference.fem.plane = PlaneMode::kStrain;
-  s.reference.fem.plane_given = true;
-  AddLoads(s, mesh, 0.12);
-  return s;
+      KidneyMesh(), nonlinear ? MaterialModel::kStVenantKirchhoff : MaterialModel::kLinear);
 }
 
 Scene FemKidney2dFine() {
-  const SimplexMesh mesh = KidneyMeshFine();
-  Scene s = FemScene("fem-kidney-2d-fine",
+  return KidneyScene("fem-kidney-2d-fine",
                      "kidney cross-section meshed finer by gmsh (626 nodes, 1164 triangles), "
                      "linear elastic, poisson 0.45, plane strain; candidates: mesh edges and 8 "
                      "nearest neighbours; paper7 loads as tractions on opposite ends at 5% strain",
-                     mesh, 2, Material{MaterialModel::kLinear, kYoung, 0.45}, 8);
-  s.reference.fem.plane = PlaneMode::kStrain;
-  s.reference.fem.plane_given = true;
-  AddLoads(s, mesh, 0.12);
-  return s;
+                     KidneyMeshFine(), MaterialModel::kLinear);
 }
 
 Scene FemBlock3d() {
