@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Identification on FEM references (issue 16): the default strategy (continuous) on each FEM
 example, against the closed-form baseline, with the time to the first model better than it,
-the sparsity path's ends and the held-out error (bench/RESULTS.md, "Identification on FEM
+the sparsity path's ends, the held-out error and its worst case, the seconds to the model and
+in all (bench/RESULTS.md, "Identification on FEM
 references").
 
     python3 bench/fem_identification.py [--springfit build/client/springfit] [--threads 1]
@@ -31,8 +32,9 @@ def main():
                         help="further options for springfit run")
     args = parser.parse_args()
     print("| scene | genes | response | baseline E | E | springs | first model < baseline | "
-          "fit E (springs) | path: springs at 1.5x E | held-out E (x E) | total s |")
-    print("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+          "fit E (springs) | path: springs at 1.5x E | held-out E (x E) | worst predicted case | "
+          "model s | total s |")
+    print("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|")
     with tempfile.TemporaryDirectory() as tmp:
         for scene in args.scenes:
             out = os.path.join(tmp, "result.json")
@@ -54,10 +56,22 @@ def main():
             smallest = min(near, key=lambda p: p["springs"])
             held = c["held_out_rms_error"]
             held_text = "%.4g (%.2fx)" % (held, held / e) if held is not None else "-"
-            print("| %s | %d | %s | %.4g | %.4g | %d | %s | %.4g (%d) | %d (E %.3g) | %s | %.1f |" % (
-                r["scene"], r["genes"], r["response"], base, e, len(r["springs"]), first_text,
-                fit["rms_error"], fit["springs"], smallest["springs"], smallest["rms_error"],
-                held_text, r["wall_seconds"]))
+            per_case = c["held_out_rms_error_per_case"]
+            worst_text = "-"
+            if per_case:
+                # null: no equilibrium, the worst there is
+                k = max(range(len(per_case)),
+                        key=lambda i: math.inf if per_case[i] is None else per_case[i])
+                worst_text = "%s: %s (%.3g fitted)" % (
+                    r["load_cases"][k]["name"],
+                    "none" if per_case[k] is None else "%.3g" % per_case[k],
+                    math.sqrt(r["load_cases"][k]["normalized_error"]))
+            print("| %s | %d | %s | %.4g | %.4g | %d | %s | %.4g (%d) | %d (E %.3g) | %s | %s | "
+                  "%.1f | %.1f |" % (
+                      r["scene"], r["genes"], r["response"], base, e, len(r["springs"]),
+                      first_text, fit["rms_error"], fit["springs"], smallest["springs"],
+                      smallest["rms_error"], held_text, worst_text, c["model_seconds"],
+                      r["wall_seconds"]))
             sys.stdout.flush()
 
 

@@ -7,6 +7,7 @@
 //   build/bench/fit_bench --response nonlinear examples/fem-kidney-2d.json
 //   build/bench/fit_bench --threads 2 --max-iterations 300 examples/fem-block-3d.json
 //   build/bench/fit_bench --path examples/fem-plate-5x5.json   # with the sparsity path
+//   build/bench/fit_bench --cv 0 0.001 0.01 0.1 examples/fem-kidney-2d.json  # held-out E
 //
 // E is the relative RMS nodal error sqrt(sum |u - u^R|^2 / sum |u^R|^2) over the free nodes of
 // every load case; times are wall seconds of one run on this machine.
@@ -47,12 +48,16 @@ int Main(int argc, char** argv) {
   int max_iterations = StiffnessFitOptions{}.max_iterations;
   int threads = 1;
   bool path_flag = false;
+  std::vector<double> regularizations;
   app.add_option("scenes", files, "FEM scene files")->required();
   app.add_option("--response", response, "linear or nonlinear (default: the scene's)");
   app.add_option("--max-iterations", max_iterations, "trust-region steps per fit");
   app.add_option("--threads", threads, "threads for the load cases' solves");
   app.add_flag("--path", path_flag,
                "also trace the sparsity path and the held-out error of each of its points");
+  app.add_option("--cv", regularizations,
+                 "cross-validate the fit on every candidate over the load cases (HeldOutErrors) "
+                 "at these regularisation strengths");
   CLI11_PARSE(app, argc, argv);
   WorkerPool pool(threads);
   FitContext fit_context;
@@ -82,12 +87,34 @@ int Main(int argc, char** argv) {
     for (std::size_t g = 0; g < start->size(); ++g) edges[g] = (*start)[g] > 0.0;
     t0 = Clock::now();
     const StiffnessFitResult floor =
-        FitStiffness(problem, *start, FitScope{edges, {}}, options, fit_context);
+        FitStiffness(problem, *start, FitScope{edges, {}, {}}, options, fit_context);
     Report("fit on the mesh edges", floor, PresentSprings(floor.weights), Seconds(t0));
     t0 = Clock::now();
     const StiffnessFitResult rich =
-        FitStiffness(problem, *start, FitScope{all, {}}, options, fit_context);
+        FitStiffness(problem, *start, FitScope{all, {}, {}}, options, fit_context);
     Report("fit on all candidates", rich, PresentSprings(rich.weights), Seconds(t0));
+    for (double lambda : regularizations) {
+      // Cross-validation from the start (HeldOutErrors on every candidate): fitted without
+      // case k, judged on case k, with fits of --max-iterations steps.
+      SparsityPathOptions cv;
+      cv.fit = options;
+      cv.fit.regularization = lambda;
+      cv.fit.saliency_probes = 0;
+      cv.held_out_iterations = max_iterations;
+      t0 = Clock::now();
+      const StiffnessFitResult trained =
+          FitStiffness(problem, *start, FitScope{all, {}, {}}, cv.fit, fit_context);
+      const std::vector<double> every(start->size(), 1.0);
+      const auto held_out = HeldOutErrors(problem, every, *start, cv, fit_context);
+      std::printf("  regularization %-8.3g E %-10.4g springs %5d  held-out E %-10.4g %7.2f s\n",
+                  lambda, std::sqrt(trained.normalized_error), PresentSprings(trained.weights),
+                  held_out ? std::sqrt(held_out->normalized_error) : NAN, Seconds(t0));
+      if (held_out) {
+        std::printf("    per case:");
+        for (double e : held_out->per_case) std::printf(" %.3g", std::sqrt(e));
+        std::printf("\n");
+      }
+    }
     if (path_flag) {
       t0 = Clock::now();
       SparsityPathOptions path_options;
@@ -99,7 +126,7 @@ int Main(int argc, char** argv) {
           "steps):\n",
           path.points.size(), Seconds(t0), path_options.refit_iterations);
       for (const PathPoint& point : path.points) {
-        const auto h = HeldOutErrors(problem, point.weights, path_options, fit_context);
+        const auto h = HeldOutErrors(problem, point.weights, *start, path_options, fit_context);
         std::printf("    %5d springs  E %-10.4g held-out E %.4g\n", point.springs,
                     std::sqrt(point.normalized_error), h ? std::sqrt(h->normalized_error) : NAN);
       }

@@ -1,5 +1,7 @@
 #include "client/result_summary.h"
 
+#include <cmath>
+
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -52,7 +54,12 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
     out << "evaluations:       " << r.value("evaluations", 0LL) << " ("
         << r.value("cache_hits", 0LL) << " from the cache)\n";
   }
-  out << "wall time:         " << Format("%.3f", r.value("wall_seconds", 0.0)) << " s\n";
+  out << "wall time:         " << Format("%.3f", r.value("wall_seconds", 0.0)) << " s";
+  if (continuous && r["continuous"].contains("model_seconds")) {
+    out << " (the model at " << Format("%.3f", r["continuous"]["model_seconds"].get<double>())
+        << " s, then its held-out error)";
+  }
+  out << "\n";
   if (r.contains("direct_phase") && r["direct_phase"].is_object()) {
     const proto::Json& phase = r["direct_phase"];
     out << "direct seed:       " << Format("%.3f", phase.value("seconds", 0.0))
@@ -86,9 +93,45 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
           << path.back().value("springs", 0) << " (E " << error(path.back())
           << "); springfit plot --tradeoff draws it\n";
     }
+    const proto::Json reg = c.value("regularization", proto::Json::object());
+    const proto::Json tried = reg.value("tried", proto::Json::array());
+    if (reg.value("strength", 0.0) > 0.0 || !tried.empty()) {
+      out << "regularization:    " << Format("%.3g", reg.value("strength", 0.0));
+      if (!tried.empty()) {
+        out << ", the lowest held-out E of those tried (";
+        for (std::size_t i = 0; i < tried.size(); ++i) {
+          const proto::Json& t = tried[i];
+          out << (i > 0 ? ", " : "") << Format("%.3g", t.value("strength", 0.0)) << ": "
+              << (t["held_out_rms_error"].is_number()
+                      ? Format("%.4g", t["held_out_rms_error"].get<double>())
+                      : std::string("-"));
+        }
+        out << ")";
+      }
+      out << "\n";
+    }
     if (c.contains("held_out_rms_error") && c["held_out_rms_error"].is_number()) {
       out << "held-out E:        " << Format("%.6g", c["held_out_rms_error"].get<double>())
-          << " (each load case predicted by the springs refitted to the others)\n";
+          << " (each load case predicted by the springs fitted to the others)\n";
+      // The case predicted worst (unpredictable: no equilibrium), beside its E when fitted:
+      // the kind of deformation the other cases tell least about.
+      const proto::Json per_case = c.value("held_out_rms_error_per_case", proto::Json::array());
+      const proto::Json cases = r.value("load_cases", proto::Json::array());
+      std::size_t worst = per_case.size();
+      for (std::size_t k = 0; k < per_case.size() && k < cases.size(); ++k) {
+        if (worst < per_case.size() && !per_case[worst].is_number()) break;
+        if (!per_case[k].is_number() ||
+            (worst == per_case.size() || per_case[k].get<double>() > per_case[worst].get<double>()))
+          worst = k;
+      }
+      if (worst < per_case.size() && per_case.size() > 1) {
+        const proto::Json& lc = cases[worst];
+        out << "  worst predicted: '" << lc.value("name", std::string()) << "', E "
+            << (per_case[worst].is_number() ? Format("%.4g", per_case[worst].get<double>())
+                                            : std::string("- (no equilibrium)"))
+            << " (" << Format("%.4g", std::sqrt(lc.value("normalized_error", 0.0)))
+            << " fitted with it): the other cases tell least about its deformation\n";
+      }
     }
   }
   if (r.contains("baseline") && r["baseline"].is_object()) {

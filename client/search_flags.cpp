@@ -42,6 +42,12 @@ void AddSearchFlags(CLI::App* command, SearchFlags& flags) {
                    "Strategy continuous (default on an FEM reference): the fewest springs with "
                    "a relative RMS nodal error E at most this")
       ->check(CLI::PositiveNumber);
+  command->add_option("--regularization", flags.regularization,
+                      "Strategy continuous (default on an FEM reference): pull the stiffness "
+                      "toward the closed-form baseline by this strength (>= 0; 0.01: moving "
+                      "every spring by its own stiffness costs E^2 = 0.01), or auto: the "
+                      "strength with the lowest held-out error (one fit per load case and "
+                      "strength tried)");
 }
 
 void ApplySearchFlags(const SearchFlags& flags, SearchSettings& st) {
@@ -54,11 +60,13 @@ void ApplySearchFlags(const SearchFlags& flags, SearchSettings& st) {
   if (flags.response) st.response = proto::ResponseFromName(*flags.response, "--response");
   if (flags.max_springs) st.max_springs = *flags.max_springs;
   if (flags.target_error) st.target_error = *flags.target_error;
+  if (flags.regularization)
+    st.regularization = proto::RegularizationFromText(*flags.regularization, "--regularization");
 }
 
 void ApplySearchFlags(const SearchFlags& flags, proto::Json& scene) {
   if (!(flags.strategy || flags.identify || flags.generations || flags.time_limit || flags.stall ||
-        flags.response || flags.max_springs || flags.target_error))
+        flags.response || flags.max_springs || flags.target_error || flags.regularization))
     return;
   proto::Json& search = scene["search"];
   if (search.is_null()) search = proto::Json::object();
@@ -76,6 +84,10 @@ void ApplySearchFlags(const SearchFlags& flags, proto::Json& scene) {
         proto::ResponseName(proto::ResponseFromName(*flags.response, "--response"));
   if (flags.max_springs) search["max_springs"] = *flags.max_springs;
   if (flags.target_error) search["target_error"] = *flags.target_error;
+  if (flags.regularization) {
+    const auto r = proto::RegularizationFromText(*flags.regularization, "--regularization");
+    search["regularization"] = r.automatic ? proto::Json("auto") : proto::Json(r.strength);
+  }
 }
 
 }  // namespace springfit::cli

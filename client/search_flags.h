@@ -22,6 +22,7 @@ struct SearchFlags {
   std::optional<int> stall;
   std::optional<std::string> response;
   std::optional<int> max_springs;
+  std::optional<std::string> regularization;
   std::optional<double> target_error;
 };
 

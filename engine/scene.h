@@ -177,6 +177,14 @@ struct SearchSettings {
   std::optional<int> max_springs;
   // ... or the fewest springs whose relative RMS nodal error E is at most this (> 0).
   std::optional<double> target_error;
+  // Strategy continuous: the stiffness fits' pull toward the closed-form baseline
+  // (StiffnessFitOptions::regularization, >= 0), or `automatic`: chosen among
+  // kRegularizationChoices by the held-out error. nullopt: 0, none.
+  struct Regularization {
+    bool automatic = false;
+    double strength = 0.0;
+  };
+  std::optional<Regularization> regularization;
   // The search stops when the normalised error reaches this value (0 = exact recovery,
   // judged within the solver's relative tolerance). Unit-free, >= 0.
   double target_normalized_error = 0.0;

@@ -294,6 +294,15 @@ void CheckSearch(const SearchSettings& s, Reference::Kind reference) {
                      "chooses a point of the sparsity path: it needs strategy continuous (or "
                      "default on an FEM reference)");
   }
+  if (s.regularization && !continuous) {
+    throw InputError("search.regularization",
+                     "regularises the continuous fit: it needs strategy continuous (or default on "
+                     "an FEM reference)");
+  }
+  if (s.regularization && !s.regularization->automatic &&
+      !(s.regularization->strength >= 0.0 && std::isfinite(s.regularization->strength))) {
+    throw InputError("search.regularization", "must be \"auto\" or a finite number >= 0");
+  }
   if (s.max_springs && *s.max_springs < 1) {
     throw InputError("search.max_springs", "must be >= 1, got " + std::to_string(*s.max_springs));
   }

@@ -2,6 +2,9 @@
 
 #include "engine/input_error.h"
 
+#include <cmath>
+#include <stdexcept>
+
 namespace springfit::proto {
 
 std::string_view CandidateKindName(CandidateSpec::Kind kind) {
@@ -154,6 +157,24 @@ Response ResponseFromName(const std::string& name, const std::string& path) {
     if (ResponseName(r) == name) return r;
   }
   throw InputError(path, "unknown value '" + name + "' (expected linear or nonlinear)");
+}
+
+SearchSettings::Regularization RegularizationFromText(const std::string& text,
+                                                      const std::string& path) {
+  SearchSettings::Regularization r;
+  if (text == "auto") {
+    r.automatic = true;
+    return r;
+  }
+  std::size_t used = 0;
+  try {
+    r.strength = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() || !(r.strength >= 0.0 && std::isfinite(r.strength)))
+    throw InputError(path, "must be \"auto\" or a finite number >= 0, got '" + text + "'");
+  return r;
 }
 
 std::string_view StopReasonName(StopReason reason) {

@@ -46,6 +46,10 @@ std::string_view ResponseName(Response response);
 // InputError(path, "unknown value 'x' (expected linear or nonlinear)").
 Response ResponseFromName(const std::string& name, const std::string& path);
 
+// search.regularization: "auto", or a number >= 0 (as JSON, or as a command line's text).
+SearchSettings::Regularization RegularizationFromText(const std::string& text,
+                                                      const std::string& path);
+
 // "default, paper, direct, hybrid or continuous": the accepted names, for messages.
 std::string StrategyNames();
 std::vector<Strategy> AllStrategies();

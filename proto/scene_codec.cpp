@@ -262,7 +262,7 @@ void ReadSearch(const Json& v, SearchSettings& st) {
   ExpectKeys(v, path,
              {"strategy", "identify", "response", "seed", "population", "crossover_probability",
               "mutation_probability", "max_generations", "target_normalized_error", "max_seconds",
-              "stall_generations", "max_springs", "target_error"});
+              "stall_generations", "max_springs", "target_error", "regularization"});
   if (v.contains("strategy")) {
     st.strategy = StrategyFromName(ReadString(v["strategy"], JoinPath(path, "strategy")),
                                    JoinPath(path, "strategy"));
@@ -297,6 +297,17 @@ void ReadSearch(const Json& v, SearchSettings& st) {
     st.max_springs = ReadInt(v["max_springs"], JoinPath(path, "max_springs"));
   if (v.contains("target_error"))
     st.target_error = ReadNumber(v["target_error"], JoinPath(path, "target_error"));
+  if (v.contains("regularization")) {
+    const Json& r = v["regularization"];
+    const std::string where = JoinPath(path, "regularization");
+    if (r.is_string()) {
+      st.regularization = RegularizationFromText(r.get<std::string>(), where);
+    } else {
+      st.regularization = SearchSettings::Regularization{false, ReadNumber(r, where)};
+      if (!(st.regularization->strength >= 0.0))
+        throw InputError(where, "must be \"auto\" or a finite number >= 0");
+    }
+  }
   if (v.contains("target_normalized_error")) {
     st.target_normalized_error =
         ReadNumber(v["target_normalized_error"], JoinPath(path, "target_normalized_error"));
@@ -502,6 +513,10 @@ Json SceneToJson(const Scene& s) {
   if (st.stall_generations) sj["stall_generations"] = *st.stall_generations;
   if (st.max_springs) sj["max_springs"] = *st.max_springs;
   if (st.target_error) sj["target_error"] = *st.target_error;
+  if (st.regularization) {
+    sj["regularization"] =
+        st.regularization->automatic ? Json("auto") : Json(st.regularization->strength);
+  }
   if (st.target_normalized_error != d.target_normalized_error)
     sj["target_normalized_error"] = st.target_normalized_error;
   if (!sj.empty()) j["search"] = std::move(sj);

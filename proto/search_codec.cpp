@@ -33,6 +33,7 @@ Json SearchOptionsToJson(const SearchOptions& o) {
   j["target_normalized_error"] = o.target_normalized_error;
   j["max_springs"] = o.max_springs;
   j["target_error"] = o.target_error;
+  j["regularization"] = o.choose_regularization ? Json("auto") : Json(o.regularization);
   j["selection"] = o.selection == SearchOptions::Selection::kRoulette ? "roulette" : "tournament";
   if (o.selection == SearchOptions::Selection::kTournament)
     j["tournament_size"] = o.tournament_size;
@@ -180,6 +181,7 @@ Json ContinuousDetailsToJson(const IdentificationResult::Continuous& c) {
   j["start_rms_error"] = RmsOrNull(c.start_normalized_error);
   j["fit_rms_error"] = RmsOrNull(c.fit_normalized_error);
   j["rejected"] = c.rejected;
+  j["model_seconds"] = c.model_seconds;
   j["steps"] = c.steps;
   j["solves"] = c.solves;
   j["held_out_rms_error"] =
@@ -187,6 +189,16 @@ Json ContinuousDetailsToJson(const IdentificationResult::Continuous& c) {
   Json per_case = Json::array();
   for (double e : c.held_out_per_case) per_case.push_back(RmsOrNull(e));
   j["held_out_rms_error_per_case"] = std::move(per_case);
+  Json regularization;
+  regularization["strength"] = c.regularization;
+  Json tried = Json::array();
+  for (std::size_t i = 0; i < c.regularization_strengths.size(); ++i) {
+    tried.push_back({{"strength", c.regularization_strengths[i]},
+                     {"held_out_rms_error", RmsOrNull(c.regularization_held_out[i])}});
+  }
+  regularization["chosen_by"] = tried.empty() ? "setting" : "held_out";
+  regularization["tried"] = std::move(tried);
+  j["regularization"] = std::move(regularization);
   return j;
 }
 

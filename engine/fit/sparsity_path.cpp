@@ -48,7 +48,7 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
           : options.fit.max_stiffness_ratio * *std::max_element(start.begin(), start.end());
   StiffnessFitOptions first = options.fit;
   first.upper_bound = path.upper_bound;
-  path.fit = FitStiffness(problem, start, FitScope{usable, {}}, first, context);
+  path.fit = FitStiffness(problem, start, FitScope{usable, {}, {}}, first, context);
   path.solves = path.fit.solves;
   path.steps = path.fit.iterations;
   if (!path.fit.feasible) return path;
@@ -109,7 +109,7 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
           trial_start[removable[i]] = 0.0;
         }
         StiffnessFitResult fit =
-            FitStiffness(problem, trial_start, FitScope{trial_allowed, {}}, refit, quiet);
+            FitStiffness(problem, trial_start, FitScope{trial_allowed, {}, start}, refit, quiet);
         path.solves += fit.solves;
         path.steps += fit.iterations;
         if (fit.interrupted) throw Interrupted();  // a half-done refit is not a path point
@@ -143,6 +143,7 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
 
 std::optional<HeldOutError> HeldOutErrors(const Problem& problem,
                                           const std::vector<double>& weights,
+                                          const std::vector<double>& start,
                                           const SparsityPathOptions& path_options,
                                           const FitContext& context) {
   const std::size_t cases = problem.load_cases().size();
@@ -152,6 +153,14 @@ std::optional<HeldOutError> HeldOutErrors(const Problem& problem,
   if (cases < 2) return std::nullopt;
   std::vector<bool> support(weights.size());
   for (std::size_t g = 0; g < weights.size(); ++g) support[g] = weights[g] > 0.0;
+  // Every spring of the model present at the start (those the start lacks at its typical
+  // stiffness): under the linear response whether a model is a mechanism depends on its
+  // springs alone, so the model's equilibria make the start's.
+  std::vector<double> fold_start(weights.size(), 0.0);
+  const double typical = MedianPositive(start);
+  for (std::size_t g = 0; g < weights.size(); ++g) {
+    if (support[g]) fold_start[g] = g < start.size() && start[g] > 0.0 ? start[g] : typical;
+  }
   CostOptions cost_options;
   cost_options.solve_cases_of_mechanisms = true;  // judge case k whatever the others say
   CostFunction cost(problem, cost_options);
@@ -164,7 +173,7 @@ std::optional<HeldOutError> HeldOutErrors(const Problem& problem,
     std::vector<bool> fitted(cases, true);
     fitted[k] = false;
     const StiffnessFitResult fit =
-        FitStiffness(problem, weights, FitScope{support, fitted}, options, quiet);
+        FitStiffness(problem, fold_start, FitScope{support, fitted, start}, options, quiet);
     if (fit.interrupted) throw Interrupted();
     const Evaluation e = cost.Evaluate(problem.SpringsOfWeights(fit.weights));
     if (e.interrupted) throw Interrupted();
@@ -181,6 +190,30 @@ std::optional<HeldOutError> HeldOutErrors(const Problem& problem,
   }
   out.normalized_error = numerator / denominator;
   return out;
+}
+
+std::optional<RegularizationChoice> ChooseRegularization(const Problem& problem,
+                                                         const std::vector<double>& start,
+                                                         const std::vector<bool>& usable,
+                                                         const SparsityPathOptions& options,
+                                                         const FitContext& context) {
+  std::vector<double> every(start.size(), 0.0);
+  for (std::size_t g = 0; g < start.size(); ++g) every[g] = usable[g] ? 1.0 : 0.0;
+  RegularizationChoice choice;
+  double lowest = std::numeric_limits<double>::infinity();
+  for (const double strength : kRegularizationChoices) {
+    SparsityPathOptions regularised = options;
+    regularised.fit.regularization = strength;
+    const auto held_out = HeldOutErrors(problem, every, start, regularised, context);
+    if (!held_out) return std::nullopt;
+    choice.strengths.push_back(strength);
+    choice.held_out_normalized_errors.push_back(held_out->normalized_error);
+    if (held_out->normalized_error < lowest) {
+      lowest = held_out->normalized_error;
+      choice.chosen = strength;
+    }
+  }
+  return choice;
 }
 
 std::size_t SelectPathPoint(const SparsityPath& path, int max_springs,

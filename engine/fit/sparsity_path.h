@@ -40,9 +40,10 @@ struct SparsityPathOptions {
   // is a refit.
   double max_error_growth = 1.5;
   int max_retries = 2;
-  // Steps of each held-out refit (HeldOutErrors: from the model judged, a few steps reach its
-  // optimum on the other cases).
-  int held_out_iterations = 10;
+  // Steps of each held-out fit (HeldOutErrors). Each starts from the start, not from the
+  // model judged (whose weights have seen the case left out): fewer steps than a full fit
+  // make the held-out error, if anything, pessimistic.
+  int held_out_iterations = 50;
   // The path ends once E passes this many times the fit's E (> 1; a caller's size or error
   // target takes it further): far enough for the trade-off near the best models, which is
   // where the choice is made, without spending on models no one would pick.
@@ -83,19 +84,43 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
                                double stop_normalized_error, int min_springs,
                                const FitContext& context = {}, const PathProgress& progress = {});
 
-// Cross-validation over the load cases: for each case k, the model's springs refitted (from
-// `weights`, on its own support) to the other cases, then judged on case k. Per case the
-// normalised error sum |u - u^R|^2 / sum |u^R|^2 over case k's free nodes (infinity where the
-// refitted model has no equilibrium in case k); nullopt with fewer than two cases. The refits
-// take `options.held_out_iterations` steps of `options.fit` (no saliency). Throws Interrupted.
+// Cross-validation over the load cases: for each case k, the model's springs (the support of
+// `weights`) fitted from `start` to the other cases, then judged on case k. Starting from
+// `start` (the closed-form baseline), not from `weights`, keeps case k out of the fitted
+// stiffness; only the choice of springs has seen it. Per case the normalised error
+// sum |u - u^R|^2 / sum |u^R|^2 over case k's free nodes (infinity where the fitted model has no
+// equilibrium in case k); nullopt with fewer than two cases. The fits take
+// `options.held_out_iterations` steps of `options.fit` (no saliency). Throws Interrupted.
 struct HeldOutError {
   std::vector<double> per_case;
   double normalized_error = 0.0;  // over all cases: sum of their errors' numerators / norms
 };
 std::optional<HeldOutError> HeldOutErrors(const Problem& problem,
                                           const std::vector<double>& weights,
+                                          const std::vector<double>& start,
                                           const SparsityPathOptions& options,
                                           const FitContext& context = {});
+
+// The regularisation strengths `search.regularization: auto` chooses among
+// (StiffnessFitOptions::regularization): none, and pulls toward the start whose E^2 cost is
+// 0.1%, 1% and 10% of the mean square relative change.
+inline constexpr double kRegularizationChoices[] = {0.0, 1e-3, 1e-2, 1e-1};
+
+// Each strength's held-out error: the fit on every usable candidate (all present at the
+// start, those `start` lacks at its median), cross-validated over the load cases as in
+// HeldOutErrors, regularised toward `start`. `chosen` is the strength with the lowest held-out
+// error (the weaker on a tie). One fit per load case and strength: the dearest part of a run
+// on a large scene. nullopt with fewer than two cases. Throws Interrupted.
+struct RegularizationChoice {
+  double chosen = 0.0;
+  std::vector<double> strengths;
+  std::vector<double> held_out_normalized_errors;  // per strength
+};
+std::optional<RegularizationChoice> ChooseRegularization(const Problem& problem,
+                                                         const std::vector<double>& start,
+                                                         const std::vector<bool>& usable,
+                                                         const SparsityPathOptions& options,
+                                                         const FitContext& context = {});
 
 // The point to return: with `max_springs` > 0, the lowest E with at most that many springs
 // (the smallest model when none has); else with `target_normalized_error` > 0, the fewest

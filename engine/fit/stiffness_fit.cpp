@@ -208,6 +208,8 @@ class ResponseState {
   std::int64_t solves_ = 0;
 };
 
+}  // namespace
+
 double MedianPositive(const std::vector<double>& w) {
   std::vector<double> positive;
   for (double x : w) {
@@ -218,8 +220,6 @@ double MedianPositive(const std::vector<double>& w) {
   std::nth_element(positive.begin(), mid, positive.end());
   return *mid;
 }
-
-}  // namespace
 
 int PresentSprings(const std::vector<double>& weights) {
   return static_cast<int>(
@@ -244,6 +244,8 @@ void StiffnessFitOptions::Validate(const std::string& owner) const {
                 "0 < value < infinity");
   check.Require(initial_radius > 0.0 && initial_radius <= max_radius, "initial_radius",
                 initial_radius, "0 < value <= max_radius");
+  check.Require(regularization >= 0.0 && std::isfinite(regularization), "regularization",
+                regularization, "0 <= value < infinity");
 }
 
 StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double>& start,
@@ -274,8 +276,29 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
         std::numeric_limits<double>::infinity();
     return result;
   }
-  double phi = 0.5 * state.residual().squaredNorm();
-  result.initial_normalized_error = 2.0 * phi / norm2;
+  // The regularisation: 1/2 mu sum_j ((w_j - p_j) / s_j)^2 over the usable genes (those held
+  // at 0 add a constant), mu scaled so that its E^2 is `regularization` x the mean square.
+  std::vector<double> prior = scope.prior.empty() ? w : scope.prior;
+  prior.resize(static_cast<std::size_t>(genes), 0.0);
+  const double mu = options.regularization * norm2 / std::max(genes, 1);
+  Vector curvature = Vector::Zero(genes);  // mu / s_j^2 on the usable genes
+  if (mu > 0.0) {
+    const double floor = options.scale_floor * MedianPositive(prior);
+    for (int g = 0; g < genes; ++g) {
+      if (usable[g]) curvature[g] = mu / std::pow(std::max(prior[g], floor), 2);
+    }
+  }
+  const auto penalty = [&](const std::vector<double>& x) {
+    double sum = 0.0;
+    if (mu > 0.0) {
+      for (int g = 0; g < genes; ++g) sum += curvature[g] * (x[g] - prior[g]) * (x[g] - prior[g]);
+    }
+    return 0.5 * sum;
+  };
+  // data_phi = 1/2 |r|^2 is what E reports; phi = data_phi + the penalty is what is minimised.
+  double data_phi = 0.5 * state.residual().squaredNorm();
+  double phi = data_phi + penalty(w);
+  result.initial_normalized_error = 2.0 * data_phi / norm2;
 
   double radius = options.initial_radius;
   int small_decreases = 0;
@@ -290,13 +313,14 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
     state.ApplyInverseTangent(t);  // J S v = H^-1 A S v
     state.ApplyInverseTangent(t);  // the adjoint: J^T y = A^T H^-1 y
     out = scale.cwiseProduct(fb.a.transpose() * t);
+    if (mu > 0.0) out += scale.cwiseProduct(curvature).cwiseProduct(sv);
     for (int g = 0; g < genes; ++g) {
       if (!free[g]) out[g] = 0.0;
     }
   };
 
   try {
-    while (result.iterations < options.max_iterations && 2.0 * phi / norm2 > kExactError) {
+    while (result.iterations < options.max_iterations && 2.0 * data_phi / norm2 > kExactError) {
       if (interruption && interruption->Check()) throw Interrupted();
       ++result.iterations;
       fb = AssembleForceBalance(problem, &state.displacements());
@@ -304,6 +328,9 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
       t = state.residual();
       state.ApplyInverseTangent(t);
       gradient = fb.a.transpose() * t;
+      if (mu > 0.0) {
+        for (int g = 0; g < genes; ++g) gradient[g] += curvature[g] * (w[g] - prior[g]);
+      }
       // Weight g moves in units of s_g = max(w_g, scale_floor x the median weight): the trust
       // region bounds each weight's relative change, so a step cannot take a spring to 0 in one
       // stride unless the model asks for it, and an absent spring enters at a typical stiffness.
@@ -368,7 +395,7 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
       };
       const std::vector<Vector> accepted_u = state.displacements();
       // Tries w + S zs: its f, and whether it has an equilibrium. The state is then the trial's.
-      double trial_phi = std::numeric_limits<double>::infinity();
+      double trial_phi = std::numeric_limits<double>::infinity(), trial_data = trial_phi;
       // Set exactly to a bound (rounding must not leave a spring at 1e-17 of itself).
       std::vector<bool> leaves(static_cast<std::size_t>(genes), false);
       std::vector<bool> caps(static_cast<std::size_t>(genes), false);
@@ -380,8 +407,9 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
                                  : std::clamp(w[g] + scale[g] * zs[g], 0.0, upper);
         }
         const bool feasible = state.Evaluate(trial);
-        trial_phi = feasible ? 0.5 * state.residual().squaredNorm()
-                             : std::numeric_limits<double>::infinity();
+        trial_data = feasible ? 0.5 * state.residual().squaredNorm()
+                              : std::numeric_limits<double>::infinity();
+        trial_phi = trial_data + penalty(trial);
         return feasible;
       };
       // First the step projected onto the bounds (springs whose weight it takes below 0 leave).
@@ -432,10 +460,11 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
         small_decreases = actual < options.relative_tolerance * phi ? small_decreases + 1 : 0;
         w = trial;
         phi = trial_phi;
+        data_phi = trial_data;
         if (rho > 0.75 && step >= 0.99 * radius)
           radius = std::min(2.0 * radius, options.max_radius);
         if (rho < 0.25) radius = 0.25 * step;
-        if (context.on_step) context.on_step(w, 2.0 * phi / norm2, result.accepted);
+        if (context.on_step) context.on_step(w, 2.0 * data_phi / norm2, result.accepted);
         if (small_decreases >= 2) {
           result.converged = true;
           break;
@@ -454,10 +483,10 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
   } catch (const Interrupted&) {
     result.interrupted = true;  // w and phi are the last accepted step's
   }
-  if (2.0 * phi / norm2 <= kExactError) result.converged = true;
+  if (2.0 * data_phi / norm2 <= kExactError) result.converged = true;
 
   result.weights = w;
-  result.normalized_error = 2.0 * phi / norm2;
+  result.normalized_error = 2.0 * data_phi / norm2;
   result.solves = state.solves();
   if (result.interrupted || options.saliency_probes == 0) return result;
   // Saliency (optimal brain damage, LeCun, Denker and Solla 1990): at an optimum the gradient

@@ -56,6 +56,14 @@ struct StiffnessFitOptions {
   // Weights are bounded above by this times the largest weight of the start: beyond, a spring
   // is rigid for the data and the displacements stop responding to it.
   double max_stiffness_ratio = 1e4;
+  // Tikhonov regularisation toward the prior (FitScope::prior): the fit minimises
+  //   E^2 + regularization x mean_j ((w_j - p_j) / s_j)^2,
+  // s_j = max(p_j, scale_floor x the prior's median positive weight), the mean over every
+  // gene. Dimensionless: 0.01 means that moving every spring by its own prior stiffness costs
+  // as much as E^2 = 0.01. It trades fit on the load cases seen for fit on those not seen
+  // (the closed-form prior knows the material is isotropic); its strength is chosen by the
+  // held-out error (sparsity_path.h, ChooseRegularization). 0: none.
+  double regularization = 0.0;
 
   // Throws std::invalid_argument naming the field, its value and the rule it breaks.
   void Validate(const std::string& owner = "StiffnessFitOptions") const;
@@ -64,7 +72,8 @@ struct StiffnessFitOptions {
 struct StiffnessFitResult {
   std::vector<double> weights;  // per gene, >= 0 (0 = absent)
   bool feasible = true;         // false: the start has no equilibrium; weights are the start
-  // sum |u^M - u^R|^2 / sum |u^R|^2 over the fitted cases, at the result
+  // sum |u^M - u^R|^2 / sum |u^R|^2 over the fitted cases, at the result (the data alone,
+  // without the regularisation's term)
   double normalized_error = 0.0;
   double initial_normalized_error = 0.0;  // at the start
   int iterations = 0;                     // steps tried
@@ -85,13 +94,17 @@ using FitStepCallback = std::function<void(const std::vector<double>& weights,
 
 // What a fit sees: `usable[g]` false holds gene g at 0; `cases[k]` false leaves load case k
 // out of f (empty: every case), to judge the model on it afterwards (cross-validation).
+// `prior` is what the regularisation pulls toward (empty: the start).
 struct FitScope {
   std::vector<bool> usable;
   std::vector<bool> cases;
+  std::vector<double> prior;
 };
 
 // The springs present (weight > 0) in per-gene weights.
 int PresentSprings(const std::vector<double>& weights);
+// The median of the positive weights (1 when there is none).
+double MedianPositive(const std::vector<double>& weights);
 
 // How a fit runs: where it checks for a stop, on which threads, whom it tells.
 struct FitContext {

@@ -64,6 +64,14 @@ struct IdentificationResult {
     // load case or when the run was stopped before it.
     std::optional<double> held_out_normalized_error;
     std::vector<double> held_out_per_case;
+    // The fits' regularisation toward the start (StiffnessFitOptions::regularization), and
+    // when `search.regularization` was `auto` the strengths tried with their held-out errors
+    // (sparsity_path.h, ChooseRegularization; empty otherwise).
+    double regularization = 0.0;
+    // Wall seconds from the run's start to the returned model, before its held-out error.
+    double model_seconds = 0.0;
+    std::vector<double> regularization_strengths;
+    std::vector<double> regularization_held_out;
   };
   std::optional<Continuous> continuous;
   // What the load cases can and cannot tell apart, analysed before the run's clock starts.

@@ -210,7 +210,7 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
   r.trace = context.trace;
   const auto start_time = std::chrono::steady_clock::now();
   const int genes = problem.gene_count();
-  const SparsityPathOptions path_options;
+  SparsityPathOptions path_options;
 
   // The start: the closed-form baseline where it is a model of the candidates.
   IdentificationResult::Continuous details;
@@ -220,6 +220,27 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
   details.started_from_baseline = start.has_value();
   if (!start)
     start = std::vector<double>(static_cast<std::size_t>(genes), problem.training_stiffness());
+
+  std::unique_ptr<WorkerPool> own_pool;
+  WorkerPool* pool = PoolOf(context, own_pool);
+  const FitContext quiet{&monitor.interruption(), pool, {}};
+  std::vector<bool> usable(static_cast<std::size_t>(genes), true);
+  // The regularisation: the setting's, or the one whose held-out error is lowest.
+  path_options.fit.regularization = options.regularization;
+  bool stopped_choosing = false;
+  if (options.choose_regularization) {
+    ClockPhase(monitor, "regularization", std::chrono::steady_clock::now());
+    try {
+      if (const auto choice = ChooseRegularization(problem, *start, usable, path_options, quiet)) {
+        path_options.fit.regularization = choice->chosen;
+        details.regularization_strengths = choice->strengths;
+        details.regularization_held_out = choice->held_out_normalized_errors;
+      }
+    } catch (const Interrupted&) {
+      stopped_choosing = true;  // before any fit: the start is returned
+    }
+  }
+  details.regularization = path_options.fit.regularization;
 
   // Progress: beats carry the error of the last accepted step; trace rows follow the first fit.
   double current_error = std::numeric_limits<double>::quiet_NaN();
@@ -282,18 +303,17 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
     if (cancelled) throw Interrupted();  // the path so far stands
   };
 
-  std::unique_ptr<WorkerPool> own_pool;
-  WorkerPool* pool = PoolOf(context, own_pool);
   const FitContext fit_context{&monitor.interruption(), pool, on_step};
-  const FitContext quiet{&monitor.interruption(), pool, {}};
 
   // Sizes and errors: a size limit traces the path at least that far.
   const double target = options.target_error * options.target_error;
   const double stop = options.max_springs > 0 ? std::numeric_limits<double>::infinity() : target;
-  std::vector<bool> usable(static_cast<std::size_t>(genes), true);
-  SparsityPath path = TraceSparsityPath(problem, *start, usable, path_options, stop,
-                                        options.max_springs, fit_context, on_point);
-  if (path.points.empty() && details.started_from_baseline) {
+  SparsityPath path;
+  if (!stopped_choosing) {
+    path = TraceSparsityPath(problem, *start, usable, path_options, stop, options.max_springs,
+                             fit_context, on_point);
+  }
+  if (path.points.empty() && details.started_from_baseline && !stopped_choosing) {
     // The baseline has no equilibrium (a nonlinear response at a large load): the training
     // stiffness on every candidate instead.
     details.started_from_baseline = false;
@@ -303,7 +323,7 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
   }
   details.steps = path.steps;
   details.solves = path.solves;
-  bool stopped = path.interrupted || cancelled;
+  bool stopped = path.interrupted || cancelled || stopped_choosing;
   std::vector<double> weights = *start;
   // Where the returned model comes from: a path point (refitted, or as the path left it), or
   // the start (index -1).
@@ -327,7 +347,7 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
         refit_options.upper_bound = path.upper_bound;
         refit_options.saliency_probes = 0;
         const StiffnessFitResult refit =
-            FitStiffness(problem, weights, FitScope{support, {}}, refit_options, quiet);
+            FitStiffness(problem, weights, FitScope{support, {}, *start}, refit_options, quiet);
         details.steps += refit.iterations;
         details.solves += refit.solves;
         if (refit.feasible) {
@@ -375,12 +395,13 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
     r.evaluation = cost.Evaluate(problem.SpringsOfWeights(weights));
   }
   details.chosen = returned;
-  // The returned model's generalisation: each load case predicted by its springs refitted to
+  details.model_seconds = SecondsSince(start_time);
+  // The returned model's generalisation: each load case predicted by its springs fitted to
   // the others.
   if (!stopped && !path.points.empty()) {
     ClockPhase(monitor, "held_out", std::chrono::steady_clock::now());
     try {
-      if (const auto held_out = HeldOutErrors(problem, weights, path_options, quiet)) {
+      if (const auto held_out = HeldOutErrors(problem, weights, *start, path_options, quiet)) {
         details.held_out_normalized_error = held_out->normalized_error;
         details.held_out_per_case = held_out->per_case;
       }
@@ -404,7 +425,15 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
            : target > 0.0 && e <= target ? StopReason::kTargetReached
                                          : StopReason::kCompleted;
   char message[512];
-  if (path.points.empty()) {
+  if (stopped_choosing) {
+    std::snprintf(message, sizeof message,
+                  "%s while the regularisation was chosen, before any fit: the start (%s) at E "
+                  "%.3g",
+                  r.stop == StopReason::kTimeLimit ? "time limit reached" : "stopped on request",
+                  details.started_from_baseline ? "the closed-form baseline"
+                                                : "the training stiffness on every candidate",
+                  std::sqrt(e));
+  } else if (path.points.empty()) {
     std::snprintf(message, sizeof message,
                   "no model with an equilibrium in every load case to start from (the start is a "
                   "mechanism or does not converge)%s",

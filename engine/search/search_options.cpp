@@ -40,6 +40,8 @@ void SearchOptions::Validate() const {
   check.Require(max_springs >= 0, "max_springs", max_springs, "value >= 0 (0: no limit)");
   check.Require(target_error >= 0.0 && std::isfinite(target_error), "target_error", target_error,
                 "0 <= value < infinity (0: none)");
+  check.Require(regularization >= 0.0 && std::isfinite(regularization), "regularization",
+                regularization, "0 <= value < infinity (0: none)");
   check.Require(cache_capacity >= 1, "cache_capacity", static_cast<double>(cache_capacity),
                 "value >= 1");
 }
@@ -78,6 +80,10 @@ SearchOptions ResolveSearchOptions(const SearchSettings& settings, int genes) {
   if (settings.stall_generations) o.stall_generations = *settings.stall_generations;
   if (settings.max_springs) o.max_springs = *settings.max_springs;
   if (settings.target_error) o.target_error = *settings.target_error;
+  if (settings.regularization) {
+    o.choose_regularization = settings.regularization->automatic;
+    o.regularization = settings.regularization->strength;
+  }
   return o;
 }
 

@@ -106,6 +106,11 @@ struct SearchOptions {
   // within 5% of the lowest E.
   int max_springs = 0;
   double target_error = 0.0;
+  // Strategy continuous: the stiffness fits' regularisation toward the start
+  // (StiffnessFitOptions::regularization), or with `choose_regularization` the one of
+  // kRegularizationChoices whose held-out error is lowest.
+  double regularization = 0.0;
+  bool choose_regularization = false;
 
   // Throws std::invalid_argument naming the field, its value and the rule it breaks.
   void Validate() const;

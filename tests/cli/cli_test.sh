@@ -241,6 +241,31 @@ expect_exit 2 "plot tradeoff without a path" "$sf" plot --tradeoff "$tmp/result.
 grep -q "has no sparsity path" "$tmp/err" || fail "tradeoff names what is missing: $(cat "$tmp/err")"
 expect_exit 2 "max-springs with hybrid" "$sf" run "$src/examples/paper-iso-5x5.json" --strategy hybrid --max-springs 5
 grep -q "search.max_springs: chooses a point of the sparsity path" "$tmp/err" || fail "max-springs needs continuous: $(cat "$tmp/err")"
+# The regularisation: auto cross-validates each strength and runs with the lowest held-out E.
+expect_exit 0 "run regularization auto" "$sf" run "$src/examples/fem-plate-5x5.json" --regularization auto -o "$tmp/regularized.json"
+grep -q "^regularization:    .*, the lowest held-out E of those tried (0: .*, 0.001: .*, 0.01: .*, 0.1: " "$tmp/out" || fail "run prints the regularisation: $(cat "$tmp/out")"
+grep -q "^  worst predicted: 'stretch +x'" "$tmp/out" || fail "run names the worst predicted case: $(cat "$tmp/out")"
+python3 - "$tmp/regularized.json" <<'PY' || fail "regularization result: $(head -c 300 "$tmp/regularized.json")"
+import json, sys
+r = json.load(open(sys.argv[1]))
+g = r["continuous"]["regularization"]
+assert g["chosen_by"] == "held_out" and [t["strength"] for t in g["tried"]] == [0, 0.001, 0.01, 0.1], g
+best = min(g["tried"], key=lambda t: t["held_out_rms_error"])
+assert g["strength"] == best["strength"], g
+assert r["options"]["regularization"] == "auto" and r["scene_definition"]["search"]["regularization"] == "auto"
+PY
+expect_exit 0 "run regularization 0.01" "$sf" run "$src/examples/fem-plate-5x5.json" --regularization 0.01 -q -o "$tmp/regularized.json"
+python3 - "$tmp/regularized.json" "$tmp/continuous.json" <<'PY' || fail "a set regularisation: $(head -c 300 "$tmp/regularized.json")"
+import json, sys
+r = json.load(open(sys.argv[1]))
+g = r["continuous"]["regularization"]
+assert g == {"strength": 0.01, "chosen_by": "setting", "tried": []}, g
+assert r["continuous"]["fit_rms_error"] > json.load(open(sys.argv[2]))["continuous"]["fit_rms_error"]
+PY
+expect_exit 2 "bad regularization" "$sf" run "$src/examples/fem-plate-5x5.json" --regularization strong
+grep -q -- "--regularization: must be \"auto\" or a finite number >= 0, got 'strong'" "$tmp/err" || fail "regularization names the value: $(cat "$tmp/err")"
+expect_exit 2 "regularization with hybrid" "$sf" run "$src/examples/paper-iso-5x5.json" --strategy hybrid --regularization 0.1
+grep -q "search.regularization: regularises the continuous fit" "$tmp/err" || fail "regularization needs continuous: $(cat "$tmp/err")"
 expect_exit 2 "bad response" "$sf" run "$src/examples/fem-plate-5x5.json" --response small
 grep -q -- "--response: unknown value 'small' (expected linear or nonlinear)" "$tmp/err" || fail "response names the value: $(cat "$tmp/err")"
 
