@@ -14,6 +14,7 @@
 #include "client/figures/topology_figure.h"
 #include "client/figures/tradeoff_plot.h"
 #include "client/remote_job.h"
+#include "client/result_source.h"
 #include "engine/input_error.h"
 #include "engine/search/search_options.h"
 #include "proto/rpc.h"
@@ -24,50 +25,10 @@ namespace springfit::cli {
 namespace {
 using proto::Json;
 
-// A result to draw: a file, or a job of the daemon.
-struct Source {
-  std::string name;  // as given
-  std::optional<std::int64_t> job_id;
-};
-
-// An existing file wins over a job id, so that a file named "12" can still be drawn.
-Source ParseSource(const std::string& text) {
-  Source s{text, std::nullopt};
-  if (std::filesystem::exists(text)) return s;
-  const bool digits =
-      !text.empty() && text.size() < 19 &&
-      std::all_of(text.begin(), text.end(), [](unsigned char c) { return std::isdigit(c) != 0; });
-  if (!digits) throw InputError("", text + ": no such file (and not a job id)");
-  s.job_id = std::stoll(text);
-  return s;
-}
-
-Json ReadResultFile(const std::string& path) {
-  Json j;
-  try {
-    j = proto::ParseJson(proto::ReadFile(path));
-  } catch (const InputError& e) {
-    throw InputError("", path + ": " + e.what());
-  }
-  if (!j.is_object() || !j.contains("springs") || !j.contains("strategy")) {
-    throw InputError("", path + ": not a result file (springfit run -o, springfit result -o)");
-  }
-  return j;
-}
-
 std::string Describe(const proto::StoredResult& result) {
   std::string s = result.scene + ", strategy " + result.strategy;
   if (result.seed) s += ", seed " + std::to_string(*result.seed);
   return s;
-}
-
-// The typed result; a file's errors name the file.
-proto::StoredResult Typed(const Json& result, const std::string& where) {
-  try {
-    return proto::StoredResultFromJson(result);
-  } catch (const InputError& e) {
-    throw InputError(e.path(), where + ": " + e.what());
-  }
 }
 
 std::vector<NodePair> Ordered(std::vector<NodePair> pairs) {
@@ -94,41 +55,10 @@ struct RenderArgs {
 };
 
 int Render(const RenderArgs& a) {
-  const Source source = ParseSource(a.source);
-  Json result;
-  Json scene_json;
-  std::string where;
-  if (source.job_id) {
-    RpcClient client(a.server);
-    result = client.Call("job.result", JobIdParams(*source.job_id));
-    if (a.scene_path.empty())
-      scene_json = client.Call("job.scene", JobIdParams(*source.job_id))["scene"];
-    where = "job " + std::to_string(*source.job_id);
-  } else {
-    result = ReadResultFile(source.name);
-    if (a.scene_path.empty()) {
-      if (!result.contains("scene_definition")) {
-        throw InputError(
-            "", source.name +
-                    " does not contain its scene (it was written by an older springfit or by "
-                    "--json): pass --scene SCENE.json");
-      }
-      scene_json = result["scene_definition"];
-    }
-    where = std::filesystem::path(source.name).filename().string();
-  }
-  const proto::StoredResult typed = Typed(result, where);
-  Scene scene =
-      a.scene_path.empty() ? proto::SceneFromJson(scene_json) : proto::LoadSceneFile(a.scene_path);
-  const Problem problem = Problem::Build(std::move(scene));
-  // A result of another scene could still name valid node pairs: refuse what is detectable.
-  if (typed.scene != problem.scene().name ||
-      (typed.genes && *typed.genes != problem.gene_count())) {
-    throw InputError("", "the result is of scene '" + typed.scene + "' (" +
-                             std::to_string(typed.genes.value_or(-1)) +
-                             " genes), the scene given is '" + problem.scene().name + "' (" +
-                             std::to_string(problem.gene_count()) + " genes)");
-  }
+  const ResultWithScene loaded = LoadResultWithScene(a.source, a.server, a.scene_path);
+  const proto::StoredResult& typed = loaded.result;
+  const Problem& problem = *loaded.problem;
+  const std::string& where = loaded.where;
 
   TopologyFigureInput input;
   input.title = Describe(typed) + " (" + where + ")";
@@ -155,7 +85,7 @@ int PlotTradeoff(const PlotArgs& a) {
   std::vector<TradeoffCurve> curves;
   std::unique_ptr<RpcClient> client;
   for (const std::string& text : a.sources) {
-    const Source source = ParseSource(text);
+    const ResultSource source = ParseResultSource(text);
     Json result;
     std::string where;
     if (source.job_id) {
@@ -166,7 +96,7 @@ int PlotTradeoff(const PlotArgs& a) {
       result = ReadResultFile(source.name);
       where = std::filesystem::path(source.name).filename().string();
     }
-    const proto::StoredResult typed = Typed(result, where);
+    const proto::StoredResult typed = TypedResult(result, where);
     if (typed.path.empty()) {
       throw InputError("continuous.path",
                        where +
@@ -209,7 +139,7 @@ int Plot(const PlotArgs& a) {
   std::vector<ErrorCurve> curves;
   std::unique_ptr<RpcClient> client;
   for (const std::string& text : a.sources) {
-    const Source source = ParseSource(text);
+    const ResultSource source = ParseResultSource(text);
     std::vector<TraceRow> rows;
     std::string label;
     if (source.job_id) {
@@ -220,7 +150,7 @@ int Plot(const PlotArgs& a) {
               job.value("scene", std::string("?")) + ", strategy " +
               job.value("strategy", std::string("?")) + ", seed " + job["seed"].dump();
     } else {
-      const proto::StoredResult result = Typed(ReadResultFile(source.name), source.name);
+      const proto::StoredResult result = TypedResult(ReadResultFile(source.name), source.name);
       if (!result.trace) {
         throw InputError(
             "",

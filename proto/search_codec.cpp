@@ -287,6 +287,16 @@ std::string TraceRowToCsv(const TraceRow& r) {
          count(r.extra);
 }
 
+void ExpectResultOfScene(const StoredResult& result, const Problem& problem) {
+  if (result.scene != problem.scene().name ||
+      (result.genes && *result.genes != problem.gene_count())) {
+    throw InputError("", "the result is of scene '" + result.scene + "' (" +
+                             std::to_string(result.genes.value_or(-1)) +
+                             " genes), the scene given is '" + problem.scene().name + "' (" +
+                             std::to_string(problem.gene_count()) + " genes)");
+  }
+}
+
 StoredResult StoredResultFromJson(const Json& json) {
   if (!json.is_object()) throw InputError("", "a result is a JSON object (proto/RUN.md)");
   for (const char* key : {"scene", "strategy", "stop", "springs"}) {
@@ -333,6 +343,25 @@ StoredResult StoredResultFromJson(const Json& json) {
     }
     if (c.contains("chosen") && !c["chosen"].is_null())
       r.chosen = ReadInt(c["chosen"], "continuous.chosen");
+  }
+  if (json.contains("rms_error")) r.rms_error = ReadNumber(json["rms_error"], "rms_error");
+  if (json.contains("unidentifiable"))
+    r.unidentifiable = ReadNodePairs(json["unidentifiable"], "unidentifiable");
+  if (json.contains("identifiability") && json["identifiability"].is_object()) {
+    const Json& id = json["identifiability"];
+    if (id.contains("unseen"))
+      r.undetermined = ReadNodePairs(id["unseen"], "identifiability.unseen");
+    if (id.contains("groups")) {
+      ExpectArray(id["groups"], "identifiability.groups");
+      for (std::size_t i = 0; i < id["groups"].size(); ++i) {
+        const std::string at = "identifiability.groups[" + std::to_string(i) + "]";
+        const Json& g = id["groups"][i];
+        ExpectObject(g, at);
+        if (!g.contains("springs")) continue;
+        for (const NodePair& p : ReadNodePairs(g["springs"], at + ".springs"))
+          r.undetermined.push_back(p);
+      }
+    }
   }
   if (json.contains("baseline") && json["baseline"].is_object()) {
     const Json& b = json["baseline"];

@@ -47,9 +47,17 @@ struct StoredResult {
   std::optional<int> chosen;
   std::optional<double> baseline_rms_error;
   std::optional<int> baseline_springs;
+  std::optional<double> rms_error;  // E against the reference, where it has an equilibrium
+  // Candidates no load case can see (never genes), and pairs whose stiffness the load cases
+  // do not determine: `identifiability.unseen` and the springs of its groups.
+  std::vector<NodePair> unidentifiable;
+  std::vector<NodePair> undetermined;
 };
 // Throws InputError naming the JSON path of the first problem.
 StoredResult StoredResultFromJson(const Json& json);
+// Throws InputError when `result` is detectably not a result of `problem`'s scene (another
+// scene's name or gene count): its springs could still name valid node pairs.
+void ExpectResultOfScene(const StoredResult& result, const Problem& problem);
 
 // One CSV line per trace row under a header line (no trailing newline in either).
 std::string TraceCsvHeader();

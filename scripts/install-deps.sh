@@ -20,7 +20,9 @@ packages=(
   git                      # the format check lists the tracked files
   python3                  # the end-to-end tests drive the CLI and the daemon with it
   calculix-ccx             # CalculiX: independent answers for the FEM reference tests
-  gmsh                     # meshes a 2D shape for the FEM reference tests
+  gmsh                     # meshes a 2D shape for the FEM reference tests; reads exported .msh
+  libgmsh-dev              # the Gmsh library: writes (and reads) Gmsh's mesh files
+  python3-meshio           # an independent reader of the exported .vtk, .vtu, .msh (tests/io)
 )
 
 missing=()

@@ -2,10 +2,13 @@
 // look is one CSS block, so a figure's colours live in one place and a test can count the
 // shapes of a kind (e.g. every `class="missing"` line).
 #pragma once
+
 #include <sstream>
 #include <string>
 #include <string_view>
 #include <vector>
+
+#include "io/xml_text.h"
 
 namespace springfit::cli {
 
@@ -46,7 +49,6 @@ class SvgDocument {
   double height_;
 };
 
-// Escapes &, <, >, " for text and attribute values.
-std::string XmlEscape(std::string_view text);
+using io::XmlEscape;  // (io/xml_text.h)
 
 }  // namespace springfit::cli

@@ -109,6 +109,10 @@ python3 -c "import json,sys; r=json.load(open(sys.argv[1])); assert len(r['trace
 cmp -s <(sed 1,2d "$tmp/r-id.svg" | grep -v '^<text class="title"') <(sed 1,2d "$tmp/r-file.svg" | grep -v '^<text class="title"') \
   || fail "render by id and of result -o draw the same figure"
 "$sf" plot "$id2" "$tmp/r.json" -o "$tmp/p.svg" || fail "plot by job id"
+# export by job id writes the model of the result file, byte for byte.
+"$sf" export "$id2" -o "$tmp/m-id.json" >/dev/null || fail "export by job id"
+"$sf" export "$tmp/r.json" -o "$tmp/m-file.json" >/dev/null || fail "export the result file"
+cmp -s "$tmp/m-id.json" "$tmp/m-file.json" || fail "export by id and of result -o write the same model"
 "$sf" render 123456 -o "$tmp/none.svg" 2>/dev/null
 [ $? -eq 4 ] || fail "render of an unknown job exits 4"
 id3=$("$sf" submit "$kidney" --strategy paper --generations 100000 2>/dev/null)

@@ -1,0 +1,69 @@
+#include "io/spring_model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <set>
+#include <utility>
+
+#include "engine/input_error.h"
+
+namespace springfit::io {
+namespace {
+
+NodePair Ordered(NodePair p) {
+  if (p.first > p.second) std::swap(p.first, p.second);
+  return p;
+}
+
+}  // namespace
+
+SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& result) {
+  const Scene& scene = problem.scene();
+  proto::ExpectResultOfScene(result, problem);
+  SpringModel model;
+  model.name = scene.name;
+  model.dimension = scene.dimension;
+  model.rest.assign(scene.rest.data(), scene.rest.data() + scene.rest.size());
+  model.description = "springfit, strategy " + result.strategy;
+  if (result.seed) model.description += ", seed " + std::to_string(*result.seed);
+  if (result.rms_error) {
+    char e[32];
+    std::snprintf(e, sizeof e, ", E %.4g", *result.rms_error);
+    model.description += e;
+  }
+
+  std::set<NodePair> candidates;
+  for (const NodePair& p : problem.candidates().pairs) candidates.insert(Ordered(p));
+  std::set<NodePair> undetermined;
+  for (const NodePair& p : result.undetermined) undetermined.insert(Ordered(p));
+  const auto add = [&](NodePair p, double stiffness, bool identified) {
+    SpringModel::Spring s;
+    s.a = p.first;
+    s.b = p.second;
+    s.stiffness = stiffness;
+    const int d = model.dimension;
+    s.rest_length =
+        (scene.rest.segment(d * p.first, d) - scene.rest.segment(d * p.second, d)).norm();
+    s.identified = identified;
+    model.springs.push_back(s);
+  };
+  const double training = problem.training_stiffness();
+  std::set<NodePair> present;
+  for (std::size_t i = 0; i < result.springs.size(); ++i) {
+    const NodePair p = Ordered(result.springs[i]);
+    if (!candidates.count(p) || !present.insert(p).second) {
+      throw InputError("springs[" + std::to_string(i) + "]",
+                       "(" + std::to_string(p.first) + ", " + std::to_string(p.second) + ") is " +
+                           (candidates.count(p) ? "listed twice" : "not a candidate of the scene"));
+    }
+    add(p, result.stiffness.empty() ? training : result.stiffness[i], !undetermined.count(p));
+  }
+  for (const NodePair& u : result.unidentifiable) {
+    const NodePair p = Ordered(u);
+    if (candidates.count(p) && present.insert(p).second) add(p, training, false);
+  }
+  return model;
+}
+
+}  // namespace springfit::io

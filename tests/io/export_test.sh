@@ -1,0 +1,139 @@
+#!/usr/bin/env bash
+# springfit export: every format written and read back by an independent reader (meshio for
+# .vtk, .vtu and .msh; gmsh itself for .msh; an XML parser for .scn and .vtu; json for .json),
+# for a continuous (per-spring stiffness), a topology-only and a 3D result, and the errors.
+# Usage: export_test.sh SPRINGFIT SOURCE_DIR
+set -u
+sf=$1
+src=$2
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+failures=0
+fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
+# meshio is Debian's python3-meshio, for Debian's python3 (scripts/install-deps.sh).
+debian_python=/usr/bin/python3
+"$debian_python" -c "import meshio" 2>/dev/null \
+  || { echo "FAIL: $debian_python cannot import meshio: run scripts/install-deps.sh"; exit 1; }
+command -v gmsh >/dev/null || { echo "FAIL: gmsh is missing: run scripts/install-deps.sh"; exit 1; }
+
+# Checks every model file of RESULT against the result: nodes, springs in order, stiffness,
+# rest lengths, the identified flags, and the springs the result does not list (unidentifiable).
+check_all() {  # name result.json
+  local name=$1 result=$2
+  for ext in vtk vtu msh scn json; do
+    "$sf" export "$result" -o "$tmp/$name.$ext" >"$tmp/out" 2>"$tmp/err" \
+      || { fail "$name: export .$ext: $(cat "$tmp/err")"; continue; }
+  done
+  gmsh "$tmp/$name.msh" -0 -o "$tmp/$name-gmsh.msh" >"$tmp/gmsh.log" 2>&1 \
+    || fail "$name: gmsh does not read the .msh: $(tail -3 "$tmp/gmsh.log")"
+  "$debian_python" - "$result" "$tmp/$name" >/dev/null <<'PY' || fail "$name: the files do not hold the result's model"
+import json, math, sys, xml.etree.ElementTree as ET
+import meshio
+r = json.load(open(sys.argv[1]))
+base = sys.argv[2]
+scene = r["scene_definition"]
+nodes = scene["nodes"]
+d = len(nodes[0])
+pairs = [tuple(sorted(p)) for p in r["springs"]] + [tuple(sorted(p)) for p in r["unidentifiable"]]
+training = r["stiffness"][0] if r["identify"] == "topology" else None
+k = list(r["stiffness"]) + [None] * len(r["unidentifiable"])
+undetermined = {tuple(sorted(p)) for p in r["identifiability"]["unseen"]}
+for g in r["identifiability"]["groups"]:
+    undetermined |= {tuple(sorted(p)) for p in g["springs"]}
+identified = [p not in undetermined for p in pairs[:len(r["springs"])]] + [False] * len(r["unidentifiable"])
+length = [math.dist(nodes[a], nodes[b]) for a, b in pairs]
+
+def close(a, b):
+    return abs(a - b) <= 1e-12 * max(abs(a), abs(b), 1e-300)
+
+def check_values(stiffness, rest, flags, where):
+    assert len(stiffness) == len(pairs), (where, len(stiffness), len(pairs))
+    for i in range(len(pairs)):
+        if k[i] is not None:
+            assert close(stiffness[i], k[i]), (where, i, stiffness[i], k[i])
+        assert close(rest[i], length[i]), (where, i, rest[i], length[i])
+        assert bool(flags[i]) == identified[i], (where, i, flags[i])
+
+for ext in ("vtk", "vtu", "msh"):
+    m = meshio.read(base + "." + ext)
+    assert m.points.shape == (len(nodes), 3), (ext, m.points.shape)
+    for p, x in zip(m.points, nodes):
+        assert all(close(p[c], x[c]) for c in range(d)) and (d == 3 or p[2] == 0), (ext, p, x)
+    lines = [c for c in m.cells if c.type == "line"]
+    assert len(lines) == 1 and len(m.cells) == 1, (ext, [c.type for c in m.cells])
+    # (meshio numbers nodes from 0 in every format: it maps Gmsh's tags)
+    cells = [tuple(sorted(int(v) for v in c)) for c in lines[0].data]
+    assert cells == pairs, (ext, cells[:3], pairs[:3])
+    data = {name: list(v[0]) for name, v in m.cell_data.items()}
+    check_values(data["stiffness"], data["rest_length"], data["identified"], ext)
+
+# .vtu against the VTK XML layout itself, not only meshio's reading of it.
+vtu = ET.parse(base + ".vtu").getroot()
+assert vtu.get("type") == "UnstructuredGrid"
+piece = vtu.find("UnstructuredGrid/Piece")
+assert int(piece.get("NumberOfPoints")) == len(nodes) and int(piece.get("NumberOfCells")) == len(pairs)
+arrays = {a.get("Name"): a.text.split() for a in piece.iter("DataArray")}
+assert arrays["offsets"] == [str(2 * (i + 1)) for i in range(len(pairs))]
+assert set(arrays["types"]) == {"3"}
+
+# .scn: SOFA's components and data.
+root = ET.parse(base + ".scn").getroot()
+assert root.tag == "Node"
+plugins = {p.get("name") for p in root.iter("RequiredPlugin")}
+assert {"Sofa.Component.StateContainer", "Sofa.Component.Topology.Container.Dynamic",
+        "Sofa.Component.SolidMechanics.Spring"} <= plugins, plugins
+template = "Vec%dd" % d
+dofs = root.find(".//MechanicalObject")
+assert dofs.get("template") == template
+position = [float(x) for x in dofs.get("position").split()]
+assert len(position) == d * len(nodes) and all(close(position[d * i + c], nodes[i][c]) for i in range(len(nodes)) for c in range(d))
+edges = [int(x) for x in root.find(".//EdgeSetTopologyContainer").get("edges").split()]
+assert [tuple(edges[i:i + 2]) for i in range(0, len(edges), 2)] == pairs
+ff = root.find(".//SpringForceField")
+assert ff.get("template") == template
+v = ff.get("spring").split()
+assert len(v) == 5 * len(pairs), len(v)
+springs = [v[i:i + 5] for i in range(0, len(v), 5)]
+assert [(int(s[0]), int(s[1])) for s in springs] == pairs
+assert all(float(s[3]) == 0.0 for s in springs)  # no damping
+check_values([float(s[2]) for s in springs], [float(s[4]) for s in springs], identified, "scn")
+
+# .json: the model alone (proto/MODEL.md).
+j = json.load(open(base + ".json"))
+assert j["format"] == "springfit-model" and j["version"] == 1 and j["dimension"] == d
+assert j["name"] == r["scene"] and j["nodes"] == nodes
+assert [tuple(s["nodes"]) for s in j["springs"]] == pairs
+check_values([s["stiffness"] for s in j["springs"]], [s["rest_length"] for s in j["springs"]],
+             [s["identified"] for s in j["springs"]], "json")
+if training is not None:  # topology only: every spring at the training stiffness
+    assert all(s["stiffness"] == training for s in j["springs"])
+PY
+}
+
+# A continuous result (per-spring stiffness), a topology-only GA result, a 3D result with
+# unidentifiable candidates.
+"$sf" run "$src/examples/fem-plate-5x5.json" -q -o "$tmp/plate-result.json" >/dev/null || fail "run plate"
+check_all plate "$tmp/plate-result.json"
+"$sf" run "$src/examples/paper-iso-5x5.json" --strategy hybrid -q -o "$tmp/paper-result.json" >/dev/null || fail "run paper"
+check_all paper "$tmp/paper-result.json"
+"$sf" run "$src/examples/grid3d-4x4x4.json" --strategy direct -q -o "$tmp/grid-result.json" >/dev/null || fail "run grid3d"
+python3 -c "import json,sys; assert json.load(open(sys.argv[1]))['unidentifiable']" "$tmp/grid-result.json" \
+  || fail "grid3d-4x4x4 no longer has unidentifiable candidates: pick another example"
+check_all grid "$tmp/grid-result.json"
+grep -q "not determined by the data" "$tmp/out" || fail "export counts the springs not determined: $(cat "$tmp/out")"
+
+# Errors: exit 2, what is wrong named, nothing written.
+"$sf" export "$tmp/plate-result.json" -o "$tmp/model.obj" >/dev/null 2>"$tmp/err"
+[ $? -eq 2 ] || fail "unknown extension: exit 2"
+grep -q "unknown model format '.obj' (expected .vtk, .vtu, .msh, .scn or .json)" "$tmp/err" || fail "unknown extension named: $(cat "$tmp/err")"
+[ ! -e "$tmp/model.obj" ] || fail "unknown extension: a file was written"
+"$sf" export "$tmp/plate-result.json" --scene "$src/examples/paper-iso-5x5.json" -o "$tmp/x.vtu" >/dev/null 2>"$tmp/err"
+[ $? -eq 2 ] || fail "another scene: exit 2"
+grep -q "the result is of scene 'fem-plate-5x5'" "$tmp/err" || fail "another scene named: $(cat "$tmp/err")"
+[ ! -e "$tmp/x.vtu" ] || fail "another scene: a file was written"
+"$sf" export "$tmp/missing.json" -o "$tmp/x.vtu" >/dev/null 2>"$tmp/err"
+[ $? -eq 2 ] || fail "missing result: exit 2"
+grep -q "missing.json: no such file" "$tmp/err" || fail "missing file named: $(cat "$tmp/err")"
+
+if [ "$failures" -eq 0 ]; then echo "export: all checks passed"; else echo "export: $failures failed"; fi
+[ "$failures" -eq 0 ]
