@@ -6,6 +6,7 @@
 #include "client/commands.h"
 #include "client/error_reporting.h"
 #include "client/exit_codes.h"
+#include "client/scene_input.h"
 #include "engine/direct/identifiability.h"
 #include "engine/fem/fem_model.h"
 #include "engine/identification/strategy.h"
@@ -80,8 +81,9 @@ void PrintFemReference(const Scene& s) {
   std::fflush(stdout);
 }
 
-int Check(const std::string& file) {
-  const Problem problem = Problem::Build(proto::LoadSceneFile(file));
+int Check(const SceneInput& input) {
+  const std::string& file = input.path;
+  const Problem problem = Problem::Build(SceneOf(input));
   const Scene& s = problem.scene();
   std::cout << "scene:                  " << (s.name.empty() ? file : s.name) << "\n";
   if (!s.description.empty()) std::cout << "description:            " << s.description << "\n";
@@ -152,10 +154,11 @@ int Check(const std::string& file) {
 void RegisterCheck(CLI::App& app, int& exit_code) {
   auto* cmd =
       app.add_subcommand("check", "Validate a scene and print a summary (exit 2 if invalid)");
-  auto file = std::make_shared<std::string>();
-  cmd->add_option("SCENE", *file, "Scene file (JSON, proto/SCENE.md)")->required();
-  cmd->callback(
-      [file, &exit_code] { exit_code = RunReportingErrors(*file, [&] { return Check(*file); }); });
+  auto input = std::make_shared<SceneInput>();
+  AddSceneInput(cmd, *input);
+  cmd->callback([input, &exit_code] {
+    exit_code = RunReportingErrors(input->path, [&] { return Check(*input); });
+  });
 }
 
 }  // namespace springfit::cli

@@ -16,5 +16,6 @@ void RegisterJobCommands(
     CLI::App& app, int& exit_code);  // status, watch, result, trace, cancel, delete, list, info
 void RegisterFigureCommands(CLI::App& app, int& exit_code);  // render, plot
 void RegisterExport(CLI::App& app, int& exit_code);
+void RegisterImport(CLI::App& app, int& exit_code);
 
 }  // namespace springfit::cli

@@ -6,6 +6,7 @@
 #include "client/commands.h"
 #include "client/error_reporting.h"
 #include "client/exit_codes.h"
+#include "client/scene_input.h"
 #include "engine/cost.h"
 #include "engine/input_error.h"
 #include "engine/problem.h"
@@ -17,7 +18,7 @@ namespace springfit::cli {
 namespace {
 
 struct EvalArgs {
-  std::string scene;
+  SceneInput scene;
   std::string topology = "reference";
   bool json = false;
 };
@@ -46,7 +47,7 @@ std::vector<std::uint8_t> ChooseTopology(const Problem& problem, const std::stri
 }
 
 int Eval(const EvalArgs& args) {
-  const Problem problem = Problem::Build(proto::LoadSceneFile(args.scene));
+  const Problem problem = Problem::Build(SceneOf(args.scene));
   const std::vector<std::uint8_t> mask = ChooseTopology(problem, args.topology);
   CostOptions cost_options;
   cost_options.solve_cases_of_mechanisms = true;  // a per-case report of every case
@@ -91,14 +92,14 @@ int Eval(const EvalArgs& args) {
 void RegisterEval(CLI::App& app, int& exit_code) {
   auto* cmd = app.add_subcommand("eval", "Evaluate the identification cost of one topology");
   auto args = std::make_shared<EvalArgs>();
-  cmd->add_option("SCENE", args->scene, "Scene file (JSON, proto/SCENE.md)")->required();
+  AddSceneInput(cmd, args->scene);
   cmd->add_option("--topology", args->topology,
                   "reference (the reference MSS's springs), all (every candidate), or a topology "
                   "file {\"springs\": [[i, j], ...]}")
       ->capture_default_str();
   cmd->add_flag("--json", args->json, "Print one JSON object (proto/EVAL.md)");
   cmd->callback([args, &exit_code] {
-    exit_code = RunReportingErrors(args->scene, [&] { return Eval(*args); });
+    exit_code = RunReportingErrors(args->scene.path, [&] { return Eval(*args); });
   });
 }
 

@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   springfit::cli::RegisterJobCommands(app, exit_code);
   springfit::cli::RegisterFigureCommands(app, exit_code);
   springfit::cli::RegisterExport(app, exit_code);
+  springfit::cli::RegisterImport(app, exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -7,6 +7,7 @@
 #include "client/commands.h"
 #include "client/error_reporting.h"
 #include "client/exit_codes.h"
+#include "client/scene_input.h"
 #include "engine/problem.h"
 #include "engine/scene_validation.h"
 #include "proto/names.h"
@@ -17,13 +18,13 @@ namespace springfit::cli {
 namespace {
 
 struct ReferenceArgs {
-  std::string scene;
+  SceneInput scene;
   std::string output;
   bool json = false;
 };
 
 int Reference(const ReferenceArgs& args) {
-  Scene scene = proto::LoadSceneFile(args.scene);
+  Scene scene = SceneOf(args.scene);
   ValidateScene(scene);  // before the probe: a bad scene leaves no output file behind
   if (!args.output.empty()) {
     // Before the solve: a reference of 100,000 DOFs takes seconds.
@@ -70,12 +71,12 @@ void RegisterReference(CLI::App& app, int& exit_code) {
       "reference",
       "Solve the scene's reference model and write its equilibrium positions per load case");
   auto args = std::make_shared<ReferenceArgs>();
-  cmd->add_option("SCENE", args->scene, "Scene file (JSON, proto/SCENE.md)")->required();
+  AddSceneInput(cmd, args->scene);
   cmd->add_flag("--json", args->json,
                 "Print the positions and solver statistics as JSON (proto/SCENE.md)");
   cmd->add_option("-o,--output", args->output, "Also write the JSON to this file");
   cmd->callback([args, &exit_code] {
-    exit_code = RunReportingErrors(args->scene, [&] { return Reference(*args); });
+    exit_code = RunReportingErrors(args->scene.path, [&] { return Reference(*args); });
   });
 }
 

@@ -15,6 +15,7 @@
 #include "client/exit_codes.h"
 #include "client/progress_line.h"
 #include "client/result_summary.h"
+#include "client/scene_input.h"
 #include "client/search_flags.h"
 #include "engine/identification/identify.h"
 #include "engine/identification/strategy.h"
@@ -41,7 +42,7 @@ extern "C" void OnInterrupt(int signal) {
 }
 
 struct RunArgs {
-  std::string scene;
+  SceneInput scene;
   SearchFlags search;
   int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   std::optional<int> population;
@@ -55,7 +56,7 @@ struct RunArgs {
 };
 
 int Run(const RunArgs& args) {
-  Scene scene = proto::LoadSceneFile(args.scene);
+  Scene scene = SceneOf(args.scene);
   SearchSettings& st = scene.search;
   ApplySearchFlags(args.search, st);
   if (args.population) st.population = *args.population;
@@ -90,9 +91,10 @@ int Run(const RunArgs& args) {
   };
   if (!args.quiet) {
     // At once: the first step (a direct phase, generation 0) can take seconds on large scenes.
-    std::fprintf(stderr, "springfit: %s: strategy %s, %d genes: running\n",
-                 problem.scene().name.empty() ? args.scene.c_str() : problem.scene().name.c_str(),
-                 std::string(proto::StrategyName(options.strategy)).c_str(), problem.gene_count());
+    std::fprintf(
+        stderr, "springfit: %s: strategy %s, %d genes: running\n",
+        problem.scene().name.empty() ? args.scene.path.c_str() : problem.scene().name.c_str(),
+        std::string(proto::StrategyName(options.strategy)).c_str(), problem.gene_count());
     std::fflush(stderr);
   }
   const IdentificationResult result = RunIdentification(problem, options, run);
@@ -122,7 +124,7 @@ int Run(const RunArgs& args) {
 void RegisterRun(CLI::App& app, int& exit_code) {
   auto* cmd = app.add_subcommand("run", "Identify the topology: run a search in this process");
   auto args = std::make_shared<RunArgs>();
-  cmd->add_option("SCENE", args->scene, "Scene file (JSON, proto/SCENE.md)")->required();
+  AddSceneInput(cmd, args->scene);
   AddSearchFlags(cmd, args->search);
   cmd->add_option("--threads", args->threads,
                   "Threads for the fitness evaluations (the result does not depend on it)")
@@ -148,7 +150,7 @@ void RegisterRun(CLI::App& app, int& exit_code) {
   cmd->add_option("-o,--output", args->output_path,
                   "Write the result with its trace as JSON (proto/RUN.md)");
   cmd->callback([args, &exit_code] {
-    exit_code = RunReportingErrors(args->scene, [&] { return Run(*args); });
+    exit_code = RunReportingErrors(args->scene.path, [&] { return Run(*args); });
   });
 }
 

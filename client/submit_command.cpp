@@ -7,6 +7,7 @@
 #include "client/exit_codes.h"
 #include "client/remote_job.h"
 #include "client/result_summary.h"
+#include "client/scene_input.h"
 #include "client/search_flags.h"
 #include "engine/input_error.h"
 #include "proto/names.h"
@@ -18,7 +19,7 @@ using proto::Json;
 
 struct SubmitArgs {
   ServerOptions server;
-  std::string scene;
+  SceneInput scene;
   std::string label;
   int priority = 0;
   SearchFlags search;
@@ -29,8 +30,7 @@ struct SubmitArgs {
 };
 
 int Submit(const SubmitArgs& args) {
-  Json scene = proto::ParseJson(proto::ReadFile(args.scene));
-  if (!scene.is_object()) throw InputError("", "a scene is a JSON object (proto/SCENE.md)");
+  Json scene = SceneJsonOf(args.scene);
   ApplySearchFlags(args.search, scene);
   Json params;
   params["scene"] = std::move(scene);
@@ -77,7 +77,7 @@ void RegisterSubmit(CLI::App& app, int& exit_code) {
   auto* cmd =
       app.add_subcommand("submit", "Queue an identification job on springfitd; prints its id");
   auto args = std::make_shared<SubmitArgs>();
-  cmd->add_option("SCENE", args->scene, "Scene file (JSON, proto/SCENE.md)")->required();
+  AddSceneInput(cmd, args->scene);
   cmd->add_option("--label", args->label, "A label to find the job by (job.list --label)");
   cmd->add_option("--priority", args->priority, "Higher runs first (default 0)")
       ->check(CLI::Range(-1000, 1000));
@@ -92,7 +92,7 @@ void RegisterSubmit(CLI::App& app, int& exit_code) {
   cmd->add_flag("--json", args->json, "Print JSON: the job (or, with --wait/--watch, the result)");
   AddServerFlags(cmd, args->server);
   cmd->callback([args, &exit_code] {
-    exit_code = RunReportingErrors(args->scene, [&] { return Submit(*args); });
+    exit_code = RunReportingErrors(args->scene.path, [&] { return Submit(*args); });
   });
 }
 

@@ -329,12 +329,13 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
   // the start (index -1).
   bool refitted = false;
   int returned = -1;
+  int selected = -1;  // the rule's choice, before the final evaluation's fallbacks
   if (!path.points.empty()) {
     for (const PathPoint& point : path.points)
       details.path.push_back({point.springs, point.normalized_error});
     details.fit_normalized_error = path.fit.normalized_error;
     details.start_normalized_error = path.fit.initial_normalized_error;
-    returned = static_cast<int>(
+    returned = selected = static_cast<int>(
         SelectPathPoint(path, options.max_springs, target, path_options.tolerance));
     weights = path.points[static_cast<std::size_t>(returned)].weights;
     try {
@@ -370,17 +371,28 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
   CostOptions cost_options;
   cost_options.solve_cases_of_mechanisms = true;
   CostFunction cost(problem, cost_options);
-  std::vector<int> next_in_line;  // path points, then -1: the start
+  std::vector<int> next_in_line;  // path points and the start (-1), in the order tried
   if (!path.points.empty()) {
     for (int i = 0; i < static_cast<int>(path.points.size()); ++i) next_in_line.push_back(i);
     std::stable_sort(next_in_line.begin(), next_in_line.end(), [&](int a, int b) {
       return path.points[a].normalized_error < path.points[b].normalized_error;
     });
+    // A size limit is kept as long as some model meets it: those that do first (the start
+    // among them when it does: the baseline on the mesh edges can be smaller than any path
+    // point better than it).
+    const int limit = options.max_springs;
+    const auto within = [&](int i) {
+      return limit > 0 && (i >= 0 ? path.points[static_cast<std::size_t>(i)].springs
+                                  : PresentSprings(*start)) <= limit;
+    };
+    auto end_within = std::stable_partition(next_in_line.begin(), next_in_line.end(), within);
+    next_in_line.insert(within(-1) ? end_within : next_in_line.end(), -1);
     std::stable_partition(next_in_line.begin(), next_in_line.end(),
                           [&](int i) { return i == returned; });
     if (!refitted) next_in_line.erase(next_in_line.begin());  // (the point itself failed)
+  } else {
+    next_in_line.push_back(-1);
   }
-  next_in_line.push_back(-1);
   const auto acceptable = [&](const Evaluation& e) {
     return e.converged && !e.mechanism &&
            (path.points.empty() ||
@@ -441,10 +453,9 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
                       ? ": try the linear response (search.response) or smaller loads"
                       : ": try more candidates");
   } else {
-    // Which point, by which rule (and whether the rule was met).
+    // Which point, by which rule (and whether the rule was met), and what was returned.
     char rule[160];
-    const PathPoint* point =
-        returned >= 0 ? &path.points[static_cast<std::size_t>(returned)] : nullptr;
+    const PathPoint* point = &path.points[static_cast<std::size_t>(selected)];
     if (options.max_springs > 0) {
       std::snprintf(rule, sizeof rule,
                     point && point->springs <= options.max_springs
@@ -460,14 +471,25 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
     } else {
       std::snprintf(rule, sizeof rule, "the fewest springs within 5%% of the lowest E");
     }
-    char from[240];
-    if (returned >= 0) {
+    char from[320];
+    if (returned == selected) {
       std::snprintf(from, sizeof from, "path point %d of %zu (%s)%s", returned + 1,
                     path.points.size(), rule, refitted ? ", refitted" : "");
-    } else {
+    } else if (returned >= 0) {
       std::snprintf(from, sizeof from,
-                    "the start: no point of the path passed the final "
-                    "evaluation");
+                    "path point %d of %zu, next in line: the final evaluation refused point %d "
+                    "(%s, %d springs)",
+                    returned + 1, path.points.size(), selected + 1, rule, point->springs);
+    } else {
+      if (options.max_springs > 0 && PresentSprings(*start) <= options.max_springs) {
+        std::snprintf(from, sizeof from,
+                      "the start: no point of the path with at most %d springs passed the final "
+                      "evaluation",
+                      options.max_springs);
+      } else {
+        std::snprintf(from, sizeof from,
+                      "the start: no point of the path passed the final evaluation");
+      }
     }
     char refused[160] = "";
     if (details.rejected > 0)

@@ -4,17 +4,7 @@
 set -u
 sf=$1
 src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-failures=0
-fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
-
-expect_exit() {  # expected_code description command...
-  local want=$1 what=$2; shift 2
-  "$@" >"$tmp/out" 2>"$tmp/err"
-  local got=$?
-  [ "$got" -eq "$want" ] || fail "$what: exit $got, expected $want ($(head -c 300 "$tmp/err"))"
-}
+source "$(dirname "$0")/../checks.sh"
 
 # check: valid scene 0, invalid scene 2 with the path on one line, missing file 2, usage 64.
 expect_exit 0 "check valid" "$sf" check "$src/examples/kidney-2d.json"
@@ -269,5 +259,4 @@ grep -q "search.regularization: regularises the continuous fit" "$tmp/err" || fa
 expect_exit 2 "bad response" "$sf" run "$src/examples/fem-plate-5x5.json" --response small
 grep -q -- "--response: unknown value 'small' (expected linear or nonlinear)" "$tmp/err" || fail "response names the value: $(cat "$tmp/err")"
 
-if [ "$failures" -eq 0 ]; then echo "cli: all checks passed"; else echo "cli: $failures failed"; fi
-[ "$failures" -eq 0 ]
+finish cli

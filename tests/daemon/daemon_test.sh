@@ -113,6 +113,22 @@ cmp -s <(sed 1,2d "$tmp/r-id.svg" | grep -v '^<text class="title"') <(sed 1,2d "
 "$sf" export "$id2" -o "$tmp/m-id.json" >/dev/null || fail "export by job id"
 "$sf" export "$tmp/r.json" -o "$tmp/m-file.json" >/dev/null || fail "export the result file"
 cmp -s "$tmp/m-id.json" "$tmp/m-file.json" || fail "export by id and of result -o write the same model"
+# A mesh with its loads: the client imports it and sends the scene; the job runs that scene.
+gmsh "$src/examples/pipeline/inclusion.geo" -2 -o "$tmp/inclusion.msh" >/dev/null || fail "gmsh"
+"$sf" import "$tmp/inclusion.msh" --loads "$src/examples/pipeline/inclusion-loads.json" -o "$tmp/inclusion.json" 2>/dev/null || fail "import"
+id_mesh=$("$sf" submit "$tmp/inclusion.msh" --loads "$src/examples/pipeline/inclusion-loads.json" --max-springs 700 2>/dev/null) || fail "submit a mesh"
+"$sf" watch "$id_mesh" -q >/dev/null || fail "watch the mesh's job"
+"$sf" result "$id_mesh" -o "$tmp/mesh-result.json" >/dev/null || fail "result of the mesh's job"
+python3 - "$tmp/mesh-result.json" "$tmp/inclusion.json" <<'PY' || fail "the job ran the imported scene"
+import json, sys
+r = json.load(open(sys.argv[1]))
+scene = json.load(open(sys.argv[2]))
+d = r["scene_definition"]
+assert d["nodes"] == scene["nodes"] and d["reference"]["elements"] == scene["reference"]["elements"]
+assert d["reference"]["element_materials"] == scene["reference"]["element_materials"]
+assert [c["name"] for c in d["load_cases"]] == [c["name"] for c in scene["load_cases"]]
+assert len(r["springs"]) <= 700
+PY
 "$sf" render 123456 -o "$tmp/none.svg" 2>/dev/null
 [ $? -eq 4 ] || fail "render of an unknown job exits 4"
 id3=$("$sf" submit "$kidney" --strategy paper --generations 100000 2>/dev/null)

@@ -6,14 +6,8 @@
 set -u
 sf=$1
 src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-failures=0
-fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
-# meshio is Debian's python3-meshio, for Debian's python3 (scripts/install-deps.sh).
-debian_python=/usr/bin/python3
-"$debian_python" -c "import meshio" 2>/dev/null \
-  || { echo "FAIL: $debian_python cannot import meshio: run scripts/install-deps.sh"; exit 1; }
+source "$(dirname "$0")/../checks.sh"
+need_meshio
 command -v gmsh >/dev/null || { echo "FAIL: gmsh is missing: run scripts/install-deps.sh"; exit 1; }
 
 # Checks every model file of RESULT against the result: nodes, springs in order, stiffness,
@@ -135,5 +129,4 @@ grep -q "the result is of scene 'fem-plate-5x5'" "$tmp/err" || fail "another sce
 [ $? -eq 2 ] || fail "missing result: exit 2"
 grep -q "missing.json: no such file" "$tmp/err" || fail "missing file named: $(cat "$tmp/err")"
 
-if [ "$failures" -eq 0 ]; then echo "export: all checks passed"; else echo "export: $failures failed"; fi
-[ "$failures" -eq 0 ]
+finish export

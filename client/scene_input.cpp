@@ -1,0 +1,53 @@
+#include "client/scene_input.h"
+
+#include "engine/input_error.h"
+#include "io/mesh_import.h"
+#include "proto/scene_codec.h"
+
+namespace springfit::cli {
+namespace {
+
+// The scene a mesh and its loads make, with the loads named in its errors.
+Scene SceneOfImport(const SceneInput& input, const proto::Json& json) {
+  try {
+    return proto::SceneFromJson(json);
+  } catch (const InputError& e) {
+    const std::string from =
+        input.loads.empty() ? input.path : input.loads + " (over " + input.path + ")";
+    throw InputError("", from + ": " + e.what());
+  }
+}
+
+}  // namespace
+
+void AddSceneInput(CLI::App* command, SceneInput& input) {
+  command
+      ->add_option("SCENE", input.path,
+                   "Scene file (JSON, proto/SCENE.md), or a mesh (Gmsh .msh) with --loads")
+      ->required();
+  command->add_option("--loads", input.loads,
+                      "With a mesh: the rest of the scene (material, load cases on the mesh's "
+                      "named groups, search settings), merged over it (proto/IMPORT.md)");
+}
+
+proto::Json SceneJsonOf(const SceneInput& input) {
+  if (io::IsMeshFile(input.path)) return io::ImportSceneFile(input.path, input.loads);
+  if (!input.loads.empty()) {
+    throw InputError("", "--loads applies to a mesh (.msh); " + input.path + " is a scene");
+  }
+  proto::Json scene = proto::ParseJson(proto::ReadFile(input.path));
+  if (!scene.is_object()) throw InputError("", "a scene is a JSON object (proto/SCENE.md)");
+  return scene;
+}
+
+Scene SceneOf(const SceneInput& input) {
+  if (!io::IsMeshFile(input.path)) {
+    if (!input.loads.empty()) {
+      throw InputError("", "--loads applies to a mesh (.msh); " + input.path + " is a scene");
+    }
+    return proto::LoadSceneFile(input.path);
+  }
+  return SceneOfImport(input, io::ImportSceneFile(input.path, input.loads));
+}
+
+}  // namespace springfit::cli

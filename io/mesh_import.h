@@ -1,0 +1,50 @@
+// Meshes in: a tissue mesh from the files users' tools write, made into a scene (proto/
+// SCENE.md) whose FEM reference is the mesh, and whose node sets are the mesh's named groups.
+// The rest of the scene (material, load cases, search settings) comes from a loads file: a
+// partial scene merged over what the mesh gives (proto/IMPORT.md).
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "proto/json_reader.h"
+
+namespace springfit::io {
+
+// A linear simplex mesh as read from a file, nodes renumbered from 0.
+struct ImportedMesh {
+  std::string source;                      // the file
+  int dimension = 2;                       // 2: triangles in the plane z = 0; 3: tetrahedra
+  std::vector<double> nodes;               // flat, `dimension` per node
+  std::vector<std::vector<int>> elements;  // triangles or tetrahedra
+  // Per element, the name of the region (physical surface in 2D, volume in 3D) it belongs to;
+  // empty when the mesh names none.
+  std::vector<std::string> element_regions;
+  // Named groups of any dimension (points, curves, surfaces, volumes): their nodes, sorted.
+  std::map<std::string, std::vector<int>> node_sets;
+  std::map<std::string, int> region_elements;  // elements per region, for reports
+};
+
+// Gmsh .msh (2.2 or 4.1, ASCII or binary) through the Gmsh library. Keeps the nodes of the
+// triangles (2D) or tetrahedra (3D); a physical group's name names its nodes (an unnamed group
+// is named by its tag). Throws InputError naming the file: unreadable, no triangle or
+// tetrahedron, elements springfit has no FEM for (quadrangles, second order, ...), a 2D mesh
+// off the plane z = 0.
+ImportedMesh ReadGmshMesh(const std::string& path);
+
+// The scene of `mesh` (name: the file's stem) with `loads` (an object, or null) merged over it:
+// objects field by field, everything else replaced; `reference.materials` may be an object
+// keyed by region name (made into `materials` and `element_materials`). `loads_name` names the
+// loads in messages. Throws InputError naming the loads file and field.
+proto::Json SceneOfMesh(const ImportedMesh& mesh, const proto::Json& loads,
+                        const std::string& loads_name);
+
+// Whether `path` names a mesh format this importer reads (by extension).
+bool IsMeshFile(const std::string& path);
+
+// ReadGmshMesh (by extension) then SceneOfMesh with the loads file at `loads_path` (empty: no
+// loads).
+proto::Json ImportSceneFile(const std::string& mesh_path, const std::string& loads_path);
+
+}  // namespace springfit::io
