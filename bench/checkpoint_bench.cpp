@@ -11,8 +11,8 @@
 #include <cstdio>
 #include <string>
 
-#include "engine/examples/catalog.h"
 #include "engine/identification/identify.h"
+#include "io/example_catalog.h"
 #include "proto/names.h"
 #include "server/checkpoint_codec.h"
 

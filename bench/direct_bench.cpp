@@ -13,9 +13,9 @@
 #include <CLI/CLI.hpp>
 
 #include "engine/direct/direct_identification.h"
-#include "engine/examples/catalog.h"
 #include "engine/identification/identify.h"
 #include "engine/problem.h"
+#include "io/example_catalog.h"
 
 using namespace springfit;
 

@@ -20,10 +20,10 @@
 #include <string>
 #include <vector>
 
-#include "engine/examples/catalog.h"
 #include "engine/examples/simplex_mesh.h"
 #include "engine/fem/fem_equilibrium.h"
 #include "engine/problem.h"
+#include "io/example_catalog.h"
 
 namespace springfit {
 namespace {

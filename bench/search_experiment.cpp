@@ -23,8 +23,8 @@
 #include <CLI/CLI.hpp>
 
 #include "engine/cost.h"
-#include "engine/examples/catalog.h"
 #include "engine/identification/strategy.h"
+#include "io/example_catalog.h"
 #include "proto/names.h"
 
 namespace springfit {

@@ -11,8 +11,8 @@
 #include <memory>
 
 #include "engine/cost.h"
-#include "engine/examples/catalog.h"
 #include "engine/problem.h"
+#include "io/example_catalog.h"
 
 namespace springfit {
 namespace {

@@ -5,8 +5,8 @@
 #include "client/commands.h"
 #include "client/error_reporting.h"
 #include "client/exit_codes.h"
-#include "engine/examples/catalog.h"
 #include "engine/input_error.h"
+#include "io/example_catalog.h"
 #include "proto/scene_codec.h"
 
 namespace springfit::cli {

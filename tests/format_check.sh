@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The tree is formatted as .clang-format says (Debian 12's clang-format 14, from
-# scripts/install-deps.sh): every tracked C++ source and header, generated .inc files aside.
+# scripts/install-deps.sh): every tracked C++ source and header.
 # Usage: format_check.sh SOURCE_DIR
 set -u
 cd "$1" || exit 1

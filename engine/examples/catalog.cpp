@@ -12,9 +12,6 @@
 namespace springfit::examples {
 namespace {
 
-#include "engine/examples/kidney_mesh.inc"
-#include "engine/examples/kidney_mesh_fine.inc"
-
 // A simplex whose signed measure keeps less than this fraction of its rest value is flattened.
 constexpr double kFlattenedRatio = 1e-3;
 
@@ -32,6 +29,8 @@ double SignedMeasure(int d, const Vector& x, const std::vector<int>& s) {
   for (int c = 0; c < 3; ++c) m.col(c) = x.segment<3>(3 * s[c + 1]) - x.segment<3>(3 * s[0]);
   return m.determinant();
 }
+
+}  // namespace
 
 Scene PaperGrid(const std::string& name, bool anisotropic) {
   Scene s;
@@ -100,7 +99,7 @@ Scene Stiff2d() {
   return s;
 }
 
-Scene Kidney2d() {
+Scene Kidney2d(const SimplexMesh& mesh) {
   Scene s;
   s.name = "kidney-2d";
   s.description =
@@ -108,7 +107,6 @@ Scene Kidney2d() {
       "triangulation's edges, candidates: 8 nearest neighbours; paper7 loads on opposite ends "
       "at 5% strain";
   s.dimension = 2;
-  const SimplexMesh mesh = KidneyMesh();
   s.rest = mesh.nodes;
   s.candidates.kind = CandidateSpec::Kind::kNearest;
   s.candidates.k = 8;
@@ -128,32 +126,6 @@ Scene Kidney2d() {
   ScaleLoadsToStrain(s, 0.05);
   CheckFoldFree(s, triangles);
   return s;
-}
-
-}  // namespace
-
-namespace {
-
-template <std::size_t N, std::size_t T>
-SimplexMesh MeshOf(const double (&nodes)[N][2], const int (&triangles)[T][3]) {
-  SimplexMesh mesh;
-  mesh.nodes.resize(2 * static_cast<Eigen::Index>(N));
-  for (std::size_t i = 0; i < N; ++i) {
-    mesh.nodes[2 * i] = nodes[i][0];
-    mesh.nodes[2 * i + 1] = nodes[i][1];
-  }
-  for (const auto& t : triangles) mesh.elements.push_back({t[0], t[1], t[2]});
-  return mesh;
-}
-
-}  // namespace
-
-SimplexMesh KidneyMesh() {
-  return MeshOf(kKidneyNodes, kKidneyTriangles);
-}
-
-SimplexMesh KidneyMeshFine() {
-  return MeshOf(kKidneyFineNodes, kKidneyFineTriangles);
 }
 
 namespace {
@@ -267,33 +239,6 @@ Scene WithMeasurementNoise(const Scene& scene, double fraction, std::uint64_t se
     noisy.reference.positions.push_back(std::move(positions));
   }
   return noisy;
-}
-
-const std::vector<ExampleInfo>& Catalog() {
-  static const std::vector<ExampleInfo> catalog = [] {
-    std::vector<ExampleInfo> c;
-    for (const char* name : {"paper-iso-5x5", "paper-aniso-5x5", "kidney-2d", "grid3d-4x4x4",
-                             "stiff-2d", "fem-plate-5x5", "fem-kidney-2d", "fem-kidney-2d-nl",
-                             "fem-kidney-2d-fine", "fem-block-3d"}) {
-      c.push_back({name, Make(name).description});
-    }
-    return c;
-  }();
-  return catalog;
-}
-
-Scene Make(const std::string& name) {
-  if (name == "paper-iso-5x5") return PaperGrid(name, false);
-  if (name == "paper-aniso-5x5") return PaperGrid(name, true);
-  if (name == "kidney-2d") return Kidney2d();
-  if (name == "grid3d-4x4x4") return Grid3d();
-  if (name == "stiff-2d") return Stiff2d();
-  if (name == "fem-plate-5x5") return FemPlate5x5();
-  if (name == "fem-kidney-2d") return FemKidney2d(false);
-  if (name == "fem-kidney-2d-nl") return FemKidney2d(true);
-  if (name == "fem-kidney-2d-fine") return FemKidney2dFine();
-  if (name == "fem-block-3d") return FemBlock3d();
-  throw std::invalid_argument("unknown example '" + name + "'");
 }
 
 Vector GridNodes(const std::vector<int>& n, double spacing) {

@@ -13,16 +13,16 @@
 
 namespace springfit::examples {
 
-struct ExampleInfo {
-  std::string name;
-  std::string description;
-};
+// The example scenes' builders; the catalogue that names them, and loads the kidney's mesh
+// from its Gmsh file, is io/example_catalog.h (`springfit example`).
 
-// Names and one-line descriptions, in catalogue order.
-const std::vector<ExampleInfo>& Catalog();
-
-// Builds the named example; throws std::invalid_argument for an unknown name.
-Scene Make(const std::string& name);
+// The paper's 5x5 grids (isotropic or anisotropic reference), a 4x4x4 grid, a grid of varied
+// stiffness.
+Scene PaperGrid(const std::string& name, bool anisotropic);
+Scene Grid3d();
+Scene Stiff2d();
+// An MSS reference on the edges of a triangulated kidney cross-section `mesh`.
+Scene Kidney2d(const SimplexMesh& mesh);
 
 // Building blocks, also used by the benchmarks and tests.
 
@@ -55,17 +55,13 @@ const std::vector<Paper7Pattern>& Paper7Patterns(int dimension);
 // boundary, within 1e-9 of the diagonal) of the low or the high side along `axis`.
 std::vector<int> SideNodes(int dimension, const Vector& rest, int axis, bool low, double band);
 
-// The kidney cross-section meshed by gmsh (examples/meshes/kidney-2d.geo): 99 nodes, triangles.
-SimplexMesh KidneyMesh();
-// The same outline meshed finer (lc 0.325): 626 nodes, 1164 triangles.
-SimplexMesh KidneyMeshFine();
-
 // The FEM examples (fem_examples.cpp): the paper7 patterns as tractions on named node sets,
 // scaled to 5% strain in the small-load limit.
 Scene FemPlate5x5();
-Scene FemKidney2d(bool nonlinear);
-// fem-kidney-2d on the fine mesh: the size of a simulator's organ section.
-Scene FemKidney2dFine();
+// On the kidney's mesh (io/example_catalog.h, KidneyMesh).
+Scene FemKidney2d(const SimplexMesh& mesh, bool nonlinear);
+// fem-kidney-2d on the fine mesh (KidneyMeshFine): the size of a simulator's organ section.
+Scene FemKidney2dFine(const SimplexMesh& mesh);
 Scene FemBlock3d();
 
 // Rescales every load case's forces and tractions so that the reference's largest nodal

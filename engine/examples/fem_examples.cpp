@@ -88,22 +88,22 @@ Scene FemPlate5x5() {
   return s;
 }
 
-Scene FemKidney2d(bool nonlinear) {
+Scene FemKidney2d(const SimplexMesh& mesh, bool nonlinear) {
   return KidneyScene(
       nonlinear ? "fem-kidney-2d-nl" : "fem-kidney-2d",
       std::string("kidney cross-section meshed by gmsh (99 nodes, 165 triangles), ") +
           (nonlinear ? "St. Venant-Kirchhoff" : "linear elastic") +
           ", poisson 0.45, plane strain; candidates: mesh edges and 8 nearest neighbours; paper7 "
           "loads as tractions on opposite ends at 5% strain",
-      KidneyMesh(), nonlinear ? MaterialModel::kStVenantKirchhoff : MaterialModel::kLinear);
+      mesh, nonlinear ? MaterialModel::kStVenantKirchhoff : MaterialModel::kLinear);
 }
 
-Scene FemKidney2dFine() {
+Scene FemKidney2dFine(const SimplexMesh& mesh) {
   return KidneyScene("fem-kidney-2d-fine",
                      "kidney cross-section meshed finer by gmsh (626 nodes, 1164 triangles), "
                      "linear elastic, poisson 0.45, plane strain; candidates: mesh edges and 8 "
                      "nearest neighbours; paper7 loads as tractions on opposite ends at 5% strain",
-                     KidneyMeshFine(), MaterialModel::kLinear);
+                     mesh, MaterialModel::kLinear);
 }
 
 Scene FemBlock3d() {

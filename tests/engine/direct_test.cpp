@@ -7,9 +7,9 @@
 #include "engine/direct/direct_identification.h"
 #include "engine/direct/force_balance.h"
 #include "engine/direct/nnls.h"
-#include "engine/examples/catalog.h"
 #include "engine/identification/identify.h"
 #include "engine/input_error.h"
+#include "io/example_catalog.h"
 #include "tests/test_scenes.h"
 
 namespace springfit {

@@ -1,5 +1,5 @@
 // The built-in examples: what the issue and the paper say they are.
-#include "engine/examples/catalog.h"
+#include "io/example_catalog.h"
 
 #include <gtest/gtest.h>
 

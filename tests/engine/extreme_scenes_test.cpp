@@ -5,7 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "engine/cost.h"
-#include "engine/examples/catalog.h"
+#include "io/example_catalog.h"
 #include "tests/test_scenes.h"
 
 namespace springfit {

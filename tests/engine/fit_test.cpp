@@ -6,13 +6,13 @@
 
 #include "engine/cost.h"
 #include "engine/direct/force_balance.h"
-#include "engine/examples/catalog.h"
 #include "engine/fem/closed_form_baseline.h"
 #include "engine/fit/sparsity_path.h"
 #include "engine/fit/stiffness_fit.h"
 #include "engine/identification/identify.h"
 #include "engine/identification/strategy.h"
 #include "engine/input_error.h"
+#include "io/example_catalog.h"
 #include "tests/test_scenes.h"
 
 namespace springfit {

@@ -3,7 +3,7 @@
 
 #include "engine/direct/direct_identification.h"
 #include "engine/direct/identifiability.h"
-#include "engine/examples/catalog.h"
+#include "io/example_catalog.h"
 
 namespace springfit {
 namespace {

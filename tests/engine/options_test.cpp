@@ -8,10 +8,10 @@
 #include "engine/direct/direct_identification.h"
 #include "engine/direct/identifiability.h"
 #include "engine/equilibrium.h"
-#include "engine/examples/catalog.h"
 #include "engine/fem/fem_equilibrium.h"
 #include "engine/search/genetic_search.h"
 #include "engine/search/search_options.h"
+#include "io/example_catalog.h"
 
 namespace springfit {
 namespace {

@@ -14,10 +14,10 @@
 #include <gtest/gtest.h>
 
 #include "engine/direct/direct_identification.h"
-#include "engine/examples/catalog.h"
 #include "engine/identification/strategy.h"
 #include "engine/interruption.h"
 #include "engine/search/worker_pool.h"
+#include "io/example_catalog.h"
 
 namespace springfit {
 namespace {

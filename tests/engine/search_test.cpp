@@ -4,8 +4,8 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/examples/catalog.h"
 #include "engine/identification/strategy.h"
+#include "io/example_catalog.h"
 #include "tests/test_scenes.h"
 
 namespace springfit {

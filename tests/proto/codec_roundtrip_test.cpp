@@ -10,10 +10,10 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/examples/catalog.h"
 #include "engine/identification/identify.h"
 #include "engine/input_error.h"
 #include "engine/search/search_options.h"
+#include "io/example_catalog.h"
 #include "proto/evaluation_codec.h"
 #include "proto/job.h"
 #include "proto/names.h"

@@ -2,8 +2,8 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/examples/catalog.h"
 #include "engine/input_error.h"
+#include "io/example_catalog.h"
 
 namespace springfit::proto {
 namespace {

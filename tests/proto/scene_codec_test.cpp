@@ -5,9 +5,9 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/examples/catalog.h"
 #include "engine/input_error.h"
 #include "engine/problem.h"
+#include "io/example_catalog.h"
 
 namespace springfit::proto {
 namespace {

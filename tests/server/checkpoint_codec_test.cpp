@@ -2,8 +2,8 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/examples/catalog.h"
 #include "engine/identification/identify.h"
+#include "io/example_catalog.h"
 #include "server/version.h"
 
 namespace springfit::server {

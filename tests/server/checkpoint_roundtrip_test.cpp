@@ -13,9 +13,9 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/examples/catalog.h"
 #include "engine/identification/identify.h"
 #include "engine/search/fitness_cache.h"
+#include "io/example_catalog.h"
 
 namespace springfit::server {
 namespace {

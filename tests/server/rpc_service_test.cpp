@@ -9,7 +9,7 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/examples/catalog.h"
+#include "io/example_catalog.h"
 #include "proto/rpc.h"
 #include "proto/scene_codec.h"
 #include "server/sqlite_store.h"
