@@ -10,6 +10,7 @@
 #include "client/scene_input.h"
 #include "engine/input_error.h"
 #include "engine/scene.h"
+#include "io/mesh_import.h"
 
 namespace springfit::cli {
 namespace {
@@ -21,8 +22,9 @@ struct ImportArgs {
 
 int Import(const ImportArgs& a) {
   const proto::Json json = SceneJsonOf(a.input);
-  // With loads the scene is whole: it is validated as `run` would read it.
-  const bool whole = !a.input.loads.empty();
+  // With loads, or from decks (which carry their materials and steps), the scene is whole: it
+  // is validated as `run` would read it.
+  const bool whole = !a.input.loads.empty() || io::IsAbaqusDeck(a.input.path);
   if (whole) SceneOf(a.input);
   const std::string text = json.dump(1) + "\n";
   if (a.output.empty()) {
@@ -56,8 +58,13 @@ int Import(const ImportArgs& a) {
 void RegisterImport(CLI::App& app, int& exit_code) {
   auto args = std::make_shared<ImportArgs>();
   auto* cmd = app.add_subcommand(
-      "import", "Make a scene of a mesh (Gmsh .msh) and a loads file (proto/IMPORT.md)");
+      "import",
+      "Make a scene of a mesh (Gmsh .msh) or CalculiX/Abaqus decks (.inp) and a loads file "
+      "(proto/IMPORT.md)");
   AddSceneInput(cmd, args->input);
+  cmd->add_option("MORE", args->input.more,
+                  "Further CalculiX/Abaqus decks of the same model: their steps are more load "
+                  "cases");
   cmd->add_option("-o,--output", args->output, "The scene file to write (default: stdout)");
   cmd->callback([args, &exit_code] {
     exit_code = RunReportingErrors("import", [&] { return Import(*args); });

@@ -23,7 +23,8 @@ Scene SceneOfImport(const SceneInput& input, const proto::Json& json) {
 void AddSceneInput(CLI::App* command, SceneInput& input) {
   command
       ->add_option("SCENE", input.path,
-                   "Scene file (JSON, proto/SCENE.md), or a mesh (Gmsh .msh) with --loads")
+                   "Scene file (JSON, proto/SCENE.md), or a mesh (Gmsh .msh, CalculiX/Abaqus "
+                   ".inp) with --loads (proto/IMPORT.md)")
       ->required();
   command->add_option("--loads", input.loads,
                       "With a mesh: the rest of the scene (material, load cases on the mesh's "
@@ -31,7 +32,11 @@ void AddSceneInput(CLI::App* command, SceneInput& input) {
 }
 
 proto::Json SceneJsonOf(const SceneInput& input) {
-  if (io::IsMeshFile(input.path)) return io::ImportSceneFile(input.path, input.loads);
+  if (io::IsMeshFile(input.path)) {
+    std::vector<std::string> paths{input.path};
+    paths.insert(paths.end(), input.more.begin(), input.more.end());
+    return io::ImportSceneFiles(paths, input.loads);
+  }
   if (!input.loads.empty()) {
     throw InputError("", "--loads applies to a mesh (.msh); " + input.path + " is a scene");
   }
@@ -47,7 +52,7 @@ Scene SceneOf(const SceneInput& input) {
     }
     return proto::LoadSceneFile(input.path);
   }
-  return SceneOfImport(input, io::ImportSceneFile(input.path, input.loads));
+  return SceneOfImport(input, SceneJsonOf(input));
 }
 
 }  // namespace springfit::cli

@@ -15,6 +15,8 @@ namespace springfit::cli {
 struct SceneInput {
   std::string path;
   std::string loads;  // empty: none
+  // `import` only: further decks of the same model (their steps are more load cases).
+  std::vector<std::string> more;
 };
 
 // SCENE (a scene file or a mesh) and --loads.

@@ -40,11 +40,19 @@ ImportedMesh ReadGmshMesh(const std::string& path);
 proto::Json SceneOfMesh(const ImportedMesh& mesh, const proto::Json& loads,
                         const std::string& loads_name);
 
-// Whether `path` names a mesh format this importer reads (by extension).
+// CalculiX/Abaqus input decks (.inp): *NODE, *ELEMENT (CPS3, CPE3, C3D4; T2D2, T3D2 trusses
+// as an MSS reference), *NSET / *ELSET (GENERATE), *MATERIAL / *ELASTIC, *SOLID SECTION,
+// *BOUNDARY, *CLOAD, *INCLUDE, and each *STEP a load case (NLGEOM: St. Venant-Kirchhoff).
+// Several decks of one model give their steps in order. Output requests and solver controls
+// are skipped; any other keyword, and *DLOAD, is an error naming its file and line.
+bool IsAbaqusDeck(const std::string& path);
+proto::Json SceneOfAbaqusDecks(const std::vector<std::string>& paths);
+
+// Whether `path` names a file this importer reads (by extension: .msh, .inp).
 bool IsMeshFile(const std::string& path);
 
-// ReadGmshMesh (by extension) then SceneOfMesh with the loads file at `loads_path` (empty: no
-// loads).
-proto::Json ImportSceneFile(const std::string& mesh_path, const std::string& loads_path);
+// The scene of a Gmsh mesh, or of one or several decks, with the loads file at `loads_path`
+// (empty: no loads) merged over it. Throws InputError naming the file.
+proto::Json ImportSceneFiles(const std::vector<std::string>& paths, const std::string& loads_path);
 
 }  // namespace springfit::io

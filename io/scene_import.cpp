@@ -1,4 +1,5 @@
 // A mesh made into a scene, and a loads file merged over it (mesh_import.h, proto/IMPORT.md).
+#include <algorithm>
 #include <filesystem>
 
 #include "engine/input_error.h"
@@ -70,10 +71,50 @@ void ResolveRegionMaterials(Json& reference, const ImportedMesh& mesh, const std
   reference["element_materials"] = std::move(element_materials);
 }
 
+// `loads` merged over a scene a mesh or deck gave (no-op for null).
+void MergeLoads(Json& scene, const Json& loads, const std::string& where) {
+  if (loads.is_null()) return;
+  if (!loads.is_object())
+    throw InputError("", where + ": the loads are a JSON object (proto/IMPORT.md)");
+  for (const auto& [key, value] : loads.items()) {
+    if (std::find(std::begin(kLoadsFields), std::end(kLoadsFields), key) ==
+        std::end(kLoadsFields)) {
+      throw LoadsError(where, key,
+                       "unknown field (a loads file gives name, description, "
+                       "reference, candidates, load_cases, stiffness, search, "
+                       "node_sets; the mesh gives the nodes)");
+    }
+  }
+  if (loads.contains("reference")) {
+    const Json& r = loads["reference"];
+    if (!r.is_object()) throw LoadsError(where, "reference", "expected an object");
+    const Json& given = scene["reference"]["type"];
+    if (r.contains("type") && r["type"] != given) {
+      throw LoadsError(where, "reference.type",
+                       "the mesh's reference is of type " + given.get<std::string>() +
+                           " (its elements); got " + r["type"].dump());
+    }
+    if (r.contains("elements"))
+      throw LoadsError(where, "reference.elements", "the mesh gives the elements");
+  }
+  if (loads.contains("node_sets")) {
+    const Json& sets = loads["node_sets"];
+    if (!sets.is_object()) throw LoadsError(where, "node_sets", "expected an object");
+    for (const auto& [name, value] : sets.items()) {
+      if (scene.contains("node_sets") && scene["node_sets"].contains(name)) {
+        throw LoadsError(where, "node_sets." + name,
+                         "the mesh already has a group named '" + name + "'");
+      }
+    }
+  }
+  MergeInto(scene, loads);
+}
+
 }  // namespace
 
 bool IsMeshFile(const std::string& path) {
-  return std::filesystem::path(path).extension() == ".msh";
+  const auto ext = std::filesystem::path(path).extension();
+  return ext == ".msh" || ext == ".inp";
 }
 
 Json SceneOfMesh(const ImportedMesh& mesh, const Json& loads, const std::string& loads_name) {
@@ -92,51 +133,13 @@ Json SceneOfMesh(const ImportedMesh& mesh, const Json& loads, const std::string&
   scene["nodes"] = std::move(nodes);
   if (!mesh.node_sets.empty()) scene["node_sets"] = mesh.node_sets;
   scene["reference"] = {{"type", "fem"}, {"elements", mesh.elements}};
-  if (loads.is_null()) return scene;
 
-  const std::string& where = loads_name;
-  if (!loads.is_object())
-    throw InputError("", where + ": the loads are a JSON object (proto/IMPORT.md)");
-  for (const auto& [key, value] : loads.items()) {
-    if (std::find(std::begin(kLoadsFields), std::end(kLoadsFields), key) ==
-        std::end(kLoadsFields)) {
-      throw LoadsError(where, key,
-                       "unknown field (a loads file gives name, description, "
-                       "reference, candidates, load_cases, stiffness, search, "
-                       "node_sets; the mesh gives the nodes)");
-    }
-  }
-  if (loads.contains("reference")) {
-    const Json& r = loads["reference"];
-    if (!r.is_object()) throw LoadsError(where, "reference", "expected an object");
-    if (r.contains("type") && r["type"] != "fem") {
-      throw LoadsError(
-          where, "reference.type",
-          "the mesh's reference is of type fem (its elements); got " + r["type"].dump());
-    }
-    if (r.contains("elements"))
-      throw LoadsError(where, "reference.elements", "the mesh gives the elements");
-  }
-  if (loads.contains("node_sets")) {
-    const Json& sets = loads["node_sets"];
-    if (!sets.is_object()) throw LoadsError(where, "node_sets", "expected an object");
-    for (const auto& [name, value] : sets.items()) {
-      if (mesh.node_sets.count(name)) {
-        throw LoadsError(where, "node_sets." + name,
-                         "the mesh already has a group named '" + name + "'");
-      }
-    }
-  }
-  MergeInto(scene, loads);
-  ResolveRegionMaterials(scene["reference"], mesh, where);
+  MergeLoads(scene, loads, loads_name);
+  ResolveRegionMaterials(scene["reference"], mesh, loads_name);
   return scene;
 }
 
-Json ImportSceneFile(const std::string& mesh_path, const std::string& loads_path) {
-  if (!IsMeshFile(mesh_path)) {
-    throw InputError("", mesh_path + ": not a mesh springfit reads (expected a Gmsh .msh file)");
-  }
-  const ImportedMesh mesh = ReadGmshMesh(mesh_path);
+Json ImportSceneFiles(const std::vector<std::string>& paths, const std::string& loads_path) {
   Json loads;
   if (!loads_path.empty()) {
     try {
@@ -145,7 +148,17 @@ Json ImportSceneFile(const std::string& mesh_path, const std::string& loads_path
       throw InputError("", loads_path + ": " + e.what());
     }
   }
-  return SceneOfMesh(mesh, loads, loads_path);
+  if (std::all_of(paths.begin(), paths.end(), IsAbaqusDeck)) {
+    Json scene = SceneOfAbaqusDecks(paths);
+    MergeLoads(scene, loads, loads_path);
+    return scene;
+  }
+  if (paths.size() == 1 && std::filesystem::path(paths[0]).extension() == ".msh")
+    return SceneOfMesh(ReadGmshMesh(paths[0]), loads, loads_path);
+  throw InputError(
+      "", paths[0] + (paths.size() > 1 ? " ...: several files are decks (.inp) of one model"
+                                       : ": not a mesh springfit reads (expected a Gmsh .msh or a "
+                                         "CalculiX/Abaqus .inp deck)"));
 }
 
 }  // namespace springfit::io

@@ -1,0 +1,584 @@
+// CalculiX / Abaqus input decks (.inp) made into a scene (mesh_import.h, proto/IMPORT.md):
+// the model data (nodes, elements, sets, materials, sections, model-level boundary
+// conditions) and one load case per *STEP. Keywords are read case-insensitively; a keyword
+// that would change the mechanics and is not understood is an error naming its line, never
+// skipped.
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <set>
+#include <sstream>
+
+#include "engine/input_error.h"
+#include "io/mesh_import.h"
+
+namespace springfit::io {
+namespace {
+
+using proto::Json;
+
+std::string Upper(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return s;
+}
+
+std::string Trim(const std::string& s) {
+  const auto b = s.find_first_not_of(" \t\r");
+  if (b == std::string::npos) return "";
+  return s.substr(b, s.find_last_not_of(" \t\r") - b + 1);
+}
+
+std::vector<std::string> SplitFields(const std::string& line) {
+  std::vector<std::string> out;
+  std::stringstream in(line);
+  std::string field;
+  while (std::getline(in, field, ',')) out.push_back(Trim(field));
+  if (!line.empty() && line.back() == ',') out.push_back("");
+  return out;
+}
+
+// One line of a deck, where it is.
+struct Line {
+  std::string file;
+  int number = 0;
+  std::string text;
+  std::string where() const { return file + ":" + std::to_string(number); }
+};
+
+// A keyword line: its name (upper case) and parameters (upper-case keys, values as written),
+// and the data lines up to the next keyword.
+struct Card {
+  Line line;
+  std::string keyword;
+  std::map<std::string, std::string> parameters;
+  std::vector<Line> data;
+  bool Has(const std::string& key) const { return parameters.count(key) > 0; }
+  std::string Get(const std::string& key) const {
+    const auto it = parameters.find(key);
+    return it == parameters.end() ? "" : it->second;
+  }
+};
+
+[[noreturn]] void Fail(const Line& line, const std::string& message) {
+  throw InputError("", line.where() + ": " + message);
+}
+
+// The deck's lines, *INCLUDE files read in place (relative to the including file).
+void ReadLines(const std::string& path, std::vector<Line>& lines, int depth, const Line* from) {
+  if (depth > 8) Fail(*from, "*INCLUDE nested more than 8 deep");
+  std::ifstream in(path);
+  if (!in) {
+    if (from) Fail(*from, "cannot read the included file " + path);
+    throw InputError("", path + ": no such file");
+  }
+  std::string text;
+  int number = 0;
+  while (std::getline(in, text)) {
+    ++number;
+    const std::string t = Trim(text);
+    if (t.empty() || t.rfind("**", 0) == 0) continue;  // blank or a comment
+    Line line{path, number, t};
+    if (Upper(t).rfind("*INCLUDE", 0) == 0) {
+      std::string input;
+      for (const std::string& p : SplitFields(t)) {
+        const auto eq = p.find('=');
+        if (eq != std::string::npos && Upper(Trim(p.substr(0, eq))) == "INPUT")
+          input = Trim(p.substr(eq + 1));
+      }
+      if (input.empty()) Fail(line, "*INCLUDE needs INPUT=file");
+      const std::filesystem::path target =
+          std::filesystem::path(path).parent_path() / std::filesystem::path(input);
+      ReadLines(target.string(), lines, depth + 1, &line);
+      continue;
+    }
+    lines.push_back(std::move(line));
+  }
+}
+
+std::vector<Card> Cards(const std::string& path) {
+  std::vector<Line> lines;
+  ReadLines(path, lines, 0, nullptr);
+  std::vector<Card> cards;
+  for (Line& line : lines) {
+    if (line.text[0] == '*') {
+      Card card;
+      const std::vector<std::string> fields = SplitFields(line.text.substr(1));
+      card.keyword = Upper(fields[0]);
+      for (std::size_t i = 1; i < fields.size(); ++i) {
+        if (fields[i].empty()) continue;
+        const auto eq = fields[i].find('=');
+        if (eq == std::string::npos) {
+          card.parameters[Upper(fields[i])] = "";
+        } else {
+          card.parameters[Upper(Trim(fields[i].substr(0, eq)))] = Trim(fields[i].substr(eq + 1));
+        }
+      }
+      card.line = std::move(line);
+      cards.push_back(std::move(card));
+    } else {
+      if (cards.empty()) Fail(line, "data before the first keyword");
+      // A data line ending with a comma continues on the next (element connectivity).
+      std::vector<Line>& data = cards.back().data;
+      if (!data.empty() && data.back().text.back() == ',') {
+        data.back().text += line.text;
+      } else {
+        data.push_back(std::move(line));
+      }
+    }
+  }
+  return cards;
+}
+
+double Number(const Line& line, const std::string& text, const char* what) {
+  std::size_t used = 0;
+  double value = 0.0;
+  try {
+    value = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() || !std::isfinite(value))
+    Fail(line, std::string("expected a number for ") + what + ", got '" + text + "'");
+  return value;
+}
+
+long Integer(const Line& line, const std::string& text, const char* what) {
+  const double x = Number(line, text, what);
+  if (x != std::floor(x) || std::abs(x) > 1e15)
+    Fail(line, std::string("expected an integer for ") + what + ", got '" + text + "'");
+  return static_cast<long>(x);
+}
+
+// What the decks describe, with the deck's own ids.
+struct Deck {
+  int dimension = 0;                          // from the element types
+  std::map<long, std::vector<double>> nodes;  // id -> x, y, z
+  struct Element {
+    long id = 0;
+    std::vector<long> nodes;
+    std::string type;
+  };
+  std::vector<Element> elements;
+  std::map<std::string, std::vector<long>> nsets, elsets;  // upper-case names
+  std::map<std::string, std::string> set_names;            // upper -> as first written
+  struct Material {
+    std::optional<double> young, poisson;
+  };
+  std::map<std::string, Material> materials;
+  struct Section {
+    std::string elset, material;
+    double thickness_or_area = 1.0;
+    Line line;
+  };
+  std::vector<Section> sections;
+  std::string plane;  // "stress" (CPS3) or "strain" (CPE3), 2D
+  bool truss = false;
+  struct Step {
+    std::string name;
+    bool nlgeom = false;
+    std::map<long, std::map<int, double>> held;  // node -> dof (0-based) -> value
+    std::map<long, std::vector<double>> forces;
+    Line line;
+  };
+  Step model;  // boundary conditions before the first step: held in every step
+  std::vector<Step> steps;
+};
+
+// The ids a data field names: a node (element) id, or the name of a set.
+std::vector<long> Ids(const Deck& deck, const Line& line, const std::string& field, bool nodes) {
+  const auto& sets = nodes ? deck.nsets : deck.elsets;
+  if (!field.empty() && (std::isdigit(static_cast<unsigned char>(field[0])) || field[0] == '-'))
+    return {Integer(line, field, nodes ? "a node" : "an element")};
+  const auto it = sets.find(Upper(field));
+  if (it == sets.end())
+    Fail(line, std::string("unknown ") + (nodes ? "node" : "element") + " set '" + field + "'");
+  return it->second;
+}
+
+// Keywords that do not change a static model's mechanics: output requests, the step's
+// procedure and solver controls, a density (no inertia in a static step).
+const std::set<std::string> kIgnored = {
+    "HEADING",  "PREPRINT",    "NODE FILE",      "EL FILE",       "NODE PRINT",
+    "EL PRINT", "NODE OUTPUT", "ELEMENT OUTPUT", "OUTPUT",        "STATIC",
+    "CONTROLS", "DENSITY",     "CONTACT FILE",   "CONTACT PRINT", "RESTART"};
+
+void ReadDeck(const std::string& path, Deck& deck) {
+  const std::vector<Card> cards = Cards(path);
+  Deck::Step* step = nullptr;
+  std::string material;
+  for (const Card& card : cards) {
+    const std::string& k = card.keyword;
+    const Line& at = card.line;
+    if (k == "NODE") {
+      if (step) Fail(at, "*NODE inside a step");
+      const std::string set = card.Get("NSET");
+      for (const Line& l : card.data) {
+        const std::vector<std::string> f = SplitFields(l.text);
+        if (f.size() < 3) Fail(l, "a node needs an id and 2 or 3 coordinates");
+        const long id = Integer(l, f[0], "a node id");
+        std::vector<double> x(3, 0.0);
+        for (std::size_t c = 1; c < f.size() && c <= 3; ++c)
+          if (!f[c].empty()) x[c - 1] = Number(l, f[c], "a coordinate");
+        if (!deck.nodes.emplace(id, x).second)
+          Fail(l, "node " + std::to_string(id) + " defined twice");
+        if (!set.empty()) deck.nsets[Upper(set)].push_back(id);
+      }
+      if (!set.empty()) deck.set_names.emplace(Upper(set), set);
+    } else if (k == "ELEMENT") {
+      if (step) Fail(at, "*ELEMENT inside a step");
+      const std::string type = Upper(card.Get("TYPE"));
+      int d = 0, count = 0;
+      if (type == "CPS3" || type == "CPE3") {
+        d = 2, count = 3;
+        const std::string plane = type == "CPS3" ? "stress" : "strain";
+        if (!deck.plane.empty() && deck.plane != plane)
+          Fail(at, "CPS3 (plane stress) and CPE3 (plane strain) in one model");
+        deck.plane = plane;
+      } else if (type == "C3D4") {
+        d = 3, count = 4;
+      } else if (type == "T2D2" || type == "T3D2") {
+        d = type == "T2D2" ? 2 : 3, count = 2;
+        deck.truss = true;
+      } else {
+        Fail(at, "element type '" + card.Get("TYPE") +
+                     "': springfit reads CPS3, CPE3 (2D triangles), C3D4 (tetrahedra) and T2D2, "
+                     "T3D2 (2-node trusses: an MSS reference)");
+      }
+      if (deck.dimension != 0 && deck.dimension != d) Fail(at, "2D and 3D elements in one model");
+      deck.dimension = d;
+      const std::string set = card.Get("ELSET");
+      for (const Line& l : card.data) {
+        const std::vector<std::string> f = SplitFields(l.text);
+        std::vector<std::string> ids;
+        for (const std::string& s : f)
+          if (!s.empty()) ids.push_back(s);
+        if (static_cast<int>(ids.size()) != count + 1)
+          Fail(l, type + " needs an id and " + std::to_string(count) + " nodes");
+        Deck::Element e;
+        e.id = Integer(l, ids[0], "an element id");
+        e.type = type;
+        for (int c = 1; c <= count; ++c) e.nodes.push_back(Integer(l, ids[c], "a node"));
+        if (!set.empty()) deck.elsets[Upper(set)].push_back(e.id);
+        deck.elements.push_back(std::move(e));
+      }
+      if (!set.empty()) deck.set_names.emplace(Upper(set), set);
+    } else if (k == "NSET" || k == "ELSET") {
+      const bool nodes = k == "NSET";
+      const std::string name = card.Get(nodes ? "NSET" : "ELSET");
+      if (name.empty()) Fail(at, "*" + k + " needs " + k + "=name");
+      std::vector<long>& ids = (nodes ? deck.nsets : deck.elsets)[Upper(name)];
+      deck.set_names.emplace(Upper(name), name);
+      for (const Line& l : card.data) {
+        const std::vector<std::string> f = SplitFields(l.text);
+        if (card.Has("GENERATE")) {
+          if (f.size() < 2) Fail(l, "GENERATE needs first, last[, step]");
+          const long first = Integer(l, f[0], "first"), last = Integer(l, f[1], "last");
+          const long inc = f.size() > 2 && !f[2].empty() ? Integer(l, f[2], "step") : 1;
+          if (inc <= 0 || last < first || (last - first) / inc > 10000000)
+            Fail(l, "GENERATE needs first <= last and a step >= 1");
+          for (long id = first; id <= last; id += inc) ids.push_back(id);
+        } else {
+          for (const std::string& s : f)
+            if (!s.empty())
+              for (long id : Ids(deck, l, s, nodes)) ids.push_back(id);
+        }
+      }
+    } else if (k == "MATERIAL") {
+      material = Upper(card.Get("NAME"));
+      if (material.empty()) Fail(at, "*MATERIAL needs NAME=");
+      deck.materials[material];
+    } else if (k == "ELASTIC") {
+      if (material.empty()) Fail(at, "*ELASTIC outside a *MATERIAL");
+      const std::string type = Upper(card.Get("TYPE"));
+      if (!type.empty() && type != "ISO")
+        Fail(at, "*ELASTIC, TYPE=" + card.Get("TYPE") + ": springfit reads isotropic elasticity");
+      if (card.data.empty()) Fail(at, "*ELASTIC needs a line: E, nu");
+      const std::vector<std::string> f = SplitFields(card.data[0].text);
+      if (f.size() < 2) Fail(card.data[0], "*ELASTIC needs E, nu");
+      if (card.data.size() > 1 || (f.size() > 2 && !f[2].empty()))
+        Fail(card.data[0], "temperature-dependent elasticity is not read");
+      deck.materials[material].young = Number(card.data[0], f[0], "E");
+      deck.materials[material].poisson = Number(card.data[0], f[1], "nu");
+    } else if (k == "SOLID SECTION") {
+      Deck::Section s;
+      s.elset = Upper(card.Get("ELSET"));
+      s.material = Upper(card.Get("MATERIAL"));
+      s.line = at;
+      if (s.elset.empty() || s.material.empty())
+        Fail(at, "*SOLID SECTION needs ELSET= and MATERIAL=");
+      if (!card.data.empty()) {
+        const std::vector<std::string> f = SplitFields(card.data[0].text);
+        if (!f.empty() && !f[0].empty())
+          s.thickness_or_area = Number(card.data[0], f[0], "the thickness");
+      }
+      deck.sections.push_back(s);
+    } else if (k == "STEP") {
+      if (step) Fail(at, "*STEP inside a step (no *END STEP)");
+      deck.steps.emplace_back();
+      step = &deck.steps.back();
+      step->line = at;
+      step->nlgeom = card.Has("NLGEOM") && Upper(card.Get("NLGEOM")) != "NO";
+      step->name =
+          card.Has("NAME")
+              ? card.Get("NAME")
+              : std::filesystem::path(path).stem().string() +
+                    (deck.steps.size() > 1 ? " step " + std::to_string(deck.steps.size()) : "");
+    } else if (k == "END STEP") {
+      if (!step) Fail(at, "*END STEP without *STEP");
+      step = nullptr;
+    } else if (k == "BOUNDARY") {
+      Deck::Step& s = step ? *step : deck.model;
+      for (const Line& l : card.data) {
+        const std::vector<std::string> f = SplitFields(l.text);
+        if (f.size() < 2) Fail(l, "*BOUNDARY needs node or set, first dof[, last dof[, value]]");
+        const long first = Integer(l, f[1], "a dof");
+        const long last = f.size() > 2 && !f[2].empty() ? Integer(l, f[2], "a dof") : first;
+        const double value = f.size() > 3 && !f[3].empty() ? Number(l, f[3], "a value") : 0.0;
+        if (first < 1 || last < first || last > 3) Fail(l, "dofs must be within 1 to 3");
+        for (long node : Ids(deck, l, f[0], true))
+          for (long dof = first; dof <= last; ++dof)
+            s.held[node][static_cast<int>(dof - 1)] = value;
+      }
+    } else if (k == "CLOAD") {
+      if (!step) Fail(at, "*CLOAD outside a step");
+      for (const Line& l : card.data) {
+        const std::vector<std::string> f = SplitFields(l.text);
+        if (f.size() < 3) Fail(l, "*CLOAD needs node or set, dof, magnitude");
+        const long dof = Integer(l, f[1], "a dof");
+        if (dof < 1 || dof > 3) Fail(l, "*CLOAD acts on dofs 1 to 3 (a force)");
+        const double value = Number(l, f[2], "a magnitude");
+        for (long node : Ids(deck, l, f[0], true)) {
+          std::vector<double>& force = step->forces[node];
+          force.resize(3, 0.0);
+          force[static_cast<std::size_t>(dof - 1)] += value;
+        }
+      }
+    } else if (k == "DLOAD") {
+      Fail(at,
+           "*DLOAD (distributed loads) is not read: give the load as a traction on a node set "
+           "in --loads, or as *CLOAD nodal forces");
+    } else if (!kIgnored.count(k)) {
+      Fail(at, "*" + k +
+                   " is not read by springfit and may change the mechanics (proto/IMPORT.md lists "
+                   "what is read)");
+    }
+  }
+  if (step) Fail(step->line, "*STEP without *END STEP");
+}
+
+}  // namespace
+
+bool IsAbaqusDeck(const std::string& path) {
+  return std::filesystem::path(path).extension() == ".inp";
+}
+
+Json SceneOfAbaqusDecks(const std::vector<std::string>& paths) {
+  // The model from the first deck; every other deck must describe the same one.
+  Deck first;
+  ReadDeck(paths[0], first);
+  std::vector<Deck::Step> steps = first.steps;
+  for (std::size_t i = 1; i < paths.size(); ++i) {
+    Deck other;
+    ReadDeck(paths[i], other);
+    if (other.nodes != first.nodes)
+      throw InputError("", paths[i] + ": its nodes differ from " + paths[0] +
+                               "'s (decks of one model share the mesh)");
+    bool same = other.elements.size() == first.elements.size();
+    for (std::size_t e = 0; same && e < other.elements.size(); ++e)
+      same = other.elements[e].nodes == first.elements[e].nodes &&
+             other.elements[e].type == first.elements[e].type;
+    if (!same) throw InputError("", paths[i] + ": its elements differ from " + paths[0] + "'s");
+    for (Deck::Step s : other.steps) {
+      for (const auto& [node, held] : other.model.held)
+        for (const auto& [dof, v] : held) s.held[node].emplace(dof, v);
+      steps.push_back(std::move(s));
+    }
+  }
+  const std::string& deck_name = paths[0];
+  if (first.elements.empty()) throw InputError("", deck_name + ": no *ELEMENT");
+  if (steps.empty()) throw InputError("", deck_name + ": no *STEP: each step is a load case");
+  const int d = first.dimension;
+
+  // Nodes the elements use, in id order, numbered from 0.
+  std::map<long, int> index;
+  for (const auto& e : first.elements) {
+    for (long n : e.nodes) {
+      if (!first.nodes.count(n))
+        throw InputError("", deck_name + ": element " + std::to_string(e.id) + " uses node " +
+                                 std::to_string(n) + ", which no *NODE defines");
+      index.emplace(n, 0);
+    }
+  }
+  int next = 0;
+  for (auto& [id, i] : index) i = next++;
+  Json scene;
+  scene["name"] = std::filesystem::path(deck_name).stem().string();
+  scene["description"] =
+      "imported from " + std::filesystem::path(deck_name).filename().string() +
+      (paths.size() > 1 ? " and " + std::to_string(paths.size() - 1) + " more decks" : "");
+  Json nodes = Json::array();
+  for (const auto& [id, i] : index) {
+    const std::vector<double>& x = first.nodes.at(id);
+    if (d == 2 && x[2] != 0.0)
+      throw InputError("", deck_name + ": node " + std::to_string(id) +
+                               " has z = " + std::to_string(x[2]) +
+                               " in a 2D model (CPS3, CPE3, T2D2 lie in z = 0)");
+    nodes.push_back(d == 2 ? Json{x[0], x[1]} : Json{x[0], x[1], x[2]});
+  }
+  scene["nodes"] = std::move(nodes);
+  const auto node_of = [&](long id, const std::string& what) {
+    const auto it = index.find(id);
+    if (it == index.end())
+      throw InputError("", deck_name + ": " + what + " names node " + std::to_string(id) +
+                               ", which no element uses");
+    return it->second;
+  };
+  // Node sets by name (those whose nodes are all in the model).
+  Json sets = Json::object();
+  for (const auto& [upper, ids] : first.nsets) {
+    std::set<int> members;
+    bool whole = true;
+    for (long id : ids) {
+      const auto it = index.find(id);
+      if (it == index.end())
+        whole = false;
+      else
+        members.insert(it->second);
+    }
+    if (whole && !members.empty())
+      sets[first.set_names.at(upper)] = std::vector<int>(members.begin(), members.end());
+  }
+  if (!sets.empty()) scene["node_sets"] = std::move(sets);
+
+  // Sections: each element's material, and the thickness (2D) or area (trusses).
+  std::map<long, std::size_t> section_of;  // element id -> section
+  for (std::size_t s = 0; s < first.sections.size(); ++s) {
+    const auto& sec = first.sections[s];
+    const auto set = first.elsets.find(sec.elset);
+    if (set == first.elsets.end()) Fail(sec.line, "unknown element set '" + sec.elset + "'");
+    const auto m = first.materials.find(sec.material);
+    if (m == first.materials.end()) Fail(sec.line, "unknown material '" + sec.material + "'");
+    if (!m->second.young) Fail(sec.line, "material '" + sec.material + "' has no *ELASTIC");
+    for (long e : set->second) section_of[e] = s;
+  }
+  const bool nlgeom = steps.front().nlgeom;
+  for (const auto& s : steps)
+    if (s.nlgeom != nlgeom)
+      Fail(s.line, "NLGEOM in some steps and not in others: one material law per model");
+  Json reference;
+  if (first.truss) {
+    // 2-node trusses: an MSS reference, k = E A / L at rest.
+    reference["type"] = "mss";
+    Json springs = Json::array(), stiffness = Json::array();
+    for (const auto& e : first.elements) {
+      if (e.type != "T2D2" && e.type != "T3D2")
+        throw InputError("", deck_name + ": trusses and continuum elements in one model");
+      const auto s = section_of.find(e.id);
+      if (s == section_of.end())
+        throw InputError("", deck_name + ": truss element " + std::to_string(e.id) +
+                                 " has no *SOLID SECTION (its area and material)");
+      const auto& sec = first.sections[s->second];
+      const int a = node_of(e.nodes[0], "an element"), b = node_of(e.nodes[1], "an element");
+      double l2 = 0.0;
+      for (int c = 0; c < 3; ++c)
+        l2 += std::pow(first.nodes.at(e.nodes[0])[c] - first.nodes.at(e.nodes[1])[c], 2);
+      springs.push_back({a, b});
+      stiffness.push_back(*first.materials.at(sec.material).young * sec.thickness_or_area /
+                          std::sqrt(l2));
+    }
+    reference["springs"] = std::move(springs);
+    reference["stiffness"] = std::move(stiffness);
+  } else {
+    reference["type"] = "fem";
+    Json elements = Json::array(), element_materials = Json::array(), materials = Json::array();
+    std::map<std::string, int> material_index;
+    std::optional<double> thickness;
+    for (const auto& e : first.elements) {
+      Json nodes_of = Json::array();
+      for (long n : e.nodes) nodes_of.push_back(node_of(n, "an element"));
+      elements.push_back(std::move(nodes_of));
+      const auto s = section_of.find(e.id);
+      if (s == section_of.end())
+        throw InputError("", deck_name + ": element " + std::to_string(e.id) +
+                                 " has no *SOLID SECTION (its material)");
+      const auto& sec = first.sections[s->second];
+      if (d == 2) {
+        if (thickness && *thickness != sec.thickness_or_area)
+          Fail(sec.line, "sections of different thickness: springfit has one thickness per model");
+        thickness = sec.thickness_or_area;
+      }
+      auto [it, added] = material_index.emplace(sec.material, static_cast<int>(materials.size()));
+      if (added) {
+        const auto& m = first.materials.at(sec.material);
+        materials.push_back({{"model", nlgeom ? "st_venant_kirchhoff" : "linear"},
+                             {"young", *m.young},
+                             {"poisson", *m.poisson}});
+      }
+      element_materials.push_back(it->second);
+    }
+    reference["elements"] = std::move(elements);
+    if (materials.size() == 1) {
+      reference["material"] = materials[0];
+    } else {
+      reference["materials"] = std::move(materials);
+      reference["element_materials"] = std::move(element_materials);
+    }
+    if (d == 2) {
+      reference["plane"] = first.plane;
+      reference["thickness"] = thickness.value_or(1.0);
+    }
+  }
+  scene["reference"] = std::move(reference);
+
+  // One load case per step: held nodes (every dof of the dimension, or none), forces.
+  Json cases = Json::array();
+  for (Deck::Step s : steps) {
+    for (const auto& [node, held] : first.model.held)
+      for (const auto& [dof, v] : held) s.held[node].emplace(dof, v);
+    Json lc;
+    lc["name"] = s.name;
+    Json fixed = Json::array(), displacements = Json::array(), forces = Json::array();
+    for (const auto& [node, held] : s.held) {
+      const int i = node_of(node, "*BOUNDARY");
+      std::vector<double> u(static_cast<std::size_t>(d), 0.0);
+      int count = 0;
+      for (const auto& [dof, v] : held) {
+        if (dof >= d) {
+          if (v != 0.0)
+            Fail(s.line, "node " + std::to_string(node) + ": a displacement along dof " +
+                             std::to_string(dof + 1) + " in a 2D model");
+          continue;
+        }
+        u[static_cast<std::size_t>(dof)] = v;
+        ++count;
+      }
+      if (count != d)
+        Fail(s.line, "node " + std::to_string(node) + " is held in " + std::to_string(count) +
+                         " of its " + std::to_string(d) +
+                         " directions: springfit holds a node in every direction or none");
+      if (std::all_of(u.begin(), u.end(), [](double x) { return x == 0.0; })) {
+        fixed.push_back(i);
+      } else {
+        displacements.push_back({{"node", i}, {"displacement", u}});
+      }
+    }
+    for (const auto& [node, f] : s.forces) {
+      const int i = node_of(node, "*CLOAD");
+      if (d == 2 && f[2] != 0.0)
+        Fail(s.line, "node " + std::to_string(node) + ": a force along dof 3 in a 2D model");
+      forces.push_back({{"node", i}, {"force", std::vector<double>(f.begin(), f.begin() + d)}});
+    }
+    lc["fixed"] = std::move(fixed);
+    if (!displacements.empty()) lc["displacements"] = std::move(displacements);
+    if (!forces.empty()) lc["forces"] = std::move(forces);
+    cases.push_back(std::move(lc));
+  }
+  scene["load_cases"] = std::move(cases);
+  return scene;
+}
+
+}  // namespace springfit::io
