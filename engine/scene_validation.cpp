@@ -1,5 +1,7 @@
 #include "engine/scene_validation.h"
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -61,6 +63,39 @@ double Extent(const Scene& s) {
   return s.Bounds().Diagonal();
 }
 
+// A 3D scene whose nodes all lie in one plane: springs (and a flat mesh) have no stiffness
+// across it, so every model, the reference's too, is a mechanism there. Said here, at the
+// nodes, rather than later as a mechanism or a rigid-motion error. O(n): the plane is the
+// centred nodes' direction of least spread.
+void CheckNotPlanar(const Scene& s) {
+  const int n = s.node_count();
+  if (n < 3) return;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (int i = 0; i < n; ++i) centre += s.rest.segment<3>(3 * i);
+  centre /= n;
+  Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d x = s.rest.segment<3>(3 * i) - centre;
+    spread += x * x.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(spread);
+  const Eigen::Vector3d normal = eigen.eigenvectors().col(0);  // least spread
+  double off = 0.0;
+  bool flat_z = true;
+  for (int i = 0; i < n; ++i) {
+    off = std::max(off, std::abs(normal.dot(s.rest.segment<3>(3 * i) - centre)));
+    flat_z = flat_z && s.rest[3 * i + 2] == 0.0;
+  }
+  if (off > kCoincidentTolerance * Extent(s)) return;
+  throw InputError("nodes",
+                   "all " + std::to_string(n) +
+                       " nodes lie in one plane: a 3D model of them has no stiffness across it "
+                       "(every topology is a mechanism there)" +
+                       (flat_z ? std::string("; for a plane model write each node as [x, y] "
+                                             "(2D), without the z = 0")
+                               : std::string("")));
+}
+
 void CheckNodes(const Scene& s) {
   if (s.dimension != 2 && s.dimension != 3) {
     throw InputError("nodes", "dimension must be 2 or 3, got " + std::to_string(s.dimension));
@@ -90,6 +125,7 @@ void CheckNodes(const Scene& s) {
       }
     }
   }
+  if (d == 3) CheckNotPlanar(s);
 }
 
 void CheckCandidates(const Scene& s) {

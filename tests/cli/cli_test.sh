@@ -6,6 +6,21 @@ sf=$1
 src=$2
 source "$(dirname "$0")/../checks.sh"
 
+# A 3D scene whose nodes all have z = 0 (a 2D model written with z, as VTK tools do) is named
+# at its nodes, not later as a mechanism or a rigid-motion error.
+python3 - "$src/examples/paper-iso-5x5.json" "$tmp/flat3d.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+s["nodes"] = [p + [0.0] for p in s["nodes"]]
+for lc in s["load_cases"]:
+    for f in lc.get("forces", []):
+        f["force"] = f["force"] + [0.0]
+open(sys.argv[2], "w").write(json.dumps(s))
+PY
+expect_exit 2 "flat 3D scene" "$sf" check "$tmp/flat3d.json"
+grep -q "nodes: all 25 nodes lie in one plane: a 3D model of them has no stiffness across it .*; for a plane model write each node as \[x, y\]" "$tmp/err" \
+  || fail "flat 3D scene named at its nodes: $(cat "$tmp/err")"
+
 # check: valid scene 0, invalid scene 2 with the path on one line, missing file 2, usage 64.
 expect_exit 0 "check valid" "$sf" check "$src/examples/kidney-2d.json"
 grep -q "genes:" "$tmp/out" || fail "check prints the genes"
