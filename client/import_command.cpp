@@ -35,8 +35,15 @@ int Import(const ImportArgs& a) {
     out.close();
     if (!out) throw std::runtime_error("cannot write " + a.output);
     const proto::Json& ref = json["reference"];
-    std::cerr << a.output << ": " << json["nodes"].size() << " nodes, " << ref["elements"].size()
-              << " elements";
+    std::cerr << a.output << ": " << json["nodes"].size() << " nodes, ";
+    if (ref.contains("elements")) {
+      std::cerr << ref["elements"].size() << " elements (reference fem)";
+    } else if (ref.contains("springs")) {
+      std::cerr << ref["springs"].size() << " springs (reference mss)";
+    } else {
+      std::cerr << "reference positions (" << ref.value("positions", proto::Json::array()).size()
+                << " configurations)";
+    }
     if (json.contains("node_sets")) {
       std::cerr << ", node sets:";
       for (const auto& [name, nodes] : json["node_sets"].items())
@@ -65,6 +72,11 @@ void RegisterImport(CLI::App& app, int& exit_code) {
   cmd->add_option("MORE", args->input.more,
                   "Further CalculiX/Abaqus decks of the same model: their steps are more load "
                   "cases");
+  cmd->add_option("--results", args->input.results,
+                  "CalculiX results of the decks (.frd with *NODE FILE U, or .dat with *NODE "
+                  "PRINT U; one step per load case, in order): the reference becomes those "
+                  "positions")
+      ->expected(1, -1);
   cmd->add_option("-o,--output", args->output, "The scene file to write (default: stdout)");
   cmd->callback([args, &exit_code] {
     exit_code = RunReportingErrors("import", [&] { return Import(*args); });

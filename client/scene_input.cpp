@@ -35,7 +35,7 @@ proto::Json SceneJsonOf(const SceneInput& input) {
   if (io::IsMeshFile(input.path)) {
     std::vector<std::string> paths{input.path};
     paths.insert(paths.end(), input.more.begin(), input.more.end());
-    return io::ImportSceneFiles(paths, input.loads);
+    return io::ImportSceneFiles(paths, input.loads, input.results);
   }
   if (!input.loads.empty()) {
     throw InputError("", "--loads applies to a mesh (.msh); " + input.path + " is a scene");

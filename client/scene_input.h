@@ -15,8 +15,10 @@ namespace springfit::cli {
 struct SceneInput {
   std::string path;
   std::string loads;  // empty: none
-  // `import` only: further decks of the same model (their steps are more load cases).
+  // `import` only: further decks of the same model (their steps are more load cases), and
+  // CalculiX results to use as a positions reference.
   std::vector<std::string> more;
+  std::vector<std::string> results;
 };
 
 // SCENE (a scene file or a mesh) and --loads.

@@ -15,6 +15,7 @@
 
 #include "engine/input_error.h"
 #include "io/mesh_import.h"
+#include "io/text_output.h"
 
 namespace springfit::io {
 namespace {
@@ -134,16 +135,9 @@ std::vector<Card> Cards(const std::string& path) {
 }
 
 double Number(const Line& line, const std::string& text, const char* what) {
-  std::size_t used = 0;
-  double value = 0.0;
-  try {
-    value = std::stod(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used == 0 || used != text.size() || !std::isfinite(value))
-    Fail(line, std::string("expected a number for ") + what + ", got '" + text + "'");
-  return value;
+  const std::optional<double> value = NumberIn(text);
+  if (!value) Fail(line, std::string("expected a number for ") + what + ", got '" + text + "'");
+  return *value;
 }
 
 long Integer(const Line& line, const std::string& text, const char* what) {
@@ -376,7 +370,7 @@ bool IsAbaqusDeck(const std::string& path) {
   return std::filesystem::path(path).extension() == ".inp";
 }
 
-Json SceneOfAbaqusDecks(const std::vector<std::string>& paths) {
+Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, std::vector<long>* node_ids) {
   // The model from the first deck; every other deck must describe the same one.
   Deck first;
   ReadDeck(paths[0], first);
@@ -414,7 +408,10 @@ Json SceneOfAbaqusDecks(const std::vector<std::string>& paths) {
     }
   }
   int next = 0;
-  for (auto& [id, i] : index) i = next++;
+  for (auto& [id, i] : index) {
+    i = next++;
+    if (node_ids) node_ids->push_back(id);
+  }
   Json scene;
   scene["name"] = std::filesystem::path(deck_name).stem().string();
   scene["description"] =

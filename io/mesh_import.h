@@ -4,6 +4,7 @@
 // partial scene merged over what the mesh gives (proto/IMPORT.md).
 #pragma once
 
+#include <array>
 #include <map>
 #include <string>
 #include <vector>
@@ -46,13 +47,24 @@ proto::Json SceneOfMesh(const ImportedMesh& mesh, const proto::Json& loads,
 // Several decks of one model give their steps in order. Output requests and solver controls
 // are skipped; any other keyword, and *DLOAD, is an error naming its file and line.
 bool IsAbaqusDeck(const std::string& path);
-proto::Json SceneOfAbaqusDecks(const std::vector<std::string>& paths);
+// `node_ids` (when given) receives the deck's id of each scene node.
+proto::Json SceneOfAbaqusDecks(const std::vector<std::string>& paths,
+                               std::vector<long>* node_ids = nullptr);
+
+// Nodal displacements (by node id) per step from CalculiX results: a .frd file (*NODE FILE, U;
+// per step its last increment) or a .dat file (*NODE PRINT, U; its last block: one file per
+// step). Throws InputError naming the file and line.
+std::vector<std::map<long, std::array<double, 3>>> ReadCalculixDisplacements(
+    const std::string& path);
 
 // Whether `path` names a file this importer reads (by extension: .msh, .inp).
 bool IsMeshFile(const std::string& path);
 
 // The scene of a Gmsh mesh, or of one or several decks, with the loads file at `loads_path`
 // (empty: no loads) merged over it. Throws InputError naming the file.
-proto::Json ImportSceneFiles(const std::vector<std::string>& paths, const std::string& loads_path);
+// With `results` (CalculiX .frd / .dat, decks only), the reference is those positions: one
+// step's displacements per load case, in order, and the candidates the elements' edges.
+proto::Json ImportSceneFiles(const std::vector<std::string>& paths, const std::string& loads_path,
+                             const std::vector<std::string>& results = {});
 
 }  // namespace springfit::io

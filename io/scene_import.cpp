@@ -1,6 +1,7 @@
 // A mesh made into a scene, and a loads file merged over it (mesh_import.h, proto/IMPORT.md).
 #include <algorithm>
 #include <filesystem>
+#include <set>
 
 #include "engine/input_error.h"
 #include "io/mesh_import.h"
@@ -110,6 +111,56 @@ void MergeLoads(Json& scene, const Json& loads, const std::string& where) {
   MergeInto(scene, loads);
 }
 
+// The reference replaced by the results' positions (one step per load case, in order); the
+// candidates are the elements' edges (a positions reference has no mesh of its own).
+void UseResults(Json& scene, const std::vector<long>& ids, const std::vector<std::string>& files) {
+  std::vector<std::pair<std::string, std::map<long, std::array<double, 3>>>> steps;
+  for (const std::string& f : files) {
+    for (auto& s : ReadCalculixDisplacements(f)) steps.emplace_back(f, std::move(s));
+  }
+  const Json& cases = scene["load_cases"];
+  if (steps.size() != cases.size()) {
+    throw InputError("", "--results: " + std::to_string(steps.size()) + " steps of results for " +
+                             std::to_string(cases.size()) +
+                             " load cases (one per *STEP of the decks, in order)");
+  }
+  const Json& nodes = scene["nodes"];
+  Json positions = Json::array();
+  for (std::size_t k = 0; k < steps.size(); ++k) {
+    Json configuration = Json::array();
+    for (std::size_t i = 0; i < ids.size(); ++i) {
+      const auto it = steps[k].second.find(ids[i]);
+      if (it == steps[k].second.end()) {
+        throw InputError("", steps[k].first + ": no displacement of node " +
+                                 std::to_string(ids[i]) +
+                                 " (the results must cover every node "
+                                 "of the elements)");
+      }
+      Json x = Json::array();
+      for (std::size_t c = 0; c < nodes[i].size(); ++c)
+        x.push_back(nodes[i][c].get<double>() + it->second[c]);
+      configuration.push_back(std::move(x));
+    }
+    positions.push_back(std::move(configuration));
+  }
+  // The candidates: every edge of the elements (or the springs of a truss model).
+  std::set<std::pair<int, int>> edges;
+  const Json& reference = scene["reference"];
+  const Json& cells = reference.contains("elements") ? reference["elements"] : reference["springs"];
+  for (const Json& cell : cells) {
+    for (std::size_t a = 0; a < cell.size(); ++a) {
+      for (std::size_t b = a + 1; b < cell.size(); ++b) {
+        const int p = cell[a].get<int>(), q = cell[b].get<int>();
+        edges.emplace(std::min(p, q), std::max(p, q));
+      }
+    }
+  }
+  Json pairs = Json::array();
+  for (const auto& [p, q] : edges) pairs.push_back({p, q});
+  scene["candidates"] = {{"type", "pairs"}, {"pairs", std::move(pairs)}};
+  scene["reference"] = {{"type", "positions"}, {"positions", std::move(positions)}};
+}
+
 }  // namespace
 
 bool IsMeshFile(const std::string& path) {
@@ -139,7 +190,8 @@ Json SceneOfMesh(const ImportedMesh& mesh, const Json& loads, const std::string&
   return scene;
 }
 
-Json ImportSceneFiles(const std::vector<std::string>& paths, const std::string& loads_path) {
+Json ImportSceneFiles(const std::vector<std::string>& paths, const std::string& loads_path,
+                      const std::vector<std::string>& results) {
   Json loads;
   if (!loads_path.empty()) {
     try {
@@ -149,9 +201,16 @@ Json ImportSceneFiles(const std::vector<std::string>& paths, const std::string& 
     }
   }
   if (std::all_of(paths.begin(), paths.end(), IsAbaqusDeck)) {
-    Json scene = SceneOfAbaqusDecks(paths);
+    std::vector<long> ids;
+    Json scene = SceneOfAbaqusDecks(paths, &ids);
+    if (!results.empty()) UseResults(scene, ids, results);
     MergeLoads(scene, loads, loads_path);
     return scene;
+  }
+  if (!results.empty()) {
+    throw InputError("",
+                     "--results needs the decks (.inp) the results were computed from: their "
+                     "node ids name the results' nodes");
   }
   if (paths.size() == 1 && std::filesystem::path(paths[0]).extension() == ".msh")
     return SceneOfMesh(ReadGmshMesh(paths[0]), loads, loads_path);

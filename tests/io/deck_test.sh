@@ -35,6 +35,36 @@ assert worst < 1e-9 * 10, worst  # the kidney is 10 long
 PY
 done
 
+# CalculiX's results as a positions reference: the .dat files (*NODE PRINT) the harness read,
+# and .frd files (*NODE FILE) from the same decks with U requested.
+kid="$tmp/fem-kidney-2d"
+mapfile -t decks < <(ls "$kid"/case_*.inp | sort)
+mapfile -t dats < <(ls "$kid"/case_*.dat | sort)
+expect_exit 0 "import with .dat results" "$sf" import "${decks[@]}" --results "${dats[@]}" -o "$kid/dat.json"
+for deck in "${decks[@]}"; do
+  frd_deck="${deck%.inp}-frd.inp"
+  sed 's/^\*END STEP/*NODE FILE\nU\n*END STEP/' "$deck" >"$frd_deck"
+  (cd "$kid" && ccx -i "$(basename "${frd_deck%.inp}")" >/dev/null 2>&1) || fail "ccx on $frd_deck"
+done
+mapfile -t frds < <(ls "$kid"/case_*-frd.frd | sort)
+expect_exit 0 "import with .frd results" "$sf" import "${decks[@]}" --results "${frds[@]}" -o "$kid/frd.json"
+python3 - "$kid/dat.json" "$kid/frd.json" "$kid/ccx.json" <<'PY' || fail "the results as positions"
+import json, sys
+dat, frd, ccx = (json.load(open(f)) for f in sys.argv[1:4])
+assert dat["reference"]["type"] == "positions" and dat["candidates"]["type"] == "pairs"
+assert len(dat["candidates"]["pairs"]) == 263  # the kidney's mesh edges
+assert dat["reference"]["positions"] == ccx["reference"]["positions"]  # the harness read the same .dat
+a, b = frd["reference"]["positions"], dat["reference"]["positions"]
+worst = max(abs(x - y) for ca, cb in zip(a, b) for pa, pb in zip(ca, cb) for x, y in zip(pa, pb))
+assert worst < 1e-5, worst  # .frd prints 6 significant digits
+PY
+expect_exit 0 "check the positions scene" "$sf" check "$kid/dat.json"
+expect_exit 2 "results of fewer steps" "$sf" import "${decks[@]}" --results "${dats[0]}"
+grep -qF -- "--results: 1 steps of results for 7 load cases" "$tmp/err" || fail "results count: $(cat "$tmp/err")"
+expect_exit 2 "a .frd without displacements" "$sf" import "${decks[0]}" --results "${decks[0]%.inp}.frd"
+grep -qF "no displacements (DISP) in the file: ask ccx for them with *NODE FILE and U" "$tmp/err" || fail "frd without DISP: $(cat "$tmp/err")"
+expect_exit 2 "results with a mesh" "$sf" import "$tmp/none.msh" --results "${dats[0]}"
+
 # A hand-written deck: trusses (an MSS reference, k = E A / L), sets by GENERATE, *INCLUDE,
 # a model-level *BOUNDARY held in every step, a prescribed displacement, two named steps.
 cat >"$tmp/nodes.inp" <<'INP'
