@@ -40,7 +40,7 @@ proto::StoredResult TypedResult(const Json& result, const std::string& where) {
   try {
     return proto::StoredResultFromJson(result);
   } catch (const InputError& e) {
-    throw InputError(e.path(), where + ": " + e.what());
+    throw InputError("", where + ": " + e.what());
   }
 }
 

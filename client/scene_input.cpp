@@ -40,6 +40,10 @@ proto::Json SceneJsonOf(const SceneInput& input) {
   if (!input.loads.empty()) {
     throw InputError("", "--loads applies to a mesh (.msh); " + input.path + " is a scene");
   }
+  if (!input.more.empty() || !input.results.empty()) {
+    throw InputError("", "further decks and --results apply to CalculiX/Abaqus decks (.inp); " +
+                             input.path + " is a scene");
+  }
   proto::Json scene = proto::ParseJson(proto::ReadFile(input.path));
   if (!scene.is_object()) throw InputError("", "a scene is a JSON object (proto/SCENE.md)");
   return scene;

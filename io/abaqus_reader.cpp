@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "engine/input_error.h"
+#include "engine/linalg.h"
 #include "io/mesh_import.h"
 #include "io/text_output.h"
 
@@ -108,6 +109,7 @@ std::vector<Card> Cards(const std::string& path) {
     if (line.text[0] == '*') {
       Card card;
       const std::vector<std::string> fields = SplitFields(line.text.substr(1));
+      if (fields.empty() || fields[0].empty()) Fail(line, "an empty keyword");
       card.keyword = Upper(fields[0]);
       for (std::size_t i = 1; i < fields.size(); ++i) {
         if (fields[i].empty()) continue;
@@ -122,9 +124,10 @@ std::vector<Card> Cards(const std::string& path) {
       cards.push_back(std::move(card));
     } else {
       if (cards.empty()) Fail(line, "data before the first keyword");
-      // A data line ending with a comma continues on the next (element connectivity).
+      // An element's line ending with a comma continues on the next (long connectivity);
+      // elsewhere a trailing comma ends the line.
       std::vector<Line>& data = cards.back().data;
-      if (!data.empty() && data.back().text.back() == ',') {
+      if (cards.back().keyword == "ELEMENT" && !data.empty() && data.back().text.back() == ',') {
         data.back().text += line.text;
       } else {
         data.push_back(std::move(line));
@@ -166,6 +169,7 @@ struct Deck {
   struct Section {
     std::string elset, material;
     double thickness_or_area = 1.0;
+    bool area_given = false;  // a data line was given
     Line line;
   };
   std::vector<Section> sections;
@@ -176,7 +180,19 @@ struct Deck {
     bool nlgeom = false;
     std::map<long, std::map<int, double>> held;  // node -> dof (0-based) -> value
     std::map<long, std::vector<double>> forces;
+    struct Pressure {
+      long element = 0;
+      int face = 0;  // 0-based
+      double value = 0.0;
+      Line line;
+    };
+    std::vector<Pressure> pressures;
     Line line;
+    std::map<long, Line> held_line;   // where each node's hold was (last) given
+    std::map<long, Line> force_line;  // where each node's force was (last) given
+    bool boundary_new = false;        // a *BOUNDARY, OP=NEW: the earlier holds dropped
+    bool loads_new = false;           // a *CLOAD or *DLOAD, OP=NEW: the earlier loads dropped
+    bool has_boundary = false, has_loads = false;
   };
   Step model;  // boundary conditions before the first step: held in every step
   std::vector<Step> steps;
@@ -200,8 +216,42 @@ const std::set<std::string> kIgnored = {
     "EL PRINT", "NODE OUTPUT", "ELEMENT OUTPUT", "OUTPUT",        "STATIC",
     "CONTROLS", "DENSITY",     "CONTACT FILE",   "CONTACT PRINT", "RESTART"};
 
+// The parameters each keyword may carry: any other one could change what it means (an ELSET on
+// *NSET, a USER load, a PERTURBATION step) and is refused.
+const std::map<std::string, std::set<std::string>> kParameters = {
+    {"NODE", {"NSET"}},
+    {"ELEMENT", {"TYPE", "ELSET"}},
+    {"NSET", {"NSET", "GENERATE"}},
+    {"ELSET", {"ELSET", "GENERATE"}},
+    {"MATERIAL", {"NAME"}},
+    {"ELASTIC", {"TYPE"}},
+    {"SOLID SECTION", {"ELSET", "MATERIAL"}},
+    {"STEP", {"NAME", "NLGEOM", "INC", "INCF"}},
+    {"BOUNDARY", {"OP"}},
+    {"CLOAD", {"OP"}},
+    {"DLOAD", {"OP"}},
+};
+
+// At most `count` non-empty fields (the rest of a line must be empty).
+void ExpectFields(const Line& line, const std::vector<std::string>& f, std::size_t count,
+                  const char* what) {
+  for (std::size_t i = count; i < f.size(); ++i)
+    if (!f[i].empty())
+      Fail(line, std::string(what) + " takes " + std::to_string(count) + " fields at most");
+}
+
 void ReadDeck(const std::string& path, Deck& deck) {
   const std::vector<Card> cards = Cards(path);
+  for (const Card& card : cards) {
+    const auto allowed = kParameters.find(card.keyword);
+    if (allowed == kParameters.end()) continue;
+    for (const auto& [key, value] : card.parameters) {
+      if (!allowed->second.count(key))
+        Fail(card.line, "*" + card.keyword + ": parameter " + key + " is not read by springfit");
+      if (key == "OP" && Upper(value) != "NEW" && Upper(value) != "MOD")
+        Fail(card.line, "OP=" + value + ": expected NEW or MOD");
+    }
+  }
   Deck::Step* step = nullptr;
   std::string material;
   for (const Card& card : cards) {
@@ -306,8 +356,11 @@ void ReadDeck(const std::string& path, Deck& deck) {
         Fail(at, "*SOLID SECTION needs ELSET= and MATERIAL=");
       if (!card.data.empty()) {
         const std::vector<std::string> f = SplitFields(card.data[0].text);
-        if (!f.empty() && !f[0].empty())
-          s.thickness_or_area = Number(card.data[0], f[0], "the thickness");
+        if (!f.empty() && !f[0].empty()) {
+          s.thickness_or_area = Number(card.data[0], f[0], "the thickness or area");
+          s.area_given = true;
+          if (!(s.thickness_or_area > 0.0)) Fail(card.data[0], "a thickness or area must be > 0");
+        }
       }
       deck.sections.push_back(s);
     } else if (k == "STEP") {
@@ -315,7 +368,9 @@ void ReadDeck(const std::string& path, Deck& deck) {
       deck.steps.emplace_back();
       step = &deck.steps.back();
       step->line = at;
-      step->nlgeom = card.Has("NLGEOM") && Upper(card.Get("NLGEOM")) != "NO";
+      // NLGEOM, once on, stays on in the deck's later steps (as in CalculiX).
+      const bool earlier = deck.steps.size() > 1 && deck.steps[deck.steps.size() - 2].nlgeom;
+      step->nlgeom = card.Has("NLGEOM") ? Upper(card.Get("NLGEOM")) != "NO" : earlier;
       step->name =
           card.Has("NAME")
               ? card.Get("NAME")
@@ -326,35 +381,63 @@ void ReadDeck(const std::string& path, Deck& deck) {
       step = nullptr;
     } else if (k == "BOUNDARY") {
       Deck::Step& s = step ? *step : deck.model;
+      s.has_boundary = true;
+      s.boundary_new = s.boundary_new || Upper(card.Get("OP")) == "NEW";
       for (const Line& l : card.data) {
         const std::vector<std::string> f = SplitFields(l.text);
         if (f.size() < 2) Fail(l, "*BOUNDARY needs node or set, first dof[, last dof[, value]]");
+        ExpectFields(l, f, 4, "*BOUNDARY");
         const long first = Integer(l, f[1], "a dof");
         const long last = f.size() > 2 && !f[2].empty() ? Integer(l, f[2], "a dof") : first;
         const double value = f.size() > 3 && !f[3].empty() ? Number(l, f[3], "a value") : 0.0;
         if (first < 1 || last < first || last > 3) Fail(l, "dofs must be within 1 to 3");
-        for (long node : Ids(deck, l, f[0], true))
+        for (long node : Ids(deck, l, f[0], true)) {
+          s.held_line[node] = l;
           for (long dof = first; dof <= last; ++dof)
             s.held[node][static_cast<int>(dof - 1)] = value;
+        }
       }
     } else if (k == "CLOAD") {
       if (!step) Fail(at, "*CLOAD outside a step");
+      step->has_loads = true;
+      step->loads_new = step->loads_new || Upper(card.Get("OP")) == "NEW";
       for (const Line& l : card.data) {
         const std::vector<std::string> f = SplitFields(l.text);
         if (f.size() < 3) Fail(l, "*CLOAD needs node or set, dof, magnitude");
+        ExpectFields(l, f, 3, "*CLOAD");
         const long dof = Integer(l, f[1], "a dof");
         if (dof < 1 || dof > 3) Fail(l, "*CLOAD acts on dofs 1 to 3 (a force)");
         const double value = Number(l, f[2], "a magnitude");
         for (long node : Ids(deck, l, f[0], true)) {
+          step->force_line[node] = l;
           std::vector<double>& force = step->forces[node];
           force.resize(3, 0.0);
           force[static_cast<std::size_t>(dof - 1)] += value;
         }
       }
     } else if (k == "DLOAD") {
-      Fail(at,
-           "*DLOAD (distributed loads) is not read: give the load as a traction on a node set "
-           "in --loads, or as *CLOAD nodal forces");
+      // Uniform pressure on tetrahedron faces (P1 to P4, the same labels in CalculiX and
+      // Abaqus). Plane elements' edge labels differ between the two (CalculiX P3-P5 for
+      // Abaqus's P1-P3), and other load types are not pressures: refused.
+      if (!step) Fail(at, "*DLOAD outside a step");
+      step->has_loads = true;
+      step->loads_new = step->loads_new || Upper(card.Get("OP")) == "NEW";
+      for (const Line& l : card.data) {
+        const std::vector<std::string> f = SplitFields(l.text);
+        if (f.size() < 3) Fail(l, "*DLOAD needs element or set, load label, magnitude");
+        ExpectFields(l, f, 3, "*DLOAD");
+        const std::string label = Upper(f[1]);
+        if (deck.dimension != 3 || label.size() != 2 || label[0] != 'P' || label[1] < '1' ||
+            label[1] > '4') {
+          Fail(l, "*DLOAD " + f[1] +
+                      ": springfit reads uniform pressures P1 to P4 on C3D4 faces only; give "
+                      "other distributed loads as a traction on a node set in --loads, or as "
+                      "*CLOAD nodal forces");
+        }
+        const double value = Number(l, f[2], "a pressure");
+        for (long e : Ids(deck, l, f[0], false))
+          step->pressures.push_back({e, label[1] - '1', value, l});
+      }
     } else if (!kIgnored.count(k)) {
       Fail(at, "*" + k +
                    " is not read by springfit and may change the mechanics (proto/IMPORT.md lists "
@@ -362,12 +445,50 @@ void ReadDeck(const std::string& path, Deck& deck) {
     }
   }
   if (step) Fail(step->line, "*STEP without *END STEP");
+  // CalculiX carries a step's loads and boundary conditions into the next unless OP=NEW
+  // drops them; springfit's load cases each start from rest. A later step that would inherit
+  // is refused rather than read differently.
+  bool loads_before = false, holds_before = false;
+  for (std::size_t k = 0; k < deck.steps.size(); ++k) {
+    Deck::Step& s = deck.steps[k];
+    const std::string which = "step " + std::to_string(k + 1) + " ('" + s.name + "')";
+    if (loads_before && !s.loads_new)
+      Fail(s.line, which +
+                       " inherits the earlier steps' loads in CalculiX; springfit's load "
+                       "cases start from rest: give it *CLOAD, OP=NEW (with no lines, to "
+                       "drop them), or write one deck per load case");
+    if (holds_before && !s.boundary_new)
+      Fail(s.line, which +
+                       " inherits the earlier steps' boundary conditions in CalculiX: give "
+                       "it *BOUNDARY, OP=NEW, or write one deck per load case");
+    loads_before = loads_before || s.has_loads;
+    holds_before = holds_before || s.has_boundary;
+    // The model's boundary conditions hold in every step but one that drops them (OP=NEW).
+    if (!s.boundary_new) {
+      for (const auto& [node, held] : deck.model.held) {
+        for (const auto& [dof, v] : held) s.held[node].emplace(dof, v);
+        s.held_line.emplace(node, deck.model.held_line.at(node));
+      }
+    }
+  }
+}
+
+// The materials and sections of a deck, as text: decks of one model must agree on them.
+std::string SectionsText(const Deck& deck) {
+  std::ostringstream out;
+  out.precision(17);
+  for (const auto& [name, m] : deck.materials)
+    out << name << ' ' << m.young.value_or(-1) << ' ' << m.poisson.value_or(-1) << ';';
+  for (const auto& s : deck.sections)
+    out << s.elset << ' ' << s.material << ' ' << s.thickness_or_area << ';';
+  out << deck.plane;
+  return out.str();
 }
 
 }  // namespace
 
 bool IsAbaqusDeck(const std::string& path) {
-  return std::filesystem::path(path).extension() == ".inp";
+  return LowerExtension(path) == ".inp";
 }
 
 Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, std::vector<long>* node_ids) {
@@ -386,11 +507,10 @@ Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, std::vector<long>
       same = other.elements[e].nodes == first.elements[e].nodes &&
              other.elements[e].type == first.elements[e].type;
     if (!same) throw InputError("", paths[i] + ": its elements differ from " + paths[0] + "'s");
-    for (Deck::Step s : other.steps) {
-      for (const auto& [node, held] : other.model.held)
-        for (const auto& [dof, v] : held) s.held[node].emplace(dof, v);
-      steps.push_back(std::move(s));
-    }
+    if (SectionsText(other) != SectionsText(first))
+      throw InputError("", paths[i] + ": its materials or sections differ from " + paths[0] +
+                               "'s (decks of one model share them)");
+    steps.insert(steps.end(), other.steps.begin(), other.steps.end());
   }
   const std::string& deck_name = paths[0];
   if (first.elements.empty()) throw InputError("", deck_name + ": no *ELEMENT");
@@ -427,11 +547,9 @@ Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, std::vector<long>
     nodes.push_back(d == 2 ? Json{x[0], x[1]} : Json{x[0], x[1], x[2]});
   }
   scene["nodes"] = std::move(nodes);
-  const auto node_of = [&](long id, const std::string& what) {
+  const auto node_of = [&](long id, const Line& where) {
     const auto it = index.find(id);
-    if (it == index.end())
-      throw InputError("", deck_name + ": " + what + " names node " + std::to_string(id) +
-                               ", which no element uses");
+    if (it == index.end()) Fail(where, "node " + std::to_string(id) + ", which no element uses");
     return it->second;
   };
   // Node sets by name (those whose nodes are all in the model).
@@ -479,10 +597,15 @@ Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, std::vector<long>
         throw InputError("", deck_name + ": truss element " + std::to_string(e.id) +
                                  " has no *SOLID SECTION (its area and material)");
       const auto& sec = first.sections[s->second];
-      const int a = node_of(e.nodes[0], "an element"), b = node_of(e.nodes[1], "an element");
+      const int a = index.at(e.nodes[0]), b = index.at(e.nodes[1]);
       double l2 = 0.0;
       for (int c = 0; c < 3; ++c)
         l2 += std::pow(first.nodes.at(e.nodes[0])[c] - first.nodes.at(e.nodes[1])[c], 2);
+      if (!sec.area_given)
+        Fail(sec.line, "a truss section needs its cross-section area on the line after it");
+      if (!(l2 > 0.0))
+        throw InputError(
+            "", deck_name + ": truss element " + std::to_string(e.id) + " has zero length");
       springs.push_back({a, b});
       stiffness.push_back(*first.materials.at(sec.material).young * sec.thickness_or_area /
                           std::sqrt(l2));
@@ -496,7 +619,7 @@ Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, std::vector<long>
     std::optional<double> thickness;
     for (const auto& e : first.elements) {
       Json nodes_of = Json::array();
-      for (long n : e.nodes) nodes_of.push_back(node_of(n, "an element"));
+      for (long n : e.nodes) nodes_of.push_back(index.at(n));
       elements.push_back(std::move(nodes_of));
       const auto s = section_of.find(e.id);
       if (s == section_of.end())
@@ -533,40 +656,77 @@ Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, std::vector<long>
 
   // One load case per step: held nodes (every dof of the dimension, or none), forces.
   Json cases = Json::array();
-  for (Deck::Step s : steps) {
-    for (const auto& [node, held] : first.model.held)
-      for (const auto& [dof, v] : held) s.held[node].emplace(dof, v);
+  for (const Deck::Step& s : steps) {
     Json lc;
     lc["name"] = s.name;
     Json fixed = Json::array(), displacements = Json::array(), forces = Json::array();
     for (const auto& [node, held] : s.held) {
-      const int i = node_of(node, "*BOUNDARY");
+      const Line& where = s.held_line.at(node);
       std::vector<double> u(static_cast<std::size_t>(d), 0.0);
       int count = 0;
       for (const auto& [dof, v] : held) {
-        if (dof >= d) {
+        if (dof >= d) {  // a 2D model's dof 3: holding it at 0 changes nothing
           if (v != 0.0)
-            Fail(s.line, "node " + std::to_string(node) + ": a displacement along dof " +
-                             std::to_string(dof + 1) + " in a 2D model");
+            Fail(where, "node " + std::to_string(node) + ": a displacement along dof " +
+                            std::to_string(dof + 1) + " in a 2D model");
           continue;
         }
         u[static_cast<std::size_t>(dof)] = v;
         ++count;
       }
+      if (count == 0) continue;
       if (count != d)
-        Fail(s.line, "node " + std::to_string(node) + " is held in " + std::to_string(count) +
-                         " of its " + std::to_string(d) +
-                         " directions: springfit holds a node in every direction or none");
+        Fail(where, "node " + std::to_string(node) + " is held in " + std::to_string(count) +
+                        " of its " + std::to_string(d) +
+                        " directions: springfit holds a node in every direction or none");
+      const int i = node_of(node, where);
       if (std::all_of(u.begin(), u.end(), [](double x) { return x == 0.0; })) {
         fixed.push_back(i);
       } else {
         displacements.push_back({{"node", i}, {"displacement", u}});
       }
     }
-    for (const auto& [node, f] : s.forces) {
-      const int i = node_of(node, "*CLOAD");
+    // Pressures as consistent nodal forces at rest (dead loads: under NLGEOM CalculiX's
+    // pressure follows the face, which a dead load does not, so they are refused there): -p A n
+    // / 3 on each node of the face, n its outward normal; shares on held nodes go to the support.
+    if (!s.pressures.empty() && s.nlgeom)
+      Fail(s.pressures[0].line, "*DLOAD under NLGEOM is a follower load: not read");
+    std::map<long, std::vector<double>> forces_of_step = s.forces;
+    std::map<long, Line> line_of_force = s.force_line;
+    std::map<long, const Deck::Element*> element_of;
+    if (!s.pressures.empty())
+      for (const auto& e : first.elements) element_of[e.id] = &e;
+    for (const auto& p : s.pressures) {
+      const auto it = element_of.find(p.element);
+      if (it == element_of.end()) Fail(p.line, "unknown element " + std::to_string(p.element));
+      if (it->second->type != "C3D4")
+        Fail(p.line, "*DLOAD on element " + std::to_string(p.element) + " (" + it->second->type +
+                         "): pressures are read on C3D4 faces only");
+      // C3D4 faces: 1-2-3, 1-4-2, 2-4-3, 3-4-1 (1-based), the fourth node opposite.
+      static constexpr int kFace[4][4] = {{0, 1, 2, 3}, {0, 3, 1, 2}, {1, 3, 2, 0}, {2, 3, 0, 1}};
+      const auto corner = [&](int k) {
+        const std::vector<double>& x = first.nodes.at(it->second->nodes[kFace[p.face][k]]);
+        return Eigen::Vector3d(x[0], x[1], x[2]);
+      };
+      Eigen::Vector3d area = 0.5 * (corner(1) - corner(0)).cross(corner(2) - corner(0));
+      if (area.dot(corner(3) - corner(0)) > 0.0) area = -area;  // outward
+      for (int k = 0; k < 3; ++k) {
+        const long node = it->second->nodes[kFace[p.face][k]];
+        if (s.held.count(node)) continue;
+        forces_of_step[node].resize(3, 0.0);
+        line_of_force.emplace(node, p.line);
+        std::vector<double>& force = forces_of_step[node];
+        force.resize(3, 0.0);
+        for (int c = 0; c < 3; ++c) force[c] -= p.value * area[c] / 3.0;
+      }
+    }
+    for (const auto& [node, f] : forces_of_step) {
+      // A force on a held node goes to the support (CalculiX counts it in the reaction).
+      if (s.held.count(node)) continue;
+      const int i = node_of(node, line_of_force.at(node));
       if (d == 2 && f[2] != 0.0)
-        Fail(s.line, "node " + std::to_string(node) + ": a force along dof 3 in a 2D model");
+        Fail(line_of_force.at(node),
+             "node " + std::to_string(node) + ": a force along dof 3 in a 2D model");
       forces.push_back({{"node", i}, {"force", std::vector<double>(f.begin(), f.begin() + d)}});
     }
     lc["fixed"] = std::move(fixed);

@@ -45,7 +45,7 @@ std::vector<Displacements> ReadFrd(const std::string& path, std::ifstream& in) {
       if (!(fields >> a >> b >> c)) Fail(path, number, "a 1PSTEP record without its step");
       step = c;
       in_disp = false;
-    } else if (text.rfind(" -4  DISP", 0) == 0) {
+    } else if (text.rfind(" -4  DISP ", 0) == 0) {  // (not DISPI, the imaginary part)
       in_disp = true;
       block = &by_step[step];
       block->clear();  // a later increment of the step replaces an earlier one
@@ -71,17 +71,22 @@ std::vector<Displacements> ReadFrd(const std::string& path, std::ifstream& in) {
   return steps;
 }
 
-// .dat: the blocks "displacements (vx,vy,vz) for set ... and time ..."; the file's last one
-// (a .dat holds no step marks: one file per step, as one deck per load case gives).
+// .dat: the blocks "displacements (vx,vy,vz) for set ... and time ..."; those of the file's last
+// time (several sets printed at one time add up; a .dat holds no step marks: one file per
+// step, as one deck per load case gives).
 std::vector<Displacements> ReadDat(const std::string& path, std::ifstream& in) {
   Displacements last;
+  std::string last_time;
   bool any = false, in_block = false;
   std::string text;
   int number = 0;
   while (std::getline(in, text)) {
     ++number;
     if (text.find("displacements (vx,vy,vz)") != std::string::npos) {
-      last.clear();
+      const auto at = text.find("time");
+      const std::string time = at == std::string::npos ? "" : text.substr(at);
+      if (time != last_time) last.clear();
+      last_time = time;
       any = in_block = true;
       continue;
     }
@@ -110,7 +115,7 @@ std::vector<std::map<long, std::array<double, 3>>> ReadCalculixDisplacements(
     const std::string& path) {
   std::ifstream in(path);
   if (!in) throw InputError("", path + ": no such file");
-  const auto ext = std::filesystem::path(path).extension();
+  const std::string ext = LowerExtension(path);
   if (ext == ".frd") return ReadFrd(path, in);
   if (ext == ".dat") return ReadDat(path, in);
   throw InputError("", path + ": not a CalculiX result (expected .frd or .dat)");

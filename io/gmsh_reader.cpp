@@ -19,20 +19,6 @@ namespace {
 constexpr int kTriangle = 2;     // Gmsh's 3-node triangle
 constexpr int kTetrahedron = 4;  // Gmsh's 4-node tetrahedron
 
-// Gmsh reports errors by throwing (an std::exception, or its last error as a string).
-template <typename F>
-void Gmsh(const std::string& path, const char* what, F&& call) {
-  try {
-    call();
-  } catch (const std::exception& e) {
-    throw InputError("", path + ": " + what + ": " + e.what());
-  } catch (const std::string& e) {
-    throw InputError("", path + ": " + what + ": " + e);
-  } catch (...) {
-    throw InputError("", path + ": " + what + " failed (Gmsh)");
-  }
-}
-
 }  // namespace
 
 ImportedMesh ReadGmshMesh(const std::string& path) {
@@ -40,7 +26,7 @@ ImportedMesh ReadGmshMesh(const std::string& path) {
   GmshSession session;
   ImportedMesh mesh;
   mesh.source = path;
-  Gmsh(path, "cannot read the mesh", [&] { gmsh::open(path); });
+  GmshCall(path, "cannot read the mesh", [&] { gmsh::open(path); });
 
   // Which elements: the highest dimension's, which must be linear simplices.
   std::vector<int> types;

@@ -5,6 +5,10 @@
 #include <gmsh.h>
 
 #include <mutex>
+#include <stdexcept>
+#include <string>
+
+#include "engine/input_error.h"
 
 namespace springfit::io {
 
@@ -26,5 +30,19 @@ class GmshSession {
   }
   std::lock_guard<std::mutex> lock_;
 };
+
+// Gmsh reports errors by throwing (an std::exception, or its last error as a string).
+template <typename F>
+inline void GmshCall(const std::string& path, const char* what, F&& call) {
+  try {
+    call();
+  } catch (const std::exception& e) {
+    throw InputError("", path + ": " + what + ": " + e.what());
+  } catch (const std::string& e) {
+    throw InputError("", path + ": " + what + ": " + e);
+  } catch (...) {
+    throw InputError("", path + ": " + what + " failed (Gmsh)");
+  }
+}
 
 }  // namespace springfit::io

@@ -43,9 +43,11 @@ proto::Json SceneOfMesh(const ImportedMesh& mesh, const proto::Json& loads,
 
 // CalculiX/Abaqus input decks (.inp): *NODE, *ELEMENT (CPS3, CPE3, C3D4; T2D2, T3D2 trusses
 // as an MSS reference), *NSET / *ELSET (GENERATE), *MATERIAL / *ELASTIC, *SOLID SECTION,
-// *BOUNDARY, *CLOAD, *INCLUDE, and each *STEP a load case (NLGEOM: St. Venant-Kirchhoff).
-// Several decks of one model give their steps in order. Output requests and solver controls
-// are skipped; any other keyword, and *DLOAD, is an error naming its file and line.
+// *BOUNDARY, *CLOAD, *DLOAD (pressures on C3D4 faces), *INCLUDE, and each *STEP a load case
+// from rest (NLGEOM: St. Venant-Kirchhoff; a step that would inherit the earlier steps' loads
+// or holds in CalculiX is refused). Several decks of one model give their steps in order.
+// Output requests and solver controls are skipped; any other keyword or parameter is an error
+// naming its file and line.
 bool IsAbaqusDeck(const std::string& path);
 // `node_ids` (when given) receives the deck's id of each scene node.
 proto::Json SceneOfAbaqusDecks(const std::vector<std::string>& paths,

@@ -5,11 +5,12 @@
 #include <stdexcept>
 
 #include "engine/input_error.h"
+#include "io/text_output.h"
 
 namespace springfit::io {
 
 ModelFormat ModelFormatOfPath(const std::string& path) {
-  const std::string ext = std::filesystem::path(path).extension().string();
+  const std::string ext = LowerExtension(path);
   if (ext == ".vtk") return ModelFormat::kVtkLegacy;
   if (ext == ".vtu") return ModelFormat::kVtu;
   if (ext == ".msh") return ModelFormat::kGmsh;

@@ -5,6 +5,7 @@
 
 #include "engine/input_error.h"
 #include "io/mesh_import.h"
+#include "io/text_output.h"
 #include "proto/scene_codec.h"
 
 namespace springfit::io {
@@ -164,7 +165,7 @@ void UseResults(Json& scene, const std::vector<long>& ids, const std::vector<std
 }  // namespace
 
 bool IsMeshFile(const std::string& path) {
-  const auto ext = std::filesystem::path(path).extension();
+  const std::string ext = LowerExtension(path);
   return ext == ".msh" || ext == ".inp";
 }
 
@@ -212,7 +213,7 @@ Json ImportSceneFiles(const std::vector<std::string>& paths, const std::string& 
                      "--results needs the decks (.inp) the results were computed from: their "
                      "node ids name the results' nodes");
   }
-  if (paths.size() == 1 && std::filesystem::path(paths[0]).extension() == ".msh")
+  if (paths.size() == 1 && LowerExtension(paths[0]) == ".msh")
     return SceneOfMesh(ReadGmshMesh(paths[0]), loads, loads_path);
   throw InputError(
       "", paths[0] + (paths.size() > 1 ? " ...: several files are decks (.inp) of one model"

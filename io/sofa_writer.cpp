@@ -16,8 +16,8 @@ std::string SofaSceneText(const SpringModel& model) {
   std::ostringstream out;
   const std::string tmpl = model.dimension == 2 ? "Vec2d" : "Vec3d";
   out << "<?xml version=\"1.0\"?>\n"
-      << "<!-- springfit model " << XmlEscape(model.name) << ": " << XmlEscape(model.description)
-      << ".\n"
+      << "<!-- springfit model " << XmlCommentText(model.name) << ": "
+      << XmlCommentText(model.description) << ".\n"
       << "     Static model: no damping (0 in each spring), no mass and no solver. A simulation\n"
       << "     adds them, and the boundary conditions, to the node below. -->\n"
       << "<Node name=\"root\" gravity=\"0 0" << (model.dimension == 3 ? " 0" : "") << "\">\n"

@@ -1,6 +1,7 @@
 // Numbers in text files: as the model writers put them, and as the readers take them.
 #pragma once
 
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <optional>
@@ -14,6 +15,16 @@ inline std::string ExactNumber(double x) {
   char buffer[32];
   const auto [end, ec] = std::to_chars(buffer, buffer + sizeof buffer, x);
   return ec == std::errc() ? std::string(buffer, end) : std::string("nan");
+}
+
+// A file name's extension in lower case (".INP" reads as ".inp").
+inline std::string LowerExtension(const std::string& path) {
+  const auto dot = path.find_last_of('.');
+  const auto slash = path.find_last_of('/');
+  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
+  std::string ext = path.substr(dot);
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
 }
 
 // The finite number `text` holds, all of it (leading spaces, as in fixed-width fields, and

@@ -52,8 +52,8 @@ std::string VtkLegacyText(const SpringModel& model) {
 std::string VtuText(const SpringModel& model) {
   std::ostringstream out;
   const std::size_t m = model.springs.size();
-  out << "<?xml version=\"1.0\"?>\n<!-- springfit model " << XmlEscape(model.name) << ": "
-      << XmlEscape(model.description) << " -->\n"
+  out << "<?xml version=\"1.0\"?>\n<!-- springfit model " << XmlCommentText(model.name) << ": "
+      << XmlCommentText(model.description) << " -->\n"
       << "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" "
          "header_type=\"UInt64\">\n  <UnstructuredGrid>\n"
       << "    <Piece NumberOfPoints=\"" << model.node_count() << "\" NumberOfCells=\"" << m

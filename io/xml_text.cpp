@@ -58,4 +58,11 @@ std::string XmlEscape(std::string_view text) {
   return out;
 }
 
+std::string XmlCommentText(std::string_view text) {
+  std::string out = XmlEscape(text);
+  for (std::size_t at = out.find("--"); at != std::string::npos; at = out.find("--", at))
+    out.replace(at, 2, "- -");
+  return out;
+}
+
 }  // namespace springfit::io

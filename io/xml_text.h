@@ -10,4 +10,7 @@ namespace springfit::io {
 // invalid UTF-8 become U+FFFD.
 std::string XmlEscape(std::string_view text);
 
+// Text for inside an XML comment: escaped, and no "--" (which would end it).
+std::string XmlCommentText(std::string_view text);
+
 }  // namespace springfit::io

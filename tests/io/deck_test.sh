@@ -65,6 +65,65 @@ expect_exit 2 "a .frd without displacements" "$sf" import "${decks[0]}" --result
 grep -qF "no displacements (DISP) in the file: ask ccx for them with *NODE FILE and U" "$tmp/err" || fail "frd without DISP: $(cat "$tmp/err")"
 expect_exit 2 "results with a mesh" "$sf" import "$tmp/none.msh" --results "${dats[0]}"
 
+# *DLOAD pressures on tetrahedron faces (P1 to P4): a 2 x 2 x 1 block of Kuhn tetrahedra,
+# bottom held, a pressure on every top face and a shear-free push on one side; springfit's
+# equilibrium of the imported deck against ccx's of the same deck.
+python3 - "$tmp/dload.inp" <<'PY'
+import itertools, sys
+n = (3, 3, 2)
+ids = {}
+lines = ["*NODE, NSET=NALL"]
+for z, y, x in itertools.product(range(n[2]), range(n[1]), range(n[0])):
+    ids[x, y, z] = len(ids) + 1
+    lines.append("%d, %g, %g, %g" % (ids[x, y, z], x, y, z))
+coord_of = lambda v: next(k for k, w in ids.items() if w == v)
+tets = []
+for x, y, z in itertools.product(range(n[0] - 1), range(n[1] - 1), range(n[2] - 1)):
+    c = lambda dx, dy, dz: ids[x + dx, y + dy, z + dz]
+    for path in itertools.permutations(range(3)):  # Kuhn: 0 -> 7 along the axes in each order
+        p = [0, 0, 0]
+        corners = [c(*p)]
+        for axis in path:
+            p[axis] = 1
+            corners.append(c(*p))
+        at = [coord_of(v) for v in corners]
+        e = [[at[k][a] - at[0][a] for a in range(3)] for k in (1, 2, 3)]
+        volume = (e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) - e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0])
+                  + e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0]))
+        if volume < 0:  # CalculiX wants positive orientation
+            corners[1], corners[2] = corners[2], corners[1]
+        tets.append(corners)
+faces = [(0, 1, 2), (0, 3, 1), (1, 3, 2), (2, 3, 0)]  # P1..P4
+coord = {v: k for k, v in ids.items()}
+lines.append("*ELEMENT, TYPE=C3D4, ELSET=EALL")
+top, side = [], []
+for e, t in enumerate(tets, 1):
+    lines.append("%d, %d, %d, %d, %d" % ((e,) + tuple(t)))
+    for f, face in enumerate(faces, 1):
+        pts = [coord[t[k]] for k in face]
+        if all(p[2] == n[2] - 1 for p in pts):
+            top.append("%d, P%d, 0.3" % (e, f))
+        if all(p[0] == n[0] - 1 for p in pts):
+            side.append("%d, P%d, 0.1" % (e, f))
+lines += ["*MATERIAL, NAME=M", "*ELASTIC", "100, 0.3", "*SOLID SECTION, ELSET=EALL, MATERIAL=M",
+          "*NSET, NSET=BOTTOM"] + [str(v) for k, v in ids.items() if k[2] == 0]
+lines += ["*BOUNDARY", "BOTTOM, 1, 3", "*STEP, NAME=press", "*STATIC", "*DLOAD"] + top + side
+lines += ["*NODE PRINT, NSET=NALL", "U", "*END STEP", ""]
+assert top and side
+open(sys.argv[1], "w").write("\n".join(lines))
+PY
+(cd "$tmp" && ccx -i dload >/dev/null 2>&1) || fail "ccx on the DLOAD deck"
+expect_exit 0 "import the DLOAD deck" "$sf" import "$tmp/dload.inp" --results "$tmp/dload.dat" -o "$tmp/dload-ccx.json"
+expect_exit 0 "reference of the DLOAD deck" "$sf" reference "$tmp/dload.inp" --json
+python3 - "$tmp/out" "$tmp/dload-ccx.json" <<'PY' || fail "DLOAD: springfit's equilibrium is not ccx's"
+import json, sys
+ours = json.load(open(sys.argv[1]))["reference"]["positions"][0]
+ccx = json.load(open(sys.argv[2]))["reference"]["positions"][0]
+worst = max(abs(a - b) for p, q in zip(ours, ccx) for a, b in zip(p, q))
+moved = max(abs(a - b) for p, q in zip(ccx, json.load(open(sys.argv[2]))["nodes"]) for a, b in zip(p, q))
+assert moved > 1e-3 and worst < 1e-6 * moved * 100, (worst, moved)  # ccx prints 7 digits
+PY
+
 # A hand-written deck: trusses (an MSS reference, k = E A / L), sets by GENERATE, *INCLUDE,
 # a model-level *BOUNDARY held in every step, a prescribed displacement, two named steps.
 cat >"$tmp/nodes.inp" <<'INP'
@@ -109,6 +168,7 @@ U
 *END STEP
 *STEP, NAME=lift
 *STATIC
+*CLOAD, OP=NEW
 *BOUNDARY
 6, 1, 1, 0
 6, 2, 2, 0.01
@@ -138,10 +198,16 @@ bad_deck() {  # what text-to-replace replacement expected-message
   expect_exit 2 "$1" "$sf" import "$tmp/bad.inp" -o "$tmp/bad.json"
   grep -qF -- "$4" "$tmp/err" || fail "$1: $(cat "$tmp/err")"
 }
-bad_deck "DLOAD" "*CLOAD" "*DLOAD" "bad.inp:26: *DLOAD (distributed loads) is not read"
+bad_deck "DLOAD on trusses" "*CLOAD" "*DLOAD" "bad.inp:27: *DLOAD 1: springfit reads uniform pressures P1 to P4 on C3D4 faces only"
 bad_deck "an unknown keyword" "*STATIC" "*EQUATION" "bad.inp:25: *EQUATION is not read by springfit and may change the mechanics"
 bad_deck "an element type" "TYPE=T2D2" "TYPE=CPS4" "bad.inp:3: element type 'CPS4': springfit reads CPS3, CPE3"
-bad_deck "a partial boundary" "LEFT, 1, 2" "LEFT, 1, 1" "bad.inp:24: node 1 is held in 1 of its 2 directions"
+bad_deck "a partial boundary" "LEFT, 1, 2" "LEFT, 1, 1" "bad.inp:23: node 1 is held in 1 of its 2 directions"
+bad_deck "an inherited load" "*CLOAD, OP=NEW
+" "" "bad.inp:31: step 2 ('lift') inherits the earlier steps' loads in CalculiX; springfit's load cases start from rest"
+bad_deck "a parameter not read" "*NSET, NSET=Right" "*NSET, NSET=Right, ELSET=BARS" "bad.inp:15: *NSET: parameter ELSET is not read by springfit"
+bad_deck "extra fields" "LEFT, 1, 2" "LEFT, 1, 2, 0, 7" "bad.inp:23: *BOUNDARY takes 4 fields at most"
+bad_deck "a truss without its area" "*SOLID SECTION, ELSET=BARS, MATERIAL=STEEL
+0.5" "*SOLID SECTION, ELSET=BARS, MATERIAL=STEEL" "a truss section needs its cross-section area"
 bad_deck "an unknown set" "right, 1, 0.1" "middle, 1, 0.1" "bad.inp:27: unknown node set 'middle'"
 bad_deck "a bad number" "200, 0.3" "2OO, 0.3" "bad.inp:19: expected a number for E, got '2OO'"
 bad_deck "an unended step" "*END STEP
