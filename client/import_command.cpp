@@ -24,7 +24,8 @@ int Import(const ImportArgs& a) {
   const proto::Json json = SceneJsonOf(a.input);
   // With loads, or from decks (which carry their materials and steps), the scene is whole: it
   // is validated as `run` would read it.
-  const bool whole = !a.input.loads.empty() || io::IsAbaqusDeck(a.input.path);
+  const bool whole =
+      !a.input.loads.empty() || !io::IsMeshFile(a.input.path) || io::IsAbaqusDeck(a.input.path);
   if (whole) SceneOf(a.input);
   const std::string text = json.dump(1) + "\n";
   if (a.output.empty()) {

@@ -35,6 +35,7 @@ std::vector<Displacements> ReadFrd(const std::string& path, std::ifstream& in) {
   int number = 0;
   long step = 0;
   bool in_disp = false;
+  int node_width = 10;  // the node's columns: 10 in the long format, 5 in the short one
   Displacements* block = nullptr;
   while (std::getline(in, text)) {
     ++number;
@@ -45,6 +46,11 @@ std::vector<Displacements> ReadFrd(const std::string& path, std::ifstream& in) {
       if (!(fields >> a >> b >> c)) Fail(path, number, "a 1PSTEP record without its step");
       step = c;
       in_disp = false;
+    } else if (text.rfind("  100CL", 0) == 0) {
+      // Column 75: the block's format, 0 short, 1 long, 2 binary.
+      const char format = text.size() >= 75 ? text[74] : '1';
+      if (format == '2') Fail(path, number, "binary results are not read: write the .frd in ASCII");
+      node_width = format == '0' ? 5 : 10;
     } else if (text.rfind(" -4  DISP ", 0) == 0) {  // (not DISPI, the imaginary part)
       in_disp = true;
       block = &by_step[step];
@@ -52,11 +58,13 @@ std::vector<Displacements> ReadFrd(const std::string& path, std::ifstream& in) {
     } else if (text.rfind(" -4", 0) == 0) {
       in_disp = false;
     } else if (in_disp && text.rfind(" -1", 0) == 0) {
-      if (text.size() < 13 + 2 * 12) Fail(path, number, "a short displacement record");
-      const long node = static_cast<long>(Field(path, number, text.substr(3, 10)));
+      const int first = 3 + node_width;
+      if (static_cast<int>(text.size()) < first + 2 * 12)
+        Fail(path, number, "a short displacement record");
+      const long node = static_cast<long>(Field(path, number, text.substr(3, node_width)));
       std::array<double, 3> u{0.0, 0.0, 0.0};
-      for (int c = 0; c < 3 && 13 + 12 * c < static_cast<int>(text.size()); ++c)
-        u[c] = Field(path, number, text.substr(13 + 12 * c, 12));
+      for (int c = 0; c < 3 && first + 12 * c < static_cast<int>(text.size()); ++c)
+        u[c] = Field(path, number, text.substr(first + 12 * c, 12));
       (*block)[node] = u;
     } else if (in_disp && text.rfind(" -3", 0) == 0) {
       in_disp = false;
