@@ -26,7 +26,7 @@ int Import(const ImportArgs& a) {
   // is validated as `run` would read it.
   const bool whole =
       !a.input.loads.empty() || !io::IsMeshFile(a.input.path) || io::IsAbaqusDeck(a.input.path);
-  if (whole) SceneOf(a.input);
+  if (whole) SceneOfImported(a.input, json);  // (the files are read once)
   const std::string text = json.dump(1) + "\n";
   if (a.output.empty()) {
     std::cout << text;

@@ -5,20 +5,6 @@
 #include "proto/scene_codec.h"
 
 namespace springfit::cli {
-namespace {
-
-// The scene a mesh and its loads make, with the loads named in its errors.
-Scene SceneOfImport(const SceneInput& input, const proto::Json& json) {
-  try {
-    return proto::SceneFromJson(json);
-  } catch (const InputError& e) {
-    const std::string from =
-        input.loads.empty() ? input.path : input.loads + " (over " + input.path + ")";
-    throw InputError("", from + ": " + e.what());
-  }
-}
-
-}  // namespace
 
 void AddSceneInput(CLI::App* command, SceneInput& input) {
   command
@@ -56,7 +42,18 @@ Scene SceneOf(const SceneInput& input) {
     }
     return proto::LoadSceneFile(input.path);
   }
-  return SceneOfImport(input, SceneJsonOf(input));
+  return SceneOfImported(input, SceneJsonOf(input));
+}
+
+// The scene a mesh and its loads make, with the loads named in its errors.
+Scene SceneOfImported(const SceneInput& input, const proto::Json& json) {
+  try {
+    return proto::SceneFromJson(json);
+  } catch (const InputError& e) {
+    const std::string from =
+        input.loads.empty() ? input.path : input.loads + " (over " + input.path + ")";
+    throw InputError("", from + ": " + e.what());
+  }
 }
 
 }  // namespace springfit::cli

@@ -28,5 +28,7 @@ void AddSceneInput(CLI::App* command, SceneInput& input);
 proto::Json SceneJsonOf(const SceneInput& input);
 // The scene, validated (a scene file's errors keep their line and column).
 Scene SceneOf(const SceneInput& input);
+// The scene of `json`, which SceneJsonOf(input) gave, validated; errors name the input's files.
+Scene SceneOfImported(const SceneInput& input, const proto::Json& json);
 
 }  // namespace springfit::cli
