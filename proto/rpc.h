@@ -17,10 +17,11 @@ inline constexpr int kInvalidParams = -32602;
 inline constexpr int kInternalError = -32603;
 inline constexpr int kUnauthorized = -32001;  // session.auth first (or a wrong token)
 inline constexpr int kNoSuchJob = -32002;
-inline constexpr int kInvalidScene = -32003;   // data.path: the bad field inside the scene
-inline constexpr int kLimitExceeded = -32004;  // data.limit: which bound (message, nodes, ...)
-inline constexpr int kBusy = -32005;           // queue full, connection limit, shutting down
-inline constexpr int kWrongState = -32006;     // e.g. deleting a running job
+inline constexpr int kInvalidScene = -32003;      // data.path: the bad field inside the scene
+inline constexpr int kLimitExceeded = -32004;     // data.limit: which bound (message, nodes, ...)
+inline constexpr int kBusy = -32005;              // queue full, connection limit, shutting down
+inline constexpr int kWrongState = -32006;        // e.g. deleting a running job
+inline constexpr int kStoreUnavailable = -32007;  // the database does not answer; retry later
 
 // An error a method reports; `data` is attached to the error object when not null.
 class RpcError : public std::runtime_error {

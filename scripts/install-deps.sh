@@ -12,6 +12,8 @@ packages=(
   libboost-dev             # Asio (header-only) for networking and thread pools
   nlohmann-json3-dev       # JSON
   libsqlite3-dev libsqlitecpp-dev sqlite3
+  libpqxx-dev              # the shared PostgreSQL store (libpq's C++ client)
+  postgresql               # a private server the store and multi-daemon tests start
   libcli11-dev             # command line
   libspdlog-dev libfmt-dev # logging
   libgtest-dev libgmock-dev libbenchmark-dev

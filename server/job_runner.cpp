@@ -25,14 +25,14 @@ struct FinishedRun {
   proto::Json json;
 };
 
-JobRecord FinishJob(JobStore& store, JobRecord& record, FinishedRun finished) {
+JobRecord FinishJob(JobStore& store, const Lease& lease, JobRecord& record, FinishedRun finished) {
   const IdentificationResult& result = finished.result;
   finished.json["job_id"] = record.id;
   record.state =
       result.stop == StopReason::kCancelled ? JobState::kCancelled : JobState::kSucceeded;
   record.exact = result.exact();
   record.finished_at = UnixNow();
-  store.MarkFinished(record.id, record.state, "", finished.json.dump(), record.exact,
+  store.MarkFinished(lease, record.state, "", finished.json.dump(), record.exact,
                      record.finished_at);
   spdlog::info("job {} {} after {} generations, {:.3f} s, normalized error {:.3g}{}", record.id,
                proto::JobStateName(record.state), result.generations, result.wall_seconds,
@@ -43,9 +43,11 @@ JobRecord FinishJob(JobStore& store, JobRecord& record, FinishedRun finished) {
 
 }  // namespace
 
-JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
+JobRecord RunJob(JobStore& store, WorkerPool& pool, const Claim& claim,
                  std::shared_ptr<const Problem> prepared, const JobRunnerOptions& options,
                  const JobControl& control) {
+  const JobRecord& job = claim.job;
+  const Lease& lease = claim.lease;
   JobRecord record = job;
   try {
     if (!prepared) {
@@ -72,10 +74,7 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
       }
     }
     // Rows and improvements after the checkpoint are about to be produced again.
-    store.RewindTo(job.id, resumed_at);
-    if (record.started_at == 0.0) record.started_at = UnixNow();
-    record.state = JobState::kRunning;
-    store.MarkRunning(job.id, record.started_at);
+    store.RewindTo(lease, resumed_at);
     if (resumed_at >= 0) {
       spdlog::info("job {} running, resumed from its checkpoint at generation {}", job.id,
                    resumed_at);
@@ -97,8 +96,9 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
     };
     const auto requests = [&control] {
       Requests r;
-      r.cancel = control.cancel && control.cancel->load();
-      r.shutdown = !r.cancel && control.shutdown && control.shutdown->load();
+      const bool lost = control.lease_lost && control.lease_lost->load();
+      r.cancel = !lost && control.cancel && control.cancel->load();
+      r.shutdown = lost || (!r.cancel && control.shutdown && control.shutdown->load());
       return r;
     };
     // Strategy direct reports once, finished, with nothing to checkpoint; its single row and
@@ -131,7 +131,7 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
       }
       if (batch.checkpoint || finished || cancel ||
           SecondsSince(last_flush) >= options.flush_seconds) {
-        store.SaveProgress(job.id, batch);
+        store.SaveProgress(lease, batch);
         batch = ProgressBatch{};
         last_flush = std::chrono::steady_clock::now();
       }
@@ -148,25 +148,39 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
     };
     const IdentificationResult result = RunIdentification(problem, search_options, run);
     // A stop inside a step reports no iteration: what the last ones left unflushed is stored now.
+    if (control.lease_lost && control.lease_lost->load()) throw LeaseLost("the heartbeat lost it");
     if (!batch.trace.empty() || !batch.improvements.empty() || batch.latest)
-      store.SaveProgress(job.id, batch);
+      store.SaveProgress(lease, batch);
     if (interrupted && result.stop == StopReason::kCancelled) {
       spdlog::info(
-          "job {} interrupted by the shutdown at generation {}; it resumes from there at the next "
-          "start",
+          "job {} interrupted by the shutdown at generation {}; it resumes from its last "
+          "checkpoint at the next start or on another daemon",
           job.id, result.generations);
       return record;
     }
-    return FinishJob(store, record, {result, proto::ResultToJson(problem, result, false)});
+    return FinishJob(store, lease, record, {result, proto::ResultToJson(problem, result, false)});
+  } catch (const LeaseLost& e) {
+    // Another daemon runs the job now (this one was paused or cut off past the lease): its
+    // work is the job's; this run's is dropped, and nothing of it was written.
+    spdlog::warn("job {}: lease lost ({}); stopped without writing", job.id, e.what());
+    return record;
+  } catch (const StoreUnavailable& e) {
+    // Nothing more can be written now: the job keeps its last checkpoint and resumes from it
+    // when its lease expires and the store answers again (here or on another daemon).
+    spdlog::error("job {} interrupted: {}; it resumes from its last checkpoint", job.id, e.what());
+    return record;
   } catch (const std::exception& e) {
     record.state = JobState::kFailed;
     record.error = e.what();
     record.finished_at = UnixNow();
     spdlog::error("job {} failed: {}", job.id, record.error);
     try {
-      store.MarkFinished(job.id, record.state, record.error, "", std::nullopt, record.finished_at);
+      store.MarkFinished(lease, record.state, record.error, "", std::nullopt, record.finished_at);
     } catch (const std::exception& e2) {
+      // Lease lost, or the store unavailable: the job stays running in the store and is
+      // claimed again (where it fails again, and that failure is recorded).
       spdlog::error("job {}: cannot record the failure: {}", job.id, e2.what());
+      record = job;
     }
   }
   return record;

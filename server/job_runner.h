@@ -20,15 +20,19 @@ struct JobRunnerOptions {
 struct JobControl {
   const std::atomic<bool>* cancel = nullptr;    // job.cancel: stop, keep the best so far
   const std::atomic<bool>* shutdown = nullptr;  // the daemon stops: checkpoint, stay running
+  // The heartbeat found the lease taken over: stop at once and write nothing more.
+  const std::atomic<bool>* lease_lost = nullptr;
   // Every generation, on the job's thread (throttling is the listener's business).
   std::function<void(const TraceRow&)> on_generation;
 };
 
 // The job's record after the run: finished (succeeded, failed, cancelled), or still running
-// when a shutdown interrupted it (it resumes from its checkpoint at the next start).
+// when it was interrupted: by a shutdown, by the loss of its lease, or by a store it could not
+// write (it resumes from its last checkpoint, here or on another daemon, once its lease
+// expires or is released). Every write is fenced by the claim's lease.
 // `prepared`: the job's problem as its submission prepared it, or null to prepare it from the
 // stored scene.
-JobRecord RunJob(JobStore& store, WorkerPool& pool, const JobRecord& job,
+JobRecord RunJob(JobStore& store, WorkerPool& pool, const Claim& claim,
                  std::shared_ptr<const Problem> prepared, const JobRunnerOptions& options,
                  const JobControl& control);
 

@@ -1,12 +1,23 @@
-// Where the daemon keeps jobs, their traces, best topologies and checkpoints. An interface,
-// so that a shared PostgreSQL store can replace the embedded SQLite one (sqlite_store.h).
+// Where the daemons keep jobs, their traces, best topologies and checkpoints, and the queue
+// they claim jobs from: the embedded SQLite store (sqlite_store.h, one daemon) or a shared
+// PostgreSQL one (postgres_store.h, several daemons on one database).
+//
+// The store is the scheduler. A daemon claims the next job (highest priority, then oldest;
+// or a running job whose lease has expired, its daemon being dead or cut off) in one
+// statement, and holds it through a lease: an owner, an epoch that every claim increments,
+// and an expiry the runner's heartbeat pushes back. Every write of a running job (progress,
+// checkpoint, rewind, finish) is fenced by owner and epoch, so a daemon that lost its lease
+// (paused, partitioned) can never overwrite the work of the one that took over: the write
+// throws LeaseLost and changes nothing.
 //
 // Every method is safe to call from several threads. Writes that belong together (a batch
 // of trace rows with the checkpoint that follows them) are one transaction: after a crash
 // the store holds either all of them or none.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -44,6 +55,41 @@ struct ProgressBatch {
   int checkpoint_generation = -1;
 };
 
+// A running job's claim: who holds it, and which claim of the job this is.
+struct Lease {
+  std::int64_t job_id = 0;
+  std::string owner;
+  std::int64_t epoch = 0;
+};
+
+// A job claimed by a daemon: its record (state running), its lease, and whether a cancel
+// was requested before the claim (an expired job claimed again).
+struct Claim {
+  JobRecord job;
+  Lease lease;
+  bool cancel_requested = false;
+};
+
+// What a heartbeat learns: whether the lease is still this daemon's, and whether a client
+// asked (through any daemon) to cancel the job.
+struct LeaseStatus {
+  bool held = false;
+  bool cancel_requested = false;
+};
+
+// A fenced write found the job claimed by another daemon, finished or deleted: nothing written.
+class LeaseLost : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// The store cannot be reached or written now (connection lost, server restarting, disk full):
+// nothing was written. A later call may succeed.
+class StoreUnavailable : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 struct JobFilter {
   std::optional<JobState> state;
   std::optional<std::string> label;
@@ -62,35 +108,61 @@ class JobStore {
 
   // Inserts a queued job and returns it with its id and creation time. When a job with the
   // same non-empty idempotency key exists, returns that job instead and `created` = false.
+  // When `max_queued` jobs are queued already (counted in the same transaction, so the bound
+  // holds across daemons), inserts nothing and sets `queue_full`.
   struct Created {
     JobRecord job;
     bool created = true;
+    bool queue_full = false;
   };
-  virtual Created CreateJob(const NewJob& job) = 0;
+  virtual Created CreateJob(const NewJob& job, int max_queued) = 0;
   virtual std::optional<JobRecord> GetJob(std::int64_t id) = 0;
   virtual std::optional<std::string> GetScene(std::int64_t id) = 0;
   virtual JobPage ListJobs(const JobFilter& filter) = 0;
-  // Queued and running jobs, by priority (highest first) then id: what a restart schedules.
+  // Queued and running jobs, by priority (highest first) then id.
   virtual std::vector<JobRecord> UnfinishedJobs() = 0;
   virtual int CountQueued() = 0;
 
-  virtual void MarkRunning(std::int64_t id, double started_at) = 0;
-  virtual void SaveProgress(std::int64_t id, const ProgressBatch& batch) = 0;
+  // The scheduler's side. ClaimNext takes the highest-priority queued job (then the oldest),
+  // or a running one whose lease expired, for `owner` until `lease_seconds` from now (the
+  // store's clock), or returns nothing. The job's started_at is set at its first claim.
+  virtual std::optional<Claim> ClaimNext(const std::string& owner, double lease_seconds) = 0;
+  // Extends the lease when it is still held.
+  virtual LeaseStatus RenewLease(const Lease& lease, double lease_seconds) = 0;
+  // Lets another daemon claim the job at once (a daemon stopping with the job unfinished).
+  virtual void ReleaseLease(const Lease& lease) = 0;
+
+  // Fenced writes: each throws LeaseLost when `lease` is no longer the job's.
+  virtual void SaveProgress(const Lease& lease, const ProgressBatch& batch) = 0;
   // Final state, its error (failed) and result JSON (succeeded or cancelled; may be empty).
-  virtual void MarkFinished(std::int64_t id, JobState state, const std::string& error,
+  virtual void MarkFinished(const Lease& lease, JobState state, const std::string& error,
                             const std::string& result_json, std::optional<bool> exact,
                             double finished_at) = 0;
+  // Before a job resumes from its checkpoint (or restarts, at -1): drops the trace rows and
+  // improvements recorded after that generation, which the job is about to produce again.
+  virtual void RewindTo(const Lease& lease, int generation) = 0;
+
+  // job.cancel from any daemon: a queued job is cancelled at once (kCancelled); a running one
+  // gets the request, which its daemon's heartbeat reads (kRequested); a finished or missing
+  // one is left alone (kNotActive).
+  enum class CancelOutcome { kCancelled, kRequested, kNotActive };
+  virtual CancelOutcome RequestCancel(std::int64_t id) = 0;
 
   virtual std::optional<std::string> GetResult(std::int64_t id) = 0;
   // Trace rows with generation > after, oldest first, at most `limit`.
   virtual std::vector<TraceRow> GetTrace(std::int64_t id, int after, int limit) = 0;
   virtual std::vector<Improvement> GetImprovements(std::int64_t id) = 0;
   virtual std::optional<std::string> GetCheckpoint(std::int64_t id) = 0;
-  // Before a job resumes from its checkpoint (or restarts, at -1): drops the trace rows and
-  // improvements recorded after that generation, which the job is about to produce again.
-  virtual void RewindTo(std::int64_t id, int generation) = 0;
-  // Deletes a finished job and everything stored with it; false when there is no such job.
+  // Deletes a finished job and everything stored with it; false when there is no such job
+  // or it is not finished.
   virtual bool DeleteJob(std::int64_t id) = 0;
+
+  // Called (on a thread of the store) when another daemon changed the queue or a job: a
+  // wake-up for the scheduler, which then reads the store. Stores of one daemon never call
+  // it. Set before the scheduler starts.
+  virtual void SetChangeListener(std::function<void()> listener) { (void)listener; }
+  // A short description for logs, without secrets ("sqlite:///var/lib/springfit.db").
+  virtual std::string Describe() const = 0;
 };
 
 }  // namespace springfit::server

@@ -18,7 +18,7 @@
 #include "proto/server_address.h"
 #include "server/rpc_service.h"
 #include "server/scheduler.h"
-#include "server/sqlite_store.h"
+#include "server/store_url.h"
 #include "server/tcp_server.h"
 #include "server/version.h"
 
@@ -28,7 +28,11 @@ namespace sf = springfit::server;
 
 struct DaemonArgs {
   std::string listen = "127.0.0.1:7117";
-  std::string db = "springfit.db";
+  std::string db;     // --db FILE: the same as --store sqlite:///FILE
+  std::string store;  // --store URL
+  std::string store_password_file;
+  std::string name;
+  double lease_seconds = 10.0;
   int workers = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   std::optional<int> max_running;
   std::string token_file;
@@ -68,11 +72,20 @@ int RunDaemon(const DaemonArgs& args) {
         " without a token: other hosts could submit and delete jobs (--token-file FILE)");
   }
 
-  sf::SqliteStore store(args.db);
+  sf::StoreLocation location = sf::ParseStoreUrl(
+      args.store.empty() ? "sqlite:///" + (args.db.empty() ? std::string("springfit.db") : args.db)
+                         : args.store);
+  if (!args.store_password_file.empty())
+    location.password = sf::ReadPasswordFile(args.store_password_file);
+  const std::unique_ptr<sf::JobStore> store_owner = sf::OpenStore(location);
+  sf::JobStore& store = *store_owner;
   sf::SchedulerOptions scheduler_options;
   scheduler_options.workers = args.workers;
   scheduler_options.max_running = args.max_running.value_or(args.workers);
   scheduler_options.runner.checkpoint_seconds = args.checkpoint_seconds;
+  scheduler_options.owner = args.name;
+  scheduler_options.lease_seconds = args.lease_seconds;
+  scheduler_options.heartbeat_seconds = std::min(1.0, args.lease_seconds / 3);
   sf::Scheduler scheduler(store, scheduler_options);
 
   sf::ServiceOptions service_options;
@@ -94,10 +107,11 @@ int RunDaemon(const DaemonArgs& args) {
 
   const auto unfinished = store.UnfinishedJobs().size();
   scheduler.Start();
-  spdlog::info("springfitd listening on {}:{} (database {}, {} workers, {} jobs at once{}{})",
-               address.host, server.port(), args.db, scheduler_options.workers,
-               scheduler_options.max_running, token.empty() ? "" : ", token required",
-               unfinished ? ", " + std::to_string(unfinished) + " unfinished jobs queued" : "");
+  spdlog::info(
+      "springfitd {} listening on {}:{} (store {}, {} workers, {} jobs at once{}{})",
+      scheduler.owner(), address.host, server.port(), store.Describe(), scheduler_options.workers,
+      scheduler_options.max_running, token.empty() ? "" : ", token required",
+      unfinished ? ", " + std::to_string(unfinished) + " unfinished jobs in the store" : "");
   if (!args.port_file.empty()) {
     const std::string tmp = args.port_file + ".tmp";
     std::ofstream(tmp) << server.port() << "\n";
@@ -155,7 +169,23 @@ int main(int argc, char** argv) {
   DaemonArgs args;
   app.add_option("--listen", args.listen, "Address to listen on, HOST:PORT (port 0: any free port)")
       ->capture_default_str();
-  app.add_option("--db", args.db, "SQLite database file (created when missing)")
+  auto* store_option = app.add_option(
+      "--store", args.store,
+      "Where jobs are kept: sqlite:///FILE (relative) or sqlite:////ABS/FILE, one daemon; or "
+      "postgresql://USER@HOST[:PORT]/DB, shared by several daemons (password: "
+      "--store-password-file, PGPASSWORD or PGPASSFILE, never in the URL). Default "
+      "sqlite:///springfit.db");
+  app.add_option("--db", args.db, "SQLite database file: the same as --store sqlite:///FILE")
+      ->excludes(store_option);
+  app.add_option("--store-password-file", args.store_password_file,
+                 "File holding the PostgreSQL password (first line)");
+  app.add_option("--name", args.name,
+                 "This daemon's name in the leases of the jobs it runs; unique among the daemons "
+                 "of one store (default host:pid:random)");
+  app.add_option("--lease-seconds", args.lease_seconds,
+                 "A running job's lease: how long after a daemon dies (or is cut off) another "
+                 "daemon of the store takes its jobs over")
+      ->check(CLI::Range(0.5, 3600.0))
       ->capture_default_str();
   app.add_option("--workers", args.workers, "Threads for fitness evaluations, all jobs together")
       ->check(CLI::Range(1, 1024))

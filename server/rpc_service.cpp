@@ -163,6 +163,10 @@ Json RpcService::HandleRequest(const Json& request, SessionContext& session) {
     data["path"] = e.path();
     response =
         rpc::Error(id, rpc::kInvalidParams, std::string("invalid params: ") + e.what(), data);
+  } catch (const StoreUnavailable& e) {
+    // Nothing was stored or changed: the client may retry (with its idempotency key).
+    response = rpc::Error(id, rpc::kStoreUnavailable,
+                          std::string("store unavailable, try again: ") + e.what());
   } catch (const std::exception& e) {
     spdlog::error("{}: internal error: {}", method->get<std::string>(), e.what());
     response = rpc::Error(id, rpc::kInternalError, std::string("internal error: ") + e.what());
@@ -211,8 +215,17 @@ Json RpcService::ServerInfo() {
   j["auth_required"] = !options_.token.empty();
   j["workers"] = options_.workers;
   j["max_running"] = options_.max_running;
+  j["daemon"] = scheduler_.owner();
+  j["store"] = store_.Describe();
   j["running"] = scheduler_.running();
-  j["queued"] = scheduler_.queued();
+  // All daemons' queue; null with the reason when the store does not answer, so that
+  // server.info still tells the daemon is up.
+  try {
+    j["queued"] = store_.CountQueued();
+  } catch (const std::exception& e) {
+    j["queued"] = nullptr;
+    j["store_error"] = e.what();
+  }
   Json strategies = Json::array();
   for (Strategy s : proto::AllStrategies()) strategies.push_back(proto::StrategyName(s));
   j["strategies"] = std::move(strategies);
@@ -299,15 +312,15 @@ Json RpcService::JobSubmit(const Json& params) {
   r.max_generations = options.max_generations;
   r.created_at = UnixNow();
   job.scene_json = proto::SceneToJson(scene).dump();
-  if (store_.CountQueued() >= options_.limits.max_queued) {
+  const JobStore::Created created = store_.CreateJob(job, options_.limits.max_queued);
+  if (created.queue_full) {
     throw rpc::RpcError(rpc::kBusy, "busy: " + std::to_string(options_.limits.max_queued) +
                                         " jobs are queued already");
   }
-  const JobStore::Created created = store_.CreateJob(job);
   if (created.created) {
     spdlog::info("job {} queued ({}, label '{}', priority {}, seed {})", created.job.id,
                  r.scene_name, r.label, r.priority, r.seed);
-    scheduler_.Enqueue(created.job, std::move(problem));
+    scheduler_.JobSubmitted(created.job.id, std::move(problem));
   }
   Json j;
   j["created"] = created.created;
@@ -469,7 +482,9 @@ Json RpcService::JobCancel(const Json& params) {
 Json RpcService::JobDelete(const Json& params) {
   proto::ExpectKeys(params, "params", {"job_id"});
   const JobRecord job = RequireJob(params);
-  if (!proto::IsFinal(job.state) || scheduler_.IsActive(job.id)) {
+  // The store deletes finished jobs only; a job running here is past its end a moment longer
+  // (announcing it), and deleting it then would hide its last notification.
+  if (!proto::IsFinal(job.state) || scheduler_.IsRunningHere(job.id) || !store_.DeleteJob(job.id)) {
     Json data;
     data["state"] = proto::JobStateName(job.state);
     throw rpc::RpcError(rpc::kWrongState,
@@ -478,7 +493,6 @@ Json RpcService::JobDelete(const Json& params) {
                             "; cancel it before deleting it",
                         data);
   }
-  store_.DeleteJob(job.id);
   spdlog::info("job {} deleted", job.id);
   Json j;
   j["job_id"] = job.id;

@@ -1,5 +1,10 @@
 #include "server/scheduler.h"
 
+#include <unistd.h>
+
+#include <random>
+#include <stdexcept>
+
 #include <spdlog/spdlog.h>
 
 #include "proto/rpc.h"
@@ -7,9 +12,64 @@
 #include "server/unix_time.h"
 
 namespace springfit::server {
+namespace {
+
+std::chrono::milliseconds Millis(double seconds) {
+  return std::chrono::milliseconds(static_cast<long long>(seconds * 1000.0));
+}
+
+// A store that fails keeps failing for a while: its error is logged when it changes or every
+// ten seconds, not at every poll.
+class ErrorLog {
+ public:
+  void Report(const std::string& what, const std::exception& e) {
+    std::lock_guard lock(mutex_);
+    const auto now = std::chrono::steady_clock::now();
+    const std::string message = what + ": " + e.what();
+    if (message == last_ && now - logged_at_ < std::chrono::seconds(10)) return;
+    last_ = message;
+    logged_at_ = now;
+    spdlog::error("{}", message);
+  }
+
+ private:
+  std::mutex mutex_;
+  std::string last_;
+  std::chrono::steady_clock::time_point logged_at_{};
+};
+ErrorLog store_errors;
+
+}  // namespace
+
+void SchedulerOptions::Validate() const {
+  auto positive = [](double v, const char* name) {
+    if (!(v > 0.0) || v > 86400.0)
+      throw std::invalid_argument(std::string(name) + " must be in (0, 86400] seconds");
+  };
+  if (workers < 1) throw std::invalid_argument("workers must be at least 1");
+  if (max_running < 1) throw std::invalid_argument("max_running must be at least 1");
+  positive(lease_seconds, "lease_seconds");
+  positive(heartbeat_seconds, "heartbeat_seconds");
+  positive(poll_seconds, "poll_seconds");
+  if (heartbeat_seconds > lease_seconds / 2) {
+    throw std::invalid_argument("heartbeat_seconds (" + std::to_string(heartbeat_seconds) +
+                                ") must be at most half of lease_seconds (" +
+                                std::to_string(lease_seconds) + ")");
+  }
+}
+
+std::string DefaultOwnerName() {
+  char host[256] = {};
+  if (::gethostname(host, sizeof host - 1) != 0) host[0] = '\0';
+  std::random_device random;
+  return fmt::format("{}:{}:{:08x}", host[0] ? host : "host", ::getpid(), random());
+}
 
 Scheduler::Scheduler(JobStore& store, SchedulerOptions options)
-    : store_(store), options_(options), pool_(std::max(1, options.workers)) {}
+    : store_(store), options_(std::move(options)), pool_(std::max(1, options_.workers)) {
+  if (options_.owner.empty()) options_.owner = DefaultOwnerName();
+  options_.Validate();
+}
 
 Scheduler::~Scheduler() {
   if (!Stop(std::chrono::hours(24 * 365))) {
@@ -18,43 +78,49 @@ Scheduler::~Scheduler() {
 }
 
 void Scheduler::Start() {
-  for (const JobRecord& job : store_.UnfinishedJobs()) Enqueue(job);
+  store_.SetChangeListener([this] { Wake(); });
   std::lock_guard lock(mutex_);
   const int n = std::max(1, options_.max_running);
   runners_alive_ = n;
   for (int i = 0; i < n; ++i) runners_.emplace_back([this] { RunnerLoop(); });
+  monitor_ = std::thread([this] { MonitorLoop(); });
 }
 
-void Scheduler::Enqueue(const JobRecord& job, std::shared_ptr<const Problem> prepared) {
+void Scheduler::Wake() {
   {
     std::lock_guard lock(mutex_);
-    if (queued_priority_.contains(job.id) || running_.contains(job.id)) return;
-    queue_.insert({-job.priority, job.id});
-    queued_priority_[job.id] = job.priority;
-    if (prepared && static_cast<int>(prepared_.size()) < options_.max_prepared)
-      prepared_[job.id] = std::move(prepared);
+    ++wake_count_;
   }
-  wake_.notify_one();
+  wake_.notify_all();
+}
+
+void Scheduler::JobSubmitted(std::int64_t id, std::shared_ptr<const Problem> prepared) {
+  if (prepared) {
+    std::lock_guard lock(mutex_);
+    // Oldest first out: a job submitted here long ago has most likely been claimed elsewhere.
+    while (!prepared_.empty() && static_cast<int>(prepared_.size()) >= options_.max_prepared)
+      prepared_.erase(prepared_.begin());
+    if (options_.max_prepared > 0) prepared_[id] = std::move(prepared);
+  }
+  Wake();
 }
 
 Scheduler::CancelOutcome Scheduler::Cancel(std::int64_t id) {
   {
+    // A job running here stops at once; the request is written all the same, so that it
+    // survives a crash of this daemon before the job ends.
     std::lock_guard lock(mutex_);
-    if (const auto r = running_.find(id); r != running_.end()) {
-      r->second->cancel.store(true);
-      return CancelOutcome::kCancelling;
-    }
-    const auto q = queued_priority_.find(id);
-    if (q == queued_priority_.end()) return CancelOutcome::kNotActive;
-    queue_.erase({-q->second, id});
-    queued_priority_.erase(q);
+    if (const auto r = running_.find(id); r != running_.end()) r->second->cancel.store(true);
+  }
+  const JobStore::CancelOutcome outcome = store_.RequestCancel(id);
+  if (outcome == JobStore::CancelOutcome::kNotActive) return CancelOutcome::kNotActive;
+  if (outcome == JobStore::CancelOutcome::kRequested) return CancelOutcome::kCancelling;
+  {
+    std::lock_guard lock(mutex_);
     prepared_.erase(id);
   }
-  store_.MarkFinished(id, JobState::kCancelled, "", "", std::nullopt, UnixNow());
   spdlog::info("job {} cancelled while queued", id);
-  if (const auto job = store_.GetJob(id)) {
-    Publish(id, proto::rpc::Notification("job.finished", proto::JobToJson(*job)));
-  }
+  if (const auto job = store_.GetJob(id)) PublishFinished(id, *job);
   return CancelOutcome::kCancelled;
 }
 
@@ -65,9 +131,9 @@ std::optional<TraceRow> Scheduler::LiveProgress(std::int64_t id) const {
   return r->second->progress;
 }
 
-bool Scheduler::IsActive(std::int64_t id) const {
+bool Scheduler::IsRunningHere(std::int64_t id) const {
   std::lock_guard lock(mutex_);
-  return running_.contains(id) || queued_priority_.contains(id);
+  return running_.contains(id);
 }
 
 int Scheduler::running() const {
@@ -75,15 +141,11 @@ int Scheduler::running() const {
   return static_cast<int>(running_.size());
 }
 
-int Scheduler::queued() const {
-  std::lock_guard lock(mutex_);
-  return static_cast<int>(queue_.size());
-}
-
 std::uint64_t Scheduler::Watch(std::int64_t id, Listener listener) {
   std::lock_guard lock(watch_mutex_);
   const std::uint64_t token = next_token_++;
   watchers_.emplace(id, std::make_pair(token, std::move(listener)));
+  announced_.try_emplace(id);
   return token;
 }
 
@@ -91,7 +153,9 @@ void Scheduler::Unwatch(std::uint64_t token) {
   std::lock_guard lock(watch_mutex_);
   for (auto it = watchers_.begin(); it != watchers_.end(); ++it) {
     if (it->second.first == token) {
+      const std::int64_t id = it->first;
       watchers_.erase(it);
+      if (!watchers_.contains(id)) announced_.erase(id);
       return;
     }
   }
@@ -100,7 +164,22 @@ void Scheduler::Unwatch(std::uint64_t token) {
 void Scheduler::Publish(std::int64_t id, const proto::Json& notification) {
   std::lock_guard lock(watch_mutex_);
   const auto [first, last] = watchers_.equal_range(id);
+  if (first == last) return;
+  Announced& announced = announced_[id];
+  if (notification.at("method") == "job.finished") {
+    if (announced.finished) return;  // the runner and the monitor may both see the end
+    announced.finished = true;
+  } else {
+    // Each generation once, in order (a job resumed from a checkpoint repeats some).
+    const int generation = notification.at("params").value("generation", -1);
+    if (announced.finished || generation <= announced.generation) return;
+    announced.generation = generation;
+  }
   for (auto it = first; it != last; ++it) it->second.second(notification);
+}
+
+void Scheduler::PublishFinished(std::int64_t id, const JobRecord& job) {
+  Publish(id, proto::rpc::Notification("job.finished", proto::JobToJson(job)));
 }
 
 bool Scheduler::Stop(std::chrono::milliseconds timeout) {
@@ -118,6 +197,7 @@ bool Scheduler::Stop(std::chrono::milliseconds timeout) {
     for (std::thread& t : runners_) {
       if (t.joinable()) t.join();
     }
+    if (monitor_.joinable()) monitor_.join();
   }
   return stopped;
 }
@@ -141,67 +221,160 @@ void Scheduler::OnGeneration(std::int64_t id, Running& running, const JobRecord&
 }
 
 void Scheduler::RunnerLoop() {
-  while (true) {
-    JobRecord job;
-    Running* running = nullptr;
-    std::shared_ptr<const Problem> prepared;
+  int failures = 0;  // consecutive store failures: the wait before the next claim grows
+  while (!stopping_.load()) {
+    std::uint64_t seen = 0;
     {
-      std::unique_lock lock(mutex_);
-      wake_.wait(lock, [this] { return stopping_.load() || !queue_.empty(); });
-      if (stopping_.load()) break;
-      const auto [neg_priority, id] = *queue_.begin();
-      queue_.erase(queue_.begin());
-      queued_priority_.erase(id);
-      if (const auto p = prepared_.find(id); p != prepared_.end()) {
-        prepared = std::move(p->second);
-        prepared_.erase(p);
-      }
-      auto slot = std::make_unique<Running>();
-      running = slot.get();
-      running_[id] = std::move(slot);
-      job.id = id;
+      std::lock_guard lock(mutex_);
+      seen = wake_count_;
     }
-    std::optional<JobRecord> stored;
+    std::optional<Claim> claim;
     try {
-      stored = store_.GetJob(job.id);
+      claim = store_.ClaimNext(options_.owner, options_.lease_seconds);
+      failures = 0;
     } catch (const std::exception& e) {
-      // Failed rather than forgotten: a job left queued would hold its watchers forever.
-      spdlog::error("job {} failed: cannot read it from the store: {}", job.id, e.what());
-      try {
-        store_.MarkFinished(job.id, JobState::kFailed,
-                            std::string("cannot read the job: ") + e.what(), "", std::nullopt,
-                            UnixNow());
-        if (const auto failed = store_.GetJob(job.id)) {
-          Publish(job.id, proto::rpc::Notification("job.finished", proto::JobToJson(*failed)));
-        }
-      } catch (const std::exception& e2) {
-        spdlog::error("job {}: cannot record the failure: {}", job.id, e2.what());
-      }
+      // The store is down: claim nothing, and look again later, less often while it stays so.
+      store_errors.Report("cannot claim jobs from the store", e);
+      ++failures;
     }
-    if (stored && !proto::IsFinal(stored->state)) {
-      JobControl control;
-      control.cancel = &running->cancel;
-      control.shutdown = &stopping_;
-      control.on_generation = [&](const TraceRow& row) {
-        OnGeneration(job.id, *running, *stored, row);
-      };
-      const JobRecord after =
-          RunJob(store_, pool_, *stored, std::move(prepared), options_.runner, control);
-      if (proto::IsFinal(after.state)) {
-        std::optional<JobRecord> final_record;
-        try {
-          final_record = store_.GetJob(job.id);
-        } catch (const std::exception&) {
-        }
-        Publish(job.id, proto::rpc::Notification("job.finished",
-                                                 proto::JobToJson(final_record.value_or(after))));
-      }
+    if (claim) {
+      RunClaimed(*claim);
+      continue;
     }
-    std::lock_guard lock(mutex_);
-    running_.erase(job.id);
+    const double wait = failures == 0
+                            ? options_.poll_seconds
+                            : std::min(5.0, 0.1 * static_cast<double>(1 << std::min(failures, 6)));
+    std::unique_lock lock(mutex_);
+    wake_.wait_for(lock, Millis(wait),
+                   [&] { return stopping_.load() || (failures == 0 && wake_count_ != seen); });
   }
   std::lock_guard lock(mutex_);
   if (--runners_alive_ == 0) runners_done_.notify_all();
+  wake_.notify_all();  // the monitor ends with the last runner
+}
+
+void Scheduler::RunClaimed(const Claim& claim) {
+  const std::int64_t id = claim.job.id;
+  Running* running = nullptr;
+  std::shared_ptr<const Problem> prepared;
+  {
+    std::lock_guard lock(mutex_);
+    if (const auto p = prepared_.find(id); p != prepared_.end()) {
+      prepared = std::move(p->second);
+      prepared_.erase(p);
+    }
+    auto slot = std::make_unique<Running>();
+    slot->lease = claim.lease;
+    slot->cancel.store(claim.cancel_requested);
+    running = slot.get();
+    running_[id] = std::move(slot);
+  }
+  // A cancel written between the claim and the registration above reached the store only:
+  // one beat now sees it, so that it takes effect before the first generation.
+  try {
+    const LeaseStatus status = store_.RenewLease(claim.lease, options_.lease_seconds);
+    if (status.cancel_requested) running->cancel.store(true);
+    if (!status.held) running->lease_lost.store(true);
+  } catch (const std::exception& e) {
+    store_errors.Report("job " + std::to_string(id) + ": cannot renew its lease", e);
+  }
+  JobControl control;
+  control.cancel = &running->cancel;
+  control.shutdown = &stopping_;
+  control.lease_lost = &running->lease_lost;
+  control.on_generation = [&](const TraceRow& row) { OnGeneration(id, *running, claim.job, row); };
+  const JobRecord after =
+      RunJob(store_, pool_, claim, std::move(prepared), options_.runner, control);
+  if (proto::IsFinal(after.state)) {
+    std::optional<JobRecord> final_record;
+    try {
+      final_record = store_.GetJob(id);
+    } catch (const std::exception&) {
+    }
+    PublishFinished(id, final_record.value_or(after));
+  } else if (stopping_.load() && !running->lease_lost.load()) {
+    // Stopped by a shutdown: another daemon of the store may resume the job at once.
+    try {
+      store_.ReleaseLease(claim.lease);
+    } catch (const std::exception& e) {
+      store_errors.Report("job " + std::to_string(id) + ": cannot release its lease", e);
+    }
+  }
+  std::lock_guard lock(mutex_);
+  running_.erase(id);
+}
+
+void Scheduler::MonitorLoop() {
+  auto next_beat = std::chrono::steady_clock::now();
+  while (true) {
+    std::uint64_t seen = 0;
+    {
+      std::unique_lock lock(mutex_);
+      if (runners_alive_ == 0) break;
+      seen = wake_count_;
+    }
+    if (std::chrono::steady_clock::now() >= next_beat) {
+      Heartbeat();
+      next_beat = std::chrono::steady_clock::now() + Millis(options_.heartbeat_seconds);
+    }
+    FollowWatched();
+    std::unique_lock lock(mutex_);
+    wake_.wait_until(lock, next_beat, [&] { return runners_alive_ == 0 || wake_count_ != seen; });
+  }
+}
+
+void Scheduler::Heartbeat() {
+  std::vector<std::pair<Lease, Running*>> leases;
+  {
+    std::lock_guard lock(mutex_);
+    for (auto& [id, running] : running_) leases.emplace_back(running->lease, running.get());
+  }
+  for (auto& [lease, running] : leases) {
+    try {
+      const LeaseStatus status = store_.RenewLease(lease, options_.lease_seconds);
+      // The Running slot lives until its runner erases it, under mutex_, after RunJob: read
+      // it under the mutex, since a job may have ended since the snapshot.
+      std::lock_guard lock(mutex_);
+      const auto r = running_.find(lease.job_id);
+      if (r == running_.end() || r->second.get() != running) continue;
+      if (!status.held && !running->lease_lost.exchange(true)) {
+        spdlog::warn("job {}: lease lost to another daemon; stopping it here", lease.job_id);
+      }
+      if (status.cancel_requested) running->cancel.store(true);
+    } catch (const std::exception& e) {
+      store_errors.Report("job " + std::to_string(lease.job_id) + ": cannot renew its lease", e);
+    }
+  }
+}
+
+void Scheduler::FollowWatched() {
+  std::vector<std::int64_t> ids;
+  {
+    std::lock_guard lock(watch_mutex_);
+    for (const auto& [id, announced] : announced_) {
+      if (!announced.finished) ids.push_back(id);
+    }
+  }
+  for (const std::int64_t id : ids) {
+    if (IsRunningHere(id)) continue;  // its runner announces it
+    std::optional<JobRecord> job;
+    try {
+      job = store_.GetJob(id);
+    } catch (const std::exception& e) {
+      store_errors.Report("cannot follow watched jobs", e);
+      return;
+    }
+    if (!job) continue;  // deleted: the watch ends with its connection
+    if (proto::IsFinal(job->state)) {
+      PublishFinished(id, *job);
+    } else if (job->progress) {
+      // Publish drops it unless it is newer than the last generation announced.
+      proto::Json params = proto::TraceRowToJson(*job->progress);
+      params["job_id"] = id;
+      params["max_generations"] = job->max_generations;
+      Publish(id, proto::rpc::Notification("job.progress", params));
+    }
+  }
 }
 
 }  // namespace springfit::server

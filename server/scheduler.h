@@ -1,10 +1,15 @@
-// The daemon's job queue and the threads that run it.
+// The daemon's runners: the threads that claim jobs from the store and run them.
 //
-// Queued jobs wait in priority order (higher first, then by id, i.e. submission order).
-// Up to `max_running` jobs run at once, each on its own runner thread; all of them share
-// one WorkerPool for their fitness evaluations, so a job running alone uses every worker,
-// and several jobs share them generation by generation. Cancellation and shutdown are
-// flags a job reads after each generation.
+// The queue is the store's (server/job_store.h): each runner claims the next job there (by
+// priority, then submission order), so several daemons on one store share one queue. Up to
+// `max_running` jobs run at once, each on its own runner thread; all of them share one
+// WorkerPool for their fitness evaluations, so a job running alone uses every worker, and
+// several jobs share them generation by generation.
+//
+// A monitor thread renews the leases of the jobs running here (the heartbeat) and learns from
+// it of cancels requested through any daemon and of leases lost; it also follows the jobs
+// watched here that run elsewhere (or wait in the queue), so that job.watch works whichever
+// daemon the client is connected to.
 #pragma once
 #include <atomic>
 #include <chrono>
@@ -16,6 +21,7 @@
 #include <mutex>
 #include <optional>
 #include <set>
+#include <string>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -36,7 +42,26 @@ struct SchedulerOptions {
   // so that a job is prepared once; the others (beyond it, after a restart, or queued by
   // another daemon) are prepared again from their stored scene when they start.
   int max_prepared = 8;
+  // This daemon's name in the leases it holds; unique among the daemons of one store. Empty:
+  // host name, process id and a random suffix (DefaultOwnerName()).
+  std::string owner;
+  // A running job's lease lasts this long past its last heartbeat: how long the jobs of a
+  // daemon that died wait before another daemon resumes them. A paused daemon loses its jobs
+  // after it, and can then write nothing of them.
+  double lease_seconds = 10.0;
+  // Leases renewed, cancels requested elsewhere seen, and watched jobs of other daemons
+  // followed this often. Below lease_seconds / 2, so one late beat loses nothing.
+  double heartbeat_seconds = 1.0;
+  // An idle runner looks for a job in the store this often when no wake-up came (a job
+  // submitted here or announced by the store wakes it at once).
+  double poll_seconds = 1.0;
+
+  // Throws std::invalid_argument naming the option.
+  void Validate() const;
 };
+
+// host:pid:random, for SchedulerOptions::owner.
+std::string DefaultOwnerName();
 
 class Scheduler {
  public:
@@ -49,18 +74,21 @@ class Scheduler {
   Scheduler(const Scheduler&) = delete;
   Scheduler& operator=(const Scheduler&) = delete;
 
-  // Queues the store's unfinished jobs (interrupted ones resume) and starts the runners.
+  // Starts the runners and the monitor. Jobs left running by a dead daemon are claimed again
+  // when their leases expire, and resume from their checkpoints.
   void Start();
-  // Queues a job the store has just created, with its prepared problem when the caller has it.
-  void Enqueue(const JobRecord& job, std::shared_ptr<const Problem> prepared = nullptr);
+  // The store has just created a job here: keeps its prepared problem for the run (when the
+  // caller has it and this daemon claims the job) and wakes an idle runner.
+  void JobSubmitted(std::int64_t id, std::shared_ptr<const Problem> prepared = nullptr);
 
   enum class CancelOutcome { kCancelled, kCancelling, kNotActive };
-  // A queued job is cancelled at once; a running one after its current generation.
+  // A queued job is cancelled at once; a running one (here or on another daemon) after its
+  // current generation, or within a heartbeat and a second.
   CancelOutcome Cancel(std::int64_t id);
 
-  // The latest generation of a running job (fresher than the store's, which is flushed).
+  // The latest generation of a job running here (fresher than the store's, which is flushed).
   std::optional<TraceRow> LiveProgress(std::int64_t id) const;
-  bool IsActive(std::int64_t id) const;  // queued or running here
+  bool IsRunningHere(std::int64_t id) const;
 
   std::uint64_t Watch(std::int64_t id, Listener listener);
   void Unwatch(std::uint64_t token);
@@ -70,18 +98,27 @@ class Scheduler {
   // have not are left to resume from their last checkpoint, as after a crash.
   bool Stop(std::chrono::milliseconds timeout);
 
-  int running() const;
-  int queued() const;
+  int running() const;  // here
+  const std::string& owner() const { return options_.owner; }
 
  private:
   struct Running {
+    Lease lease;
     std::atomic<bool> cancel{false};
+    std::atomic<bool> lease_lost{false};
     std::optional<TraceRow> progress;  // guarded by mutex_
     std::chrono::steady_clock::time_point last_notified{};
   };
 
   void RunnerLoop();
+  void RunClaimed(const Claim& claim);
+  void MonitorLoop();
+  void Heartbeat();
+  void FollowWatched();
+  // Wakes idle runners and the monitor (a job submitted here, or a change in the store).
+  void Wake();
   void Publish(std::int64_t id, const proto::Json& notification);
+  void PublishFinished(std::int64_t id, const JobRecord& job);
   void OnGeneration(std::int64_t id, Running& running, const JobRecord& job, const TraceRow& row);
 
   JobStore& store_;
@@ -90,18 +127,24 @@ class Scheduler {
 
   mutable std::mutex mutex_;
   std::condition_variable wake_;
-  std::set<std::pair<int, std::int64_t>> queue_;  // (-priority, id)
-  std::map<std::int64_t, int> queued_priority_;
-  std::map<std::int64_t, std::shared_ptr<const Problem>> prepared_;  // of queued jobs
+  std::uint64_t wake_count_ = 0;  // bumped by Wake(): a runner that saw it change looks again
+  std::map<std::int64_t, std::shared_ptr<const Problem>> prepared_;  // of jobs submitted here
   std::map<std::int64_t, std::unique_ptr<Running>> running_;
   std::atomic<bool> stopping_{false};
   int runners_alive_ = 0;
   std::condition_variable runners_done_;
   std::vector<std::thread> runners_;
+  std::thread monitor_;
 
   std::mutex watch_mutex_;
   std::uint64_t next_token_ = 1;
   std::multimap<std::int64_t, std::pair<std::uint64_t, Listener>> watchers_;
+  // Per watched job: the last generation announced (-1: none) and whether job.finished was.
+  struct Announced {
+    int generation = -1;
+    bool finished = false;
+  };
+  std::map<std::int64_t, Announced> announced_;
 };
 
 }  // namespace springfit::server

@@ -1,12 +1,20 @@
 #include "server/sqlite_store.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
 #include <bit>
+#include <cerrno>
+#include <cstring>
 #include <stdexcept>
 
 #include <SQLiteCpp/SQLiteCpp.h>
+#include <sqlite3.h>
 
 #include "engine/search/fitness_cache.h"
 #include "proto/search_codec.h"
+#include "server/unix_time.h"
 
 namespace springfit::server {
 namespace {
@@ -67,6 +75,14 @@ CREATE TABLE checkpoints (
   state BLOB NOT NULL                -- server/checkpoint_codec.h
 );
 )sql",
+    // 2: the lease a daemon holds a running job by (server/job_store.h) and job.cancel as a
+    // request its runner reads.
+    R"sql(
+ALTER TABLE jobs ADD COLUMN lease_owner TEXT;
+ALTER TABLE jobs ADD COLUMN lease_epoch INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE jobs ADD COLUMN lease_expires REAL NOT NULL DEFAULT 0;
+ALTER TABLE jobs ADD COLUMN cancel_requested INTEGER NOT NULL DEFAULT 0;
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(std::size(kMigrations));
 static_assert(kMigrationCount == SqliteStore::kSchemaVersion);
@@ -75,6 +91,7 @@ constexpr const char* kJobColumns =
     "id, label, priority, seed, idempotency_key, state, error, scene_name, genes, strategy, "
     "max_generations, "
     "created_at, started_at, finished_at, progress, checkpoint_generation, exact";
+constexpr int kJobColumnCount = 17;
 
 JobRecord ReadJob(SQLite::Statement& q) {
   JobRecord j;
@@ -117,22 +134,94 @@ void BindBlob(SQLite::Statement& q, int index, const std::string& bytes) {
   q.bind(index, bytes.data(), static_cast<int>(bytes.size()));
 }
 
+// I/O failures, a full disk, a lock held too long: the store is unavailable, not wrong.
+[[noreturn]] void Rethrow(const SQLite::Exception& e) {
+  switch (e.getErrorCode() & 0xff) {
+    case SQLITE_FULL:
+    case SQLITE_IOERR:
+    case SQLITE_CANTOPEN:
+    case SQLITE_BUSY:
+    case SQLITE_LOCKED:
+    case SQLITE_READONLY:
+      throw StoreUnavailable(std::string("the database cannot be written: ") + e.what());
+    default:
+      throw std::runtime_error(std::string("database: ") + e.what());
+  }
+}
+
+// Runs `f` and maps SQLite's exceptions (server/job_store.h).
+template <typename F>
+auto Guarded(F&& f) -> decltype(f()) {
+  try {
+    return f();
+  } catch (const SQLite::Exception& e) {
+    Rethrow(e);
+  }
+}
+
+// Throws LeaseLost unless `lease` is the running job's current one. Inside the transaction
+// of the write it fences: SQLite runs one transaction at a time, so nothing claims between.
+void CheckLease(SQLite::Database& db, const Lease& lease) {
+  SQLite::Statement q(db,
+                      "SELECT 1 FROM jobs WHERE id = ? AND state = 'running' AND lease_owner = ? "
+                      "AND lease_epoch = ?");
+  q.bind(1, lease.job_id);
+  q.bind(2, lease.owner);
+  q.bind(3, lease.epoch);
+  if (!q.executeStep()) {
+    throw LeaseLost("job " + std::to_string(lease.job_id) + ": the lease of " + lease.owner +
+                    " (claim " + std::to_string(lease.epoch) +
+                    ") is no longer the job's: another daemon took it over, or it finished");
+  }
+}
+
 }  // namespace
 
-SqliteStore::SqliteStore(const std::string& path) {
+SqliteStore::SqliteStore(const std::string& path) : path_(path) {
   try {
     db_ = std::make_unique<SQLite::Database>(path, SQLite::OPEN_READWRITE | SQLite::OPEN_CREATE);
+  } catch (const SQLite::Exception& e) {
+    throw std::runtime_error("cannot open the database " + path + ": " + e.what());
+  }
+  // One daemon per SQLite database: a second one would run the first one's jobs too (and its
+  // start below would free their leases). An advisory lock on the file, held until closed.
+  lock_fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (lock_fd_ < 0 || ::flock(lock_fd_, LOCK_EX | LOCK_NB) != 0) {
+    const int err = errno;
+    if (lock_fd_ >= 0) ::close(lock_fd_);
+    throw std::runtime_error(
+        err == EWOULDBLOCK
+            ? "the database " + path +
+                  " is in use by another springfitd (one daemon per SQLite database; several "
+                  "daemons share a PostgreSQL store: --store postgresql://...)"
+            : "cannot lock the database " + path + ": " + std::strerror(err));
+  }
+  try {
     db_->setBusyTimeout(5000);
     db_->exec("PRAGMA journal_mode = WAL");
     db_->exec("PRAGMA synchronous = FULL");
     db_->exec("PRAGMA foreign_keys = ON");
     Migrate();
+    // The lock says no other daemon runs: the leases of running jobs are a dead daemon's
+    // (this one's before a crash or a stop), and its jobs resume at once.
+    db_->exec("UPDATE jobs SET lease_expires = 0 WHERE state = 'running'");
   } catch (const SQLite::Exception& e) {
+    ::close(lock_fd_);
     throw std::runtime_error("cannot open the database " + path + ": " + e.what());
+  } catch (...) {
+    ::close(lock_fd_);
+    throw;
   }
 }
 
-SqliteStore::~SqliteStore() = default;
+SqliteStore::~SqliteStore() {
+  db_.reset();
+  ::close(lock_fd_);
+}
+
+std::string SqliteStore::Describe() const {
+  return "sqlite:///" + path_;
+}
 
 int SqliteStore::schema_version() {
   std::lock_guard lock(mutex_);
@@ -151,280 +240,396 @@ void SqliteStore::Migrate() {
   tx.commit();
 }
 
-JobStore::Created SqliteStore::CreateJob(const NewJob& job) {
-  std::lock_guard lock(mutex_);
-  SQLite::Transaction tx(*db_);
-  const JobRecord& r = job.record;
-  if (!r.idempotency_key.empty()) {
-    SQLite::Statement q(
-        *db_, std::string("SELECT ") + kJobColumns + " FROM jobs WHERE idempotency_key = ?");
-    q.bind(1, r.idempotency_key);
-    if (q.executeStep()) return {ReadJob(q), false};
-  }
-  SQLite::Statement insert(
-      *db_,
-      "INSERT INTO jobs (label, priority, seed, idempotency_key, state, scene_name, genes, "
-      "strategy, max_generations, created_at, scene) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
-  insert.bind(1, r.label);
-  insert.bind(2, r.priority);
-  insert.bind(3, std::bit_cast<std::int64_t>(r.seed));
-  if (r.idempotency_key.empty()) {
-    insert.bind(4);
-  } else {
-    insert.bind(4, r.idempotency_key);
-  }
-  insert.bind(5, std::string(proto::JobStateName(JobState::kQueued)));
-  insert.bind(6, r.scene_name);
-  insert.bind(7, r.genes);
-  insert.bind(8, r.strategy);
-  insert.bind(9, r.max_generations);
-  insert.bind(10, r.created_at);
-  insert.bind(11, job.scene_json);
-  insert.exec();
-  JobRecord created = r;
-  created.id = db_->getLastInsertRowid();
-  created.state = JobState::kQueued;
-  tx.commit();
-  return {created, true};
+JobStore::Created SqliteStore::CreateJob(const NewJob& job, int max_queued) {
+  return Guarded([&]() -> Created {
+    std::lock_guard lock(mutex_);
+    SQLite::Transaction tx(*db_);
+    const JobRecord& r = job.record;
+    if (!r.idempotency_key.empty()) {
+      SQLite::Statement q(
+          *db_, std::string("SELECT ") + kJobColumns + " FROM jobs WHERE idempotency_key = ?");
+      q.bind(1, r.idempotency_key);
+      if (q.executeStep()) return {ReadJob(q), false, false};
+    }
+    if (db_->execAndGet("SELECT count(*) FROM jobs WHERE state = 'queued'").getInt() >=
+        max_queued) {
+      return {r, false, true};
+    }
+    SQLite::Statement insert(
+        *db_,
+        "INSERT INTO jobs (label, priority, seed, idempotency_key, state, scene_name, genes, "
+        "strategy, max_generations, created_at, scene) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+    insert.bind(1, r.label);
+    insert.bind(2, r.priority);
+    insert.bind(3, std::bit_cast<std::int64_t>(r.seed));
+    if (r.idempotency_key.empty()) {
+      insert.bind(4);
+    } else {
+      insert.bind(4, r.idempotency_key);
+    }
+    insert.bind(5, std::string(proto::JobStateName(JobState::kQueued)));
+    insert.bind(6, r.scene_name);
+    insert.bind(7, r.genes);
+    insert.bind(8, r.strategy);
+    insert.bind(9, r.max_generations);
+    insert.bind(10, r.created_at);
+    insert.bind(11, job.scene_json);
+    insert.exec();
+    JobRecord created = r;
+    created.id = db_->getLastInsertRowid();
+    created.state = JobState::kQueued;
+    tx.commit();
+    return {created, true, false};
+  });
 }
 
 std::optional<JobRecord> SqliteStore::GetJob(std::int64_t id) {
-  std::lock_guard lock(mutex_);
-  SQLite::Statement q(*db_, std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id = ?");
-  q.bind(1, id);
-  if (!q.executeStep()) return std::nullopt;
-  return ReadJob(q);
+  return Guarded([&]() -> std::optional<JobRecord> {
+    std::lock_guard lock(mutex_);
+    SQLite::Statement q(*db_, std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id = ?");
+    q.bind(1, id);
+    if (!q.executeStep()) return std::nullopt;
+    return ReadJob(q);
+  });
 }
 
 std::optional<std::string> SqliteStore::GetScene(std::int64_t id) {
-  std::lock_guard lock(mutex_);
-  SQLite::Statement q(*db_, "SELECT scene FROM jobs WHERE id = ?");
-  q.bind(1, id);
-  if (!q.executeStep()) return std::nullopt;
-  return q.getColumn(0).getString();
+  return Guarded([&]() -> std::optional<std::string> {
+    std::lock_guard lock(mutex_);
+    SQLite::Statement q(*db_, "SELECT scene FROM jobs WHERE id = ?");
+    q.bind(1, id);
+    if (!q.executeStep()) return std::nullopt;
+    return q.getColumn(0).getString();
+  });
 }
 
 JobPage SqliteStore::ListJobs(const JobFilter& f) {
-  std::lock_guard lock(mutex_);
-  std::string sql = std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id > ?";
-  if (f.state) sql += " AND state = ?";
-  if (f.label) sql += " AND label = ?";
-  sql += " ORDER BY id LIMIT ?";
-  SQLite::Statement q(*db_, sql);
-  int i = 1;
-  q.bind(i++, f.after_id);
-  if (f.state) q.bind(i++, std::string(proto::JobStateName(*f.state)));
-  if (f.label) q.bind(i++, *f.label);
-  q.bind(i++, f.limit + 1);  // one more tells whether there is a next page
-  JobPage page;
-  while (q.executeStep()) page.jobs.push_back(ReadJob(q));
-  if (static_cast<int>(page.jobs.size()) > f.limit) {
-    page.jobs.pop_back();
-    page.next_cursor = page.jobs.back().id;
-  }
-  return page;
+  return Guarded([&] {
+    std::lock_guard lock(mutex_);
+    std::string sql = std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id > ?";
+    if (f.state) sql += " AND state = ?";
+    if (f.label) sql += " AND label = ?";
+    sql += " ORDER BY id LIMIT ?";
+    SQLite::Statement q(*db_, sql);
+    int i = 1;
+    q.bind(i++, f.after_id);
+    if (f.state) q.bind(i++, std::string(proto::JobStateName(*f.state)));
+    if (f.label) q.bind(i++, *f.label);
+    q.bind(i++, f.limit + 1);  // one more tells whether there is a next page
+    JobPage page;
+    while (q.executeStep()) page.jobs.push_back(ReadJob(q));
+    if (static_cast<int>(page.jobs.size()) > f.limit) {
+      page.jobs.pop_back();
+      page.next_cursor = page.jobs.back().id;
+    }
+    return page;
+  });
 }
 
 std::vector<JobRecord> SqliteStore::UnfinishedJobs() {
-  std::lock_guard lock(mutex_);
-  SQLite::Statement q(
-      *db_, std::string("SELECT ") + kJobColumns +
-                " FROM jobs WHERE state IN ('queued', 'running') ORDER BY priority DESC, id");
-  std::vector<JobRecord> jobs;
-  while (q.executeStep()) jobs.push_back(ReadJob(q));
-  return jobs;
+  return Guarded([&] {
+    std::lock_guard lock(mutex_);
+    SQLite::Statement q(
+        *db_, std::string("SELECT ") + kJobColumns +
+                  " FROM jobs WHERE state IN ('queued', 'running') ORDER BY priority DESC, id");
+    std::vector<JobRecord> jobs;
+    while (q.executeStep()) jobs.push_back(ReadJob(q));
+    return jobs;
+  });
 }
 
 int SqliteStore::CountQueued() {
-  std::lock_guard lock(mutex_);
-  return db_->execAndGet("SELECT count(*) FROM jobs WHERE state = 'queued'").getInt();
+  return Guarded([&] {
+    std::lock_guard lock(mutex_);
+    return db_->execAndGet("SELECT count(*) FROM jobs WHERE state = 'queued'").getInt();
+  });
 }
 
-void SqliteStore::MarkRunning(std::int64_t id, double started_at) {
-  std::lock_guard lock(mutex_);
-  SQLite::Statement q(*db_, "UPDATE jobs SET state = 'running', started_at = ? WHERE id = ?");
-  q.bind(1, started_at);
-  q.bind(2, id);
-  q.exec();
-}
-
-void SqliteStore::SaveProgress(std::int64_t id, const ProgressBatch& b) {
-  std::lock_guard lock(mutex_);
-  SQLite::Transaction tx(*db_);
-  if (!b.trace.empty()) {
-    SQLite::Statement q(
+std::optional<Claim> SqliteStore::ClaimNext(const std::string& owner, double lease_seconds) {
+  return Guarded([&]() -> std::optional<Claim> {
+    std::lock_guard lock(mutex_);
+    SQLite::Transaction tx(*db_);
+    const double now = UnixNow();
+    SQLite::Statement pick(*db_,
+                           "SELECT id FROM jobs WHERE state = 'queued' OR (state = 'running' AND "
+                           "lease_expires < ?) ORDER BY priority DESC, id LIMIT 1");
+    pick.bind(1, now);
+    if (!pick.executeStep()) return std::nullopt;
+    const std::int64_t id = pick.getColumn(0).getInt64();
+    pick.reset();
+    SQLite::Statement take(
         *db_,
-        "INSERT OR REPLACE INTO trace (job_id, generation, wall_seconds, evaluations, cache_hits, "
-        "best_cost, best_normalized_error, mean_cost, missing, extra) VALUES (?, ?, ?, ?, ?, ?, ?, "
-        "?, ?, ?)");
-    for (const TraceRow& r : b.trace) {
-      q.bind(1, id);
-      q.bind(2, r.generation);
-      q.bind(3, r.wall_seconds);
-      q.bind(4, static_cast<std::int64_t>(r.evaluations));
-      q.bind(5, static_cast<std::int64_t>(r.cache_hits));
-      q.bind(6, r.best_cost);
-      q.bind(7, r.best_normalized_error);
-      q.bind(8, r.mean_cost);
-      BindCount(q, 9, r.missing);
-      BindCount(q, 10, r.extra);
-      q.exec();
-      q.reset();
-    }
-  }
-  if (!b.improvements.empty()) {
-    SQLite::Statement q(*db_,
-                        "INSERT OR REPLACE INTO improvements (job_id, generation, wall_seconds, "
-                        "cost, normalized_error, "
-                        "missing, extra, genome) VALUES (?, ?, ?, ?, ?, ?, ?, ?)");
-    for (const Improvement& m : b.improvements) {
-      q.bind(1, id);
-      q.bind(2, m.generation);
-      q.bind(3, m.wall_seconds);
-      q.bind(4, m.cost);
-      q.bind(5, m.normalized_error);
-      BindCount(q, 6, m.missing);
-      BindCount(q, 7, m.extra);
-      BindBlob(q, 8, FitnessCache::Key(m.genome));
-      q.exec();
-      q.reset();
-    }
-  }
-  if (b.latest) {
-    SQLite::Statement q(*db_, "UPDATE jobs SET progress = ? WHERE id = ?");
-    q.bind(1, proto::TraceRowToJson(*b.latest).dump());
-    q.bind(2, id);
-    q.exec();
-  }
-  if (b.checkpoint) {
-    SQLite::Statement q(
-        *db_, "INSERT OR REPLACE INTO checkpoints (job_id, generation, state) VALUES (?, ?, ?)");
+        "UPDATE jobs SET state = 'running', lease_owner = ?, lease_epoch = lease_epoch + 1, "
+        "lease_expires = ?, started_at = CASE WHEN started_at = 0 THEN ? ELSE started_at END "
+        "WHERE id = ?");
+    take.bind(1, owner);
+    take.bind(2, now + lease_seconds);
+    take.bind(3, now);
+    take.bind(4, id);
+    take.exec();
+    SQLite::Statement q(*db_, std::string("SELECT ") + kJobColumns +
+                                  ", lease_epoch, cancel_requested FROM jobs WHERE id = ?");
     q.bind(1, id);
-    q.bind(2, b.checkpoint_generation);
-    BindBlob(q, 3, *b.checkpoint);
-    q.exec();
-    SQLite::Statement u(*db_, "UPDATE jobs SET checkpoint_generation = ? WHERE id = ?");
-    u.bind(1, b.checkpoint_generation);
-    u.bind(2, id);
-    u.exec();
-  }
-  tx.commit();
+    q.executeStep();
+    Claim claim;
+    claim.job = ReadJob(q);
+    claim.lease = {id, owner, q.getColumn(kJobColumnCount).getInt64()};
+    claim.cancel_requested = q.getColumn(kJobColumnCount + 1).getInt() != 0;
+    q.reset();
+    tx.commit();
+    return claim;
+  });
 }
 
-void SqliteStore::MarkFinished(std::int64_t id, JobState state, const std::string& error,
+LeaseStatus SqliteStore::RenewLease(const Lease& lease, double lease_seconds) {
+  return Guarded([&] {
+    std::lock_guard lock(mutex_);
+    SQLite::Statement q(*db_,
+                        "UPDATE jobs SET lease_expires = ? WHERE id = ? AND state = 'running' AND "
+                        "lease_owner = ? AND lease_epoch = ? RETURNING cancel_requested");
+    q.bind(1, UnixNow() + lease_seconds);
+    q.bind(2, lease.job_id);
+    q.bind(3, lease.owner);
+    q.bind(4, lease.epoch);
+    LeaseStatus status;
+    if (q.executeStep()) {
+      status.held = true;
+      status.cancel_requested = q.getColumn(0).getInt() != 0;
+    }
+    return status;
+  });
+}
+
+void SqliteStore::ReleaseLease(const Lease& lease) {
+  Guarded([&] {
+    std::lock_guard lock(mutex_);
+    SQLite::Statement q(*db_,
+                        "UPDATE jobs SET lease_expires = 0 WHERE id = ? AND state = 'running' AND "
+                        "lease_owner = ? AND lease_epoch = ?");
+    q.bind(1, lease.job_id);
+    q.bind(2, lease.owner);
+    q.bind(3, lease.epoch);
+    q.exec();
+  });
+}
+
+void SqliteStore::SaveProgress(const Lease& lease, const ProgressBatch& b) {
+  Guarded([&] {
+    std::lock_guard lock(mutex_);
+    SQLite::Transaction tx(*db_);
+    CheckLease(*db_, lease);
+    const std::int64_t id = lease.job_id;
+    if (!b.trace.empty()) {
+      SQLite::Statement q(*db_,
+                          "INSERT OR REPLACE INTO trace (job_id, generation, wall_seconds, "
+                          "evaluations, cache_hits, best_cost, best_normalized_error, mean_cost, "
+                          "missing, extra) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+      for (const TraceRow& r : b.trace) {
+        q.bind(1, id);
+        q.bind(2, r.generation);
+        q.bind(3, r.wall_seconds);
+        q.bind(4, static_cast<std::int64_t>(r.evaluations));
+        q.bind(5, static_cast<std::int64_t>(r.cache_hits));
+        q.bind(6, r.best_cost);
+        q.bind(7, r.best_normalized_error);
+        q.bind(8, r.mean_cost);
+        BindCount(q, 9, r.missing);
+        BindCount(q, 10, r.extra);
+        q.exec();
+        q.reset();
+      }
+    }
+    if (!b.improvements.empty()) {
+      SQLite::Statement q(*db_,
+                          "INSERT OR REPLACE INTO improvements (job_id, generation, wall_seconds, "
+                          "cost, normalized_error, missing, extra, genome) VALUES (?, ?, ?, ?, ?, "
+                          "?, ?, ?)");
+      for (const Improvement& m : b.improvements) {
+        q.bind(1, id);
+        q.bind(2, m.generation);
+        q.bind(3, m.wall_seconds);
+        q.bind(4, m.cost);
+        q.bind(5, m.normalized_error);
+        BindCount(q, 6, m.missing);
+        BindCount(q, 7, m.extra);
+        BindBlob(q, 8, FitnessCache::Key(m.genome));
+        q.exec();
+        q.reset();
+      }
+    }
+    if (b.latest) {
+      SQLite::Statement q(*db_, "UPDATE jobs SET progress = ? WHERE id = ?");
+      q.bind(1, proto::TraceRowToJson(*b.latest).dump());
+      q.bind(2, id);
+      q.exec();
+    }
+    if (b.checkpoint) {
+      SQLite::Statement q(
+          *db_, "INSERT OR REPLACE INTO checkpoints (job_id, generation, state) VALUES (?, ?, ?)");
+      q.bind(1, id);
+      q.bind(2, b.checkpoint_generation);
+      BindBlob(q, 3, *b.checkpoint);
+      q.exec();
+      SQLite::Statement u(*db_, "UPDATE jobs SET checkpoint_generation = ? WHERE id = ?");
+      u.bind(1, b.checkpoint_generation);
+      u.bind(2, id);
+      u.exec();
+    }
+    tx.commit();
+  });
+}
+
+void SqliteStore::MarkFinished(const Lease& lease, JobState state, const std::string& error,
                                const std::string& result_json, std::optional<bool> exact,
                                double finished_at) {
-  std::lock_guard lock(mutex_);
-  SQLite::Transaction tx(*db_);
-  SQLite::Statement q(
-      *db_,
-      "UPDATE jobs SET state = ?, error = ?, result = ?, exact = ?, finished_at = ? WHERE id = ?");
-  q.bind(1, std::string(proto::JobStateName(state)));
-  q.bind(2, error);
-  if (result_json.empty()) {
-    q.bind(3);
-  } else {
-    q.bind(3, result_json);
-  }
-  if (exact) {
-    q.bind(4, *exact ? 1 : 0);
-  } else {
-    q.bind(4);
-  }
-  q.bind(5, finished_at);
-  q.bind(6, id);
-  q.exec();
-  // A finished job is never resumed: its checkpoint is dead weight.
-  SQLite::Statement d(*db_, "DELETE FROM checkpoints WHERE job_id = ?");
-  d.bind(1, id);
-  d.exec();
-  tx.commit();
+  Guarded([&] {
+    std::lock_guard lock(mutex_);
+    SQLite::Transaction tx(*db_);
+    CheckLease(*db_, lease);
+    SQLite::Statement q(*db_,
+                        "UPDATE jobs SET state = ?, error = ?, result = ?, exact = ?, finished_at "
+                        "= ?, lease_owner = NULL, lease_expires = 0 WHERE id = ?");
+    q.bind(1, std::string(proto::JobStateName(state)));
+    q.bind(2, error);
+    if (result_json.empty()) {
+      q.bind(3);
+    } else {
+      q.bind(3, result_json);
+    }
+    if (exact) {
+      q.bind(4, *exact ? 1 : 0);
+    } else {
+      q.bind(4);
+    }
+    q.bind(5, finished_at);
+    q.bind(6, lease.job_id);
+    q.exec();
+    // A finished job is never resumed: its checkpoint is dead weight.
+    SQLite::Statement d(*db_, "DELETE FROM checkpoints WHERE job_id = ?");
+    d.bind(1, lease.job_id);
+    d.exec();
+    tx.commit();
+  });
+}
+
+void SqliteStore::RewindTo(const Lease& lease, int generation) {
+  Guarded([&] {
+    std::lock_guard lock(mutex_);
+    SQLite::Transaction tx(*db_);
+    CheckLease(*db_, lease);
+    for (const char* table : {"trace", "improvements"}) {
+      SQLite::Statement q(
+          *db_, std::string("DELETE FROM ") + table + " WHERE job_id = ? AND generation > ?");
+      q.bind(1, lease.job_id);
+      q.bind(2, generation);
+      q.exec();
+    }
+    tx.commit();
+  });
+}
+
+JobStore::CancelOutcome SqliteStore::RequestCancel(std::int64_t id) {
+  return Guarded([&] {
+    std::lock_guard lock(mutex_);
+    SQLite::Transaction tx(*db_);
+    SQLite::Statement queued(*db_,
+                             "UPDATE jobs SET state = 'cancelled', finished_at = ? WHERE id = ? "
+                             "AND state = 'queued'");
+    queued.bind(1, UnixNow());
+    queued.bind(2, id);
+    if (queued.exec() > 0) {
+      tx.commit();
+      return CancelOutcome::kCancelled;
+    }
+    SQLite::Statement running(
+        *db_, "UPDATE jobs SET cancel_requested = 1 WHERE id = ? AND state = 'running'");
+    running.bind(1, id);
+    const bool requested = running.exec() > 0;
+    tx.commit();
+    return requested ? CancelOutcome::kRequested : CancelOutcome::kNotActive;
+  });
 }
 
 std::optional<std::string> SqliteStore::GetResult(std::int64_t id) {
-  std::lock_guard lock(mutex_);
-  SQLite::Statement q(*db_, "SELECT result FROM jobs WHERE id = ?");
-  q.bind(1, id);
-  if (!q.executeStep() || q.getColumn(0).isNull()) return std::nullopt;
-  return q.getColumn(0).getString();
+  return Guarded([&]() -> std::optional<std::string> {
+    std::lock_guard lock(mutex_);
+    SQLite::Statement q(*db_, "SELECT result FROM jobs WHERE id = ?");
+    q.bind(1, id);
+    if (!q.executeStep() || q.getColumn(0).isNull()) return std::nullopt;
+    return q.getColumn(0).getString();
+  });
 }
 
 std::vector<TraceRow> SqliteStore::GetTrace(std::int64_t id, int after, int limit) {
-  std::lock_guard lock(mutex_);
-  SQLite::Statement q(
-      *db_,
-      "SELECT generation, wall_seconds, evaluations, cache_hits, best_cost, best_normalized_error, "
-      "mean_cost, missing, extra FROM trace WHERE job_id = ? AND generation > ? ORDER BY "
-      "generation LIMIT ?");
-  q.bind(1, id);
-  q.bind(2, after);
-  q.bind(3, limit);
-  std::vector<TraceRow> rows;
-  while (q.executeStep()) {
-    TraceRow r;
-    r.generation = q.getColumn(0).getInt();
-    r.wall_seconds = q.getColumn(1).getDouble();
-    r.evaluations = q.getColumn(2).getInt64();
-    r.cache_hits = q.getColumn(3).getInt64();
-    r.best_cost = q.getColumn(4).getDouble();
-    r.best_normalized_error = q.getColumn(5).getDouble();
-    r.mean_cost = q.getColumn(6).getDouble();
-    r.missing = CountOrNull(q.getColumn(7)).value_or(-1);
-    r.extra = CountOrNull(q.getColumn(8)).value_or(-1);
-    rows.push_back(r);
-  }
-  return rows;
+  return Guarded([&] {
+    std::lock_guard lock(mutex_);
+    SQLite::Statement q(*db_,
+                        "SELECT generation, wall_seconds, evaluations, cache_hits, best_cost, "
+                        "best_normalized_error, mean_cost, missing, extra FROM trace WHERE job_id "
+                        "= ? AND generation > ? ORDER BY generation LIMIT ?");
+    q.bind(1, id);
+    q.bind(2, after);
+    q.bind(3, limit);
+    std::vector<TraceRow> rows;
+    while (q.executeStep()) {
+      TraceRow r;
+      r.generation = q.getColumn(0).getInt();
+      r.wall_seconds = q.getColumn(1).getDouble();
+      r.evaluations = q.getColumn(2).getInt64();
+      r.cache_hits = q.getColumn(3).getInt64();
+      r.best_cost = q.getColumn(4).getDouble();
+      r.best_normalized_error = q.getColumn(5).getDouble();
+      r.mean_cost = q.getColumn(6).getDouble();
+      r.missing = CountOrNull(q.getColumn(7)).value_or(-1);
+      r.extra = CountOrNull(q.getColumn(8)).value_or(-1);
+      rows.push_back(r);
+    }
+    return rows;
+  });
 }
 
 std::vector<Improvement> SqliteStore::GetImprovements(std::int64_t id) {
-  std::lock_guard lock(mutex_);
-  SQLite::Statement q(*db_,
-                      "SELECT i.generation, i.wall_seconds, i.cost, i.normalized_error, i.missing, "
-                      "i.extra, i.genome, "
-                      "j.genes FROM improvements i JOIN jobs j ON j.id = i.job_id WHERE i.job_id = "
-                      "? ORDER BY i.generation");
-  q.bind(1, id);
-  std::vector<Improvement> out;
-  while (q.executeStep()) {
-    Improvement m;
-    m.generation = q.getColumn(0).getInt();
-    m.wall_seconds = q.getColumn(1).getDouble();
-    m.cost = q.getColumn(2).getDouble();
-    m.normalized_error = q.getColumn(3).getDouble();
-    m.missing = CountOrNull(q.getColumn(4)).value_or(-1);
-    m.extra = CountOrNull(q.getColumn(5)).value_or(-1);
-    m.genome = FitnessCache::Unpack(q.getColumn(6).getString(), q.getColumn(7).getInt());
-    out.push_back(std::move(m));
-  }
-  return out;
+  return Guarded([&] {
+    std::lock_guard lock(mutex_);
+    SQLite::Statement q(*db_,
+                        "SELECT i.generation, i.wall_seconds, i.cost, i.normalized_error, "
+                        "i.missing, i.extra, i.genome, j.genes FROM improvements i JOIN jobs j ON "
+                        "j.id = i.job_id WHERE i.job_id = ? ORDER BY i.generation");
+    q.bind(1, id);
+    std::vector<Improvement> out;
+    while (q.executeStep()) {
+      Improvement m;
+      m.generation = q.getColumn(0).getInt();
+      m.wall_seconds = q.getColumn(1).getDouble();
+      m.cost = q.getColumn(2).getDouble();
+      m.normalized_error = q.getColumn(3).getDouble();
+      m.missing = CountOrNull(q.getColumn(4)).value_or(-1);
+      m.extra = CountOrNull(q.getColumn(5)).value_or(-1);
+      m.genome = FitnessCache::Unpack(q.getColumn(6).getString(), q.getColumn(7).getInt());
+      out.push_back(std::move(m));
+    }
+    return out;
+  });
 }
 
 std::optional<std::string> SqliteStore::GetCheckpoint(std::int64_t id) {
-  std::lock_guard lock(mutex_);
-  SQLite::Statement q(*db_, "SELECT state FROM checkpoints WHERE job_id = ?");
-  q.bind(1, id);
-  if (!q.executeStep()) return std::nullopt;
-  return q.getColumn(0).getString();
-}
-
-void SqliteStore::RewindTo(std::int64_t id, int generation) {
-  std::lock_guard lock(mutex_);
-  SQLite::Transaction tx(*db_);
-  for (const char* table : {"trace", "improvements"}) {
-    SQLite::Statement q(
-        *db_, std::string("DELETE FROM ") + table + " WHERE job_id = ? AND generation > ?");
+  return Guarded([&]() -> std::optional<std::string> {
+    std::lock_guard lock(mutex_);
+    SQLite::Statement q(*db_, "SELECT state FROM checkpoints WHERE job_id = ?");
     q.bind(1, id);
-    q.bind(2, generation);
-    q.exec();
-  }
-  tx.commit();
+    if (!q.executeStep()) return std::nullopt;
+    return q.getColumn(0).getString();
+  });
 }
 
 bool SqliteStore::DeleteJob(std::int64_t id) {
-  std::lock_guard lock(mutex_);
-  SQLite::Statement q(*db_, "DELETE FROM jobs WHERE id = ?");
-  q.bind(1, id);
-  return q.exec() > 0;
+  return Guarded([&] {
+    std::lock_guard lock(mutex_);
+    SQLite::Statement q(
+        *db_, "DELETE FROM jobs WHERE id = ? AND state IN ('succeeded', 'failed', 'cancelled')");
+    q.bind(1, id);
+    return q.exec() > 0;
+  });
 }
 
 }  // namespace springfit::server

@@ -3,10 +3,9 @@
 // claim them. Every job must end cancelled, finished exactly once (one MarkFinished, one
 // job.finished), never run to completion, never be lost (left queued or running).
 //
-// The claim itself happens under the scheduler's mutex and cannot be paused from outside.
-// What can be: the runner's first store call after taking a job off the queue (GetJob, in
-// Scheduler::RunnerLoop). HookedStore runs a hook there, so "cancelled at the moment of the
-// claim" is reproduced deterministically; the many-jobs test races the two sides for real.
+// The claim is one store call (ClaimNext); HookedStore runs a hook right after it returns,
+// before the runner has registered the job, so "cancelled at the moment of the claim" is
+// reproduced deterministically; the many-jobs test races the two sides for real.
 #include "server/scheduler.h"
 
 #include <algorithm>
@@ -33,6 +32,7 @@
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
 #include "server/sqlite_store.h"
+#include "tests/server/forwarding_store.h"
 #include "tests/test_scenes.h"
 
 namespace springfit::server {
@@ -56,11 +56,12 @@ Scene EndlessScene() {
   return s;
 }
 
-// The SQLite store with two test hooks: a hook at the first GetJob of an armed job (the
-// runner's read right after its claim), and a record of every MarkFinished.
-class HookedStore final : public JobStore {
+// The SQLite store with test hooks: one right after an armed job is claimed (before its
+// runner registers it), a count of scene reads, and a record of every way a job ended
+// (MarkFinished, or a cancel that took it off the queue).
+class HookedStore final : public ForwardingStore {
  public:
-  explicit HookedStore(JobStore& inner) : inner_(inner) {}
+  using ForwardingStore::ForwardingStore;
 
   // Called with the job's id; set before Scheduler::Start().
   std::function<void(std::int64_t)> on_claim;
@@ -73,16 +74,22 @@ class HookedStore final : public JobStore {
     const auto it = finishes_.find(id);
     return it == finishes_.end() ? std::vector<JobState>{} : it->second;
   }
+  std::vector<std::int64_t> Claimed() {
+    std::lock_guard lock(mutex_);
+    return claimed_;
+  }
 
-  Created CreateJob(const NewJob& job) override { return inner_.CreateJob(job); }
-  std::optional<JobRecord> GetJob(std::int64_t id) override {
+  std::optional<Claim> ClaimNext(const std::string& owner, double lease_seconds) override {
+    std::optional<Claim> claim = inner_.ClaimNext(owner, lease_seconds);
+    if (!claim) return claim;
     bool fire = false;
     {
       std::lock_guard lock(mutex_);
-      fire = armed_.erase(id) > 0;
+      claimed_.push_back(claim->job.id);
+      fire = armed_.erase(claim->job.id) > 0;
     }
-    if (fire && on_claim) on_claim(id);
-    return inner_.GetJob(id);
+    if (fire && on_claim) on_claim(claim->job.id);
+    return claim;
   }
   std::optional<std::string> GetScene(std::int64_t id) override {
     {
@@ -95,42 +102,27 @@ class HookedStore final : public JobStore {
     std::lock_guard lock(mutex_);
     return scene_reads_[id];
   }
-  JobPage ListJobs(const JobFilter& filter) override { return inner_.ListJobs(filter); }
-  std::vector<JobRecord> UnfinishedJobs() override { return inner_.UnfinishedJobs(); }
-  int CountQueued() override { return inner_.CountQueued(); }
-  void MarkRunning(std::int64_t id, double started_at) override {
-    inner_.MarkRunning(id, started_at);
-  }
-  void SaveProgress(std::int64_t id, const ProgressBatch& batch) override {
-    inner_.SaveProgress(id, batch);
-  }
-  void MarkFinished(std::int64_t id, JobState state, const std::string& error,
+  void MarkFinished(const Lease& lease, JobState state, const std::string& error,
                     const std::string& result_json, std::optional<bool> exact,
                     double finished_at) override {
-    {
+    inner_.MarkFinished(lease, state, error, result_json, exact, finished_at);
+    std::lock_guard lock(mutex_);
+    finishes_[lease.job_id].push_back(state);
+  }
+  CancelOutcome RequestCancel(std::int64_t id) override {
+    const CancelOutcome outcome = inner_.RequestCancel(id);
+    if (outcome == CancelOutcome::kCancelled) {
       std::lock_guard lock(mutex_);
-      finishes_[id].push_back(state);
+      finishes_[id].push_back(JobState::kCancelled);
     }
-    inner_.MarkFinished(id, state, error, result_json, exact, finished_at);
+    return outcome;
   }
-  std::optional<std::string> GetResult(std::int64_t id) override { return inner_.GetResult(id); }
-  std::vector<TraceRow> GetTrace(std::int64_t id, int after, int limit) override {
-    return inner_.GetTrace(id, after, limit);
-  }
-  std::vector<Improvement> GetImprovements(std::int64_t id) override {
-    return inner_.GetImprovements(id);
-  }
-  std::optional<std::string> GetCheckpoint(std::int64_t id) override {
-    return inner_.GetCheckpoint(id);
-  }
-  void RewindTo(std::int64_t id, int generation) override { inner_.RewindTo(id, generation); }
-  bool DeleteJob(std::int64_t id) override { return inner_.DeleteJob(id); }
 
  private:
-  JobStore& inner_;
   std::map<std::int64_t, int> scene_reads_;
   std::mutex mutex_;
   std::set<std::int64_t> armed_;
+  std::vector<std::int64_t> claimed_;
   std::map<std::int64_t, std::vector<JobState>> finishes_;
 };
 
@@ -235,9 +227,8 @@ class SchedulerTest : public ::testing::Test {
     EXPECT_EQ(store.CountQueued(), 0);
     EXPECT_TRUE(store.UnfinishedJobs().empty());
     EXPECT_EQ(scheduler.running(), 0);
-    EXPECT_EQ(scheduler.queued(), 0);
     for (const std::int64_t id : ids) {
-      EXPECT_FALSE(scheduler.IsActive(id)) << "job " << id;
+      EXPECT_FALSE(scheduler.IsRunningHere(id)) << "job " << id;
       EXPECT_EQ(scheduler.Cancel(id), Scheduler::CancelOutcome::kNotActive) << "job " << id;
     }
   }
@@ -251,7 +242,7 @@ class SchedulerTest : public ::testing::Test {
 TEST_F(SchedulerTest, AJobCancelledAsARunnerClaimsItEndsCancelledAtGenerationZero) {
   SqliteStore sqlite(path_);
   HookedStore store(sqlite);
-  const std::int64_t id = sqlite.CreateJob(Job("claimed")).job.id;
+  const std::int64_t id = sqlite.CreateJob(Job("claimed"), 100).job.id;
   store.Arm(id);
   // Declared before the scheduler, which calls into them until it is destroyed.
   Notifications inbox;
@@ -306,37 +297,23 @@ TEST_F(SchedulerTest, AJobCancelledWhileQueuedIsNeverClaimed) {
   SqliteStore sqlite(path_);
   HookedStore store(sqlite);
   // `first` would be claimed first (higher priority) if it were still queued.
-  const JobRecord first = sqlite.CreateJob(Job("first", 5)).job;
-  const std::int64_t second = sqlite.CreateJob(Job("second", 0)).job.id;
+  const JobRecord first = sqlite.CreateJob(Job("first", 5), 100).job;
+  const std::int64_t second = sqlite.CreateJob(Job("second", 0), 100).job.id;
   Notifications inbox;
-  std::mutex claimed_mutex;
-  std::vector<std::int64_t> claimed;
   Scheduler scheduler(store, Options(1));
   scheduler.Watch(first.id, inbox.For(first.id));
   scheduler.Watch(second, inbox.For(second));
-  scheduler.Enqueue(first);
   EXPECT_EQ(scheduler.Cancel(first.id), Scheduler::CancelOutcome::kCancelled);
   EXPECT_EQ(sqlite.GetJob(first.id)->state, JobState::kCancelled);
   ExpectFinishedOnceCancelled(inbox, first.id);
 
-  // Armed only now: Cancel() itself reads the job to announce it.
-  store.Arm(first.id);
   store.Arm(second);
-  store.on_claim = [&](std::int64_t id) {
-    {
-      std::lock_guard lock(claimed_mutex);
-      claimed.push_back(id);
-    }
-    if (id == second) scheduler.Cancel(id);
-  };
+  store.on_claim = [&](std::int64_t id) { scheduler.Cancel(id); };
   scheduler.Start();
   ASSERT_TRUE(inbox.WaitFinished({second})) << "no job.finished within 60 s";
   ASSERT_TRUE(scheduler.Stop(std::chrono::seconds(30)));
 
-  {
-    std::lock_guard lock(claimed_mutex);
-    EXPECT_EQ(claimed, std::vector<std::int64_t>{second}) << "the cancelled job was claimed";
-  }
+  EXPECT_EQ(store.Claimed(), std::vector<std::int64_t>{second}) << "the cancelled job was claimed";
   const std::optional<JobRecord> never = sqlite.GetJob(first.id);
   ASSERT_TRUE(never);
   EXPECT_EQ(never->state, JobState::kCancelled);
@@ -358,14 +335,14 @@ TEST_F(SchedulerTest, AJobCancelledWhileQueuedIsNeverClaimed) {
 TEST_F(SchedulerTest, AJobRunsOnTheProblemItsSubmissionPrepared) {
   SqliteStore sqlite(path_);
   HookedStore store(sqlite);
-  const JobRecord prepared_job = sqlite.CreateJob(Job("prepared", 5)).job;
-  const JobRecord stored_job = sqlite.CreateJob(Job("stored", 0)).job;
+  const JobRecord prepared_job = sqlite.CreateJob(Job("prepared", 5), 100).job;
+  const JobRecord stored_job = sqlite.CreateJob(Job("stored", 0), 100).job;
   Notifications inbox;
   Scheduler scheduler(store, Options(1));
   scheduler.Watch(prepared_job.id, inbox.For(prepared_job.id));
   scheduler.Watch(stored_job.id, inbox.For(stored_job.id));
-  scheduler.Enqueue(prepared_job, std::make_shared<const Problem>(scene_));
-  scheduler.Enqueue(stored_job);
+  scheduler.JobSubmitted(prepared_job.id, std::make_shared<const Problem>(scene_));
+  scheduler.JobSubmitted(stored_job.id);
   store.Arm(prepared_job.id);
   store.Arm(stored_job.id);
   store.on_claim = [&](std::int64_t id) { scheduler.Cancel(id); };  // endless otherwise
@@ -398,7 +375,7 @@ TEST_F(SchedulerTest, AShutdownInsideAGenerationLeavesTheJobToResume) {
     memetic.search.strategy = Strategy::kDefault;
     job.scene_json = proto::SceneToJson(memetic).dump();
     job.record.strategy = "default";
-    const std::int64_t id = sqlite.CreateJob(job).job.id;
+    const std::int64_t id = sqlite.CreateJob(job, 100).job.id;
     Notifications inbox;
     Scheduler scheduler(store, Options(1));
     scheduler.Watch(id, inbox.For(id));
@@ -425,13 +402,13 @@ TEST_F(SchedulerTest, JobsCancelledWhileRunnersClaimThemAllEndCancelledExactlyOn
   HookedStore store(sqlite);
   std::vector<std::int64_t> ids;
   for (int i = 0; i < kJobs; ++i)
-    ids.push_back(sqlite.CreateJob(Job("race-" + std::to_string(i))).job.id);
+    ids.push_back(sqlite.CreateJob(Job("race-" + std::to_string(i)), 100).job.id);
   Notifications inbox;
   Scheduler scheduler(store, Options(3));
   for (const std::int64_t id : ids) scheduler.Watch(id, inbox.For(id));
 
   using Outcomes = std::vector<Scheduler::CancelOutcome>;
-  scheduler.Start();  // queues every job and starts the runners
+  scheduler.Start();  // the runners claim from the store at once
   auto forward = std::async(std::launch::async, [&] {
     Outcomes out;
     for (const std::int64_t id : ids) out.push_back(scheduler.Cancel(id));

@@ -1,0 +1,663 @@
+#include "server/postgres_store.h"
+
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <pqxx/pqxx>
+
+#include "engine/search/fitness_cache.h"
+#include "proto/search_codec.h"
+
+namespace springfit::server {
+namespace {
+
+// The advisory lock key under which a daemon migrates the schema ("springfi").
+constexpr long long kMigrationLock = 0x737072696e676669LL;
+// The one under which a submit counts the queue and inserts, so that max_queued holds for
+// all daemons together.
+constexpr long long kQueueLock = kMigrationLock + 1;
+// The channel of the wake-ups (job submitted, released, cancelled, finished).
+constexpr const char* kChannel = "springfit_jobs";
+// The server's clock, in Unix seconds: the one clock every lease is read against.
+#define SF_NOW "extract(epoch from clock_timestamp())::float8"
+
+// Migration i takes the schema from version i to i + 1.
+const char* const kMigrations[] = {
+    R"sql(
+CREATE TABLE jobs (
+  id BIGSERIAL PRIMARY KEY,
+  label TEXT NOT NULL,
+  priority INTEGER NOT NULL,
+  seed BIGINT NOT NULL,              -- the uint64 seed's bits
+  idempotency_key TEXT UNIQUE,       -- NULL: none
+  state TEXT NOT NULL,
+  error TEXT NOT NULL DEFAULT '',
+  scene_name TEXT NOT NULL,
+  genes INTEGER NOT NULL,
+  strategy TEXT NOT NULL,
+  max_generations INTEGER NOT NULL,
+  created_at DOUBLE PRECISION NOT NULL,
+  started_at DOUBLE PRECISION NOT NULL DEFAULT 0,
+  finished_at DOUBLE PRECISION NOT NULL DEFAULT 0,
+  progress TEXT,                     -- the latest trace row as JSON
+  checkpoint_generation INTEGER NOT NULL DEFAULT -1,
+  exact BOOLEAN,                     -- NULL: unknown or not finished
+  scene TEXT NOT NULL,
+  result TEXT,
+  lease_owner TEXT,                  -- the daemon running the job
+  lease_epoch BIGINT NOT NULL DEFAULT 0,
+  lease_expires DOUBLE PRECISION NOT NULL DEFAULT 0,
+  cancel_requested BOOLEAN NOT NULL DEFAULT FALSE
+);
+CREATE INDEX jobs_to_claim ON jobs (priority DESC, id) WHERE state IN ('queued', 'running');
+CREATE INDEX jobs_by_state ON jobs (state, id);
+CREATE INDEX jobs_by_label ON jobs (label, id);
+CREATE TABLE trace (
+  job_id BIGINT NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
+  generation INTEGER NOT NULL,
+  wall_seconds DOUBLE PRECISION NOT NULL,
+  evaluations BIGINT NOT NULL,
+  cache_hits BIGINT NOT NULL,
+  best_cost DOUBLE PRECISION NOT NULL,
+  best_normalized_error DOUBLE PRECISION NOT NULL,
+  mean_cost DOUBLE PRECISION NOT NULL,
+  missing INTEGER,
+  extra INTEGER,
+  PRIMARY KEY (job_id, generation)
+);
+CREATE TABLE improvements (
+  job_id BIGINT NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
+  generation INTEGER NOT NULL,
+  wall_seconds DOUBLE PRECISION NOT NULL,
+  cost DOUBLE PRECISION NOT NULL,
+  normalized_error DOUBLE PRECISION NOT NULL,
+  missing INTEGER,
+  extra INTEGER,
+  genome BYTEA NOT NULL,             -- packed 8 genes per byte (FitnessCache::Key)
+  PRIMARY KEY (job_id, generation)
+);
+CREATE TABLE checkpoints (
+  job_id BIGINT PRIMARY KEY REFERENCES jobs (id) ON DELETE CASCADE,
+  generation INTEGER NOT NULL,
+  state BYTEA NOT NULL               -- server/checkpoint_codec.h
+);
+)sql",
+};
+constexpr int kMigrationCount = static_cast<int>(std::size(kMigrations));
+static_assert(kMigrationCount == PostgresStore::kSchemaVersion);
+
+#define SF_JOB_COLUMNS                                                                      \
+  "id, label, priority, seed, idempotency_key, state, error, scene_name, genes, strategy, " \
+  "max_generations, created_at, started_at, finished_at, progress, checkpoint_generation, " \
+  "exact"
+constexpr int kJobColumnCount = 17;
+
+// The fence of every write of a running job: locks its row, so that no claim takes it
+// before the write's transaction ends, and fails unless the lease is still the job's.
+constexpr const char* kFence =
+    "SELECT 1 FROM jobs WHERE id = $1 AND state = 'running' AND lease_owner = $2 AND "
+    "lease_epoch = $3 FOR UPDATE";
+
+// Every statement, prepared on each connection when it opens.
+const std::pair<const char*, const char*> kStatements[] = {
+    {"find_key", "SELECT " SF_JOB_COLUMNS " FROM jobs WHERE idempotency_key = $1"},
+    {"count_queued", "SELECT count(*) FROM jobs WHERE state = 'queued'"},
+    {"insert_job",
+     "INSERT INTO jobs (label, priority, seed, idempotency_key, state, scene_name, genes, "
+     "strategy, max_generations, created_at, scene) VALUES ($1, $2, $3, NULLIF($4, ''), "
+     "'queued', $5, $6, $7, $8, $9, $10) RETURNING id"},
+    {"get_job", "SELECT " SF_JOB_COLUMNS " FROM jobs WHERE id = $1"},
+    {"get_scene", "SELECT scene FROM jobs WHERE id = $1"},
+    {"unfinished", "SELECT " SF_JOB_COLUMNS
+                   " FROM jobs WHERE state IN ('queued', 'running') ORDER BY priority DESC, id"},
+    {"claim",
+     "UPDATE jobs SET state = 'running', lease_owner = $1, lease_epoch = lease_epoch + 1, "
+     "lease_expires = " SF_NOW " + $2, started_at = CASE WHEN started_at = 0 THEN " SF_NOW
+     " ELSE started_at END WHERE id = (SELECT id FROM jobs WHERE state = 'queued' OR (state = "
+     "'running' AND lease_expires < " SF_NOW
+     ") ORDER BY priority DESC, id LIMIT 1 FOR UPDATE SKIP LOCKED) RETURNING " SF_JOB_COLUMNS
+     ", lease_epoch, cancel_requested"},
+    {"renew", "UPDATE jobs SET lease_expires = " SF_NOW
+              " + $4 WHERE id = $1 AND state = 'running' AND lease_owner = $2 AND lease_epoch = $3 "
+              "RETURNING cancel_requested"},
+    {"release",
+     "UPDATE jobs SET lease_expires = 0 WHERE id = $1 AND state = 'running' AND lease_owner = "
+     "$2 AND lease_epoch = $3"},
+    {"fence", kFence},
+    {"insert_trace",
+     "INSERT INTO trace (job_id, generation, wall_seconds, evaluations, cache_hits, best_cost, "
+     "best_normalized_error, mean_cost, missing, extra) SELECT $1, * FROM unnest($2::int[], "
+     "$3::float8[], $4::bigint[], $5::bigint[], $6::float8[], $7::float8[], $8::float8[], "
+     "$9::int[], $10::int[]) ON CONFLICT (job_id, generation) DO UPDATE SET wall_seconds = "
+     "excluded.wall_seconds, evaluations = excluded.evaluations, cache_hits = "
+     "excluded.cache_hits, best_cost = excluded.best_cost, best_normalized_error = "
+     "excluded.best_normalized_error, mean_cost = excluded.mean_cost, missing = excluded.missing, "
+     "extra = excluded.extra"},
+    {"insert_improvement",
+     "INSERT INTO improvements (job_id, generation, wall_seconds, cost, normalized_error, "
+     "missing, extra, genome) VALUES ($1, $2, $3, $4, $5, NULLIF($6, -1), NULLIF($7, -1), $8) ON "
+     "CONFLICT (job_id, generation) DO UPDATE SET wall_seconds = excluded.wall_seconds, cost = "
+     "excluded.cost, normalized_error = excluded.normalized_error, missing = excluded.missing, "
+     "extra = excluded.extra, genome = excluded.genome"},
+    {"set_progress", "UPDATE jobs SET progress = $2 WHERE id = $1"},
+    {"set_checkpoint",
+     "INSERT INTO checkpoints (job_id, generation, state) VALUES ($1, $2, $3) ON CONFLICT "
+     "(job_id) DO UPDATE SET generation = excluded.generation, state = excluded.state"},
+    {"set_checkpoint_generation", "UPDATE jobs SET checkpoint_generation = $2 WHERE id = $1"},
+    {"finish",
+     "UPDATE jobs SET state = $2, error = $3, result = NULLIF($4, ''), exact = CASE $5::int WHEN "
+     "-1 THEN NULL ELSE $5::int <> 0 END, finished_at = $6, lease_owner = NULL, lease_expires = 0 "
+     "WHERE id = $1"},
+    {"drop_checkpoint", "DELETE FROM checkpoints WHERE job_id = $1"},
+    {"rewind_trace", "DELETE FROM trace WHERE job_id = $1 AND generation > $2"},
+    {"rewind_improvements", "DELETE FROM improvements WHERE job_id = $1 AND generation > $2"},
+    {"cancel_queued", "UPDATE jobs SET state = 'cancelled', finished_at = " SF_NOW
+                      " WHERE id = $1 AND state = 'queued'"},
+    {"cancel_running",
+     "UPDATE jobs SET cancel_requested = TRUE WHERE id = $1 AND state = 'running'"},
+    {"get_result", "SELECT result FROM jobs WHERE id = $1"},
+    {"get_trace",
+     "SELECT generation, wall_seconds, evaluations, cache_hits, best_cost, "
+     "best_normalized_error, mean_cost, missing, extra FROM trace WHERE job_id = $1 AND "
+     "generation > $2 ORDER BY generation LIMIT $3"},
+    {"get_improvements",
+     "SELECT i.generation, i.wall_seconds, i.cost, i.normalized_error, i.missing, i.extra, "
+     "i.genome, j.genes FROM improvements i JOIN jobs j ON j.id = i.job_id WHERE i.job_id = $1 "
+     "ORDER BY i.generation"},
+    {"get_checkpoint", "SELECT state FROM checkpoints WHERE job_id = $1"},
+    {"delete_job",
+     "DELETE FROM jobs WHERE id = $1 AND state IN ('succeeded', 'failed', 'cancelled')"},
+    {"notify", "SELECT pg_notify($1, $2)"},
+};
+
+JobRecord ReadJob(const pqxx::row& q) {
+  JobRecord j;
+  j.id = q[0].as<std::int64_t>();
+  j.label = q[1].as<std::string>();
+  j.priority = q[2].as<int>();
+  j.seed = std::bit_cast<std::uint64_t>(q[3].as<std::int64_t>());
+  if (!q[4].is_null()) j.idempotency_key = q[4].as<std::string>();
+  j.state = proto::ParseJobState(q[5].as<std::string>()).value_or(JobState::kFailed);
+  j.error = q[6].as<std::string>();
+  j.scene_name = q[7].as<std::string>();
+  j.genes = q[8].as<int>();
+  j.strategy = q[9].as<std::string>();
+  j.max_generations = q[10].as<int>();
+  j.created_at = q[11].as<double>();
+  j.started_at = q[12].as<double>();
+  j.finished_at = q[13].as<double>();
+  if (!q[14].is_null())
+    j.progress = proto::TraceRowFromJson(proto::ParseJson(q[14].as<std::string>()), "progress");
+  j.checkpoint_generation = q[15].as<int>();
+  if (!q[16].is_null()) j.exact = q[16].as<bool>();
+  return j;
+}
+
+int CountOrMinusOne(const pqxx::field& f) {
+  return f.is_null() ? -1 : f.as<int>();
+}
+
+std::string Bytes(const pqxx::field& f) {
+  return pqxx::binarystring(f).str();
+}
+
+// A PostgreSQL array literal ({1,2,NULL}) of the values `format` writes.
+template <typename T, typename Format>
+std::string ArrayLiteral(const std::vector<TraceRow>& rows, T TraceRow::*member, Format format) {
+  std::string out = "{";
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (i) out += ',';
+    out += format(rows[i].*member);
+  }
+  return out + "}";
+}
+
+std::string Float(double v) {
+  if (std::isnan(v)) return "NaN";
+  if (std::isinf(v)) return v > 0 ? "Infinity" : "-Infinity";
+  return fmt::format("{}", v);  // the shortest text that reads back as the same double
+}
+
+// SQLSTATEs of a server that is not there now: connection exceptions (class 08), shutting
+// down or starting (57P01-57P03), out of resources (53). Anything else is a bug or bad data.
+bool IsUnavailable(const std::string& sqlstate) {
+  return sqlstate.rfind("08", 0) == 0 || sqlstate.rfind("57P", 0) == 0 ||
+         sqlstate.rfind("53", 0) == 0;
+}
+
+std::string WithPassword(const std::string& url, const std::string& password) {
+  if (password.empty()) return url;
+  std::string encoded;
+  for (const unsigned char c : password) {
+    if (std::isalnum(c) || c == '-' || c == '_' || c == '.' || c == '~') {
+      encoded += static_cast<char>(c);
+    } else {
+      encoded += fmt::format("%{:02X}", c);
+    }
+  }
+  return url + (url.find('?') == std::string::npos ? "?" : "&") + "password=" + encoded;
+}
+
+class Wakeup final : public pqxx::notification_receiver {
+ public:
+  Wakeup(pqxx::connection_base& c, std::function<void()> on_change)
+      : pqxx::notification_receiver(c, kChannel), on_change_(std::move(on_change)) {}
+  void operator()(const std::string&, int) override {
+    if (on_change_) on_change_();
+  }
+
+ private:
+  std::function<void()> on_change_;
+};
+
+void Fence(pqxx::work& w, const Lease& lease) {
+  if (w.exec_prepared("fence", lease.job_id, lease.owner, lease.epoch).empty()) {
+    throw LeaseLost("job " + std::to_string(lease.job_id) + ": the lease of " + lease.owner +
+                    " (claim " + std::to_string(lease.epoch) +
+                    ") is no longer the job's: another daemon took it over, or it finished");
+  }
+}
+
+}  // namespace
+
+struct PostgresStore::Slot {
+  std::mutex mutex;
+  std::unique_ptr<pqxx::connection> connection;
+};
+
+PostgresStore::PostgresStore(const std::string& url, const std::string& password, int readers)
+    : conninfo_(WithPassword(url, password)), url_(url), writer_(std::make_unique<Slot>()) {
+  for (int i = 0; i < std::max(1, readers); ++i) readers_.push_back(std::make_unique<Slot>());
+  try {
+    Migrate();
+  } catch (const std::exception& e) {
+    throw std::runtime_error("cannot open the store " + url_ + ": " + e.what());
+  }
+  listener_ = std::thread([this] { ListenLoop(); });
+}
+
+PostgresStore::~PostgresStore() {
+  stopping_.store(true);
+  if (listener_.joinable()) listener_.join();
+}
+
+std::string PostgresStore::Describe() const {
+  return url_;
+}
+
+template <typename F>
+auto PostgresStore::With(Slot& slot, F&& f) {
+  std::lock_guard lock(slot.mutex);
+  try {
+    if (!slot.connection || !slot.connection->is_open()) {
+      auto c = std::make_unique<pqxx::connection>(conninfo_);
+      for (const auto& [name, sql] : kStatements) c->prepare(name, sql);
+      slot.connection = std::move(c);
+    }
+    return f(*slot.connection);
+  } catch (const pqxx::broken_connection& e) {
+    slot.connection.reset();
+    throw StoreUnavailable(std::string("the database connection failed: ") + e.what());
+  } catch (const pqxx::in_doubt_error& e) {
+    slot.connection.reset();
+    throw StoreUnavailable(std::string("the database connection failed during a commit: ") +
+                           e.what());
+  } catch (const pqxx::sql_error& e) {
+    if (IsUnavailable(e.sqlstate())) {
+      slot.connection.reset();
+      throw StoreUnavailable(std::string("the database is unavailable: ") + e.what());
+    }
+    throw std::runtime_error(std::string("database: ") + e.what());
+  }
+}
+
+template <typename F>
+auto PostgresStore::Write(F&& f) {
+  return With(*writer_, std::forward<F>(f));
+}
+
+template <typename F>
+auto PostgresStore::Read(F&& f) {
+  return With(*readers_[next_reader_.fetch_add(1) % readers_.size()], std::forward<F>(f));
+}
+
+void PostgresStore::Migrate() {
+  Write([&](pqxx::connection& c) {
+    pqxx::work w(c);
+    w.exec("SELECT pg_advisory_xact_lock(" + std::to_string(kMigrationLock) + ")");
+    w.exec("CREATE TABLE IF NOT EXISTS springfit_schema (version INTEGER NOT NULL)");
+    const pqxx::result r = w.exec("SELECT version FROM springfit_schema");
+    int version = 0;
+    if (r.empty()) {
+      w.exec("INSERT INTO springfit_schema (version) VALUES (0)");
+    } else {
+      version = r[0][0].as<int>();
+    }
+    if (version > kSchemaVersion) {
+      throw std::runtime_error("the database has schema version " + std::to_string(version) +
+                               ", newer than this springfitd's " + std::to_string(kSchemaVersion));
+    }
+    for (int v = version; v < kSchemaVersion; ++v) w.exec(kMigrations[v]);
+    if (version < kSchemaVersion) {
+      w.exec("UPDATE springfit_schema SET version = " + std::to_string(kSchemaVersion));
+      spdlog::info("store {}: schema migrated from version {} to {}", url_, version,
+                   kSchemaVersion);
+    }
+    w.commit();
+  });
+}
+
+int PostgresStore::schema_version() {
+  return Read([&](pqxx::connection& c) {
+    pqxx::read_transaction w(c);
+    return w.exec("SELECT version FROM springfit_schema")[0][0].as<int>();
+  });
+}
+
+void PostgresStore::SetChangeListener(std::function<void()> listener) {
+  std::lock_guard lock(listener_mutex_);
+  on_change_ = std::move(listener);
+}
+
+void PostgresStore::ListenLoop() {
+  double backoff = 0.1;
+  while (!stopping_.load()) {
+    try {
+      pqxx::connection c(conninfo_);
+      Wakeup wakeup(c, [this] {
+        std::lock_guard lock(listener_mutex_);
+        if (on_change_) on_change_();
+      });
+      backoff = 0.1;
+      // Notifications sent while this connection was down are lost: the callers' polls
+      // cover them. A wake-up now makes them look at once.
+      {
+        std::lock_guard lock(listener_mutex_);
+        if (on_change_) on_change_();
+      }
+      while (!stopping_.load()) c.await_notification(0, 200000);
+    } catch (const std::exception& e) {
+      if (stopping_.load()) break;
+      spdlog::debug("store {}: listening connection lost ({}); reconnecting", url_, e.what());
+      const auto until =
+          std::chrono::steady_clock::now() + std::chrono::milliseconds(int(backoff * 1000));
+      while (!stopping_.load() && std::chrono::steady_clock::now() < until)
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      backoff = std::min(5.0, backoff * 2);
+    }
+  }
+}
+
+JobStore::Created PostgresStore::CreateJob(const NewJob& job, int max_queued) {
+  return Write([&](pqxx::connection& c) -> Created {
+    pqxx::work w(c);
+    // Serialises submits (all daemons): the count and the insert are one step, and two
+    // submits of one idempotency key cannot both insert.
+    w.exec("SELECT pg_advisory_xact_lock(" + std::to_string(kQueueLock) + ")");
+    const JobRecord& r = job.record;
+    if (!r.idempotency_key.empty()) {
+      const pqxx::result found = w.exec_prepared("find_key", r.idempotency_key);
+      if (!found.empty()) return {ReadJob(found[0]), false, false};
+    }
+    if (w.exec_prepared("count_queued")[0][0].as<int>() >= max_queued) return {r, false, true};
+    const pqxx::result inserted = w.exec_prepared(
+        "insert_job", r.label, r.priority, std::bit_cast<std::int64_t>(r.seed), r.idempotency_key,
+        r.scene_name, r.genes, r.strategy, r.max_generations, r.created_at, job.scene_json);
+    w.exec_prepared("notify", kChannel, "queued");
+    w.commit();
+    JobRecord created = r;
+    created.id = inserted[0][0].as<std::int64_t>();
+    created.state = JobState::kQueued;
+    return {created, true, false};
+  });
+}
+
+std::optional<JobRecord> PostgresStore::GetJob(std::int64_t id) {
+  return Read([&](pqxx::connection& c) -> std::optional<JobRecord> {
+    pqxx::read_transaction w(c);
+    const pqxx::result r = w.exec_prepared("get_job", id);
+    if (r.empty()) return std::nullopt;
+    return ReadJob(r[0]);
+  });
+}
+
+std::optional<std::string> PostgresStore::GetScene(std::int64_t id) {
+  return Read([&](pqxx::connection& c) -> std::optional<std::string> {
+    pqxx::read_transaction w(c);
+    const pqxx::result r = w.exec_prepared("get_scene", id);
+    if (r.empty()) return std::nullopt;
+    return r[0][0].as<std::string>();
+  });
+}
+
+JobPage PostgresStore::ListJobs(const JobFilter& f) {
+  return Read([&](pqxx::connection& c) {
+    pqxx::read_transaction w(c);
+    // Four shapes of one query; the parameters are bound, never spliced.
+    std::string sql = "SELECT " SF_JOB_COLUMNS " FROM jobs WHERE id > $1";
+    int n = 2;
+    if (f.state) sql += " AND state = $" + std::to_string(n++);
+    if (f.label) sql += " AND label = $" + std::to_string(n++);
+    sql += " ORDER BY id LIMIT $" + std::to_string(n);
+    const std::string state = f.state ? std::string(proto::JobStateName(*f.state)) : "";
+    pqxx::result r;
+    if (f.state && f.label) {
+      r = w.exec_params(sql, f.after_id, state, *f.label, f.limit + 1);
+    } else if (f.state) {
+      r = w.exec_params(sql, f.after_id, state, f.limit + 1);
+    } else if (f.label) {
+      r = w.exec_params(sql, f.after_id, *f.label, f.limit + 1);
+    } else {
+      r = w.exec_params(sql, f.after_id, f.limit + 1);
+    }
+    JobPage page;
+    for (const auto& row : r) page.jobs.push_back(ReadJob(row));
+    if (static_cast<int>(page.jobs.size()) > f.limit) {
+      page.jobs.pop_back();
+      page.next_cursor = page.jobs.back().id;
+    }
+    return page;
+  });
+}
+
+std::vector<JobRecord> PostgresStore::UnfinishedJobs() {
+  return Read([&](pqxx::connection& c) {
+    pqxx::read_transaction w(c);
+    std::vector<JobRecord> jobs;
+    for (const auto& row : w.exec_prepared("unfinished")) jobs.push_back(ReadJob(row));
+    return jobs;
+  });
+}
+
+int PostgresStore::CountQueued() {
+  return Read([&](pqxx::connection& c) {
+    pqxx::read_transaction w(c);
+    return w.exec_prepared("count_queued")[0][0].as<int>();
+  });
+}
+
+std::optional<Claim> PostgresStore::ClaimNext(const std::string& owner, double lease_seconds) {
+  return Write([&](pqxx::connection& c) -> std::optional<Claim> {
+    pqxx::work w(c);
+    const pqxx::result r = w.exec_prepared("claim", owner, lease_seconds);
+    w.commit();
+    if (r.empty()) return std::nullopt;
+    Claim claim;
+    claim.job = ReadJob(r[0]);
+    claim.lease = {claim.job.id, owner, r[0][kJobColumnCount].as<std::int64_t>()};
+    claim.cancel_requested = r[0][kJobColumnCount + 1].as<bool>();
+    return claim;
+  });
+}
+
+LeaseStatus PostgresStore::RenewLease(const Lease& lease, double lease_seconds) {
+  return Write([&](pqxx::connection& c) {
+    pqxx::work w(c);
+    const pqxx::result r =
+        w.exec_prepared("renew", lease.job_id, lease.owner, lease.epoch, lease_seconds);
+    w.commit();
+    LeaseStatus status;
+    if (!r.empty()) {
+      status.held = true;
+      status.cancel_requested = r[0][0].as<bool>();
+    }
+    return status;
+  });
+}
+
+void PostgresStore::ReleaseLease(const Lease& lease) {
+  Write([&](pqxx::connection& c) {
+    pqxx::work w(c);
+    if (w.exec_prepared("release", lease.job_id, lease.owner, lease.epoch).affected_rows() > 0)
+      w.exec_prepared("notify", kChannel, "released");
+    w.commit();
+  });
+}
+
+void PostgresStore::SaveProgress(const Lease& lease, const ProgressBatch& b) {
+  Write([&](pqxx::connection& c) {
+    pqxx::work w(c);
+    Fence(w, lease);
+    const std::int64_t id = lease.job_id;
+    if (!b.trace.empty()) {
+      const auto integer = [](auto v) { return std::to_string(v); };
+      const auto count = [](int v) { return v < 0 ? std::string("NULL") : std::to_string(v); };
+      w.exec_prepared("insert_trace", id, ArrayLiteral(b.trace, &TraceRow::generation, integer),
+                      ArrayLiteral(b.trace, &TraceRow::wall_seconds, Float),
+                      ArrayLiteral(b.trace, &TraceRow::evaluations, integer),
+                      ArrayLiteral(b.trace, &TraceRow::cache_hits, integer),
+                      ArrayLiteral(b.trace, &TraceRow::best_cost, Float),
+                      ArrayLiteral(b.trace, &TraceRow::best_normalized_error, Float),
+                      ArrayLiteral(b.trace, &TraceRow::mean_cost, Float),
+                      ArrayLiteral(b.trace, &TraceRow::missing, count),
+                      ArrayLiteral(b.trace, &TraceRow::extra, count));
+    }
+    for (const Improvement& m : b.improvements) {
+      const std::string genome = FitnessCache::Key(m.genome);
+      w.exec_prepared("insert_improvement", id, m.generation, m.wall_seconds, m.cost,
+                      m.normalized_error, m.missing, m.extra,
+                      pqxx::binarystring(genome.data(), genome.size()));
+    }
+    if (b.latest) w.exec_prepared("set_progress", id, proto::TraceRowToJson(*b.latest).dump());
+    if (b.checkpoint) {
+      w.exec_prepared("set_checkpoint", id, b.checkpoint_generation,
+                      pqxx::binarystring(b.checkpoint->data(), b.checkpoint->size()));
+      w.exec_prepared("set_checkpoint_generation", id, b.checkpoint_generation);
+    }
+    w.commit();
+  });
+}
+
+void PostgresStore::MarkFinished(const Lease& lease, JobState state, const std::string& error,
+                                 const std::string& result_json, std::optional<bool> exact,
+                                 double finished_at) {
+  Write([&](pqxx::connection& c) {
+    pqxx::work w(c);
+    Fence(w, lease);
+    w.exec_prepared("finish", lease.job_id, std::string(proto::JobStateName(state)), error,
+                    result_json, exact ? (*exact ? 1 : 0) : -1, finished_at);
+    // A finished job is never resumed: its checkpoint is dead weight.
+    w.exec_prepared("drop_checkpoint", lease.job_id);
+    w.exec_prepared("notify", kChannel, "finished");
+    w.commit();
+  });
+}
+
+void PostgresStore::RewindTo(const Lease& lease, int generation) {
+  Write([&](pqxx::connection& c) {
+    pqxx::work w(c);
+    Fence(w, lease);
+    w.exec_prepared("rewind_trace", lease.job_id, generation);
+    w.exec_prepared("rewind_improvements", lease.job_id, generation);
+    w.commit();
+  });
+}
+
+JobStore::CancelOutcome PostgresStore::RequestCancel(std::int64_t id) {
+  return Write([&](pqxx::connection& c) {
+    pqxx::work w(c);
+    CancelOutcome outcome = CancelOutcome::kNotActive;
+    if (w.exec_prepared("cancel_queued", id).affected_rows() > 0) {
+      outcome = CancelOutcome::kCancelled;
+    } else if (w.exec_prepared("cancel_running", id).affected_rows() > 0) {
+      outcome = CancelOutcome::kRequested;
+    }
+    if (outcome != CancelOutcome::kNotActive) w.exec_prepared("notify", kChannel, "cancel");
+    w.commit();
+    return outcome;
+  });
+}
+
+std::optional<std::string> PostgresStore::GetResult(std::int64_t id) {
+  return Read([&](pqxx::connection& c) -> std::optional<std::string> {
+    pqxx::read_transaction w(c);
+    const pqxx::result r = w.exec_prepared("get_result", id);
+    if (r.empty() || r[0][0].is_null()) return std::nullopt;
+    return r[0][0].as<std::string>();
+  });
+}
+
+std::vector<TraceRow> PostgresStore::GetTrace(std::int64_t id, int after, int limit) {
+  return Read([&](pqxx::connection& c) {
+    pqxx::read_transaction w(c);
+    std::vector<TraceRow> rows;
+    for (const auto& q : w.exec_prepared("get_trace", id, after, limit)) {
+      TraceRow r;
+      r.generation = q[0].as<int>();
+      r.wall_seconds = q[1].as<double>();
+      r.evaluations = q[2].as<std::int64_t>();
+      r.cache_hits = q[3].as<std::int64_t>();
+      r.best_cost = q[4].as<double>();
+      r.best_normalized_error = q[5].as<double>();
+      r.mean_cost = q[6].as<double>();
+      r.missing = CountOrMinusOne(q[7]);
+      r.extra = CountOrMinusOne(q[8]);
+      rows.push_back(r);
+    }
+    return rows;
+  });
+}
+
+std::vector<Improvement> PostgresStore::GetImprovements(std::int64_t id) {
+  return Read([&](pqxx::connection& c) {
+    pqxx::read_transaction w(c);
+    std::vector<Improvement> out;
+    for (const auto& q : w.exec_prepared("get_improvements", id)) {
+      Improvement m;
+      m.generation = q[0].as<int>();
+      m.wall_seconds = q[1].as<double>();
+      m.cost = q[2].as<double>();
+      m.normalized_error = q[3].as<double>();
+      m.missing = CountOrMinusOne(q[4]);
+      m.extra = CountOrMinusOne(q[5]);
+      m.genome = FitnessCache::Unpack(Bytes(q[6]), q[7].as<int>());
+      out.push_back(std::move(m));
+    }
+    return out;
+  });
+}
+
+std::optional<std::string> PostgresStore::GetCheckpoint(std::int64_t id) {
+  return Read([&](pqxx::connection& c) -> std::optional<std::string> {
+    pqxx::read_transaction w(c);
+    const pqxx::result r = w.exec_prepared("get_checkpoint", id);
+    if (r.empty()) return std::nullopt;
+    return Bytes(r[0][0]);
+  });
+}
+
+bool PostgresStore::DeleteJob(std::int64_t id) {
+  return Write([&](pqxx::connection& c) {
+    pqxx::work w(c);
+    const bool deleted = w.exec_prepared("delete_job", id).affected_rows() > 0;
+    w.commit();
+    return deleted;
+  });
+}
+
+}  // namespace springfit::server

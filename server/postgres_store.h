@@ -1,0 +1,88 @@
+// The shared store: one PostgreSQL database that several daemons, on one host or many, claim
+// jobs from (server/job_store.h; README "Several daemons on one database").
+//
+// libpqxx, with prepared statements on every connection: one connection for the writes,
+// a small pool for the reads (job.get, job.list, job.trace never wait behind a checkpoint),
+// and one that LISTENs, so that a job submitted, released, cancelled or finished through one
+// daemon wakes the others at once (their poll is the fallback). The lease clock is the
+// server's (clock_timestamp()), never a host's, so hosts need not agree on the time.
+//
+// The schema is versioned in springfit_schema and migrated at start inside a transaction
+// under an advisory lock: two daemons starting together do not both migrate.
+//
+// A lost connection (server restart, network) fails the call in progress with
+// StoreUnavailable, and the next call connects again; nothing half-written is left, since
+// every write is one transaction.
+#pragma once
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "server/job_store.h"
+
+namespace springfit::server {
+
+class PostgresStore final : public JobStore {
+ public:
+  static constexpr int kSchemaVersion = 1;
+
+  // `url`: a libpq URI (postgresql://...), without a password; `password`: empty for libpq's
+  // defaults (PGPASSWORD, PGPASSFILE). Connects, migrates; throws std::runtime_error.
+  PostgresStore(const std::string& url, const std::string& password, int readers = 2);
+  ~PostgresStore() override;
+
+  Created CreateJob(const NewJob& job, int max_queued) override;
+  std::optional<JobRecord> GetJob(std::int64_t id) override;
+  std::optional<std::string> GetScene(std::int64_t id) override;
+  JobPage ListJobs(const JobFilter& filter) override;
+  std::vector<JobRecord> UnfinishedJobs() override;
+  int CountQueued() override;
+  std::optional<Claim> ClaimNext(const std::string& owner, double lease_seconds) override;
+  LeaseStatus RenewLease(const Lease& lease, double lease_seconds) override;
+  void ReleaseLease(const Lease& lease) override;
+  void SaveProgress(const Lease& lease, const ProgressBatch& batch) override;
+  void MarkFinished(const Lease& lease, JobState state, const std::string& error,
+                    const std::string& result_json, std::optional<bool> exact,
+                    double finished_at) override;
+  void RewindTo(const Lease& lease, int generation) override;
+  CancelOutcome RequestCancel(std::int64_t id) override;
+  std::optional<std::string> GetResult(std::int64_t id) override;
+  std::vector<TraceRow> GetTrace(std::int64_t id, int after, int limit) override;
+  std::vector<Improvement> GetImprovements(std::int64_t id) override;
+  std::optional<std::string> GetCheckpoint(std::int64_t id) override;
+  bool DeleteJob(std::int64_t id) override;
+  void SetChangeListener(std::function<void()> listener) override;
+  std::string Describe() const override;
+
+  int schema_version();
+
+ private:
+  struct Slot;  // one connection and the calls on it, one at a time (postgres_store.cpp)
+  // Runs f(connection) on the slot's connection, connecting first when needed; maps the
+  // errors of a server that is not there to StoreUnavailable.
+  template <typename F>
+  auto With(Slot& slot, F&& f);
+  template <typename F>
+  auto Write(F&& f);
+  template <typename F>
+  auto Read(F&& f);
+  void Migrate();
+  void ListenLoop();
+
+  std::string conninfo_;  // the URL with the password: never logged
+  std::string url_;
+  std::unique_ptr<Slot> writer_;
+  std::vector<std::unique_ptr<Slot>> readers_;
+  std::atomic<std::size_t> next_reader_{0};
+
+  std::mutex listener_mutex_;
+  std::function<void()> on_change_;
+  std::atomic<bool> stopping_{false};
+  std::thread listener_;
+};
+
+}  // namespace springfit::server

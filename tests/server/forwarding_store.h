@@ -1,0 +1,57 @@
+// A JobStore that forwards every call to another store: the base of the tests' stores that
+// hook or fail some calls (scheduler_test's HookedStore, store_suite's FailingStore).
+#pragma once
+#include "server/job_store.h"
+
+namespace springfit::server {
+
+class ForwardingStore : public JobStore {
+ public:
+  explicit ForwardingStore(JobStore& inner) : inner_(inner) {}
+
+  Created CreateJob(const NewJob& job, int max_queued) override {
+    return inner_.CreateJob(job, max_queued);
+  }
+  std::optional<JobRecord> GetJob(std::int64_t id) override { return inner_.GetJob(id); }
+  std::optional<std::string> GetScene(std::int64_t id) override { return inner_.GetScene(id); }
+  JobPage ListJobs(const JobFilter& filter) override { return inner_.ListJobs(filter); }
+  std::vector<JobRecord> UnfinishedJobs() override { return inner_.UnfinishedJobs(); }
+  int CountQueued() override { return inner_.CountQueued(); }
+  std::optional<Claim> ClaimNext(const std::string& owner, double lease_seconds) override {
+    return inner_.ClaimNext(owner, lease_seconds);
+  }
+  LeaseStatus RenewLease(const Lease& lease, double lease_seconds) override {
+    return inner_.RenewLease(lease, lease_seconds);
+  }
+  void ReleaseLease(const Lease& lease) override { inner_.ReleaseLease(lease); }
+  void SaveProgress(const Lease& lease, const ProgressBatch& batch) override {
+    inner_.SaveProgress(lease, batch);
+  }
+  void MarkFinished(const Lease& lease, JobState state, const std::string& error,
+                    const std::string& result_json, std::optional<bool> exact,
+                    double finished_at) override {
+    inner_.MarkFinished(lease, state, error, result_json, exact, finished_at);
+  }
+  void RewindTo(const Lease& lease, int generation) override { inner_.RewindTo(lease, generation); }
+  CancelOutcome RequestCancel(std::int64_t id) override { return inner_.RequestCancel(id); }
+  std::optional<std::string> GetResult(std::int64_t id) override { return inner_.GetResult(id); }
+  std::vector<TraceRow> GetTrace(std::int64_t id, int after, int limit) override {
+    return inner_.GetTrace(id, after, limit);
+  }
+  std::vector<Improvement> GetImprovements(std::int64_t id) override {
+    return inner_.GetImprovements(id);
+  }
+  std::optional<std::string> GetCheckpoint(std::int64_t id) override {
+    return inner_.GetCheckpoint(id);
+  }
+  bool DeleteJob(std::int64_t id) override { return inner_.DeleteJob(id); }
+  void SetChangeListener(std::function<void()> listener) override {
+    inner_.SetChangeListener(std::move(listener));
+  }
+  std::string Describe() const override { return inner_.Describe(); }
+
+ protected:
+  JobStore& inner_;
+};
+
+}  // namespace springfit::server

@@ -1,0 +1,536 @@
+// One suite, two stores: every behaviour the daemons rely on (server/job_store.h), run
+// against the embedded SQLite store and against a real PostgreSQL server. The PostgreSQL
+// half needs SPRINGFIT_TEST_PG_URL, the URL of a private server that
+// tests/server/with_postgres.sh starts around this program; without it those tests fail,
+// naming the script, rather than skip.
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <future>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <pqxx/pqxx>
+
+#include "proto/scene_codec.h"
+#include "server/postgres_store.h"
+#include "server/scheduler.h"
+#include "server/sqlite_store.h"
+#include "tests/server/forwarding_store.h"
+#include "tests/test_scenes.h"
+
+namespace springfit::server {
+namespace {
+
+using namespace std::chrono_literals;
+
+// Opens the store under test; `Second()` opens another store on the same database (a second
+// daemon), or returns null where one database has one daemon (SQLite).
+class StoreFactory {
+ public:
+  virtual ~StoreFactory() = default;
+  virtual std::unique_ptr<JobStore> Open() = 0;
+  virtual std::unique_ptr<JobStore> Second() = 0;
+};
+
+class SqliteFactory final : public StoreFactory {
+ public:
+  explicit SqliteFactory(std::string path) : path_(std::move(path)) {}
+  std::unique_ptr<JobStore> Open() override { return std::make_unique<SqliteStore>(path_); }
+  std::unique_ptr<JobStore> Second() override { return nullptr; }
+
+ private:
+  std::string path_;
+};
+
+// A new database on the private server for each test.
+class PostgresFactory final : public StoreFactory {
+ public:
+  explicit PostgresFactory(const std::string& name) {
+    const char* admin = std::getenv("SPRINGFIT_TEST_PG_URL");
+    if (!admin || !*admin) {
+      throw std::runtime_error(
+          "SPRINGFIT_TEST_PG_URL is not set: run this suite through "
+          "tests/server/with_postgres.sh (PostgreSQL from scripts/install-deps.sh)");
+    }
+    pqxx::connection c(admin);
+    pqxx::nontransaction w(c);
+    w.exec("DROP DATABASE IF EXISTS " + name);
+    w.exec("CREATE DATABASE " + name);
+    const std::string base = admin;
+    const std::size_t query = base.find('?');
+    const std::size_t slash = base.rfind('/', query);
+    url_ =
+        base.substr(0, slash + 1) + name + (query == std::string::npos ? "" : base.substr(query));
+  }
+  std::unique_ptr<JobStore> Open() override { return std::make_unique<PostgresStore>(url_, ""); }
+  std::unique_ptr<JobStore> Second() override { return Open(); }
+
+ private:
+  std::string url_;
+};
+
+class StoreSuite : public ::testing::TestWithParam<std::string> {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = std::filesystem::temp_directory_path() /
+           ("springfit-suite-" + std::to_string(::getpid()) + "-" + info->name());
+    std::filesystem::remove_all(dir_);
+    std::filesystem::create_directories(dir_);
+    if (GetParam() == "sqlite") {
+      factory_ = std::make_unique<SqliteFactory>((dir_ / "jobs.db").string());
+    } else {
+      std::string name = "t_" + std::string(info->name());
+      name = name.substr(0, name.find('/'));
+      std::transform(name.begin(), name.end(), name.begin(),
+                     [](unsigned char c) { return std::isalnum(c) ? std::tolower(c) : '_'; });
+      factory_ = std::make_unique<PostgresFactory>(name.substr(0, 60));
+    }
+    store_ = factory_->Open();
+  }
+  void TearDown() override {
+    store_.reset();
+    std::filesystem::remove_all(dir_);
+  }
+
+  static NewJob Job(const std::string& label, int priority = 0, const std::string& key = "") {
+    NewJob j;
+    j.record.label = label;
+    j.record.priority = priority;
+    j.record.seed = 0xfedcba9876543210ULL;  // above int64's range: stored as its bits
+    j.record.idempotency_key = key;
+    j.record.scene_name = "s";
+    j.record.genes = 12;
+    j.record.strategy = "default";
+    j.record.max_generations = 100;
+    j.record.created_at = 1.5e9;
+    j.scene_json = R"({"name":"s"})";
+    return j;
+  }
+
+  static TraceRow Row(int generation, double error) {
+    TraceRow r;
+    r.generation = generation;
+    r.wall_seconds = 0.1 * generation + 1e-9;
+    r.evaluations = 10 * (generation + 1);
+    r.best_cost = error * 2;
+    r.best_normalized_error = error;
+    r.mean_cost = generation == 2 ? std::numeric_limits<double>::infinity() : error * 3;
+    r.missing = generation == 0 ? -1 : 3;
+    r.extra = 1;
+    return r;
+  }
+
+  std::int64_t Create(const std::string& label, int priority = 0) {
+    return store_->CreateJob(Job(label, priority), 1000).job.id;
+  }
+
+  // Claims the one job there is, for `owner`.
+  Claim ClaimOne(const std::string& owner, double lease_seconds = 30.0) {
+    std::optional<Claim> claim = store_->ClaimNext(owner, lease_seconds);
+    if (!claim) throw std::runtime_error("nothing to claim");
+    return *claim;
+  }
+
+  std::filesystem::path dir_;
+  std::unique_ptr<StoreFactory> factory_;
+  std::unique_ptr<JobStore> store_;
+};
+
+TEST_P(StoreSuite, CreateGetIdempotencyKeysAndTheQueueBound) {
+  const auto a = store_->CreateJob(Job("a", 0, "key-1"), 3);
+  EXPECT_TRUE(a.created);
+  EXPECT_EQ(a.job.state, JobState::kQueued);
+  const auto again = store_->CreateJob(Job("different label", 5, "key-1"), 3);
+  EXPECT_FALSE(again.created);
+  EXPECT_EQ(again.job.id, a.job.id);
+  EXPECT_EQ(again.job.label, "a");
+  const auto b = store_->CreateJob(Job("b"), 3);
+  const auto c = store_->CreateJob(Job("c"), 3);  // no key: never deduplicated
+  EXPECT_NE(b.job.id, c.job.id);
+  const auto full = store_->CreateJob(Job("d"), 3);
+  EXPECT_TRUE(full.queue_full);
+  EXPECT_FALSE(full.created);
+  EXPECT_EQ(store_->CountQueued(), 3);
+  // A retry of an accepted submit is answered even when the queue is full.
+  EXPECT_EQ(store_->CreateJob(Job("a", 0, "key-1"), 3).job.id, a.job.id);
+  const auto got = store_->GetJob(a.job.id);
+  ASSERT_TRUE(got);
+  EXPECT_EQ(got->seed, 0xfedcba9876543210ULL);
+  EXPECT_EQ(got->idempotency_key, "key-1");
+  EXPECT_EQ(store_->GetJob(b.job.id)->idempotency_key, "");
+  EXPECT_EQ(*store_->GetScene(a.job.id), R"({"name":"s"})");
+  EXPECT_FALSE(store_->GetJob(999));
+}
+
+TEST_P(StoreSuite, ListPagesAndFilters) {
+  for (int i = 0; i < 7; ++i) Create(i % 2 ? "odd" : "even");
+  const Claim first = ClaimOne("d");
+  store_->MarkFinished(first.lease, JobState::kSucceeded, "", "{}", true, 2e9);
+  JobFilter f;
+  f.limit = 3;
+  std::vector<std::int64_t> ids;
+  for (int page = 0; page < 10; ++page) {
+    const JobPage p = store_->ListJobs(f);
+    for (const auto& j : p.jobs) ids.push_back(j.id);
+    if (!p.next_cursor) break;
+    f.after_id = *p.next_cursor;
+  }
+  ASSERT_EQ(ids.size(), 7u);
+  EXPECT_TRUE(std::is_sorted(ids.begin(), ids.end()));
+  JobFilter odd;
+  odd.label = "odd";
+  EXPECT_EQ(store_->ListJobs(odd).jobs.size(), 3u);
+  JobFilter done;
+  done.state = JobState::kSucceeded;
+  const JobPage finished = store_->ListJobs(done);
+  ASSERT_EQ(finished.jobs.size(), 1u);
+  EXPECT_EQ(finished.jobs[0].id, first.job.id);
+  EXPECT_EQ(finished.jobs[0].exact, std::optional<bool>(true));
+  EXPECT_FALSE(finished.next_cursor);
+  JobFilter both;
+  both.state = JobState::kQueued;
+  both.label = "even";
+  EXPECT_EQ(store_->ListJobs(both).jobs.size(), 3u);  // the first "even" finished
+}
+
+TEST_P(StoreSuite, ClaimsComeByPriorityThenSubmissionOncePerJob) {
+  Create("low", -1);
+  Create("high", 5);
+  Create("mid-1", 0);
+  Create("mid-2", 0);
+  std::vector<std::string> order;
+  while (auto claim = store_->ClaimNext("daemon-a", 30.0)) {
+    EXPECT_EQ(claim->job.state, JobState::kRunning);
+    EXPECT_GT(claim->job.started_at, 1.7e9);
+    EXPECT_EQ(claim->lease.epoch, 1);
+    EXPECT_FALSE(claim->cancel_requested);
+    order.push_back(claim->job.label);
+  }
+  EXPECT_EQ(order, (std::vector<std::string>{"high", "mid-1", "mid-2", "low"}));
+  EXPECT_EQ(store_->CountQueued(), 0);
+  EXPECT_EQ(store_->UnfinishedJobs().size(), 4u);  // running, leased
+}
+
+TEST_P(StoreSuite, ProgressCheckpointRewindAndFinish) {
+  const std::int64_t id = Create("p");
+  const Lease lease = ClaimOne("d").lease;
+  ProgressBatch first;
+  for (int g = 0; g <= 4; ++g) first.trace.push_back(Row(g, 1.0 / (g + 1)));
+  first.improvements.push_back(
+      {0, 0.1, 2.0, 1.0, -1, 1, Genome{1, 0, 1, 1, 0, 0, 0, 0, 1, 1, 1, 0}});
+  first.latest = first.trace.back();
+  first.checkpoint = std::string("state\0with\0zeros\xff", 17);
+  first.checkpoint_generation = 4;
+  store_->SaveProgress(lease, first);
+  ProgressBatch second;
+  for (int g = 5; g <= 6; ++g) second.trace.push_back(Row(g, 0.1));
+  second.improvements.push_back({5, 0.5, 0.2, 0.1, 3, 1, Genome(12, 1)});
+  second.latest = second.trace.back();
+  store_->SaveProgress(lease, second);
+
+  const auto job = store_->GetJob(id);
+  EXPECT_EQ(job->state, JobState::kRunning);
+  EXPECT_EQ(job->checkpoint_generation, 4);
+  ASSERT_TRUE(job->progress);
+  EXPECT_EQ(job->progress->generation, 6);
+  EXPECT_EQ(*store_->GetCheckpoint(id), std::string("state\0with\0zeros\xff", 17));
+  const auto all = store_->GetTrace(id, -1, 100);
+  ASSERT_EQ(all.size(), 7u);
+  for (int g = 0; g <= 4; ++g) {
+    EXPECT_TRUE(all[g].SameSearch(first.trace[g])) << "generation " << g;
+    EXPECT_EQ(all[g].wall_seconds, first.trace[g].wall_seconds);  // every bit of a double
+  }
+  EXPECT_TRUE(std::isinf(all[2].mean_cost));
+  const auto page = store_->GetTrace(id, 2, 2);
+  ASSERT_EQ(page.size(), 2u);
+  EXPECT_EQ(page[0].generation, 3);
+  EXPECT_EQ(store_->GetTrace(id, -1, 1)[0].missing, -1);  // null stays unknown
+
+  // Resuming from the checkpoint at 4 drops what came after it.
+  store_->RewindTo(lease, 4);
+  EXPECT_EQ(store_->GetTrace(id, -1, 100).size(), 5u);
+  const auto improvements = store_->GetImprovements(id);
+  ASSERT_EQ(improvements.size(), 1u);
+  EXPECT_EQ(improvements[0].genome, (Genome{1, 0, 1, 1, 0, 0, 0, 0, 1, 1, 1, 0}));
+  EXPECT_EQ(improvements[0].missing, -1);
+
+  // Rows written again after a rewind replace the old ones.
+  ProgressBatch again;
+  again.trace.push_back(Row(4, 0.01));
+  store_->SaveProgress(lease, again);
+  EXPECT_EQ(store_->GetTrace(id, 3, 10)[0].best_normalized_error, 0.01);
+
+  store_->MarkFinished(lease, JobState::kSucceeded, "", R"({"cost":0})", false, 1.7e9);
+  EXPECT_FALSE(store_->GetCheckpoint(id));  // a finished job never resumes
+  EXPECT_EQ(*store_->GetResult(id), R"({"cost":0})");
+  EXPECT_EQ(store_->GetJob(id)->exact, std::optional<bool>(false));
+  EXPECT_EQ(store_->GetJob(id)->state, JobState::kSucceeded);
+  EXPECT_TRUE(store_->UnfinishedJobs().empty());
+}
+
+// The fence: once another daemon has claimed the job (the lease expired), every write of the
+// old holder fails and changes nothing; the new holder's succeed.
+TEST_P(StoreSuite, AnExpiredLeaseIsClaimedAgainAndItsOldHolderCannotWrite) {
+  const std::int64_t id = Create("fenced");
+  const Lease old_lease = ClaimOne("daemon-a", 0.2).lease;
+  ProgressBatch before;
+  before.trace.push_back(Row(0, 1.0));
+  before.checkpoint = "cp-0";
+  before.checkpoint_generation = 0;
+  store_->SaveProgress(old_lease, before);
+  EXPECT_FALSE(store_->ClaimNext("daemon-b", 30.0)) << "claimed while the lease held";
+  std::this_thread::sleep_for(400ms);
+  const Claim taken = ClaimOne("daemon-b");
+  EXPECT_EQ(taken.job.id, id);
+  EXPECT_EQ(taken.lease.epoch, old_lease.epoch + 1);
+  EXPECT_EQ(taken.job.checkpoint_generation, 0);
+
+  ProgressBatch late;
+  late.trace.push_back(Row(1, 0.5));
+  late.latest = late.trace.back();
+  late.checkpoint = "cp-1-stale";
+  late.checkpoint_generation = 1;
+  EXPECT_THROW(store_->SaveProgress(old_lease, late), LeaseLost);
+  EXPECT_THROW(store_->RewindTo(old_lease, -1), LeaseLost);
+  EXPECT_THROW(store_->MarkFinished(old_lease, JobState::kSucceeded, "", "{}", true, 2e9),
+               LeaseLost);
+  EXPECT_FALSE(store_->RenewLease(old_lease, 30.0).held);
+  store_->ReleaseLease(old_lease);  // a no-op: not its lease
+  EXPECT_FALSE(store_->ClaimNext("daemon-c", 30.0));
+  // Nothing of the old holder's late writes is there.
+  EXPECT_EQ(store_->GetTrace(id, -1, 10).size(), 1u);
+  EXPECT_EQ(*store_->GetCheckpoint(id), "cp-0");
+  EXPECT_EQ(store_->GetJob(id)->state, JobState::kRunning);
+
+  store_->SaveProgress(taken.lease, late);
+  store_->MarkFinished(taken.lease, JobState::kSucceeded, "", "{}", true, 2e9);
+  EXPECT_EQ(store_->GetJob(id)->state, JobState::kSucceeded);
+  // A finished job's lease is no one's.
+  EXPECT_THROW(store_->SaveProgress(taken.lease, late), LeaseLost);
+  EXPECT_FALSE(store_->RenewLease(taken.lease, 30.0).held);
+}
+
+TEST_P(StoreSuite, RenewedLeasesHoldAndReleasedOnesAreClaimedAtOnce) {
+  Create("held");
+  const Lease lease = ClaimOne("daemon-a", 0.3).lease;
+  for (int i = 0; i < 6; ++i) {
+    std::this_thread::sleep_for(100ms);
+    EXPECT_TRUE(store_->RenewLease(lease, 0.3).held);
+    EXPECT_FALSE(store_->ClaimNext("daemon-b", 30.0)) << "claimed a renewed lease";
+  }
+  store_->ReleaseLease(lease);
+  const std::optional<Claim> taken = store_->ClaimNext("daemon-b", 30.0);
+  ASSERT_TRUE(taken);
+  EXPECT_EQ(taken->lease.epoch, 2);
+  EXPECT_FALSE(store_->RenewLease(lease, 30.0).held);
+}
+
+TEST_P(StoreSuite, CancelsAreRequestsTheRunnersHeartbeatReads) {
+  const std::int64_t queued = Create("queued", 0);
+  const std::int64_t running = Create("running", 5);
+  const Claim claim = ClaimOne("daemon-a", 0.2);
+  ASSERT_EQ(claim.job.id, running);
+  EXPECT_EQ(store_->RequestCancel(queued), JobStore::CancelOutcome::kCancelled);
+  const auto cancelled = store_->GetJob(queued);
+  EXPECT_EQ(cancelled->state, JobState::kCancelled);
+  EXPECT_GT(cancelled->finished_at, 0.0);
+  EXPECT_EQ(cancelled->started_at, 0.0);
+  EXPECT_FALSE(store_->ClaimNext("daemon-b", 30.0)) << "a cancelled job was claimed";
+  EXPECT_EQ(store_->RequestCancel(queued), JobStore::CancelOutcome::kNotActive);
+
+  EXPECT_FALSE(store_->RenewLease(claim.lease, 0.2).cancel_requested);
+  EXPECT_EQ(store_->RequestCancel(running), JobStore::CancelOutcome::kRequested);
+  EXPECT_EQ(store_->GetJob(running)->state, JobState::kRunning);  // its runner ends it
+  const LeaseStatus status = store_->RenewLease(claim.lease, 0.2);
+  EXPECT_TRUE(status.held);
+  EXPECT_TRUE(status.cancel_requested);
+  // The runner died: the daemon that takes the job over learns of the cancel with its claim.
+  std::this_thread::sleep_for(400ms);
+  const Claim again = ClaimOne("daemon-b");
+  EXPECT_TRUE(again.cancel_requested);
+  store_->MarkFinished(again.lease, JobState::kCancelled, "", "{}", std::nullopt, 2e9);
+  EXPECT_EQ(store_->RequestCancel(running), JobStore::CancelOutcome::kNotActive);
+  EXPECT_EQ(store_->RequestCancel(12345), JobStore::CancelOutcome::kNotActive);
+}
+
+TEST_P(StoreSuite, DeleteRemovesEverythingOfAFinishedJobOnly) {
+  const std::int64_t id = store_->CreateJob(Job("d", 0, "k"), 100).job.id;
+  const Lease lease = ClaimOne("d").lease;
+  ProgressBatch b;
+  b.trace.push_back(Row(0, 1.0));
+  b.improvements.push_back({0, 0.0, 1.0, 1.0, 1, 1, Genome(12, 0)});
+  b.checkpoint = "cp";
+  b.checkpoint_generation = 0;
+  store_->SaveProgress(lease, b);
+  EXPECT_FALSE(store_->DeleteJob(id)) << "deleted a running job";
+  store_->MarkFinished(lease, JobState::kFailed, "boom", "", std::nullopt, 1.7e9);
+  EXPECT_EQ(store_->GetJob(id)->error, "boom");
+  EXPECT_FALSE(store_->GetResult(id));
+  EXPECT_TRUE(store_->DeleteJob(id));
+  EXPECT_FALSE(store_->DeleteJob(id));
+  EXPECT_FALSE(store_->GetJob(id));
+  EXPECT_TRUE(store_->GetTrace(id, -1, 10).empty());
+  EXPECT_TRUE(store_->GetImprovements(id).empty());
+  EXPECT_FALSE(store_->GetCheckpoint(id));
+  EXPECT_TRUE(store_->CreateJob(Job("d", 0, "k"), 100).created);  // the key is free again
+}
+
+// Many claimers at once, on one store or (PostgreSQL) on two stores of one database: every
+// job is claimed exactly once. Submitters racing the queue bound and one idempotency key:
+// the bound holds and the key makes one job.
+TEST_P(StoreSuite, ConcurrentClaimsAndSubmitsNeitherDuplicateNorOverflow) {
+  constexpr int kJobs = 60;
+  for (int i = 0; i < kJobs; ++i) Create("job-" + std::to_string(i));
+  std::unique_ptr<JobStore> second = factory_->Second();
+  JobStore& other = second ? *second : *store_;
+  std::mutex mutex;
+  std::vector<std::int64_t> claimed;
+  std::vector<std::future<void>> claimers;
+  for (int t = 0; t < 4; ++t) {
+    claimers.push_back(std::async(std::launch::async, [&, t] {
+      JobStore& store = t % 2 ? other : *store_;
+      while (auto claim = store.ClaimNext("daemon-" + std::to_string(t), 30.0)) {
+        std::lock_guard lock(mutex);
+        claimed.push_back(claim->job.id);
+      }
+    }));
+  }
+  for (auto& f : claimers) f.get();
+  std::sort(claimed.begin(), claimed.end());
+  EXPECT_EQ(claimed.size(), static_cast<std::size_t>(kJobs));
+  EXPECT_EQ(std::adjacent_find(claimed.begin(), claimed.end()), claimed.end())
+      << "a job claimed twice";
+
+  std::atomic<int> created{0};
+  std::atomic<int> full{0};
+  std::set<std::int64_t> keyed;
+  std::vector<std::future<void>> submitters;
+  for (int t = 0; t < 4; ++t) {
+    submitters.push_back(std::async(std::launch::async, [&, t] {
+      JobStore& store = t % 2 ? other : *store_;
+      for (int i = 0; i < 10; ++i) {
+        const auto c = store.CreateJob(Job("bounded"), 25);
+        if (c.created) ++created;
+        if (c.queue_full) ++full;
+        const auto k = store.CreateJob(Job("keyed", 0, "same-key"), 1000);
+        std::lock_guard lock(mutex);
+        keyed.insert(k.job.id);
+      }
+    }));
+  }
+  for (auto& f : submitters) f.get();
+  // 25 queued at most: "keyed" (1 job) and "bounded" share the bound, in either order.
+  EXPECT_EQ(store_->CountQueued(), 25);
+  EXPECT_GE(created.load(), 24);
+  EXPECT_EQ(created.load() + full.load(), 40);
+  EXPECT_EQ(keyed.size(), 1u);
+}
+
+// A store that fails the N-th write (fault injection): the write changes nothing and throws
+// StoreUnavailable, as a full disk or a lost connection does.
+class FailingStore final : public ForwardingStore {
+ public:
+  FailingStore(JobStore& inner, int fail_at) : ForwardingStore(inner), fail_at_(fail_at) {}
+  void SaveProgress(const Lease& lease, const ProgressBatch& batch) override {
+    if (++writes_ == fail_at_) throw StoreUnavailable("injected: the disk is full");
+    inner_.SaveProgress(lease, batch);
+  }
+  int writes() const { return writes_.load(); }
+
+ private:
+  int fail_at_;
+  std::atomic<int> writes_{0};
+};
+
+// A job whose store write fails is neither lost nor failed: it stays running in the store,
+// its lease lapses, and it is claimed again and resumes from its last checkpoint, ending
+// with exactly the trace and result of an uninterrupted run.
+TEST_P(StoreSuite, AFailedWriteLosesNothingAndTheJobResumesToTheSameResult) {
+  Scene scene = springfit::testing::GridScene(2, 3);
+  scene.search.strategy = Strategy::kPaper;
+  scene.search.max_generations = 60;
+  scene.search.stall_generations = 0;
+  scene.training_stiffness = 0.5;  // never exact: the run goes to its generation limit
+  scene.search.seed = 11;
+  NewJob job = Job("faulty");
+  job.scene_json = proto::SceneToJson(scene).dump();
+  job.record.strategy = "paper";
+
+  SchedulerOptions options;
+  options.workers = 1;
+  options.runner.checkpoint_seconds = 0.0;  // a checkpoint, and a write, every generation
+  options.lease_seconds = 0.4;
+  options.heartbeat_seconds = 0.1;
+  options.poll_seconds = 0.05;
+  const auto run = [&](JobStore& store) {
+    const std::int64_t id = store.CreateJob(job, 100).job.id;
+    Scheduler scheduler(store, options);
+    scheduler.Start();
+    const auto deadline = std::chrono::steady_clock::now() + 60s;
+    while (!proto::IsFinal(store.GetJob(id)->state) && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(20ms);
+    EXPECT_TRUE(scheduler.Stop(30s));
+    return id;
+  };
+  FailingStore failing(*store_, 20);
+  const std::int64_t faulty = run(failing);
+  EXPECT_GT(failing.writes(), 20) << "the job did not go on after the failed write";
+  const std::int64_t clean = run(*store_);
+
+  const auto a = store_->GetJob(faulty);
+  const auto b = store_->GetJob(clean);
+  ASSERT_EQ(a->state, JobState::kSucceeded) << a->error;
+  ASSERT_EQ(b->state, JobState::kSucceeded) << b->error;
+  const auto trace_a = store_->GetTrace(faulty, -1, 1000);
+  const auto trace_b = store_->GetTrace(clean, -1, 1000);
+  ASSERT_EQ(trace_a.size(), trace_b.size());
+  for (std::size_t i = 0; i < trace_a.size(); ++i)
+    EXPECT_TRUE(trace_a[i].SameSearchButCacheHits(trace_b[i])) << "generation " << i;
+  // The results agree but for wall times, the fitness cache's hits (a resumed job starts
+  // with an empty cache) and the job's id.
+  proto::Json ra = proto::ParseJson(*store_->GetResult(faulty));
+  proto::Json rb = proto::ParseJson(*store_->GetResult(clean));
+  for (proto::Json* r : {&ra, &rb}) {
+    for (const char* key : {"wall_seconds", "cache_hits", "job_id"}) r->erase(key);
+  }
+  EXPECT_EQ(ra, rb);
+}
+
+INSTANTIATE_TEST_SUITE_P(Stores, StoreSuite, ::testing::Values("sqlite", "postgresql"),
+                         [](const auto& param_info) { return param_info.param; });
+
+// PostgreSQL alone: a change made through one daemon's store wakes the others' listeners.
+TEST(PostgresStoreOnly, AJobSubmittedThroughOneStoreWakesTheOthers) {
+  PostgresFactory factory("t_wakeup");
+  std::unique_ptr<JobStore> a = factory.Open();
+  std::unique_ptr<JobStore> b = factory.Second();
+  std::atomic<int> wakes{0};
+  b->SetChangeListener([&] { ++wakes; });
+  std::this_thread::sleep_for(300ms);  // its LISTEN is in place
+  const int before = wakes.load();
+  a->CreateJob(NewJob{[] {
+                        JobRecord r;
+                        r.label = "x";
+                        r.scene_name = "s";
+                        r.strategy = "paper";
+                        return r;
+                      }(),
+                      "{}"},
+               10);
+  const auto deadline = std::chrono::steady_clock::now() + 5s;
+  while (wakes.load() == before && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(10ms);
+  EXPECT_GT(wakes.load(), before) << "no wake-up within 5 s";
+}
+
+}  // namespace
+}  // namespace springfit::server
