@@ -32,10 +32,17 @@ trap stop EXIT
 
 "${as_server[@]}" "$bindir/initdb" -D "$dir/data" -U springfit --auth=trust -E UTF8 \
   --no-locale --no-sync >"$dir/initdb.log" 2>&1 || { cat "$dir/initdb.log" >&2; exit 1; }
-# fsync off: a test server is thrown away, never recovered after a power cut.
-"${as_server[@]}" "$bindir/pg_ctl" -D "$dir/data" -l "$dir/server.log" -w -t 30 \
-  -o "-c listen_addresses='' -c unix_socket_directories='$dir' -c port=5432 -c fsync=off -c max_connections=200" \
-  start >/dev/null || { cat "$dir/server.log" >&2; exit 1; }
+# In the configuration, so that a test restarting the server (pg_ctl stop, start) gets the
+# same one. fsync off: a test server is thrown away, never recovered after a power cut.
+cat >>"$dir/data/postgresql.conf" <<CONF
+listen_addresses = ''
+unix_socket_directories = '$dir'
+port = 5432
+fsync = off
+max_connections = 200
+CONF
+"${as_server[@]}" "$bindir/pg_ctl" -D "$dir/data" -l "$dir/server.log" -w -t 30 start >/dev/null \
+  || { cat "$dir/server.log" >&2; exit 1; }
 
 export SPRINGFIT_TEST_PG_DIR="$dir"
 export SPRINGFIT_TEST_PG_BIN="$bindir"
