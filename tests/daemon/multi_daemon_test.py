@@ -336,6 +336,8 @@ def check_pause():
         fail("pause", f"job {job_id}: {job['state']}")
     if not wait_log(a, "lease lost", 10):
         fail("pause", "the resumed daemon A did not find its lease lost")
+    if f"job {job_id} succeeded" in a.log():
+        fail("pause", "the paused daemon ran the job to completion too")
     same_as_local("pause", b, job_id, KIDNEY, *flags)
     if rpc(a, "server.info").get("result", {}).get("daemon") != "pause-a":
         fail("pause", "daemon A does not answer after its pause")
