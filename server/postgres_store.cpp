@@ -354,7 +354,7 @@ void PostgresStore::Migrate() {
 
 int PostgresStore::schema_version() {
   return Read([&](pqxx::connection& c) {
-    pqxx::read_transaction w(c);
+    pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     return w.exec("SELECT version FROM springfit_schema")[0][0].as<int>();
   });
 }
@@ -419,7 +419,7 @@ JobStore::Created PostgresStore::CreateJob(const NewJob& job, int max_queued) {
 
 std::optional<JobRecord> PostgresStore::GetJob(std::int64_t id) {
   return Read([&](pqxx::connection& c) -> std::optional<JobRecord> {
-    pqxx::read_transaction w(c);
+    pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     const pqxx::result r = w.exec_prepared("get_job", id);
     if (r.empty()) return std::nullopt;
     return ReadJob(r[0]);
@@ -428,7 +428,7 @@ std::optional<JobRecord> PostgresStore::GetJob(std::int64_t id) {
 
 std::optional<std::string> PostgresStore::GetScene(std::int64_t id) {
   return Read([&](pqxx::connection& c) -> std::optional<std::string> {
-    pqxx::read_transaction w(c);
+    pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     const pqxx::result r = w.exec_prepared("get_scene", id);
     if (r.empty()) return std::nullopt;
     return r[0][0].as<std::string>();
@@ -437,7 +437,7 @@ std::optional<std::string> PostgresStore::GetScene(std::int64_t id) {
 
 JobPage PostgresStore::ListJobs(const JobFilter& f) {
   return Read([&](pqxx::connection& c) {
-    pqxx::read_transaction w(c);
+    pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     // Four shapes of one query; the parameters are bound, never spliced.
     std::string sql = "SELECT " SF_JOB_COLUMNS " FROM jobs WHERE id > $1";
     int n = 2;
@@ -467,7 +467,7 @@ JobPage PostgresStore::ListJobs(const JobFilter& f) {
 
 std::vector<JobRecord> PostgresStore::UnfinishedJobs() {
   return Read([&](pqxx::connection& c) {
-    pqxx::read_transaction w(c);
+    pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     std::vector<JobRecord> jobs;
     for (const auto& row : w.exec_prepared("unfinished")) jobs.push_back(ReadJob(row));
     return jobs;
@@ -476,7 +476,7 @@ std::vector<JobRecord> PostgresStore::UnfinishedJobs() {
 
 int PostgresStore::CountQueued() {
   return Read([&](pqxx::connection& c) {
-    pqxx::read_transaction w(c);
+    pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     return w.exec_prepared("count_queued")[0][0].as<int>();
   });
 }
@@ -595,7 +595,7 @@ JobStore::CancelOutcome PostgresStore::RequestCancel(std::int64_t id) {
 
 std::optional<std::string> PostgresStore::GetResult(std::int64_t id) {
   return Read([&](pqxx::connection& c) -> std::optional<std::string> {
-    pqxx::read_transaction w(c);
+    pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     const pqxx::result r = w.exec_prepared("get_result", id);
     if (r.empty() || r[0][0].is_null()) return std::nullopt;
     return r[0][0].as<std::string>();
@@ -604,7 +604,7 @@ std::optional<std::string> PostgresStore::GetResult(std::int64_t id) {
 
 std::vector<TraceRow> PostgresStore::GetTrace(std::int64_t id, int after, int limit) {
   return Read([&](pqxx::connection& c) {
-    pqxx::read_transaction w(c);
+    pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     std::vector<TraceRow> rows;
     for (const auto& q : w.exec_prepared("get_trace", id, after, limit)) {
       TraceRow r;
@@ -625,7 +625,7 @@ std::vector<TraceRow> PostgresStore::GetTrace(std::int64_t id, int after, int li
 
 std::vector<Improvement> PostgresStore::GetImprovements(std::int64_t id) {
   return Read([&](pqxx::connection& c) {
-    pqxx::read_transaction w(c);
+    pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     std::vector<Improvement> out;
     for (const auto& q : w.exec_prepared("get_improvements", id)) {
       Improvement m;
@@ -644,7 +644,7 @@ std::vector<Improvement> PostgresStore::GetImprovements(std::int64_t id) {
 
 std::optional<std::string> PostgresStore::GetCheckpoint(std::int64_t id) {
   return Read([&](pqxx::connection& c) -> std::optional<std::string> {
-    pqxx::read_transaction w(c);
+    pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     const pqxx::result r = w.exec_prepared("get_checkpoint", id);
     if (r.empty()) return std::nullopt;
     return Bytes(r[0][0]);

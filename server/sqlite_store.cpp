@@ -82,6 +82,8 @@ ALTER TABLE jobs ADD COLUMN lease_owner TEXT;
 ALTER TABLE jobs ADD COLUMN lease_epoch INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE jobs ADD COLUMN lease_expires REAL NOT NULL DEFAULT 0;
 ALTER TABLE jobs ADD COLUMN cancel_requested INTEGER NOT NULL DEFAULT 0;
+-- What a claim scans: the unfinished jobs in claim order, however many finished ones there are.
+CREATE INDEX jobs_to_claim ON jobs (priority DESC, id) WHERE state IN ('queued', 'running');
 )sql",
 };
 constexpr int kMigrationCount = static_cast<int>(std::size(kMigrations));
@@ -351,8 +353,11 @@ std::optional<Claim> SqliteStore::ClaimNext(const std::string& owner, double lea
     SQLite::Transaction tx(*db_);
     const double now = UnixNow();
     SQLite::Statement pick(*db_,
-                           "SELECT id FROM jobs WHERE state = 'queued' OR (state = 'running' AND "
-                           "lease_expires < ?) ORDER BY priority DESC, id LIMIT 1");
+                           // In claim order from the partial index: the first match ends the scan
+                           // (the planner, left alone, sorts every queued job at each claim).
+                           "SELECT id FROM jobs INDEXED BY jobs_to_claim WHERE state IN ('queued', "
+                           "'running') AND (state = 'queued' OR lease_expires < ?) ORDER BY "
+                           "priority DESC, id LIMIT 1");
     pick.bind(1, now);
     if (!pick.executeStep()) return std::nullopt;
     const std::int64_t id = pick.getColumn(0).getInt64();
