@@ -37,7 +37,8 @@ int main(int argc, char** argv) {
   std::string url;
   int jobs = 2000;
   app.add_option("--store", url, "sqlite:///FILE (created fresh) or postgresql://...")->required();
-  app.add_option("--jobs", jobs, "Jobs queued, then claimed one by one")->check(CLI::Range(10, 1000000));
+  app.add_option("--jobs", jobs, "Jobs queued, then claimed one by one")
+      ->check(CLI::Range(10, 1000000));
   CLI11_PARSE(app, argc, argv);
 
   StoreLocation location = ParseStoreUrl(url);
@@ -52,8 +53,7 @@ int main(int argc, char** argv) {
   job.record.genes = 72;
   job.scene_json = std::string(20000, ' ') + "{}";  // about a 5x5 scene's size
   std::vector<double> create, claim, renew, save;
-  for (int i = 0; i < jobs; ++i)
-    create.push_back(Time([&] { store->CreateJob(job, jobs + 1); }));
+  for (int i = 0; i < jobs; ++i) create.push_back(Time([&] { store->CreateJob(job, jobs + 1); }));
   ProgressBatch batch;
   springfit::TraceRow row;
   batch.trace.push_back(row);

@@ -74,6 +74,7 @@ Scheduler::Scheduler(JobStore& store, SchedulerOptions options)
 Scheduler::~Scheduler() {
   if (!Stop(std::chrono::hours(24 * 365))) {
     for (std::thread& t : runners_) t.detach();
+    if (monitor_.joinable()) monitor_.detach();
   }
 }
 

@@ -538,5 +538,22 @@ TEST(PostgresStoreOnly, AJobSubmittedThroughOneStoreWakesTheOthers) {
   EXPECT_GT(wakes.load(), before) << "no wake-up within 5 s";
 }
 
+// PostgreSQL alone: daemons starting together on a new database migrate it once (under the
+// advisory lock); none fails on a table another created.
+TEST(PostgresStoreOnly, DaemonsStartingTogetherMigrateOnce) {
+  PostgresFactory factory("t_migrate_together");
+  std::vector<std::future<int>> opens;
+  std::atomic<int> ready{0};
+  for (int i = 0; i < 4; ++i) {
+    opens.push_back(std::async(std::launch::async, [&] {
+      ++ready;
+      while (ready.load() < 4) std::this_thread::yield();
+      auto store = factory.Open();
+      return static_cast<PostgresStore&>(*store).schema_version();
+    }));
+  }
+  for (auto& f : opens) EXPECT_EQ(f.get(), PostgresStore::kSchemaVersion);
+}
+
 }  // namespace
 }  // namespace springfit::server
