@@ -10,19 +10,20 @@
 #include "client/commands.h"
 #include "client/error_reporting.h"
 #include "client/exit_codes.h"
-#include "client/figures/error_plot.h"
-#include "client/figures/topology_figure.h"
-#include "client/figures/tradeoff_plot.h"
 #include "client/remote_job.h"
 #include "client/result_source.h"
 #include "engine/input_error.h"
 #include "engine/search/search_options.h"
+#include "figures/error_plot.h"
+#include "figures/topology_figure.h"
+#include "figures/tradeoff_plot.h"
 #include "proto/rpc.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
 
 namespace springfit::cli {
 namespace {
+using namespace springfit::figures;  // the figures this command draws
 using proto::Json;
 
 std::string Describe(const proto::StoredResult& result) {

@@ -14,6 +14,7 @@ packages=(
   libsqlite3-dev libsqlitecpp-dev sqlite3
   libpqxx-dev              # the shared PostgreSQL store (libpq's C++ client)
   postgresql               # a private server the store and multi-daemon tests start
+  chromium                 # headless, loads the dashboard in tests/daemon/dashboard_test.py
   libcli11-dev             # command line
   libspdlog-dev libfmt-dev # logging
   libgtest-dev libgmock-dev libbenchmark-dev

@@ -16,6 +16,7 @@
 #pragma once
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -94,7 +95,10 @@ struct JobFilter {
   std::optional<JobState> state;
   std::optional<std::string> label;
   int limit = 100;
-  std::int64_t after_id = 0;  // the cursor: jobs with a greater id
+  // Oldest first from the cursor: jobs with a greater id. Newest first (the dashboard):
+  // jobs with a smaller id, or from the newest when the cursor is 0.
+  std::int64_t after_id = 0;
+  bool newest_first = false;
 };
 
 struct JobPage {
@@ -122,6 +126,8 @@ class JobStore {
   // Queued and running jobs, by priority (highest first) then id.
   virtual std::vector<JobRecord> UnfinishedJobs() = 0;
   virtual int CountQueued() = 0;
+  // Jobs by state (the states with none are absent).
+  virtual std::map<JobState, int> CountJobs() = 0;
 
   // The scheduler's side. ClaimNext takes the highest-priority queued job (then the oldest),
   // or a running one whose lease expired, for `owner` until `lease_seconds` from now (the

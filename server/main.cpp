@@ -16,6 +16,9 @@
 
 #include "proto/scene_codec.h"
 #include "proto/server_address.h"
+#include "server/dashboard.h"
+#include "server/http_server.h"
+#include "server/metered_store.h"
 #include "server/rpc_service.h"
 #include "server/scheduler.h"
 #include "server/store_url.h"
@@ -37,6 +40,8 @@ struct DaemonArgs {
   std::optional<int> max_running;
   std::string token_file;
   std::string port_file;
+  std::string http;  // HOST:PORT of the dashboard; empty: none
+  std::string http_port_file;
   std::string log_level = "info";
   double checkpoint_seconds = 10.0;
   double idle_seconds = 300.0;
@@ -53,6 +58,13 @@ std::string ReadToken(const std::string& path) {
   if (token.size() < 16)
     throw std::runtime_error("the token in " + path + " is shorter than 16 characters");
   return token;
+}
+
+void WritePortFile(const std::string& path, unsigned short port) {
+  if (path.empty()) return;
+  const std::string tmp = path + ".tmp";
+  std::ofstream(tmp) << port << "\n";
+  std::rename(tmp.c_str(), path.c_str());  // readers never see a half-written file
 }
 
 int RunDaemon(const DaemonArgs& args) {
@@ -78,7 +90,8 @@ int RunDaemon(const DaemonArgs& args) {
   if (!args.store_password_file.empty())
     location.password = sf::ReadPasswordFile(args.store_password_file);
   const std::unique_ptr<sf::JobStore> store_owner = sf::OpenStore(location);
-  sf::JobStore& store = *store_owner;
+  sf::Metrics metrics;
+  sf::MeteredStore store(*store_owner, metrics);  // store writes timed for /metrics
   sf::SchedulerOptions scheduler_options;
   scheduler_options.workers = args.workers;
   scheduler_options.max_running = args.max_running.value_or(args.workers);
@@ -86,6 +99,7 @@ int RunDaemon(const DaemonArgs& args) {
   scheduler_options.owner = args.name;
   scheduler_options.lease_seconds = args.lease_seconds;
   scheduler_options.heartbeat_seconds = std::min(1.0, args.lease_seconds / 3);
+  scheduler_options.metrics = &metrics;
   sf::Scheduler scheduler(store, scheduler_options);
 
   sf::ServiceOptions service_options;
@@ -93,6 +107,7 @@ int RunDaemon(const DaemonArgs& args) {
   service_options.limits = args.limits;
   service_options.workers = scheduler_options.workers;
   service_options.max_running = scheduler_options.max_running;
+  service_options.metrics = &metrics;
   sf::RpcService service(store, scheduler, service_options);
 
   boost::asio::io_context io;
@@ -105,6 +120,32 @@ int RunDaemon(const DaemonArgs& args) {
   sf::TcpServer server(io, service, net);
   server.Start();
 
+  // The dashboard, off by default; under the same rules as the JSON-RPC port.
+  std::optional<sf::Dashboard> dashboard;
+  std::optional<sf::HttpServer> http;
+  if (!args.http.empty()) {
+    const springfit::proto::ServerAddress http_address =
+        springfit::proto::ParseServerAddress(args.http, "--http");
+    const auto http_ip = boost::asio::ip::make_address(http_address.host, ec);
+    if (ec) throw std::runtime_error("--http: '" + http_address.host + "' is not an IP address");
+    if (!http_ip.is_loopback() && token.empty()) {
+      throw std::runtime_error("refusing to serve the dashboard on " + args.http +
+                               " without a token: other hosts could read every job "
+                               "(--token-file FILE)");
+    }
+    sf::DashboardOptions dashboard_options;
+    dashboard_options.token = token;
+    dashboard.emplace(store, scheduler, metrics, dashboard_options);
+    sf::HttpServerOptions http_options;
+    http_options.host = http_address.host;
+    http_options.port = http_address.port;
+    http.emplace(io, *dashboard, http_options);
+    http->Start();
+    spdlog::info("dashboard on http://{}:{}/{}", http_address.host, http->port(),
+                 token.empty() ? "" : " (token required)");
+    WritePortFile(args.http_port_file, http->port());
+  }
+
   const auto unfinished = store.UnfinishedJobs().size();
   scheduler.Start();
   spdlog::info(
@@ -112,11 +153,7 @@ int RunDaemon(const DaemonArgs& args) {
       scheduler.owner(), address.host, server.port(), store.Describe(), scheduler_options.workers,
       scheduler_options.max_running, token.empty() ? "" : ", token required",
       unfinished ? ", " + std::to_string(unfinished) + " unfinished jobs in the store" : "");
-  if (!args.port_file.empty()) {
-    const std::string tmp = args.port_file + ".tmp";
-    std::ofstream(tmp) << server.port() << "\n";
-    std::rename(tmp.c_str(), args.port_file.c_str());  // readers never see a half-written file
-  }
+  WritePortFile(args.port_file, server.port());
 
   boost::asio::signal_set signals(io, SIGINT, SIGTERM);
   std::thread stopper;
@@ -148,6 +185,7 @@ int RunDaemon(const DaemonArgs& args) {
         std::_Exit(1);
       }
       server.Stop();
+      if (http) http->Stop();
       boost::asio::post(io, [&] {
         signals.cancel();
         io.stop();
@@ -196,6 +234,11 @@ int main(int argc, char** argv) {
                  "File holding the token clients must present (session.auth)");
   app.add_option("--port-file", args.port_file,
                  "Write the port listened on to this file once listening");
+  app.add_option("--http", args.http,
+                 "Serve the web dashboard, /healthz and /metrics on HOST:PORT (off by default; "
+                 "beyond loopback only with --token-file)");
+  app.add_option("--http-port-file", args.http_port_file,
+                 "Write the dashboard's port to this file once listening");
   app.add_option("--log-level", args.log_level, "trace, debug, info, warn, error or off")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}))
       ->capture_default_str();

@@ -439,11 +439,15 @@ JobPage PostgresStore::ListJobs(const JobFilter& f) {
   return Read([&](pqxx::connection& c) {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     // Four shapes of one query; the parameters are bound, never spliced.
-    std::string sql = "SELECT " SF_JOB_COLUMNS " FROM jobs WHERE id > $1";
+    std::string sql = std::string("SELECT " SF_JOB_COLUMNS " FROM jobs WHERE ") +
+                      (!f.newest_first  ? "id > $1"
+                       : f.after_id > 0 ? "id < $1"
+                                        : "$1::bigint = 0");
     int n = 2;
     if (f.state) sql += " AND state = $" + std::to_string(n++);
     if (f.label) sql += " AND label = $" + std::to_string(n++);
-    sql += " ORDER BY id LIMIT $" + std::to_string(n);
+    sql += std::string(f.newest_first ? " ORDER BY id DESC" : " ORDER BY id") + " LIMIT $" +
+           std::to_string(n);
     const std::string state = f.state ? std::string(proto::JobStateName(*f.state)) : "";
     pqxx::result r;
     if (f.state && f.label) {
@@ -478,6 +482,18 @@ int PostgresStore::CountQueued() {
   return Read([&](pqxx::connection& c) {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     return w.exec_prepared("count_queued")[0][0].as<int>();
+  });
+}
+
+std::map<JobState, int> PostgresStore::CountJobs() {
+  return Read([&](pqxx::connection& c) {
+    pqxx::nontransaction w(c);
+    std::map<JobState, int> counts;
+    for (const auto& row : w.exec("SELECT state, count(*) FROM jobs GROUP BY state")) {
+      if (const auto state = proto::ParseJobState(row[0].as<std::string>()))
+        counts[*state] = row[1].as<int>();
+    }
+    return counts;
   });
 }
 

@@ -41,6 +41,7 @@ class PostgresStore final : public JobStore {
   JobPage ListJobs(const JobFilter& filter) override;
   std::vector<JobRecord> UnfinishedJobs() override;
   int CountQueued() override;
+  std::map<JobState, int> CountJobs() override;
   std::optional<Claim> ClaimNext(const std::string& owner, double lease_seconds) override;
   LeaseStatus RenewLease(const Lease& lease, double lease_seconds) override;
   void ReleaseLease(const Lease& lease) override;

@@ -15,6 +15,7 @@
 #include "proto/rpc.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
+#include "server/token.h"
 #include "server/unix_time.h"
 
 namespace springfit::server {
@@ -25,17 +26,6 @@ namespace {
 
 constexpr int kProtocolVersion = 1;
 constexpr std::size_t kMaxLabelBytes = 200;
-
-// Takes a time that depends only on the length of the token given, not on how much of it
-// is right.
-bool SameToken(const std::string& expected, const std::string& given) {
-  std::size_t diff = expected.size() ^ given.size();
-  for (std::size_t i = 0; i < given.size(); ++i) {
-    const auto e = static_cast<unsigned char>(i < expected.size() ? expected[i] : 0);
-    diff |= static_cast<unsigned char>(e ^ static_cast<unsigned char>(given[i]));
-  }
-  return diff == 0;
-}
 
 std::string ParamPath(std::string_view key) {
   return proto::JoinPath("params", key);
@@ -170,6 +160,13 @@ Json RpcService::HandleRequest(const Json& request, SessionContext& session) {
   } catch (const std::exception& e) {
     spdlog::error("{}: internal error: {}", method->get<std::string>(), e.what());
     response = rpc::Error(id, rpc::kInternalError, std::string("internal error: ") + e.what());
+  }
+  if (options_.metrics) {
+    // Unknown methods under one name: a client cannot grow the metrics without bound.
+    const bool unknown =
+        response.contains("error") && response["error"].value("code", 0) == rpc::kMethodNotFound;
+    options_.metrics->CountRequest(unknown ? "unknown" : method->get<std::string>(),
+                                   response.contains("error"));
   }
   return is_notification ? Json(nullptr) : response;
 }

@@ -11,6 +11,7 @@
 
 #include "proto/json_reader.h"
 #include "server/job_store.h"
+#include "server/metrics.h"
 #include "server/scheduler.h"
 
 namespace springfit::server {
@@ -27,8 +28,9 @@ struct ServiceLimits {
 struct ServiceOptions {
   std::string token;  // empty: no authentication
   ServiceLimits limits;
-  int workers = 1;      // for server.info
-  int max_running = 1;  // for server.info
+  int workers = 1;             // for server.info
+  int max_running = 1;         // for server.info
+  Metrics* metrics = nullptr;  // requests and errors by method, when set
 };
 
 // What the service knows of one connection.

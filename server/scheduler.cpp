@@ -209,6 +209,11 @@ void Scheduler::OnGeneration(std::int64_t id, Running& running, const JobRecord&
     std::lock_guard lock(mutex_);
     running.progress = row;
   }
+  if (options_.metrics) {
+    options_.metrics->AddEvaluations(static_cast<std::int64_t>(row.evaluations) -
+                                     running.evaluations);
+    running.evaluations = static_cast<std::int64_t>(row.evaluations);
+  }
   const auto now = std::chrono::steady_clock::now();
   if (row.generation != 0 && std::chrono::duration<double>(now - running.last_notified).count() <
                                  options_.progress_seconds) {
@@ -267,6 +272,9 @@ void Scheduler::RunClaimed(const Claim& claim) {
     auto slot = std::make_unique<Running>();
     slot->lease = claim.lease;
     slot->cancel.store(claim.cancel_requested);
+    // A resumed job's counters go on from its checkpoint: those were counted before.
+    if (claim.job.progress)
+      slot->evaluations = static_cast<std::int64_t>(claim.job.progress->evaluations);
     running = slot.get();
     running_[id] = std::move(slot);
   }

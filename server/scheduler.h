@@ -30,6 +30,7 @@
 #include "proto/json_reader.h"
 #include "server/job_runner.h"
 #include "server/job_store.h"
+#include "server/metrics.h"
 
 namespace springfit::server {
 
@@ -55,6 +56,9 @@ struct SchedulerOptions {
   // An idle runner looks for a job in the store this often when no wake-up came (a job
   // submitted here or announced by the store wakes it at once).
   double poll_seconds = 1.0;
+
+  // Counts the fitness evaluations of the jobs run here, when set (/metrics).
+  Metrics* metrics = nullptr;
 
   // Throws std::invalid_argument naming the option.
   void Validate() const;
@@ -108,6 +112,7 @@ class Scheduler {
     std::atomic<bool> lease_lost{false};
     std::optional<TraceRow> progress;  // guarded by mutex_
     std::chrono::steady_clock::time_point last_notified{};
+    std::int64_t evaluations = 0;  // counted into the metrics so far (the job's thread)
   };
 
   void RunnerLoop();

@@ -308,10 +308,13 @@ std::optional<std::string> SqliteStore::GetScene(std::int64_t id) {
 JobPage SqliteStore::ListJobs(const JobFilter& f) {
   return Guarded([&] {
     std::lock_guard lock(mutex_);
-    std::string sql = std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id > ?";
+    std::string sql = std::string("SELECT ") + kJobColumns + " FROM jobs WHERE " +
+                      (!f.newest_first  ? "id > ?"
+                       : f.after_id > 0 ? "id < ?"
+                                        : "? = 0");
     if (f.state) sql += " AND state = ?";
     if (f.label) sql += " AND label = ?";
-    sql += " ORDER BY id LIMIT ?";
+    sql += f.newest_first ? " ORDER BY id DESC LIMIT ?" : " ORDER BY id LIMIT ?";
     SQLite::Statement q(*db_, sql);
     int i = 1;
     q.bind(i++, f.after_id);
@@ -344,6 +347,19 @@ int SqliteStore::CountQueued() {
   return Guarded([&] {
     std::lock_guard lock(mutex_);
     return db_->execAndGet("SELECT count(*) FROM jobs WHERE state = 'queued'").getInt();
+  });
+}
+
+std::map<JobState, int> SqliteStore::CountJobs() {
+  return Guarded([&] {
+    std::lock_guard lock(mutex_);
+    SQLite::Statement q(*db_, "SELECT state, count(*) FROM jobs GROUP BY state");
+    std::map<JobState, int> counts;
+    while (q.executeStep()) {
+      if (const auto state = proto::ParseJobState(q.getColumn(0).getString()))
+        counts[*state] = q.getColumn(1).getInt();
+    }
+    return counts;
   });
 }
 

@@ -36,6 +36,7 @@ class SqliteStore final : public JobStore {
   JobPage ListJobs(const JobFilter& filter) override;
   std::vector<JobRecord> UnfinishedJobs() override;
   int CountQueued() override;
+  std::map<JobState, int> CountJobs() override;
   std::optional<Claim> ClaimNext(const std::string& owner, double lease_seconds) override;
   LeaseStatus RenewLease(const Lease& lease, double lease_seconds) override;
   void ReleaseLease(const Lease& lease) override;

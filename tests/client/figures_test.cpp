@@ -4,13 +4,13 @@
 #include <stdexcept>
 #include <string>
 
-#include "client/figures/error_plot.h"
-#include "client/figures/svg_document.h"
-#include "client/figures/topology_figure.h"
 #include "engine/input_error.h"
+#include "figures/error_plot.h"
+#include "figures/svg_document.h"
+#include "figures/topology_figure.h"
 #include "tests/test_scenes.h"
 
-namespace springfit::cli {
+namespace springfit::figures {
 namespace {
 
 int Count(const std::string& text, const std::string& what) {
@@ -141,4 +141,4 @@ TEST(ErrorPlot, StepsPerCurveAndAMarkerForExactRecovery) {
 }
 
 }  // namespace
-}  // namespace springfit::cli
+}  // namespace springfit::figures

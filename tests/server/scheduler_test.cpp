@@ -31,8 +31,8 @@
 #include "proto/rpc.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
+#include "server/forwarding_store.h"
 #include "server/sqlite_store.h"
-#include "tests/server/forwarding_store.h"
 #include "tests/test_scenes.h"
 
 namespace springfit::server {

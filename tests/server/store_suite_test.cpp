@@ -20,10 +20,10 @@
 #include <pqxx/pqxx>
 
 #include "proto/scene_codec.h"
+#include "server/forwarding_store.h"
 #include "server/postgres_store.h"
 #include "server/scheduler.h"
 #include "server/sqlite_store.h"
-#include "tests/server/forwarding_store.h"
 #include "tests/test_scenes.h"
 
 namespace springfit::server {
@@ -200,6 +200,21 @@ TEST_P(StoreSuite, ListPagesAndFilters) {
   both.state = JobState::kQueued;
   both.label = "even";
   EXPECT_EQ(store_->ListJobs(both).jobs.size(), 3u);  // the first "even" finished
+
+  // Newest first (the dashboard), paged by the same cursor.
+  JobFilter newest;
+  newest.newest_first = true;
+  newest.limit = 4;
+  std::vector<std::int64_t> down;
+  for (int page = 0; page < 10; ++page) {
+    const JobPage p = store_->ListJobs(newest);
+    for (const auto& j : p.jobs) down.push_back(j.id);
+    if (!p.next_cursor) break;
+    newest.after_id = *p.next_cursor;
+  }
+  EXPECT_EQ(down, std::vector<std::int64_t>(ids.rbegin(), ids.rend()));
+  const std::map<JobState, int> counts = store_->CountJobs();
+  EXPECT_EQ(counts, (std::map<JobState, int>{{JobState::kQueued, 6}, {JobState::kSucceeded, 1}}));
 }
 
 TEST_P(StoreSuite, ClaimsComeByPriorityThenSubmissionOncePerJob) {

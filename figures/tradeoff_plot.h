@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-namespace springfit::cli {
+namespace springfit::figures {
 
 struct TradeoffCurve {
   std::string label;
@@ -26,4 +26,4 @@ struct TradeoffPlotOptions {
 std::string RenderTradeoffPlot(const std::vector<TradeoffCurve>& curves, const std::string& title,
                                const TradeoffPlotOptions& options = {});
 
-}  // namespace springfit::cli
+}  // namespace springfit::figures

@@ -1,4 +1,4 @@
-#include "client/figures/error_plot.h"
+#include "figures/error_plot.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,10 +6,10 @@
 #include <limits>
 #include <stdexcept>
 
-#include "client/figures/plot_axes.h"
-#include "client/figures/svg_document.h"
+#include "figures/plot_axes.h"
+#include "figures/svg_document.h"
 
-namespace springfit::cli {
+namespace springfit::figures {
 namespace {
 
 constexpr double kLeft = 78.0, kRight = 24.0, kTop = 48.0, kBottom = 56.0;
@@ -106,4 +106,4 @@ std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::st
   return svg.str();
 }
 
-}  // namespace springfit::cli
+}  // namespace springfit::figures

@@ -1,5 +1,5 @@
-// A JobStore that forwards every call to another store: the base of the tests' stores that
-// hook or fail some calls (scheduler_test's HookedStore, store_suite's FailingStore).
+// A JobStore that forwards every call to another store: the base of stores that add to some
+// calls (MeteredStore's timings; the tests' hooked and failing stores).
 #pragma once
 #include "server/job_store.h"
 
@@ -17,6 +17,7 @@ class ForwardingStore : public JobStore {
   JobPage ListJobs(const JobFilter& filter) override { return inner_.ListJobs(filter); }
   std::vector<JobRecord> UnfinishedJobs() override { return inner_.UnfinishedJobs(); }
   int CountQueued() override { return inner_.CountQueued(); }
+  std::map<JobState, int> CountJobs() override { return inner_.CountJobs(); }
   std::optional<Claim> ClaimNext(const std::string& owner, double lease_seconds) override {
     return inner_.ClaimNext(owner, lease_seconds);
   }

@@ -8,7 +8,7 @@
 
 #include "engine/problem.h"
 
-namespace springfit::cli {
+namespace springfit::figures {
 
 struct TopologyFigureInput {
   std::string title;              // first heading line (scene, strategy, seed)
@@ -46,4 +46,4 @@ ViewPoint ProjectView(double x, double y, double z, double azimuth, double eleva
 std::string RenderTopologyFigure(const Problem& problem, const TopologyFigureInput& input,
                                  const TopologyFigureOptions& options = {});
 
-}  // namespace springfit::cli
+}  // namespace springfit::figures

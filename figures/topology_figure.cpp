@@ -1,4 +1,4 @@
-#include "client/figures/topology_figure.h"
+#include "figures/topology_figure.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,11 +6,11 @@
 #include <limits>
 #include <numbers>
 
-#include "client/figures/svg_document.h"
 #include "engine/cost.h"
 #include "engine/input_error.h"
+#include "figures/svg_document.h"
 
-namespace springfit::cli {
+namespace springfit::figures {
 namespace {
 
 constexpr double kMargin = 20.0;
@@ -389,4 +389,4 @@ std::string RenderTopologyFigure(const Problem& problem, const TopologyFigureInp
   return FigureWriter(problem, options).Write(input);
 }
 
-}  // namespace springfit::cli
+}  // namespace springfit::figures

@@ -3,7 +3,7 @@
 #include <cstddef>
 #include <string>
 
-namespace springfit::cli {
+namespace springfit::figures {
 
 // The CSS of a plot with `curves` curves: text, grid and frame, and per curve i the classes
 // `curve<i>` (its line) and `exact<i>` (a filled marker in its colour).
@@ -19,4 +19,4 @@ struct LogAxis {
   static LogAxis Over(double lo, double hi);
 };
 
-}  // namespace springfit::cli
+}  // namespace springfit::figures

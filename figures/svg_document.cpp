@@ -1,8 +1,8 @@
-#include "client/figures/svg_document.h"
+#include "figures/svg_document.h"
 
 #include <cstdio>
 
-namespace springfit::cli {
+namespace springfit::figures {
 namespace {
 
 // Two decimals: a hundredth of a pixel is below any viewer's resolution, and it keeps files
@@ -106,4 +106,4 @@ std::string SvgDocument::str() const {
   return out.str();
 }
 
-}  // namespace springfit::cli
+}  // namespace springfit::figures

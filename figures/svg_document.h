@@ -10,7 +10,7 @@
 
 #include "io/xml_text.h"
 
-namespace springfit::cli {
+namespace springfit::figures {
 
 struct Point2 {
   double x = 0.0;
@@ -51,4 +51,4 @@ class SvgDocument {
 
 using io::XmlEscape;  // (io/xml_text.h)
 
-}  // namespace springfit::cli
+}  // namespace springfit::figures

@@ -1,9 +1,9 @@
-#include "client/figures/plot_axes.h"
+#include "figures/plot_axes.h"
 
 #include <cmath>
 #include <iterator>
 
-namespace springfit::cli {
+namespace springfit::figures {
 namespace {
 
 // Eight colours that stay apart for colour-blind readers (Okabe and Ito).
@@ -45,4 +45,4 @@ LogAxis LogAxis::Over(double lo, double hi) {
   return axis;
 }
 
-}  // namespace springfit::cli
+}  // namespace springfit::figures

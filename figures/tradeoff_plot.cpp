@@ -1,4 +1,4 @@
-#include "client/figures/tradeoff_plot.h"
+#include "figures/tradeoff_plot.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,10 +6,10 @@
 #include <limits>
 #include <stdexcept>
 
-#include "client/figures/plot_axes.h"
-#include "client/figures/svg_document.h"
+#include "figures/plot_axes.h"
+#include "figures/svg_document.h"
 
-namespace springfit::cli {
+namespace springfit::figures {
 namespace {
 
 constexpr double kLeft = 78.0, kRight = 24.0, kTop = 48.0, kBottom = 56.0;
@@ -133,4 +133,4 @@ std::string RenderTradeoffPlot(const std::vector<TradeoffCurve>& curves, const s
   return svg.str();
 }
 
-}  // namespace springfit::cli
+}  // namespace springfit::figures

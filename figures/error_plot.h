@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-namespace springfit::cli {
+namespace springfit::figures {
 
 struct ErrorCurve {
   std::string label;
@@ -22,4 +22,4 @@ struct ErrorPlotOptions {
 std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::string& title,
                             const ErrorPlotOptions& options = {});
 
-}  // namespace springfit::cli
+}  // namespace springfit::figures

@@ -1,0 +1,88 @@
+// The daemon's web dashboard, read-only (springfitd --http; README "The dashboard"): pages of
+// jobs, progress and figures, the downloads of a job, /healthz and /metrics. Plain requests
+// and answers, no sockets: http_server.h carries them, and tests call Handle directly.
+//
+// Pages are server-rendered HTML with springfit's own SVG figures; nothing is fetched from
+// elsewhere, and they work without JavaScript but for the live update of a running job's
+// progress (a request a second). Every piece of user text is escaped.
+//
+// With a token (--token-file) every route but /healthz and /login asks for it: an
+// `Authorization: Bearer TOKEN` header, or the HttpOnly cookie the login form sets.
+#pragma once
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "engine/problem.h"
+#include "server/job_store.h"
+#include "server/metrics.h"
+#include "server/scheduler.h"
+
+namespace springfit::server {
+
+struct HttpRequest {
+  std::string method;                          // GET, POST, ...
+  std::string target;                          // path and query, as sent
+  std::map<std::string, std::string> headers;  // names in lower case
+  std::string body;
+};
+
+struct HttpResponse {
+  int status = 200;
+  std::string content_type = "text/plain; charset=utf-8";
+  std::string body;
+  std::vector<std::pair<std::string, std::string>> headers;  // extra ones
+};
+
+struct DashboardOptions {
+  std::string token;   // empty: no authentication
+  int page_size = 50;  // jobs per page of /
+  // Scenes kept prepared for the topology figures (preparing a large one takes a while).
+  int cached_problems = 4;
+};
+
+class Dashboard {
+ public:
+  Dashboard(JobStore& store, Scheduler& scheduler, Metrics& metrics, DashboardOptions options);
+
+  // Never throws: errors are answers (404, 400, 503 when the store does not answer, 500).
+  HttpResponse Handle(const HttpRequest& request);
+  void Count(int status) { metrics_.CountHttpRequest(status); }
+
+ private:
+  HttpResponse Route(const HttpRequest& request, const std::string& path,
+                     const std::map<std::string, std::string>& query);
+  bool Authorized(const HttpRequest& request) const;
+  HttpResponse Login(const HttpRequest& request);
+  HttpResponse Health();
+  HttpResponse MetricsText();
+  HttpResponse ListView(const std::map<std::string, std::string>& query);
+  HttpResponse JobView(const JobRecord& job);
+  HttpResponse Progress(const JobRecord& job);
+  HttpResponse ErrorPlot(const JobRecord& job);
+  HttpResponse Topology(const JobRecord& job, const std::string& which);
+  HttpResponse ResultJson(const JobRecord& job);
+  HttpResponse TraceCsv(const JobRecord& job);
+  HttpResponse Model(const JobRecord& job, const std::string& extension);
+
+  // The job's record with its live progress when it runs here.
+  JobRecord Live(JobRecord job) const;
+  std::shared_ptr<const Problem> ProblemOf(const JobRecord& job);
+  std::string ErrorPlotSvg(const JobRecord& job);
+  // The topology figure of the result (finished jobs) or of the best so far; empty when
+  // there is none yet.
+  std::string TopologySvg(const JobRecord& job, bool result);
+
+  JobStore& store_;
+  Scheduler& scheduler_;
+  Metrics& metrics_;
+  DashboardOptions options_;
+  std::mutex problems_mutex_;
+  std::vector<std::pair<std::int64_t, std::shared_ptr<const Problem>>> problems_;  // newest last
+};
+
+}  // namespace springfit::server
