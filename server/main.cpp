@@ -1,4 +1,5 @@
 // springfitd: the identification daemon (README.md, "The daemon"; proto/RPC.md).
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -18,6 +19,7 @@
 #include "proto/server_address.h"
 #include "server/dashboard.h"
 #include "server/http_server.h"
+#include "server/log_format.h"
 #include "server/metered_store.h"
 #include "server/rpc_service.h"
 #include "server/scheduler.h"
@@ -60,6 +62,25 @@ std::string ReadToken(const std::string& path) {
   return token;
 }
 
+// Each connection holds a descriptor; the store, logs and the dashboard some more. A limit
+// below what --max-connections allows would make the daemon fail to accept (or to open its
+// database) under load: the soft limit is raised to what is needed where the hard one allows,
+// and the start is refused otherwise.
+void CheckDescriptorLimit(int connections) {
+  constexpr rlim_t kReserve = 64;  // the store's connections, the log, the port files
+  const rlim_t needed = static_cast<rlim_t>(connections) + kReserve;
+  rlimit limit{};
+  if (::getrlimit(RLIMIT_NOFILE, &limit) != 0 || limit.rlim_cur >= needed) return;
+  if (limit.rlim_max == RLIM_INFINITY || limit.rlim_max >= needed) {
+    limit.rlim_cur = needed;
+    if (::setrlimit(RLIMIT_NOFILE, &limit) == 0) return;
+  }
+  throw std::runtime_error(
+      "--max-connections " + std::to_string(connections) + " needs " + std::to_string(needed) +
+      " file descriptors, above this process's limit of " + std::to_string(limit.rlim_max) +
+      " (raise it with ulimit -n or LimitNOFILE=, or lower --max-connections)");
+}
+
 void WritePortFile(const std::string& path, unsigned short port) {
   if (path.empty()) return;
   const std::string tmp = path + ".tmp";
@@ -70,7 +91,7 @@ void WritePortFile(const std::string& path, unsigned short port) {
 int RunDaemon(const DaemonArgs& args) {
   const auto level = spdlog::level::from_str(args.log_level);
   spdlog::set_level(level);
-  spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
+  sf::InstallLogFormat();  // every message escaped and bounded (server/log_format.h)
 
   const springfit::proto::ServerAddress address =
       springfit::proto::ParseServerAddress(args.listen, "--listen");
@@ -89,6 +110,7 @@ int RunDaemon(const DaemonArgs& args) {
                          : args.store);
   if (!args.store_password_file.empty())
     location.password = sf::ReadPasswordFile(args.store_password_file);
+  CheckDescriptorLimit(args.max_connections + (args.http.empty() ? 0 : 64));
   const std::unique_ptr<sf::JobStore> store_owner = sf::OpenStore(location);
   sf::Metrics metrics;
   sf::MeteredStore store(*store_owner, metrics);  // store writes timed for /metrics

@@ -277,6 +277,17 @@ Json RpcService::JobSubmit(const Json& params) {
   const Json& scene_json = proto::RequiredMember(params, "params", "scene");
   if (!scene_json.is_object())
     throw InputError(ParamPath("scene"), "expected a scene object (proto/SCENE.md)");
+  // The name is shown in every listing and log line: bounded before anything is built.
+  if (const auto name = scene_json.find("name");
+      name != scene_json.end() && name->is_string() &&
+      name->get_ref<const std::string&>().size() > kMaxLabelBytes) {
+    Json data;
+    data["path"] = "scene.name";
+    throw rpc::RpcError(
+        rpc::kInvalidScene,
+        "invalid scene: scene.name: longer than " + std::to_string(kMaxLabelBytes) + " bytes",
+        data);
+  }
 
   // The scene is validated in full here, so that a bad one is refused at the door rather
   // than failing later as a job.
@@ -446,14 +457,24 @@ Json RpcService::JobList(const Json& params) {
   const JobPage page = store_.ListJobs(filter);
   Json j;
   Json jobs = Json::array();
+  std::optional<std::int64_t> next_cursor = page.next_cursor;
+  std::size_t bytes = 0;
   for (JobRecord job : page.jobs) {
     if (job.state == JobState::kRunning) {
       if (auto live = scheduler_.LiveProgress(job.id)) job.progress = live;
     }
-    jobs.push_back(proto::JobToJson(job));
+    Json row = proto::JobToJson(job);
+    bytes += row.dump().size();
+    // A page ends early where it would grow past the byte bound; the cursor goes on from
+    // the last job in it (at least one job per page, whatever its size).
+    if (!jobs.empty() && bytes > options_.limits.max_list_bytes) {
+      next_cursor = jobs.back().at("job_id").get<std::int64_t>();
+      break;
+    }
+    jobs.push_back(std::move(row));
   }
   j["jobs"] = std::move(jobs);
-  j["next_cursor"] = page.next_cursor ? Json(*page.next_cursor) : Json(nullptr);
+  j["next_cursor"] = next_cursor ? Json(*next_cursor) : Json(nullptr);
   return j;
 }
 
@@ -500,6 +521,11 @@ Json RpcService::JobDelete(const Json& params) {
 Json RpcService::JobWatch(const Json& params, SessionContext& session) {
   proto::ExpectKeys(params, "params", {"job_id"});
   const JobRecord before = RequireJob(params);
+  // Each watch is fed by the daemon: one connection cannot ask for an unbounded stream.
+  if (static_cast<int>(session.watches.size()) >= options_.limits.max_watches) {
+    LimitExceeded("max_watches", static_cast<std::int64_t>(session.watches.size()) + 1,
+                  options_.limits.max_watches);
+  }
   // job.finished at most once on this connection, whether the job's runner or this handler
   // (for a job already finished) sends it.
   auto finished_sent = std::make_shared<std::atomic<bool>>(false);

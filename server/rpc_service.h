@@ -23,6 +23,10 @@ struct ServiceLimits {
   int max_queued = 10000;           // queued jobs, all clients together
   int max_batch = 100;              // requests in one JSON-RPC batch
   int max_page = 10000;             // rows or jobs in one job.trace / job.list answer
+  int max_watches = 100;            // job.watch subscriptions open on one connection
+  // Bytes of jobs in one job.list answer: a page ends early (with its cursor) beyond it, so
+  // that a listing always fits a client's message limit.
+  std::size_t max_list_bytes = std::size_t{4} << 20;
 };
 
 struct ServiceOptions {

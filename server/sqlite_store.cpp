@@ -203,6 +203,16 @@ SqliteStore::SqliteStore(const std::string& path) : path_(path) {
     db_->exec("PRAGMA journal_mode = WAL");
     db_->exec("PRAGMA synchronous = FULL");
     db_->exec("PRAGMA foreign_keys = ON");
+    // A damaged file is refused at the start, not found job by job later (quick_check reads
+    // every page once: linear in the file's size, without the index cross-checks).
+    {
+      SQLite::Statement check(*db_, "PRAGMA quick_check(1)");
+      if (check.executeStep() && check.getColumn(0).getString() != "ok") {
+        throw std::runtime_error("the database " + path + " is damaged (PRAGMA quick_check: " +
+                                 check.getColumn(0).getString() +
+                                 "); restore it from a backup, or move it aside to start anew");
+      }
+    }
     Migrate();
     // The lock says no other daemon runs: the leases of running jobs are a dead daemon's
     // (this one's before a crash or a stop), and its jobs resume at once.

@@ -130,12 +130,18 @@ class Session : public std::enable_shared_from_this<Session> {
       return;
     }
     handling_ = true;
-    asio::post(server_.handlers_, [self = shared_from_this(), text = std::move(text)] {
-      std::string answer = self->server_.service_.HandleMessage(text, self->context_);
-      asio::post(self->server_.io_, [self, answer = std::move(answer)]() mutable {
-        self->OnHandled(std::move(answer));
-      });
-    });
+    // A submission validates and prepares its scene, which can take seconds for a large one:
+    // it waits for a preparation thread, so that every other request (server.info, job.get)
+    // is answered at once meanwhile. A message that merely mentions the method (a label)
+    // takes the slower path, nothing worse.
+    const bool submission = text.find("\"job.submit\"") != std::string::npos;
+    asio::post(submission ? server_.preparers_ : server_.handlers_,
+               [self = shared_from_this(), text = std::move(text)] {
+                 std::string answer = self->server_.service_.HandleMessage(text, self->context_);
+                 asio::post(self->server_.io_, [self, answer = std::move(answer)]() mutable {
+                   self->OnHandled(std::move(answer));
+                 });
+               });
   }
 
   void OnHandled(std::string answer) {
@@ -250,10 +256,12 @@ TcpServer::TcpServer(asio::io_context& io, RpcService& service, TcpServerOptions
       service_(service),
       options_(std::move(options)),
       acceptor_(io),
-      handlers_(static_cast<std::size_t>(std::max(1, options_.handler_threads))) {}
+      handlers_(static_cast<std::size_t>(std::max(1, options_.handler_threads))),
+      preparers_(static_cast<std::size_t>(std::max(1, options_.preparation_threads))) {}
 
 TcpServer::~TcpServer() {
   handlers_.join();
+  preparers_.join();
 }
 
 void TcpServer::Start() {
@@ -274,10 +282,19 @@ void TcpServer::Start() {
 void TcpServer::Accept() {
   acceptor_.async_accept([this](boost::system::error_code ec, tcp::socket socket) {
     if (ec) {
-      if (ec != asio::error::operation_aborted) {
-        spdlog::warn("accept: {}", ec.message());
-        Accept();
+      if (ec == asio::error::operation_aborted) return;
+      // Out of file descriptors (EMFILE) and the like: the pending connection stays in the
+      // backlog, so accepting again at once would fail again at once. Wait a little, and log
+      // the condition once per second at most.
+      const auto now = std::chrono::steady_clock::now();
+      if (now - last_accept_warning_ > std::chrono::seconds(1)) {
+        spdlog::warn("accept: {}; retrying in 100 ms", ec.message());
+        last_accept_warning_ = now;
       }
+      auto timer = std::make_shared<asio::steady_timer>(io_, std::chrono::milliseconds(100));
+      timer->async_wait([this, timer](boost::system::error_code) {
+        if (acceptor_.is_open()) Accept();
+      });
       return;
     }
     auto session = std::make_shared<Session>(*this, std::move(socket));

@@ -1,6 +1,7 @@
 // The daemon's network side: a Boost.Asio acceptor and one session per connection, all on
-// one I/O thread; requests are handled on a small pool so that a slow request (a large
-// scene's validation) never stalls other connections.
+// one I/O thread; requests are handled on a small pool, and submissions (a large scene's
+// validation and preparation) on a pool of their own, so that a slow request never stalls
+// other connections or the cheap requests.
 //
 // A session reads bytes, frames them into JSON messages (proto/json_framer.h), hands them
 // one at a time to the RpcService, and writes each answer as one line. Notifications that
@@ -10,6 +11,7 @@
 // output of a slow reader (close), idle time without a watched job (close), and the number
 // of connections (refused with an error).
 #pragma once
+#include <chrono>
 #include <cstddef>
 #include <memory>
 #include <set>
@@ -32,6 +34,9 @@ struct TcpServerOptions {
                                    << 20;  // unread answers before a slow reader is dropped
   double idle_seconds = 300.0;
   int handler_threads = 2;
+  // job.submit requests (their scenes validated and prepared) run on these, apart from the
+  // handlers, so that a large submission never delays other requests.
+  int preparation_threads = 2;
 };
 
 class Session;
@@ -59,8 +64,10 @@ class TcpServer {
   TcpServerOptions options_;
   boost::asio::ip::tcp::acceptor acceptor_;
   boost::asio::thread_pool handlers_;
+  boost::asio::thread_pool preparers_;
   std::set<std::shared_ptr<Session>> sessions_;
   unsigned short port_ = 0;
+  std::chrono::steady_clock::time_point last_accept_warning_{};
 };
 
 }  // namespace springfit::server

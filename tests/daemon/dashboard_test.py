@@ -25,7 +25,7 @@ DAEMON, CLI, SRC = sys.argv[1:4]
 SCREENSHOT = sys.argv[4] if len(sys.argv) > 4 else None
 TMP = tempfile.mkdtemp(prefix="springfit-dashboard-")
 TOKEN = "dashboard-token-0123456789abcdef"
-LABEL = "<script>alert('x')</script> & \"quoted\""
+LABEL = "<script>alert('x')</script> & \"quoted\"\ncritical FORGED: token accepted"
 failures = []
 current = "?"
 procs = []
@@ -119,6 +119,11 @@ def check_pages(rpc_port, port):
     expect("&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt; &amp; &quot;quoted&quot;" in page or
            "&lt;script&gt;alert('x')&lt;/script&gt; &amp; &quot;quoted&quot;" in page,
            "the label is not shown escaped on /")
+    # The label's newline cannot forge a log line (server/log_format.h).
+    log = open(os.path.join(TMP, "main.log")).read()
+    expect(not any(line.startswith("critical FORGED") for line in log.splitlines()),
+           "a label forged a log line")
+    expect("\\ncritical FORGED" in log, "the label's newline is not escaped in the log")
     status, _, filtered = get(port, "/?state=succeeded")
     expect(status == 200 and f'/jobs/{done}"' in filtered and f'/jobs/{running}"' not in filtered,
            "/?state=succeeded filters")

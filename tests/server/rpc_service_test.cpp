@@ -372,5 +372,58 @@ TEST_F(RpcServiceTest, RunningJobCancelsWithinAGenerationAndKeepsItsBest) {
   service_->EndSession(session_);
 }
 
+// Bounds on what one request can make the daemon hold or send: scene names, watches per
+// connection, bytes per job.list page.
+TEST_F(RpcServiceTest, NamesWatchesAndListPagesAreBounded) {
+  ServiceOptions options;
+  options.limits.max_watches = 3;
+  options.limits.max_list_bytes = 2000;  // a few jobs a page
+  MakeService(false, options);
+  Json long_name = Scene("paper-iso-5x5");
+  long_name["name"] = std::string(201, 'n');
+  Json params;
+  params["scene"] = long_name;
+  const Json refused = Call("job.submit", params);
+  ASSERT_TRUE(refused.contains("error")) << refused.dump();
+  EXPECT_EQ(Code(refused), rpc::kInvalidScene);
+  EXPECT_EQ(refused["error"]["data"]["path"], "scene.name");
+  long_name["name"] = std::string(200, 'n');
+  params["scene"] = long_name;
+  EXPECT_TRUE(Call("job.submit", params).contains("result"));
+
+  std::vector<std::int64_t> ids;
+  for (int i = 0; i < 11; ++i)
+    ids.push_back(Submit("paper-iso-5x5")["result"]["job"]["job_id"].get<std::int64_t>());
+  for (int i = 0; i < 3; ++i) {
+    Json p;
+    p["job_id"] = ids[static_cast<std::size_t>(i)];
+    EXPECT_TRUE(Call("job.watch", p).contains("result")) << "watch " << i;
+  }
+  Json p;
+  p["job_id"] = ids[3];
+  const Json fourth = Call("job.watch", p);
+  ASSERT_TRUE(fourth.contains("error")) << fourth.dump();
+  EXPECT_EQ(Code(fourth), rpc::kLimitExceeded);
+  EXPECT_EQ(fourth["error"]["data"]["limit"], "max_watches");
+
+  // Every job once, in order, over pages cut by bytes rather than by the count asked for.
+  std::vector<std::int64_t> listed;
+  Json cursor = nullptr;
+  int pages = 0;
+  do {
+    Json q;
+    q["limit"] = 100;
+    if (!cursor.is_null()) q["cursor"] = cursor;
+    const Json page = Call("job.list", q)["result"];
+    EXPECT_LE(page["jobs"].dump().size(), 2000u + 600u);  // the bound, and at most one job past it
+    for (const Json& j : page["jobs"]) listed.push_back(j["job_id"].get<std::int64_t>());
+    cursor = page["next_cursor"];
+    ++pages;
+  } while (!cursor.is_null() && pages < 50);
+  EXPECT_GT(pages, 2);
+  EXPECT_EQ(listed.size(), 12u);
+  EXPECT_TRUE(std::is_sorted(listed.begin(), listed.end()));
+}
+
 }  // namespace
 }  // namespace springfit::server

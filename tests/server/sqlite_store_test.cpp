@@ -1,6 +1,7 @@
 #include "server/sqlite_store.h"
 
 #include <filesystem>
+#include <fstream>
 
 #include <SQLiteCpp/SQLiteCpp.h>
 #include <gtest/gtest.h>
@@ -92,6 +93,30 @@ TEST_F(SqliteStoreTest, ASecondDaemonOnTheSameDatabaseIsRefused) {
   }
   first.CreateJob(Job("still fine"), 10);  // the refused one changed nothing
   EXPECT_EQ(first.CountQueued(), 1);
+}
+
+TEST_F(SqliteStoreTest, ADamagedDatabaseIsRefusedAtTheStart) {
+  {
+    SqliteStore store(path_);
+    for (int i = 0; i < 200; ++i) store.CreateJob(Job("job-" + std::to_string(i)), 1000);
+  }
+  {
+    // Pages past the header overwritten, as a failing disk would leave them.
+    std::fstream f(path_, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(3 * 4096);
+    const std::string garbage(2 * 4096, '\xa5');
+    f.write(garbage.data(), static_cast<std::streamsize>(garbage.size()));
+  }
+  try {
+    SqliteStore store(path_);
+    FAIL() << "opened a damaged database";
+  } catch (const std::runtime_error& e) {
+    const std::string why = e.what();
+    EXPECT_NE(why.find(path_), std::string::npos) << why;
+    EXPECT_TRUE(why.find("damaged") != std::string::npos ||
+                why.find("malformed") != std::string::npos)
+        << why;
+  }
 }
 
 // The jobs table of version 1 (the other tables are untouched by the migration to 2).
