@@ -72,6 +72,9 @@ Scheduler::Scheduler(JobStore& store, SchedulerOptions options)
 }
 
 Scheduler::~Scheduler() {
+  // The store outlives the scheduler: its listening thread must not call into a scheduler
+  // that is gone.
+  store_.SetChangeListener(nullptr);
   if (!Stop(std::chrono::hours(24 * 365))) {
     for (std::thread& t : runners_) t.detach();
     if (monitor_.joinable()) monitor_.detach();
