@@ -47,6 +47,7 @@ struct DaemonArgs {
   std::string log_level = "info";
   double checkpoint_seconds = 10.0;
   double idle_seconds = 300.0;
+  double message_seconds = 30.0;
   double shutdown_seconds = 10.0;
   sf::ServiceLimits limits;
   int max_connections = 256;
@@ -139,6 +140,7 @@ int RunDaemon(const DaemonArgs& args) {
   net.max_connections = args.max_connections;
   net.max_message_bytes = args.max_message_bytes;
   net.idle_seconds = args.idle_seconds;
+  net.message_seconds = args.message_seconds;
   sf::TcpServer server(io, service, net);
   server.Start();
 
@@ -271,6 +273,10 @@ int main(int argc, char** argv) {
   app.add_option("--idle-seconds", args.idle_seconds,
                  "Close connections idle this long (not while watching a job)")
       ->check(CLI::Range(1.0, 86400.0))
+      ->capture_default_str();
+  app.add_option("--message-seconds", args.message_seconds,
+                 "Close a connection whose message is not complete this long after it began")
+      ->check(CLI::Range(0.1, 86400.0))
       ->capture_default_str();
   app.add_option("--shutdown-seconds", args.shutdown_seconds,
                  "On SIGTERM, wait this long for running jobs to checkpoint")

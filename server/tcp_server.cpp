@@ -87,6 +87,16 @@ class Session : public std::enable_shared_from_this<Session> {
       return;
     }
     last_activity_ = std::chrono::steady_clock::now();
+    // A message, once begun, must be complete within message_seconds: a client trickling a
+    // byte at a time would otherwise hold its connection (and a slot) for ever, since every
+    // byte resets the idle clock.
+    if (message_started_ && last_activity_ - *message_started_ >
+                                std::chrono::duration<double>(server_.options_.message_seconds)) {
+      spdlog::info("connection {}: a message not completed within {:.0f} s; closing", peer_,
+                   server_.options_.message_seconds);
+      Close();
+      return;
+    }
     for (proto::JsonFramer::Frame& frame : framer_.Feed(std::string_view(buffer_.data(), n))) {
       switch (frame.kind) {
         case proto::JsonFramer::Frame::Kind::kMessage:
@@ -107,6 +117,11 @@ class Session : public std::enable_shared_from_this<Session> {
           break;
         }
       }
+    }
+    if (framer_.at_boundary()) {
+      message_started_.reset();
+    } else if (!message_started_) {
+      message_started_ = last_activity_;
     }
     HandleNext();
     Read();
@@ -243,6 +258,8 @@ class Session : public std::enable_shared_from_this<Session> {
   std::vector<proto::Json> deferred_;
   std::size_t pending_output_ = 0;
   std::size_t finished_sent_ = 0;  // job.finished notifications: a watch is open until its own
+  // When the message being received began (unset between messages).
+  std::optional<std::chrono::steady_clock::time_point> message_started_;
   bool reading_ = false;
   bool handling_ = false;
   bool writing_ = false;

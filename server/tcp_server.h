@@ -8,7 +8,9 @@
 // job threads send (job.watch) are posted to the I/O thread and written after any answer
 // in flight. Bounds, each ending only the offending connection: message size (error, then
 // close), nesting depth and garbage (error, resynchronised at the next newline), unwritten
-// output of a slow reader (close), idle time without a watched job (close), and the number
+// output of a slow reader (close), idle time without a watched job (close), a message begun
+// and not completed within message_seconds (close: a byte at a time is no way to hold a
+// connection), and the number
 // of connections (refused with an error).
 #pragma once
 #include <chrono>
@@ -33,6 +35,7 @@ struct TcpServerOptions {
   std::size_t max_pending_output = std::size_t{64}
                                    << 20;  // unread answers before a slow reader is dropped
   double idle_seconds = 300.0;
+  double message_seconds = 30.0;  // to complete a message once its first byte arrived
   int handler_threads = 2;
   // job.submit requests (their scenes validated and prepared) run on these, apart from the
   // handlers, so that a large submission never delays other requests.

@@ -708,6 +708,34 @@ def test_auth(ctx):
     R.expect(not os.path.exists(os.path.join(bad_dir, "port")), "0.0.0.0 without a token wrote a port file")
 
 
+def test_trickle(ctx):
+    """A message sent a byte at a time is cut off at --message-seconds, though every byte
+    resets the idle clock; a whole message on another connection is answered meanwhile and
+    after."""
+    slow = ctx.daemon("trickle", ["--message-seconds", "1"])
+    sock = socket.create_connection(("127.0.0.1", slow.port), timeout=IO_TIMEOUT)
+    closed = False
+    t0 = time.monotonic()
+    text = b'{"jsonrpc":"2.0","id":1,"method":"server.info","params":{}}'
+    try:
+        for byte in text[:-1]:
+            sock.sendall(bytes([byte]))
+            time.sleep(0.1)
+            if time.monotonic() - t0 > 4:
+                break
+        sock.settimeout(3)
+        closed = sock.recv(100) == b""
+    except (BrokenPipeError, ConnectionResetError):
+        closed = True
+    except socket.timeout:
+        closed = False
+    sock.close()
+    R.expect(closed, "a message trickled a byte every 0.1 s was never cut off")
+    with Conn(slow.port) as c:
+        R.expect(c.result("server.info").get("name") == "springfitd",
+                 "a whole message is not answered after the trickle")
+
+
 def test_connection_limit(ctx):
     d = ctx.daemon("connlimit", ["--max-connections", "2"])
     a = Conn(d.port)
@@ -910,6 +938,7 @@ def main(argv):
         ("over-size", test_oversize, False),
         ("auth", test_auth, False),
         ("connection limit", test_connection_limit, False),
+        ("trickle", test_trickle, False),
         ("idempotency race", test_idempotency_race, False),
         ("load", test_load, False),
         ("cli", test_cli, False),
