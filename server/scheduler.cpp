@@ -110,14 +110,21 @@ void Scheduler::JobSubmitted(std::int64_t id, std::shared_ptr<const Problem> pre
 }
 
 Scheduler::CancelOutcome Scheduler::Cancel(std::int64_t id) {
+  bool here = false;
   {
     // A job running here stops at once; the request is written all the same, so that it
     // survives a crash of this daemon before the job ends.
     std::lock_guard lock(mutex_);
-    if (const auto r = running_.find(id); r != running_.end()) r->second->cancel.store(true);
+    if (const auto r = running_.find(id); r != running_.end()) {
+      r->second->cancel.store(true);
+      here = true;
+    }
   }
   const JobStore::CancelOutcome outcome = store_.RequestCancel(id);
-  if (outcome == JobStore::CancelOutcome::kNotActive) return CancelOutcome::kNotActive;
+  // A job stopped here by the flag may have recorded its end before the request reached the
+  // store: it was running when asked, and is being cancelled.
+  if (outcome == JobStore::CancelOutcome::kNotActive)
+    return here ? CancelOutcome::kCancelling : CancelOutcome::kNotActive;
   if (outcome == JobStore::CancelOutcome::kRequested) return CancelOutcome::kCancelling;
   {
     std::lock_guard lock(mutex_);
