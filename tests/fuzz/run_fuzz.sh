@@ -99,5 +99,5 @@ for tests in engine_tests proto_tests; do
   done
 done
 
-run framer_fuzz 200000 "" "$src"/tests/fuzz/corpus/framer/*
-run scene_fuzz 50000 "-dict=$scene_dict" "$src"/examples/*.json "$src"/tests/data/*.json
+run framer_fuzz 120000 "" "$src"/tests/fuzz/corpus/framer/*
+run scene_fuzz 30000 "-dict=$scene_dict" "$src"/examples/*.json "$src"/tests/data/*.json
