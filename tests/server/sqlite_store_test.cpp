@@ -1,5 +1,7 @@
 #include "server/sqlite_store.h"
 
+#include "tests/server/store_test_data.h"
+
 #include <filesystem>
 #include <fstream>
 
@@ -22,30 +24,9 @@ class SqliteStoreTest : public ::testing::Test {
   void TearDown() override { std::filesystem::remove_all(dir_); }
 
   static NewJob Job(const std::string& label, int priority = 0, const std::string& key = "") {
-    NewJob j;
-    j.record.label = label;
-    j.record.priority = priority;
-    j.record.seed = 0xfedcba9876543210ULL;  // above int64's range: stored as its bits
-    j.record.idempotency_key = key;
-    j.record.scene_name = "s";
-    j.record.genes = 12;
-    j.record.strategy = "default";
-    j.record.max_generations = 100;
-    j.record.created_at = 1.5e9;
-    j.scene_json = R"({"name":"s"})";
-    return j;
+    return StoreTestJob(label, priority, key);
   }
-
-  static TraceRow Row(int generation, double error) {
-    TraceRow r;
-    r.generation = generation;
-    r.evaluations = 10 * (generation + 1);
-    r.best_cost = error * 2;
-    r.best_normalized_error = error;
-    r.missing = generation == 0 ? -1 : 3;
-    r.extra = 1;
-    return r;
-  }
+  static TraceRow Row(int generation, double error) { return StoreTestRow(generation, error); }
 
   std::filesystem::path dir_;
   std::string path_;
