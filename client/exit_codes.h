@@ -13,7 +13,10 @@ inline constexpr int kExitUnauthorized = 6;  // the server wants a (different) t
 inline constexpr int kExitCancelled = 7;     // the job was cancelled
 inline constexpr int kExitBusy = 8;  // a server limit: queue full, too many connections, too large
 inline constexpr int kExitWrongState = 9;  // e.g. the result of a job that has not finished
-inline constexpr int kExitUsage = 64;      // bad command line (unknown option, missing argument)
+// run: the search ended with a model that is no answer (IdentificationResult::usable(): a
+// mechanism, no equilibrium, or worse than the rest shape); the result is still written.
+inline constexpr int kExitUnusable = 10;
+inline constexpr int kExitUsage = 64;  // bad command line (unknown option, missing argument)
 inline constexpr int kExitInterrupted =
     130;  // stopped by SIGINT/SIGTERM (run: the result so far is still written)
 

@@ -39,9 +39,12 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
   if (r.contains("response"))
     out << "response:          " << r.value("response", std::string()) << "\n";
   const bool continuous = r.contains("continuous") && r["continuous"].is_object();
-  if (continuous) {
-    out << "stopped:           " << r.value("stop", std::string()) << ": "
-        << r.value("stop_message", std::string()) << "\n";
+  const std::string stop = r.value("stop", std::string());
+  // A run without an answer says why and what to try, whatever the strategy.
+  const bool no_answer =
+      stop == "mechanism" || stop == "no_equilibrium" || stop == "not_reproduced";
+  if (continuous || no_answer) {
+    out << "stopped:           " << stop << ": " << r.value("stop_message", std::string()) << "\n";
   } else {
     out << "stopped:           " << r.value("stop", std::string()) << " after "
         << r.value("generations", 0) << " generations (best found in generation "

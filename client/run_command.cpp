@@ -116,7 +116,8 @@ int Run(const RunArgs& args) {
   proto::Json j = proto::ResultToJson(problem, result, false);
   if (args.json) j["threads"] = args.threads;
   PrintResult(j, args.json);
-  return result.stop == StopReason::kCancelled ? kExitInterrupted : kExitOk;
+  if (result.stop == StopReason::kCancelled) return kExitInterrupted;
+  return result.usable() ? kExitOk : kExitUnusable;
 }
 
 }  // namespace

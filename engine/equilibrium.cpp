@@ -5,7 +5,9 @@
 #include <cmath>
 #include <limits>
 
+#include "engine/number_text.h"
 #include "engine/options_check.h"
+#include "engine/rigidity.h"
 
 namespace springfit {
 namespace {
@@ -44,8 +46,10 @@ void EquilibriumOptions::Validate() const {
   CheckNewtonSettings(check, *this);
   check.Require(max_step > 0.0 && std::isfinite(max_step), "max_step", max_step,
                 "0 < value < infinity");
-  check.Require(mechanism_shift > 0.0 && mechanism_shift < pivot_tolerance, "mechanism_shift",
-                mechanism_shift, "0 < value < pivot_tolerance");
+  check.Require(InOpenUnit(near_mechanism_tolerance), "near_mechanism_tolerance",
+                near_mechanism_tolerance, "0 < value < 1");
+  check.Require(InOpenUnit(rigidity_tolerance), "rigidity_tolerance", rigidity_tolerance,
+                "0 < value < 1");
   check.Require(banded_max_dofs >= 0, "banded_max_dofs", banded_max_dofs, "value >= 0");
 }
 
@@ -205,15 +209,24 @@ Matrix EquilibriumSolver::AssembledHessian() const {
   return system_.ToDense();
 }
 
-int EquilibriumSolver::RestMechanismModes(const ActiveSprings& springs) {
-  if (free_.count == 0) return 0;
-  const Vector zero_u = Vector::Zero(static_cast<Eigen::Index>(free_.free_index.size()) * dim_);
-  const Vector zero_f = zero_u;
+void EquilibriumSolver::AssembleUnitRest(const ActiveSprings& springs) {
+  unit_.index = springs.index;
+  unit_.stiffness.assign(springs.index.size(), 1.0);
+  const Vector zero = Vector::Zero(static_cast<Eigen::Index>(free_.free_index.size()) * dim_);
   // At rest L = l, so the exact Hessian is the linear stiffness sum k n n^T.
-  EnergyAndGradient(springs, zero_f, zero_u, nullptr, true, false);
-  const SymmetricSystem::Factorization f =
-      system_.Factorize(options_.mechanism_shift, options_.pivot_tolerance, true);
-  return f.small_pivots;
+  EnergyAndGradient(unit_, zero, zero, nullptr, true, false);
+}
+
+RestStability EquilibriumSolver::RestStabilityOf(const ActiveSprings& springs) {
+  RestStability r;
+  if (free_.count == 0) return r;
+  AssembleUnitRest(springs);
+  const int small = system_.Factorize(0.0, options_.near_mechanism_tolerance, true).small_pivots;
+  if (small == 0) return r;
+  r.modes = std::min(
+      small, RigidityRankDeficiency(*geometry_, free_, springs, options_.rigidity_tolerance));
+  r.near_modes = small - r.modes;
+  return r;
 }
 
 EquilibriumSummary EquilibriumSolver::Solve(const ActiveSprings& springs, const Vector& force,
@@ -235,13 +248,51 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, co
     summary.termination = Termination::kConverged;
     return summary;
   }
-  const double k_max = springs.MaxStiffness();
-  const double l_max = geometry_->MaxRestLength();
-  double force_scale = std::max(MaxAbsOnFree(force, free_, D, false),
-                                k_max * MaxAbsOnFree(prescribed, free_, D, true));
-  if (force_scale == 0.0) force_scale = k_max * l_max;  // nothing loads: judge against k l
-  const double tolerance = std::max(options_.relative_force_tolerance * force_scale,
-                                    options_.roundoff_force_tolerance * k_max * l_max);
+  // The load's force scale: the external forces, and the force each spring to a node with a
+  // prescribed displacement exerts when its free end has not moved (its own stiffness, not
+  // the stiffest spring's: a node displaced on soft springs is loaded softly).
+  double force_scale = MaxAbsOnFree(force, free_, D, false);
+  for (int a = 0; a < springs.size(); ++a) {
+    const int s = springs.index[a];
+    for (const int node : {geometry_->pairs[s].first, geometry_->pairs[s].second}) {
+      if (free_.free_index[node] < 0)
+        force_scale = std::max(
+            force_scale, springs.stiffness[a] * prescribed.template segment<D>(D * node).norm());
+    }
+  }
+  // Round-off per free node: each spring's force carries about eps k l (L - l is computed to
+  // about eps l), so a node's floor is the largest k l among its springs, times
+  // roundoff_force_tolerance (eps times a few hundred: the springs at a node add their
+  // errors). Per node, so that the scene's stiffest spring does not hide a soft region.
+  floor_.assign(free_.count, 0.0);
+  double floor_max = 0.0;
+  for (int a = 0; a < springs.size(); ++a) {
+    const int s = springs.index[a];
+    const double kl = springs.stiffness[a] * geometry_->rest_length[s];
+    for (const int node : {geometry_->pairs[s].first, geometry_->pairs[s].second}) {
+      const int f = free_.free_index[node];
+      if (f >= 0) floor_[f] = std::max(floor_[f], options_.roundoff_force_tolerance * kl);
+    }
+  }
+  for (const double f : floor_) floor_max = std::max(floor_max, f);
+  if (force_scale == 0.0) force_scale = floor_max / options_.roundoff_force_tolerance;
+  const double relative = options_.relative_force_tolerance * force_scale;
+  // Converged when every free node's imbalance is within its tolerance; returns the largest
+  // imbalance / tolerance, and that node's tolerance in `worst_tolerance`.
+  const auto excess = [&](const Vector& gradient, double& worst_tolerance) {
+    double worst = 0.0;
+    worst_tolerance = std::max(relative, floor_max);
+    for (int f = 0; f < free_.count; ++f) {
+      const double tol = std::max(relative, floor_[f]);
+      const double ratio =
+          gradient.template segment<D>(D * f).template lpNorm<Eigen::Infinity>() / tol;
+      if (ratio > worst) {
+        worst = ratio;
+        worst_tolerance = tol;
+      }
+    }
+    return worst;
+  };
 
   double magnitude = 0.0;
   double energy = Assemble<D>(springs, force, u, &gradient_, true, false, &magnitude);
@@ -250,11 +301,17 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, co
   trial_u_.resize(u.size());
 
   for (;;) {
-    if (residual <= tolerance) {
+    double tolerance = 0.0;
+    const bool converged = excess(gradient_, tolerance) <= 1.0;
+    summary.tolerance = tolerance / force_scale;
+    if (converged) {
       summary.termination = Termination::kConverged;
       break;
     }
-    if (summary.iterations >= options_.max_iterations) break;
+    if (summary.iterations >= options_.max_iterations) {
+      summary.why = "the Newton iteration limit was reached";
+      break;
+    }
     if (interruption_ && interruption_->Check()) {
       summary.termination = Termination::kInterrupted;
       break;
@@ -271,7 +328,10 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, co
         if (f.positive_definite) break;
         f = system_.Factorize(shift, options_.pivot_tolerance, false);
       }
-      if (!f.positive_definite) break;
+      if (!f.positive_definite) {
+        summary.why = "the Hessian stayed singular after regularisation";
+        break;
+      }
     }
     step_ = -gradient_;
     system_.Solve(step_);
@@ -293,7 +353,10 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, co
     if (largest > options_.max_step && options_.response == Response::kNonlinear)
       step_ *= options_.max_step / largest;
     const double slope = gradient_.dot(step_);
-    if (!(slope < 0.0)) break;  // not a descent direction (also catches NaN)
+    if (!(slope < 0.0)) {  // not a descent direction (also catches NaN)
+      summary.why = "the Newton step is not a descent direction (round-off in the Hessian)";
+      break;
+    }
 
     // Backtracking line search on E. Each trial also assembles the gradient and the exact
     // Hessian: the full step is accepted almost always, and then the next iteration needs them.
@@ -331,11 +394,41 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, co
     if (!accepted) {
       // Restore the Hessian of the current point for a caller that inspects it.
       Assemble<D>(springs, force, u, &gradient_, true, false, nullptr);
+      summary.why = "the line search found no decrease of the energy (round-off)";
       break;
     }
   }
   summary.final_residual = residual / force_scale;
   return summary;
+}
+
+std::string NotConvergedText(const EquilibriumSummary& summary) {
+  return std::string(summary.why) + " after " + std::to_string(summary.iterations) +
+         " iterations, at a relative force residual of " + NumberText(summary.final_residual) +
+         " (converged at <= " + NumberText(summary.tolerance) + ")";
+}
+
+std::string PrecisionLimitText(const RestStability& stability, const ActiveSprings& springs) {
+  std::string text;
+  if (stability.near_modes > 0) {
+    text += "; the model is rigid but along " + std::to_string(stability.near_modes) +
+            " directions its stiffness is below " +
+            NumberText(EquilibriumOptions{}.near_mechanism_tolerance) +
+            " of its stiffest (nearly collinear springs, or a very thin layer of cells): "
+            "double precision cannot resolve its equilibrium there";
+  }
+  double k_min = 0.0, k_max = 0.0;
+  for (std::size_t a = 0; a < springs.stiffness.size(); ++a) {
+    const double k = springs.stiffness[a];
+    k_min = a == 0 ? k : std::min(k_min, k);
+    k_max = std::max(k_max, k);
+  }
+  if (k_min > 0.0 && k_max / k_min >= kStiffnessRatioLimit) {
+    text += "; its spring stiffness spans a ratio of " + NumberText(k_max / k_min) +
+            ", at or beyond what double precision resolves (about " +
+            NumberText(kStiffnessRatioLimit, 1) + ")";
+  }
+  return text;
 }
 
 template double EquilibriumSolver::Assemble<2>(const ActiveSprings&, const Vector&, const Vector&,

@@ -11,7 +11,8 @@
 // A mechanism (a topology whose stiffness at rest is singular on the free nodes: a node with
 // too few springs, an island cut off from every constrained node, a square without a diagonal)
 // cannot carry a general load; RestMechanismModes() detects it before any Newton step, from the
-// pivots of the Jacobi-scaled rest stiffness (see symmetric_system.h), and counts its modes.
+// eigenvalues of the Jacobi-scaled rest stiffness with unit stiffness (see symmetric_system.h),
+// and counts its modes.
 //
 // An EquilibriumSolver is built once per spring geometry and set of constrained nodes: that
 // fixes the sparsity pattern, whose symbolic analysis is done in the constructor and reused by
@@ -19,6 +20,7 @@
 // the symbolic analysis once, see symmetric_system.h).
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include "engine/interruption.h"
@@ -52,25 +54,41 @@ struct EquilibriumOptions {
   // energy is quadratic, Newton's first step solves it and a second, if any, removes round-off.
   // Set from the scene by Problem (search.response).
   Response response = Response::kNonlinear;
-  // Converged when the largest free-node force imbalance is at most
-  //   max(relative_force_tolerance * force_scale, roundoff_force_tolerance * k_max * l_max),
-  // force_scale = max(largest external force, k_max * largest prescribed displacement).
-  // The second term is the floor that round-off allows: forces are computed from L - l, which
-  // carries an error of about machine epsilon times l. Both are unit-free, in (0, 1).
+  // Converged when every free node's force imbalance is at most
+  //   max(relative_force_tolerance * force_scale, roundoff_force_tolerance * max k l),
+  // force_scale = max(largest external force, largest k * prescribed displacement over the
+  // springs to a displaced node), the max over the node's springs. The second term is the
+  // floor that round-off allows: a spring's force is computed from L - l, which carries an
+  // error of about machine epsilon times l. Per node: the scene's stiffest spring does not set
+  // a soft region's floor (it did, and tiny loads on soft springs "converged" unmoved). Both
+  // are unit-free, in (0, 1).
   double relative_force_tolerance = 1e-10;
-  double roundoff_force_tolerance = 1e-12;
+  double roundoff_force_tolerance = 1e-13;
   int max_iterations = 100;  // Newton iterations; the projected Hessian converges only linearly
   int max_line_search_steps = 50;  // halvings of the step before giving up
   double armijo = 1e-4;            // sufficient decrease parameter c1, in (0, 1/2)
   // Largest change of any spring's separation X_i - X_j in one Newton step, as a fraction of
   // its rest length (> 0). Moderate loads never reach it; large ones walk.
   double max_step = 0.5;
-  // A scaled pivot at or below this marks a singular direction (unit-free: healthy 5x5 models
-  // have scaled pivots >= 1e-2, mechanisms about 1e-16 plus the shift below).
-  double pivot_tolerance = 1e-10;
-  // Added to the scaled rest stiffness in RestMechanismModes so that a mechanism's zero pivot
-  // is never exactly zero (Eigen's sparse LDLT stops at an exact zero pivot).
-  double mechanism_shift = 1e-13;
+  // A Newton step trusts the exact Hessian only when every Jacobi-scaled pivot is above this
+  // (unit-free). It sits a little above round-off, which is about 1e-16 times the number of
+  // springs at a node: a stiffness ratio of 1e12 gives scaled pivots of about 1e-12, which a
+  // step can still use, and where double precision cannot tell a pivot from zero the step
+  // takes the projected, then regularised, Hessian.
+  double pivot_tolerance = 1e-14;
+  // The rest verdict (RestStabilityOf) depends on the geometry alone: the null space of
+  // sum k n n^T is the rigidity matrix's whatever the (positive) stiffness, so it is decided on
+  // the springs with stiffness 1 and a stiffness spread of 1e12 cannot make a model a
+  // mechanism. First an LDLT of the Jacobi-scaled unit-stiffness rest matrix counts its
+  // eigenvalues below near_mechanism_tolerance (0 for almost every model: no more work). Those
+  // are mechanism modes or so close to them that the stiffness matrix cannot tell (a rigid
+  // strip 300 cells long and one wide has 1e-10). Then a QR of the rigidity matrix
+  // (engine/rigidity.h), which resolves twice the digits, counts as mechanism modes only its
+  // singular values at or below rigidity_tolerance; an exact mechanism's are round-off, about
+  // 1e-15. The rest are near-mechanism modes: rigid, but stiff along them only to about their
+  // singular value squared, relative.
+  double near_mechanism_tolerance = 1e-10;
+  double rigidity_tolerance = 1e-12;
   // Free-node degrees of freedom up to which the banded factorisation is used; above it the
   // sparse one. On grids numbered row by row the banded one also wins up to 20x20, not on
   // irregular meshes in their mesher's numbering (bench/RESULTS.md, solve section).
@@ -88,9 +106,36 @@ struct EquilibriumSummary {
   double initial_residual = 0.0;  // |gradient|_inf / force_scale at the start
   double final_residual = 0.0;    // |gradient|_inf / force_scale at the end
   int mechanism_modes = 0;        // kMechanism: the rest stiffness's null-space dimension
+  // |gradient|_inf / force_scale at which the solve counts as converged (see
+  // EquilibriumOptions::relative_force_tolerance).
+  double tolerance = 0.0;
+  // kNotConverged: why, in words ("the iteration limit (100) was reached", ...); static text.
+  const char* why = "";
 
   bool converged() const { return termination == Termination::kConverged; }
 };
+
+// The rest stiffness's verdict (EquilibriumOptions::near_mechanism_tolerance): `modes`
+// mechanism modes, and `near_modes` more directions along which the model is rigid but its
+// relative stiffness is below near_mechanism_tolerance, where a solve in double precision is
+// at the edge of what it resolves.
+struct RestStability {
+  int modes = 0;
+  int near_modes = 0;
+};
+
+// Spring stiffness ratios from about this on are at the limit of double precision: the
+// softest springs' contribution to a stiffness entry is below the stiffest's round-off.
+inline constexpr double kStiffnessRatioLimit = 1e12;
+
+// Why a solve did not converge, for messages: the reason, the iterations, the relative
+// residual and the tolerance, e.g. "the Newton iteration limit was reached after 100
+// iterations, at a relative force residual of 3.2e-09 (converged at <= 1e-10)".
+std::string NotConvergedText(const EquilibriumSummary& summary);
+// What double precision cannot decide about a model that did not converge: its near-mechanism
+// modes, a stiffness ratio at or beyond kStiffnessRatioLimit. "" when neither; otherwise
+// begins with "; ".
+std::string PrecisionLimitText(const RestStability& stability, const ActiveSprings& springs);
 
 class EquilibriumSolver {
  public:
@@ -105,8 +150,11 @@ class EquilibriumSolver {
   const EquilibriumOptions& options() const { return options_; }
 
   // The number of mechanism modes of `springs` at rest with this solver's constrained nodes:
-  // 0 for a model that carries any load.
-  int RestMechanismModes(const ActiveSprings& springs);
+  // 0 for a model that carries any load. Depends on which springs are active, not on their
+  // stiffness (see near_mechanism_tolerance): one factorisation, and a QR when the model is a
+  // mechanism or near one.
+  int RestMechanismModes(const ActiveSprings& springs) { return RestStabilityOf(springs).modes; }
+  RestStability RestStabilityOf(const ActiveSprings& springs);
 
   // Solves for the equilibrium. `force` and `prescribed` are flat d*n vectors (entries of
   // free nodes in `prescribed` and of constrained nodes in `force` are ignored). `u` holds the
@@ -128,9 +176,8 @@ class EquilibriumSolver {
   // definite; SolveTangent() overwrites b (free degrees of freedom) with H^-1 b, using the
   // last FactorizeTangent() as long as no other method of this solver has been called since.
   bool FactorizeTangent(const ActiveSprings& springs, const Vector& u);
-  // RestMechanismModes() leaves its factorisation of the rest stiffness (shifted by
-  // mechanism_shift) for SolveTangent() too, which is the linear response's tangent, and
-  // EnergyAndGradient() without the Hessian does not touch it. SolveTangent() and
+  // At rest (u = 0) the tangent is the linear response's stiffness.
+  // EnergyAndGradient() without the Hessian does not touch the factorisation. SolveTangent() and
   // EnergyAndGradient() without the Hessian only read the solver: several threads may call
   // them at once (the sparse and banded backends' solves are const), as long as no other
   // method runs meanwhile.
@@ -161,7 +208,11 @@ class EquilibriumSolver {
   std::vector<int> slots_;
   SymmetricSystem system_;
   Interruption* interruption_ = nullptr;
+  ActiveSprings unit_;  // the springs of a rest verdict, stiffness 1
+  // Assembles the unit-stiffness rest matrix of `springs` into the system.
+  void AssembleUnitRest(const ActiveSprings& springs);
   Vector gradient_, trial_gradient_, step_, trial_u_;
+  std::vector<double> floor_;  // per free node: its round-off force floor (SolveImpl)
 };
 
 }  // namespace springfit

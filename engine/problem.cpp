@@ -12,6 +12,7 @@
 #include "engine/fem/fem_equilibrium.h"
 #include "engine/fem/traction.h"
 #include "engine/input_error.h"
+#include "engine/number_text.h"
 #include "engine/scene_validation.h"
 
 namespace springfit {
@@ -24,6 +25,13 @@ constexpr double kPresentWeight = 1e-3;
 // Reference positions of a constrained node may differ from its prescribed position by this
 // fraction of the scene's longest candidate (round-off in exported data), no more.
 constexpr double kPrescribedMismatchTolerance = 1e-9;
+
+// A reference MSS's equilibrium must be determined to this fraction of its load at least: a
+// load whose forces are closer to round-off than this does not tell topologies apart.
+constexpr double kReferenceResolution = 1e-3;
+
+// Newton iterations allowed to the reference MSS's equilibria (see Problem::Problem).
+constexpr int kReferenceMaxIterations = 1000;
 
 std::string CasePath(std::size_t k) {
   return "load_cases[" + std::to_string(k) + "]";
@@ -147,8 +155,15 @@ Problem::Problem(Scene scene, EquilibriumOptions solver_options) {
       springs.index.push_back(m);
       springs.stiffness.push_back(ref.stiffness.size() == 1 ? ref.stiffness[0] : ref.stiffness[m]);
     }
+    // The reference is solved once per scene, from rest, where a hard load can take the
+    // projected Hessian's linear convergence for a hundred iterations and more (a 1 um line
+    // of nodes pulled to 65% stretch needs 138): it gets a larger, still bounded, budget.
+    EquilibriumOptions reference_options = solver_options;
+    reference_options.max_iterations =
+        std::max(solver_options.max_iterations, kReferenceMaxIterations);
     std::vector<EquilibriumSolver> solvers;
-    for (const FreeNodes& free : p.free_sets_) solvers.emplace_back(geometry, free, solver_options);
+    for (const FreeNodes& free : p.free_sets_)
+      solvers.emplace_back(geometry, free, reference_options);
     // The reference's equilibria are data: every identification compares against them, and
     // strategy direct reads stiffness off their force balance, where a soft spring's force
     // can be 1e-8 of a stiff one's. So after the ordinary solve, Newton steps continue down
@@ -164,10 +179,10 @@ Problem::Problem(Scene scene, EquilibriumOptions solver_options) {
     for (std::size_t k = 0; k < p.load_cases_.size(); ++k) {
       PreparedLoadCase& lc = p.load_cases_[k];
       EquilibriumSolver& solver = solvers[lc.free_set];
-      const int modes = solver.RestMechanismModes(springs);
-      if (modes > 0) {
+      const RestStability stability = solver.RestStabilityOf(springs);
+      if (stability.modes > 0) {
         throw InputError("reference", "the reference MSS is a mechanism under " + CasePath(k) +
-                                          " (" + std::to_string(modes) +
+                                          " (" + std::to_string(stability.modes) +
                                           " free modes): it cannot carry the load");
       }
       lc.reference = Vector::Zero(d * n);
@@ -175,9 +190,18 @@ Problem::Problem(Scene scene, EquilibriumOptions solver_options) {
           solver.Solve(springs, lc.force, lc.prescribed, lc.reference);
       if (!summary.converged()) {
         throw InputError("reference", "no equilibrium of the reference MSS found under " +
-                                          CasePath(k) + " (relative residual " +
-                                          std::to_string(summary.final_residual) + " after " +
-                                          std::to_string(summary.iterations) + " iterations)");
+                                          CasePath(k) + ": " + NotConvergedText(summary) +
+                                          PrecisionLimitText(stability, springs));
+      }
+      if (summary.tolerance > kReferenceResolution) {
+        throw InputError(CasePath(k),
+                         "the load is too small for double precision: round-off in the reference "
+                         "springs' forces is " +
+                             NumberText(summary.tolerance) +
+                             " of it (stiff springs at the loaded nodes hide the soft ones' "
+                             "forces), so its equilibrium is not determined; scale the loads "
+                             "up (at least " +
+                             NumberText(summary.tolerance / kReferenceResolution, 2) + " times)");
       }
       Vector polished = lc.reference;
       const EquilibriumSummary polish =

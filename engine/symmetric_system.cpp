@@ -197,13 +197,21 @@ SymmetricSystem::Factorization SymmetricSystem::Factorize(double shift, double t
       const Vector pivots = factorised ? supernodal_->Pivots() : Vector();
       pivots_of([&](int i) { return pivots[i]; }, factorised);
     } else {
-      return CountPivots(shift, tolerance, /*scaled=*/true);  // its own solver is the counter
+      f = CountPivots(shift, tolerance, /*scaled=*/true);  // Eigen's LDLT is the factorisation
+      if (f.positive_definite || !count_pivots) return f;
+      f.small_pivots = CountEigenvaluesBelow(shift, tolerance);
+      f.positive_definite = f.small_pivots == 0;
+      return f;
     }
   }
   if (f.positive_definite || !count_pivots) return f;
-  // Singular or indefinite, and the pivots must be counted: by the one counter every backend
-  // shares, so that a mechanism's mode count does not depend on the backend.
-  return CountPivots(shift, tolerance, /*scaled=*/false);
+  // Singular or indefinite, and the small eigenvalues must be counted: by the one counter
+  // every backend shares, so that a mechanism's mode count does not depend on the backend.
+  // This leaves no factorisation for Solve(): a count is asked for only where no solve
+  // follows.
+  f.small_pivots = CountEigenvaluesBelow(shift, tolerance);
+  f.positive_definite = f.small_pivots == 0;
+  return f;
 }
 
 void SymmetricSystem::ScaleIntoWork(double shift) {
@@ -231,10 +239,8 @@ SymmetricSystem::Factorization SymmetricSystem::CountPivots(double shift, double
   used_sldlt_ = true;
   Factorization f;
   if (sldlt_->info() != Eigen::Success) {
-    // An exactly zero pivot stops Eigen's factorisation; with a positive shift this only
-    // happens for a matrix far from positive definite.
+    // An exactly zero pivot stops Eigen's factorisation.
     f.min_pivot = 0.0;
-    f.small_pivots = n_;
     return f;
   }
   const Vector& d = sldlt_->vectorD();
@@ -245,6 +251,38 @@ SymmetricSystem::Factorization SymmetricSystem::CountPivots(double shift, double
   }
   f.positive_definite = f.small_pivots == 0;
   return f;
+}
+
+int SymmetricSystem::CountEigenvaluesBelow(double shift, double tolerance) {
+  // Sylvester's law of inertia: S A S + shift I - tolerance I = L D L^T has as many negative
+  // pivots as S A S + shift I has eigenvalues below `tolerance`, whatever the ordering and
+  // however the small eigenvalues' vectors spread over the unknowns. (Counting the pivots of
+  // S A S + shift I below the tolerance instead is not a count of anything: a pivot is a ratio
+  // of leading minors, so a mode completed by the last of its unknowns can show as a
+  // moderately small pivot, and a nearly singular leading block as a small one followed by a
+  // large one.) An exactly zero pivot stops the factorisation: the shift is moved by a
+  // relative 1e-6 and tried again, which cannot change a count that means anything.
+  if (n_ == 0) return 0;
+  ComputeScaling();
+  double offset = shift - tolerance;
+  for (int attempt = 0; attempt < 4; ++attempt) {
+    ScaleIntoWork(offset);
+    if (!sldlt_) {
+      sldlt_ = std::make_unique<SparseLdlt>();
+      sldlt_->analyzePattern(sparse_work_);
+    }
+    sldlt_->factorize(sparse_work_);
+    // The factorisation is of the shifted matrix: no Solve() may use it.
+    used_sldlt_ = false;
+    if (sldlt_->info() == Eigen::Success) {
+      const Vector& d = sldlt_->vectorD();
+      int negative = 0;
+      for (int i = 0; i < n_; ++i) negative += d[i] < 0.0 ? 1 : 0;
+      return negative;
+    }
+    offset -= 1e-6 * tolerance;
+  }
+  return n_;  // never seen: four exact zero pivots in a row
 }
 
 void SymmetricSystem::Solve(Vector& b) const {

@@ -12,14 +12,13 @@
 // factorises it with LAPACK's unblocked band Cholesky: for the small scenes it serves, a grid
 // numbered row by row, the band is a third of the matrix and so is the work.
 //
-// Counting the pivots of a singular or indefinite matrix (a mechanism's modes) is done the same
-// way whatever the backend: a simplicial LDLT (AMD ordering) of the same scaled matrix. A count
-// that depended on the backend would make the graded mechanism penalty, hence a search's
-// trajectory, depend on a size threshold. (A matrix within round-off of the pivot tolerance can
-// still pass one backend's positive-definite factorisation and not another's: the verdict at
-// that edge is the backend's; a genuine mechanism, pivots near the shift, fails every one.) The
-// LDLT does not pivot: it never counts a mode that is not there, and rarely misses one (1 of 55 in
-// tests/engine/equilibrium_test.cpp); a rank-revealing count would cost a dense factorisation.
+// Counting the small eigenvalues of a singular or indefinite matrix (a mechanism's modes) is
+// done the same way whatever the backend: the inertia of a simplicial LDLT (AMD ordering) of
+// the same scaled matrix shifted down by the tolerance (CountEigenvaluesBelow). A count that
+// depended on the backend would make the graded mechanism penalty, hence a search's
+// trajectory, depend on a size threshold. Counting small pivots instead would miss modes and
+// invent others (a pivot is a ratio of leading minors, not an eigenvalue);
+// tests/engine/mechanism_verdict_test.cpp checks the count against a dense eigensolver.
 //
 // Not thread-safe; copy one per thread.
 #pragma once
@@ -44,8 +43,10 @@ class SymmetricSystem {
 
   struct Factorization {
     bool positive_definite = false;  // every scaled pivot > small_pivot_tolerance
-    // Scaled pivots <= small_pivot_tolerance (zero diagonals included). For a positive
-    // semi-definite A this is the dimension of its null space: the number of mechanism modes.
+    // With count_pivots, when not positive definite: the number of eigenvalues of S A S +
+    // shift I at or below small_pivot_tolerance (CountEigenvaluesBelow). For a positive
+    // semi-definite A with a clean gap this is the dimension of its null space: the number
+    // of mechanism modes. Otherwise the number of scaled pivots at or below the tolerance.
     int small_pivots = 0;
     double min_pivot = 0.0;  // smallest scaled pivot
   };
@@ -69,6 +70,10 @@ class SymmetricSystem {
   // a Newton step needs; with it true every pivot is examined, by the shared counter when the
   // backend's own factorisation is not positive definite.
   Factorization Factorize(double shift, double small_pivot_tolerance, bool count_pivots);
+  // The number of eigenvalues of S A S + shift I below `tolerance`, exactly (Sylvester's law
+  // of inertia on one more LDLT), with the matrix as assembled. Leaves no factorisation for
+  // Solve().
+  int CountEigenvaluesBelow(double shift, double tolerance);
   // Overwrites b with the solution of (A + shift S^-2) x = b, using the last Factorize().
   void Solve(Vector& b) const;
 

@@ -191,6 +191,12 @@ std::string_view StopReasonName(StopReason reason) {
       return "completed";
     case StopReason::kCancelled:
       return "cancelled";
+    case StopReason::kMechanism:
+      return "mechanism";
+    case StopReason::kNoEquilibrium:
+      return "no_equilibrium";
+    case StopReason::kNotReproduced:
+      return "not_reproduced";
   }
   return "?";
 }

@@ -14,6 +14,7 @@ namespace {
 // against 6 ms on grid3d-4x4x4's 465 columns; 2.5 s against 10.7 s on 12x12x12's 18,777).
 constexpr std::size_t kSupernodalFromColumns = 2000;
 constexpr double kRidge = 1e-10;
+constexpr int kDefaultRounds = 100;  // NnlsOptions::max_iterations = 0
 // The gradient on the free set that still counts as a solved least-squares problem, relative
 // to |A^T b|: refinement reaches about 1e-12 on healthy problems.
 constexpr double kSolveAccuracy =
@@ -122,7 +123,8 @@ NnlsResult Pivot(const MatrixType& as, const Vector& b, const Vector& scale,
 
   std::vector<bool> in_free(n, false);
   for (int j = 0; j < n; ++j) in_free[j] = scale[j] > 0.0;  // start with every usable column free
-  const int max_iterations = options.max_iterations > 0 ? options.max_iterations : 10 + 3 * n;
+  const int max_iterations =
+      options.max_iterations > 0 ? options.max_iterations : std::min(10 + 3 * n, kDefaultRounds);
 
   Vector x = Vector::Zero(n);
   int fewest_violations = n + 1;
@@ -182,7 +184,8 @@ NnlsResult Pivot(const MatrixType& as, const Vector& b, const Vector& scale,
 
 void NnlsOptions::Validate(const std::string& owner) const {
   const OptionsCheck check(owner);
-  check.Require(max_iterations >= 0, "max_iterations", max_iterations, "value >= 0 (0: 10 + 3n)");
+  check.Require(max_iterations >= 0, "max_iterations", max_iterations,
+                "value >= 0 (0: min(10 + 3n, 100))");
   check.Require(InOpenUnit(tolerance), "tolerance", tolerance, "0 < value < 1");
   check.Require(refinement_steps >= 0 && refinement_steps <= 100, "refinement_steps",
                 refinement_steps, "0 <= value <= 100");

@@ -58,6 +58,7 @@ class ResponseState {
     }
     offset_.push_back(rows);
     r_ = Vector::Zero(rows);  // a case left out keeps its rows at 0
+    rest_ = Vector::Zero(problem.dimension() * problem.scene().node_count());
   }
 
   // sum over the fitted cases of |u^R|^2: the normaliser of their error.
@@ -83,10 +84,11 @@ class ResponseState {
       if (!cases_[k] || checked[set]) continue;
       checked[set] = true;
       EquilibriumSolver& solver = solvers_[solver_of_case_[k]];
-      // The mechanism verdict of every evaluation (cost.h). Linear: its factorisation of the
-      // rest stiffness (shifted by the solver's mechanism_shift) is also the one the cases
-      // solve with, refined to round-off (SolveLinear).
+      // The mechanism verdict of every evaluation (cost.h). Linear: the factorisation of the
+      // rest stiffness is the one every case of the set solves with, refined to round-off
+      // (SolveLinear).
       if (solver.RestMechanismModes(springs) > 0) return false;
+      if (linear_ && !solver.FactorizeTangent(springs, rest_)) return false;
     }
     std::vector<std::uint8_t> solved(p.load_cases().size(), 1);
     ForEachCase([&](std::size_t k) {
@@ -155,9 +157,8 @@ class ResponseState {
 
   // Linear: u = u_p - K^-1 g(u_p), g the energy's gradient with the free nodes at rest (one
   // Newton step is exact on the quadratic energy), with the set's factorisation. That
-  // factorisation is of K + shift (RestMechanismModes), so the step is repeated on the
-  // remaining gradient (iterative refinement: each pass multiplies the error by about
-  // shift x cond(K)) until the gradient is at round-off of the load.
+  // factorisation carries round-off of about eps x cond(K), so the step is repeated on the
+  // remaining gradient (iterative refinement) until the gradient is at round-off of the load.
   bool SolveLinear(std::size_t k, const ActiveSprings& springs) {
     const PreparedLoadCase& lc = problem_.load_cases()[k];
     const FreeNodes& free = problem_.free_sets()[lc.free_set];
@@ -203,6 +204,7 @@ class ResponseState {
   std::vector<EquilibriumSolver> solvers_;
   std::vector<int> solver_of_case_;
   std::vector<Vector> u_;
+  Vector rest_;  // all displacements 0: where the linear response's tangent is taken
   std::vector<Eigen::Index> offset_;
   Vector r_;
   std::int64_t solves_ = 0;

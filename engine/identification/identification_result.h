@@ -27,6 +27,13 @@ struct IdentificationResult {
   std::vector<NodePair> springs;  // the best model's springs, in candidate order
   std::vector<double> stiffness;  // per spring of `springs`: identified, or the training stiffness
   Evaluation evaluation;          // of the best model, per load case
+
+  // The model is an answer: it carries every load case, its equilibria were found, and it
+  // predicts the reference better than the rest shape does (normalised error < 1; a model
+  // predicting no displacement at all scores exactly 1). `springfit run` exits 3 otherwise.
+  bool usable() const {
+    return !evaluation.mechanism && evaluation.converged && evaluation.normalized_error < 1.0;
+  }
   std::optional<TopologyDifference> difference;  // against the reference, when known
   int generations = 0;                           // bred after the initial population
   int best_generation = 0;                       // when the best was found

@@ -1,12 +1,52 @@
 #include "engine/identification/identify.h"
 
 #include <cstdio>
+#include <string>
 
 #include "engine/identification/run_monitor.h"
 #include "engine/identification/strategy.h"
+#include "engine/number_text.h"
 
 namespace springfit {
 namespace {
+
+// The load cases without equilibrium and why, e.g. "load_cases[1]: the line search found no
+// decrease ...".
+std::string NoEquilibriumCases(const Evaluation& e) {
+  std::string text;
+  for (std::size_t k = 0; k < e.load_cases.size(); ++k) {
+    const EquilibriumSummary& s = e.load_cases[k].solve;
+    if (s.termination != Termination::kNotConverged) continue;
+    if (!text.empty()) text += "; ";
+    text += "load_cases[" + std::to_string(k) + "]: " + NotConvergedText(s);
+  }
+  return text;
+}
+
+// What limited strategy direct, and what to try: springs the loads do not stretch, a force
+// balance that did not converge, the strategies that search.
+std::string DirectAdvice(const IdentificationResult& r) {
+  if (!r.direct)
+    return "; the search found no better model: try more generations or a larger "
+           "population, or candidates that include the missing springs";
+  const DirectResult& d = *r.direct;
+  std::string text;
+  if (!d.unseen.empty()) {
+    text += "; the loads do not measurably stretch " + std::to_string(d.unseen.size()) + " of " +
+            std::to_string(d.weights.size()) + " candidate springs (strain below " +
+            NumberText(kUnseenStrain) +
+            " in every load case), so the force balance "
+            "cannot weigh them: use larger loads or more load cases";
+  }
+  if (!d.nnls.converged) {
+    text += "; the force balance's non-negative least squares did not converge in " +
+            std::to_string(d.nnls.iterations) +
+            " rounds (nearly dependent springs: nearly collinear nodes, or too few load cases)";
+  }
+  return text +
+         "; strategy hybrid searches from direct's model and keeps only models that "
+         "carry the loads";
+}
 
 std::string StopMessage(const IdentificationResult& r) {
   char buf[200];
@@ -46,10 +86,24 @@ std::string StopMessage(const IdentificationResult& r) {
           r.options.stall_generations, r.best_generation, r.evaluation.normalized_error);
       break;
     case StopReason::kCompleted:
-      std::snprintf(buf, sizeof buf,
-                    "direct ran to its end; normalised error %.3g, above the target (<= %.3g)",
-                    r.evaluation.normalized_error, target);
+      std::snprintf(buf, sizeof buf, "ran to its end; normalised error %.3g",
+                    r.evaluation.normalized_error);
       break;
+    case StopReason::kNotReproduced:
+      std::snprintf(buf, sizeof buf,
+                    "direct's model does not reproduce the reference: normalised error %.3g, "
+                    "above the target (<= %.3g)",
+                    r.evaluation.normalized_error, target);
+      return buf + DirectAdvice(r);
+    case StopReason::kMechanism:
+      std::snprintf(buf, sizeof buf,
+                    "the best model found is a mechanism (%d free modes over the load cases): "
+                    "it cannot carry the loads and is no answer",
+                    r.evaluation.mechanism_modes);
+      return buf + DirectAdvice(r);
+    case StopReason::kNoEquilibrium:
+      return "the best model found has no equilibrium under some load case (" +
+             NoEquilibriumCases(r.evaluation) + "): it is no answer" + DirectAdvice(r);
   }
   return buf;
 }
@@ -113,6 +167,15 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
     r.options.identify = Identify::kTopologyAndStiffness;
   r.identifiability = std::move(identifiability);
   r.baseline = std::move(baseline);
+  // A run that ended by itself (not by request, time or target) with no answer says so.
+  if (r.stop != StopReason::kCancelled && r.stop != StopReason::kTimeLimit &&
+      r.stop != StopReason::kTargetReached && r.stop_message.empty()) {
+    if (r.evaluation.mechanism) {
+      r.stop = StopReason::kMechanism;
+    } else if (!r.evaluation.converged) {
+      r.stop = StopReason::kNoEquilibrium;
+    }
+  }
   r.springs = problem.SpringsOfGenome(r.best);
   r.difference = problem.CompareWithReference(r.best);
   if (r.stiffness.empty()) r.stiffness.assign(r.springs.size(), problem.training_stiffness());

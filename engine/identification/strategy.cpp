@@ -169,8 +169,8 @@ IdentificationResult DirectStrategy::Run(const Problem& problem, const SearchOpt
   r.counters.evaluations = direct.evaluations;
   r.wall_seconds = SecondsSince(start);
   const double target = std::max(options.target_normalized_error, kExactNormalizedError);
-  r.stop =
-      r.evaluation.normalized_error <= target ? StopReason::kTargetReached : StopReason::kCompleted;
+  r.stop = r.evaluation.normalized_error <= target ? StopReason::kTargetReached
+                                                   : StopReason::kNotReproduced;
   // Per spring of the genome (candidate order), the identified stiffness.
   std::map<int, double> stiffness_of;
   for (int m = 0; m < direct.springs.size(); ++m)

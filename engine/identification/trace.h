@@ -41,9 +41,14 @@ enum class StopReason {
   kTargetReached,    // the best model's normalised error <= max(target, kExactNormalizedError)
   kGenerationLimit,  // max_generations generations were bred without reaching the target
   kCancelled,        // the run's callback returned false (cancel, shutdown, Ctrl-C)
-  kCompleted,        // a single-shot strategy (direct) ran to its end short of the target
+  kCompleted,        // continuous ran to its end without (or short of) a target_error
   kTimeLimit,        // max_seconds of wall time had passed since the run began (inside a step)
   kStalled,          // the best did not improve for stall_generations generations
+  // The run ended (none of the above by request or time) with a model that is no answer:
+  kMechanism,      // the best model is a mechanism: it cannot carry some load case
+  kNoEquilibrium,  // the best model's equilibrium was not found under some load case
+  kNotReproduced,  // direct ran to its end and its model does not reproduce the reference
+                   // (normalised error above the target)
 };
 
 }  // namespace springfit

@@ -44,8 +44,8 @@ TEST(Options, EachStructNamesTheFieldTheValueAndTheRule) {
   ExpectRefused([&] { eq.Validate(); },
                 {"EquilibriumOptions::armijo = 0.69999999999999996", "0 < value < 0.5"});
   eq = {};
-  eq.mechanism_shift = 1e-9;  // not below the pivot tolerance: a mechanism would look healthy
-  ExpectRefused([&] { eq.Validate(); }, {"mechanism_shift", "value < pivot_tolerance"});
+  eq.rigidity_tolerance = 0.0;  // every round-off singular value would count as rigid
+  ExpectRefused([&] { eq.Validate(); }, {"rigidity_tolerance = 0", "0 < value < 1"});
 
   NnlsOptions nnls;
   nnls.tolerance = 0.0;
