@@ -223,8 +223,8 @@ RestStability EquilibriumSolver::RestStabilityOf(const ActiveSprings& springs) {
   AssembleUnitRest(springs);
   const int small = system_.Factorize(0.0, options_.near_mechanism_tolerance, true).small_pivots;
   if (small == 0) return r;
-  r.modes = std::min(
-      small, RigidityRankDeficiency(*geometry_, free_, springs, options_.rigidity_tolerance));
+  r.modes = std::min(small, RigidityRankDeficiency(*geometry_, free_, springs,
+                                                   options_.rigidity_tolerance, small));
   r.near_modes = small - r.modes;
   return r;
 }
@@ -298,12 +298,13 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, co
   double energy = Assemble<D>(springs, force, u, &gradient_, true, false, &magnitude);
   double residual = gradient_.template lpNorm<Eigen::Infinity>();
   summary.initial_residual = residual / force_scale;
+  // The loosest node's tolerance: a property of the scene and the load, whatever the unit.
+  summary.tolerance = std::max(relative, floor_max) / force_scale;
   trial_u_.resize(u.size());
 
   for (;;) {
     double tolerance = 0.0;
     const bool converged = excess(gradient_, tolerance) <= 1.0;
-    summary.tolerance = tolerance / force_scale;
     if (converged) {
       summary.termination = Termination::kConverged;
       break;

@@ -106,8 +106,9 @@ struct EquilibriumSummary {
   double initial_residual = 0.0;  // |gradient|_inf / force_scale at the start
   double final_residual = 0.0;    // |gradient|_inf / force_scale at the end
   int mechanism_modes = 0;        // kMechanism: the rest stiffness's null-space dimension
-  // |gradient|_inf / force_scale at which the solve counts as converged (see
-  // EquilibriumOptions::relative_force_tolerance).
+  // The loosest free node's tolerance on its force imbalance, relative to force_scale (see
+  // EquilibriumOptions::relative_force_tolerance): how far round-off lets the solve resolve
+  // the load.
   double tolerance = 0.0;
   // kNotConverged: why, in words ("the iteration limit (100) was reached", ...); static text.
   const char* why = "";

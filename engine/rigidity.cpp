@@ -4,14 +4,22 @@
 #include <vector>
 
 #include <Eigen/SPQRSupport>
+#include <Eigen/SVD>
 #include <Eigen/SparseCore>
 
 #include "engine/equilibrium.h"
 
 namespace springfit {
 
+namespace {
+
+// Up to this many unknowns a dense SVD (a fraction of a second) confirms a sparse QR's rank.
+constexpr int kDenseCheckMaxColumns = 600;
+
+}  // namespace
+
 int RigidityRankDeficiency(const SpringGeometry& geometry, const FreeNodes& free,
-                           const ActiveSprings& springs, double tolerance) {
+                           const ActiveSprings& springs, double tolerance, int suspected) {
   const int d = geometry.dimension;
   const int n = d * free.count;
   if (n == 0) return 0;
@@ -33,7 +41,10 @@ int RigidityRankDeficiency(const SpringGeometry& geometry, const FreeNodes& free
     }
     ++rows;
   }
-  Eigen::SparseMatrix<double, Eigen::ColMajor, Index> r(std::max<Index>(rows, 1), n);
+  // No spring acts on a free node: every coordinate is free to move (and SuiteSparseQR
+  // refuses a matrix without entries).
+  if (entries.empty()) return n;
+  Eigen::SparseMatrix<double, Eigen::ColMajor, Index> r(rows, n);
   r.setFromTriplets(entries.begin(), entries.end());
   // Unit columns: the QR's tolerance is then relative to each coordinate's own stiffness.
   for (Index c = 0; c < n; ++c) {
@@ -45,7 +56,16 @@ int RigidityRankDeficiency(const SpringGeometry& geometry, const FreeNodes& free
   qr.setPivotThreshold(tolerance);
   qr.compute(r);
   if (qr.info() != Eigen::Success) return n;  // out of memory: nothing is known to be rigid
-  return n - static_cast<int>(qr.rank());
+  const int deficiency = n - static_cast<int>(qr.rank());
+  // Heath's rank can come out too high on an ill-conditioned R (a thin strip: a dependent
+  // column keeps a residual norm above the tolerance), so fewer modes than the LDLT's
+  // near-zero eigenvalues are checked by a dense SVD where that is cheap.
+  if (deficiency >= suspected || n > kDenseCheckMaxColumns) return deficiency;
+  const Matrix dense = Matrix(r);
+  const Vector sigma = Eigen::BDCSVD<Matrix>(dense).singularValues();
+  int small = n - static_cast<int>(sigma.size());  // columns beyond the rows
+  for (Eigen::Index i = 0; i < sigma.size(); ++i) small += sigma[i] <= tolerance ? 1 : 0;
+  return small;
 }
 
 }  // namespace springfit

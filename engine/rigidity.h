@@ -23,8 +23,10 @@ struct FreeNodes;
 
 // The number of singular values of the column-scaled rigidity matrix of `springs` (their
 // stiffness ignored) on the free nodes' coordinates at or below `tolerance`, a coordinate with
-// no spring counted as one. 0 < tolerance < 1.
+// no spring counted as one. 0 < tolerance < 1. `suspected`: how many the caller expects at
+// most (the stiffness matrix's near-zero eigenvalues); a sparse QR that finds fewer is
+// checked by a dense SVD for up to 600 unknowns (Heath's rank can come out too high).
 int RigidityRankDeficiency(const SpringGeometry& geometry, const FreeNodes& free,
-                           const ActiveSprings& springs, double tolerance);
+                           const ActiveSprings& springs, double tolerance, int suspected);
 
 }  // namespace springfit

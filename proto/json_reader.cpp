@@ -209,4 +209,10 @@ std::string DumpCompact(const Json& json) {
   return out;
 }
 
+Json NumberOrText(double x) {
+  if (std::isfinite(x)) return x;
+  if (std::isnan(x)) return "nan";
+  return x > 0.0 ? "inf" : "-inf";
+}
+
 }  // namespace springfit::proto

@@ -35,7 +35,12 @@ void ExpectArray(const Json& value, const std::string& path);
 void ExpectObject(const Json& value, const std::string& path);
 
 double ReadNumber(const Json& value, const std::string& path);  // finite
-int ReadInt(const Json& value, const std::string& path);        // an integer within int range
+
+// A number to write: itself when finite, else the string "inf", "-inf" or "nan" (JSON has no
+// non-finite numbers, and nlohmann would write null, which reads as "absent"). proto/RUN.md
+// names the fields that can carry them.
+Json NumberOrText(double x);
+int ReadInt(const Json& value, const std::string& path);  // an integer within int range
 std::uint64_t ReadUint64(const Json& value, const std::string& path);
 std::string ReadString(const Json& value, const std::string& path);
 // An array of `dimension` finite numbers; dimension 0 accepts any length >= 1.

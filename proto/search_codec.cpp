@@ -123,7 +123,7 @@ void DirectDetailsToJson(const Problem& problem, const DirectResult& d, Json& j)
     for (int g = 0; g < static_cast<int>(d.genome.size()); ++g) {
       const NodePair pair = problem.candidates().pairs[problem.gene_candidates()[g]];
       if (d.genome[g]) {
-        confidence.push_back(d.confidence[g]);
+        confidence.push_back(NumberOrText(d.confidence[g]));
       } else if (std::isfinite(d.confidence[g]) && d.confidence[g] > -2.0) {
         near.push_back({{"spring", {pair.first, pair.second}},
                         {"weight", d.weights[g]},

@@ -167,14 +167,14 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
     r.options.identify = Identify::kTopologyAndStiffness;
   r.identifiability = std::move(identifiability);
   r.baseline = std::move(baseline);
-  // A run that ended by itself (not by request, time or target) with no answer says so.
+  // A run that ended by itself (not by request, time or target) with no answer says so
+  // first, then why it ended.
   if (r.stop != StopReason::kCancelled && r.stop != StopReason::kTimeLimit &&
-      r.stop != StopReason::kTargetReached && r.stop_message.empty()) {
-    if (r.evaluation.mechanism) {
-      r.stop = StopReason::kMechanism;
-    } else if (!r.evaluation.converged) {
-      r.stop = StopReason::kNoEquilibrium;
-    }
+      r.stop != StopReason::kTargetReached && r.stop_message.empty() &&
+      (r.evaluation.mechanism || !r.evaluation.converged)) {
+    const std::string ended = StopMessage(r);
+    r.stop = r.evaluation.mechanism ? StopReason::kMechanism : StopReason::kNoEquilibrium;
+    r.stop_message = StopMessage(r) + " (the run ended: " + ended + ")";
   }
   r.springs = problem.SpringsOfGenome(r.best);
   r.difference = problem.CompareWithReference(r.best);

@@ -205,7 +205,9 @@ json.dump(s, open(sys.argv[2], "w"))
 PY
 expect_exit 2 "reference invalid fem" "$sf" reference "$tmp/bad-fem.json"
 grep -q "reference.material.poisson: must be in (-1, 0.5), got 0.5" "$tmp/err" || fail "reference names the path: $(cat "$tmp/err")"
-expect_exit 0 "run fem direct" "$sf" run "$src/examples/fem-kidney-2d.json" --strategy direct --json
+# direct on an FEM reference: no MSS reproduces it, and on the kidney direct's model is
+# worse than the rest shape (normalised error 1.4): stop not_reproduced, exit 10.
+expect_exit 10 "run fem direct" "$sf" run "$src/examples/fem-kidney-2d.json" --strategy direct --json
 python3 - "$tmp/out" <<'PY' || fail "run fem reports E and the baseline: $(head -c 300 "$tmp/out")"
 import json, math, sys
 r = json.load(open(sys.argv[1]))
@@ -213,6 +215,8 @@ assert abs(r["rms_error"] - math.sqrt(r["normalized_error"])) < 1e-12 * r["rms_e
 b = r["baseline"]
 assert b["recipe"] == "van_gelder_1998" and b["springs"] == 263 and b["converged"], b
 assert b["worse_than_baseline"] == (r["normalized_error"] > b["normalized_error"]), b
+assert r["stop"] == "not_reproduced" and r["normalized_error"] >= 1, r["stop"]
+assert "does not reproduce the reference" in r["stop_message"], r["stop_message"]
 PY
 
 # Strategy continuous (default on an FEM reference): the response, the sparsity path, the

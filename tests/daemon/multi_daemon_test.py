@@ -214,7 +214,8 @@ def same_as_local(check, daemon, job_id, scene_path, *flags):
     local_trace = os.path.join(TMP, f"local-{job_id}.csv")
     local = subprocess.run([CLI, "run", scene_path, *flags, "--json", "-q", "--threads", "1",
                             "--trace", local_trace], capture_output=True, text=True, timeout=120)
-    if got.returncode != 0 or local.returncode != 0:
+    # (a local run exits 10 when its model is no answer: the short kidney runs' often is)
+    if got.returncode != 0 or local.returncode not in (0, 10):
         fail(check, f"job {job_id}: result {got.returncode} {got.stderr} / local {local.stderr}")
         return
     a, b = json.loads(got.stdout), json.loads(local.stdout)

@@ -440,8 +440,10 @@ TEST(Direct, ASceneWithoutGenesEndsCleanly) {
   ASSERT_EQ(problem.gene_count(), 0);
   const IdentificationResult run = RunIdentification(problem, ResolveSearchOptions(s.search, 0));
   EXPECT_TRUE(run.springs.empty());
-  EXPECT_EQ(run.stop, StopReason::kCompleted);
+  // No spring: a mechanism, and the stop reason says so (it is no answer).
+  EXPECT_EQ(run.stop, StopReason::kMechanism);
   EXPECT_TRUE(run.evaluation.mechanism);
+  EXPECT_FALSE(run.usable());
 }
 
 TEST(Direct, DependentColumnsGiveFiniteWeightsAndNoFalseConvergence) {

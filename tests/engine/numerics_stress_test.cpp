@@ -1,0 +1,34 @@
+// The seeded stress test of numerical verdicts (engine/examples/numerics_stress.h): a bounded
+// number of extreme scenes in CI, each with its own time bound; bench/numerics_stress runs
+// 10,000 and more.
+#include <gtest/gtest.h>
+
+#include "engine/examples/numerics_stress.h"
+
+namespace springfit {
+namespace {
+
+TEST(NumericsStress, ExtremeScenesGetHonestBoundedAnswers) {
+  constexpr int kScenes = 120;
+  int refused = 0, checked = 0, svd_checks = 0;
+  for (std::uint64_t seed = 1; seed <= kScenes; ++seed) {
+    const examples::StressOutcome o = examples::RunStressScene(seed, 2.0);
+    EXPECT_FALSE(o.failed()) << "seed " << seed << " (" << o.kind << "): " << o.detail;
+    refused += o.refused ? 1 : 0;
+    checked += o.refused ? 0 : 1;
+    svd_checks += o.svd_checks;
+  }
+  // Most scenes must be identified, not refused: otherwise the checks check nothing.
+  EXPECT_GE(checked, kScenes / 2) << refused << " refused";
+  EXPECT_GE(svd_checks, kScenes);
+}
+
+TEST(NumericsStress, TheSceneOfASeedIsAlwaysTheSame) {
+  const Scene a = examples::MakeStressScene(77), b = examples::MakeStressScene(77);
+  EXPECT_EQ(a.rest, b.rest);
+  EXPECT_EQ(a.reference.springs, b.reference.springs);
+  EXPECT_NE(a.rest, examples::MakeStressScene(78).rest);
+}
+
+}  // namespace
+}  // namespace springfit
