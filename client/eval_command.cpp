@@ -84,6 +84,14 @@ int Eval(const EvalArgs& args) {
                 std::string(proto::TerminationName(lc.solve.termination)).c_str(),
                 lc.solve.iterations, lc.solve.projected_steps, lc.solve.final_residual);
   }
+  for (std::size_t k = 0; k < e.load_cases.size(); ++k) {
+    const int near = e.load_cases[k].solve.near_mechanism_modes;
+    if (near > 0 && e.load_cases[k].solve.termination != Termination::kMechanism)
+      std::printf(
+          "case %zu: rigid, but along %d directions its stiffness is below 1e-10 of its stiffest "
+          "(near a mechanism): double precision may not resolve its equilibrium\n",
+          k, near);
+  }
   return kExitOk;
 }
 

@@ -38,18 +38,19 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs,
   if (displacements) displacements->assign(p.load_cases().size(), Vector());
 
   // Stability first: one rest factorisation per distinct set of constrained nodes.
-  modes_.assign(solvers_.size(), 0);
+  stability_.assign(solvers_.size(), RestStability{});
   bool any_mechanism = false;
   for (std::size_t f = 0; f < solvers_.size(); ++f) {
-    modes_[f] = solvers_[f].RestMechanismModes(springs);
-    any_mechanism = any_mechanism || modes_[f] > 0;
+    stability_[f] = solvers_[f].RestStabilityOf(springs);
+    any_mechanism = any_mechanism || stability_[f].modes > 0;
   }
 
   double stable_cost = 0.0;
   for (std::size_t k = 0; k < p.load_cases().size(); ++k) {
     const PreparedLoadCase& lc = p.load_cases()[k];
     LoadCaseEvaluation& out = e.load_cases[k];
-    const int modes = modes_[lc.free_set];
+    const int modes = stability_[lc.free_set].modes;
+    out.solve.near_mechanism_modes = stability_[lc.free_set].near_modes;
     if (modes > 0) {
       out.solve.termination = Termination::kMechanism;
       out.solve.mechanism_modes = modes;
@@ -69,6 +70,7 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs,
     }
     EquilibriumSolver& solver = solvers_[lc.free_set];
     out.solve = solver.Solve(springs, lc.force, lc.prescribed, u_);
+    out.solve.near_mechanism_modes = stability_[lc.free_set].near_modes;
     if (out.solve.termination == Termination::kInterrupted) {
       e.interrupted = true;
       e.converged = false;

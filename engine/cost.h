@@ -81,7 +81,7 @@ class CostFunction {
   const Problem* problem_;
   CostOptions options_;
   std::vector<EquilibriumSolver> solvers_;  // one per Problem::free_sets()
-  std::vector<int> modes_;                  // per free set, for the current evaluation
+  std::vector<RestStability> stability_;    // per free set, for the current evaluation
   Vector u_;
 };
 

@@ -20,6 +20,9 @@ constexpr double kEnergyRoundoffUlps = 64.0;
 // Shifts tried, in turn, when even the projected Hessian is singular at the current
 // configuration (a folded state): a Levenberg-like regularisation of the scaled matrix.
 constexpr double kRegularisationShifts[] = {1e-10, 1e-7, 1e-4, 1e-1};
+// A unit-stiffness rest factorisation whose smallest scaled pivot is above this has no
+// eigenvalue near the mechanism tolerances (RestStabilityOf); healthy models' are 1e-2 and up.
+constexpr double kClearPivot = 1e-4;
 
 double MaxAbsOnFree(const Vector& v, const FreeNodes& free, int dim, bool constrained) {
   double m = 0.0;
@@ -221,7 +224,14 @@ RestStability EquilibriumSolver::RestStabilityOf(const ActiveSprings& springs) {
   RestStability r;
   if (free_.count == 0) return r;
   AssembleUnitRest(springs);
-  const int small = system_.Factorize(0.0, options_.near_mechanism_tolerance, true).small_pivots;
+  const SymmetricSystem::Factorization f =
+      system_.Factorize(0.0, options_.near_mechanism_tolerance, true);
+  // A Cholesky that succeeds with every pivot above the tolerance proves nothing about the
+  // smallest eigenvalue, which can be far below the smallest pivot (a thin strip of cells):
+  // unless every pivot is well clear of it, the eigenvalues are counted.
+  const int small = f.positive_definite && f.min_pivot < kClearPivot
+                        ? system_.CountEigenvaluesBelow(0.0, options_.near_mechanism_tolerance)
+                        : f.small_pivots;
   if (small == 0) return r;
   r.modes = std::min(small, RigidityRankDeficiency(*geometry_, free_, springs,
                                                    options_.rigidity_tolerance, small));
@@ -304,8 +314,8 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, co
 
   for (;;) {
     double tolerance = 0.0;
-    const bool converged = excess(gradient_, tolerance) <= 1.0;
-    if (converged) {
+    summary.excess = excess(gradient_, tolerance);
+    if (summary.excess <= 1.0) {
       summary.termination = Termination::kConverged;
       break;
     }
@@ -400,13 +410,18 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, co
     }
   }
   summary.final_residual = residual / force_scale;
+  if (!summary.converged()) {
+    double tolerance = 0.0;
+    summary.excess = excess(gradient_, tolerance);
+  }
   return summary;
 }
 
 std::string NotConvergedText(const EquilibriumSummary& summary) {
   return std::string(summary.why) + " after " + std::to_string(summary.iterations) +
-         " iterations, at a relative force residual of " + NumberText(summary.final_residual) +
-         " (converged at <= " + NumberText(summary.tolerance) + ")";
+         " iterations, with a force imbalance " + NumberText(summary.excess) +
+         " times what its node allows (relative force residual " +
+         NumberText(summary.final_residual) + ")";
 }
 
 std::string PrecisionLimitText(const RestStability& stability, const ActiveSprings& springs) {

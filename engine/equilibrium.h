@@ -106,10 +106,15 @@ struct EquilibriumSummary {
   double initial_residual = 0.0;  // |gradient|_inf / force_scale at the start
   double final_residual = 0.0;    // |gradient|_inf / force_scale at the end
   int mechanism_modes = 0;        // kMechanism: the rest stiffness's null-space dimension
+  // Set by the cost function (cost.h) from the rest verdict: directions along which the model
+  // is rigid but too soft for double precision to be sure of (RestStability::near_modes).
+  int near_mechanism_modes = 0;
   // The loosest free node's tolerance on its force imbalance, relative to force_scale (see
   // EquilibriumOptions::relative_force_tolerance): how far round-off lets the solve resolve
   // the load.
   double tolerance = 0.0;
+  // The worst free node's force imbalance over its tolerance: <= 1 when converged.
+  double excess = 0.0;
   // kNotConverged: why, in words ("the iteration limit (100) was reached", ...); static text.
   const char* why = "";
 
@@ -131,7 +136,8 @@ inline constexpr double kStiffnessRatioLimit = 1e12;
 
 // Why a solve did not converge, for messages: the reason, the iterations, the relative
 // residual and the tolerance, e.g. "the Newton iteration limit was reached after 100
-// iterations, at a relative force residual of 3.2e-09 (converged at <= 1e-10)".
+// iterations, with a force imbalance 32 times what its node allows (relative force residual
+// 3.2e-09)".
 std::string NotConvergedText(const EquilibriumSummary& summary);
 // What double precision cannot decide about a model that did not converge: its near-mechanism
 // modes, a stiffness ratio at or beyond kStiffnessRatioLimit. "" when neither; otherwise

@@ -188,11 +188,6 @@ Problem::Problem(Scene scene, EquilibriumOptions solver_options) {
       lc.reference = Vector::Zero(d * n);
       const EquilibriumSummary summary =
           solver.Solve(springs, lc.force, lc.prescribed, lc.reference);
-      if (!summary.converged()) {
-        throw InputError("reference", "no equilibrium of the reference MSS found under " +
-                                          CasePath(k) + ": " + NotConvergedText(summary) +
-                                          PrecisionLimitText(stability, springs));
-      }
       if (summary.tolerance > kReferenceResolution) {
         throw InputError(CasePath(k),
                          "the load is too small for double precision: round-off in the reference "
@@ -202,6 +197,11 @@ Problem::Problem(Scene scene, EquilibriumOptions solver_options) {
                              "forces), so its equilibrium is not determined; scale the loads "
                              "up (at least " +
                              NumberText(summary.tolerance / kReferenceResolution, 2) + " times)");
+      }
+      if (!summary.converged()) {
+        throw InputError("reference", "no equilibrium of the reference MSS found under " +
+                                          CasePath(k) + ": " + NotConvergedText(summary) +
+                                          PrecisionLimitText(stability, springs));
       }
       Vector polished = lc.reference;
       const EquilibriumSummary polish =

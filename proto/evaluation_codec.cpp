@@ -26,6 +26,7 @@ Json EvaluationToJson(const Problem& problem, const Evaluation& e) {
     c["initial_residual"] = lc.solve.initial_residual;
     c["residual"] = lc.solve.final_residual;
     c["mechanism_modes"] = lc.solve.mechanism_modes;
+    c["near_mechanism_modes"] = lc.solve.near_mechanism_modes;
     cases.push_back(std::move(c));
   }
   j["load_cases"] = std::move(cases);

@@ -1,5 +1,8 @@
 #include "proto/evaluation_codec.h"
 
+#include <cmath>
+#include <limits>
+
 #include <gtest/gtest.h>
 
 #include "engine/input_error.h"
@@ -41,6 +44,22 @@ TEST(EvaluationCodec, TopologyFilesRoundTripAndRejectNonCandidates) {
   } catch (const InputError& e) {
     EXPECT_EQ(e.path(), "springs[1]");
   }
+}
+
+TEST(EvaluationCodec, NonFiniteNumbersAreWrittenAsStringsNotNull) {
+  // JSON has no infinity: nlohmann writes null, which reads as "absent". A direct result's
+  // pinned spring has confidence +inf (standard error 0).
+  EXPECT_EQ(NumberOrText(std::numeric_limits<double>::infinity()).dump(), "\"inf\"");
+  EXPECT_EQ(NumberOrText(-std::numeric_limits<double>::infinity()).dump(), "\"-inf\"");
+  EXPECT_EQ(NumberOrText(std::nan("")).dump(), "\"nan\"");
+  EXPECT_EQ(NumberOrText(1.5).dump(), "1.5");
+}
+
+TEST(EvaluationCodec, CarriesNearMechanismModesPerCase) {
+  const Problem p = Problem::Build(examples::Make("paper-iso-5x5"));
+  CostFunction cost(p);
+  const Json j = EvaluationToJson(p, cost.EvaluateMask(*p.reference_mask()));
+  for (const Json& c : j["load_cases"]) EXPECT_EQ(c["near_mechanism_modes"], 0);
 }
 
 }  // namespace
