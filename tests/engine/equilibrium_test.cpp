@@ -145,6 +145,24 @@ TEST(Equilibrium, GradientAndHessianMatchFiniteDifferences) {
   }
 }
 
+TEST(Equilibrium, ASoftRegionIsSolvedToItsOwnRoundOffNotTheStiffestSprings) {
+  // Node 0 on two soft springs (k = 1) to fixed nodes 1 and 2, loaded by 1e-6; node 3 on two
+  // springs of 1e8 to fixed nodes 4 and 5, unloaded. A floor set by the stiffest spring
+  // (1e-13 x 1e8 x 1 = 1e-5) would call node 0 balanced before it moves.
+  Vector rest(12);
+  rest << 0, 0, -1, 0, 0, -1, 10, 0, 9, 0, 10, -1;
+  const SpringGeometry g(2, rest, {{0, 1}, {0, 2}, {3, 4}, {3, 5}});
+  EquilibriumSolver solver(g, FreeNodes::FromConstrained(Constrained(6, {1, 2, 4, 5})));
+  const ActiveSprings springs{{0, 1, 2, 3}, {1.0, 1.0, 1e8, 1e8}};
+  Vector force = Vector::Zero(12);
+  force[0] = 1e-6;
+  Vector u = Vector::Zero(12);
+  const EquilibriumSummary summary = solver.Solve(springs, force, Vector::Zero(12), u);
+  ASSERT_TRUE(summary.converged());
+  EXPECT_GE(summary.iterations, 1);
+  EXPECT_NEAR(u[0], 1e-6, 1e-12);  // the spring along x carries it all (to first order)
+}
+
 TEST(Equilibrium, SmallLoadLimitIsTheLinearSolve) {
   for (int dim : {2, 3}) {
     const Problem p = Problem::Build(testing::GridScene(dim, 4));

@@ -2,6 +2,7 @@
 // number of extreme scenes in CI, each with its own time bound; bench/numerics_stress runs
 // 10,000 and more.
 #include <cstdlib>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -15,7 +16,12 @@ TEST(NumericsStress, ExtremeScenesGetHonestBoundedAnswers) {
   const char* count = std::getenv("SPRINGFIT_STRESS_SCENES");
   const int kScenes = count ? std::atoi(count) : 120;
   int refused = 0, checked = 0, svd_checks = 0;
-  for (std::uint64_t seed = 1; seed <= kScenes; ++seed) {
+  // Seeds 1..kScenes, and the ones the 10,000-scene bench run found wrong before their fix
+  // (thin strips whose rest Cholesky passed with small pivots: modes missed).
+  std::vector<std::uint64_t> seeds = {1328, 3156, 4935, 5722, 6467};
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(kScenes); ++seed)
+    seeds.push_back(seed);
+  for (const std::uint64_t seed : seeds) {
     const examples::StressOutcome o = examples::RunStressScene(seed, 2.0);
     EXPECT_FALSE(o.failed()) << "seed " << seed << " (" << o.kind << "): " << o.detail;
     refused += o.refused ? 1 : 0;
