@@ -7,6 +7,7 @@
 #include <unordered_map>
 
 #include "engine/input_error.h"
+#include "engine/point_index.h"
 
 namespace springfit {
 namespace {
@@ -24,11 +25,6 @@ NodePair Ordered(int a, int b) {
 void SortUnique(std::vector<NodePair>& pairs) {
   std::sort(pairs.begin(), pairs.end());
   pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
-}
-
-double Distance(const Scene& s, int i, int j) {
-  const int d = s.dimension;
-  return (s.rest.segment(d * i, d) - s.rest.segment(d * j, d)).norm();
 }
 
 std::vector<NodePair> GridCandidates(const Scene& scene) {
@@ -88,30 +84,24 @@ std::vector<NodePair> GridCandidates(const Scene& scene) {
   return pairs;
 }
 
-std::vector<NodePair> NearestCandidates(const Scene& scene) {
+std::vector<NodePair> NearestCandidates(const Scene& scene, const PointIndex& index) {
   const int n = scene.node_count();
-  const int k = std::min(scene.candidates.k, n - 1);
   std::vector<NodePair> pairs;
-  std::vector<std::pair<double, int>> by_distance;
+  pairs.reserve(static_cast<std::size_t>(n) * std::min(scene.candidates.k, n - 1));
   for (int i = 0; i < n; ++i) {
-    by_distance.clear();
-    for (int j = 0; j < n; ++j) {
-      if (j != i) by_distance.emplace_back(Distance(scene, i, j), j);
-    }
-    // Exact ties go to the lower index (pairs compare lexicographically).
-    std::partial_sort(by_distance.begin(), by_distance.begin() + k, by_distance.end());
-    for (int r = 0; r < k; ++r) pairs.push_back(Ordered(i, by_distance[r].second));
+    // Exact ties go to the lower index (PointIndex::Nearest orders by distance, then index).
+    for (const int j : index.Nearest(i, scene.candidates.k)) pairs.push_back(Ordered(i, j));
   }
   return pairs;
 }
 
-std::vector<NodePair> RadiusCandidates(const Scene& scene) {
+std::vector<NodePair> RadiusCandidates(const Scene& scene, const PointIndex& index) {
   const int n = scene.node_count();
   const double r = scene.candidates.radius * (1.0 + kDistanceTolerance);
   std::vector<NodePair> pairs;
   for (int i = 0; i < n; ++i) {
-    for (int j = i + 1; j < n; ++j) {
-      if (Distance(scene, i, j) <= r) pairs.push_back({i, j});
+    for (const int j : index.WithinRadius(index.Point(i), r)) {
+      if (j > i) pairs.push_back({i, j});
     }
   }
   return pairs;
@@ -139,6 +129,39 @@ std::vector<double> InferLatticeSpacing(const Scene& scene) {
   return spacing;
 }
 
+std::int64_t EstimateCandidateCount(const Scene& scene, std::int64_t stop_above) {
+  const std::int64_t n = scene.node_count();
+  const std::int64_t k =
+      std::min<std::int64_t>(scene.candidates.k, std::max<std::int64_t>(n - 1, 0));
+  switch (scene.candidates.kind) {
+    case CandidateSpec::Kind::kGrid:
+      return n * (scene.dimension == 3 ? 13 : 4);  // half of the 26 or 8 neighbours
+    case CandidateSpec::Kind::kNearest:
+      return n * k;
+    case CandidateSpec::Kind::kPairs:
+      return static_cast<std::int64_t>(scene.candidates.pairs.size());
+    case CandidateSpec::Kind::kMesh: {
+      std::int64_t edges = 0;
+      for (const std::vector<int>& element : scene.reference.fem.elements) {
+        const auto m = static_cast<std::int64_t>(element.size());
+        edges += m * (m - 1) / 2;
+      }
+      return edges + n * k;
+    }
+    case CandidateSpec::Kind::kRadius: {
+      if (!scene.rest.allFinite() || n < 2) return 0;
+      const PointIndex index(scene.rest, scene.dimension);
+      const double r = scene.candidates.radius * (1.0 + kDistanceTolerance);
+      std::int64_t count = 0;
+      for (int i = 0; i < n && count <= stop_above; ++i) {
+        for (const int j : index.WithinRadius(index.Point(i), r)) count += j > i ? 1 : 0;
+      }
+      return count;
+    }
+  }
+  return 0;
+}
+
 std::vector<NodePair> GenerateCandidates(const Scene& scene) {
   std::vector<NodePair> pairs;
   switch (scene.candidates.kind) {
@@ -146,10 +169,10 @@ std::vector<NodePair> GenerateCandidates(const Scene& scene) {
       pairs = GridCandidates(scene);
       break;
     case CandidateSpec::Kind::kNearest:
-      pairs = NearestCandidates(scene);
+      pairs = NearestCandidates(scene, PointIndex(scene.rest, scene.dimension));
       break;
     case CandidateSpec::Kind::kRadius:
-      pairs = RadiusCandidates(scene);
+      pairs = RadiusCandidates(scene, PointIndex(scene.rest, scene.dimension));
       break;
     case CandidateSpec::Kind::kPairs:
       for (const NodePair& p : scene.candidates.pairs) pairs.push_back(Ordered(p.first, p.second));
@@ -162,7 +185,8 @@ std::vector<NodePair> GenerateCandidates(const Scene& scene) {
         }
       }
       if (scene.candidates.k > 0) {
-        const std::vector<NodePair> near = NearestCandidates(scene);
+        const std::vector<NodePair> near =
+            NearestCandidates(scene, PointIndex(scene.rest, scene.dimension));
         pairs.insert(pairs.end(), near.begin(), near.end());
       }
       break;

@@ -10,6 +10,7 @@
 
 #include "engine/fem/fem_validation.h"
 #include "engine/input_error.h"
+#include "engine/point_index.h"
 
 namespace springfit {
 namespace {
@@ -107,22 +108,16 @@ void CheckNodes(const Scene& s) {
                        "not a finite number");
     }
   }
-  // Sweep along x: only nodes whose x are within the tolerance can coincide.
+  // A k-d tree finds each node's coincident neighbours in O(log n), whatever the layout (a
+  // sweep along one axis was quadratic for nodes on a line across it).
   const int d = s.dimension;
   const double tol = kCoincidentTolerance * Extent(s);
-  std::vector<int> order(s.node_count());
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](int a, int b) {
-    return s.rest[d * a] < s.rest[d * b] || (s.rest[d * a] == s.rest[d * b] && a < b);
-  });
-  for (std::size_t a = 0; a < order.size(); ++a) {
-    for (std::size_t b = a + 1; b < order.size(); ++b) {
-      const int i = order[a], j = order[b];
-      if (s.rest[d * j] - s.rest[d * i] > tol) break;
-      if ((s.rest.segment(d * i, d) - s.rest.segment(d * j, d)).norm() <= tol) {
-        throw InputError(Index("nodes", std::max(i, j)),
-                         "at the same position as nodes[" + std::to_string(std::min(i, j)) + "]");
-      }
+  const PointIndex index(s.rest, d);
+  for (int i = 0; i < s.node_count(); ++i) {
+    for (const int j : index.WithinRadius(index.Point(i), tol)) {
+      if (j >= i) break;  // ascending: the earlier node it coincides with comes first
+      throw InputError(Index("nodes", i),
+                       "at the same position as nodes[" + std::to_string(j) + "]");
     }
   }
   if (d == 3) CheckNotPlanar(s);

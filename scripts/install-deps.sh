@@ -9,6 +9,7 @@ packages=(
   libeigen3-dev            # linear algebra, sparse factorisation
   libsuitesparse-dev       # CHOLMOD: supernodal sparse Cholesky (strategy direct at scale)
   liblapack-dev            # band Cholesky of the small equilibrium systems
+  libnanoflann-dev         # k-d tree: candidates and coincident nodes in O(n log n)
   libboost-dev             # Asio (header-only) for networking and thread pools
   nlohmann-json3-dev       # JSON
   libsqlite3-dev libsqlitecpp-dev sqlite3

@@ -297,6 +297,19 @@ int main(int argc, char** argv) {
   app.add_option("--max-genes", args.limits.max_genes, "Candidate springs in a submitted scene")
       ->check(CLI::Range(1, 100000000))
       ->capture_default_str();
+  app.add_option(
+         "--max-candidates", args.limits.max_candidates,
+         "Candidate springs a submitted scene may ask for, estimated before generating them")
+      ->check(CLI::Range(std::int64_t{1}, std::int64_t{1} << 40))
+      ->capture_default_str();
+  app.add_option("--max-population", args.limits.max_population,
+                 "Population of a submitted job's genetic search")
+      ->check(CLI::Range(2, 100000000))
+      ->capture_default_str();
+  app.add_option("--max-population-genes", args.limits.max_population_genes,
+                 "Population times genes of a submitted job (bytes of one generation)")
+      ->check(CLI::Range(std::int64_t{1}, std::int64_t{1} << 50))
+      ->capture_default_str();
   app.add_option("--max-generations", args.limits.max_generations,
                  "Generation limit of a submitted job")
       ->check(CLI::Range(1, 1000000000))

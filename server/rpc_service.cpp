@@ -8,6 +8,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "engine/candidates.h"
 #include "engine/input_error.h"
 #include "engine/problem.h"
 #include "engine/search/search_options.h"
@@ -229,6 +230,9 @@ Json RpcService::ServerInfo() {
   Json limits;
   limits["max_nodes"] = options_.limits.max_nodes;
   limits["max_genes"] = options_.limits.max_genes;
+  limits["max_candidates"] = options_.limits.max_candidates;
+  limits["max_population"] = options_.limits.max_population;
+  limits["max_population_genes"] = options_.limits.max_population_genes;
   limits["max_generations"] = options_.limits.max_generations;
   limits["max_queued"] = options_.limits.max_queued;
   limits["max_batch"] = options_.limits.max_batch;
@@ -301,6 +305,14 @@ Json RpcService::JobSubmit(const Json& params) {
       LimitExceeded("max_generations", scene.search.max_generations,
                     options_.limits.max_generations);
     }
+    if (scene.search.population && *scene.search.population > options_.limits.max_population) {
+      LimitExceeded("max_population", *scene.search.population, options_.limits.max_population);
+    }
+    // Before any candidate is generated: a spec asking for billions of pairs is refused here.
+    const std::int64_t candidates = EstimateCandidateCount(scene, options_.limits.max_candidates);
+    if (candidates > options_.limits.max_candidates) {
+      LimitExceeded("max_candidates", candidates, options_.limits.max_candidates);
+    }
     if (seed) scene.search.seed = *seed;
     problem = std::make_shared<const Problem>(std::move(scene));
   } catch (const InputError& e) {
@@ -313,6 +325,12 @@ Json RpcService::JobSubmit(const Json& params) {
   }
   const Scene& scene = problem->scene();
   const SearchOptions options = ResolveSearchOptions(scene.search, problem->gene_count());
+  // Before the job is stored: the search would hold population x genes bytes per generation.
+  const std::int64_t population_genes =
+      static_cast<std::int64_t>(options.population) * problem->gene_count();
+  if (population_genes > options_.limits.max_population_genes) {
+    LimitExceeded("max_population_genes", population_genes, options_.limits.max_population_genes);
+  }
   r.seed = scene.search.seed;
   r.scene_name = scene.name;
   r.genes = problem->gene_count();

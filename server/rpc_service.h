@@ -17,8 +17,14 @@
 namespace springfit::server {
 
 struct ServiceLimits {
-  int max_nodes = 100000;           // nodes per scene
-  int max_genes = 2000000;          // candidate springs per scene
+  int max_nodes = 100000;   // nodes per scene
+  int max_genes = 2000000;  // candidate springs per scene
+  // Candidate springs a scene's spec may ask for, estimated before they are generated
+  // (engine/candidates.h EstimateCandidateCount: k n for k nearest, counted for a radius).
+  std::int64_t max_candidates = 4000000;
+  int max_population = 10000;  // a genetic search's population
+  // Population times genes: the bytes of one generation's genomes (100 MB by default).
+  std::int64_t max_population_genes = 100000000;
   int max_generations = 100000000;  // a job's generation limit
   int max_queued = 10000;           // queued jobs, all clients together
   int max_batch = 100;              // requests in one JSON-RPC batch

@@ -6,6 +6,7 @@
 #include <string>
 #include <utility>
 
+#include "engine/point_index.h"
 #include "engine/search/genetic_operators.h"
 
 namespace springfit {
@@ -187,19 +188,24 @@ std::vector<std::vector<int>> GeneticSearch::SwapPartners(const Problem& problem
   const Vector& rest = problem.scene().rest;
   const std::vector<int>& genes = problem.gene_candidates();
   const int n = static_cast<int>(genes.size());
-  std::vector<Vector> mid(n);
+  Vector mid(static_cast<Eigen::Index>(d) * n);
   for (int g = 0; g < n; ++g) {
     const NodePair pair = c.pairs[genes[g]];
-    mid[g] = 0.5 * (rest.segment(d * pair.first, d) + rest.segment(d * pair.second, d));
+    mid.segment(d * g, d) =
+        0.5 * (rest.segment(d * pair.first, d) + rest.segment(d * pair.second, d));
   }
+  // A k-d tree over the midpoints proposes, for each spring, those within radius times its
+  // own length (a bound on the pair's limit); the exact test below decides. O(n log n) for
+  // local meshes, where comparing every pair was O(n^2) (0.6 s at 14k genes).
+  const PointIndex index(mid, d);
   std::vector<std::vector<int>> partners(n);
   for (int g = 0; g < n; ++g) {
-    for (int h = g + 1; h < n; ++h) {
+    const double reach = radius * c.rest_length[genes[g]] * (1.0 + 1e-9);
+    for (const int h : index.WithinRadius(index.Point(g), reach)) {
+      if (h == g) continue;
       const double limit = radius * std::min(c.rest_length[genes[g]], c.rest_length[genes[h]]);
-      if ((mid[g] - mid[h]).squaredNorm() <= limit * limit) {
+      if ((mid.segment(d * g, d) - mid.segment(d * h, d)).squaredNorm() <= limit * limit)
         partners[g].push_back(h);
-        partners[h].push_back(g);
-      }
     }
   }
   return partners;

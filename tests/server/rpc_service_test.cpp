@@ -203,6 +203,48 @@ TEST_F(RpcServiceTest, BadScenesAndLimitsAreRefusedAtSubmission) {
   EXPECT_EQ(Code(Submit("paper-iso-5x5")), rpc::kBusy);
 }
 
+TEST_F(RpcServiceTest, SearchBoundsAreCheckedBeforeTheWork) {
+  ServiceOptions o;
+  o.limits.max_population = 1000;
+  o.limits.max_candidates = 100000;
+  o.limits.max_population_genes = 50000;
+  MakeService(false, o);
+  // A population of 1e8 was stored as a job (and re-queued at every restart).
+  Json scene = Scene("paper-iso-5x5");
+  scene["search"] = {{"population", 100000000}};
+  Json refused = Call("job.submit", {{"scene", scene}});
+  EXPECT_EQ(Code(refused), rpc::kLimitExceeded);
+  EXPECT_EQ(refused["error"]["data"]["limit"], "max_population");
+  EXPECT_EQ(refused["error"]["data"]["value"], 100000000);
+
+  // 3,000 nodes and a radius that takes every pair (4.5 million): refused from the estimate,
+  // before a single candidate is generated.
+  Json big = Scene("paper-iso-5x5");
+  Json nodes = Json::array();
+  for (int i = 0; i < 3000; ++i) nodes.push_back({0.001 * (i % 60), 0.001 * (i / 60)});
+  big["nodes"] = nodes;
+  big["candidates"] = {{"type", "radius"}, {"radius", 10.0}};
+  refused = Call("job.submit", {{"scene", big}});
+  EXPECT_EQ(Code(refused), rpc::kLimitExceeded);
+  EXPECT_EQ(refused["error"]["data"]["limit"], "max_candidates");
+  EXPECT_GT(refused["error"]["data"]["value"].get<std::int64_t>(), 100000);
+
+  // 72 genes x a population of 800 = 57,600 bytes a generation, above 50,000.
+  scene["search"] = {{"population", 800}};
+  refused = Call("job.submit", {{"scene", scene}});
+  EXPECT_EQ(Code(refused), rpc::kLimitExceeded);
+  EXPECT_EQ(refused["error"]["data"]["limit"], "max_population_genes");
+  EXPECT_EQ(refused["error"]["data"]["value"], 57600);
+  EXPECT_EQ(store_->ListJobs({}).jobs.size(), 0u);  // nothing stored
+
+  scene["search"] = {{"population", 600}};
+  EXPECT_TRUE(Call("job.submit", {{"scene", scene}})["result"]["created"].get<bool>());
+  const Json limits = Call("server.info")["result"]["limits"];
+  EXPECT_EQ(limits["max_population"], 1000);
+  EXPECT_EQ(limits["max_candidates"], 100000);
+  EXPECT_EQ(limits["max_population_genes"], 50000);
+}
+
 TEST_F(RpcServiceTest, QueuedJobsCancelAndRefuseResultAndDelete) {
   MakeService(false);
   const Json submitted = Submit("paper-iso-5x5", {{"label", "x"}, {"seed", 42}, {"priority", 3}});
