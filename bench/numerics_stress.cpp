@@ -2,12 +2,15 @@
 // extreme scenes, each checked independently and run by strategy direct with a time limit,
 // and the counts bench/RESULTS.md records.
 //   numerics_stress --scenes 10000 [--first 1] [--max-seconds 5] [--verbose]
+//   numerics_stress --write-scene SEED -o FILE.json   (a scene to reproduce with springfit)
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <fstream>
 #include <map>
 #include <string>
 
 #include "engine/examples/numerics_stress.h"
+#include "proto/scene_codec.h"
 
 int main(int argc, char** argv) {
   CLI::App app("numerics stress: seeded extreme scenes, independent checks, counts");
@@ -19,7 +22,21 @@ int main(int argc, char** argv) {
   app.add_option("--scenes", scenes, "how many scenes")->check(CLI::PositiveNumber);
   app.add_option("--max-seconds", max_seconds, "direct's time limit per scene");
   app.add_flag("--verbose", verbose, "print every failure and refusal");
+  std::uint64_t write_seed = 0;
+  std::string output;
+  app.add_option("--write-scene", write_seed, "write the scene of this seed and stop");
+  app.add_option("-o", output, "the file --write-scene writes");
   CLI11_PARSE(app, argc, argv);
+  if (write_seed != 0) {
+    std::ofstream file(output);
+    file << springfit::proto::SceneToJson(springfit::examples::MakeStressScene(write_seed)).dump(1)
+         << "\n";
+    if (!file) {
+      std::fprintf(stderr, "numerics_stress: cannot write '%s'\n", output.c_str());
+      return 1;
+    }
+    return 0;
+  }
 
   int refused = 0, svd = 0, hangs = 0, non_finite = 0, false_mechanism = 0, inconsistent = 0,
       unbalanced = 0, scale = 0, silent = 0;

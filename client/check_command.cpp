@@ -10,6 +10,7 @@
 #include "engine/direct/identifiability.h"
 #include "engine/fem/fem_model.h"
 #include "engine/identification/strategy.h"
+#include "engine/number_text.h"
 #include "engine/problem.h"
 #include "engine/search/search_options.h"
 #include "proto/names.h"
@@ -131,6 +132,15 @@ int Check(const SceneInput& input) {
       std::cout << ", " << lc.tractions.size() << " traction"
                 << (lc.tractions.size() == 1 ? "" : "s");
     std::cout << "\n";
+  }
+  for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
+    const auto& solve = problem.load_cases()[k].reference_solve;
+    if (solve && solve->resolution > kReferenceResolutionWarning)
+      std::cout << "  warning: under load_cases[" << k
+                << "] round-off leaves the reference's displacements determined only to "
+                << NumberText(solve->resolution, 2)
+                << " of their size (a stiffness spread or nearly collinear springs make its "
+                   "tangent nearly singular): normalised errors below that are noise\n";
   }
   if (problem.DisplacementOnly()) {
     std::cout

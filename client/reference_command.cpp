@@ -57,6 +57,10 @@ int Reference(const ReferenceArgs& args) {
                   iterations == 1 ? "" : "s", steps, steps == 1 ? "" : "s",
                   c["residual"].get<double>());
     }
+    const auto& solve = problem.load_cases()[k].reference_solve;
+    if (solve && solve->resolution > kReferenceResolutionWarning)
+      std::printf(", displacements determined only to %.2g of their size (round-off)",
+                  solve->resolution);
     std::printf("\n");
   }
   std::fflush(stdout);

@@ -54,6 +54,7 @@ void EquilibriumOptions::Validate() const {
   check.Require(InOpenUnit(rigidity_tolerance), "rigidity_tolerance", rigidity_tolerance,
                 "0 < value < 1");
   check.Require(banded_max_dofs >= 0, "banded_max_dofs", banded_max_dofs, "value >= 0");
+  check.Require(supernodal_min_dofs >= 0, "supernodal_min_dofs", supernodal_min_dofs, "value >= 0");
 }
 
 EquilibriumSolver::EquilibriumSolver(const SpringGeometry& geometry, FreeNodes free_nodes,
@@ -80,8 +81,9 @@ EquilibriumSolver::EquilibriumSolver(const SpringGeometry& geometry, FreeNodes f
       }
     }
   }
-  const auto backend = n <= options_.banded_max_dofs ? SymmetricSystem::Backend::kBanded
-                                                     : SymmetricSystem::Backend::kSparse;
+  const auto backend = n <= options_.banded_max_dofs      ? SymmetricSystem::Backend::kBanded
+                       : n > options_.supernodal_min_dofs ? SymmetricSystem::Backend::kSupernodal
+                                                          : SymmetricSystem::Backend::kSparse;
   // Diagonal blocks of free nodes: the whole lower triangle of each node's d x d block.
   for (int f = 0; f < free_.count; ++f) {
     for (int a = 0; a < d; ++a) {
@@ -208,6 +210,27 @@ bool EquilibriumSolver::SolveWithTangent(const ActiveSprings& springs, const Vec
   return true;
 }
 
+double EquilibriumSolver::DisplacementResolution(const ActiveSprings& springs, const Vector& u) {
+  if (free_.count == 0) return 0.0;
+  const Vector zero = Vector::Zero(u.size());
+  // The exact tangent, with any positive pivot: a step would not trust one this small, but
+  // the size of H^-1 r is what is asked, and the softest direction decides it.
+  EnergyAndGradient(springs, zero, u, nullptr, true, false);
+  if (!system_.Factorize(0.0, 0.0, false).positive_definite)
+    return std::numeric_limits<double>::infinity();
+  // Each free node's allowed imbalance, with signs that do not line up with any one mode.
+  Vector r(dim_ * free_.count);
+  for (int f = 0; f < free_.count; ++f) {
+    const double tol = std::max(relative_, f < static_cast<int>(floor_.size()) ? floor_[f] : 0.0);
+    for (int a = 0; a < dim_; ++a) {
+      const std::uint32_t hash = static_cast<std::uint32_t>(dim_ * f + a) * 2654435761u;
+      r[dim_ * f + a] = (hash >> 31) ? tol : -tol;
+    }
+  }
+  system_.Solve(r);
+  return std::isfinite(r.norm()) ? r.norm() : std::numeric_limits<double>::infinity();
+}
+
 Matrix EquilibriumSolver::AssembledHessian() const {
   return system_.ToDense();
 }
@@ -287,6 +310,7 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, co
   for (const double f : floor_) floor_max = std::max(floor_max, f);
   if (force_scale == 0.0) force_scale = floor_max / options_.roundoff_force_tolerance;
   const double relative = options_.relative_force_tolerance * force_scale;
+  relative_ = relative;
   // Converged when every free node's imbalance is within its tolerance; returns the largest
   // imbalance / tolerance, and that node's tolerance in `worst_tolerance`.
   const auto excess = [&](const Vector& gradient, double& worst_tolerance) {

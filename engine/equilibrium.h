@@ -93,6 +93,10 @@ struct EquilibriumOptions {
   // sparse one. On grids numbered row by row the banded one also wins up to 20x20, not on
   // irregular meshes in their mesher's numbering (bench/RESULTS.md, solve section).
   int banded_max_dofs = 96;
+  // Free-node degrees of freedom above which CHOLMOD's supernodal Cholesky replaces Eigen's
+  // simplicial LDLT: at a 316 x 316 grid (200k) the simplicial one took 20 s a
+  // factorisation. Above every example's size, so that their trajectories do not change.
+  int supernodal_min_dofs = 20000;
 
   // Throws std::invalid_argument naming the field, its value and the rule it breaks.
   void Validate() const;
@@ -190,6 +194,15 @@ class EquilibriumSolver {
   // method runs meanwhile.
   void SolveTangent(Vector& b) const { system_.Solve(b); }
 
+  // How far round-off leaves the displacements of an equilibrium `u` of the last Solve()
+  // undetermined: |H^-1 r| (2-norm over the free nodes, in length units), r the force
+  // imbalance each free node is allowed (its tolerance, signs from a fixed pattern), H the
+  // tangent at u (projected where the exact one is not positive definite). Well-conditioned
+  // models give about the tolerance times the displacement; a tangent that is nearly singular
+  // (a stiffness spread near 1e12, nearly collinear springs) amplifies it, and normalised
+  // errors below this over |u| are noise. +inf when no tangent factorises. One factorisation.
+  double DisplacementResolution(const ActiveSprings& springs, const Vector& u);
+
   // E(u) and its gradient on the free degrees of freedom (flat, free-node order). Exposed for
   // tests; `hessian` true also assembles the Hessian into the system (`projected` clamps it).
   double EnergyAndGradient(const ActiveSprings& springs, const Vector& force, const Vector& u,
@@ -220,6 +233,7 @@ class EquilibriumSolver {
   void AssembleUnitRest(const ActiveSprings& springs);
   Vector gradient_, trial_gradient_, step_, trial_u_;
   std::vector<double> floor_;  // per free node: its round-off force floor (SolveImpl)
+  double relative_ = 0.0;      // the relative force tolerance in force units (SolveImpl)
 };
 
 }  // namespace springfit

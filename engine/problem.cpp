@@ -29,6 +29,9 @@ constexpr double kPrescribedMismatchTolerance = 1e-9;
 // A reference MSS's equilibrium must be determined to this fraction of its load at least: a
 // load whose forces are closer to round-off than this does not tell topologies apart.
 constexpr double kReferenceResolution = 1e-3;
+// A reference equilibrium that round-off leaves uncertain by more than its own size
+// (ReferenceSolve::resolution) is no data: the scene is refused.
+constexpr double kReferenceUndetermined = 1.0;
 
 // Newton iterations allowed to the reference MSS's equilibria (see Problem::Problem).
 constexpr int kReferenceMaxIterations = 1000;
@@ -211,6 +214,24 @@ Problem::Problem(Scene scene, EquilibriumOptions solver_options) {
         lc.reference = std::move(polished);
         lc.reference_solve->iterations += polish.iterations;
         lc.reference_solve->residual = polish.final_residual;
+      }
+      // Measured with the first solver's tolerances (the polisher's are round-off's own).
+      const FreeNodes& free = p.free_sets_[lc.free_set];
+      double norm2 = 0.0;
+      for (int i = 0; i < n; ++i) {
+        if (free.free_index[i] >= 0) norm2 += lc.reference.segment(d * i, d).squaredNorm();
+      }
+      const double spread = solver.DisplacementResolution(springs, lc.reference);
+      lc.reference_solve->resolution =
+          norm2 > 0.0 ? spread / std::sqrt(norm2) : (spread > 0.0 ? 1.0 : 0.0);
+      if (lc.reference_solve->resolution > kReferenceUndetermined) {
+        throw InputError(CasePath(k),
+                         "the reference's equilibrium is not determined in double precision: "
+                         "round-off in its springs' forces leaves its displacements uncertain "
+                         "by " +
+                             NumberText(lc.reference_solve->resolution, 2) +
+                             " times their size (a load this small next to stiff springs, or a "
+                             "nearly singular stiffness); scale the load up");
       }
     }
     // The reference topology as a candidate mask.

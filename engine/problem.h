@@ -37,7 +37,16 @@ struct ReferenceSolve {
   int iterations = 0;     // Newton iterations
   int load_steps = 1;     // load increments (FEM continuation; 1 = the full load at once)
   double residual = 0.0;  // final |gradient|_inf relative to the case's force scale
+  // MSS references: how far round-off leaves the equilibrium undetermined, relative to it:
+  // EquilibriumSolver::DisplacementResolution over |u^R| on the free nodes (0 for FEM). A
+  // normalised error below it cannot be told from 0; a stiffness spread near 1e12 or nearly
+  // collinear springs can make it large (problem.cpp warns beyond kReferenceResolutionWarning).
+  double resolution = 0.0;
 };
+
+// A reference whose displacements round-off leaves undetermined beyond this (relative) is
+// named in `springfit check` and `reference`: errors below it are noise.
+inline constexpr double kReferenceResolutionWarning = 1e-6;
 
 struct PreparedLoadCase {
   int free_set = 0;              // index into Problem::free_sets

@@ -1,5 +1,6 @@
 #include "proto/reference_codec.h"
 
+#include "proto/json_reader.h"
 #include "proto/scene_codec.h"
 
 namespace springfit::proto {
@@ -37,6 +38,8 @@ Json ReferenceSolutionToJson(const Problem& problem) {
       c["iterations"] = lc.reference_solve->iterations;
       c["load_steps"] = lc.reference_solve->load_steps;
       c["residual"] = lc.reference_solve->residual;
+      if (s.reference.kind == Reference::Kind::kMss)
+        c["resolution"] = NumberOrText(lc.reference_solve->resolution);
     }
     c["max_displacement"] = largest;
     cases.push_back(std::move(c));

@@ -19,12 +19,25 @@ assert "did not converge in 100 rounds" in r["stop_message"], r["stop_message"]
 assert r["wall_seconds"] < 30, r["wall_seconds"]
 PY
 
-# A mechanism returned as 'completed', exit 0: its second load case displaces a node by
+# Why no model reproduces it: round-off leaves the reference's own displacements uncertain
+# (a stiffness spread of 1e7 and tiny loads), which check and reference say, per load case.
+expect_exit 0 "direct-runs-forever check" "$sf" check "$data/direct-runs-forever.json"
+grep -q "warning: under load_cases\[1\] round-off leaves the reference's displacements determined only to 0.0036 of their size" "$tmp/out" \
+  || fail "direct-runs-forever check: $(cat "$tmp/out")"
+expect_exit 0 "direct-runs-forever reference" "$sf" reference "$data/direct-runs-forever.json" --json
+python3 - "$tmp/out" <<'PY' || fail "direct-runs-forever reference: $(head -c 600 "$tmp/out")"
+import json, sys
+r = [c["resolution"] for c in json.load(open(sys.argv[1]))["solves"]]
+assert 3e-6 < r[0] < 1e-5 and 2e-3 < r[1] < 5e-3, r
+PY
+
+# A mechanism returned as 'completed', exit 0: its load cases displace one node by 3.9e-14 and
 # 3.7e-16 (2e-10 of its springs' length) next to springs 4e7 times stiffer, so the reference's
 # free nodes did not move at all and every topology scored alike. The scene is now refused
-# before any work, saying so and by how much to scale the load.
+# before any work: round-off leaves the first case's equilibrium uncertain by 1.9e9 times its
+# size (ReferenceSolve::resolution), and the message says to scale the load.
 expect_exit 2 "direct-silent-mechanism" "$sf" run "$data/direct-silent-mechanism.json" --strategy direct --json
-grep -q "load_cases\[1\]: the load is too small for double precision: .* scale the loads up (at least 12 times)" "$tmp/err" \
+grep -q "load_cases\[0\]: the reference's equilibrium is not determined in double precision: .* uncertain by 1.9e+09 times their size .* scale the load up" "$tmp/err" \
   || fail "direct-silent-mechanism: $(cat "$tmp/err")"
 [ -s "$tmp/out" ] && fail "direct-silent-mechanism printed a result"
 
@@ -49,5 +62,9 @@ grep -q "is a mechanism" "$tmp/err" && fail "stiff-1e12 still called a mechanism
 # 'no equilibrium ... relative residual 0.000000 after 100 iterations': the reference needs
 # 138 iterations from rest, within the reference's budget.
 expect_exit 0 "reference-noconv-residual-zero" "$sf" check "$data/reference-noconv-residual-zero.json"
+# Its second case is resolved to 4.6e-4 only, its first to 3.3e-8: one warning, not two.
+grep -q "under load_cases\[1\] round-off leaves the reference's displacements determined only to 0.00046" "$tmp/out" \
+  || fail "reference-noconv-residual-zero: no warning for case 1: $(cat "$tmp/out")"
+grep -q "under load_cases\[0\]" "$tmp/out" && fail "reference-noconv-residual-zero: case 0 (3.3e-8) warned"
 
 finish numerics_cases
