@@ -147,15 +147,20 @@ int Check(const SceneInput& input) {
         << "  no load case applies a force: the data fix the stiffness only up to one factor\n";
   }
   const SearchOptions options = ResolveSearchOptions(s.search, problem.gene_count());
-  // `default` runs continuous on an FEM reference, which identifies each spring's stiffness.
+  // `default` is chosen per scene (ResolvedStrategy): say which runs, what it finds and why.
   const Strategy runs = ResolvedStrategy(options.strategy, problem);
+  const bool stiffness = runs == Strategy::kContinuous ||
+                         options.identify == Identify::kTopologyAndStiffness ||
+                         (options.strategy == Strategy::kDefault && runs == Strategy::kDirect);
   std::cout << "search:                 strategy " << proto::StrategyName(options.strategy);
   if (runs != options.strategy) std::cout << " (" << proto::StrategyName(runs) << " here)";
   std::cout << ", identifies "
-            << (options.identify == Identify::kTopology && runs != Strategy::kContinuous
-                    ? "the topology (every spring at the training stiffness)"
-                    : "the topology and each spring's stiffness")
+            << (stiffness ? "the topology and each spring's stiffness"
+                          : "the topology (every spring at the training stiffness)")
             << ", response " << proto::ResponseName(problem.response()) << "\n";
+  if (runs != options.strategy)
+    std::cout << "  why " << proto::StrategyName(runs) << ": "
+              << DefaultStrategyReason(options.strategy, s) << "\n";
   return kExitOk;
 }
 

@@ -27,6 +27,8 @@ struct JobArgs {
   std::optional<std::string> state;
   std::optional<std::string> label;
   int limit = 100;
+  std::optional<std::int64_t> cursor;
+  bool oldest_first = false;
 };
 
 std::string LocalTime(double unix_seconds) {
@@ -112,9 +114,14 @@ int Trace(const JobArgs& a) {
   RpcClient client(a.server);
   const std::vector<TraceRow> rows = FetchTrace(client, a.job_id);
   if (a.json) {
+    // job.trace's answer (proto/RPC.md), every page of it: the whole trace, so next_after is
+    // null.
     Json list = Json::array();
     for (const TraceRow& r : rows) list.push_back(proto::TraceRowToJson(r));
-    std::cout << list.dump() << std::endl;
+    Json out;
+    out["rows"] = std::move(list);
+    out["next_after"] = nullptr;
+    std::cout << out.dump() << std::endl;
   } else if (a.csv) {
     std::cout << proto::TraceCsvHeader() << "\n";
     for (const TraceRow& r : rows) std::cout << proto::TraceRowToCsv(r) << "\n";
@@ -155,16 +162,25 @@ int List(const JobArgs& a) {
   Json params;
   if (a.state) params["state"] = *a.state;
   if (a.label) params["label"] = *a.label;
+  params["order"] = a.oldest_first ? "oldest" : "newest";
+  if (a.cursor) params["cursor"] = *a.cursor;
+  // Up to --limit jobs over as many pages as that takes; the cursor after the last one shown
+  // goes on from there (`list --cursor N`).
   Json jobs = Json::array();
+  Json next_cursor = nullptr;
   while (static_cast<int>(jobs.size()) < a.limit) {
     params["limit"] = std::min(1000, a.limit - static_cast<int>(jobs.size()));
     const Json page = client.Call("job.list", params);
     for (const Json& j : page["jobs"]) jobs.push_back(j);
-    if (page["next_cursor"].is_null()) break;
-    params["cursor"] = page["next_cursor"];
+    next_cursor = page["next_cursor"];
+    if (next_cursor.is_null()) break;
+    params["cursor"] = next_cursor;
   }
   if (a.json) {
-    std::cout << jobs.dump() << std::endl;
+    Json out;
+    out["jobs"] = std::move(jobs);
+    out["next_cursor"] = std::move(next_cursor);
+    std::cout << out.dump() << std::endl;
     return kExitOk;
   }
   std::printf("%6s  %-9s  %-16s  %-20s  %-8s  %15s  %11s  %s\n", "id", "state", "label", "scene",
@@ -180,6 +196,9 @@ int List(const JobArgs& a) {
                 r.progress ? ErrorText(r.progress->best_normalized_error).c_str() : "-",
                 r.exact ? (*r.exact ? "yes" : "no") : "-");
   }
+  if (!next_cursor.is_null())
+    std::cerr << "more jobs: springfit list --cursor " << next_cursor.dump()
+              << (a.oldest_first ? " --oldest-first" : "") << "\n";
   return kExitOk;
 }
 
@@ -245,7 +264,10 @@ void RegisterJobCommands(CLI::App& app, int& exit_code) {
                 Delete, std::make_shared<JobArgs>(), true);
   {
     auto args = std::make_shared<JobArgs>();
-    auto* cmd = AddJobCommand(app, "list", "List jobs, oldest first", exit_code, List, args, false);
+    auto* cmd = AddJobCommand(app, "list", "List jobs, newest first", exit_code, List, args, false);
+    cmd->add_option("--cursor", args->cursor,
+                    "Go on after this job id (the last list printed it when there were more)");
+    cmd->add_flag("--oldest-first", args->oldest_first, "In submission order");
     cmd->add_option("--state", args->state, "Only jobs in this state")
         ->check(CLI::IsMember({"queued", "running", "succeeded", "failed", "cancelled"}));
     cmd->add_option("--label", args->label, "Only jobs with this label");

@@ -1,5 +1,10 @@
 #include "client/remote_job.h"
 
+#include <unistd.h>
+
+#include <algorithm>
+#include <csignal>
+#include <cstdio>
 #include <iostream>
 
 #include "client/exit_codes.h"
@@ -21,9 +26,57 @@ void AddServerFlags(CLI::App* command, ServerOptions& options) {
       "springfitd address HOST:PORT (default: $SPRINGFIT_SERVER, else 127.0.0.1:7117)");
   command->add_option("--token-file", options.token_file,
                       "File holding the server's token (default: $SPRINGFIT_TOKEN)");
+  command
+      ->add_option("--timeout", options.timeout_seconds,
+                   "Seconds to connect and to wait for each answer of the server (not for a "
+                   "watched job's progress)")
+      ->check(CLI::Range(0.001, 86400.0))
+      ->capture_default_str();
 }
 
+namespace {
+
+// What Ctrl-C (or SIGTERM) on a watch says before the client exits 130: the job is the
+// daemon's, and it goes on. Prepared before the handler is installed: a handler may only
+// write(2) and _exit(2).
+char g_detach_message[256];
+std::size_t g_detach_length = 0;
+
+extern "C" void OnDetach(int) {
+  [[maybe_unused]] const auto written = ::write(2, g_detach_message, g_detach_length);
+  ::_exit(kExitInterrupted);
+}
+
+// Installs OnDetach for the life of a watch and restores the previous handlers after it.
+class DetachOnInterrupt {
+ public:
+  explicit DetachOnInterrupt(std::int64_t job_id) {
+    const int n = std::snprintf(g_detach_message, sizeof g_detach_message,
+                                "\nspringfit: stopped watching; job %lld keeps running on the "
+                                "server (springfit cancel %lld stops it, springfit watch %lld "
+                                "watches it again)\n",
+                                static_cast<long long>(job_id), static_cast<long long>(job_id),
+                                static_cast<long long>(job_id));
+    g_detach_length = n > 0 ? std::min<std::size_t>(n, sizeof g_detach_message - 1) : 0;
+    previous_int_ = std::signal(SIGINT, OnDetach);
+    previous_term_ = std::signal(SIGTERM, OnDetach);
+  }
+  ~DetachOnInterrupt() {
+    std::signal(SIGINT, previous_int_);
+    std::signal(SIGTERM, previous_term_);
+  }
+  DetachOnInterrupt(const DetachOnInterrupt&) = delete;
+  DetachOnInterrupt& operator=(const DetachOnInterrupt&) = delete;
+
+ private:
+  void (*previous_int_)(int) = SIG_DFL;
+  void (*previous_term_)(int) = SIG_DFL;
+};
+
+}  // namespace
+
 Json WatchJob(RpcClient& client, std::int64_t job_id, bool quiet) {
+  const DetachOnInterrupt detach(job_id);
   const Json job = client.Call("job.watch", JobIdParams(job_id));
   ProgressLine progress(job.value("max_generations", 0), quiet);
   while (true) {

@@ -10,6 +10,7 @@
 #include <boost/asio/write.hpp>
 
 #include "engine/input_error.h"
+#include "engine/number_text.h"
 #include "proto/rpc.h"
 #include "proto/scene_codec.h"
 
@@ -49,14 +50,35 @@ struct RpcClient::Connection {
   asio::streambuf input;
 };
 
-RpcClient::RpcClient(const ServerOptions& options) : connection_(std::make_unique<Connection>()) {
+RpcClient::RpcClient(const ServerOptions& options)
+    : connection_(std::make_unique<Connection>()),
+      timeout_(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+          std::chrono::duration<double>(options.timeout_seconds))) {
   const proto::ServerAddress address = options.Address();
   const std::optional<std::string> token = options.Token();
   where_ = address.host + ":" + std::to_string(address.port);
+  const auto deadline = std::chrono::steady_clock::now() + timeout_;
   boost::system::error_code ec;
+  bool done = false;
   asio::ip::tcp::resolver resolver(connection_->io);
-  const auto endpoints = resolver.resolve(address.host, std::to_string(address.port), ec);
-  if (!ec) asio::connect(connection_->socket, endpoints, ec);
+  resolver.async_resolve(
+      address.host, std::to_string(address.port),
+      [&](const boost::system::error_code& e, asio::ip::tcp::resolver::results_type endpoints) {
+        if (e) {
+          ec = e;
+          done = true;
+          return;
+        }
+        asio::async_connect(connection_->socket, endpoints,
+                            [&](const boost::system::error_code& c, const auto&) {
+                              ec = c;
+                              done = true;
+                            });
+      });
+  if (!RunUntil(deadline, done)) {
+    throw ConnectionError("cannot connect to springfitd at " + where_ + ": no answer within " +
+                          NumberText(options.timeout_seconds) + " s (--timeout)");
+  }
   if (ec) throw ConnectionError("cannot connect to springfitd at " + where_ + ": " + ec.message());
   if (token) {
     Json params;
@@ -67,9 +89,40 @@ RpcClient::RpcClient(const ServerOptions& options) : connection_(std::make_uniqu
 
 RpcClient::~RpcClient() = default;
 
-Json RpcClient::ReadMessage() {
+bool RpcClient::RunUntil(std::chrono::steady_clock::time_point deadline, const bool& done) {
+  asio::io_context& io = connection_->io;
+  io.restart();
+  while (!done && std::chrono::steady_clock::now() < deadline) {
+    if (io.run_one_until(deadline) == 0 && io.stopped()) break;
+  }
+  if (done) return true;
+  // Abandon the operation: closing the socket completes it with operation_aborted.
+  boost::system::error_code ignored;
+  connection_->socket.close(ignored);
+  io.restart();
+  io.run();
+  return false;
+}
+
+Json RpcClient::ReadMessage(std::optional<std::chrono::steady_clock::time_point> deadline) {
   boost::system::error_code ec;
-  const std::size_t n = asio::read_until(connection_->socket, connection_->input, '\n', ec);
+  std::size_t n = 0;
+  if (deadline) {
+    bool done = false;
+    asio::async_read_until(connection_->socket, connection_->input, '\n',
+                           [&](const boost::system::error_code& e, std::size_t bytes) {
+                             ec = e;
+                             n = bytes;
+                             done = true;
+                           });
+    if (!RunUntil(*deadline, done)) {
+      throw ConnectionError("springfitd at " + where_ + " did not answer within " +
+                            NumberText(std::chrono::duration<double>(timeout_).count()) +
+                            " s (--timeout)");
+    }
+  } else {
+    n = asio::read_until(connection_->socket, connection_->input, '\n', ec);
+  }
   if (ec) {
     throw ConnectionError(
         "connection to springfitd at " + where_ +
@@ -93,8 +146,9 @@ Json RpcClient::Call(const std::string& method, Json params) {
   boost::system::error_code ec;
   asio::write(connection_->socket, asio::buffer(text), ec);
   if (ec) throw ConnectionError("connection to springfitd at " + where_ + " lost: " + ec.message());
+  const auto deadline = std::chrono::steady_clock::now() + timeout_;
   while (true) {
-    Json message = ReadMessage();
+    Json message = ReadMessage(deadline);
     if (message.contains("method") && !message.contains("id")) {
       notifications_.push_back(std::move(message));
       continue;
@@ -117,7 +171,7 @@ Json RpcClient::NextNotification() {
     return n;
   }
   while (true) {
-    Json message = ReadMessage();
+    Json message = ReadMessage(std::nullopt);
     if (message.contains("method") && !message.contains("id")) return message;
   }
 }

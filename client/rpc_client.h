@@ -37,6 +37,10 @@ class RemoteError : public std::runtime_error {
 struct ServerOptions {
   std::string server;
   std::string token_file;
+  // --timeout: seconds to connect, and to wait for each answer (not for a watched job's next
+  // notification: a queued job may be silent for hours). A server that does not answer within
+  // it is a ConnectionError (exit 5). Large submissions are prepared before they are answered.
+  double timeout_seconds = 60.0;
   // Resolves the flags and the environment; throws InputError on a bad address or token file.
   proto::ServerAddress Address() const;
   std::optional<std::string> Token() const;
@@ -57,11 +61,16 @@ class RpcClient {
   proto::Json NextNotification();
 
  private:
-  proto::Json ReadMessage();
+  // Reads one message; with a deadline, throws ConnectionError when none is complete by then.
+  proto::Json ReadMessage(std::optional<std::chrono::steady_clock::time_point> deadline);
+  // Runs the connection's pending asynchronous operation until it completes or `deadline`;
+  // false (the socket closed) when the deadline came first.
+  bool RunUntil(std::chrono::steady_clock::time_point deadline, const bool& done);
 
   struct Connection;
   std::unique_ptr<Connection> connection_;
   std::string where_;
+  std::chrono::steady_clock::duration timeout_;
   std::int64_t next_id_ = 1;
   std::deque<proto::Json> notifications_;
 };

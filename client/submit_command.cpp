@@ -43,17 +43,19 @@ int Submit(const SubmitArgs& args) {
   const Json submitted = client.Call("job.submit", params);
   const Json& job = submitted["job"];
   const std::int64_t id = job["job_id"].get<std::int64_t>();
+  // The id at once, on stderr, also before a wait: a pipeline's log has it even if the wait
+  // is cut short, and stdout keeps only the job or the result.
+  std::cerr << "job " << id
+            << (submitted["created"].get<bool>() ? " queued" : " already submitted with this key")
+            << " (" << job["scene"].get<std::string>() << ", " << job["genes"].get<int>()
+            << " genes, strategy " << job["strategy"].get<std::string>() << ", seed "
+            << job["seed"].get<std::uint64_t>() << ")" << std::endl;
   if (!args.wait && !args.watch) {
     if (args.json) {
       std::cout << submitted.dump() << std::endl;
     } else {
       std::cout << id << std::endl;
     }
-    std::cerr << "job " << id
-              << (submitted["created"].get<bool>() ? " queued" : " already submitted with this key")
-              << " (" << job["scene"].get<std::string>() << ", " << job["genes"].get<int>()
-              << " genes, strategy " << job["strategy"].get<std::string>() << ", seed "
-              << job["seed"].get<std::uint64_t>() << ")\n";
     return kExitOk;
   }
   const Json finished = WatchJob(client, id, !args.watch);

@@ -134,9 +134,21 @@ enum class Strategy {
   kContinuous,
 };
 
-// The strategy that runs for a reference: `default` is continuous on an FEM reference, hybrid
-// otherwise (the one place of that rule); the others are themselves.
-Strategy ResolvedStrategy(Strategy strategy, Reference::Kind reference);
+struct Scene;
+
+// The strategy that runs for `scene` (the one place of that rule): the others are themselves;
+// `default` is chosen from what the scene identifies:
+// - continuous on an FEM reference (each spring's stiffness, fitted from the closed-form
+//   baseline: the FEM has no springs to find);
+// - direct when search.identify asks for topology_and_stiffness, or, left unset, the
+//   reference MSS's springs differ in stiffness (a GA's topologies all carry one training
+//   stiffness and cannot reproduce it: on stiff-2d hybrid spent 22 s for 20 missing springs
+//   where direct is exact in 0.03 s);
+// - hybrid otherwise (the topology at one stiffness: the direct topology seeding a memetic GA).
+Strategy ResolvedStrategy(Strategy strategy, const Scene& scene);
+// Why ResolvedStrategy chose what it did for `default`, in a few words for `springfit check`
+// ("an FEM reference: ..."); "" for any other strategy.
+const char* DefaultStrategyReason(Strategy strategy, const Scene& scene);
 
 // What an identification finds (proto/SCENE.md, "search.identify").
 enum class Identify {

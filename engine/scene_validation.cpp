@@ -10,6 +10,7 @@
 
 #include "engine/fem/fem_validation.h"
 #include "engine/input_error.h"
+#include "engine/number_text.h"
 #include "engine/point_index.h"
 
 namespace springfit {
@@ -20,6 +21,44 @@ constexpr double kCoincidentTolerance = 1e-9;
 
 std::string Index(const std::string& path, std::size_t i) {
   return path + "[" + std::to_string(i) + "]";
+}
+
+// Every number of a scene is at most this in magnitude, and a stiffness at least its inverse:
+// energies and Hessians multiply up to four of them (k l^2, k^2 l^2 in a force balance),
+// which beyond it would overflow or underflow double precision and turn into a penalty error
+// on a job that says it succeeded.
+constexpr double kMaxMagnitude = 1e100;
+
+std::string MagnitudeText(double v) {
+  return NumberText(v, 3);
+}
+
+// A coordinate, force or displacement: finite and at most kMaxMagnitude.
+void CheckMagnitude(double v, const std::string& path) {
+  if (!std::isfinite(v)) throw InputError(path, "not a finite number");
+  if (std::abs(v) > kMaxMagnitude) {
+    throw InputError(path, MagnitudeText(v) +
+                               " is beyond 1e+100 in magnitude: rescale the "
+                               "scene's units (springfit computes in double "
+                               "precision)");
+  }
+}
+
+// A stiffness or modulus: finite, > 0, within [1e-100, 1e100].
+void CheckPositive(double v, const std::string& path, const char* what) {
+  if (!std::isfinite(v)) throw InputError(path, "not a finite number");
+  if (v == 0.0) {
+    throw InputError(path, std::string(what) +
+                               " must be > 0, got 0 (a number smaller than about 1e-308, such "
+                               "as 1e-400, reads as 0)");
+  }
+  if (!(v > 0.0))
+    throw InputError(path, std::string(what) + " must be > 0, got " + MagnitudeText(v));
+  if (v < 1.0 / kMaxMagnitude || v > kMaxMagnitude) {
+    throw InputError(path, std::string(what) + " " + MagnitudeText(v) +
+                               " is outside [1e-100, 1e+100]: rescale the scene's units "
+                               "(springfit computes in double precision)");
+  }
 }
 
 void CheckNode(const Scene& s, int node, const std::string& path) {
@@ -36,7 +75,7 @@ void CheckVector(const Scene& s, const Vector& v, const std::string& path) {
                                "D), got " + std::to_string(v.size()));
   }
   for (Eigen::Index a = 0; a < v.size(); ++a) {
-    if (!std::isfinite(v[a])) throw InputError(Index(path, a), "not a finite number");
+    CheckMagnitude(v[a], Index(path, a));
   }
 }
 
@@ -102,12 +141,8 @@ void CheckNodes(const Scene& s) {
     throw InputError("nodes", "dimension must be 2 or 3, got " + std::to_string(s.dimension));
   }
   if (s.node_count() < 2) throw InputError("nodes", "a scene needs at least two nodes");
-  for (int i = 0; i < s.rest.size(); ++i) {
-    if (!std::isfinite(s.rest[i])) {
-      throw InputError(Index(Index("nodes", i / s.dimension), i % s.dimension),
-                       "not a finite number");
-    }
-  }
+  for (int i = 0; i < s.rest.size(); ++i)
+    CheckMagnitude(s.rest[i], Index(Index("nodes", i / s.dimension), i % s.dimension));
   // A k-d tree finds each node's coincident neighbours in O(log n), whatever the layout (a
   // sweep along one axis was quadratic for nodes on a line across it).
   const int d = s.dimension;
@@ -174,10 +209,7 @@ void CheckReference(const Scene& s) {
     for (std::size_t m = 0; m < r.stiffness.size(); ++m) {
       const std::string p = r.stiffness.size() == 1 ? std::string("reference.stiffness")
                                                     : Index("reference.stiffness", m);
-      if (!std::isfinite(r.stiffness[m])) throw InputError(p, "not a finite number");
-      if (!(r.stiffness[m] > 0.0)) {
-        throw InputError(p, "stiffness must be > 0, got " + std::to_string(r.stiffness[m]));
-      }
+      CheckPositive(r.stiffness[m], p, "stiffness");
     }
     return;
   }
@@ -196,11 +228,8 @@ void CheckReference(const Scene& s) {
       throw InputError(p, "expected " + std::to_string(s.node_count()) + " nodes, got " +
                               std::to_string(r.positions[k].size() / s.dimension));
     }
-    for (Eigen::Index i = 0; i < r.positions[k].size(); ++i) {
-      if (!std::isfinite(r.positions[k][i])) {
-        throw InputError(Index(Index(p, i / s.dimension), i % s.dimension), "not a finite number");
-      }
-    }
+    for (Eigen::Index i = 0; i < r.positions[k].size(); ++i)
+      CheckMagnitude(r.positions[k][i], Index(Index(p, i / s.dimension), i % s.dimension));
   }
 }
 
@@ -301,18 +330,19 @@ void CheckLoadCases(const Scene& s) {
   }
 }
 
-void CheckSearch(const SearchSettings& s, Reference::Kind reference) {
-  // Strategy default is continuous on an FEM reference, hybrid otherwise.
-  const bool continuous = ResolvedStrategy(s.strategy, reference) == Strategy::kContinuous;
-  if (s.identify == Identify::kTopologyAndStiffness && s.strategy != Strategy::kDirect &&
-      !continuous) {
+void CheckSearch(const Scene& scene) {
+  const SearchSettings& s = scene.search;
+  // Strategy default is continuous on an FEM reference, direct where it identifies stiffness,
+  // hybrid otherwise (ResolvedStrategy).
+  const Strategy runs = ResolvedStrategy(s.strategy, scene);
+  const bool continuous = runs == Strategy::kContinuous;
+  if (s.identify == Identify::kTopologyAndStiffness && runs != Strategy::kDirect && !continuous) {
     // The genetic strategies compare topologies whose springs all have the training
     // stiffness; they have nothing to say about each spring's stiffness.
     throw InputError(
         "search.identify",
-        "topology_and_stiffness needs strategy direct or continuous (paper and hybrid, and "
-        "default on a reference other than FEM, identify the topology with the one training "
-        "stiffness)");
+        "topology_and_stiffness needs strategy direct, continuous or default (paper and hybrid "
+        "identify the topology with the one training stiffness)");
   }
   if (s.identify == Identify::kTopology && continuous) {
     throw InputError("search.identify",
@@ -383,13 +413,9 @@ void ValidateScene(const Scene& s) {
   CheckLoadCases(s);
   CheckReference(s);
   if (s.training_stiffness) {
-    if (!std::isfinite(*s.training_stiffness)) throw InputError("stiffness", "not a finite number");
-    if (!(*s.training_stiffness > 0.0)) {
-      throw InputError("stiffness",
-                       "stiffness must be > 0, got " + std::to_string(*s.training_stiffness));
-    }
+    CheckPositive(*s.training_stiffness, "stiffness", "stiffness");
   }
-  CheckSearch(s.search, s.reference.kind);
+  CheckSearch(s);
 }
 
 }  // namespace springfit

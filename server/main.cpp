@@ -1,9 +1,11 @@
 // springfitd: the identification daemon (README.md, "The daemon"; proto/RPC.md).
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <csignal>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
@@ -54,7 +56,20 @@ struct DaemonArgs {
   std::size_t max_message_bytes = std::size_t{16} << 20;
 };
 
+// The token file: a secret, so like ssh with its keys the daemon refuses one that others
+// may read (and names a directory given in its place as one).
 std::string ReadToken(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0) {
+    if (S_ISDIR(st.st_mode))
+      throw std::runtime_error("the token file " + path + " is a directory, not a file");
+    if ((st.st_mode & 077) != 0) {
+      char mode[8];
+      std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777));
+      throw std::runtime_error("the token file " + path + " is readable by others (mode " + mode +
+                               "): chmod 600 " + path);
+    }
+  }
   std::string token = springfit::proto::ReadFile(path);
   while (!token.empty() && std::isspace(static_cast<unsigned char>(token.back()))) token.pop_back();
   if (token.empty()) throw std::runtime_error("the token file " + path + " is empty");

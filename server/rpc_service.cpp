@@ -251,7 +251,15 @@ Json RpcService::SessionAuth(const Json& params, SessionContext& session) {
     session.authenticated = true;
   } else {
     session.authenticated = false;
-    spdlog::warn("session.auth: wrong token");
+    if (++session.wrong_tokens == 1)
+      spdlog::warn("session.auth: wrong token (not logged again for this connection)");
+    if (session.wrong_tokens >= kMaxWrongTokens) {
+      session.close = true;
+      spdlog::warn("session.auth: {} wrong tokens on one connection: closed", kMaxWrongTokens);
+      throw rpc::RpcError(rpc::kUnauthorized, "unauthorized: wrong token (" +
+                                                  std::to_string(kMaxWrongTokens) +
+                                                  " wrong tokens: the connection is closed)");
+    }
     throw rpc::RpcError(rpc::kUnauthorized, "unauthorized: wrong token");
   }
   Json j;
@@ -342,6 +350,27 @@ Json RpcService::JobSubmit(const Json& params) {
   if (created.queue_full) {
     throw rpc::RpcError(rpc::kBusy, "busy: " + std::to_string(options_.limits.max_queued) +
                                         " jobs are queued already");
+  }
+  if (!created.created) {
+    // The key names one submission: a retry must ask for the same computation (the scene with
+    // its search settings, and the seed), or a pipeline that changed its scene would silently
+    // get the old job's result. Label and priority stay the first submission's.
+    const JobRecord& old = created.job;
+    std::string differs;
+    if (old.seed != r.seed) differs = "seed";
+    const std::optional<std::string> old_scene = store_.GetScene(old.id);
+    if (old_scene && *old_scene != job.scene_json)
+      differs += std::string(differs.empty() ? "" : ", ") + "scene";
+    if (!differs.empty()) {
+      Json data;
+      data["path"] = "params.idempotency_key";
+      data["job_id"] = old.id;
+      throw rpc::RpcError(rpc::kInvalidParams,
+                          "params.idempotency_key: already used by job " + std::to_string(old.id) +
+                              " with a different " + differs +
+                              " (a key names one submission; use a new key for a new one)",
+                          data);
+    }
   }
   if (created.created) {
     spdlog::info("job {} queued ({}, label '{}', priority {}, seed {})", created.job.id,
@@ -451,8 +480,15 @@ Json RpcService::JobImprovements(const Json& params) {
 }
 
 Json RpcService::JobList(const Json& params) {
-  proto::ExpectKeys(params, "params", {"state", "label", "limit", "cursor"});
+  proto::ExpectKeys(params, "params", {"state", "label", "limit", "cursor", "order"});
   JobFilter filter;
+  if (const Json* v = Optional(params, "order")) {
+    const std::string order = proto::ReadString(*v, ParamPath("order"));
+    if (order != "oldest" && order != "newest")
+      throw InputError(ParamPath("order"),
+                       "unknown order '" + order + "' (expected oldest or newest)");
+    filter.newest_first = order == "newest";
+  }
   if (const Json* v = Optional(params, "state")) {
     const std::string name = proto::ReadString(*v, ParamPath("state"));
     filter.state = proto::ParseJobState(name);

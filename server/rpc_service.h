@@ -50,7 +50,13 @@ struct SessionContext {
   // not block). Unset: notifications are dropped.
   std::function<void(const proto::Json&)> notify;
   std::vector<std::uint64_t> watches;
+  // Wrong tokens presented on this connection: the first is logged, the kMaxWrongTokens-th
+  // closes it (a guesser must reconnect, within --max-connections).
+  int wrong_tokens = 0;
+  bool close = false;  // set by the service: close after this answer
 };
+
+inline constexpr int kMaxWrongTokens = 5;
 
 class RpcService {
  public:

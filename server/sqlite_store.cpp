@@ -180,6 +180,12 @@ void CheckLease(SQLite::Database& db, const Lease& lease) {
 }  // namespace
 
 SqliteStore::SqliteStore(const std::string& path) : path_(path) {
+  // A new database holds every submitted scene and result: created readable by the daemon's
+  // user alone (SQLite gives its -wal and -shm files the database file's permissions).
+  if (path != ":memory:") {
+    const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+    if (fd >= 0) ::close(fd);
+  }
   try {
     db_ = std::make_unique<SQLite::Database>(path, SQLite::OPEN_READWRITE | SQLite::OPEN_CREATE);
   } catch (const SQLite::Exception& e) {

@@ -165,6 +165,10 @@ class Session : public std::enable_shared_from_this<Session> {
       server_.service_.EndSession(context_);
       return;
     }
+    if (context_.close) {  // the service asked to close this connection after its answer
+      SendAndClose(std::move(answer));
+      return;
+    }
     if (!answer.empty()) Send(std::move(answer));
     for (proto::Json& n : deferred_) SendNotification(n);
     deferred_.clear();

@@ -29,6 +29,13 @@ void CheckMaterial(const Material& m, const std::string& path) {
   if (!std::isfinite(m.young) || !(m.young > 0.0)) {
     throw InputError(path + ".young", "must be a finite number > 0, got " + Number(m.young));
   }
+  // As every stiffness of a scene (scene_validation.cpp, kMaxMagnitude): beyond, energies
+  // overflow or underflow double precision.
+  if (m.young < 1e-100 || m.young > 1e100) {
+    throw InputError(path + ".young", Number(m.young) +
+                                          " is outside [1e-100, 1e+100]: rescale the scene's "
+                                          "units (springfit computes in double precision)");
+  }
   if (!std::isfinite(m.poisson) || !(m.poisson > -1.0 && m.poisson < 0.5)) {
     throw InputError(path + ".poisson", "must be in (-1, 0.5), got " + Number(m.poisson));
   }

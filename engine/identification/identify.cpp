@@ -146,9 +146,15 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
   return RunIdentification(problem, options, context, *MakeStrategy(options.strategy, problem));
 }
 
-IdentificationResult RunIdentification(const Problem& problem, const SearchOptions& options,
+IdentificationResult RunIdentification(const Problem& problem, const SearchOptions& requested,
                                        const RunContext& context,
                                        const IdentificationStrategy& strategy) {
+  // `default` on a scene whose springs differ in stiffness runs direct, which then identifies
+  // each one's (ResolvedStrategy: search.identify was unset, or asked for exactly that).
+  SearchOptions options = requested;
+  if (ResolvedStrategy(options.strategy, problem) == Strategy::kDirect &&
+      options.strategy == Strategy::kDefault)
+    options.identify = Identify::kTopologyAndStiffness;
   RunMonitor monitor(context, options.max_seconds);
   IdentifiabilityReport identifiability;
   std::optional<fem::BaselineReport> baseline;

@@ -516,7 +516,7 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
 }
 
 Strategy ResolvedStrategy(Strategy strategy, const Problem& problem) {
-  return ResolvedStrategy(strategy, problem.scene().reference.kind);
+  return ResolvedStrategy(strategy, problem.scene());
 }
 
 std::unique_ptr<IdentificationStrategy> MakeStrategy(Strategy strategy, const Problem& problem) {

@@ -111,6 +111,19 @@ PY
 expect_exit 0 "render direct" "$sf" render "$tmp/direct.json" -o "$tmp/direct.svg"
 grep -q "exact recovery; 72 springs; normalized error 0<" "$tmp/direct.svg" || fail "render draws a direct result with its own stiffness (error 0, not that of stiffness 1)"
 
+# default on a scene whose reference springs differ in stiffness runs direct (hybrid spent 22 s
+# and missed 20 springs on stiff-2d), and check says so and why.
+expect_exit 0 "check stiff default" "$sf" check "$src/examples/stiff-2d.json"
+grep -q "strategy default (direct here), identifies the topology and each spring's stiffness" "$tmp/out" \
+  || fail "check stiff-2d: $(grep search "$tmp/out")"
+grep -q "why direct: the reference's springs differ in stiffness" "$tmp/out" || fail "check says why: $(cat "$tmp/out")"
+expect_exit 0 "check iso default" "$sf" check "$src/examples/paper-iso-5x5.json"
+grep -q "strategy default (hybrid here), identifies the topology (every spring at the training stiffness)" "$tmp/out" \
+  || fail "check iso: $(grep search "$tmp/out")"
+expect_exit 0 "run stiff default" "$sf" run "$src/examples/stiff-2d.json" --json
+python3 -c "import json; r=json.load(open('$tmp/out')); assert r['exact'] is True and 'direct' in r and r['identify'] == 'topology_and_stiffness', (r['exact'], r['identify'])" \
+  || fail "default on stiff-2d: $(head -c 300 "$tmp/out")"
+
 # example --noise: a positions reference; direct on it carries confidences.
 expect_exit 0 "example noise" "$sf" example paper-aniso-5x5 --noise 0.001 --noise-seed 3 -o "$tmp/noisy.json"
 expect_exit 0 "example clean" "$sf" example paper-aniso-5x5 -o "$tmp/clean.json"
@@ -138,8 +151,12 @@ r = json.load(open(sys.argv[1]))
 assert r["identify"] == "topology" and set(r["stiffness"]) == {1.0}, (r["identify"], set(r["stiffness"]))
 assert r["direct"]["topology_threshold"] > 0 and r["direct"]["added_to_carry"] == [] and not r["mechanism"]
 PY
-expect_exit 2 "identify stiffness with a GA" "$sf" run "$tmp/noisy.json" --strategy default --identify topology_and_stiffness
+expect_exit 2 "identify stiffness with a GA" "$sf" run "$tmp/noisy.json" --strategy hybrid --identify topology_and_stiffness
 grep -q "search.identify: topology_and_stiffness needs strategy direct" "$tmp/err" || fail "names the field: $(cat "$tmp/err")"
+# default asked for stiffness runs direct.
+expect_exit 0 "default identifies stiffness" "$sf" run "$tmp/noisy.json" --identify topology_and_stiffness --json
+python3 -c "import json; r=json.load(open('$tmp/out')); assert r['identify'] == 'topology_and_stiffness' and 'direct' in r, r['identify']" \
+  || fail "default with topology_and_stiffness: $(head -c 300 "$tmp/out")"
 expect_exit 2 "identify unknown" "$sf" run "$tmp/noisy.json" --identify shape
 grep -q -- "--identify: unknown value 'shape'" "$tmp/err" || fail "names the option: $(cat "$tmp/err")"
 

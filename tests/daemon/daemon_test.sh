@@ -68,7 +68,7 @@ start_daemon
 # A finished job, to find intact after the crash.
 "$sf" submit "$src/examples/paper-iso-5x5.json" --label kept --wait >"$tmp/kept.txt" || fail "submit --wait: exit $?"
 grep -q "recovered exactly" "$tmp/kept.txt" || fail "submit --wait prints the result: $(cat "$tmp/kept.txt")"
-kept_id=$("$sf" list --label kept --json | python3 -c "import json,sys; print(json.load(sys.stdin)[0]['job_id'])")
+kept_id=$("$sf" list --label kept --json | python3 -c "import json,sys; print(json.load(sys.stdin)['jobs'][0]['job_id'])")
 "$sf" result "$kept_id" --json >"$tmp/kept_before.json"
 
 # kill -9 in the middle of a job; the restart resumes it from its checkpoint.

@@ -222,6 +222,7 @@ def check_token():
     token_file = os.path.join(TMP, "token")
     with open(token_file, "w") as f:
         f.write(TOKEN + "\n")
+    os.chmod(token_file, 0o600)
     _, _, port = start("auth", "--token-file", token_file)
     expect(get(port, "/")[0] == 401, "/ without the token")
     expect(get(port, "/metrics")[0] == 401, "/metrics without the token")

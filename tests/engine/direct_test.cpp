@@ -8,6 +8,7 @@
 #include "engine/direct/force_balance.h"
 #include "engine/direct/nnls.h"
 #include "engine/identification/identify.h"
+#include "engine/identification/strategy.h"
 #include "engine/input_error.h"
 #include "io/example_catalog.h"
 #include "tests/test_scenes.h"
@@ -260,9 +261,15 @@ TEST(Direct, SceneIdentifySettingChoosesWhatRunDirectFinds) {
   // ... but uniform stiffness does not reproduce a reference whose stiffness varies.
   EXPECT_GT(uniform.evaluation.normalized_error, 1e-6);
 
-  // The genetic strategies only know the training stiffness.
+  // The genetic strategies only know the training stiffness; default asked for stiffness
+  // runs direct.
   scene.search.identify = Identify::kTopologyAndStiffness;
-  for (const Strategy s : {Strategy::kDefault, Strategy::kPaper, Strategy::kHybrid}) {
+  scene.search.strategy = Strategy::kDefault;
+  {
+    const Problem runs_direct(scene);
+    EXPECT_EQ(ResolvedStrategy(Strategy::kDefault, runs_direct), Strategy::kDirect);
+  }
+  for (const Strategy s : {Strategy::kPaper, Strategy::kHybrid}) {
     scene.search.strategy = s;
     try {
       Problem::Build(scene);

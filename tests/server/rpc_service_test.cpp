@@ -287,6 +287,20 @@ TEST_F(RpcServiceTest, SubmitWatchResultTraceListAndIdempotency) {
   const Json retry = Submit("paper-aniso-5x5", {{"idempotency_key", "ci-1"}});
   EXPECT_FALSE(retry["result"]["created"].get<bool>());
   EXPECT_EQ(retry["result"]["job"]["job_id"], id);
+  // The same key for another scene, or another seed, is an error naming the job and what
+  // differs (it returned the old job with created false, and a pipeline its old result).
+  const Json other_scene = Submit("paper-iso-5x5", {{"idempotency_key", "ci-1"}});
+  EXPECT_EQ(Code(other_scene), rpc::kInvalidParams);
+  EXPECT_EQ(other_scene["error"]["data"]["job_id"], id);
+  EXPECT_EQ(other_scene["error"]["data"]["path"], "params.idempotency_key");
+  EXPECT_NE(other_scene["error"]["message"].get<std::string>().find("a different scene"),
+            std::string::npos)
+      << other_scene["error"]["message"];
+  const Json other_seed = Submit("paper-aniso-5x5", {{"idempotency_key", "ci-1"}, {"seed", 43}});
+  EXPECT_EQ(Code(other_seed), rpc::kInvalidParams);
+  EXPECT_NE(other_seed["error"]["message"].get<std::string>().find("a different seed"),
+            std::string::npos)
+      << other_seed["error"]["message"];
 
   const Json result = Call("job.result", {{"job_id", id}})["result"];
   EXPECT_EQ(result["exact"], true);
