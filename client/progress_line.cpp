@@ -1,18 +1,54 @@
 #include "client/progress_line.h"
 
+#include <sys/ioctl.h>
 #include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 
 namespace springfit::cli {
+
+std::string ClockText(double seconds) {
+  if (!(seconds >= 0.0) || !std::isfinite(seconds)) return "-";
+  const long long total = std::llround(seconds);
+  char text[48];
+  if (total < 3600) {
+    std::snprintf(text, sizeof text, "%lld:%02lld", total / 60, total % 60);
+  } else {
+    std::snprintf(text, sizeof text, "%lld:%02lld:%02lld", total / 3600, total / 60 % 60,
+                  total % 60);
+  }
+  return text;
+}
+
+std::string FitToWidth(const std::string& line, int columns) {
+  const std::size_t room = columns > 4 ? static_cast<std::size_t>(columns - 1) : 3;
+  if (line.size() <= room) return line;
+  return line.substr(0, room - 3) + "...";
+}
+
+namespace {
+
+int TerminalColumns() {
+  winsize size{};
+  if (::ioctl(fileno(stderr), TIOCGWINSZ, &size) == 0 && size.ws_col > 0) return size.ws_col;
+  if (const char* env = std::getenv("COLUMNS")) {
+    const int c = std::atoi(env);
+    if (c > 0) return c;
+  }
+  return 80;
+}
+
+}  // namespace
 
 ProgressLine::ProgressLine(int max_generations, bool quiet, bool fit)
     : max_generations_(max_generations),
       quiet_(quiet),
       fit_(fit),
-      terminal_(isatty(fileno(stderr)) != 0) {}
+      terminal_(isatty(fileno(stderr)) != 0),
+      columns_(terminal_ ? TerminalColumns() : 80) {}
 
 void ProgressLine::Report(const TraceRow& row, bool last) {
   if (quiet_) return;
@@ -39,22 +75,22 @@ void ProgressLine::Report(const TraceRow& row, bool last) {
   // The generation limit's ETA: an upper bound, since reaching the target stops sooner.
   std::string eta;
   if (!last && row.generation > 0 && row.generation < max_generations_) {
-    char text[48];
-    std::snprintf(text, sizeof text, "  ETA <= %.0f s",
-                  row.wall_seconds / row.generation * (max_generations_ - row.generation));
-    eta = text;
+    eta = "  ETA <= " +
+          ClockText(row.wall_seconds / row.generation * (max_generations_ - row.generation));
   }
+  // The most telling first, so that a narrow terminal cuts the least: progress, error, the
+  // topology's distance, time and ETA, then the evaluation rate and the cost.
   char line[320];
-  std::snprintf(line, sizeof line,
-                "generation %d/%d  best cost %.4g  normalized error %.4g%s  %.0f eval/s  %.1f s%s",
-                row.generation, max_generations_, row.best_cost, row.best_normalized_error,
-                topology.c_str(), rate, row.wall_seconds, eta.c_str());
+  std::snprintf(line, sizeof line, "gen %d/%d  error %.4g%s  %s%s  %.0f eval/s  cost %.4g",
+                row.generation, max_generations_, row.best_normalized_error, topology.c_str(),
+                ClockText(row.wall_seconds).c_str(), eta.c_str(), rate, row.best_cost);
   Show(line, last);
 }
 
 void ProgressLine::Show(const char* line, bool last) const {
   if (terminal_) {
-    std::fprintf(stderr, "\r\033[K%s%s", line, last ? "\n" : "");
+    // Cut to the width: a wrapped line cannot be redrawn in place (\r returns to its last row).
+    std::fprintf(stderr, "\r\033[K%s%s", FitToWidth(line, columns_).c_str(), last ? "\n" : "");
   } else {
     std::fprintf(stderr, "%s\n", line);
   }

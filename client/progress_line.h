@@ -8,6 +8,14 @@
 
 namespace springfit::cli {
 
+// A duration for people: "0:07", "12:34", "1:02:03" (minutes:seconds under an hour,
+// hours:minutes:seconds from it); "-" for a negative or non-finite one.
+std::string ClockText(double seconds);
+
+// `line` cut to fit a terminal `columns` wide without wrapping (columns - 1 characters: a
+// terminal's last column moves the cursor on), "..." marking the cut. Lines are ASCII.
+std::string FitToWidth(const std::string& line, int columns);
+
 class ProgressLine {
  public:
   // `fit`: the run is strategy continuous, whose rows are steps of its fit, not generations.
@@ -26,6 +34,7 @@ class ProgressLine {
   bool quiet_;
   bool fit_;
   bool terminal_;
+  int columns_ = 80;  // the terminal's width (TIOCGWINSZ, else $COLUMNS, else 80)
   double shown_at_ = 0.0;
   int shown_generation_ = -1;
   bool shown_beat_ = false;  // a beat was shown since the last row

@@ -3,6 +3,7 @@
 #include <atomic>
 #include <csignal>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <optional>
@@ -66,6 +67,16 @@ int Run(const RunArgs& args) {
   const Problem problem = Problem::Build(std::move(scene));
   const SearchOptions options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
 
+  // The result file is written at the end: a name that cannot be written is said now, not
+  // after a run of hours (opened to append, and removed again if this made it).
+  if (!args.output_path.empty()) {
+    const bool existed = std::filesystem::exists(args.output_path);
+    {
+      std::ofstream probe(args.output_path, std::ios::app);
+      if (!probe) throw std::runtime_error("cannot write the result file " + args.output_path);
+    }
+    if (!existed) std::filesystem::remove(args.output_path);
+  }
   std::ofstream trace;
   if (!args.trace_path.empty()) {
     trace.open(args.trace_path);

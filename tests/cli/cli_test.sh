@@ -111,6 +111,12 @@ PY
 expect_exit 0 "render direct" "$sf" render "$tmp/direct.json" -o "$tmp/direct.svg"
 grep -q "exact recovery; 72 springs; normalized error 0<" "$tmp/direct.svg" || fail "render draws a direct result with its own stiffness (error 0, not that of stiffness 1)"
 
+# run -o: a result file that cannot be written is said before the run, not after it.
+expect_exit 1 "run -o unwritable" "$sf" run "$src/examples/paper-iso-5x5.json" --strategy paper -o "$tmp/no-such-dir/r.json"
+grep -q "cannot write the result file $tmp/no-such-dir/r.json" "$tmp/err" || fail "run -o unwritable: $(cat "$tmp/err")"
+[ -s "$tmp/out" ] && fail "run -o unwritable ran the search: $(head -c 200 "$tmp/out")"
+grep -q "running" "$tmp/err" && fail "run -o unwritable started the run: $(cat "$tmp/err")"
+
 # default on a scene whose reference springs differ in stiffness runs direct (hybrid spent 22 s
 # and missed 20 springs on stiff-2d), and check says so and why.
 expect_exit 0 "check stiff default" "$sf" check "$src/examples/stiff-2d.json"

@@ -1,0 +1,845 @@
+#!/usr/bin/env python3
+"""End-to-end test of the springfit client against springfitd, and of the daemon's guards.
+
+Usage: client_test.py SPRINGFITD SPRINGFIT SOURCE_DIR
+
+Starts daemons on 127.0.0.1 with a free port in a temporary directory and checks: the client's
+--timeout against a server that never answers, `submit --wait --json`, Ctrl-C on a watch
+(the job keeps running), `list` paging and order, `trace --json`, idempotency keys reused for
+another scene, token files readable by others or directories, wrong tokens on one connection,
+the SQLite database's mode, numbers beyond the scene's bounds and the search's population
+bound. Python 3 standard library only.
+
+Prints one line per check group (PASS/FAIL) and one FAIL line per failed check; exits 0 when
+everything passed, 1 otherwise (2 on bad usage).
+"""
+
+import copy
+import json
+import os
+import re
+import shutil
+import signal
+import socket
+import stat
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import traceback
+
+IO_TIMEOUT = 5.0          # seconds any single socket read/connect may block
+START_TIMEOUT = 10.0      # for the port file to appear
+STOP_TIMEOUT = 15.0       # for the daemon to exit after SIGTERM (--shutdown-seconds is 10)
+CLI_TIMEOUT = 20.0        # for one springfit invocation
+JOB_TIMEOUT = 20.0        # for a small job to finish
+REFUSE_TIMEOUT = 5.0      # for a daemon refusing its arguments to exit
+
+TOKEN = "0123456789abcdefABCDEF0123456789"        # 32 characters
+WRONG_TOKEN = "0123456789abcdefABCDEF012345678X"  # same length, last character differs
+FINAL_STATES = ("succeeded", "failed", "cancelled")
+
+
+# --------------------------------------------------------------------------------------------
+# Reporting
+
+
+class Report:
+    def __init__(self):
+        self.failures = []
+        self.current = "?"
+        self.lock = threading.Lock()
+
+    def fail(self, what):
+        with self.lock:
+            self.failures.append((self.current, what))
+        print(f"FAIL: [{self.current}] {what}", flush=True)
+
+    def expect(self, cond, what):
+        """A soft check: records a failure and returns cond."""
+        if not cond:
+            self.fail(what)
+        return bool(cond)
+
+
+R = Report()
+
+
+class Abort(Exception):
+    """A check whose failure makes the rest of its group meaningless."""
+
+
+def require(cond, what):
+    if not cond:
+        raise Abort(what)
+
+
+def short(value, n=300):
+    text = value if isinstance(value, str) else repr(value)
+    return text if len(text) <= n else text[:n] + "..."
+
+
+# --------------------------------------------------------------------------------------------
+# A connection with a line reader
+
+
+class Conn:
+    def __init__(self, port, timeout=IO_TIMEOUT):
+        self.sock = socket.create_connection(("127.0.0.1", port), timeout=timeout)
+        self.buf = b""
+        self.eof = False
+        self.next_id = 1000
+
+    def close(self):
+        try:
+            self.sock.close()
+        except OSError:
+            pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def send(self, data):
+        self.sock.settimeout(IO_TIMEOUT)
+        self.sock.sendall(data)
+
+    def _fill(self, deadline):
+        """Reads once into the buffer; False on timeout, sets eof on close/reset."""
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            return False
+        self.sock.settimeout(remaining)
+        try:
+            chunk = self.sock.recv(65536)
+        except socket.timeout:
+            return False
+        except (ConnectionResetError, ConnectionAbortedError):
+            chunk = b""
+        if not chunk:
+            self.eof = True
+            return False
+        self.buf += chunk
+        return True
+
+    def read_raw_line(self, timeout=IO_TIMEOUT):
+        """One line without its newline, or None (timeout or closed)."""
+        deadline = time.monotonic() + timeout
+        while b"\n" not in self.buf:
+            if self.eof or not self._fill(deadline):
+                return None
+        line, self.buf = self.buf.split(b"\n", 1)
+        return line
+
+    def read(self, timeout=IO_TIMEOUT, what="a response"):
+        """One response line, parsed as JSON."""
+        line = self.read_raw_line(timeout)
+        if line is None:
+            raise Abort(f"no {what} within {timeout}s (connection {'closed' if self.eof else 'open'}, "
+                        f"pending bytes {short(self.buf)})")
+        try:
+            return json.loads(line.decode("utf-8"))
+        except (UnicodeDecodeError, ValueError) as e:
+            raise Abort(f"response line is not one JSON value ({e}): {short(line)}")
+
+    def wait_closed(self, timeout=IO_TIMEOUT):
+        """True when the peer closes the connection within the timeout (extra data is skipped)."""
+        deadline = time.monotonic() + timeout
+        while not self.eof:
+            self.buf = b""
+            if not self._fill(deadline) and not self.eof:
+                return False
+        return True
+
+    def request(self, method, params=None):
+        """Sends one request line; returns its id."""
+        self.next_id += 1
+        msg = {"jsonrpc": "2.0", "id": self.next_id, "method": method}
+        if params is not None:
+            msg["params"] = params
+        self.send(json.dumps(msg).encode() + b"\n")
+        return self.next_id
+
+    def call(self, method, params=None, timeout=IO_TIMEOUT):
+        """Sends a request and reads its response (which must carry its id)."""
+        id_ = self.request(method, params)
+        resp = self.read(timeout, what=f"answer to {method}")
+        require(isinstance(resp, dict) and resp.get("id") == id_,
+                f"{method}: expected the answer with id {id_}, got {short(resp)}")
+        return resp
+
+    def call_text(self, method, params_text, timeout=IO_TIMEOUT):
+        """Like call, with the params written by hand (number literals kept as written)."""
+        self.next_id += 1
+        id_ = self.next_id
+        text = '{"jsonrpc":"2.0","id":%d,"method":"%s","params":%s}\n' % (id_, method, params_text)
+        self.send(text.encode())
+        resp = self.read(timeout, what=f"answer to {method}")
+        require(isinstance(resp, dict) and resp.get("id") == id_,
+                f"{method}: expected the answer with id {id_}, got {short(resp)}")
+        return resp
+
+    def result(self, method, params=None, timeout=IO_TIMEOUT):
+        resp = self.call(method, params, timeout)
+        require("result" in resp, f"{method} {short(params)}: expected a result, got {short(resp)}")
+        return resp["result"]
+
+
+def expect_error(resp, code, what):
+    """Checks that resp is an error response with `code`; returns its error object or {}."""
+    ok = R.expect(isinstance(resp, dict) and isinstance(resp.get("error"), dict),
+                  f"{what}: expected error {code}, got {short(resp)}")
+    if not ok:
+        return {}
+    err = resp["error"]
+    R.expect(err.get("code") == code, f"{what}: expected code {code}, got {err.get('code')}: {short(resp)}")
+    R.expect(isinstance(err.get("message"), str) and err["message"],
+             f"{what}: error without a message: {short(resp)}")
+    return err
+
+
+def error_data(err):
+    data = err.get("data")
+    return data if isinstance(data, dict) else {}
+
+
+def wait_state(conn, job_id, states, timeout):
+    """Polls job.get until the job is in one of `states` or the timeout passes; the last job."""
+    deadline = time.monotonic() + timeout
+    while True:
+        job = conn.result("job.get", {"job_id": job_id})
+        if job["state"] in states or time.monotonic() > deadline:
+            return job
+        time.sleep(0.05)
+
+
+# --------------------------------------------------------------------------------------------
+# The daemon
+
+
+class Daemon:
+    def __init__(self, binary, root, name, extra=()):
+        self.binary = binary
+        self.dir = os.path.join(root, name)
+        os.makedirs(self.dir)
+        self.name = name
+        self.extra = list(extra)
+        self.proc = None
+        self.port = None
+        self.stderr = None
+        self.stdout = None
+        self.db = os.path.join(self.dir, "test.db")
+
+    def start(self):
+        port_file = os.path.join(self.dir, "port")
+        self.stderr = open(os.path.join(self.dir, "stderr"), "wb")
+        self.stdout = open(os.path.join(self.dir, "stdout"), "wb")
+        self.proc = subprocess.Popen(
+            [self.binary, "--listen", "127.0.0.1:0", "--db", self.db,
+             "--port-file", port_file, "--workers", "2", "--log-level", "warn"] + self.extra,
+            stdin=subprocess.DEVNULL, stdout=self.stdout, stderr=self.stderr,
+            preexec_fn=lambda: os.umask(0o022))  # a usual umask: the database's mode is the daemon's doing
+        deadline = time.monotonic() + START_TIMEOUT
+        while time.monotonic() < deadline:
+            if self.proc.poll() is not None:
+                raise Abort(f"daemon {self.name} exited at start with {self.proc.returncode}: "
+                            f"{short(self.log_text(), 500)}")
+            try:
+                with open(port_file) as f:
+                    text = f.read().strip()
+                if text:
+                    self.port = int(text)
+                    return self
+            except (OSError, ValueError):
+                pass
+            time.sleep(0.02)
+        raise Abort(f"daemon {self.name}: no port file within {START_TIMEOUT}s")
+
+    def alive(self):
+        return self.proc is not None and self.proc.poll() is None
+
+    def output_text(self, stream):
+        try:
+            with open(os.path.join(self.dir, stream), "rb") as f:
+                return f.read().decode("utf-8", "replace")
+        except OSError:
+            return ""
+
+    def stderr_text(self):
+        return self.output_text("stderr")
+
+    def log_text(self):
+        """The daemon's log: spdlog's default logger writes to stdout; errors at start also go
+        to stderr. Both, stdout first."""
+        return self.output_text("stdout") + self.output_text("stderr")
+
+    def close_files(self):
+        for f in (self.stdout, self.stderr):
+            if f is not None:
+                f.close()
+
+    def stop(self):
+        """SIGTERM, bounded wait; True when it exited in time."""
+        if self.proc is None:
+            return True
+        exited = True
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(STOP_TIMEOUT)
+            except subprocess.TimeoutExpired:
+                exited = False
+                self.proc.kill()
+                self.proc.wait(5)
+        self.close_files()
+        return exited
+
+
+def run_refused_daemon(ctx, name, token_path):
+    """Starts springfitd with --token-file token_path, expecting it to refuse to start.
+    Returns (exit code or None when it was still running after REFUSE_TIMEOUT, stderr, port file
+    written)."""
+    d = os.path.join(ctx.tmp, name)
+    os.makedirs(d)
+    err_path = os.path.join(d, "stderr")
+    port_file = os.path.join(d, "port")
+    with open(err_path, "wb") as err:
+        proc = subprocess.Popen([ctx.springfitd, "--listen", "127.0.0.1:0", "--db", os.path.join(d, "test.db"),
+                                 "--port-file", port_file, "--workers", "1", "--token-file", token_path],
+                                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err)
+        try:
+            code = proc.wait(REFUSE_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
+            code = None
+    with open(err_path, "rb") as f:
+        text = f.read().decode("utf-8", "replace")
+    return code, text, os.path.exists(port_file)
+
+
+# --------------------------------------------------------------------------------------------
+# The tests
+
+
+class Context:
+    def __init__(self, springfitd, springfit, source):
+        self.springfitd = springfitd
+        self.springfit = springfit
+        self.source = source
+        self.tmp = tempfile.mkdtemp(prefix="springfit-client-test-")
+        self.daemons = []
+        self.iso_path = os.path.join(source, "examples", "paper-iso-5x5.json")
+        self.aniso_path = os.path.join(source, "examples", "paper-aniso-5x5.json")
+        self.kidney_path = os.path.join(source, "examples", "kidney-2d.json")
+        with open(self.iso_path) as f:
+            self.small_scene = json.load(f)
+        self.nonce = f"{os.getpid()}-{time.time_ns()}"
+        self.main = None
+        self.token_daemon = None
+        self.watch_proc = None
+        self.long_job = None
+
+    def daemon(self, name, extra=()):
+        d = Daemon(self.springfitd, self.tmp, name, extra)
+        self.daemons.append(d)
+        return d.start()
+
+    def server(self):
+        return f"127.0.0.1:{self.main.port}"
+
+    def cleanup(self):
+        R.current = "cleanup"
+        if self.watch_proc is not None and self.watch_proc.poll() is None:
+            self.watch_proc.kill()
+            self.watch_proc.wait(5)
+        if self.long_job is not None and self.main is not None and self.main.alive():
+            try:
+                with Conn(self.main.port) as c:
+                    c.call("job.cancel", {"job_id": self.long_job})
+            except (OSError, Abort):
+                pass
+        for d in self.daemons:
+            if d.alive():
+                R.expect(d.stop(), f"daemon {d.name} did not exit within {STOP_TIMEOUT}s of SIGTERM")
+            else:
+                d.close_files()
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+
+def run_cli(ctx, *args, timeout=CLI_TIMEOUT):
+    """Runs springfit; (exit code or None on timeout, stdout, stderr, wall seconds)."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("SPRINGFIT_")}
+    t0 = time.monotonic()
+    try:
+        p = subprocess.run([ctx.springfit] + list(args), stdin=subprocess.DEVNULL, capture_output=True,
+                           timeout=timeout, env=env, cwd=ctx.source)
+    except subprocess.TimeoutExpired:
+        return None, "", "(timed out)", time.monotonic() - t0
+    return (p.returncode, p.stdout.decode("utf-8", "replace"), p.stderr.decode("utf-8", "replace"),
+            time.monotonic() - t0)
+
+
+def cli_desc(args):
+    return "springfit " + " ".join(args)
+
+
+def expect_exit(ctx, want, *args):
+    code, out, err, _ = run_cli(ctx, *args)
+    R.expect(code == want, f"{cli_desc(args)}: exit {code}, expected {want} (stdout: {short(out)}; "
+                           f"stderr: {short(err)})")
+    return code, out, err
+
+
+def parse_json_output(text, what):
+    """stdout that must be exactly one JSON value; the value, or None (reported)."""
+    try:
+        return json.loads(text)
+    except ValueError as e:
+        R.fail(f"{what}: stdout is not exactly one JSON value ({e}): {short(text)}")
+        return None
+
+
+def test_setup(ctx):
+    ctx.main = ctx.daemon("main")
+    with Conn(ctx.main.port) as c:
+        info = c.result("server.info")
+        require(info.get("name") == "springfitd" and info.get("auth_required") is False,
+                f"server.info: {short(info)}")
+
+
+def test_client_timeout(ctx):
+    """A server that accepts connections and never answers: --timeout 1 ends the client."""
+    listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    listener.bind(("127.0.0.1", 0))
+    listener.listen(8)
+    listener.settimeout(0.1)
+    port = listener.getsockname()[1]
+    stop = threading.Event()
+    held = []
+
+    def serve():
+        while not stop.is_set():
+            try:
+                conn, _ = listener.accept()
+                held.append(conn)  # kept open, never read from nor written to
+            except socket.timeout:
+                continue
+            except OSError:
+                return
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    try:
+        args = ("info", "--server", f"127.0.0.1:{port}", "--timeout", "1")
+        code, out, err, wall = run_cli(ctx, *args, timeout=10)
+        R.expect(code == 5, f"{cli_desc(args)} against a silent server: exit {code}, expected 5 "
+                            f"(stderr: {short(err)})")
+        R.expect(wall < 5.0, f"{cli_desc(args)}: took {wall:.1f} s of wall time, expected < 5 s")
+        lines = err.rstrip("\n").split("\n")
+        R.expect(len(lines) == 1 and err.strip() != "",
+                 f"{cli_desc(args)}: expected one stderr line, got {err!r}")
+        R.expect("did not answer within 1 s" in err,
+                 f"{cli_desc(args)}: stderr lacks 'did not answer within 1 s': {err!r}")
+        R.expect(out == "", f"{cli_desc(args)}: unexpected stdout {out!r}")
+        R.expect(len(held) >= 1, "the silent server saw no connection")
+    finally:
+        stop.set()
+        thread.join(2)
+        listener.close()
+        for conn in held:
+            conn.close()
+
+
+def test_submit_wait(ctx):
+    args = ("submit", ctx.iso_path, "--wait", "--json", "--label", f"wait-{ctx.nonce}", "--server", ctx.server())
+    code, out, err = expect_exit(ctx, 0, *args)
+    m = re.search(r"\bjob (\d+) queued\b", err)
+    require(m, f"{cli_desc(args)}: stderr lacks 'job N queued': {err!r}")
+    job_id = int(m.group(1))
+    result = parse_json_output(out, cli_desc(args))
+    if result is not None:
+        R.expect(isinstance(result, dict) and result.get("job_id") == job_id,
+                 f"{cli_desc(args)}: expected the result of job {job_id}, got {short(result)}")
+        R.expect(isinstance(result, dict) and "springs" in result and result.get("state") == "succeeded",
+                 f"{cli_desc(args)}: the result lacks springs or state succeeded: {short(result)}")
+
+
+def sigint_caught(pid):
+    """True when the process has a handler for SIGINT (Linux /proc); None when unknown."""
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            for line in f:
+                if line.startswith("SigCgt:"):
+                    return bool(int(line.split()[1], 16) & (1 << (signal.SIGINT - 1)))
+    except (OSError, ValueError):
+        return None
+    return None
+
+
+def test_watch_interrupt(ctx):
+    args = ("submit", ctx.kidney_path, "--strategy", "paper", "--generations", "100000",
+            "--label", f"long-{ctx.nonce}", "--server", ctx.server())
+    code, out, err = expect_exit(ctx, 0, *args)
+    require(code == 0 and out.strip().isdigit(), f"{cli_desc(args)}: expected a job id on stdout, got {out!r}")
+    job_id = ctx.long_job = int(out.strip())
+    with Conn(ctx.main.port) as c:
+        job = wait_state(c, job_id, ("running",) + FINAL_STATES, 10)
+        require(job["state"] == "running", f"the long job {job_id} does not run: {short(job)}")
+
+    watch_dir = os.path.join(ctx.tmp, "watch")
+    os.makedirs(watch_dir)
+    out_path, err_path = os.path.join(watch_dir, "stdout"), os.path.join(watch_dir, "stderr")
+    env = {k: v for k, v in os.environ.items() if not k.startswith("SPRINGFIT_")}
+    with open(out_path, "wb") as out_f, open(err_path, "wb") as err_f:
+        ctx.watch_proc = subprocess.Popen([ctx.springfit, "watch", str(job_id), "--server", ctx.server()],
+                                          stdin=subprocess.DEVNULL, stdout=out_f, stderr=err_f, env=env,
+                                          cwd=ctx.source)
+    proc = ctx.watch_proc
+    # The watch installs its handler once connected; wait for it (bounded), else a moment.
+    deadline = time.monotonic() + 5
+    caught = sigint_caught(proc.pid)
+    while caught is False and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+        caught = sigint_caught(proc.pid)
+    if caught is None:
+        time.sleep(1.0)
+    time.sleep(0.3)  # let it be inside job.watch, receiving progress
+    require(proc.poll() is None, f"springfit watch {job_id} ended before the interrupt: exit {proc.returncode}")
+    t0 = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    try:
+        code = proc.wait(5)
+    except subprocess.TimeoutExpired:
+        code = None
+        proc.kill()
+        proc.wait(5)
+    wall = time.monotonic() - t0
+    with open(err_path, "rb") as f:
+        err = f.read().decode("utf-8", "replace")
+    R.expect(code == 130, f"springfit watch {job_id} after SIGINT: exit {code} after {wall:.1f} s, "
+                          f"expected 130 within 5 s (stderr tail: {err[-300:]!r})")
+    R.expect(f"job {job_id} keeps running" in err,
+             f"springfit watch {job_id} after SIGINT: stderr lacks 'job {job_id} keeps running': {err[-300:]!r}")
+    R.expect(f"springfit cancel {job_id}" in err,
+             f"springfit watch {job_id} after SIGINT: stderr lacks 'springfit cancel {job_id}': {err[-300:]!r}")
+
+    # The job goes on.
+    time.sleep(0.3)
+    args = ("status", str(job_id), "--json", "--server", ctx.server())
+    code, out, err = expect_exit(ctx, 0, *args)
+    job = parse_json_output(out, cli_desc(args)) if code == 0 else None
+    R.expect(isinstance(job, dict) and job.get("state") == "running",
+             f"{cli_desc(args)} after the interrupted watch: expected state running, got {short(job)}")
+
+    # Then it is cancelled.
+    args = ("cancel", str(job_id), "--server", ctx.server())
+    code, out, err = expect_exit(ctx, 0, *args)
+    R.expect(f"job {job_id} cancel" in out, f"{cli_desc(args)}: stdout {out!r}")
+    with Conn(ctx.main.port) as c:
+        job = wait_state(c, job_id, FINAL_STATES, 10)
+    R.expect(job["state"] == "cancelled", f"job {job_id} after springfit cancel: {short(job)}")
+    if job["state"] in FINAL_STATES:
+        ctx.long_job = None
+
+
+def list_json(ctx, *extra):
+    args = ("list",) + extra + ("--json", "--server", ctx.server())
+    code, out, err = expect_exit(ctx, 0, *args)
+    value = parse_json_output(out, cli_desc(args)) if code == 0 else None
+    ok = R.expect(isinstance(value, dict) and set(value) == {"jobs", "next_cursor"} and
+                  isinstance(value["jobs"], list),
+                  f"{cli_desc(args)}: expected {{\"jobs\": [...], \"next_cursor\": ...}}, got {short(out)}")
+    if not ok:
+        return None, None
+    return [j.get("job_id") for j in value["jobs"]], value["next_cursor"]
+
+
+def test_list(ctx):
+    label = f"list-{ctx.nonce}"
+    ids = []
+    for i in range(3):
+        args = ("submit", ctx.iso_path, "--label", label, "--seed", str(20 + i), "--server", ctx.server())
+        code, out, err = expect_exit(ctx, 0, *args)
+        require(code == 0 and out.strip().isdigit(), f"{cli_desc(args)}: expected a job id, got {out!r}")
+        ids.append(int(out.strip()))
+    require(ids == sorted(ids) and len(set(ids)) == 3, f"job ids not increasing: {ids}")
+    newest = sorted(ids, reverse=True)
+
+    got, cursor = list_json(ctx, "--label", label)
+    R.expect(got == newest, f"list --label: expected {newest} (newest first), got {got}")
+    R.expect(got is None or cursor is None, f"list --label: expected next_cursor null, got {cursor!r}")
+
+    got, cursor = list_json(ctx, "--label", label, "--limit", "2")
+    R.expect(got == newest[:2], f"list --label --limit 2: expected {newest[:2]}, got {got}")
+    R.expect(got is None or (isinstance(cursor, int) and not isinstance(cursor, bool)),
+             f"list --label --limit 2: expected a next_cursor, got {cursor!r}")
+    if isinstance(cursor, int):
+        got2, cursor2 = list_json(ctx, "--label", label, "--cursor", str(cursor))
+        R.expect(got2 == newest[2:], f"list --label --cursor {cursor}: expected {newest[2:]}, got {got2}")
+        R.expect(got2 is None or cursor2 is None,
+                 f"list --label --cursor {cursor}: expected next_cursor null, got {cursor2!r}")
+
+    got, cursor = list_json(ctx, "--label", label, "--oldest-first")
+    R.expect(got == ids, f"list --label --oldest-first: expected {ids}, got {got}")
+    got, cursor = list_json(ctx, "--label", label, "--oldest-first", "--limit", "2")
+    R.expect(got == ids[:2] and isinstance(cursor, int),
+             f"list --label --oldest-first --limit 2: expected {ids[:2]} and a cursor, got {got}, {cursor!r}")
+    if isinstance(cursor, int):
+        got2, _ = list_json(ctx, "--label", label, "--oldest-first", "--cursor", str(cursor))
+        R.expect(got2 == ids[2:], f"list --label --oldest-first --cursor {cursor}: expected {ids[2:]}, got {got2}")
+
+    # Human output: the hint on stderr, the jobs on stdout.
+    args = ("list", "--label", label, "--limit", "2", "--server", ctx.server())
+    code, out, err = expect_exit(ctx, 0, *args)
+    R.expect("springfit list --cursor" in err, f"{cli_desc(args)}: stderr lacks the hint "
+                                               f"'springfit list --cursor': {err!r}")
+    R.expect(all(str(j) in out for j in newest[:2]), f"{cli_desc(args)}: stdout lacks jobs {newest[:2]}: {short(out)}")
+    args = ("list", "--label", label, "--server", ctx.server())
+    code, out, err = expect_exit(ctx, 0, *args)
+    R.expect("--cursor" not in err, f"{cli_desc(args)}: a hint although every job was shown: {err!r}")
+
+    # trace --json: job.trace's answer, whole.
+    with Conn(ctx.main.port) as c:
+        job = wait_state(c, ids[0], FINAL_STATES, JOB_TIMEOUT)
+    require(job["state"] == "succeeded", f"job {ids[0]} did not succeed: {short(job)}")
+    args = ("trace", str(ids[0]), "--json", "--server", ctx.server())
+    code, out, err = expect_exit(ctx, 0, *args)
+    trace = parse_json_output(out, cli_desc(args)) if code == 0 else None
+    if R.expect(isinstance(trace, dict) and set(trace) == {"rows", "next_after"},
+                f"{cli_desc(args)}: expected {{\"rows\": [...], \"next_after\": null}}, got {short(out)}"):
+        R.expect(trace["next_after"] is None, f"{cli_desc(args)}: next_after {trace['next_after']!r}")
+        rows = trace["rows"]
+        R.expect(isinstance(rows, list) and len(rows) >= 1 and
+                 all(isinstance(r, dict) and "generation" in r for r in rows),
+                 f"{cli_desc(args)}: rows of a finished job: {short(rows)}")
+
+
+def test_idempotency(ctx):
+    key = f"key-{ctx.nonce}"
+    args = ("submit", ctx.iso_path, "--idempotency-key", key, "--server", ctx.server())
+    code, out, err = expect_exit(ctx, 0, *args)
+    require(code == 0 and out.strip().isdigit(), f"{cli_desc(args)}: expected a job id, got {out!r}")
+    job_id = int(out.strip())
+
+    args = ("submit", ctx.aniso_path, "--idempotency-key", key, "--server", ctx.server())
+    code, out, err = expect_exit(ctx, 2, *args)
+    R.expect(f"already used by job {job_id}" in err,
+             f"{cli_desc(args)}: stderr lacks 'already used by job {job_id}': {err!r}")
+    R.expect("a different scene" in err, f"{cli_desc(args)}: stderr lacks 'a different scene': {err!r}")
+    R.expect(out == "", f"{cli_desc(args)}: unexpected stdout {out!r}")
+
+    args = ("submit", ctx.iso_path, "--idempotency-key", key, "--server", ctx.server())
+    code, out, err = expect_exit(ctx, 0, *args)
+    R.expect(out.strip() == str(job_id), f"{cli_desc(args)} again: expected job id {job_id}, got {out!r}")
+    R.expect("already submitted with this key" in err, f"{cli_desc(args)} again: stderr {err!r}")
+
+
+def test_token_files(ctx):
+    token_dir = os.path.join(ctx.tmp, "tokens")
+    os.makedirs(token_dir)
+    readable = os.path.join(token_dir, "readable.txt")
+    with open(readable, "w") as f:
+        f.write(TOKEN + "\n")
+    os.chmod(readable, 0o644)
+    code, err, port_written = run_refused_daemon(ctx, "token-0644", readable)
+    R.expect(code is not None and code != 0,
+             f"springfitd --token-file (mode 0644): expected a non-zero exit within {REFUSE_TIMEOUT}s, got {code}")
+    R.expect("readable by others" in err, f"springfitd --token-file (mode 0644): stderr {short(err)!r}")
+    R.expect(not port_written, "springfitd --token-file (mode 0644) wrote a port file")
+
+    directory = os.path.join(token_dir, "a-directory")
+    os.makedirs(directory)
+    os.chmod(directory, 0o700)
+    code, err, port_written = run_refused_daemon(ctx, "token-dir", directory)
+    R.expect(code is not None and code != 0,
+             f"springfitd --token-file DIRECTORY: expected a non-zero exit within {REFUSE_TIMEOUT}s, got {code}")
+    R.expect("is a directory" in err, f"springfitd --token-file DIRECTORY: stderr {short(err)!r}")
+    R.expect(not port_written, "springfitd --token-file DIRECTORY wrote a port file")
+
+    private = os.path.join(token_dir, "private.txt")
+    with open(private, "w") as f:
+        f.write(TOKEN + "\n")
+    os.chmod(private, 0o600)
+    ctx.token_daemon = ctx.daemon("token", ["--token-file", private])
+    with Conn(ctx.token_daemon.port) as c:
+        info = c.result("server.info")
+        R.expect(info.get("auth_required") is True, f"server.info of the token daemon: {short(info)}")
+        r = c.result("session.auth", {"token": TOKEN})
+        R.expect(r == {"authenticated": True}, f"session.auth with the right token: {short(r)}")
+
+
+def test_wrong_tokens(ctx):
+    require(ctx.token_daemon is not None and ctx.token_daemon.alive(), "no token daemon (see token files)")
+    d = ctx.token_daemon
+    with Conn(d.port) as c:
+        for n in range(1, 5):
+            resp = c.call("session.auth", {"token": WRONG_TOKEN})
+            err = expect_error(resp, -32001, f"wrong token #{n}")
+            R.expect(err.get("message") == "unauthorized: wrong token",
+                     f"wrong token #{n}: expected the message 'unauthorized: wrong token', got {short(resp)}")
+        resp = c.call("session.auth", {"token": WRONG_TOKEN})
+        err = expect_error(resp, -32001, "wrong token #5")
+        R.expect("connection is closed" in str(err.get("message")),
+                 f"wrong token #5: expected a message saying the connection is closed, got {short(resp)}")
+        R.expect(c.wait_closed(IO_TIMEOUT), "the server did not close the connection after the 5th wrong token")
+    # The daemon goes on, for others and for the right token.
+    with Conn(d.port) as c:
+        r = c.result("session.auth", {"token": TOKEN})
+        R.expect(r == {"authenticated": True}, f"session.auth after another connection's wrong tokens: {short(r)}")
+        R.expect("jobs" in c.result("job.list"), "job.list after auth")
+    # The log: one line for the connection's wrong tokens (the log is written as it happens;
+    # polled briefly all the same). The log is the daemon's stdout and stderr together.
+    deadline = time.monotonic() + 2
+    while True:
+        lines = [l for l in d.log_text().splitlines() if "wrong token (not logged again" in l]
+        if len(lines) >= 1 or time.monotonic() > deadline:
+            break
+        time.sleep(0.05)
+    R.expect(len(lines) == 1, f"the token daemon's log (stdout and stderr): expected exactly one line with "
+                              f"'wrong token (not logged again', got {len(lines)}: {short(d.log_text(), 600)!r}")
+
+
+def file_mode(path):
+    return stat.S_IMODE(os.stat(path).st_mode)
+
+
+def test_db_mode(ctx):
+    d = ctx.daemon("dbmode")
+    with Conn(d.port) as c:  # a write, so that the WAL exists if the store uses one
+        sub = c.result("job.submit", {"scene": ctx.small_scene, "label": "dbmode"})
+        wait_state(c, sub["job"]["job_id"], FINAL_STATES, JOB_TIMEOUT)
+    require(os.path.exists(d.db), f"no database file {d.db} (files: {os.listdir(d.dir)})")
+    seen = []
+    for path in (d.db, d.db + "-wal", d.db + "-shm"):
+        if os.path.exists(path):
+            seen.append(os.path.basename(path))
+            mode = file_mode(path)
+            R.expect(mode == 0o600, f"{os.path.basename(path)} created by springfitd --db: mode {mode:04o}, "
+                                    f"expected 0600")
+    # The main daemon's database, created in a fresh directory too.
+    for path in (ctx.main.db, ctx.main.db + "-wal", ctx.main.db + "-shm"):
+        if os.path.exists(path):
+            mode = file_mode(path)
+            R.expect(mode == 0o600, f"the main daemon's {os.path.basename(path)}: mode {mode:04o}, expected 0600")
+    R.expect(os.path.basename(d.db) in seen, f"no database file among {seen}")
+
+
+def scene_text(scene, replacements):
+    """The scene as JSON text, with each placeholder string replaced by a literal as written."""
+    text = json.dumps(scene)
+    for placeholder, literal in replacements.items():
+        quoted = json.dumps(placeholder)
+        require(text.count(quoted) == 1, f"placeholder {placeholder} not found once")
+        text = text.replace(quoted, literal)
+    return text
+
+
+def labelled_jobs(conn, label):
+    return conn.result("job.list", {"label": label})["jobs"]
+
+
+def test_extreme_numbers(ctx):
+    label = f"extreme-{ctx.nonce}"
+
+    def with_stiffness():
+        s = copy.deepcopy(ctx.small_scene)
+        s["reference"]["stiffness"] = "@STIFFNESS@"
+        return s
+
+    node_scene = copy.deepcopy(ctx.small_scene)
+    node_scene["nodes"][3][0] = "@X@"
+    cases = [
+        ("reference stiffness 1e-400", scene_text(with_stiffness(), {"@STIFFNESS@": "1e-400"}),
+         "reference.stiffness", "reads as 0"),
+        ("reference stiffness 1e308", scene_text(with_stiffness(), {"@STIFFNESS@": "1e308"}),
+         "reference.stiffness", "outside [1e-100, 1e+100]"),
+        ("nodes[3][0] = 1e308", scene_text(node_scene, {"@X@": "1e308"}), "nodes[3][0]", "beyond 1e+100"),
+    ]
+    with Conn(ctx.main.port) as c:
+        newest_before = c.result("job.list", {"order": "newest", "limit": 1})["jobs"]
+        for name, text, path, phrase in cases:
+            resp = c.call_text("job.submit", '{"scene":%s,"label":%s}' % (text, json.dumps(label)))
+            err = expect_error(resp, -32003, name)
+            R.expect(error_data(err).get("path") == path,
+                     f"{name}: expected data.path {path!r}, got {short(resp)}")
+            R.expect(phrase in str(err.get("message")), f"{name}: the message lacks {phrase!r}: {short(resp)}")
+        R.expect(labelled_jobs(c, label) == [], f"refused scenes were stored: {short(labelled_jobs(c, label))}")
+        newest_after = c.result("job.list", {"order": "newest", "limit": 1})["jobs"]
+        R.expect([j["job_id"] for j in newest_after] == [j["job_id"] for j in newest_before],
+                 f"a job was created by a refused submission: newest before {short(newest_before)}, "
+                 f"after {short(newest_after)}")
+
+
+def test_search_bounds(ctx):
+    label = f"bounds-{ctx.nonce}"
+    scene = copy.deepcopy(ctx.small_scene)
+    scene["search"] = dict(scene.get("search", {}), population=100000000)
+    with Conn(ctx.main.port) as c:
+        resp = c.call("job.submit", {"scene": scene, "label": label})
+        err = expect_error(resp, -32004, "search.population 100000000")
+        R.expect(error_data(err).get("limit") == "max_population",
+                 f"search.population 100000000: expected data.limit max_population, got {short(resp)}")
+        R.expect(labelled_jobs(c, label) == [], "a job refused for its population was stored")
+
+
+def main(argv):
+    if len(argv) != 4:
+        print(__doc__.strip().split("\n\n")[1], file=sys.stderr)
+        return 2
+    springfitd, springfit, source = (os.path.abspath(a) for a in argv[1:])
+    for path in (springfitd, springfit):
+        if not os.access(path, os.X_OK):
+            print(f"FAIL: not an executable: {path}", file=sys.stderr)
+            return 2
+    started = time.monotonic()
+    ctx = Context(springfitd, springfit, source)
+    groups = [
+        ("setup", test_setup, True),
+        ("client timeout", test_client_timeout, False),
+        ("submit --wait --json", test_submit_wait, False),
+        ("watch interrupted", test_watch_interrupt, False),
+        ("list and trace", test_list, False),
+        ("idempotency key", test_idempotency, False),
+        ("token files", test_token_files, False),
+        ("wrong tokens", test_wrong_tokens, False),
+        ("database mode", test_db_mode, False),
+        ("extreme numbers", test_extreme_numbers, False),
+        ("search bounds", test_search_bounds, False),
+    ]
+    try:
+        for name, fn, essential in groups:
+            R.current = name
+            before = len(R.failures)
+            t0 = time.monotonic()
+            try:
+                fn(ctx)
+            except Abort as e:
+                R.fail(f"aborted: {e}")
+            except Exception as e:
+                R.fail(f"unexpected {type(e).__name__}: {e}\n{traceback.format_exc()}")
+            R.current = name
+            failed = len(R.failures) - before
+            print(f"{'PASS' if not failed else 'FAIL'}: {name} ({time.monotonic() - t0:.1f}s"
+                  f"{'' if not failed else f', {failed} failed checks'})", flush=True)
+            if failed and essential:
+                print(f"FAIL: stopping: the {name} group is needed by the rest", flush=True)
+                break
+        if ctx.main is not None:
+            R.current = "end"
+            R.expect(ctx.main.alive(), f"the main daemon died: {short(ctx.main.log_text(), 500)}")
+    finally:
+        ctx.cleanup()
+    total = time.monotonic() - started
+    if R.failures:
+        print(f"FAILED: {len(R.failures)} checks failed ({total:.1f}s)")
+        return 1
+    print(f"OK: all checks passed ({total:.1f}s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
