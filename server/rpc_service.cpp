@@ -112,6 +112,7 @@ Json RpcService::HandleJson(const Json& message, SessionContext& session) {
 void RpcService::EndSession(SessionContext& session) {
   for (std::uint64_t token : session.watches) scheduler_.Unwatch(token);
   session.watches.clear();
+  session.watch_finished.clear();
 }
 
 Json RpcService::HandleRequest(const Json& request, SessionContext& session) {
@@ -575,7 +576,15 @@ Json RpcService::JobDelete(const Json& params) {
 Json RpcService::JobWatch(const Json& params, SessionContext& session) {
   proto::ExpectKeys(params, "params", {"job_id"});
   const JobRecord before = RequireJob(params);
-  // Each watch is fed by the daemon: one connection cannot ask for an unbounded stream.
+  // Each watch is fed by the daemon: one connection cannot ask for an unbounded stream. A
+  // watch whose job has finished feeds nothing more: it is dropped and does not count.
+  for (std::size_t w = session.watches.size(); w-- > 0;) {
+    if (session.watch_finished[w]->load()) {
+      scheduler_.Unwatch(session.watches[w]);
+      session.watches.erase(session.watches.begin() + static_cast<std::ptrdiff_t>(w));
+      session.watch_finished.erase(session.watch_finished.begin() + static_cast<std::ptrdiff_t>(w));
+    }
+  }
   if (static_cast<int>(session.watches.size()) >= options_.limits.max_watches) {
     LimitExceeded("max_watches", static_cast<std::int64_t>(session.watches.size()) + 1,
                   options_.limits.max_watches);
@@ -599,7 +608,10 @@ Json RpcService::JobWatch(const Json& params, SessionContext& session) {
     if (token) scheduler_.Unwatch(*token);  // deleted in between: no job.finished will come
     throw;
   }
-  if (token) session.watches.push_back(*token);
+  if (token) {
+    session.watches.push_back(*token);
+    session.watch_finished.push_back(finished_sent);
+  }
   if (proto::IsFinal(job.state) && notify && !finished_sent->exchange(true)) {
     notify(rpc::Notification("job.finished", proto::JobToJson(job)));
   }

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -50,6 +51,15 @@ struct SessionContext {
   // not block). Unset: notifications are dropped.
   std::function<void(const proto::Json&)> notify;
   std::vector<std::uint64_t> watches;
+  // Per watch (same order): set once its job.finished was sent. Finished watches are dropped
+  // at the next job.watch, so max_watches bounds the open ones only.
+  std::vector<std::shared_ptr<std::atomic<bool>>> watch_finished;
+  // Watches whose job has not finished yet (read by the connection's idle timer).
+  std::size_t OpenWatches() const {
+    std::size_t open = 0;
+    for (const auto& finished : watch_finished) open += finished->load() ? 0 : 1;
+    return open;
+  }
   // Wrong tokens presented on this connection: the first is logged, the kMaxWrongTokens-th
   // closes it (a guesser must reconnect, within --max-connections).
   int wrong_tokens = 0;

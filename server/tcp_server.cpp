@@ -185,10 +185,7 @@ class Session : public std::enable_shared_from_this<Session> {
     }
   }
 
-  void SendNotification(const proto::Json& notification) {
-    if (notification.value("method", "") == "job.finished") ++finished_sent_;
-    Send(rpc::Serialize(notification));
-  }
+  void SendNotification(const proto::Json& notification) { Send(rpc::Serialize(notification)); }
 
   void Send(std::string text) {
     if (closed_) return;
@@ -235,8 +232,7 @@ class Session : public std::enable_shared_from_this<Session> {
     idle_timer_.async_wait([self = shared_from_this(), idle](boost::system::error_code ec) {
       if (ec || self->closed_) return;
       // Not idle: a request being handled, or a watched job that has not finished.
-      const bool watching =
-          !self->handling_ && self->finished_sent_ < self->context_.watches.size();
+      const bool watching = !self->handling_ && self->context_.OpenWatches() > 0;
       if (!watching && !self->handling_ &&
           std::chrono::steady_clock::now() - self->last_activity_ >= idle) {
         spdlog::info("connection {}: idle for {:.0f} s; closing", self->peer_, idle.count());
@@ -261,7 +257,6 @@ class Session : public std::enable_shared_from_this<Session> {
   std::deque<std::string> outbox_;
   std::vector<proto::Json> deferred_;
   std::size_t pending_output_ = 0;
-  std::size_t finished_sent_ = 0;  // job.finished notifications: a watch is open until its own
   // When the message being received began (unset between messages).
   std::optional<std::chrono::steady_clock::time_point> message_started_;
   bool reading_ = false;

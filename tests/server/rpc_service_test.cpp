@@ -7,6 +7,8 @@
 #include <filesystem>
 #include <mutex>
 
+#include <thread>
+
 #include <gtest/gtest.h>
 
 #include "io/example_catalog.h"
@@ -461,6 +463,28 @@ TEST_F(RpcServiceTest, NamesWatchesAndListPagesAreBounded) {
   ASSERT_TRUE(fourth.contains("error")) << fourth.dump();
   EXPECT_EQ(Code(fourth), rpc::kLimitExceeded);
   EXPECT_EQ(fourth["error"]["data"]["limit"], "max_watches");
+  // Finished watches feed nothing more and do not count: once the three watched jobs end
+  // (cancelled while queued, each one's job.finished sent), the connection watches again (the
+  // count had grown for good, and after 100 watches a client could never watch again).
+  for (int i = 0; i < 3; ++i) {
+    Json c;
+    c["job_id"] = ids[static_cast<std::size_t>(i)];
+    EXPECT_EQ(Call("job.cancel", c)["result"]["state"], "cancelled");
+  }
+  for (int spin = 0; spin < 600; ++spin) {  // up to 6 s for the three notifications
+    int finished = 0;
+    for (const Json& m : inbox_.All()) finished += m["method"] == "job.finished" ? 1 : 0;
+    if (finished >= 3) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  for (int i = 3; i < 6; ++i) {
+    Json w;
+    w["job_id"] = ids[static_cast<std::size_t>(i)];
+    EXPECT_TRUE(Call("job.watch", w).contains("result")) << "watch " << i << " after three ended";
+  }
+  Json seventh;
+  seventh["job_id"] = ids[6];
+  EXPECT_EQ(Code(Call("job.watch", seventh)), rpc::kLimitExceeded);  // three open again
 
   // Every job once, in order, over pages cut by bytes rather than by the count asked for.
   std::vector<std::int64_t> listed;
