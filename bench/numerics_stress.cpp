@@ -4,6 +4,7 @@
 //   numerics_stress --scenes 10000 [--first 1] [--max-seconds 5] [--verbose]
 //   numerics_stress --write-scene SEED -o FILE.json   (a scene to reproduce with springfit)
 #include <CLI/CLI.hpp>
+#include <cctype>
 #include <cstdio>
 #include <fstream>
 #include <map>
@@ -50,10 +51,14 @@ int main(int argc, char** argv) {
     slowest = std::max(slowest, o.seconds);
     if (o.refused) {
       ++refused;
-      // The refusal's kind: its text up to the first digit or colon after the path.
+      // The refusal's kind: its text after the path, numbers written as #, cut at 60.
       const std::string r = o.refusal;
       const auto colon = r.find(": ");
-      std::string why = colon == std::string::npos ? r : r.substr(colon + 2);
+      std::string why;
+      for (const char c : colon == std::string::npos ? r : r.substr(colon + 2)) {
+        const bool digit = std::isdigit(static_cast<unsigned char>(c)) != 0;
+        if (!digit || why.empty() || why.back() != '#') why += digit ? '#' : c;
+      }
       why = why.substr(0, std::min<std::size_t>(why.size(), 60));
       ++refusals[why];
       if (verbose) std::printf("seed %llu refused: %s\n", (unsigned long long)seed, r.c_str());
