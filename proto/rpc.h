@@ -4,6 +4,8 @@
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "proto/json_reader.h"
 
@@ -44,5 +46,26 @@ Json Error(const Json& id, int code, const std::string& message, const Json& dat
 // The one-line form every message is written in: compact JSON and a newline. Invalid UTF-8
 // in strings (which only an echo of client input could carry) is replaced, never thrown on.
 std::string Serialize(const Json& message);
+
+}  // namespace springfit::proto::rpc
+
+namespace springfit::proto::rpc {
+
+// A request id is echoed back exactly as it was sent (JSON-RPC 2.0). Integers survive parsing;
+// a number parsed as a double may not (18446744073709551616, 1.50). So before a message is
+// handled, each request's (top-level or batch element) id that parsed as a double is replaced
+// by a placeholder string and its literal text kept here; RestoreIds() puts the literals back
+// into the serialized answer. The placeholder holds a control character, which no id string
+// that a client sends can equal once serialized (it is written as \u0001).
+class IdLiterals {
+ public:
+  // `message` was parsed from `text`. Replaces its double ids by placeholders.
+  void Protect(std::string_view text, Json& message);
+  // The serialized answer with each placeholder replaced by its literal.
+  std::string Restore(std::string serialized) const;
+
+ private:
+  std::vector<std::string> literals_;
+};
 
 }  // namespace springfit::proto::rpc

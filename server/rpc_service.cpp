@@ -82,8 +82,11 @@ std::string RpcService::HandleMessage(std::string_view text, SessionContext& ses
     return rpc::Serialize(
         rpc::Error(nullptr, rpc::kParseError, std::string("parse error: ") + e.what()));
   }
+  // Ids that parsed as doubles are answered with the text they were sent as.
+  rpc::IdLiterals ids;
+  ids.Protect(text, message);
   const Json response = HandleJson(message, session);
-  return response.is_null() ? std::string() : rpc::Serialize(response);
+  return response.is_null() ? std::string() : ids.Restore(rpc::Serialize(response));
 }
 
 Json RpcService::HandleJson(const Json& message, SessionContext& session) {

@@ -160,6 +160,31 @@ TEST_F(RpcServiceTest, NotificationsAndBatches) {
   EXPECT_EQ(too_big["error"]["data"]["limit"], "max_batch");
 }
 
+TEST_F(RpcServiceTest, IdsAreEchoedExactlyAsSent) {
+  MakeService(false);
+  // 2^64 does not fit an integer: it came back as 1.8446744073709552e+19.
+  std::string answer = service_->HandleMessage(
+      R"({"jsonrpc":"2.0","id":18446744073709551616,"method":"server.info"})", session_);
+  EXPECT_NE(answer.find(R"("id":18446744073709551616,)"), std::string::npos) << answer;
+  answer = service_->HandleMessage(R"({"jsonrpc":"2.0","id":1.50,"method":"nope"})", session_);
+  EXPECT_NE(answer.find(R"("id":1.50,)"), std::string::npos) << answer;
+  EXPECT_EQ(proto::ParseJson(answer)["error"]["code"], rpc::kMethodNotFound);
+  // In a batch, each its own, around a notification, an integer and a string.
+  answer = service_->HandleMessage(
+      R"([{"jsonrpc":"2.0","id":-0.0,"method":"server.info"},)"
+      R"({"jsonrpc":"2.0","method":"server.info"},)"
+      R"({"jsonrpc":"2.0","id":7,"method":"server.info","params":{"id":1.5e300}},)"
+      R"({"jsonrpc":"2.0","id":"1e5","method":"server.info"},)"
+      R"({"jsonrpc":"2.0","id":123456789012345678901234567890,"method":"server.info"}])",
+      session_);
+  const Json batch = proto::ParseJson(answer);
+  ASSERT_EQ(batch.size(), 4u) << answer;
+  EXPECT_NE(answer.find(R"("id":-0.0,)"), std::string::npos) << answer;
+  EXPECT_EQ(batch[1]["id"], 7);
+  EXPECT_EQ(batch[2]["id"], "1e5");
+  EXPECT_NE(answer.find(R"("id":123456789012345678901234567890,)"), std::string::npos) << answer;
+}
+
 TEST_F(RpcServiceTest, TokenIsRequiredForJobMethods) {
   ServiceOptions o;
   o.token = "0123456789abcdef0123456789abcdef";
