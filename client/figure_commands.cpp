@@ -1,5 +1,6 @@
 // springfit render | plot: figures of a result, from a result file (`run -o`, `result -o`)
 // or from a daemon's job (README.md, "Figures").
+#include <algorithm>
 #include <cctype>
 #include <cstdio>
 #include <filesystem>
@@ -46,6 +47,18 @@ void WriteSvg(const std::string& path, const std::string& svg) {
   if (!out) throw std::runtime_error("cannot write " + path);
 }
 
+// -o of render and plot: they write SVG, and a name that says otherwise (a .png a viewer would
+// refuse) is a command-line error rather than an SVG under that name.
+const CLI::Validator kSvgName(
+    [](std::string& name) -> std::string {
+      std::string ext = std::filesystem::path(name).extension().string();
+      std::transform(ext.begin(), ext.end(), ext.begin(),
+                     [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+      return ext == ".svg" ? std::string()
+                           : "'" + name + "' does not end in .svg (render and plot write SVG)";
+    },
+    "FILE.svg");
+
 struct RenderArgs {
   ServerOptions server;
   std::string source;
@@ -79,6 +92,7 @@ struct PlotArgs {
   std::string output;
   std::string title;
   bool tradeoff = false;
+  std::string x = "seconds";  // --x
 };
 
 // `plot --tradeoff`: the sparsity path of each result (strategy continuous).
@@ -117,7 +131,14 @@ int PlotTradeoff(const PlotArgs& a) {
   return kExitOk;
 }
 
-ErrorCurve CurveOf(const std::vector<TraceRow>& rows, std::string label) {
+// A trace row's position along plot --x: wall seconds, generations or evaluations.
+double XOf(const TraceRow& row, const std::string& x) {
+  if (x == "generations") return row.generation;
+  if (x == "evaluations") return static_cast<double>(row.evaluations);
+  return row.wall_seconds;
+}
+
+ErrorCurve CurveOf(const std::vector<TraceRow>& rows, std::string label, const std::string& x) {
   ErrorCurve curve;
   curve.label = std::move(label);
   double best = std::numeric_limits<double>::infinity();
@@ -125,12 +146,12 @@ ErrorCurve CurveOf(const std::vector<TraceRow>& rows, std::string label) {
     // Exact recovery as the search counts it (proto/RUN.md), drawn as 0.
     const double e =
         row.best_normalized_error <= kExactNormalizedError ? 0.0 : row.best_normalized_error;
-    if (e < best || curve.points.empty()) curve.points.emplace_back(row.wall_seconds, e);
+    if (e < best || curve.points.empty()) curve.points.emplace_back(XOf(row, x), e);
     best = std::min(best, e);
   }
   // The last row too, so that a curve runs to the end of its run.
-  if (!rows.empty() && curve.points.back().first < rows.back().wall_seconds) {
-    curve.points.emplace_back(rows.back().wall_seconds, best);
+  if (!rows.empty() && curve.points.back().first < XOf(rows.back(), x)) {
+    curve.points.emplace_back(XOf(rows.back(), x), best);
   }
   return curve;
 }
@@ -165,10 +186,16 @@ int Plot(const PlotArgs& a) {
                         nullptr);
     }
     if (rows.empty()) throw InputError("trace", source.name + ": the trace is empty");
-    curves.push_back(CurveOf(rows, std::move(label)));
+    curves.push_back(CurveOf(rows, std::move(label), a.x));
   }
-  const std::string title = a.title.empty() ? "Normalized error against wall time" : a.title;
-  WriteSvg(a.output, RenderErrorPlot(curves, title));
+  ErrorPlotOptions options;
+  const char* against = a.x == "generations"   ? "generations"
+                        : a.x == "evaluations" ? "evaluations"
+                                               : "wall time";
+  options.x_label = a.x == "seconds" ? "wall time (s)" : against;
+  const std::string title =
+      a.title.empty() ? std::string("Normalized error against ") + against : a.title;
+  WriteSvg(a.output, RenderErrorPlot(curves, title, options));
   return kExitOk;
 }
 
@@ -181,7 +208,9 @@ void RegisterFigureCommands(CLI::App& app, int& exit_code) {
         "render", "Draw the reference and the identified topology under each load case (SVG)");
     cmd->add_option("RESULT_OR_ID", args->source, "A result file (run -o, result -o) or a job id")
         ->required();
-    cmd->add_option("-o,--output", args->output, "The SVG file to write")->required();
+    cmd->add_option("-o,--output", args->output, "The SVG file to write")
+        ->required()
+        ->check(kSvgName);
     cmd->add_option("--scene", args->scene_path,
                     "The scene, for a result file that does not carry it");
     cmd->add_option("--case", args->load_cases, "Only this load case (repeatable; default: all)");
@@ -201,8 +230,15 @@ void RegisterFigureCommands(CLI::App& app, int& exit_code) {
     cmd->add_option("RESULT_OR_ID", args->sources,
                     "Result files (run -o, result -o) or job ids, one curve each")
         ->required();
-    cmd->add_option("-o,--output", args->output, "The SVG file to write")->required();
+    cmd->add_option("-o,--output", args->output, "The SVG file to write")
+        ->required()
+        ->check(kSvgName);
     cmd->add_option("--title", args->title, "The plot's title");
+    cmd->add_option("--x", args->x,
+                    "The horizontal axis: seconds (wall time), generations (the paper's Figure "
+                    "2) or evaluations")
+        ->check(CLI::IsMember({"seconds", "generations", "evaluations"}))
+        ->capture_default_str();
     cmd->add_flag("--tradeoff", args->tradeoff,
                   "The sparsity path instead (strategy continuous): E against springs, the "
                   "returned model and the closed-form baseline marked");

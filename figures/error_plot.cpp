@@ -67,7 +67,7 @@ std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::st
              SvgDocument::Anchor::kEnd);
   }
   svg.Rect({kLeft, kTop}, plot_w, plot_h, "frame");
-  svg.Text({kLeft + plot_w / 2, kTop + plot_h + 40}, "wall time (s)", "",
+  svg.Text({kLeft + plot_w / 2, kTop + plot_h + 40}, options.x_label, "",
            SvgDocument::Anchor::kMiddle);
   svg.VerticalText({22, kTop + plot_h / 2}, "best normalized error", "");
 

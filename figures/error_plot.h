@@ -8,7 +8,8 @@ namespace springfit::figures {
 
 struct ErrorCurve {
   std::string label;
-  // (wall seconds, best normalised error so far), in the order of the trace. The best error
+  // (x, best normalised error so far), in the order of the trace; x is wall seconds by
+  // default (ErrorPlotOptions::x_label says what else). The best error
   // never rises; an error of 0 is exact recovery, drawn on the bottom axis with a marker.
   std::vector<std::pair<double, double>> points;
 };
@@ -16,6 +17,8 @@ struct ErrorCurve {
 struct ErrorPlotOptions {
   double width = 760.0;
   double height = 480.0;
+  // What the points' first coordinate is (plot --x): wall seconds, generations, evaluations.
+  std::string x_label = "wall time (s)";
 };
 
 // Throws std::invalid_argument when no curve has a point.

@@ -171,6 +171,17 @@ expect_exit 0 "render exact" "$sf" render "$tmp/result.json" -o "$tmp/exact.svg"
 "$sf" run "$src/examples/paper-iso-5x5.json" --strategy paper --generations 5 -q -o "$tmp/short.json" >/dev/null
 expect_exit 0 "render short" "$sf" render "$tmp/short.json" --case 1 -o "$tmp/short.svg"
 expect_exit 0 "plot" "$sf" plot "$tmp/result.json" "$tmp/short.json" -o "$tmp/plot.svg" --title "iso"
+# plot --x generations: the paper's Figure 2 axis (5 generations: decades 1 and 10); render
+# and plot write SVG only, and say so for another name (nothing written).
+expect_exit 0 "plot generations" "$sf" plot "$tmp/short.json" --x generations -o "$tmp/gen.svg"
+grep -q 'Normalized error against generations' "$tmp/gen.svg" || fail "plot --x generations: no title"
+grep -q 'y="442.00" text-anchor="middle">10</text>' "$tmp/gen.svg" || fail "plot --x generations: no decade 10 on the x axis"
+grep -q 'y="442.00" text-anchor="middle">1e-' "$tmp/gen.svg" && fail "plot --x generations drew seconds"
+expect_exit 64 "plot png" "$sf" plot "$tmp/short.json" -o "$tmp/plot.png"
+grep -q "does not end in .svg" "$tmp/err" || fail "plot png: $(cat "$tmp/err")"
+[ -e "$tmp/plot.png" ] && fail "plot wrote a .png file"
+expect_exit 64 "render pdf" "$sf" render "$tmp/short.json" -o "$tmp/t.pdf"
+[ -e "$tmp/t.pdf" ] && fail "render wrote a .pdf file"
 python3 - "$tmp/exact.svg" "$tmp/short.svg" "$tmp/short.json" "$tmp/plot.svg" <<'PY' || fail "render/plot content"
 import json, sys, xml.etree.ElementTree as ET
 ns = "{http://www.w3.org/2000/svg}"
