@@ -16,7 +16,6 @@ everything passed, 1 otherwise (2 on bad usage).
 import json
 import os
 import shutil
-import signal
 import socket
 import subprocess
 import sys
@@ -25,9 +24,11 @@ import threading
 import time
 import traceback
 
-IO_TIMEOUT = 5.0          # seconds any single socket read/connect may block
-START_TIMEOUT = 10.0      # for the port file to appear
-STOP_TIMEOUT = 15.0       # for the daemon to exit after SIGTERM (--shutdown-seconds is 10)
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree for harness.py
+from harness import (IO_TIMEOUT, STOP_TIMEOUT, Abort, Conn, Daemon, R, error_data, require, short,
+                     wait_state)
+
+# IO_TIMEOUT (5 s), START_TIMEOUT (10 s) and STOP_TIMEOUT (15 s) are harness.py's.
 CLI_TIMEOUT = 20.0        # for one springfit invocation
 LOAD_THREADS = 50
 LOAD_JOBS = 500
@@ -40,170 +41,8 @@ DOCUMENTED_CODES = {-32700, -32600, -32601, -32602, -32603, -32001, -32002, -320
                     -32005, -32006, -32007}
 
 
-# --------------------------------------------------------------------------------------------
-# Reporting
-
-
-class Report:
-    def __init__(self):
-        self.failures = []
-        self.current = "?"
-        self.lock = threading.Lock()
-
-    def fail(self, what):
-        with self.lock:
-            self.failures.append((self.current, what))
-        print(f"FAIL: [{self.current}] {what}", flush=True)
-
-    def expect(self, cond, what):
-        """A soft check: records a failure and returns cond."""
-        if not cond:
-            self.fail(what)
-        return bool(cond)
-
-
-R = Report()
-
-
-class Abort(Exception):
-    """A check whose failure makes the rest of its group meaningless."""
-
-
-def require(cond, what):
-    if not cond:
-        raise Abort(what)
-
-
-def short(value, n=300):
-    text = value if isinstance(value, str) else repr(value)
-    return text if len(text) <= n else text[:n] + "..."
-
-
-# --------------------------------------------------------------------------------------------
-# A connection with a line reader
-
-
-def is_compact(line):
-    """True when a JSON text has no whitespace outside strings."""
-    in_string = escaped = False
-    for ch in line:
-        if in_string:
-            if escaped:
-                escaped = False
-            elif ch == "\\":
-                escaped = True
-            elif ch == '"':
-                in_string = False
-        elif ch == '"':
-            in_string = True
-        elif ch in " \t\r\n":
-            return False
-    return True
-
-
-class Conn:
-    def __init__(self, port, timeout=IO_TIMEOUT):
-        self.sock = socket.create_connection(("127.0.0.1", port), timeout=timeout)
-        self.buf = b""
-        self.eof = False
-        self.next_id = 1000
-
-    def close(self):
-        try:
-            self.sock.close()
-        except OSError:
-            pass
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
-    def send(self, data):
-        self.sock.settimeout(IO_TIMEOUT)
-        self.sock.sendall(data)
-
-    def _fill(self, deadline):
-        """Reads once into the buffer; False on timeout, sets eof on close/reset."""
-        remaining = deadline - time.monotonic()
-        if remaining <= 0:
-            return False
-        self.sock.settimeout(remaining)
-        try:
-            chunk = self.sock.recv(65536)
-        except socket.timeout:
-            return False
-        except (ConnectionResetError, ConnectionAbortedError):
-            chunk = b""
-        if not chunk:
-            self.eof = True
-            return False
-        self.buf += chunk
-        return True
-
-    def read_raw_line(self, timeout=IO_TIMEOUT):
-        """One line without its newline, or None (timeout or closed)."""
-        deadline = time.monotonic() + timeout
-        while b"\n" not in self.buf:
-            if self.eof or not self._fill(deadline):
-                return None
-        line, self.buf = self.buf.split(b"\n", 1)
-        return line
-
-    def read(self, timeout=IO_TIMEOUT, what="a response"):
-        """One response line, checked to be exactly one compact JSON value; returns it parsed."""
-        line = self.read_raw_line(timeout)
-        if line is None:
-            raise Abort(f"no {what} within {timeout}s (connection {'closed' if self.eof else 'open'}, "
-                        f"pending bytes {short(self.buf)})")
-        try:
-            text = line.decode("utf-8")
-            value = json.loads(text)
-        except (UnicodeDecodeError, ValueError) as e:
-            raise Abort(f"response line is not one JSON value ({e}): {short(line)}")
-        R.expect(is_compact(text), f"response line is not compact JSON: {short(text)}")
-        return value
-
-    def silent(self, wait):
-        """True when nothing arrives within `wait` seconds."""
-        if self.buf:
-            return False
-        self._fill(time.monotonic() + wait)
-        return not self.buf
-
-    def wait_closed(self, timeout=IO_TIMEOUT):
-        """True when the peer closes the connection within the timeout (extra data is skipped)."""
-        deadline = time.monotonic() + timeout
-        while not self.eof:
-            self.buf = b""
-            if not self._fill(deadline) and not self.eof:
-                return False
-        return True
-
-    def request(self, method, params=None, id_=None):
-        """Sends one request line; returns its id."""
-        if id_ is None:
-            self.next_id += 1
-            id_ = self.next_id
-        msg = {"jsonrpc": "2.0", "id": id_, "method": method}
-        if params is not None:
-            msg["params"] = params
-        self.send(json.dumps(msg).encode() + b"\n")
-        return id_
-
-    def call(self, method, params=None, timeout=IO_TIMEOUT):
-        """Sends a request and reads its response (which must carry its id)."""
-        id_ = self.request(method, params)
-        resp = self.read(timeout, what=f"answer to {method}")
-        require(isinstance(resp, dict) and resp.get("id") == id_,
-                f"{method}: expected the answer with id {id_}, got {short(resp)}")
-        return resp
-
-    def result(self, method, params=None, timeout=IO_TIMEOUT):
-        resp = self.call(method, params, timeout)
-        require("result" in resp, f"{method} {short(params)}: expected a result, got {short(resp)}")
-        return resp["result"]
+# Every response line must be compact JSON (checked by Conn.read).
+Conn.check_compact = True
 
 
 def expect_error(resp, code, what, id_=None, check_id=True):
@@ -220,76 +59,6 @@ def expect_error(resp, code, what, id_=None, check_id=True):
     if check_id:
         R.expect("id" in resp and resp["id"] == id_, f"{what}: expected id {id_!r}, got {short(resp)}")
     return err
-
-
-def error_data(err):
-    data = err.get("data")
-    return data if isinstance(data, dict) else {}
-
-
-# --------------------------------------------------------------------------------------------
-# The daemon
-
-
-class Daemon:
-    def __init__(self, binary, root, name, extra=()):
-        self.binary = binary
-        self.dir = os.path.join(root, name)
-        os.makedirs(self.dir)
-        self.name = name
-        self.extra = list(extra)
-        self.proc = None
-        self.port = None
-        self.stderr = None
-
-    def start(self):
-        port_file = os.path.join(self.dir, "port")
-        self.stderr = open(os.path.join(self.dir, "stderr"), "wb")
-        self.proc = subprocess.Popen(
-            [self.binary, "--listen", "127.0.0.1:0", "--db", os.path.join(self.dir, "test.db"),
-             "--port-file", port_file, "--workers", "2", "--log-level", "warn"] + self.extra,
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=self.stderr)
-        deadline = time.monotonic() + START_TIMEOUT
-        while time.monotonic() < deadline:
-            if self.proc.poll() is not None:
-                raise Abort(f"daemon {self.name} exited at start with {self.proc.returncode}: "
-                            f"{self.stderr_text()}")
-            try:
-                with open(port_file) as f:
-                    text = f.read().strip()
-                if text:
-                    self.port = int(text)
-                    return self
-            except (OSError, ValueError):
-                pass
-            time.sleep(0.02)
-        raise Abort(f"daemon {self.name}: no port file within {START_TIMEOUT}s")
-
-    def alive(self):
-        return self.proc is not None and self.proc.poll() is None
-
-    def stderr_text(self):
-        try:
-            with open(os.path.join(self.dir, "stderr"), "rb") as f:
-                return short(f.read().decode("utf-8", "replace"), 500)
-        except OSError:
-            return ""
-
-    def stop(self):
-        """SIGTERM, bounded wait; True when it exited in time."""
-        if self.proc is None:
-            return True
-        exited = True
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            try:
-                self.proc.wait(STOP_TIMEOUT)
-            except subprocess.TimeoutExpired:
-                exited = False
-                self.proc.kill()
-                self.proc.wait(5)
-        self.stderr.close()
-        return exited
 
 
 # --------------------------------------------------------------------------------------------
@@ -328,15 +97,6 @@ class Context:
         shutil.rmtree(self.tmp, ignore_errors=True)
 
 
-def wait_state(conn, job_id, states, timeout):
-    deadline = time.monotonic() + timeout
-    while True:
-        job = conn.result("job.get", {"job_id": job_id})
-        if job["state"] in states or time.monotonic() > deadline:
-            return job
-        time.sleep(0.02)
-
-
 def test_setup(ctx):
     ctx.main = ctx.daemon("main")
     with Conn(ctx.main.port) as c:
@@ -349,7 +109,7 @@ def test_setup(ctx):
         require(sub.get("created") is True and isinstance(sub["job"].get("job_id"), int),
                 f"job.submit: {short(sub)}")
         job_id = sub["job"]["job_id"]
-        job = wait_state(c, job_id, ("succeeded", "failed", "cancelled"), 15)
+        job = wait_state(c, job_id, ("succeeded", "failed", "cancelled"), 15, interval=0.02)
         require(job["state"] == "succeeded", f"job {job_id} before the corpus: {short(job)}")
         fields = {"job_id", "label", "priority", "seed", "idempotency_key", "state", "error", "scene", "genes",
                   "strategy", "max_generations", "created_at", "started_at", "finished_at", "progress",
@@ -432,7 +192,7 @@ def test_corpus(ctx):
         for i in range(3):
             sub = c.result("job.submit", {"scene": ctx.long_scene, "label": "long", "seed": 10 + i})
             ctx.long_jobs.append(sub["job"]["job_id"])
-        running = [wait_state(c, j, ("running", "succeeded", "failed", "cancelled"), 5)
+        running = [wait_state(c, j, ("running", "succeeded", "failed", "cancelled"), 5, interval=0.02)
                    for j in ctx.long_jobs[:2]]
         require(all(j["state"] == "running" for j in running),
                 f"the two long jobs run: {[j['state'] for j in running]}")
@@ -607,7 +367,7 @@ def test_corpus(ctx):
 
 
 def test_after_corpus(ctx):
-    R.expect(ctx.main.alive(), f"the daemon died: {ctx.main.stderr_text()}")
+    R.expect(ctx.main.alive(), f"the daemon died: {short(ctx.main.stderr_text(), 500)}")
     job_id, before = ctx.before_job
     with Conn(ctx.main.port) as c:
         job = c.result("job.get", {"job_id": job_id})
@@ -963,7 +723,7 @@ def main(argv):
                 break
         if ctx.main is not None:
             R.current = "end"
-            R.expect(ctx.main.alive(), f"the main daemon died: {ctx.main.stderr_text()}")
+            R.expect(ctx.main.alive(), f"the main daemon died: {short(ctx.main.stderr_text(), 500)}")
     finally:
         ctx.cleanup()
     total = time.monotonic() - started
