@@ -25,6 +25,7 @@ class Session : public std::enable_shared_from_this<Session> {
       : server_(server),
         socket_(std::move(socket)),
         idle_timer_(server.io_),
+        message_timer_(server.io_),
         framer_(proto::JsonFramer::Options{server.options_.max_message_bytes, 64}) {
     boost::system::error_code ec;
     const auto remote = socket_.remote_endpoint(ec);
@@ -58,6 +59,7 @@ class Session : public std::enable_shared_from_this<Session> {
     socket_.shutdown(tcp::socket::shutdown_both, ignored);
     socket_.close(ignored);
     idle_timer_.cancel();
+    message_timer_.cancel();
     // A handler still running owns the context; OnHandled ends the session then.
     if (!handling_) server_.service_.EndSession(context_);
     server_.Remove(shared_from_this());
@@ -90,11 +92,9 @@ class Session : public std::enable_shared_from_this<Session> {
     // A message, once begun, must be complete within message_seconds: a client trickling a
     // byte at a time would otherwise hold its connection (and a slot) for ever, since every
     // byte resets the idle clock.
-    if (message_started_ && last_activity_ - *message_started_ >
-                                std::chrono::duration<double>(server_.options_.message_seconds)) {
-      spdlog::info("connection {}: a message not completed within {:.0f} s; closing", peer_,
-                   server_.options_.message_seconds);
-      Close();
+    // (ArmMessageTimer closes it when the bytes stop coming too.)
+    if (message_started_ && last_activity_ - *message_started_ > MessageSeconds()) {
+      CloseUnfinishedMessage();
       return;
     }
     for (proto::JsonFramer::Frame& frame : framer_.Feed(std::string_view(buffer_.data(), n))) {
@@ -120,8 +120,10 @@ class Session : public std::enable_shared_from_this<Session> {
     }
     if (framer_.at_boundary()) {
       message_started_.reset();
+      message_timer_.cancel();
     } else if (!message_started_) {
       message_started_ = last_activity_;
+      ArmMessageTimer();
     }
     HandleNext();
     Read();
@@ -225,6 +227,29 @@ class Session : public std::enable_shared_from_this<Session> {
     if (close_after_write_) Close();
   }
 
+  std::chrono::steady_clock::duration MessageSeconds() const {
+    return std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(server_.options_.message_seconds));
+  }
+
+  void CloseUnfinishedMessage() {
+    spdlog::info("connection {}: a message not completed within {:.0f} s; closing", peer_,
+                 server_.options_.message_seconds);
+    Close();
+  }
+
+  // The message begun at message_started_ must be complete by message_seconds after it, even
+  // when no byte comes after the first: half a message and then silence held a connection
+  // until the idle timeout, and for ever with a watch open.
+  void ArmMessageTimer() {
+    const auto started = *message_started_;
+    message_timer_.expires_at(started + MessageSeconds());
+    message_timer_.async_wait([self = shared_from_this(), started](boost::system::error_code ec) {
+      if (ec || self->closed_ || self->message_started_ != started) return;
+      self->CloseUnfinishedMessage();
+    });
+  }
+
   void ArmIdleTimer() {
     const auto idle = std::chrono::duration<double>(server_.options_.idle_seconds);
     idle_timer_.expires_at(last_activity_ +
@@ -247,6 +272,7 @@ class Session : public std::enable_shared_from_this<Session> {
   TcpServer& server_;
   tcp::socket socket_;
   asio::steady_timer idle_timer_;
+  asio::steady_timer message_timer_;  // ArmMessageTimer
   proto::JsonFramer framer_;
   SessionContext context_;
   std::string peer_;

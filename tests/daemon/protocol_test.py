@@ -491,6 +491,22 @@ def test_trickle(ctx):
         closed = False
     sock.close()
     R.expect(closed, "a message trickled a byte every 0.1 s was never cut off")
+    # Half a message, then silence: cut off at --message-seconds too, not at the idle timeout
+    # (300 s; never, while the connection watched a job).
+    sock = socket.create_connection(("127.0.0.1", slow.port), timeout=IO_TIMEOUT)
+    sock.sendall(text[:20])
+    t1 = time.monotonic()
+    sock.settimeout(4)
+    try:
+        closed = sock.recv(100) == b""
+    except socket.timeout:
+        closed = False
+    except ConnectionResetError:
+        closed = True
+    waited = time.monotonic() - t1
+    sock.close()
+    R.expect(closed and waited < 4, f"half a message and then silence: closed {closed} after {waited:.1f} s "
+             "(expected closed within 4 s at --message-seconds 1)")
     with Conn(slow.port) as c:
         R.expect(c.result("server.info").get("name") == "springfitd",
                  "a whole message is not answered after the trickle")
