@@ -61,7 +61,8 @@ int main(int argc, char** argv) {
       }
       why = why.substr(0, std::min<std::size_t>(why.size(), 60));
       ++refusals[why];
-      if (verbose) std::printf("seed %llu refused: %s\n", (unsigned long long)seed, r.c_str());
+      if (verbose)
+        std::printf("seed %llu refused: %s\n", static_cast<unsigned long long>(seed), r.c_str());
     }
     hangs += o.hang;
     non_finite += o.non_finite;
@@ -71,11 +72,12 @@ int main(int argc, char** argv) {
     scale += o.scale_dependent;
     silent += o.silent_wrong;
     if (o.failed())
-      std::printf("seed %llu (%s) FAILED: %s\n", (unsigned long long)seed, o.kind.c_str(),
-                  o.detail.c_str());
+      std::printf("seed %llu (%s) FAILED: %s\n", static_cast<unsigned long long>(seed),
+                  o.kind.c_str(), o.detail.c_str());
   }
-  std::printf("scenes %d (seeds %llu..%llu), kinds:", scenes, (unsigned long long)first,
-              (unsigned long long)(first + scenes - 1));
+  std::printf("scenes %d (seeds %llu..%llu), kinds:", scenes,
+              static_cast<unsigned long long>(first),
+              static_cast<unsigned long long>(first + scenes - 1));
   for (const auto& [kind, count] : kinds) std::printf(" %s %d", kind.c_str(), count);
   std::printf("\nrefused with a clear error: %d\n", refused);
   for (const auto& [why, count] : refusals) std::printf("  %5d  %s...\n", count, why.c_str());

@@ -141,6 +141,12 @@ int Check(const SceneInput& input) {
                 << NumberText(solve->resolution, 2)
                 << " of their size (a stiffness spread or nearly collinear springs make its "
                    "tangent nearly singular): normalised errors below that are noise\n";
+    if (solve && !solve->stable)
+      std::cout << "  warning: under load_cases[" << k
+                << "] the reference's equilibrium is unstable (its tangent stiffness is not "
+                   "positive definite there, like a straight column's past its buckling load): "
+                   "the reference MSS would leave it at the slightest disturbance, and a model "
+                   "fitted to it may buckle instead\n";
   }
   if (problem.DisplacementOnly()) {
     std::cout

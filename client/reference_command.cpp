@@ -61,6 +61,7 @@ int Reference(const ReferenceArgs& args) {
     if (solve && solve->resolution > kReferenceResolutionWarning)
       std::printf(", displacements determined only to %.2g of their size (round-off)",
                   solve->resolution);
+    if (solve && !solve->stable) std::printf(", an unstable equilibrium");
     std::printf("\n");
   }
   std::fflush(stdout);

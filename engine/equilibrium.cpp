@@ -210,14 +210,24 @@ bool EquilibriumSolver::SolveWithTangent(const ActiveSprings& springs, const Vec
   return true;
 }
 
-double EquilibriumSolver::DisplacementResolution(const ActiveSprings& springs, const Vector& u) {
-  if (free_.count == 0) return 0.0;
+EquilibriumSolver::Resolution EquilibriumSolver::DisplacementResolution(
+    const ActiveSprings& springs, const Vector& u) {
+  Resolution resolution;
+  if (free_.count == 0) return resolution;
+  constexpr double kInfinity = std::numeric_limits<double>::infinity();
   const Vector zero = Vector::Zero(u.size());
   // The exact tangent, with any positive pivot: a step would not trust one this small, but
   // the size of H^-1 r is what is asked, and the softest direction decides it.
   EnergyAndGradient(springs, zero, u, nullptr, true, false);
-  if (!system_.Factorize(0.0, 0.0, false).positive_definite)
-    return std::numeric_limits<double>::infinity();
+  if (!system_.Factorize(0.0, 0.0, false).positive_definite) {
+    // A saddle: round-off still moves it by H^-1 r (the projected tangent would drop the very
+    // directions that make it unstable, or be singular along them).
+    resolution.stable = false;
+    if (system_.FactorizeIndefinite(0.0).min_pivot == 0.0) {
+      resolution.spread = kInfinity;
+      return resolution;
+    }
+  }
   // Each free node's allowed imbalance, with signs that do not line up with any one mode.
   Vector r(dim_ * free_.count);
   for (int f = 0; f < free_.count; ++f) {
@@ -228,7 +238,8 @@ double EquilibriumSolver::DisplacementResolution(const ActiveSprings& springs, c
     }
   }
   system_.Solve(r);
-  return std::isfinite(r.norm()) ? r.norm() : std::numeric_limits<double>::infinity();
+  resolution.spread = std::isfinite(r.norm()) ? r.norm() : kInfinity;
+  return resolution;
 }
 
 Matrix EquilibriumSolver::AssembledHessian() const {

@@ -197,11 +197,18 @@ class EquilibriumSolver {
   // How far round-off leaves the displacements of an equilibrium `u` of the last Solve()
   // undetermined: |H^-1 r| (2-norm over the free nodes, in length units), r the force
   // imbalance each free node is allowed (its tolerance, signs from a fixed pattern), H the
-  // tangent at u (projected where the exact one is not positive definite). Well-conditioned
-  // models give about the tolerance times the displacement; a tangent that is nearly singular
-  // (a stiffness spread near 1e12, nearly collinear springs) amplifies it, and normalised
-  // errors below this over |u| are noise. +inf when no tangent factorises. One factorisation.
-  double DisplacementResolution(const ActiveSprings& springs, const Vector& u);
+  // exact tangent at u. Well-conditioned models give about the tolerance times the
+  // displacement; a tangent that is nearly singular (a stiffness spread near 1e12, nearly
+  // collinear springs) amplifies it, and normalised errors below this over |u| are noise.
+  // `stable` is false when H is not positive definite: u is a saddle of the energy, not a
+  // minimum (a straight column compressed past its buckling load stays straight by symmetry);
+  // H^-1 r is then solved with an indefinite factorisation. spread is +inf when H is singular.
+  // One or two factorisations.
+  struct Resolution {
+    double spread = 0.0;
+    bool stable = true;
+  };
+  Resolution DisplacementResolution(const ActiveSprings& springs, const Vector& u);
 
   // E(u) and its gradient on the free degrees of freedom (flat, free-node order). Exposed for
   // tests; `hessian` true also assembles the Hessian into the system (`projected` clamps it).

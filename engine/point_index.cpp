@@ -14,6 +14,13 @@ namespace {
 // is then made here. The two ways of computing a distance differ by a few ulps, far below this.
 constexpr double kSlack = 1e-9;
 
+}  // namespace
+
+// Named, not anonymous: PointIndex::Tree, declared in the header, holds these (GCC warns of a
+// member whose type has internal linkage once this file is not its translation unit's main
+// file, as in a unity build).
+namespace point_index_detail {
+
 // nanoflann's view of the flat coordinate vector.
 struct Cloud {
   const Vector* points;
@@ -33,11 +40,11 @@ struct Cloud {
 using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Cloud>,
                                                    Cloud, -1, std::size_t>;
 
-}  // namespace
+}  // namespace point_index_detail
 
 struct PointIndex::Tree {
-  Cloud cloud;
-  KdTree tree;
+  point_index_detail::Cloud cloud;
+  point_index_detail::KdTree tree;
   Tree(const Vector* points, int dimension)
       : cloud{points, dimension},
         tree(dimension, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16)) {}

@@ -221,9 +221,18 @@ Problem::Problem(Scene scene, EquilibriumOptions solver_options) {
       for (int i = 0; i < n; ++i) {
         if (free.free_index[i] >= 0) norm2 += lc.reference.segment(d * i, d).squaredNorm();
       }
-      const double spread = solver.DisplacementResolution(springs, lc.reference);
-      lc.reference_solve->resolution =
-          norm2 > 0.0 ? spread / std::sqrt(norm2) : (spread > 0.0 ? 1.0 : 0.0);
+      const EquilibriumSolver::Resolution resolution =
+          solver.DisplacementResolution(springs, lc.reference);
+      lc.reference_solve->stable = resolution.stable;
+      lc.reference_solve->resolution = norm2 > 0.0 ? resolution.spread / std::sqrt(norm2)
+                                                   : (resolution.spread > 0.0 ? 1.0 : 0.0);
+      if (std::isinf(resolution.spread)) {
+        throw InputError(CasePath(k),
+                         "the reference's equilibrium is not determined: its tangent stiffness "
+                         "there is singular" +
+                             std::string(resolution.stable ? "" : " (an unstable equilibrium)") +
+                             ", so any force imbalance, round-off's included, moves it freely");
+      }
       if (lc.reference_solve->resolution > kReferenceUndetermined) {
         throw InputError(CasePath(k),
                          "the reference's equilibrium is not determined in double precision: "

@@ -42,6 +42,11 @@ struct ReferenceSolve {
   // normalised error below it cannot be told from 0; a stiffness spread near 1e12 or nearly
   // collinear springs can make it large (problem.cpp warns beyond kReferenceResolutionWarning).
   double resolution = 0.0;
+  // MSS references: false when the equilibrium is unstable, a saddle of the energy rather than
+  // a minimum (its exact tangent is not positive definite: a straight chain compressed past
+  // buckling stays straight by symmetry). The reference MSS would leave it at the slightest
+  // disturbance; `check` and `reference` say so.
+  bool stable = true;
 };
 
 // A reference whose displacements round-off leaves undetermined beyond this (relative) is

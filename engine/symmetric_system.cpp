@@ -285,6 +285,12 @@ int SymmetricSystem::CountEigenvaluesBelow(double shift, double tolerance) {
   return n_;  // never seen: four exact zero pivots in a row
 }
 
+SymmetricSystem::Factorization SymmetricSystem::FactorizeIndefinite(double shift) {
+  if (n_ == 0) return Factorize(shift, 0.0, false);
+  ComputeScaling();
+  return CountPivots(shift, 0.0, /*scaled=*/false);
+}
+
 void SymmetricSystem::Solve(Vector& b) const {
   if (n_ == 0) return;
   b.array() *= scale_.array();

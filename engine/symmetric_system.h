@@ -74,6 +74,11 @@ class SymmetricSystem {
   // of inertia on one more LDLT), with the matrix as assembled. Leaves no factorisation for
   // Solve().
   int CountEigenvaluesBelow(double shift, double tolerance);
+  // Factorises S A S + shift I for Solve() with a simplicial LDLT whatever the backend, when A
+  // may be indefinite (an unstable equilibrium's tangent): Factorize() keeps no factorisation
+  // of an indefinite matrix. min_pivot is 0 when an exactly zero pivot stopped it (a singular
+  // matrix; Solve() must not follow).
+  Factorization FactorizeIndefinite(double shift);
   // Overwrites b with the solution of (A + shift S^-2) x = b, using the last Factorize().
   void Solve(Vector& b) const;
 

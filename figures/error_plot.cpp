@@ -10,12 +10,6 @@
 #include "figures/svg_document.h"
 
 namespace springfit::figures {
-namespace {
-
-constexpr double kLeft = 78.0, kRight = 24.0, kTop = 48.0, kBottom = 56.0;
-constexpr double kLegendRow = 18.0;
-
-}  // namespace
 
 std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::string& title,
                             const ErrorPlotOptions& options) {
@@ -40,36 +34,36 @@ std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::st
   y_axis.lo -= 1;
 
   const double legend_height = kLegendRow * static_cast<double>(curves.size()) + 10;
-  const double plot_w = options.width - kLeft - kRight;
-  const double plot_h = options.height - kTop - kBottom;
+  const double plot_w = options.width - kPlotLeft - kPlotRight;
+  const double plot_h = options.height - kPlotTop - kPlotBottom;
   auto px = [&](double t) {
-    return kLeft +
+    return kPlotLeft +
            plot_w * std::clamp(x_axis.Fraction(std::max(t, std::pow(10.0, x_axis.lo))), 0.0, 1.0);
   };
   auto py = [&](double e) {
     const double floor = std::pow(10.0, y_axis.lo);
-    return kTop + plot_h * (1.0 - std::clamp(y_axis.Fraction(std::max(e, floor)), 0.0, 1.0));
+    return kPlotTop + plot_h * (1.0 - std::clamp(y_axis.Fraction(std::max(e, floor)), 0.0, 1.0));
   };
 
   SvgDocument svg(options.width, options.height + legend_height);
   svg.Style(PlotCss(curves.size()));
-  svg.Text({kLeft, 26}, title, "title");
+  svg.Text({kPlotLeft, 26}, title, "title");
 
   for (int d = x_axis.lo; d <= x_axis.hi; ++d) {
     const double x = px(std::pow(10.0, d));
-    svg.Line({x, kTop}, {x, kTop + plot_h}, "grid");
-    svg.Text({x, kTop + plot_h + 18}, DecadeLabel(d), "", SvgDocument::Anchor::kMiddle);
+    svg.Line({x, kPlotTop}, {x, kPlotTop + plot_h}, "grid");
+    svg.Text({x, kPlotTop + plot_h + 18}, DecadeLabel(d), "", SvgDocument::Anchor::kMiddle);
   }
   for (int d = y_axis.lo; d <= y_axis.hi; ++d) {
     const double y = py(std::pow(10.0, d));
-    svg.Line({kLeft, y}, {kLeft + plot_w, y}, "grid");
-    svg.Text({kLeft - 8, y + 4}, d == y_axis.lo ? "exact" : DecadeLabel(d), "",
+    svg.Line({kPlotLeft, y}, {kPlotLeft + plot_w, y}, "grid");
+    svg.Text({kPlotLeft - 8, y + 4}, d == y_axis.lo ? "exact" : DecadeLabel(d), "",
              SvgDocument::Anchor::kEnd);
   }
-  svg.Rect({kLeft, kTop}, plot_w, plot_h, "frame");
-  svg.Text({kLeft + plot_w / 2, kTop + plot_h + 40}, options.x_label, "",
+  svg.Rect({kPlotLeft, kPlotTop}, plot_w, plot_h, "frame");
+  svg.Text({kPlotLeft + plot_w / 2, kPlotTop + plot_h + 40}, options.x_label, "",
            SvgDocument::Anchor::kMiddle);
-  svg.VerticalText({22, kTop + plot_h / 2}, "best normalized error", "");
+  svg.VerticalText({22, kPlotTop + plot_h / 2}, "best normalized error", "");
 
   for (std::size_t i = 0; i < curves.size(); ++i) {
     const ErrorCurve& c = curves[i];
@@ -89,7 +83,7 @@ std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::st
   const double legend_top = options.height;
   for (std::size_t i = 0; i < curves.size(); ++i) {
     const double y = legend_top + kLegendRow * static_cast<double>(i);
-    svg.Line({kLeft, y - 4}, {kLeft + 26, y - 4}, "curve" + std::to_string(i));
+    svg.Line({kPlotLeft, y - 4}, {kPlotLeft + 26, y - 4}, "curve" + std::to_string(i));
     std::string label = curves[i].label;
     if (!curves[i].points.empty()) {
       const auto& [t, e] = curves[i].points.back();
@@ -101,7 +95,7 @@ std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::st
       }
       label += tail;
     }
-    svg.Text({kLeft + 32, y}, label, "");
+    svg.Text({kPlotLeft + 32, y}, label, "");
   }
   return svg.str();
 }

@@ -5,6 +5,11 @@
 
 namespace springfit::figures {
 
+// The plot area's margins inside the figure (room for tick labels, title and axis names) and
+// the height of one legend row, in pixels: the same on every line plot.
+inline constexpr double kPlotLeft = 78.0, kPlotRight = 24.0, kPlotTop = 48.0, kPlotBottom = 56.0;
+inline constexpr double kLegendRow = 18.0;
+
 // The CSS of a plot with `curves` curves: text, grid and frame, and per curve i the classes
 // `curve<i>` (its line) and `exact<i>` (a filled marker in its colour).
 std::string PlotCss(std::size_t curves);

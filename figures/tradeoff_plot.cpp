@@ -12,9 +12,6 @@
 namespace springfit::figures {
 namespace {
 
-constexpr double kLeft = 78.0, kRight = 24.0, kTop = 48.0, kBottom = 56.0;
-constexpr double kLegendRow = 18.0;
-
 bool Drawable(double e) {
   return std::isfinite(e) && e > 0.0;
 }
@@ -62,31 +59,32 @@ std::string RenderTradeoffPlot(const std::vector<TradeoffCurve>& curves, const s
   const LogAxis y_axis = LogAxis::Over(e_lo, e_hi);
 
   const double legend_height = kLegendRow * static_cast<double>(curves.size() + 1) + 10;
-  const double plot_w = options.width - kLeft - kRight;
-  const double plot_h = options.height - kTop - kBottom;
-  auto px = [&](double springs) { return kLeft + plot_w * (springs - x_lo) / (x_hi - x_lo); };
+  const double plot_w = options.width - kPlotLeft - kPlotRight;
+  const double plot_h = options.height - kPlotTop - kPlotBottom;
+  auto px = [&](double springs) { return kPlotLeft + plot_w * (springs - x_lo) / (x_hi - x_lo); };
   auto py = [&](double e) {
-    return kTop + plot_h * (1.0 - std::clamp(y_axis.Fraction(e), 0.0, 1.0));
+    return kPlotTop + plot_h * (1.0 - std::clamp(y_axis.Fraction(e), 0.0, 1.0));
   };
 
   SvgDocument svg(options.width, options.height + legend_height);
   svg.Style(PlotCss(curves.size()));
-  svg.Text({kLeft, 26}, title, "title");
+  svg.Text({kPlotLeft, 26}, title, "title");
   for (double s = x_lo; s <= x_hi + 0.5 * step; s += step) {
     const double x = px(s);
-    svg.Line({x, kTop}, {x, kTop + plot_h}, "grid");
+    svg.Line({x, kPlotTop}, {x, kPlotTop + plot_h}, "grid");
     char label[32];
     std::snprintf(label, sizeof label, "%.0f", s);
-    svg.Text({x, kTop + plot_h + 18}, label, "", SvgDocument::Anchor::kMiddle);
+    svg.Text({x, kPlotTop + plot_h + 18}, label, "", SvgDocument::Anchor::kMiddle);
   }
   for (int d = y_axis.lo; d <= y_axis.hi; ++d) {
     const double y = py(std::pow(10.0, d));
-    svg.Line({kLeft, y}, {kLeft + plot_w, y}, "grid");
-    svg.Text({kLeft - 8, y + 4}, DecadeLabel(d), "", SvgDocument::Anchor::kEnd);
+    svg.Line({kPlotLeft, y}, {kPlotLeft + plot_w, y}, "grid");
+    svg.Text({kPlotLeft - 8, y + 4}, DecadeLabel(d), "", SvgDocument::Anchor::kEnd);
   }
-  svg.Rect({kLeft, kTop}, plot_w, plot_h, "frame");
-  svg.Text({kLeft + plot_w / 2, kTop + plot_h + 40}, "springs", "", SvgDocument::Anchor::kMiddle);
-  svg.VerticalText({22, kTop + plot_h / 2}, "E (relative RMS nodal error)", "");
+  svg.Rect({kPlotLeft, kPlotTop}, plot_w, plot_h, "frame");
+  svg.Text({kPlotLeft + plot_w / 2, kPlotTop + plot_h + 40}, "springs", "",
+           SvgDocument::Anchor::kMiddle);
+  svg.VerticalText({22, kPlotTop + plot_h / 2}, "E (relative RMS nodal error)", "");
 
   for (std::size_t i = 0; i < curves.size(); ++i) {
     const TradeoffCurve& c = curves[i];
@@ -103,7 +101,7 @@ std::string RenderTradeoffPlot(const std::vector<TradeoffCurve>& curves, const s
     }
     if (c.baseline_error && Drawable(*c.baseline_error)) {
       const double y = py(*c.baseline_error);
-      svg.Line({kLeft, y}, {kLeft + plot_w, y}, "reference");
+      svg.Line({kPlotLeft, y}, {kPlotLeft + plot_w, y}, "reference");
       if (c.baseline_springs) svg.Circle({px(*c.baseline_springs), y}, 4.0, "exact" + cls);
     }
   }
@@ -111,7 +109,7 @@ std::string RenderTradeoffPlot(const std::vector<TradeoffCurve>& curves, const s
   const double legend_top = options.height;
   for (std::size_t i = 0; i < curves.size(); ++i) {
     const double y = legend_top + kLegendRow * static_cast<double>(i);
-    svg.Line({kLeft, y - 4}, {kLeft + 26, y - 4}, "curve" + std::to_string(i));
+    svg.Line({kPlotLeft, y - 4}, {kPlotLeft + 26, y - 4}, "curve" + std::to_string(i));
     std::string label = curves[i].label;
     if (curves[i].chosen && *curves[i].chosen < curves[i].points.size()) {
       const auto& [springs, e] = curves[i].points[*curves[i].chosen];
@@ -120,15 +118,15 @@ std::string RenderTradeoffPlot(const std::vector<TradeoffCurve>& curves, const s
                     "  (returned from the point of %d springs, E %.3g: large dot)", springs, e);
       label += tail;
     }
-    svg.Text({kLeft + 32, y}, label, "");
+    svg.Text({kPlotLeft + 32, y}, label, "");
   }
   const bool any_baseline = std::any_of(curves.begin(), curves.end(), [](const TradeoffCurve& c) {
     return c.baseline_error && Drawable(*c.baseline_error);
   });
   if (any_baseline) {
     const double y = legend_top + kLegendRow * static_cast<double>(curves.size());
-    svg.Line({kLeft, y - 4}, {kLeft + 26, y - 4}, "reference");
-    svg.Text({kLeft + 32, y}, "closed-form baseline (van Gelder 1998) on the mesh edges", "");
+    svg.Line({kPlotLeft, y - 4}, {kPlotLeft + 26, y - 4}, "reference");
+    svg.Text({kPlotLeft + 32, y}, "closed-form baseline (van Gelder 1998) on the mesh edges", "");
   }
   return svg.str();
 }

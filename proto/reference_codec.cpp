@@ -38,8 +38,10 @@ Json ReferenceSolutionToJson(const Problem& problem) {
       c["iterations"] = lc.reference_solve->iterations;
       c["load_steps"] = lc.reference_solve->load_steps;
       c["residual"] = lc.reference_solve->residual;
-      if (s.reference.kind == Reference::Kind::kMss)
+      if (s.reference.kind == Reference::Kind::kMss) {
         c["resolution"] = NumberOrText(lc.reference_solve->resolution);
+        c["stable"] = lc.reference_solve->stable;
+      }
     }
     c["max_displacement"] = largest;
     cases.push_back(std::move(c));

@@ -110,8 +110,10 @@ class FloatIdFinder {
 
 bool HasDoubleId(const Json& request) {
   if (!request.is_object()) return false;
-  const auto id = request.find("id");
-  return id != request.end() && id->is_number_float();
+  // On the object itself: GCC 12 sees a possible null inside json's own iterator here.
+  const Json::object_t& object = request.get_ref<const Json::object_t&>();
+  const auto id = object.find("id");
+  return id != object.end() && id->second.is_number_float();
 }
 
 }  // namespace

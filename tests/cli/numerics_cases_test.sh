@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The five numerics cases of issue 20 (tests/data/numerics/, one of each kind of failure found
+# The numerics cases of issue 20 (tests/data/numerics/, one of each kind of failure found
 # by randomised scenes): each gets a correct, consistent, bounded answer.
 # Usage: numerics_cases_test.sh SPRINGFIT SOURCE_DIR
 set -u
@@ -30,6 +30,25 @@ import json, sys
 r = [c["resolution"] for c in json.load(open(sys.argv[1]))["solves"]]
 assert 3e-6 < r[0] < 1e-5 and 2e-3 < r[1] < 5e-3, r
 PY
+
+# A reference at a saddle of its energy (a chain squeezed past buckling, held straight by
+# symmetry): its resolution was +inf and the scene refused as 'uncertain by inf times its
+# size'. Now the resolution is solved with an indefinite factorisation, and check and
+# reference say the equilibrium is unstable, for the squeezed case only.
+expect_exit 0 "unstable-compressed-chain check" "$sf" check "$data/unstable-compressed-chain.json"
+grep -q "warning: under load_cases\[0\] the reference's equilibrium is unstable" "$tmp/out" \
+  || fail "unstable-compressed-chain check: $(cat "$tmp/out") $(cat "$tmp/err")"
+grep -q "load_cases\[1\] the reference's equilibrium is unstable" "$tmp/out" \
+  && fail "unstable-compressed-chain: the stretched case called unstable"
+expect_exit 0 "unstable-compressed-chain reference" "$sf" reference "$data/unstable-compressed-chain.json" --json
+python3 - "$tmp/out" <<'PY' || fail "unstable-compressed-chain reference: $(head -c 600 "$tmp/out")"
+import json, sys
+solves = json.load(open(sys.argv[1]))["solves"]
+assert [c["stable"] for c in solves] == [False, True], solves
+assert all(isinstance(c["resolution"], float) and 0 <= c["resolution"] < 1e-6 for c in solves), solves
+PY
+expect_exit 0 "unstable-compressed-chain reference (text)" "$sf" reference "$data/unstable-compressed-chain.json"
+grep -q "squeeze: .*, an unstable equilibrium" "$tmp/out" || fail "reference text: $(cat "$tmp/out")"
 
 # A mechanism returned as 'completed', exit 0: its load cases displace one node by 3.9e-14 and
 # 3.7e-16 (2e-10 of its springs' length) next to springs 4e7 times stiffer, so the reference's

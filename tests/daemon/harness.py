@@ -10,8 +10,10 @@ import os
 import signal
 import socket
 import subprocess
+import sys
 import threading
 import time
+import traceback
 
 IO_TIMEOUT = 5.0          # seconds any single socket read/connect may block
 START_TIMEOUT = 10.0      # for the port file to appear
@@ -302,3 +304,57 @@ class Daemon:
                 self.proc.wait(5)
         self.close_files()
         return exited
+
+
+# --------------------------------------------------------------------------------------------
+# Running a suite of groups
+
+
+def run_suite(argv, usage, make_context, groups, main_output):
+    """Runs a test script's groups in order and returns its exit code.
+
+    argv is SPRINGFITD SPRINGFIT SOURCE_DIR; make_context(springfitd, springfit, source) builds
+    the script's context, whose `main` is its shared daemon (or None) and whose cleanup() stops
+    what it started. groups are (name, function(ctx), essential): a failed essential group
+    stops the run, since the rest depend on it. main_output(daemon) is the text quoted when the
+    shared daemon died during the run.
+    """
+    if len(argv) != 4:
+        print(usage, file=sys.stderr)
+        return 2
+    springfitd, springfit, source = (os.path.abspath(a) for a in argv[1:])
+    for path in (springfitd, springfit):
+        if not os.access(path, os.X_OK):
+            print(f"FAIL: not an executable: {path}", file=sys.stderr)
+            return 2
+    started = time.monotonic()
+    ctx = make_context(springfitd, springfit, source)
+    try:
+        for name, fn, essential in groups:
+            R.current = name
+            before = len(R.failures)
+            t0 = time.monotonic()
+            try:
+                fn(ctx)
+            except Abort as e:
+                R.fail(f"aborted: {e}")
+            except Exception as e:
+                R.fail(f"unexpected {type(e).__name__}: {e}\n{traceback.format_exc()}")
+            R.current = name
+            failed = len(R.failures) - before
+            print(f"{'PASS' if not failed else 'FAIL'}: {name} ({time.monotonic() - t0:.1f}s"
+                  f"{'' if not failed else f', {failed} failed checks'})", flush=True)
+            if failed and essential:
+                print(f"FAIL: stopping: the {name} group is needed by the rest", flush=True)
+                break
+        if ctx.main is not None:
+            R.current = "end"
+            R.expect(ctx.main.alive(), f"the main daemon died: {short(main_output(ctx.main), 500)}")
+    finally:
+        ctx.cleanup()
+    total = time.monotonic() - started
+    if R.failures:
+        print(f"FAILED: {len(R.failures)} checks failed ({total:.1f}s)")
+        return 1
+    print(f"OK: all checks passed ({total:.1f}s)")
+    return 0

@@ -22,11 +22,10 @@ import sys
 import tempfile
 import threading
 import time
-import traceback
 
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree for harness.py
-from harness import (IO_TIMEOUT, STOP_TIMEOUT, Abort, Conn, Daemon, R, error_data, require, short,
-                     wait_state)
+from harness import (IO_TIMEOUT, STOP_TIMEOUT, Abort, Conn, Daemon, R, error_data, require, run_suite,
+                     short, wait_state)
 
 # IO_TIMEOUT (5 s), START_TIMEOUT (10 s) and STOP_TIMEOUT (15 s) are harness.py's.
 CLI_TIMEOUT = 20.0        # for one springfit invocation
@@ -696,16 +695,6 @@ def test_cli(ctx):
 
 
 def main(argv):
-    if len(argv) != 4:
-        print(__doc__.strip().split("\n\n")[1], file=sys.stderr)
-        return 2
-    springfitd, springfit, source = (os.path.abspath(a) for a in argv[1:])
-    for path in (springfitd, springfit):
-        if not os.access(path, os.X_OK):
-            print(f"FAIL: not an executable: {path}", file=sys.stderr)
-            return 2
-    started = time.monotonic()
-    ctx = Context(springfitd, springfit, source)
     groups = [
         ("setup", test_setup, True),
         ("framing", test_framing, False),
@@ -719,35 +708,8 @@ def main(argv):
         ("load", test_load, False),
         ("cli", test_cli, False),
     ]
-    try:
-        for name, fn, essential in groups:
-            R.current = name
-            before = len(R.failures)
-            t0 = time.monotonic()
-            try:
-                fn(ctx)
-            except Abort as e:
-                R.fail(f"aborted: {e}")
-            except Exception as e:
-                R.fail(f"unexpected {type(e).__name__}: {e}\n{traceback.format_exc()}")
-            R.current = name
-            failed = len(R.failures) - before
-            print(f"{'PASS' if not failed else 'FAIL'}: {name} ({time.monotonic() - t0:.1f}s"
-                  f"{'' if not failed else f', {failed} failed checks'})", flush=True)
-            if failed and essential:
-                print(f"FAIL: stopping: the {name} group is needed by the rest", flush=True)
-                break
-        if ctx.main is not None:
-            R.current = "end"
-            R.expect(ctx.main.alive(), f"the main daemon died: {short(ctx.main.stderr_text(), 500)}")
-    finally:
-        ctx.cleanup()
-    total = time.monotonic() - started
-    if R.failures:
-        print(f"FAILED: {len(R.failures)} checks failed ({total:.1f}s)")
-        return 1
-    print(f"OK: all checks passed ({total:.1f}s)")
-    return 0
+    return run_suite(argv, __doc__.strip().split("\n\n")[1], Context, groups,
+                     lambda daemon: daemon.stderr_text())
 
 
 if __name__ == "__main__":

@@ -50,6 +50,15 @@ TEST(SymmetricSystem, IndefiniteMatricesAreCountedAndSolvedOnBothBackends) {
     ASSERT_GT(second, 0.0);
     EXPECT_EQ(system.CountEigenvaluesBelow(0.0, second * 1.001), 2);
     EXPECT_EQ(system.CountEigenvaluesBelow(0.0, second * 0.999), 1);
+    // Solved with the indefinite factorisation whatever the backend (an unstable
+    // equilibrium's resolution needs H^-1 r): A x = b to round-off.
+    const SymmetricSystem::Factorization g = system.FactorizeIndefinite(0.0);
+    EXPECT_LT(g.min_pivot, 0.0);
+    EXPECT_NE(g.min_pivot, 0.0);
+    const Vector b = Vector::LinSpaced(a.rows(), 1.0, 2.0);
+    Vector x = b;
+    system.Solve(x);
+    EXPECT_LT((a * x - b).norm(), 1e-12 * b.norm());
   }
 }
 
