@@ -66,6 +66,8 @@ struct RenderArgs {
   std::string scene_path;
   std::vector<int> load_cases;
   double magnify = 0.0;
+  bool node_numbers = false;  // --node-numbers
+  bool rest = false;          // --rest
 };
 
 int Render(const RenderArgs& a) {
@@ -82,6 +84,8 @@ int Render(const RenderArgs& a) {
   TopologyFigureOptions options;
   options.load_cases = a.load_cases;
   options.magnify = a.magnify;
+  options.node_numbers = a.node_numbers;
+  options.rest_topology = a.rest;
   WriteSvg(a.output, RenderTopologyFigure(problem, input, options));
   return kExitOk;
 }
@@ -217,6 +221,12 @@ void RegisterFigureCommands(CLI::App& app, int& exit_code) {
     cmd->add_option("--magnify", args->magnify,
                     "Draw displacements this many times their size (default: automatic)")
         ->check(CLI::PositiveNumber);
+    cmd->add_flag("--node-numbers", args->node_numbers, "Write each node's index beside it");
+    auto* rest = cmd->add_flag("--rest", args->rest,
+                               "The two topologies at rest only, one pair of panels (the paper's "
+                               "Figures 1 and 3)");
+    rest->excludes(cmd->get_option("--case"));
+    rest->excludes(cmd->get_option("--magnify"));
     AddServerFlags(cmd, args->server);
     cmd->callback([args, &exit_code] {
       exit_code = RunReportingErrors("render", [&] { return Render(*args); });

@@ -34,7 +34,11 @@ constexpr std::string_view kCss =
     ".fixed{fill:#222}\n"
     ".prescribed{fill:#8e24aa}\n"
     ".force{stroke:#2e7d32;stroke-width:1.4}\n"
-    ".force-head{fill:#2e7d32}\n";
+    ".force-head{fill:#2e7d32}\n"
+    ".number{font-size:9px;fill:#555}\n"
+    // Line widths by stiffness (kStiffnessWidths classes, thinnest = softest).
+    ".k0{stroke-width:0.5}.k1{stroke-width:1}.k2{stroke-width:1.6}.k3{stroke-width:2.4}"
+    ".k4{stroke-width:3.4}\n";
 
 std::string Format(const char* format, double value) {
   char text[64];
@@ -94,6 +98,7 @@ struct PanelContent {
   const std::vector<NodePair>* springs = nullptr;  // drawn at rest and deformed; null = nodes only
   const std::vector<NodePair>* missing = nullptr;
   const std::vector<NodePair>* extra = nullptr;
+  const std::vector<double>* stiffness = nullptr;  // per spring of `springs`; null = uniform
 };
 
 class FigureWriter {
@@ -105,8 +110,10 @@ class FigureWriter {
         projection_(d_, options.azimuth, options.elevation) {}
 
   std::string Write(const TopologyFigureInput& input) {
-    const std::vector<int> cases = SelectedCases();
     Evaluate(input);
+    StiffnessRange(input);
+    if (options_.rest_topology) return WriteRest(input);
+    const std::vector<int> cases = SelectedCases();
     const double magnify = Magnification();
     for (const int k : cases) {
       reference_positions_.push_back(problem_.scene().rest +
@@ -127,6 +134,9 @@ class FigureWriter {
 
     const Scene& scene = problem_.scene();
     const bool mss = scene.reference.kind == Reference::Kind::kMss;
+    const std::vector<double>* reference_stiffness = ReferenceStiffness();
+    const std::vector<double>* identified_stiffness =
+        input.stiffness.empty() ? nullptr : &input.stiffness;
     for (std::size_t row = 0; row < cases.size(); ++row) {
       const int k = cases[row];
       const double top = kMargin + kHeading + static_cast<double>(row) * (p + kCaption);
@@ -136,12 +146,13 @@ class FigureWriter {
           scene.load_cases[k].name.empty()
               ? "load case " + std::to_string(k)
               : "load case " + std::to_string(k) + " '" + scene.load_cases[k].name + "'";
-      PanelContent reference{&reference_positions_[row], mss ? &scene.reference.springs : nullptr};
+      PanelContent reference{&reference_positions_[row], mss ? &scene.reference.springs : nullptr,
+                             nullptr, nullptr, reference_stiffness};
       Panel(svg, left, k, reference, "reference, " + name);
 
       PanelContent identified{&identified_positions_[row], &input.springs,
                               difference_ ? &difference_->missing : nullptr,
-                              difference_ ? &difference_->extra : nullptr};
+                              difference_ ? &difference_->extra : nullptr, identified_stiffness};
       const LoadCaseEvaluation& eval = evaluation_.load_cases[k];
       std::string caption = "identified: normalized error " + Format("%.3g", eval.normalized_error);
       bool warn = false;
@@ -159,6 +170,66 @@ class FigureWriter {
   }
 
  private:
+  // The rest-topology figure: one pair of panels, both at rest.
+  std::string WriteRest(const TopologyFigureInput& input) {
+    reference_positions_ = {problem_.scene().rest};
+    FitFrames(/*room_for_forces=*/false);
+    const double p = options_.panel_size;
+    const double width = 2 * kMargin + 2 * p + kGap;
+    const double height = kMargin + kHeading + p + kCaption + kMargin;
+    SvgDocument svg(width, height);
+    svg.Style(kCss);
+    Heading(svg, input, 1.0, width);
+    const Scene& scene = problem_.scene();
+    const double top = kMargin + kHeading;
+    const Vector& rest = scene.rest;
+    PanelContent reference{
+        &rest, scene.reference.kind == Reference::Kind::kMss ? &scene.reference.springs : nullptr,
+        nullptr, nullptr, ReferenceStiffness()};
+    Panel(svg, {kMargin, top}, -1, reference,
+          reference.springs ? "reference topology, at rest" : "reference: positions, no springs");
+    PanelContent identified{&rest, &input.springs, difference_ ? &difference_->missing : nullptr,
+                            difference_ ? &difference_->extra : nullptr,
+                            input.stiffness.empty() ? nullptr : &input.stiffness};
+    Panel(svg, {kMargin + p + kGap, top}, -1, identified,
+          "identified topology, at rest: normalized error " +
+              Format("%.3g", evaluation_.normalized_error));
+    return svg.str();
+  }
+
+  // The reference's per-spring stiffness, when it has one per spring.
+  const std::vector<double>* ReferenceStiffness() const {
+    const Reference& ref = problem_.scene().reference;
+    return ref.kind == Reference::Kind::kMss && ref.stiffness.size() == ref.springs.size() &&
+                   ref.springs.size() > 1
+               ? &ref.stiffness
+               : nullptr;
+  }
+
+  // The stiffness range of the figure's springs; line widths follow it when it is not one value.
+  void StiffnessRange(const TopologyFigureInput& input) {
+    k_lo_ = std::numeric_limits<double>::infinity();
+    k_hi_ = 0.0;
+    for (const std::vector<double>* ks : {ReferenceStiffness(), &input.stiffness}) {
+      if (!ks) continue;
+      for (const double k : *ks) {
+        if (!(k > 0.0) || !std::isfinite(k)) continue;
+        k_lo_ = std::min(k_lo_, k);
+        k_hi_ = std::max(k_hi_, k);
+      }
+    }
+    widths_ = k_hi_ > k_lo_ * (1.0 + 1e-9);
+  }
+
+  // The CSS class of a spring of stiffness k: "" when widths are uniform.
+  std::string WidthClass(const std::vector<double>* stiffness, std::size_t s) const {
+    if (!widths_ || !stiffness) return "";
+    const double k = (*stiffness)[s];
+    const double t = std::log(k / k_lo_) / std::log(k_hi_ / k_lo_);
+    const int bin = std::clamp(static_cast<int>(t * kStiffnessWidths), 0, kStiffnessWidths - 1);
+    return "k" + std::to_string(bin);
+  }
+
   std::vector<int> SelectedCases() const {
     const int count = static_cast<int>(problem_.load_cases().size());
     if (options_.load_cases.empty()) {
@@ -236,7 +307,7 @@ class FigureWriter {
   // One scale for all panels, from the rest shape and the reference's deformed shapes. The
   // identified model's shapes are not included: a nearly-unstable topology may move a node
   // far away, and is clipped to its panel instead of shrinking every drawing.
-  void FitFrames() {
+  void FitFrames(bool room_for_forces = true) {
     Extent e;
     const int n = problem_.scene().node_count();
     for (int i = 0; i < n; ++i) e.Add(projection_(problem_.scene().rest, i));
@@ -245,8 +316,10 @@ class FigureWriter {
     }
     // Force arrows: the largest is 8% of a panel, and the drawing leaves room for it.
     double largest_force = 0.0;
-    for (const PreparedLoadCase& lc : problem_.load_cases())
-      largest_force = std::max(largest_force, MaxNodeNorm(lc.force, d_));
+    if (room_for_forces) {
+      for (const PreparedLoadCase& lc : problem_.load_cases())
+        largest_force = std::max(largest_force, MaxNodeNorm(lc.force, d_));
+    }
     const double arrow = largest_force > 0.0 ? kArrowFraction * options_.panel_size : 0.0;
     force_scale_ = largest_force > 0.0 ? arrow / largest_force : 0.0;
     const double inner = options_.panel_size - 2 * (kPanelPad + arrow);
@@ -265,12 +338,27 @@ class FigureWriter {
       svg.Text({x + 27, y}, label, "");
       x += 27 + 7.0 * static_cast<double>(label.size()) + 16;
     };
-    sample("rest", "rest");
-    sample("spring", "deformed");
+    if (!options_.rest_topology) {
+      sample("rest", "rest");
+      sample("spring", "deformed");
+    } else {
+      sample("spring", "spring");
+    }
     if (difference_) {
       sample("missing", "missing: " + std::to_string(difference_->missing.size()));
       sample("extra", "extra: " + std::to_string(difference_->extra.size()));
     }
+    if (widths_) {
+      // On the subtitle's line, at the right: the thinnest and the thickest width, and the range.
+      const std::string label =
+          "width: stiffness " + Format("%.3g", k_lo_) + " to " + Format("%.3g", k_hi_) + " (log)";
+      const double right = width - kMargin, line_y = kMargin + 28;
+      const double start = right - 6.5 * static_cast<double>(label.size()) - 34;
+      svg.Line({start, line_y}, {start + 12, line_y}, "spring k0");
+      svg.Line({start + 16, line_y}, {start + 28, line_y}, "spring k4");
+      svg.Text({right, kMargin + 32}, label, "", SvgDocument::Anchor::kEnd);
+    }
+    if (options_.rest_topology) return;
     svg.Rect({x, y - 8}, 7, 7, "fixed");
     svg.Text({x + 11, y}, "fixed", "");
     x += 56;
@@ -298,12 +386,17 @@ class FigureWriter {
     svg.BeginClippedGroup(corner, p, p);
     const int n = problem_.scene().node_count();
     if (content.springs) {
-      svg.BeginGroup("rest");
-      for (const NodePair& s : *content.springs)
-        svg.Line(at(rest, s.first), at(rest, s.second), "");
-      svg.EndGroup();
+      if (!options_.rest_topology) {
+        svg.BeginGroup("rest");
+        for (const NodePair& s : *content.springs)
+          svg.Line(at(rest, s.first), at(rest, s.second), "");
+        svg.EndGroup();
+      }
       svg.BeginGroup("spring");
-      for (const NodePair& s : *content.springs) svg.Line(at(x, s.first), at(x, s.second), "");
+      for (std::size_t s = 0; s < content.springs->size(); ++s) {
+        const NodePair& spring = (*content.springs)[s];
+        svg.Line(at(x, spring.first), at(x, spring.second), WidthClass(content.stiffness, s));
+      }
       svg.EndGroup();
     } else {
       // A positions reference: no springs, so show where each node went.
@@ -321,6 +414,17 @@ class FigureWriter {
       for (const NodePair& s : *content.extra) svg.Line(at(x, s.first), at(x, s.second), "extra");
     }
     for (int i = 0; i < n; ++i) svg.Circle(at(x, i), n > 400 ? 0.8 : 1.6, "node");
+    if (options_.node_numbers) {
+      for (int i = 0; i < n; ++i) {
+        const Point2 c = at(x, i);
+        svg.Text({c.x + 3, c.y - 3}, std::to_string(i), "number");
+      }
+    }
+    if (k < 0) {  // the rest topology: no load case
+      svg.EndGroup();
+      svg.Text({corner.x, corner.y + p + 18}, caption, warn ? "warn" : "");
+      return;
+    }
 
     const LoadCase& lc = problem_.scene().load_cases[k];
     for (const int i : lc.fixed) {
@@ -369,6 +473,8 @@ class FigureWriter {
   std::vector<Vector> identified_positions_;
   Frame frame_;
   double force_scale_ = 0.0;
+  bool widths_ = false;  // line widths follow stiffness (StiffnessRange)
+  double k_lo_ = 1.0, k_hi_ = 1.0;
 };
 
 }  // namespace

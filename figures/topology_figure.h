@@ -29,7 +29,18 @@ struct TopologyFigureOptions {
   // 3D scenes are drawn in an orthographic view turned by these angles (degrees).
   double azimuth = -35.0;
   double elevation = 25.0;
+  // Each node's index beside it (the numbers of the scene, `check` and result files).
+  bool node_numbers = false;
+  // The two topologies at rest, one pair of panels and no load case, as the paper's Figures
+  // 1 and 3 show them: which springs, not how they deform. load_cases and magnify are unused.
+  bool rest_topology = false;
 };
+
+// Springs whose stiffness differs are drawn with a line width per stiffness: one of
+// kStiffnessWidths widths (CSS classes k0 .. k4), by the logarithm of the stiffness over the
+// range of the figure's springs, reference and identified together, so that the two panels
+// compare. The heading gives the range.
+inline constexpr int kStiffnessWidths = 5;
 
 // A 3D point on the page before scaling (y up): an orthographic view turned by `azimuth`
 // about the vertical (z) axis and seen from `elevation` degrees above the horizon.

@@ -74,19 +74,37 @@ bool IsValidId(const Json& id) {
 RpcService::RpcService(JobStore& store, Scheduler& scheduler, ServiceOptions options)
     : store_(store), scheduler_(scheduler), options_(std::move(options)) {}
 
-std::string RpcService::HandleMessage(std::string_view text, SessionContext& session) {
-  Json message;
+RpcService::ParsedMessage RpcService::Parse(std::string_view text) {
+  ParsedMessage parsed;
   try {
-    message = proto::ParseJson(text);
+    parsed.message = proto::ParseJson(text);
   } catch (const InputError& e) {
-    return rpc::Serialize(
+    parsed.parse_error = rpc::Serialize(
         rpc::Error(nullptr, rpc::kParseError, std::string("parse error: ") + e.what()));
+    return parsed;
   }
   // Ids that parsed as doubles are answered with the text they were sent as.
-  rpc::IdLiterals ids;
-  ids.Protect(text, message);
-  const Json response = HandleJson(message, session);
-  return response.is_null() ? std::string() : ids.Restore(rpc::Serialize(response));
+  parsed.ids.Protect(text, parsed.message);
+  const auto submits = [](const Json& request) {
+    if (!request.is_object()) return false;
+    const auto method = request.find("method");
+    return method != request.end() && method->is_string() &&
+           method->get_ref<const std::string&>() == "job.submit";
+  };
+  parsed.prepares_scene = parsed.message.is_array()
+                              ? std::any_of(parsed.message.begin(), parsed.message.end(), submits)
+                              : submits(parsed.message);
+  return parsed;
+}
+
+std::string RpcService::Handle(const ParsedMessage& parsed, SessionContext& session) {
+  if (!parsed.parse_error.empty()) return parsed.parse_error;
+  const Json response = HandleJson(parsed.message, session);
+  return response.is_null() ? std::string() : parsed.ids.Restore(rpc::Serialize(response));
+}
+
+std::string RpcService::HandleMessage(std::string_view text, SessionContext& session) {
+  return Handle(Parse(text), session);
 }
 
 Json RpcService::HandleJson(const Json& message, SessionContext& session) {
@@ -162,9 +180,23 @@ Json RpcService::HandleRequest(const Json& request, SessionContext& session) {
     // Nothing was stored or changed: the client may retry (with its idempotency key).
     response = rpc::Error(id, rpc::kStoreUnavailable,
                           std::string("store unavailable, try again: ") + e.what());
+  } catch (const std::bad_alloc&) {
+    spdlog::error("{}: out of memory", method->get<std::string>());
+    response = rpc::Error(id, rpc::kInternalError,
+                          "internal error: out of memory: the server could not get the memory "
+                          "this request needs");
   } catch (const std::exception& e) {
-    spdlog::error("{}: internal error: {}", method->get<std::string>(), e.what());
-    response = rpc::Error(id, rpc::kInternalError, std::string("internal error: ") + e.what());
+    // The exception's own text (a library's, quoting internals) goes to the log; the client
+    // gets the documented message and the incident's number to find it there.
+    const std::uint64_t incident = ++incidents_;
+    spdlog::error("{}: internal error (incident {}): {}", method->get<std::string>(), incident,
+                  e.what());
+    Json data;
+    data["incident"] = incident;
+    response = rpc::Error(id, rpc::kInternalError,
+                          "internal error: the request failed inside the server (incident " +
+                              std::to_string(incident) + " in its log)",
+                          data);
   }
   if (options_.metrics) {
     // Unknown methods under one name: a client cannot grow the metrics without bound.

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "proto/json_reader.h"
+#include "proto/rpc.h"
 #include "server/job_store.h"
 #include "server/metrics.h"
 #include "server/scheduler.h"
@@ -72,8 +73,20 @@ class RpcService {
  public:
   RpcService(JobStore& store, Scheduler& scheduler, ServiceOptions options);
 
-  // One framed message (a request, a notification or a batch) to the response text ("" when
-  // there is none: notifications only). Never throws.
+  // A framed message parsed, not yet handled. The daemon parses on its request threads and
+  // hands what prepares a scene to its preparation threads (tcp_server.cpp), by the method
+  // the message names, not by how its text spells it.
+  struct ParsedMessage {
+    proto::Json message;
+    proto::rpc::IdLiterals ids;
+    std::string parse_error;      // the answer to a text that is not JSON (message unset)
+    bool prepares_scene = false;  // a job.submit request, alone or in a batch
+  };
+  static ParsedMessage Parse(std::string_view text);
+  // The response text of a parsed message ("" when there is none: notifications only).
+  // Never throws.
+  std::string Handle(const ParsedMessage& parsed, SessionContext& session);
+  // Parse() then Handle().
   std::string HandleMessage(std::string_view text, SessionContext& session);
   // The same for a parsed message; null when there is no response.
   proto::Json HandleJson(const proto::Json& message, SessionContext& session);
@@ -108,6 +121,7 @@ class RpcService {
   Scheduler& scheduler_;
   ServiceOptions options_;
   std::atomic<bool> stopping_{false};
+  std::atomic<std::uint64_t> incidents_{0};  // internal errors so far, numbered in the log
 };
 
 }  // namespace springfit::server

@@ -8,8 +8,11 @@
 #include <cerrno>
 #include <cstring>
 #include <stdexcept>
+#include <type_traits>
+#include <utility>
 
 #include <SQLiteCpp/SQLiteCpp.h>
+#include <spdlog/spdlog.h>
 #include <sqlite3.h>
 
 #include "engine/search/fitness_cache.h"
@@ -136,31 +139,6 @@ void BindBlob(SQLite::Statement& q, int index, const std::string& bytes) {
   q.bind(index, bytes.data(), static_cast<int>(bytes.size()));
 }
 
-// I/O failures, a full disk, a lock held too long: the store is unavailable, not wrong.
-[[noreturn]] void Rethrow(const SQLite::Exception& e) {
-  switch (e.getErrorCode() & 0xff) {
-    case SQLITE_FULL:
-    case SQLITE_IOERR:
-    case SQLITE_CANTOPEN:
-    case SQLITE_BUSY:
-    case SQLITE_LOCKED:
-    case SQLITE_READONLY:
-      throw StoreUnavailable(std::string("the database cannot be written: ") + e.what());
-    default:
-      throw std::runtime_error(std::string("database: ") + e.what());
-  }
-}
-
-// Runs `f` and maps SQLite's exceptions (server/job_store.h).
-template <typename F>
-auto Guarded(F&& f) -> decltype(f()) {
-  try {
-    return f();
-  } catch (const SQLite::Exception& e) {
-    Rethrow(e);
-  }
-}
-
 // Throws LeaseLost unless `lease` is the running job's current one. Inside the transaction
 // of the write it fences: SQLite runs one transaction at a time, so nothing claims between.
 void CheckLease(SQLite::Database& db, const Lease& lease) {
@@ -191,6 +169,7 @@ SqliteStore::SqliteStore(const std::string& path) : path_(path) {
   } catch (const SQLite::Exception& e) {
     throw std::runtime_error("cannot open the database " + path + ": " + e.what());
   }
+  db_.reset();  // (created; opened below once the lock is held)
   // One daemon per SQLite database: a second one would run the first one's jobs too (and its
   // start below would free their leases). An advisory lock on the file, held until closed.
   lock_fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
@@ -205,10 +184,7 @@ SqliteStore::SqliteStore(const std::string& path) : path_(path) {
             : "cannot lock the database " + path + ": " + std::strerror(err));
   }
   try {
-    db_->setBusyTimeout(5000);
-    db_->exec("PRAGMA journal_mode = WAL");
-    db_->exec("PRAGMA synchronous = FULL");
-    db_->exec("PRAGMA foreign_keys = ON");
+    db_ = Open(/*read_only=*/false);
     // A damaged file is refused at the start, not found job by job later (quick_check reads
     // every page once: linear in the file's size, without the index cross-checks).
     {
@@ -223,6 +199,7 @@ SqliteStore::SqliteStore(const std::string& path) : path_(path) {
     // The lock says no other daemon runs: the leases of running jobs are a dead daemon's
     // (this one's before a crash or a stop), and its jobs resume at once.
     db_->exec("UPDATE jobs SET lease_expires = 0 WHERE state = 'running'");
+    for (int i = 0; i < kReaders; ++i) readers_.push_back(std::make_unique<Reader>());
   } catch (const SQLite::Exception& e) {
     ::close(lock_fd_);
     throw std::runtime_error("cannot open the database " + path + ": " + e.what());
@@ -232,7 +209,100 @@ SqliteStore::SqliteStore(const std::string& path) : path_(path) {
   }
 }
 
+std::unique_ptr<SQLite::Database> SqliteStore::Open(bool read_only) const {
+  auto db = std::make_unique<SQLite::Database>(
+      path_, read_only ? SQLite::OPEN_READONLY : SQLite::OPEN_READWRITE);
+  db->setBusyTimeout(5000);
+  if (!read_only) {
+    db->exec("PRAGMA journal_mode = WAL");
+    db->exec("PRAGMA synchronous = FULL");
+    db->exec("PRAGMA foreign_keys = ON");
+  }
+  return db;
+}
+
+// Write transactions are IMMEDIATE: the file's write lock is taken at BEGIN, where the busy
+// timeout waits for it. A deferred one that read first could not wait for it later: SQLite
+// answers 'database is locked' at once rather than risk a deadlock.
+template <typename F>
+auto SqliteStore::Run(F&& f) -> decltype(f(std::declval<SQLite::Database&>())) {
+  std::lock_guard lock(mutex_);
+  return OnConnection(db_, writer_state_, /*read_only=*/false, f);
+}
+
+template <typename F>
+auto SqliteStore::Read(F&& f) -> decltype(f(std::declval<SQLite::Database&>())) {
+  // A free reader if there is one, else the next in turn (reads of one job are short).
+  for (const std::unique_ptr<Reader>& r : readers_) {
+    std::unique_lock lock(r->mutex, std::try_to_lock);
+    if (lock.owns_lock()) return OnConnection(r->db, r->state, /*read_only=*/true, f);
+  }
+  Reader& r = *readers_[next_reader_.fetch_add(1) % readers_.size()];
+  std::lock_guard lock(r.mutex);
+  return OnConnection(r.db, r.state, /*read_only=*/true, f);
+}
+
+template <typename F>
+auto SqliteStore::OnConnection(std::unique_ptr<SQLite::Database>& db, ConnectionState& state,
+                               bool read_only, F& f)
+    -> decltype(f(std::declval<SQLite::Database&>())) {
+  try {
+    if (!db || state.reopen) {
+      db.reset();
+      db = Open(read_only);
+      if (state.reopen)
+        spdlog::warn("database {}: a new {} connection after an I/O error", path_,
+                     read_only ? "reading" : "writing");
+      state.reopen = false;
+    }
+    if constexpr (std::is_void_v<decltype(f(*db))>) {
+      f(*db);
+      state.io_error = false;
+    } else {
+      auto result = f(*db);
+      state.io_error = false;
+      return result;
+    }
+  } catch (const SQLite::Exception& e) {
+    Rethrow(e, state);
+  }
+}
+
+void SqliteStore::Rethrow(const SQLite::Exception& e, ConnectionState& state) const {
+  const int code = e.getErrorCode() & 0xff;
+  switch (code) {
+    case SQLITE_FULL:
+      state.reopen = state.io_error = true;
+      throw StoreUnavailable("the disk holding the database " + path_ +
+                             " is full; nothing was written (the daemon resumes by itself once "
+                             "there is space)");
+    case SQLITE_IOERR:
+      state.reopen = state.io_error = true;
+      throw StoreUnavailable("the database " + path_ + " cannot be read or written (" + e.what() +
+                             "); nothing was written");
+    case SQLITE_CORRUPT:
+    case SQLITE_NOTADB:
+      if (state.io_error) {
+        // The connection's view after the failed write, not the file: read it anew.
+        state.reopen = true;
+        throw StoreUnavailable("the database " + path_ +
+                               " could not be read after an I/O error; it is opened anew");
+      }
+      throw std::runtime_error("the database " + path_ + " is damaged (" + e.what() +
+                               "): stop the daemon and restore it from a backup, or move it "
+                               "aside to start anew");
+    case SQLITE_CANTOPEN:
+    case SQLITE_BUSY:
+    case SQLITE_LOCKED:
+    case SQLITE_READONLY:
+      throw StoreUnavailable("the database " + path_ + " cannot be written (" + e.what() + ")");
+    default:
+      throw std::runtime_error("database " + path_ + ": " + e.what());
+  }
+}
+
 SqliteStore::~SqliteStore() {
+  readers_.clear();
   db_.reset();
   ::close(lock_fd_);
 }
@@ -247,7 +317,7 @@ int SqliteStore::schema_version() {
 }
 
 void SqliteStore::Migrate() {
-  SQLite::Transaction tx(*db_);
+  SQLite::Transaction tx(*db_, SQLite::TransactionBehavior::IMMEDIATE);
   const int version = db_->execAndGet("PRAGMA user_version").getInt();
   if (version > kSchemaVersion) {
     throw std::runtime_error("the database has schema version " + std::to_string(version) +
@@ -259,22 +329,20 @@ void SqliteStore::Migrate() {
 }
 
 JobStore::Created SqliteStore::CreateJob(const NewJob& job, int max_queued) {
-  return Guarded([&]() -> Created {
-    std::lock_guard lock(mutex_);
-    SQLite::Transaction tx(*db_);
+  return Run([&](SQLite::Database& db) -> Created {
+    SQLite::Transaction tx(db, SQLite::TransactionBehavior::IMMEDIATE);
     const JobRecord& r = job.record;
     if (!r.idempotency_key.empty()) {
       SQLite::Statement q(
-          *db_, std::string("SELECT ") + kJobColumns + " FROM jobs WHERE idempotency_key = ?");
+          db, std::string("SELECT ") + kJobColumns + " FROM jobs WHERE idempotency_key = ?");
       q.bind(1, r.idempotency_key);
       if (q.executeStep()) return {ReadJob(q), false, false};
     }
-    if (db_->execAndGet("SELECT count(*) FROM jobs WHERE state = 'queued'").getInt() >=
-        max_queued) {
+    if (db.execAndGet("SELECT count(*) FROM jobs WHERE state = 'queued'").getInt() >= max_queued) {
       return {r, false, true};
     }
     SQLite::Statement insert(
-        *db_,
+        db,
         "INSERT INTO jobs (label, priority, seed, idempotency_key, state, scene_name, genes, "
         "strategy, max_generations, created_at, scene) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
     insert.bind(1, r.label);
@@ -294,7 +362,7 @@ JobStore::Created SqliteStore::CreateJob(const NewJob& job, int max_queued) {
     insert.bind(11, job.scene_json);
     insert.exec();
     JobRecord created = r;
-    created.id = db_->getLastInsertRowid();
+    created.id = db.getLastInsertRowid();
     created.state = JobState::kQueued;
     tx.commit();
     return {created, true, false};
@@ -302,9 +370,8 @@ JobStore::Created SqliteStore::CreateJob(const NewJob& job, int max_queued) {
 }
 
 std::optional<JobRecord> SqliteStore::GetJob(std::int64_t id) {
-  return Guarded([&]() -> std::optional<JobRecord> {
-    std::lock_guard lock(mutex_);
-    SQLite::Statement q(*db_, std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id = ?");
+  return Read([&](SQLite::Database& db) -> std::optional<JobRecord> {
+    SQLite::Statement q(db, std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id = ?");
     q.bind(1, id);
     if (!q.executeStep()) return std::nullopt;
     return ReadJob(q);
@@ -312,9 +379,8 @@ std::optional<JobRecord> SqliteStore::GetJob(std::int64_t id) {
 }
 
 std::optional<std::string> SqliteStore::GetScene(std::int64_t id) {
-  return Guarded([&]() -> std::optional<std::string> {
-    std::lock_guard lock(mutex_);
-    SQLite::Statement q(*db_, "SELECT scene FROM jobs WHERE id = ?");
+  return Read([&](SQLite::Database& db) -> std::optional<std::string> {
+    SQLite::Statement q(db, "SELECT scene FROM jobs WHERE id = ?");
     q.bind(1, id);
     if (!q.executeStep()) return std::nullopt;
     return q.getColumn(0).getString();
@@ -322,8 +388,7 @@ std::optional<std::string> SqliteStore::GetScene(std::int64_t id) {
 }
 
 JobPage SqliteStore::ListJobs(const JobFilter& f) {
-  return Guarded([&] {
-    std::lock_guard lock(mutex_);
+  return Read([&](SQLite::Database& db) {
     std::string sql = std::string("SELECT ") + kJobColumns + " FROM jobs WHERE " +
                       (!f.newest_first  ? "id > ?"
                        : f.after_id > 0 ? "id < ?"
@@ -331,7 +396,7 @@ JobPage SqliteStore::ListJobs(const JobFilter& f) {
     if (f.state) sql += " AND state = ?";
     if (f.label) sql += " AND label = ?";
     sql += f.newest_first ? " ORDER BY id DESC LIMIT ?" : " ORDER BY id LIMIT ?";
-    SQLite::Statement q(*db_, sql);
+    SQLite::Statement q(db, sql);
     int i = 1;
     q.bind(i++, f.after_id);
     if (f.state) q.bind(i++, std::string(proto::JobStateName(*f.state)));
@@ -348,11 +413,10 @@ JobPage SqliteStore::ListJobs(const JobFilter& f) {
 }
 
 std::vector<JobRecord> SqliteStore::UnfinishedJobs() {
-  return Guarded([&] {
-    std::lock_guard lock(mutex_);
+  return Read([&](SQLite::Database& db) {
     SQLite::Statement q(
-        *db_, std::string("SELECT ") + kJobColumns +
-                  " FROM jobs WHERE state IN ('queued', 'running') ORDER BY priority DESC, id");
+        db, std::string("SELECT ") + kJobColumns +
+                " FROM jobs WHERE state IN ('queued', 'running') ORDER BY priority DESC, id");
     std::vector<JobRecord> jobs;
     while (q.executeStep()) jobs.push_back(ReadJob(q));
     return jobs;
@@ -360,16 +424,14 @@ std::vector<JobRecord> SqliteStore::UnfinishedJobs() {
 }
 
 int SqliteStore::CountQueued() {
-  return Guarded([&] {
-    std::lock_guard lock(mutex_);
-    return db_->execAndGet("SELECT count(*) FROM jobs WHERE state = 'queued'").getInt();
+  return Read([&](SQLite::Database& db) {
+    return db.execAndGet("SELECT count(*) FROM jobs WHERE state = 'queued'").getInt();
   });
 }
 
 std::map<JobState, int> SqliteStore::CountJobs() {
-  return Guarded([&] {
-    std::lock_guard lock(mutex_);
-    SQLite::Statement q(*db_, "SELECT state, count(*) FROM jobs GROUP BY state");
+  return Read([&](SQLite::Database& db) {
+    SQLite::Statement q(db, "SELECT state, count(*) FROM jobs GROUP BY state");
     std::map<JobState, int> counts;
     while (q.executeStep()) {
       if (const auto state = proto::ParseJobState(q.getColumn(0).getString()))
@@ -380,11 +442,10 @@ std::map<JobState, int> SqliteStore::CountJobs() {
 }
 
 std::optional<Claim> SqliteStore::ClaimNext(const std::string& owner, double lease_seconds) {
-  return Guarded([&]() -> std::optional<Claim> {
-    std::lock_guard lock(mutex_);
-    SQLite::Transaction tx(*db_);
+  return Run([&](SQLite::Database& db) -> std::optional<Claim> {
+    SQLite::Transaction tx(db, SQLite::TransactionBehavior::IMMEDIATE);
     const double now = UnixNow();
-    SQLite::Statement pick(*db_,
+    SQLite::Statement pick(db,
                            // In claim order from the partial index: the first match ends the scan
                            // (the planner, left alone, sorts every queued job at each claim).
                            "SELECT id FROM jobs INDEXED BY jobs_to_claim WHERE state IN ('queued', "
@@ -395,7 +456,7 @@ std::optional<Claim> SqliteStore::ClaimNext(const std::string& owner, double lea
     const std::int64_t id = pick.getColumn(0).getInt64();
     pick.reset();
     SQLite::Statement take(
-        *db_,
+        db,
         "UPDATE jobs SET state = 'running', lease_owner = ?, lease_epoch = lease_epoch + 1, "
         "lease_expires = ?, started_at = CASE WHEN started_at = 0 THEN ? ELSE started_at END "
         "WHERE id = ?");
@@ -404,8 +465,8 @@ std::optional<Claim> SqliteStore::ClaimNext(const std::string& owner, double lea
     take.bind(3, now);
     take.bind(4, id);
     take.exec();
-    SQLite::Statement q(*db_, std::string("SELECT ") + kJobColumns +
-                                  ", lease_epoch, cancel_requested FROM jobs WHERE id = ?");
+    SQLite::Statement q(db, std::string("SELECT ") + kJobColumns +
+                                ", lease_epoch, cancel_requested FROM jobs WHERE id = ?");
     q.bind(1, id);
     q.executeStep();
     Claim claim;
@@ -419,9 +480,8 @@ std::optional<Claim> SqliteStore::ClaimNext(const std::string& owner, double lea
 }
 
 LeaseStatus SqliteStore::RenewLease(const Lease& lease, double lease_seconds) {
-  return Guarded([&] {
-    std::lock_guard lock(mutex_);
-    SQLite::Statement q(*db_,
+  return Run([&](SQLite::Database& db) {
+    SQLite::Statement q(db,
                         "UPDATE jobs SET lease_expires = ? WHERE id = ? AND state = 'running' AND "
                         "lease_owner = ? AND lease_epoch = ? RETURNING cancel_requested");
     q.bind(1, UnixNow() + lease_seconds);
@@ -438,9 +498,8 @@ LeaseStatus SqliteStore::RenewLease(const Lease& lease, double lease_seconds) {
 }
 
 void SqliteStore::ReleaseLease(const Lease& lease) {
-  Guarded([&] {
-    std::lock_guard lock(mutex_);
-    SQLite::Statement q(*db_,
+  Run([&](SQLite::Database& db) {
+    SQLite::Statement q(db,
                         "UPDATE jobs SET lease_expires = 0 WHERE id = ? AND state = 'running' AND "
                         "lease_owner = ? AND lease_epoch = ?");
     q.bind(1, lease.job_id);
@@ -451,13 +510,12 @@ void SqliteStore::ReleaseLease(const Lease& lease) {
 }
 
 void SqliteStore::SaveProgress(const Lease& lease, const ProgressBatch& b) {
-  Guarded([&] {
-    std::lock_guard lock(mutex_);
-    SQLite::Transaction tx(*db_);
-    CheckLease(*db_, lease);
+  Run([&](SQLite::Database& db) {
+    SQLite::Transaction tx(db, SQLite::TransactionBehavior::IMMEDIATE);
+    CheckLease(db, lease);
     const std::int64_t id = lease.job_id;
     if (!b.trace.empty()) {
-      SQLite::Statement q(*db_,
+      SQLite::Statement q(db,
                           "INSERT OR REPLACE INTO trace (job_id, generation, wall_seconds, "
                           "evaluations, cache_hits, best_cost, best_normalized_error, mean_cost, "
                           "missing, extra) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
@@ -477,7 +535,7 @@ void SqliteStore::SaveProgress(const Lease& lease, const ProgressBatch& b) {
       }
     }
     if (!b.improvements.empty()) {
-      SQLite::Statement q(*db_,
+      SQLite::Statement q(db,
                           "INSERT OR REPLACE INTO improvements (job_id, generation, wall_seconds, "
                           "cost, normalized_error, missing, extra, genome) VALUES (?, ?, ?, ?, ?, "
                           "?, ?, ?)");
@@ -495,19 +553,19 @@ void SqliteStore::SaveProgress(const Lease& lease, const ProgressBatch& b) {
       }
     }
     if (b.latest) {
-      SQLite::Statement q(*db_, "UPDATE jobs SET progress = ? WHERE id = ?");
+      SQLite::Statement q(db, "UPDATE jobs SET progress = ? WHERE id = ?");
       q.bind(1, proto::TraceRowToJson(*b.latest).dump());
       q.bind(2, id);
       q.exec();
     }
     if (b.checkpoint) {
       SQLite::Statement q(
-          *db_, "INSERT OR REPLACE INTO checkpoints (job_id, generation, state) VALUES (?, ?, ?)");
+          db, "INSERT OR REPLACE INTO checkpoints (job_id, generation, state) VALUES (?, ?, ?)");
       q.bind(1, id);
       q.bind(2, b.checkpoint_generation);
       BindBlob(q, 3, *b.checkpoint);
       q.exec();
-      SQLite::Statement u(*db_, "UPDATE jobs SET checkpoint_generation = ? WHERE id = ?");
+      SQLite::Statement u(db, "UPDATE jobs SET checkpoint_generation = ? WHERE id = ?");
       u.bind(1, b.checkpoint_generation);
       u.bind(2, id);
       u.exec();
@@ -519,11 +577,10 @@ void SqliteStore::SaveProgress(const Lease& lease, const ProgressBatch& b) {
 void SqliteStore::MarkFinished(const Lease& lease, JobState state, const std::string& error,
                                const std::string& result_json, std::optional<bool> exact,
                                double finished_at) {
-  Guarded([&] {
-    std::lock_guard lock(mutex_);
-    SQLite::Transaction tx(*db_);
-    CheckLease(*db_, lease);
-    SQLite::Statement q(*db_,
+  Run([&](SQLite::Database& db) {
+    SQLite::Transaction tx(db, SQLite::TransactionBehavior::IMMEDIATE);
+    CheckLease(db, lease);
+    SQLite::Statement q(db,
                         "UPDATE jobs SET state = ?, error = ?, result = ?, exact = ?, finished_at "
                         "= ?, lease_owner = NULL, lease_expires = 0 WHERE id = ?");
     q.bind(1, std::string(proto::JobStateName(state)));
@@ -542,7 +599,7 @@ void SqliteStore::MarkFinished(const Lease& lease, JobState state, const std::st
     q.bind(6, lease.job_id);
     q.exec();
     // A finished job is never resumed: its checkpoint is dead weight.
-    SQLite::Statement d(*db_, "DELETE FROM checkpoints WHERE job_id = ?");
+    SQLite::Statement d(db, "DELETE FROM checkpoints WHERE job_id = ?");
     d.bind(1, lease.job_id);
     d.exec();
     tx.commit();
@@ -550,13 +607,12 @@ void SqliteStore::MarkFinished(const Lease& lease, JobState state, const std::st
 }
 
 void SqliteStore::RewindTo(const Lease& lease, int generation) {
-  Guarded([&] {
-    std::lock_guard lock(mutex_);
-    SQLite::Transaction tx(*db_);
-    CheckLease(*db_, lease);
+  Run([&](SQLite::Database& db) {
+    SQLite::Transaction tx(db, SQLite::TransactionBehavior::IMMEDIATE);
+    CheckLease(db, lease);
     for (const char* table : {"trace", "improvements"}) {
       SQLite::Statement q(
-          *db_, std::string("DELETE FROM ") + table + " WHERE job_id = ? AND generation > ?");
+          db, std::string("DELETE FROM ") + table + " WHERE job_id = ? AND generation > ?");
       q.bind(1, lease.job_id);
       q.bind(2, generation);
       q.exec();
@@ -566,10 +622,9 @@ void SqliteStore::RewindTo(const Lease& lease, int generation) {
 }
 
 JobStore::CancelOutcome SqliteStore::RequestCancel(std::int64_t id) {
-  return Guarded([&] {
-    std::lock_guard lock(mutex_);
-    SQLite::Transaction tx(*db_);
-    SQLite::Statement queued(*db_,
+  return Run([&](SQLite::Database& db) {
+    SQLite::Transaction tx(db, SQLite::TransactionBehavior::IMMEDIATE);
+    SQLite::Statement queued(db,
                              "UPDATE jobs SET state = 'cancelled', finished_at = ? WHERE id = ? "
                              "AND state = 'queued'");
     queued.bind(1, UnixNow());
@@ -579,7 +634,7 @@ JobStore::CancelOutcome SqliteStore::RequestCancel(std::int64_t id) {
       return CancelOutcome::kCancelled;
     }
     SQLite::Statement running(
-        *db_, "UPDATE jobs SET cancel_requested = 1 WHERE id = ? AND state = 'running'");
+        db, "UPDATE jobs SET cancel_requested = 1 WHERE id = ? AND state = 'running'");
     running.bind(1, id);
     const bool requested = running.exec() > 0;
     tx.commit();
@@ -588,9 +643,8 @@ JobStore::CancelOutcome SqliteStore::RequestCancel(std::int64_t id) {
 }
 
 std::optional<std::string> SqliteStore::GetResult(std::int64_t id) {
-  return Guarded([&]() -> std::optional<std::string> {
-    std::lock_guard lock(mutex_);
-    SQLite::Statement q(*db_, "SELECT result FROM jobs WHERE id = ?");
+  return Read([&](SQLite::Database& db) -> std::optional<std::string> {
+    SQLite::Statement q(db, "SELECT result FROM jobs WHERE id = ?");
     q.bind(1, id);
     if (!q.executeStep() || q.getColumn(0).isNull()) return std::nullopt;
     return q.getColumn(0).getString();
@@ -598,9 +652,8 @@ std::optional<std::string> SqliteStore::GetResult(std::int64_t id) {
 }
 
 std::vector<TraceRow> SqliteStore::GetTrace(std::int64_t id, int after, int limit) {
-  return Guarded([&] {
-    std::lock_guard lock(mutex_);
-    SQLite::Statement q(*db_,
+  return Read([&](SQLite::Database& db) {
+    SQLite::Statement q(db,
                         "SELECT generation, wall_seconds, evaluations, cache_hits, best_cost, "
                         "best_normalized_error, mean_cost, missing, extra FROM trace WHERE job_id "
                         "= ? AND generation > ? ORDER BY generation LIMIT ?");
@@ -626,9 +679,8 @@ std::vector<TraceRow> SqliteStore::GetTrace(std::int64_t id, int after, int limi
 }
 
 std::vector<Improvement> SqliteStore::GetImprovements(std::int64_t id) {
-  return Guarded([&] {
-    std::lock_guard lock(mutex_);
-    SQLite::Statement q(*db_,
+  return Read([&](SQLite::Database& db) {
+    SQLite::Statement q(db,
                         "SELECT i.generation, i.wall_seconds, i.cost, i.normalized_error, "
                         "i.missing, i.extra, i.genome, j.genes FROM improvements i JOIN jobs j ON "
                         "j.id = i.job_id WHERE i.job_id = ? ORDER BY i.generation");
@@ -650,9 +702,8 @@ std::vector<Improvement> SqliteStore::GetImprovements(std::int64_t id) {
 }
 
 std::optional<std::string> SqliteStore::GetCheckpoint(std::int64_t id) {
-  return Guarded([&]() -> std::optional<std::string> {
-    std::lock_guard lock(mutex_);
-    SQLite::Statement q(*db_, "SELECT state FROM checkpoints WHERE job_id = ?");
+  return Read([&](SQLite::Database& db) -> std::optional<std::string> {
+    SQLite::Statement q(db, "SELECT state FROM checkpoints WHERE job_id = ?");
     q.bind(1, id);
     if (!q.executeStep()) return std::nullopt;
     return q.getColumn(0).getString();
@@ -660,10 +711,9 @@ std::optional<std::string> SqliteStore::GetCheckpoint(std::int64_t id) {
 }
 
 bool SqliteStore::DeleteJob(std::int64_t id) {
-  return Guarded([&] {
-    std::lock_guard lock(mutex_);
+  return Run([&](SQLite::Database& db) {
     SQLite::Statement q(
-        *db_, "DELETE FROM jobs WHERE id = ? AND state IN ('succeeded', 'failed', 'cancelled')");
+        db, "DELETE FROM jobs WHERE id = ? AND state IN ('succeeded', 'failed', 'cancelled')");
     q.bind(1, id);
     return q.exec() > 0;
   });

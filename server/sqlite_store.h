@@ -2,23 +2,29 @@
 // daemon: opening it takes an advisory lock on the file, so a second springfitd on the same
 // database is refused, and frees the leases a crashed or stopped daemon left.
 //
-// One connection behind a mutex: the daemon's writes are small and batched (a job flushes
-// its progress about once a second), so a single writer is never the bottleneck, and WAL
-// lets readers of the same file (sqlite3 on the command line, a backup) work alongside.
+// One writing connection behind a mutex and a pool of reading ones, each opened anew after an
+// I/O error or a full disk. The daemon's writes are small and batched (a job flushes its
+// progress about once a second), so a single writer is never the bottleneck; in WAL mode the
+// readers (job.get, job.list, traces, results) read the last committed state without waiting
+// for a write, a checkpoint or a lock held by another process (sqlite3, a backup).
 // synchronous=FULL: a flushed batch survives a power cut, not only a crash of the daemon.
 //
 // The schema's version is PRAGMA user_version; opening a database migrates it to the
 // current version in one transaction, and refuses a database of a newer springfit.
 #pragma once
+#include <atomic>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "server/job_store.h"
 
 namespace SQLite {
 class Database;
-}
+class Exception;
+}  // namespace SQLite
 
 namespace springfit::server {
 
@@ -56,12 +62,47 @@ class SqliteStore final : public JobStore {
   int schema_version();
 
  private:
+  // Readers beside the one writer: in WAL mode they read the last committed state without
+  // waiting for a write or a checkpoint in progress.
+  static constexpr int kReaders = 4;
+  // What a connection remembers of its failures.
+  struct ConnectionState {
+    // Set by an I/O error: after one, SQLite can fail every later statement of the same
+    // connection with 'database disk image is malformed' while the file is intact.
+    bool reopen = false;
+    bool io_error = false;  // an I/O error since the last operation that succeeded
+  };
+  struct Reader {
+    std::mutex mutex;
+    std::unique_ptr<SQLite::Database> db;  // opened on first use
+    ConnectionState state;
+  };
+
+  // A connection on path_ with this store's settings (WAL, synchronous, busy timeout).
+  std::unique_ptr<SQLite::Database> Open(bool read_only) const;
   void Migrate();
+  // Runs f(connection) on the writer, under its mutex.
+  template <typename F>
+  auto Run(F&& f) -> decltype(f(std::declval<SQLite::Database&>()));
+  // Runs f(connection) on a reader (reads only).
+  template <typename F>
+  auto Read(F&& f) -> decltype(f(std::declval<SQLite::Database&>()));
+  // Runs f on `db`, first opening it anew when an I/O error left it unusable, and maps
+  // SQLite's exceptions to the store's (Rethrow).
+  template <typename F>
+  auto OnConnection(std::unique_ptr<SQLite::Database>& db, ConnectionState& state, bool read_only,
+                    F& f) -> decltype(f(std::declval<SQLite::Database&>()));
+  // I/O failures and a full disk make the store unavailable (server/job_store.h), not wrong,
+  // and mark the connection for reopening; a damaged file is named as such.
+  [[noreturn]] void Rethrow(const SQLite::Exception& e, ConnectionState& state) const;
 
   std::string path_;
   int lock_fd_ = -1;
-  std::mutex mutex_;
+  std::mutex mutex_;  // the writer's
   std::unique_ptr<SQLite::Database> db_;
+  ConnectionState writer_state_;
+  std::vector<std::unique_ptr<Reader>> readers_;
+  std::atomic<unsigned> next_reader_{0};
 };
 
 }  // namespace springfit::server

@@ -148,17 +148,25 @@ class Session : public std::enable_shared_from_this<Session> {
     }
     handling_ = true;
     // A submission validates and prepares its scene, which can take seconds for a large one:
-    // it waits for a preparation thread, so that every other request (server.info, job.get)
-    // is answered at once meanwhile. A message that merely mentions the method (a label)
-    // takes the slower path, nothing worse.
-    const bool submission = text.find("\"job.submit\"") != std::string::npos;
-    asio::post(submission ? server_.preparers_ : server_.handlers_,
-               [self = shared_from_this(), text = std::move(text)] {
-                 std::string answer = self->server_.service_.HandleMessage(text, self->context_);
-                 asio::post(self->server_.io_, [self, answer = std::move(answer)]() mutable {
-                   self->OnHandled(std::move(answer));
-                 });
-               });
+    // once parsed, it waits for a preparation thread, so that every other request
+    // (server.info, job.get) is answered at once meanwhile.
+    asio::post(server_.handlers_, [self = shared_from_this(), text = std::move(text)] {
+      auto parsed = std::make_shared<RpcService::ParsedMessage>(RpcService::Parse(text));
+      if (!parsed->prepares_scene) {
+        self->Answer(self->server_.service_.Handle(*parsed, self->context_));
+        return;
+      }
+      asio::post(self->server_.preparers_, [self, parsed] {
+        self->Answer(self->server_.service_.Handle(*parsed, self->context_));
+      });
+    });
+  }
+
+  // From a handler or preparation thread: the answer goes out on the connection's thread.
+  void Answer(std::string answer) {
+    asio::post(server_.io_, [self = shared_from_this(), answer = std::move(answer)]() mutable {
+      self->OnHandled(std::move(answer));
+    });
   }
 
   void OnHandled(std::string answer) {

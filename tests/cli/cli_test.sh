@@ -110,6 +110,24 @@ assert r["direct"]["force_residual"] < 1e-9 and r["direct"]["unseen"] == [], r["
 PY
 expect_exit 0 "render direct" "$sf" render "$tmp/direct.json" -o "$tmp/direct.svg"
 grep -q "exact recovery; 72 springs; normalized error 0<" "$tmp/direct.svg" || fail "render draws a direct result with its own stiffness (error 0, not that of stiffness 1)"
+# Per-spring stiffness as line width: 5 widths by log stiffness over 1e-4 .. 1e4, the same bins
+# in both panels (the reference's stiffness is the result's here), and the range in the heading.
+python3 - "$tmp/direct.svg" "$tmp/direct.json" <<'PY' || fail "render line widths"
+import json, math, sys, xml.etree.ElementTree as ET
+ns = "{http://www.w3.org/2000/svg}"
+r = json.load(open(sys.argv[2]))
+root = ET.parse(sys.argv[1]).getroot()
+groups = [g for g in root.iter(ns + "g") if g.get("class") == "spring"]
+lo, hi = min(r["stiffness"]), max(r["stiffness"])
+want = [f"k{min(4, int(5 * math.log(k / lo) / math.log(hi / lo)))}" for k in r["stiffness"]]
+cases = len(r["scene_definition"]["load_cases"])
+assert len(groups) == 2 * cases, len(groups)
+identified = [[l.get("class") for l in g.iter(ns + "line")] for g in groups[1::2]]
+assert all(c == want for c in identified), (identified[0][:8], want[:8])
+assert set(want) == {"k0", "k1", "k2", "k3", "k4"}, set(want)
+texts = "".join(t.text or "" for t in root.iter(ns + "text"))
+assert "width: stiffness 0.0001 to 1e+04 (log)" in texts, texts[:300]
+PY
 
 # run -o: a result file that cannot be written is said before the run, not after it.
 expect_exit 1 "run -o unwritable" "$sf" run "$src/examples/paper-iso-5x5.json" --strategy paper -o "$tmp/no-such-dir/r.json"
@@ -196,6 +214,25 @@ plot = ET.parse(sys.argv[4])
 assert sum(1 for e in plot.iter(ns + "polyline")) == 2
 assert sum(1 for e in plot.iter(ns + "circle") if e.get("class") == "exact0") == 1  # the exact run's marker
 PY
+# --rest: the two topologies at rest, one pair of panels, no load case drawn; --node-numbers
+# writes every node's index in each panel.
+expect_exit 0 "render --rest" "$sf" render "$tmp/short.json" --rest --node-numbers -o "$tmp/rest.svg"
+python3 - "$tmp/rest.svg" "$tmp/short.json" <<'PY' || fail "render --rest content"
+import json, sys, xml.etree.ElementTree as ET
+ns = "{http://www.w3.org/2000/svg}"
+root = ET.parse(sys.argv[1]).getroot()
+short = json.load(open(sys.argv[2]))
+n = len(short["scene_definition"]["nodes"])
+of = lambda cls: [e for e in root.iter() if e.get("class") == cls]
+assert len([e for e in of("panel") if e.tag == ns + "rect"]) == 2
+numbers = [t.text for t in of("number")]
+assert sorted(numbers) == sorted([str(i) for i in range(n)] * 2), numbers[:10]
+assert len(of("missing")) - 1 == len(short["missing"]) and len(of("extra")) - 1 == len(short["extra"])
+assert not of("rest") and not of("force") and not of("fixed"), "a load case drawn at rest"
+texts = "".join(t.text or "" for t in root.iter(ns + "text"))
+assert "identified topology, at rest" in texts and "displacements" not in texts, texts[:300]
+PY
+expect_exit 64 "render --rest --case" "$sf" render "$tmp/short.json" --rest --case 0 -o "$tmp/x.svg"
 expect_exit 2 "render missing file" "$sf" render "$tmp/nope.json" -o "$tmp/x.svg"
 expect_exit 2 "render load case out of range" "$sf" render "$tmp/short.json" --case 7 -o "$tmp/x.svg"
 grep -q "load case 7 out of range" "$tmp/err" || fail "render names the load case: $(cat "$tmp/err")"

@@ -18,6 +18,7 @@ import copy
 import json
 import os
 import re
+import resource
 import shutil
 import signal
 import socket
@@ -547,6 +548,197 @@ def test_search_bounds(ctx):
         R.expect(labelled_jobs(c, label) == [], "a job refused for its population was stored")
 
 
+def test_durable_cancel(ctx):
+    """A running job cancelled (acknowledged) and the daemon killed at once: after the restart
+    the job is cancelled, not run again (issue 15: 8 of 8 such cancels were lost)."""
+    d = ctx.daemon("cancel-kill")
+    with Conn(d.port) as c:
+        scene = json.load(open(ctx.kidney_path))
+        scene.setdefault("search", {}).update({"strategy": "paper", "max_generations": 100000})
+        job_id = c.result("job.submit", {"scene": scene, "label": "cancel-kill"})["job"]["job_id"]
+        job = wait_state(c, job_id, ("running",) + FINAL_STATES, 10)
+        require(job["state"] == "running", f"job {job_id} does not run: {short(job)}")
+        answer = c.result("job.cancel", {"job_id": job_id})
+        R.expect(answer.get("state") in ("cancelling", "cancelled"), f"job.cancel: {short(answer)}")
+    d.kill9()  # right after the acknowledgement: the job may not have stopped yet
+    d.start()
+    with Conn(d.port) as c:
+        job = wait_state(c, job_id, FINAL_STATES, 20)
+        R.expect(job["state"] == "cancelled",
+                 f"job {job_id} cancelled before a kill -9 is {job['state']} after the restart")
+        trace = c.result("job.trace", {"job_id": job_id})
+        R.expect(len(trace.get("rows", [])) < 100000, "the cancelled job ran to its end")
+
+
+def test_descriptor_limit(ctx):
+    """--max-connections above what the descriptor limit allows: refused at start with the
+    numbers and the fix; raised to what is needed where the hard limit allows."""
+    hard = 200
+
+    d = os.path.join(ctx.tmp, "fd-refused")
+    os.makedirs(d)
+    with open(os.path.join(d, "stderr"), "wb") as err:
+        proc = subprocess.Popen([ctx.springfitd, "--listen", "127.0.0.1:0", "--db", os.path.join(d, "t.db"),
+                                 "--port-file", os.path.join(d, "port"), "--max-connections", "1000"],
+                                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err,
+                                preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_NOFILE, (hard, hard)))
+        try:
+            code = proc.wait(REFUSE_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
+            code = None
+    text = open(os.path.join(d, "stderr"), "rb").read().decode("utf-8", "replace")
+    R.expect(code not in (0, None), f"--max-connections 1000 under a limit of {hard}: exit {code}")
+    R.expect("--max-connections 1000 needs 1064 file descriptors, above this process's limit of 200" in text,
+             f"descriptor limit message: {short(text, 500)}")
+    R.expect(not os.path.exists(os.path.join(d, "port")), "a refused daemon wrote its port file")
+
+    # Soft limit 100, hard 200: 100 connections need 164, which the hard limit allows.
+    raised = Daemon(ctx.springfitd, ctx.tmp, "fd-raised", ["--max-connections", "100"],
+                    setup=lambda: resource.setrlimit(resource.RLIMIT_NOFILE, (100, hard)))
+    ctx.daemons.append(raised)
+    raised.start()
+    soft, _ = resource.prlimit(raised.proc.pid, resource.RLIMIT_NOFILE)
+    R.expect(soft >= 164, f"the soft descriptor limit was not raised: {soft}")
+    raised.stop()
+
+
+def test_emfile_backoff(ctx):
+    """Out of descriptors while connections keep coming: the accept loop waits and logs once a
+    second (it logged 800k lines in 4 s), the daemon stays up, and serves again once
+    descriptors are free."""
+    d = ctx.daemon("emfile")
+    open_fds = len(os.listdir(f"/proc/{d.proc.pid}/fd"))
+    _, hard = resource.prlimit(d.proc.pid, resource.RLIMIT_NOFILE)
+    resource.prlimit(d.proc.pid, resource.RLIMIT_NOFILE, (open_fds + 4, hard))
+    held = []
+    try:
+        for _ in range(30):
+            s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            s.settimeout(IO_TIMEOUT)
+            try:
+                s.connect(("127.0.0.1", d.port))  # completes in the kernel's backlog
+            except OSError:
+                s.close()
+                break
+            held.append(s)
+        time.sleep(2.5)
+        R.expect(d.alive(), "the daemon died out of descriptors")
+        log = d.log_text()
+        lines = [l for l in log.splitlines() if "accept:" in l]
+        R.expect(1 <= len(lines) <= 5, f"{len(lines)} accept warnings in 2.5 s: {short(lines[:3])}")
+    finally:
+        for s in held:
+            s.close()
+        resource.prlimit(d.proc.pid, resource.RLIMIT_NOFILE, (hard, hard))
+    with Conn(d.port) as c:
+        info = c.result("server.info")
+        R.expect(info.get("name") == "springfitd", f"server.info after descriptors came back: {short(info)}")
+
+
+def grid_scene(n, name):
+    """An n x n grid MSS (edges and both diagonals of every cell), fixed on the left, pulled on
+    the right: n^2 nodes, a scene the daemon takes seconds to prepare at n = 120."""
+    def idx(x, y):
+        return y * n + x
+    springs = []
+    for y in range(n):
+        for x in range(n):
+            if x + 1 < n:
+                springs.append([idx(x, y), idx(x + 1, y)])
+            if y + 1 < n:
+                springs.append([idx(x, y), idx(x, y + 1)])
+            if x + 1 < n and y + 1 < n:
+                springs += [[idx(x, y), idx(x + 1, y + 1)], [idx(x + 1, y), idx(x, y + 1)]]
+    return {"name": name, "nodes": [[x, y] for y in range(n) for x in range(n)],
+            "reference": {"type": "mss", "springs": springs},
+            "load_cases": [{"fixed": [idx(0, y) for y in range(n)],
+                            "forces": [{"nodes": [idx(n - 1, y) for y in range(n)], "force": [0.01, 0.002]}]}]}
+
+
+def test_preparation_threads(ctx):
+    """Two 14,400-node submissions being prepared: server.info is answered meanwhile (it waited
+    16.6 s), also when a submission spells its method with a JSON escape ("job\u002esubmit"):
+    the daemon routes by the method it parsed, not by how the text spells it (a text match sent
+    such a submission to a request thread, and two of them held both). --max-genes 10 refuses
+    each submission once its scene is prepared, so that no job runs."""
+    d = ctx.daemon("prepare", ["--max-genes", "10"])
+    scene_text = json.dumps(grid_scene(120, "grid-120"), separators=(",", ":"))
+    submissions = []
+    try:
+        for i, method in enumerate(("job\\u002esubmit", "job.submit")):
+            c = Conn(d.port)
+            submissions.append(c)
+            c.send(('{"jsonrpc":"2.0","id":%d,"method":"%s","params":{"scene":%s,"label":"big-%d"}}\n'
+                    % (i + 1, method, scene_text, i)).encode())
+        latencies = []
+        with Conn(d.port) as c:
+            for _ in range(3):
+                t0 = time.monotonic()
+                info = c.result("server.info", timeout=60)
+                latencies.append(time.monotonic() - t0)
+                R.expect(info.get("name") == "springfitd", f"server.info: {short(info)}")
+                time.sleep(0.05)
+        pending = [c.silent(0.001) for c in submissions]
+        R.expect(all(pending), f"a submission was answered before server.info's three answers "
+                               f"(pending: {pending}): nothing was shown")
+        print(f"  server.info during two 14,400-node preparations: "
+              f"{', '.join(f'{1000 * t:.1f} ms' for t in latencies)}", flush=True)
+        for i, c in enumerate(submissions):
+            resp = c.read(timeout=120, what=f"the answer to submission {i + 1}")
+            err = resp.get("error") or {}
+            R.expect(err.get("code") == -32004 and error_data(err).get("limit") == "max_genes",
+                     f"submission {i + 1}: expected the max_genes refusal after its preparation, "
+                     f"got {short(resp)}")
+    finally:
+        for c in submissions:
+            c.close()
+
+
+def test_failing_writes(ctx):
+    """The database's writes failing (a file size limit of 1 byte: every write(2) fails with
+    EFBIG, a real I/O error as a failing disk gives): submissions are answered -32007 saying
+    so, never 'database disk image is malformed' (after one I/O error every answer said that,
+    the file intact); reads still answer; the stored job stays intact; once writes succeed
+    again the daemon takes submissions by itself (a new connection), without a restart."""
+    d = Daemon(ctx.springfitd, ctx.tmp, "failing-writes", [],
+               setup=lambda: signal.signal(signal.SIGXFSZ, signal.SIG_IGN))
+    ctx.daemons.append(d)
+    d.start()
+    with Conn(d.port) as c:
+        first = c.result("job.submit", {"scene": ctx.small_scene, "label": "before"})["job"]["job_id"]
+        require(wait_state(c, first, FINAL_STATES, 30)["state"] == "succeeded", f"job {first} did not succeed")
+        result_before = c.result("job.result", {"job_id": first})
+        _, hard = resource.prlimit(d.proc.pid, resource.RLIMIT_FSIZE)
+        resource.prlimit(d.proc.pid, resource.RLIMIT_FSIZE, (1, hard))
+        try:
+            for attempt in (1, 2):
+                resp = c.call("job.submit", {"scene": ctx.small_scene, "label": f"during-{attempt}"})
+                err = resp.get("error") or {}
+                message = err.get("message", "")
+                R.expect(err.get("code") == -32007 and "cannot be read or written" in message,
+                         f"submission {attempt} with failing writes: {short(resp)}")
+                R.expect("malformed" not in message, f"submission {attempt}: {message}")
+            info = c.result("server.info")
+            R.expect(info.get("name") == "springfitd", f"server.info with failing writes: {short(info)}")
+            job = c.result("job.get", {"job_id": first})
+            R.expect(job.get("state") == "succeeded", f"job {first} with failing writes: {short(job)}")
+        finally:
+            resource.prlimit(d.proc.pid, resource.RLIMIT_FSIZE, (hard, hard))
+        created = c.result("job.submit", {"scene": ctx.small_scene, "label": "after"})
+        R.expect(created.get("created") is True, f"submission after writes came back: {short(created)}")
+        after = created["job"]["job_id"]
+        R.expect(wait_state(c, after, FINAL_STATES, 30)["state"] == "succeeded", f"job {after} did not succeed")
+        R.expect(c.result("job.result", {"job_id": first}) == result_before,
+                 f"job {first}'s result changed across the failing writes")
+        listed = [j["label"] for j in c.result("job.list", {})["jobs"]]
+        R.expect(sorted(listed) == ["after", "before"], f"jobs after the failing writes: {listed}")
+    R.expect(d.alive(), "the daemon died of failing writes")
+    R.expect("a new writing connection after an I/O error" in d.log_text(),
+             f"no reopening in the log: {short(d.log_text()[-800:], 800)}")
+
+
 def main(argv):
     groups = [
         ("setup", test_setup, True),
@@ -560,6 +752,11 @@ def main(argv):
         ("database mode", test_db_mode, False),
         ("extreme numbers", test_extreme_numbers, False),
         ("search bounds", test_search_bounds, False),
+        ("preparation threads", test_preparation_threads, False),
+        ("durable cancel", test_durable_cancel, False),
+        ("failing writes", test_failing_writes, False),
+        ("descriptor limit", test_descriptor_limit, False),
+        ("EMFILE back-off", test_emfile_backoff, False),
     ]
     return run_suite(argv, __doc__.strip().split("\n\n")[1], Context, groups,
                      lambda daemon: daemon.log_text())

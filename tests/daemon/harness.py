@@ -229,7 +229,9 @@ class Daemon:
     """springfitd on 127.0.0.1:0 with its database, port file, stdout and stderr in
     ROOT/NAME; `extra` arguments are appended to the command line."""
 
-    def __init__(self, binary, root, name, extra=()):
+    def __init__(self, binary, root, name, extra=(), setup=None):
+        """setup: called in the child before springfitd starts (limits, signal dispositions)."""
+        self.setup = setup
         self.binary = binary
         self.dir = os.path.join(root, name)
         os.makedirs(self.dir)
@@ -243,13 +245,15 @@ class Daemon:
 
     def start(self):
         port_file = os.path.join(self.dir, "port")
+        if os.path.exists(port_file):
+            os.remove(port_file)  # a restart: the port is the new process's
         self.stderr = open(os.path.join(self.dir, "stderr"), "wb")
         self.stdout = open(os.path.join(self.dir, "stdout"), "wb")
         self.proc = subprocess.Popen(
             [self.binary, "--listen", "127.0.0.1:0", "--db", self.db,
              "--port-file", port_file, "--workers", "2", "--log-level", "warn"] + self.extra,
             stdin=subprocess.DEVNULL, stdout=self.stdout, stderr=self.stderr,
-            preexec_fn=lambda: os.umask(0o022))  # a usual umask: the database's mode is the daemon's doing
+            preexec_fn=self._child_setup)
         deadline = time.monotonic() + START_TIMEOUT
         while time.monotonic() < deadline:
             if self.proc.poll() is not None:
@@ -265,6 +269,11 @@ class Daemon:
                 pass
             time.sleep(0.02)
         raise Abort(f"daemon {self.name}: no port file within {START_TIMEOUT}s")
+
+    def _child_setup(self):
+        os.umask(0o022)  # a usual umask: the database's mode is the daemon's doing
+        if self.setup is not None:
+            self.setup()
 
     def alive(self):
         return self.proc is not None and self.proc.poll() is None
@@ -288,6 +297,13 @@ class Daemon:
         for f in (self.stdout, self.stderr):
             if f is not None:
                 f.close()
+
+    def kill9(self):
+        """SIGKILL, as a crash: nothing of the daemon runs after it."""
+        if self.alive():
+            self.proc.kill()
+            self.proc.wait(5)
+        self.close_files()
 
     def stop(self):
         """SIGTERM, bounded wait; True when it exited in time."""

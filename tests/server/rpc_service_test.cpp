@@ -14,6 +14,7 @@
 #include "io/example_catalog.h"
 #include "proto/rpc.h"
 #include "proto/scene_codec.h"
+#include "server/forwarding_store.h"
 #include "server/sqlite_store.h"
 
 namespace springfit::server {
@@ -134,6 +135,57 @@ TEST_F(RpcServiceTest, StandardErrors) {
   EXPECT_EQ(Code(Call("job.get", {{"job_id", 1e300}})), rpc::kInvalidParams);
   // The id comes back as sent, string ids included.
   EXPECT_EQ(raw("{\"jsonrpc\":\"2.0\",\"id\":\"abc\",\"method\":\"server.info\"}")["id"], "abc");
+}
+
+// A store whose reads fail as libraries fail: with their own texts, and out of memory.
+class ThrowingStore final : public ForwardingStore {
+ public:
+  using ForwardingStore::ForwardingStore;
+  std::optional<JobRecord> GetJob(std::int64_t) override {
+    throw std::runtime_error("[json.exception.type_error.302] SQLite internals: secret 0xdead");
+  }
+  JobPage ListJobs(const JobFilter&) override { throw std::bad_alloc(); }
+};
+
+TEST_F(RpcServiceTest, InternalErrorsAnswerDocumentedMessagesNotLibraryTexts) {
+  MakeService(false);
+  ThrowingStore throwing(*store_);
+  RpcService service(throwing, *scheduler_, ServiceOptions{});
+  auto call = [&](const std::string& method, const Json& params) {
+    return proto::ParseJson(
+        service.HandleMessage(rpc::Serialize(rpc::Request(++id_, method, params)), session_));
+  };
+  const Json failed = call("job.get", {{"job_id", 1}});
+  EXPECT_EQ(Code(failed), rpc::kInternalError);
+  EXPECT_EQ(failed["error"]["message"],
+            "internal error: the request failed inside the server (incident 1 in its log)");
+  EXPECT_EQ(failed["error"]["data"]["incident"], 1);
+  EXPECT_EQ(failed.dump().find("secret"), std::string::npos);
+  EXPECT_EQ(call("job.get", {{"job_id", 1}})["error"]["data"]["incident"], 2);
+  const Json memory = call("job.list", Json::object());
+  EXPECT_EQ(Code(memory), rpc::kInternalError);
+  EXPECT_EQ(memory["error"]["message"],
+            "internal error: out of memory: the server could not get the memory this request "
+            "needs");
+}
+
+TEST(RpcServiceParse, SubmissionsAreFoundByTheirParsedMethod) {
+  EXPECT_TRUE(
+      RpcService::Parse(R"({"jsonrpc":"2.0","id":1,"method":"job.submit"})").prepares_scene);
+  // The same method spelled with an escape: the text has no "job.submit" in it.
+  EXPECT_TRUE(
+      RpcService::Parse(R"({"jsonrpc":"2.0","id":1,"method":"job\u002esubmit"})").prepares_scene);
+  EXPECT_TRUE(RpcService::Parse(R"([{"jsonrpc":"2.0","id":1,"method":"server.info"},)"
+                                R"({"jsonrpc":"2.0","id":2,"method":"job.submit","params":{}}])")
+                  .prepares_scene);
+  // Mentioning the method elsewhere does not make a submission.
+  EXPECT_FALSE(
+      RpcService::Parse(
+          R"({"jsonrpc":"2.0","id":1,"method":"job.list","params":{"label":"job.submit"}})")
+          .prepares_scene);
+  const RpcService::ParsedMessage bad = RpcService::Parse("{\"jsonrpc\":");
+  EXPECT_FALSE(bad.prepares_scene);
+  EXPECT_NE(bad.parse_error.find("parse error"), std::string::npos);
 }
 
 TEST_F(RpcServiceTest, NotificationsAndBatches) {

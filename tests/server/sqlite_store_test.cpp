@@ -2,8 +2,10 @@
 
 #include "tests/server/store_test_data.h"
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <future>
 
 #include <SQLiteCpp/SQLiteCpp.h>
 #include <gtest/gtest.h>
@@ -61,6 +63,29 @@ TEST_F(SqliteStoreTest, DataSurvivesReopeningAndADeadDaemonsLeasesAreFreed) {
   EXPECT_EQ(claim->job.id, id);
   EXPECT_EQ(claim->lease.epoch, lease.epoch + 1);
   EXPECT_THROW(reopened.SaveProgress(lease, ProgressBatch{}), LeaseLost);
+}
+
+// Reads go to the reader connections: a write waiting for the file's write lock (held here by
+// another connection, as a checkpoint or a backup would) holds the writer, not job.get.
+TEST_F(SqliteStoreTest, ReadsDoNotWaitBehindAWriteInProgress) {
+  SqliteStore store(path_);
+  const std::int64_t id = store.CreateJob(Job("existing"), 10).job.id;
+  SQLite::Database other(path_, SQLite::OPEN_READWRITE);
+  other.exec("BEGIN IMMEDIATE");  // the write lock, until the rollback below
+  std::future<JobStore::Created> write =
+      std::async(std::launch::async, [&] { return store.CreateJob(Job("waiting"), 10); });
+  // Let the write take the writer and wait for the lock (SQLite's busy timeout is 5 s).
+  EXPECT_EQ(write.wait_for(std::chrono::milliseconds(300)), std::future_status::timeout);
+  std::future<std::optional<JobRecord>> read =
+      std::async(std::launch::async, [&] { return store.GetJob(id); });
+  const bool read_first = read.wait_for(std::chrono::seconds(3)) == std::future_status::ready &&
+                          write.wait_for(std::chrono::seconds(0)) == std::future_status::timeout;
+  other.exec("ROLLBACK");
+  EXPECT_TRUE(read_first) << "job.get waited for the write in progress";
+  ASSERT_TRUE(read.get());
+  EXPECT_TRUE(write.get().created);
+  // The reader sees what the writer committed.
+  EXPECT_EQ(store.ListJobs(JobFilter{}).jobs.size(), 2u);
 }
 
 TEST_F(SqliteStoreTest, ASecondDaemonOnTheSameDatabaseIsRefused) {

@@ -15,12 +15,13 @@ inline NewJob StoreTestJob(const std::string& label, int priority = 0,
   j.record.priority = priority;
   j.record.seed = 0xfedcba9876543210ULL;  // above int64's range: stored as its bits
   j.record.idempotency_key = key;
-  j.record.scene_name = "s";
+  // (Move-assigned: GCC 12 warns wrongly about the copy of a short literal, -Wrestrict.)
+  j.record.scene_name = std::string("s");
   j.record.genes = 12;
   j.record.strategy = "default";
   j.record.max_generations = 100;
   j.record.created_at = 1.5e9;
-  j.scene_json = R"({"name":"s"})";
+  j.scene_json = std::string(R"({"name":"s"})");
   return j;
 }
 
