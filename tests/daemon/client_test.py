@@ -60,18 +60,18 @@ def expect_error(resp, code, what):
     return err
 
 
-def run_refused_daemon(ctx, name, token_path):
-    """Starts springfitd with --token-file token_path, expecting it to refuse to start.
-    Returns (exit code or None when it was still running after REFUSE_TIMEOUT, stderr, port file
-    written)."""
+def run_refused_daemon(ctx, name, args, setup=None):
+    """Starts springfitd with `args` (after its listen, database and port file), expecting it to
+    refuse to start; setup runs in the child first (limits). Returns (exit code or None when it
+    was still running after REFUSE_TIMEOUT, stderr, port file written)."""
     d = os.path.join(ctx.tmp, name)
     os.makedirs(d)
     err_path = os.path.join(d, "stderr")
     port_file = os.path.join(d, "port")
     with open(err_path, "wb") as err:
         proc = subprocess.Popen([ctx.springfitd, "--listen", "127.0.0.1:0", "--db", os.path.join(d, "test.db"),
-                                 "--port-file", port_file, "--workers", "1", "--token-file", token_path],
-                                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err)
+                                 "--port-file", port_file] + list(args),
+                                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err, preexec_fn=setup)
         try:
             code = proc.wait(REFUSE_TIMEOUT)
         except subprocess.TimeoutExpired:
@@ -407,7 +407,7 @@ def test_token_files(ctx):
     with open(readable, "w") as f:
         f.write(TOKEN + "\n")
     os.chmod(readable, 0o644)
-    code, err, port_written = run_refused_daemon(ctx, "token-0644", readable)
+    code, err, port_written = run_refused_daemon(ctx, "token-0644", ["--workers", "1", "--token-file", readable])
     R.expect(code is not None and code != 0,
              f"springfitd --token-file (mode 0644): expected a non-zero exit within {REFUSE_TIMEOUT}s, got {code}")
     R.expect("readable by others" in err, f"springfitd --token-file (mode 0644): stderr {short(err)!r}")
@@ -416,7 +416,7 @@ def test_token_files(ctx):
     directory = os.path.join(token_dir, "a-directory")
     os.makedirs(directory)
     os.chmod(directory, 0o700)
-    code, err, port_written = run_refused_daemon(ctx, "token-dir", directory)
+    code, err, port_written = run_refused_daemon(ctx, "token-dir", ["--workers", "1", "--token-file", directory])
     R.expect(code is not None and code != 0,
              f"springfitd --token-file DIRECTORY: expected a non-zero exit within {REFUSE_TIMEOUT}s, got {code}")
     R.expect("is a directory" in err, f"springfitd --token-file DIRECTORY: stderr {short(err)!r}")
@@ -574,25 +574,13 @@ def test_descriptor_limit(ctx):
     """--max-connections above what the descriptor limit allows: refused at start with the
     numbers and the fix; raised to what is needed where the hard limit allows."""
     hard = 200
-
-    d = os.path.join(ctx.tmp, "fd-refused")
-    os.makedirs(d)
-    with open(os.path.join(d, "stderr"), "wb") as err:
-        proc = subprocess.Popen([ctx.springfitd, "--listen", "127.0.0.1:0", "--db", os.path.join(d, "t.db"),
-                                 "--port-file", os.path.join(d, "port"), "--max-connections", "1000"],
-                                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err,
-                                preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_NOFILE, (hard, hard)))
-        try:
-            code = proc.wait(REFUSE_TIMEOUT)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(5)
-            code = None
-    text = open(os.path.join(d, "stderr"), "rb").read().decode("utf-8", "replace")
+    code, text, port_written = run_refused_daemon(
+        ctx, "fd-refused", ["--max-connections", "1000"],
+        setup=lambda: resource.setrlimit(resource.RLIMIT_NOFILE, (hard, hard)))
     R.expect(code not in (0, None), f"--max-connections 1000 under a limit of {hard}: exit {code}")
     R.expect("--max-connections 1000 needs 1064 file descriptors, above this process's limit of 200" in text,
              f"descriptor limit message: {short(text, 500)}")
-    R.expect(not os.path.exists(os.path.join(d, "port")), "a refused daemon wrote its port file")
+    R.expect(not port_written, "a refused daemon wrote its port file")
 
     # Soft limit 100, hard 200: 100 connections need 164, which the hard limit allows.
     raised = Daemon(ctx.springfitd, ctx.tmp, "fd-raised", ["--max-connections", "100"],
