@@ -722,6 +722,29 @@ def test_failing_writes(ctx):
                  f"job {first}'s result changed across the failing writes")
         listed = [j["label"] for j in c.result("job.list", {})["jobs"]]
         R.expect(sorted(listed) == ["after", "before"], f"jobs after the failing writes: {listed}")
+
+        # A running job whose progress writes fail for a while: it is neither failed nor lost,
+        # and ends as it would have (its trace whole) once writes succeed again.
+        scene = json.load(open(ctx.kidney_path))
+        scene.setdefault("search", {}).update({"strategy": "paper", "max_seconds": 5})
+        running = c.result("job.submit", {"scene": scene, "label": "running"})["job"]["job_id"]
+        job = wait_state(c, running, ("running",) + FINAL_STATES, 10)
+        require(job["state"] == "running", f"job {running} does not run: {short(job)}")
+        time.sleep(1.0)
+        resource.prlimit(d.proc.pid, resource.RLIMIT_FSIZE, (1, hard))
+        try:
+            time.sleep(2.0)
+            job = c.result("job.get", {"job_id": running})
+            R.expect(job["state"] in ("running", "queued"),
+                     f"job {running} while its writes fail: {short(job)}")
+        finally:
+            resource.prlimit(d.proc.pid, resource.RLIMIT_FSIZE, (hard, hard))
+        job = wait_state(c, running, FINAL_STATES, 60)
+        R.expect(job["state"] == "succeeded", f"job {running} after its writes failed: {short(job)}")
+        rows = c.result("job.trace", {"job_id": running, "limit": 10000})["rows"]
+        generations = [r["generation"] for r in rows]
+        R.expect(generations == list(range(len(generations))) and len(generations) > 1,
+                 f"job {running}'s trace has holes: {short(generations)}")
     R.expect(d.alive(), "the daemon died of failing writes")
     R.expect("a new writing connection after an I/O error" in d.log_text(),
              f"no reopening in the log: {short(d.log_text()[-800:], 800)}")
