@@ -726,7 +726,7 @@ def test_failing_writes(ctx):
         # A running job whose progress writes fail for a while: it is neither failed nor lost,
         # and ends as it would have (its trace whole) once writes succeed again.
         scene = json.load(open(ctx.kidney_path))
-        scene.setdefault("search", {}).update({"strategy": "paper", "max_seconds": 5})
+        scene.setdefault("search", {}).update({"strategy": "paper", "max_seconds": 4})
         running = c.result("job.submit", {"scene": scene, "label": "running"})["job"]["job_id"]
         job = wait_state(c, running, ("running",) + FINAL_STATES, 10)
         require(job["state"] == "running", f"job {running} does not run: {short(job)}")

@@ -77,6 +77,8 @@ wait_for_checkpoint "$id" 5
 kill -9 "$pid"
 wait "$pid" 2>/dev/null
 start_daemon
+# (The resume is logged just after the daemon listens: wait for the line, bounded.)
+for _ in $(seq 100); do grep -q "resumed from its checkpoint" "$tmp/daemon.log" && break; sleep 0.1; done
 grep -q "resumed from its checkpoint" "$tmp/daemon.log" || fail "the restart did not resume job $id from a checkpoint"
 "$sf" watch "$id" -q >/dev/null || fail "watch $id after the restart: exit $?"
 expect_same_as_local "$id" "$kidney" "${run_flags[@]}" --seed 5

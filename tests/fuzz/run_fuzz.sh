@@ -2,15 +2,15 @@
 # Builds the libFuzzer targets with clang (a second build tree, instrumented with
 # AddressSanitizer and UndefinedBehaviorSanitizer) and runs each for a bounded time from its
 # seed corpus. Any crash, sanitizer report, leak, timeout or failed check fails the test;
-# libFuzzer writes the offending input to the build tree and its path is printed. The same
-# instrumented tree then runs the formats' unit tests (proto_tests, the readers of untrusted
-# input): a sanitizer report there fails the test too (UBSan does not recover).
+# libFuzzer writes the offending input to the build tree and its path is printed.
 #
-# The engine's unit tests under the sanitizers double this test's time (their instrumented
-# build and run: 4 minutes on two cores), more than the test command's budget allows; they run
-# with SPRINGFIT_SANITIZED_TESTS="engine_tests proto_tests", or in the sanitizer build of the
-# README (GCC's sanitizers, every test). The engine's code that a scene's preparation runs
-# (validation, candidates, equilibria, rigidity, FEM) is instrumented here under scene_fuzz.
+# The unit tests under the sanitizers would double this test's time (the engine's instrumented
+# build and run: 4 minutes on two cores; the formats' 2), more than the test command's budget
+# allows: SPRINGFIT_SANITIZED_TESTS="engine_tests proto_tests" runs them in the same
+# instrumented tree (a sanitizer report fails the test too: UBSan does not
+# recover), and the README's sanitizer build runs every test under GCC's sanitizers. What the
+# fuzz targets reach is instrumented here: the message framer, the scene codec and the
+# engine's preparation of a scene (validation, candidates, equilibria, rigidity, FEM).
 #
 # Reproducible: a fixed seed and a fixed number of inputs per target (SPRINGFIT_FUZZ_RUNS
 # scales them), so every machine tries the same inputs; a time bound stops a slow machine.
@@ -24,7 +24,7 @@ build=$2
 seconds=${SPRINGFIT_FUZZ_SECONDS:-60}
 runs_scale=${SPRINGFIT_FUZZ_RUNS:-1}
 
-sanitized_tests=${SPRINGFIT_SANITIZED_TESTS:-proto_tests}
+sanitized_tests=${SPRINGFIT_SANITIZED_TESTS:-}
 
 # -O1, as libFuzzer's documentation builds its targets: a third less compile time than -O2
 # for the same coverage. Line tables only, not full debug information: sanitizer reports still
