@@ -221,12 +221,15 @@ EquilibriumSolver::Resolution EquilibriumSolver::DisplacementResolution(
   EnergyAndGradient(springs, zero, u, nullptr, true, false);
   if (!system_.Factorize(0.0, 0.0, false).positive_definite) {
     // A saddle: round-off still moves it by H^-1 r (the projected tangent would drop the very
-    // directions that make it unstable, or be singular along them).
-    resolution.stable = false;
-    if (system_.FactorizeIndefinite(0.0).min_pivot == 0.0) {
+    // directions that make it unstable, or be singular along them). A negative pivot of the
+    // LDLT says a saddle (Sylvester's law of inertia); a zero one, a singular tangent, which
+    // says neither.
+    const SymmetricSystem::Factorization f = system_.FactorizeIndefinite(0.0);
+    if (f.min_pivot == 0.0) {
       resolution.spread = kInfinity;
       return resolution;
     }
+    resolution.stable = f.min_pivot > 0.0;
   }
   // Each free node's allowed imbalance, with signs that do not line up with any one mode.
   Vector r(dim_ * free_.count);

@@ -202,7 +202,8 @@ class EquilibriumSolver {
   // collinear springs) amplifies it, and normalised errors below this over |u| are noise.
   // `stable` is false when H is not positive definite: u is a saddle of the energy, not a
   // minimum (a straight column compressed past its buckling load stays straight by symmetry);
-  // H^-1 r is then solved with an indefinite factorisation. spread is +inf when H is singular.
+  // H^-1 r is then solved with an indefinite factorisation. spread is +inf when H is singular
+  // (stable is then true: a singular tangent says nothing of stability).
   // One or two factorisations.
   struct Resolution {
     double spread = 0.0;
