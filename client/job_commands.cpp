@@ -17,6 +17,12 @@ namespace springfit::cli {
 namespace {
 using proto::Json;
 
+std::vector<std::string> StateNames() {
+  std::vector<std::string> names;
+  for (const proto::JobState s : proto::AllJobStates()) names.emplace_back(proto::JobStateName(s));
+  return names;
+}
+
 struct JobArgs {
   ServerOptions server;
   std::int64_t job_id = 0;
@@ -258,7 +264,8 @@ void RegisterJobCommands(CLI::App& app, int& exit_code) {
                               exit_code, Trace, args, true);
     cmd->add_flag("--csv", args->csv, "CSV as `springfit run --trace` writes it");
   }
-  AddJobCommand(app, "cancel", "Cancel a queued or running job (it keeps its best so far)",
+  AddJobCommand(app, "cancel",
+                "Cancel a preparing, queued or running job (a running one keeps its best so far)",
                 exit_code, Cancel, std::make_shared<JobArgs>(), true);
   AddJobCommand(app, "delete", "Delete a finished job and everything stored with it", exit_code,
                 Delete, std::make_shared<JobArgs>(), true);
@@ -269,7 +276,7 @@ void RegisterJobCommands(CLI::App& app, int& exit_code) {
                     "Go on after this job id (the last list printed it when there were more)");
     cmd->add_flag("--oldest-first", args->oldest_first, "In submission order");
     cmd->add_option("--state", args->state, "Only jobs in this state")
-        ->check(CLI::IsMember({"queued", "running", "succeeded", "failed", "cancelled"}));
+        ->check(CLI::IsMember(StateNames()));
     cmd->add_option("--label", args->label, "Only jobs with this label");
     cmd->add_option("--limit", args->limit, "At most this many jobs")
         ->check(CLI::Range(1, 1000000))

@@ -146,11 +146,16 @@ Json RpcClient::Call(const std::string& method, Json params) {
   boost::system::error_code ec;
   asio::write(connection_->socket, asio::buffer(text), ec);
   if (ec) throw ConnectionError("connection to springfitd at " + where_ + " lost: " + ec.message());
-  const auto deadline = std::chrono::steady_clock::now() + timeout_;
+  auto deadline = std::chrono::steady_clock::now() + timeout_;
   while (true) {
     Json message = ReadMessage(deadline);
     if (message.contains("method") && !message.contains("id")) {
-      notifications_.push_back(std::move(message));
+      if (message["method"] == "job.preparing") {
+        deadline = std::chrono::steady_clock::now() + timeout_;
+        if (preparing_listener_) preparing_listener_(message.value("params", Json::object()));
+      } else {
+        notifications_.push_back(std::move(message));
+      }
       continue;
     }
     if (message.contains("error")) {

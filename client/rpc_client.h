@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -55,8 +56,13 @@ class RpcClient {
   RpcClient& operator=(const RpcClient&) = delete;
 
   // Sends a request and returns its result; throws RemoteError or ConnectionError.
-  // Notifications that arrive meanwhile are kept for NextNotification().
+  // Notifications that arrive meanwhile are kept for NextNotification(), but job.preparing
+  // (a submission being prepared, proto/RPC.md): it goes to the preparing listener, and
+  // the answer's timeout counts again from it, since the server is at work on the request.
   proto::Json Call(const std::string& method, proto::Json params = proto::Json::object());
+  void SetPreparingListener(std::function<void(const proto::Json& params)> listener) {
+    preparing_listener_ = std::move(listener);
+  }
   // The next notification (job.progress, job.finished), waiting for it.
   proto::Json NextNotification();
 
@@ -73,6 +79,7 @@ class RpcClient {
   std::chrono::steady_clock::duration timeout_;
   std::int64_t next_id_ = 1;
   std::deque<proto::Json> notifications_;
+  std::function<void(const proto::Json&)> preparing_listener_;
 };
 
 }  // namespace springfit::cli

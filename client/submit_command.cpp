@@ -40,13 +40,26 @@ int Submit(const SubmitArgs& args) {
   if (!args.idempotency_key.empty()) params["idempotency_key"] = args.idempotency_key;
 
   RpcClient client(args.server);
+  // A large scene takes the daemon a while to prepare: its id is known (and the job listed,
+  // and cancellable) from the start.
+  client.SetPreparingListener([shown = false](const Json& notice) mutable {
+    if (shown) return;
+    shown = true;
+    std::cerr << "job " << notice.value("job_id", Json(0)).get<std::int64_t>()
+              << " preparing (its reference is being solved; interrupting this command drops "
+                 "the submission, `springfit cancel` cancels it)"
+              << std::endl;
+  });
   const Json submitted = client.Call("job.submit", params);
   const Json& job = submitted["job"];
   const std::int64_t id = job["job_id"].get<std::int64_t>();
   // The id at once, on stderr, also before a wait: a pipeline's log has it even if the wait
   // is cut short, and stdout keeps only the job or the result.
+  const std::string state = job["state"].get<std::string>();
   std::cerr << "job " << id
-            << (submitted["created"].get<bool>() ? " queued" : " already submitted with this key")
+            << (!submitted["created"].get<bool>() ? " already submitted with this key"
+                : state == "cancelled"            ? " cancelled while it was prepared"
+                                                  : " queued")
             << " (" << job["scene"].get<std::string>() << ", " << job["genes"].get<int>()
             << " genes, strategy " << job["strategy"].get<std::string>() << ", seed "
             << job["seed"].get<std::uint64_t>() << ")" << std::endl;
@@ -59,8 +72,8 @@ int Submit(const SubmitArgs& args) {
     return kExitOk;
   }
   const Json finished = WatchJob(client, id, !args.watch);
-  const std::string state = finished["state"].get<std::string>();
-  if (state == "failed") {
+  const std::string final_state = finished["state"].get<std::string>();
+  if (final_state == "failed") {
     std::cerr << "springfit: job " << id
               << " failed: " << finished.value("error", Json("")).get<std::string>() << "\n";
     return kExitJobFailed;
@@ -68,9 +81,9 @@ int Submit(const SubmitArgs& args) {
   try {
     PrintResult(client.Call("job.result", JobIdParams(id)), args.json);
   } catch (const RemoteError&) {
-    std::cerr << "springfit: job " << id << " " << state << " before it ran\n";
+    std::cerr << "springfit: job " << id << " " << final_state << " before it ran\n";
   }
-  return ExitCodeOfJobState(state);
+  return ExitCodeOfJobState(final_state);
 }
 
 }  // namespace

@@ -70,11 +70,14 @@ void Flatten(const Scene& scene, const LoadCase& lc, const std::string& path, Ve
 
 // The FEM reference's equilibria (engine/fem/): one solver per set of free nodes.
 void SolveFemReference(const Scene& s, const std::vector<FreeNodes>& free_sets,
-                       std::vector<PreparedLoadCase>& load_cases) {
+                       std::vector<PreparedLoadCase>& load_cases, Interruption* interruption) {
   const fem::FemModel model = fem::FemModel::Build(s);
   std::vector<fem::FemEquilibriumSolver> solvers;
   solvers.reserve(free_sets.size());
-  for (const FreeNodes& free : free_sets) solvers.emplace_back(model, free);
+  for (const FreeNodes& free : free_sets) {
+    solvers.emplace_back(model, free);
+    solvers.back().set_interruption(interruption);
+  }
   for (std::size_t k = 0; k < load_cases.size(); ++k) {
     PreparedLoadCase& lc = load_cases[k];
     const fem::FemSolveSummary summary =
@@ -99,8 +102,9 @@ Response ResolveResponse(const Scene& scene) {
   return Response::kLinear;
 }
 
-Problem::Problem(Scene scene, EquilibriumOptions solver_options) {
+Problem::Problem(Scene scene, EquilibriumOptions solver_options, Interruption* interruption) {
   ValidateScene(scene);
+  ThrowIfInterrupted(interruption);
   Problem& p = *this;
   p.scene_ = std::move(scene);
   const Scene& s = p.scene_;
@@ -120,6 +124,7 @@ Problem::Problem(Scene scene, EquilibriumOptions solver_options) {
   }
   p.candidates_ = SpringGeometry(d, s.rest, GenerateCandidates(s));
   if (p.candidates_.size() == 0) throw InputError("candidates", "generates no candidate spring");
+  ThrowIfInterrupted(interruption);
 
   // Load cases and the distinct sets of free nodes they induce.
   std::vector<bool> constrained_anywhere_never_free(n, true);
@@ -179,7 +184,15 @@ Problem::Problem(Scene scene, EquilibriumOptions solver_options) {
     std::vector<EquilibriumSolver> polishers;
     for (const FreeNodes& free : p.free_sets_)
       polishers.emplace_back(geometry, free, polish_options);
+    for (auto* list : {&solvers, &polishers}) {
+      for (EquilibriumSolver& solver : *list) solver.set_interruption(interruption);
+    }
+    // The solvers stop between Newton iterations; a stopped solve has no reference to keep.
+    const auto stop_if_interrupted = [](const EquilibriumSummary& summary) {
+      if (summary.termination == Termination::kInterrupted) throw Interrupted();
+    };
     for (std::size_t k = 0; k < p.load_cases_.size(); ++k) {
+      ThrowIfInterrupted(interruption);
       PreparedLoadCase& lc = p.load_cases_[k];
       EquilibriumSolver& solver = solvers[lc.free_set];
       const RestStability stability = solver.RestStabilityOf(springs);
@@ -191,6 +204,7 @@ Problem::Problem(Scene scene, EquilibriumOptions solver_options) {
       lc.reference = Vector::Zero(d * n);
       const EquilibriumSummary summary =
           solver.Solve(springs, lc.force, lc.prescribed, lc.reference);
+      stop_if_interrupted(summary);
       if (summary.tolerance > kReferenceResolution) {
         throw InputError(CasePath(k),
                          "the load is too small for double precision: round-off in the reference "
@@ -209,6 +223,7 @@ Problem::Problem(Scene scene, EquilibriumOptions solver_options) {
       Vector polished = lc.reference;
       const EquilibriumSummary polish =
           polishers[lc.free_set].Solve(springs, lc.force, lc.prescribed, polished);
+      stop_if_interrupted(polish);
       lc.reference_solve = ReferenceSolve{summary.iterations, 1, summary.final_residual};
       if (polish.final_residual < summary.final_residual) {
         lc.reference = std::move(polished);
@@ -260,7 +275,7 @@ Problem::Problem(Scene scene, EquilibriumOptions solver_options) {
       p.reference_mask_ = std::move(mask);
     }
   } else if (ref.kind == Reference::Kind::kFem) {
-    SolveFemReference(p.scene_, p.free_sets_, p.load_cases_);
+    SolveFemReference(p.scene_, p.free_sets_, p.load_cases_, interruption);
   } else {
     const double tol = kPrescribedMismatchTolerance * p.candidates_.MaxRestLength();
     for (std::size_t k = 0; k < p.load_cases_.size(); ++k) {

@@ -91,11 +91,15 @@ class Problem {
  public:
   // Validates `scene` (ValidateScene) and prepares it. Throws InputError when the scene is
   // invalid or its reference MSS has no equilibrium (a mechanism, or no convergence) under
-  // some load case.
-  explicit Problem(Scene scene, EquilibriumOptions solver_options = {});
+  // some load case. Preparing a large scene takes seconds to minutes (its reference's Newton
+  // iterations, each a sparse factorisation): `interruption`, when set, is checked between
+  // them and stops the preparation by throwing Interrupted.
+  explicit Problem(Scene scene, EquilibriumOptions solver_options = {},
+                   Interruption* interruption = nullptr);
   // The same, for `const Problem p = Problem::Build(scene);` (no copy or move is made).
-  static Problem Build(Scene scene, EquilibriumOptions solver_options = {}) {
-    return Problem(std::move(scene), solver_options);
+  static Problem Build(Scene scene, EquilibriumOptions solver_options = {},
+                       Interruption* interruption = nullptr) {
+    return Problem(std::move(scene), solver_options, interruption);
   }
   Problem(const Problem&) = delete;
   Problem& operator=(const Problem&) = delete;

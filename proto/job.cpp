@@ -9,7 +9,8 @@
 namespace springfit::proto {
 namespace {
 
-constexpr std::array<std::pair<JobState, std::string_view>, 5> kStateNames{{
+constexpr std::array<std::pair<JobState, std::string_view>, 6> kStateNames{{
+    {JobState::kPreparing, "preparing"},
     {JobState::kQueued, "queued"},
     {JobState::kRunning, "running"},
     {JobState::kSucceeded, "succeeded"},
@@ -32,6 +33,12 @@ std::string_view JobStateName(JobState state) {
     if (s == state) return name;
   }
   return "unknown";
+}
+
+std::vector<JobState> AllJobStates() {
+  std::vector<JobState> states;
+  for (const auto& [s, name] : kStateNames) states.push_back(s);
+  return states;
 }
 
 std::optional<JobState> ParseJobState(std::string_view name) {

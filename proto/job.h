@@ -4,20 +4,27 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "engine/identification/trace.h"
 #include "proto/json_reader.h"
 
 namespace springfit::proto {
 
-// queued -> running -> succeeded | failed | cancelled. A running job interrupted by a
-// shutdown or a crash is running again (from its checkpoint) after the restart.
-enum class JobState { kQueued, kRunning, kSucceeded, kFailed, kCancelled };
+// preparing -> queued -> running -> succeeded | failed | cancelled. A submission is
+// `preparing` while the daemon it was sent to solves its reference and lays out its
+// candidates (seconds for a large scene); the submission is answered when that ends, and a
+// scene found invalid then leaves no job. A running job interrupted by a shutdown or a crash
+// is running again (from its checkpoint) after the restart; a preparing one was never
+// acknowledged and is dropped.
+enum class JobState { kPreparing, kQueued, kRunning, kSucceeded, kFailed, kCancelled };
 
 std::string_view JobStateName(JobState state);
 std::optional<JobState> ParseJobState(std::string_view name);
+// Every state, in the order above (listings, filters, metrics).
+std::vector<JobState> AllJobStates();
 inline bool IsFinal(JobState s) {
-  return s != JobState::kQueued && s != JobState::kRunning;
+  return s != JobState::kPreparing && s != JobState::kQueued && s != JobState::kRunning;
 }
 
 struct JobRecord {

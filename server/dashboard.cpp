@@ -375,7 +375,8 @@ HttpResponse Dashboard::ListView(const std::map<std::string, std::string>& query
   const JobPage page = store_.ListJobs(filter);
   std::string body = "<h1>Jobs</h1>\n<form class=\"filter\" method=\"get\" action=\"/\">State ";
   body += "<select name=\"state\"><option value=\"\">any</option>";
-  for (const char* s : {"queued", "running", "succeeded", "failed", "cancelled"}) {
+  for (const JobState state : proto::AllJobStates()) {
+    const std::string_view s = proto::JobStateName(state);
     body += fmt::format("<option{}>{}</option>", state_name == s ? " selected" : "", s);
   }
   body += "</select> Label <input name=\"label\" value=\"" + XmlEscape(label) +

@@ -12,6 +12,10 @@ class ForwardingStore : public JobStore {
   Created CreateJob(const NewJob& job, int max_queued) override {
     return inner_.CreateJob(job, max_queued);
   }
+  JobState FinishPreparing(const Lease& lease, const JobRecord& prepared) override {
+    return inner_.FinishPreparing(lease, prepared);
+  }
+  void DropPreparing(const Lease& lease) override { inner_.DropPreparing(lease); }
   std::optional<JobRecord> GetJob(std::int64_t id) override { return inner_.GetJob(id); }
   std::optional<std::string> GetScene(std::int64_t id) override { return inner_.GetScene(id); }
   JobPage ListJobs(const JobFilter& filter) override { return inner_.ListJobs(filter); }

@@ -49,11 +49,47 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const Claim& claim,
   const JobRecord& job = claim.job;
   const Lease& lease = claim.lease;
   JobRecord record = job;
+  // What the daemon asks of the job now: a cancel wins over a shutdown.
+  struct Requests {
+    bool cancel = false;
+    bool shutdown = false;
+  };
+  const auto requests = [&control] {
+    Requests r;
+    const bool lost = control.lease_lost && control.lease_lost->load();
+    r.cancel = !lost && control.cancel && control.cancel->load();
+    r.shutdown = lost || (!r.cancel && control.shutdown && control.shutdown->load());
+    return r;
+  };
   try {
     if (!prepared) {
       const std::optional<std::string> scene = store.GetScene(job.id);
       if (!scene) throw std::runtime_error("the job's scene is missing from the store");
-      prepared = std::make_shared<const Problem>(proto::SceneFromText(*scene));
+      // A large scene takes a while to prepare (its reference's Newton iterations): a cancel or
+      // a shutdown stops the preparation between two of them.
+      Interruption stop(
+          [&] {
+            const Requests r = requests();
+            return r.cancel || r.shutdown;
+          },
+          0.1);
+      try {
+        prepared = std::make_shared<const Problem>(proto::SceneFromText(*scene),
+                                                   EquilibriumOptions{}, &stop);
+      } catch (const Interrupted&) {
+        if (!requests().cancel) {
+          spdlog::info(
+              "job {} interrupted by the shutdown while being prepared; it starts again "
+              "at the next start or on another daemon",
+              job.id);
+          return record;
+        }
+        record.state = JobState::kCancelled;
+        record.finished_at = UnixNow();
+        store.MarkFinished(lease, record.state, "", "", std::nullopt, record.finished_at);
+        spdlog::info("job {} cancelled while being prepared", job.id);
+        return record;
+      }
     }
     const Problem& problem = *prepared;
     const SearchOptions search_options =
@@ -89,18 +125,6 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const Claim& claim,
     double best_error = run.resume_from ? run.resume_from->best_fitness.normalized_error
                                         : std::numeric_limits<double>::infinity();
     bool interrupted = false;
-    // What the daemon asks of the job now: a cancel wins over a shutdown.
-    struct Requests {
-      bool cancel = false;
-      bool shutdown = false;
-    };
-    const auto requests = [&control] {
-      Requests r;
-      const bool lost = control.lease_lost && control.lease_lost->load();
-      r.cancel = !lost && control.cancel && control.cancel->load();
-      r.shutdown = lost || (!r.cancel && control.shutdown && control.shutdown->load());
-      return r;
-    };
     // Strategy direct reports once, finished, with nothing to checkpoint; its single row and
     // improvement are stored like a GA's, so job.trace, job.improvements and job.watch behave
     // the same.

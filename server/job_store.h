@@ -30,10 +30,15 @@ namespace springfit::server {
 using proto::JobRecord;
 using proto::JobState;
 
-// A job as submitted: its record (state queued, no progress) and its scene.
+// A job as submitted: its record (no progress) and its scene.
 struct NewJob {
   JobRecord record;
   std::string scene_json;  // the scene as submitted, with the job's seed written in
+  // Set: the job is created `preparing`, held by this daemon through a lease (as a running
+  // job is) while its submission is prepared here; FinishPreparing or DropPreparing ends
+  // that. Empty: it is created queued.
+  std::string preparing_owner;
+  double lease_seconds = 10.0;
 };
 
 // One improvement of a job's best topology.
@@ -110,16 +115,26 @@ class JobStore {
  public:
   virtual ~JobStore() = default;
 
-  // Inserts a queued job and returns it with its id and creation time. When a job with the
-  // same non-empty idempotency key exists, returns that job instead and `created` = false.
-  // When `max_queued` jobs are queued already (counted in the same transaction, so the bound
-  // holds across daemons), inserts nothing and sets `queue_full`.
+  // Inserts a queued job (or a preparing one, NewJob::preparing_owner) and returns it with
+  // its id and creation time. When a job with the same non-empty idempotency key exists,
+  // returns that job instead and `created` = false. When `max_queued` jobs are queued or
+  // preparing already (counted in the same transaction, so the bound holds across daemons),
+  // inserts nothing and sets `queue_full`.
   struct Created {
     JobRecord job;
     bool created = true;
     bool queue_full = false;
+    Lease lease;  // a preparing job's
   };
   virtual Created CreateJob(const NewJob& job, int max_queued) = 0;
+  // A preparing job's submission is prepared: it becomes queued, with the genes, strategy and
+  // generation limit its preparation found, or cancelled when a cancel was requested
+  // meanwhile. Returns the new state. Throws LeaseLost when the lease is no longer held.
+  virtual JobState FinishPreparing(const Lease& lease, const JobRecord& prepared) = 0;
+  // A preparing job whose scene was found invalid, or whose submitter went away, was never
+  // acknowledged: it is deleted (nothing happens when the lease is no longer held).
+  // Preparing jobs whose lease expired (their daemon died) are deleted by the next claim.
+  virtual void DropPreparing(const Lease& lease) = 0;
   virtual std::optional<JobRecord> GetJob(std::int64_t id) = 0;
   virtual std::optional<std::string> GetScene(std::int64_t id) = 0;
   virtual JobPage ListJobs(const JobFilter& filter) = 0;
@@ -133,12 +148,13 @@ class JobStore {
   // or a running one whose lease expired, for `owner` until `lease_seconds` from now (the
   // store's clock), or returns nothing. The job's started_at is set at its first claim.
   virtual std::optional<Claim> ClaimNext(const std::string& owner, double lease_seconds) = 0;
-  // Extends the lease when it is still held.
+  // Extends the lease (of a running or a preparing job) when it is still held.
   virtual LeaseStatus RenewLease(const Lease& lease, double lease_seconds) = 0;
   // Lets another daemon claim the job at once (a daemon stopping with the job unfinished).
   virtual void ReleaseLease(const Lease& lease) = 0;
 
-  // Fenced writes: each throws LeaseLost when `lease` is no longer the job's.
+  // Fenced writes: each throws LeaseLost when `lease` is no longer the job's. MarkFinished
+  // also ends a preparing job (cancelled while being prepared).
   virtual void SaveProgress(const Lease& lease, const ProgressBatch& batch) = 0;
   // Final state, its error (failed) and result JSON (succeeded or cancelled; may be empty).
   virtual void MarkFinished(const Lease& lease, JobState state, const std::string& error,
@@ -148,9 +164,9 @@ class JobStore {
   // improvements recorded after that generation, which the job is about to produce again.
   virtual void RewindTo(const Lease& lease, int generation) = 0;
 
-  // job.cancel from any daemon: a queued job is cancelled at once (kCancelled); a running one
-  // gets the request, which its daemon's heartbeat reads (kRequested); a finished or missing
-  // one is left alone (kNotActive).
+  // job.cancel from any daemon: a queued job is cancelled at once (kCancelled); a running or
+  // preparing one gets the request, which its daemon's heartbeat reads (kRequested); a
+  // finished or missing one is left alone (kNotActive).
   enum class CancelOutcome { kCancelled, kRequested, kNotActive };
   virtual CancelOutcome RequestCancel(std::int64_t id) = 0;
 

@@ -16,6 +16,12 @@ class MeteredStore final : public ForwardingStore {
   Created CreateJob(const NewJob& job, int max_queued) override {
     return Timed("create", [&] { return inner_.CreateJob(job, max_queued); });
   }
+  JobState FinishPreparing(const Lease& lease, const JobRecord& prepared) override {
+    return Timed("prepared", [&] { return inner_.FinishPreparing(lease, prepared); });
+  }
+  void DropPreparing(const Lease& lease) override {
+    Timed("drop", [&] { inner_.DropPreparing(lease); });
+  }
   std::optional<Claim> ClaimNext(const std::string& owner, double lease_seconds) override {
     return Timed("claim", [&] { return inner_.ClaimNext(owner, lease_seconds); });
   }

@@ -68,9 +68,7 @@ std::string Metrics::Render(const Gauges& g) {
   if (g.jobs) {
     header("springfit_jobs", "gauge",
            "Jobs in the store by state (all daemons of a shared store).");
-    for (const proto::JobState s :
-         {proto::JobState::kQueued, proto::JobState::kRunning, proto::JobState::kSucceeded,
-          proto::JobState::kFailed, proto::JobState::kCancelled}) {
+    for (const proto::JobState s : proto::AllJobStates()) {
       const auto it = g.jobs->find(s);
       out += fmt::format("springfit_jobs{{state=\"{}\"}} {}\n", proto::JobStateName(s),
                          it == g.jobs->end() ? 0 : it->second);

@@ -100,17 +100,29 @@ constexpr int kJobColumnCount = 17;
 // The fence of every write of a running job: locks its row, so that no claim takes it
 // before the write's transaction ends, and fails unless the lease is still the job's.
 constexpr const char* kFence =
-    "SELECT 1 FROM jobs WHERE id = $1 AND state = 'running' AND lease_owner = $2 AND "
-    "lease_epoch = $3 FOR UPDATE";
+    "SELECT 1 FROM jobs WHERE id = $1 AND state IN ('running', 'preparing') AND lease_owner = "
+    "$2 AND lease_epoch = $3 FOR UPDATE";
 
 // Every statement, prepared on each connection when it opens.
 const std::pair<const char*, const char*> kStatements[] = {
     {"find_key", "SELECT " SF_JOB_COLUMNS " FROM jobs WHERE idempotency_key = $1"},
     {"count_queued", "SELECT count(*) FROM jobs WHERE state = 'queued'"},
+    {"count_waiting", "SELECT count(*) FROM jobs WHERE state IN ('queued', 'preparing')"},
     {"insert_job",
      "INSERT INTO jobs (label, priority, seed, idempotency_key, state, scene_name, genes, "
-     "strategy, max_generations, created_at, scene) VALUES ($1, $2, $3, NULLIF($4, ''), "
-     "'queued', $5, $6, $7, $8, $9, $10) RETURNING id"},
+     "strategy, max_generations, created_at, scene, lease_owner, lease_epoch, lease_expires) "
+     "VALUES ($1, $2, $3, NULLIF($4, ''), CASE WHEN $11 = '' THEN 'queued' ELSE 'preparing' END, "
+     "$5, $6, $7, $8, $9, $10, NULLIF($11, ''), CASE WHEN $11 = '' THEN 0 ELSE 1 END, CASE WHEN "
+     "$11 = '' THEN 0 ELSE " SF_NOW " + $12 END) RETURNING id"},
+    {"finish_preparing",
+     "UPDATE jobs SET state = CASE WHEN cancel_requested THEN 'cancelled' ELSE 'queued' END, "
+     "finished_at = CASE WHEN cancel_requested THEN " SF_NOW " ELSE 0 END, genes = $4, strategy "
+     "= $5, max_generations = $6, lease_owner = NULL, lease_expires = 0 WHERE id = $1 AND state "
+     "= 'preparing' AND lease_owner = $2 AND lease_epoch = $3 RETURNING state"},
+    {"drop_preparing",
+     "DELETE FROM jobs WHERE id = $1 AND state = 'preparing' AND lease_owner = $2 AND "
+     "lease_epoch = $3"},
+    {"sweep_preparing", "DELETE FROM jobs WHERE state = 'preparing' AND lease_expires < " SF_NOW},
     {"get_job", "SELECT " SF_JOB_COLUMNS " FROM jobs WHERE id = $1"},
     {"get_scene", "SELECT scene FROM jobs WHERE id = $1"},
     {"unfinished", "SELECT " SF_JOB_COLUMNS
@@ -123,8 +135,8 @@ const std::pair<const char*, const char*> kStatements[] = {
      ") ORDER BY priority DESC, id LIMIT 1 FOR UPDATE SKIP LOCKED) RETURNING " SF_JOB_COLUMNS
      ", lease_epoch, cancel_requested"},
     {"renew", "UPDATE jobs SET lease_expires = " SF_NOW
-              " + $4 WHERE id = $1 AND state = 'running' AND lease_owner = $2 AND lease_epoch = $3 "
-              "RETURNING cancel_requested"},
+              " + $4 WHERE id = $1 AND state IN ('running', 'preparing') AND lease_owner = $2 AND "
+              "lease_epoch = $3 RETURNING cancel_requested"},
     {"release",
      "UPDATE jobs SET lease_expires = 0 WHERE id = $1 AND state = 'running' AND lease_owner = "
      "$2 AND lease_epoch = $3"},
@@ -159,7 +171,8 @@ const std::pair<const char*, const char*> kStatements[] = {
     {"cancel_queued", "UPDATE jobs SET state = 'cancelled', finished_at = " SF_NOW
                       " WHERE id = $1 AND state = 'queued'"},
     {"cancel_running",
-     "UPDATE jobs SET cancel_requested = TRUE WHERE id = $1 AND state = 'running'"},
+     "UPDATE jobs SET cancel_requested = TRUE WHERE id = $1 AND state IN ('running', "
+     "'preparing')"},
     {"get_result", "SELECT result FROM jobs WHERE id = $1"},
     {"get_trace",
      "SELECT generation, wall_seconds, evaluations, cache_hits, best_cost, "
@@ -402,18 +415,48 @@ JobStore::Created PostgresStore::CreateJob(const NewJob& job, int max_queued) {
     const JobRecord& r = job.record;
     if (!r.idempotency_key.empty()) {
       const pqxx::result found = w.exec_prepared("find_key", r.idempotency_key);
-      if (!found.empty()) return {ReadJob(found[0]), false, false};
+      if (!found.empty()) return {ReadJob(found[0]), false, false, {}};
     }
-    if (w.exec_prepared("count_queued")[0][0].as<int>() >= max_queued) return {r, false, true};
-    const pqxx::result inserted = w.exec_prepared(
-        "insert_job", r.label, r.priority, std::bit_cast<std::int64_t>(r.seed), r.idempotency_key,
-        r.scene_name, r.genes, r.strategy, r.max_generations, r.created_at, job.scene_json);
-    w.exec_prepared("notify", kChannel, "queued");
+    if (w.exec_prepared("count_waiting")[0][0].as<int>() >= max_queued) return {r, false, true, {}};
+    const bool preparing = !job.preparing_owner.empty();
+    const pqxx::result inserted =
+        w.exec_prepared("insert_job", r.label, r.priority, std::bit_cast<std::int64_t>(r.seed),
+                        r.idempotency_key, r.scene_name, r.genes, r.strategy, r.max_generations,
+                        r.created_at, job.scene_json, job.preparing_owner, job.lease_seconds);
+    // (A preparing job is announced when it is queued: no daemon can claim it before.)
+    if (!preparing) w.exec_prepared("notify", kChannel, "queued");
     w.commit();
-    JobRecord created = r;
-    created.id = inserted[0][0].as<std::int64_t>();
-    created.state = JobState::kQueued;
-    return {created, true, false};
+    Created created{r, true, false, {}};
+    created.job.id = inserted[0][0].as<std::int64_t>();
+    created.job.state = preparing ? JobState::kPreparing : JobState::kQueued;
+    if (preparing) created.lease = {created.job.id, job.preparing_owner, 1};
+    return created;
+  });
+}
+
+JobState PostgresStore::FinishPreparing(const Lease& lease, const JobRecord& prepared) {
+  return Write([&](pqxx::connection& c) {
+    pqxx::work w(c);
+    const pqxx::result r =
+        w.exec_prepared("finish_preparing", lease.job_id, lease.owner, lease.epoch, prepared.genes,
+                        prepared.strategy, prepared.max_generations);
+    if (r.empty()) {
+      throw LeaseLost("job " + std::to_string(lease.job_id) +
+                      ": no longer being prepared here (its lease expired)");
+    }
+    const JobState state =
+        proto::ParseJobState(r[0][0].as<std::string>()).value_or(JobState::kQueued);
+    w.exec_prepared("notify", kChannel, state == JobState::kQueued ? "queued" : "finished");
+    w.commit();
+    return state;
+  });
+}
+
+void PostgresStore::DropPreparing(const Lease& lease) {
+  Write([&](pqxx::connection& c) {
+    pqxx::work w(c);
+    w.exec_prepared("drop_preparing", lease.job_id, lease.owner, lease.epoch);
+    w.commit();
   });
 }
 
@@ -500,6 +543,8 @@ std::map<JobState, int> PostgresStore::CountJobs() {
 std::optional<Claim> PostgresStore::ClaimNext(const std::string& owner, double lease_seconds) {
   return Write([&](pqxx::connection& c) -> std::optional<Claim> {
     pqxx::work w(c);
+    // Submissions whose daemon stopped renewing them while they were prepared: never answered.
+    w.exec_prepared("sweep_preparing");
     const pqxx::result r = w.exec_prepared("claim", owner, lease_seconds);
     w.commit();
     if (r.empty()) return std::nullopt;

@@ -36,6 +36,8 @@ class PostgresStore final : public JobStore {
   ~PostgresStore() override;
 
   Created CreateJob(const NewJob& job, int max_queued) override;
+  JobState FinishPreparing(const Lease& lease, const JobRecord& prepared) override;
+  void DropPreparing(const Lease& lease) override;
   std::optional<JobRecord> GetJob(std::int64_t id) override;
   std::optional<std::string> GetScene(std::int64_t id) override;
   JobPage ListJobs(const JobFilter& filter) override;

@@ -3,6 +3,7 @@
 #include "server/version.h"
 
 #include <algorithm>
+#include <chrono>
 #include <limits>
 #include <memory>
 
@@ -10,7 +11,9 @@
 
 #include "engine/candidates.h"
 #include "engine/input_error.h"
+#include "engine/interruption.h"
 #include "engine/problem.h"
+#include "engine/scene_validation.h"
 #include "engine/search/search_options.h"
 #include "proto/names.h"
 #include "proto/rpc.h"
@@ -52,6 +55,23 @@ int ReadPageLimit(const Json& params, int default_limit, int max) {
     throw InputError(ParamPath("limit"), "must be in [1, " + std::to_string(max) + "]");
   }
   return limit;
+}
+
+// job.preparing notifications to a submitter while its scene is prepared, this often.
+constexpr int kPreparingNoticeSeconds = 5;
+
+rpc::RpcError InvalidScene(const InputError& e) {
+  Json data;
+  data["path"] = e.path();
+  return rpc::RpcError(rpc::kInvalidScene, std::string("invalid scene: ") + e.what(), data);
+}
+
+// A preparing job's lease lapsed (the store did not answer the heartbeats in time) and the
+// job was swept: nothing of the submission remains.
+rpc::RpcError RecordLost() {
+  return rpc::RpcError(rpc::kStoreUnavailable,
+                       "store unavailable: the submission's record was lost while its scene was "
+                       "prepared (its lease could not be renewed); nothing was queued");
 }
 
 [[noreturn]] void LimitExceeded(const std::string& what, std::int64_t value, std::int64_t max) {
@@ -216,25 +236,21 @@ Json RpcService::Dispatch(const std::string& method, const Json& params, Session
   if (method == "session.auth") return SessionAuth(params, session);
   using Handler = Json (RpcService::*)(const Json&);
   static const std::pair<const char*, Handler> kJobMethods[] = {
-      {"job.submit", &RpcService::JobSubmit},
-      {"job.get", &RpcService::JobGet},
-      {"job.result", &RpcService::JobResult},
-      {"job.trace", &RpcService::JobTrace},
-      {"job.list", &RpcService::JobList},
-      {"job.cancel", &RpcService::JobCancel},
-      {"job.delete", &RpcService::JobDelete},
-      {"job.scene", &RpcService::JobScene},
-      {"job.improvements", &RpcService::JobImprovements},
+      {"job.get", &RpcService::JobGet},       {"job.result", &RpcService::JobResult},
+      {"job.trace", &RpcService::JobTrace},   {"job.list", &RpcService::JobList},
+      {"job.cancel", &RpcService::JobCancel}, {"job.delete", &RpcService::JobDelete},
+      {"job.scene", &RpcService::JobScene},   {"job.improvements", &RpcService::JobImprovements},
   };
-  const bool known =
-      method == "job.watch" || std::any_of(std::begin(kJobMethods), std::end(kJobMethods),
-                                           [&](const auto& m) { return method == m.first; });
+  const bool known = method == "job.watch" || method == "job.submit" ||
+                     std::any_of(std::begin(kJobMethods), std::end(kJobMethods),
+                                 [&](const auto& m) { return method == m.first; });
   if (!known) throw rpc::RpcError(rpc::kMethodNotFound, "method not found: " + method);
   if (!options_.token.empty() && !session.authenticated) {
     throw rpc::RpcError(rpc::kUnauthorized,
                         "unauthorized: call session.auth with the server's token first");
   }
   if (method == "job.watch") return JobWatch(params, session);
+  if (method == "job.submit") return JobSubmit(params, session);
   for (const auto& [name, handler] : kJobMethods) {
     if (method == name) return (this->*handler)(params);
   }
@@ -303,7 +319,7 @@ Json RpcService::SessionAuth(const Json& params, SessionContext& session) {
   return j;
 }
 
-Json RpcService::JobSubmit(const Json& params) {
+Json RpcService::JobSubmit(const Json& params, SessionContext& session) {
   proto::ExpectKeys(params, "params", {"scene", "label", "priority", "seed", "idempotency_key"});
   if (stopping()) throw rpc::RpcError(rpc::kBusy, "busy: the server is shutting down");
   NewJob job;
@@ -337,11 +353,11 @@ Json RpcService::JobSubmit(const Json& params) {
         data);
   }
 
-  // The scene is validated in full here, so that a bad one is refused at the door rather
-  // than failing later as a job.
-  std::shared_ptr<const Problem> problem;
+  // At the door, in time linear in the scene's size: its structure (ValidateScene) and every
+  // bound known before it is prepared. A scene refused here leaves no job.
+  Scene scene;
   try {
-    Scene scene = proto::SceneFromJson(scene_json);
+    scene = proto::SceneFromJson(scene_json);
     if (scene.node_count() > options_.limits.max_nodes) {
       LimitExceeded("max_nodes", scene.node_count(), options_.limits.max_nodes);
     }
@@ -357,31 +373,21 @@ Json RpcService::JobSubmit(const Json& params) {
     if (candidates > options_.limits.max_candidates) {
       LimitExceeded("max_candidates", candidates, options_.limits.max_candidates);
     }
-    if (seed) scene.search.seed = *seed;
-    problem = std::make_shared<const Problem>(std::move(scene));
+    ValidateScene(scene);
   } catch (const InputError& e) {
-    Json data;
-    data["path"] = e.path();
-    throw rpc::RpcError(rpc::kInvalidScene, std::string("invalid scene: ") + e.what(), data);
+    throw InvalidScene(e);
   }
-  if (problem->gene_count() > options_.limits.max_genes) {
-    LimitExceeded("max_genes", problem->gene_count(), options_.limits.max_genes);
-  }
-  const Scene& scene = problem->scene();
-  const SearchOptions options = ResolveSearchOptions(scene.search, problem->gene_count());
-  // Before the job is stored: the search would hold population x genes bytes per generation.
-  const std::int64_t population_genes =
-      static_cast<std::int64_t>(options.population) * problem->gene_count();
-  if (population_genes > options_.limits.max_population_genes) {
-    LimitExceeded("max_population_genes", population_genes, options_.limits.max_population_genes);
-  }
+  if (seed) scene.search.seed = *seed;
   r.seed = scene.search.seed;
   r.scene_name = scene.name;
-  r.genes = problem->gene_count();
   r.strategy = proto::StrategyName(scene.search.strategy);
-  r.max_generations = options.max_generations;
+  r.max_generations = scene.search.max_generations;
   r.created_at = UnixNow();
   job.scene_json = proto::SceneToJson(scene).dump();
+  // The job exists from here, `preparing`: listed, and cancellable through any daemon, while
+  // its reference is solved (seconds to minutes for a large scene).
+  job.preparing_owner = scheduler_.owner();
+  job.lease_seconds = scheduler_.lease_seconds();
   const JobStore::Created created = store_.CreateJob(job, options_.limits.max_queued);
   if (created.queue_full) {
     throw rpc::RpcError(rpc::kBusy, "busy: " + std::to_string(options_.limits.max_queued) +
@@ -407,16 +413,122 @@ Json RpcService::JobSubmit(const Json& params) {
                               " (a key names one submission; use a new key for a new one)",
                           data);
     }
+    Json j;
+    j["created"] = false;
+    j["job"] = proto::JobToJson(created.job);
+    return j;
   }
-  if (created.created) {
-    spdlog::info("job {} queued ({}, label '{}', priority {}, seed {})", created.job.id,
-                 r.scene_name, r.label, r.priority, r.seed);
-    scheduler_.JobSubmitted(created.job.id, std::move(problem));
-  }
+  const JobRecord prepared = Prepare(created, std::move(scene), session);
   Json j;
-  j["created"] = created.created;
-  j["job"] = proto::JobToJson(created.job);
+  j["created"] = true;
+  j["job"] = proto::JobToJson(prepared);
   return j;
+}
+
+JobRecord RpcService::Prepare(const JobStore::Created& created, Scene scene,
+                              const SessionContext& session) {
+  const Lease& lease = created.lease;
+  const std::int64_t id = lease.job_id;
+  JobRecord r = created.job;
+  const auto control = scheduler_.PreparationStarted(lease);
+  // Whatever ends the preparation, the job leaves it: queued or cancelled, or else dropped
+  // (never acknowledged: the submitter gets an error, or has gone).
+  std::optional<JobRecord> outcome;
+  struct Ending {
+    RpcService& service;
+    const Lease& lease;
+    std::optional<JobRecord>& outcome;
+    ~Ending() {
+      if (!outcome) {
+        try {
+          service.store_.DropPreparing(lease);
+        } catch (const std::exception& e) {
+          // The next claim deletes it once its lease, no longer renewed, expires.
+          spdlog::warn("job {}: cannot drop the refused submission now ({})", lease.job_id,
+                       e.what());
+        }
+      }
+      service.scheduler_.PreparationEnded(lease.job_id, outcome);
+    }
+  } ending{*this, lease, outcome};
+
+  // A submitter whose scene takes a while learns the job's id, and that the daemon is at
+  // work: job.preparing after a second, then about every kPreparingNoticeSeconds (a client's
+  // answer timeout can count from the last one, however long the preparation). Most scenes
+  // are prepared before the first: their submitters see the answer alone.
+  const auto started = std::chrono::steady_clock::now();
+  auto next_notice = started + std::chrono::seconds(1);
+  const auto notice = [&] {
+    const auto now = std::chrono::steady_clock::now();
+    if (!session.notify_now || now < next_notice) return;
+    next_notice = now + std::chrono::seconds(kPreparingNoticeSeconds);
+    Json params;
+    params["job_id"] = id;
+    params["seconds"] = std::chrono::duration<double>(now - started).count();
+    session.notify_now(rpc::Notification("job.preparing", params));
+  };
+  const std::shared_ptr<const std::atomic<bool>> peer_gone = session.peer_gone;
+  Interruption interruption(
+      [&] {
+        notice();
+        return control->cancel.load() || control->lease_lost.load() || stopping() ||
+               (peer_gone && peer_gone->load());
+      },
+      0.1);
+  std::shared_ptr<const Problem> problem;
+  try {
+    problem =
+        std::make_shared<const Problem>(std::move(scene), EquilibriumOptions{}, &interruption);
+  } catch (const InputError& e) {
+    throw InvalidScene(e);
+  } catch (const Interrupted&) {
+    if (control->cancel.load() && !control->lease_lost.load()) {
+      r.state = JobState::kCancelled;
+      r.finished_at = UnixNow();
+      try {
+        store_.MarkFinished(lease, r.state, "", "", std::nullopt, r.finished_at);
+      } catch (const LeaseLost&) {
+        throw RecordLost();
+      }
+      spdlog::info("job {} cancelled while being prepared ({})", id, r.scene_name);
+      outcome = r;
+      return r;
+    }
+    if (control->lease_lost.load()) throw RecordLost();
+    if (stopping()) throw rpc::RpcError(rpc::kBusy, "busy: the server is shutting down");
+    spdlog::info("job {}: its submitter went away while it was prepared; dropped", id);
+    throw rpc::RpcError(rpc::kBusy, "busy: the connection closed");
+  }
+  if (problem->gene_count() > options_.limits.max_genes) {
+    LimitExceeded("max_genes", problem->gene_count(), options_.limits.max_genes);
+  }
+  const SearchOptions options =
+      ResolveSearchOptions(problem->scene().search, problem->gene_count());
+  // Before the job is queued: the search would hold population x genes bytes per generation.
+  const std::int64_t population_genes =
+      static_cast<std::int64_t>(options.population) * problem->gene_count();
+  if (population_genes > options_.limits.max_population_genes) {
+    LimitExceeded("max_population_genes", population_genes, options_.limits.max_population_genes);
+  }
+  r.genes = problem->gene_count();
+  r.max_generations = options.max_generations;
+  try {
+    r.state = store_.FinishPreparing(lease, r);
+  } catch (const LeaseLost&) {
+    throw RecordLost();
+  }
+  outcome = r;
+  if (r.state == JobState::kCancelled) {
+    // (A cancel reached the store after the last heartbeat: it wins.)
+    r.finished_at = UnixNow();
+    outcome = r;
+    spdlog::info("job {} cancelled while being prepared ({})", id, r.scene_name);
+    return r;
+  }
+  spdlog::info("job {} queued ({}, label '{}', priority {}, seed {})", id, r.scene_name, r.label,
+               r.priority, r.seed);
+  scheduler_.JobSubmitted(id, std::move(problem));
+  return r;
 }
 
 JobRecord RpcService::RequireJob(const Json& params) {

@@ -51,6 +51,9 @@ struct SessionContext {
   // Sends a notification on this connection after any response being written (posts; must
   // not block). Unset: notifications are dropped.
   std::function<void(const proto::Json&)> notify;
+  // The same, sent at once, before the answer being prepared (a request's own progress:
+  // job.preparing). Unset: dropped.
+  std::function<void(const proto::Json&)> notify_now;
   std::vector<std::uint64_t> watches;
   // Per watch (same order): set once its job.finished was sent. Finished watches are dropped
   // at the next job.watch, so max_watches bounds the open ones only.
@@ -64,6 +67,9 @@ struct SessionContext {
   // Wrong tokens presented on this connection: the first is logged, the kMaxWrongTokens-th
   // closes it (a guesser must reconnect, within --max-connections).
   int wrong_tokens = 0;
+  // Set by the connection when it closes: a submission still being prepared for it stops,
+  // and its job is dropped (it was never acknowledged).
+  std::shared_ptr<std::atomic<bool>> peer_gone = std::make_shared<std::atomic<bool>>(false);
   bool close = false;  // set by the service: close after this answer
 };
 
@@ -103,7 +109,11 @@ class RpcService {
 
   proto::Json ServerInfo();
   proto::Json SessionAuth(const proto::Json& params, SessionContext& session);
-  proto::Json JobSubmit(const proto::Json& params);
+  proto::Json JobSubmit(const proto::Json& params, SessionContext& session);
+  // Prepares a job just created `preparing` (its reference solved, its candidates laid out):
+  // queues it, or returns it cancelled (a cancel came meanwhile), or drops it and throws the
+  // error its submitter gets (an invalid scene, a bound, a shutdown, a lost connection).
+  JobRecord Prepare(const JobStore::Created& created, Scene scene, const SessionContext& session);
   proto::Json JobGet(const proto::Json& params);
   proto::Json JobResult(const proto::Json& params);
   proto::Json JobTrace(const proto::Json& params);

@@ -109,14 +109,33 @@ void Scheduler::JobSubmitted(std::int64_t id, std::shared_ptr<const Problem> pre
   Wake();
 }
 
+std::shared_ptr<const Scheduler::Preparation> Scheduler::PreparationStarted(const Lease& lease) {
+  auto preparation = std::make_shared<Preparation>();
+  std::lock_guard lock(mutex_);
+  preparing_[lease.job_id] = {lease, preparation};
+  return preparation;
+}
+
+void Scheduler::PreparationEnded(std::int64_t id, const std::optional<JobRecord>& job) {
+  {
+    std::lock_guard lock(mutex_);
+    preparing_.erase(id);
+  }
+  if (job && proto::IsFinal(job->state)) PublishFinished(id, *job);
+}
+
 Scheduler::CancelOutcome Scheduler::Cancel(std::int64_t id) {
   bool here = false;
   {
-    // A job running here stops at once; the request is written all the same, so that it
-    // survives a crash of this daemon before the job ends.
+    // A job running (or being prepared) here stops at once; the request is written all the
+    // same, so that it survives a crash of this daemon before the job ends.
     std::lock_guard lock(mutex_);
     if (const auto r = running_.find(id); r != running_.end()) {
       r->second->cancel.store(true);
+      here = true;
+    }
+    if (const auto p = preparing_.find(id); p != preparing_.end()) {
+      p->second.second->cancel.store(true);
       here = true;
     }
   }
@@ -360,6 +379,21 @@ void Scheduler::Heartbeat() {
         spdlog::warn("job {}: lease lost to another daemon; stopping it here", lease.job_id);
       }
       if (status.cancel_requested) running->cancel.store(true);
+    } catch (const std::exception& e) {
+      store_errors.Report("job " + std::to_string(lease.job_id) + ": cannot renew its lease", e);
+    }
+  }
+  // Submissions being prepared here: their slots are shared with the preparing threads.
+  std::vector<std::pair<Lease, std::shared_ptr<Preparation>>> preparing;
+  {
+    std::lock_guard lock(mutex_);
+    for (const auto& [id, entry] : preparing_) preparing.push_back(entry);
+  }
+  for (const auto& [lease, preparation] : preparing) {
+    try {
+      const LeaseStatus status = store_.RenewLease(lease, options_.lease_seconds);
+      if (!status.held) preparation->lease_lost.store(true);
+      if (status.cancel_requested) preparation->cancel.store(true);
     } catch (const std::exception& e) {
       store_errors.Report("job " + std::to_string(lease.job_id) + ": cannot renew its lease", e);
     }

@@ -85,6 +85,21 @@ class Scheduler {
   // caller has it and this daemon claims the job) and wakes an idle runner.
   void JobSubmitted(std::int64_t id, std::shared_ptr<const Problem> prepared = nullptr);
 
+  // A submission being prepared here (a job in state preparing, server/job_store.h): the
+  // heartbeat renews its lease with the running jobs', and a cancel requested through any
+  // daemon, or the lease lost, sets its flags; the preparation polls them. End it with
+  // PreparationEnded, whatever the outcome.
+  struct Preparation {
+    std::atomic<bool> cancel{false};
+    std::atomic<bool> lease_lost{false};
+  };
+  std::shared_ptr<const Preparation> PreparationStarted(const Lease& lease);
+  // `job`: the job as its preparation left it (queued, or cancelled: watchers are told), or
+  // nothing when it was dropped.
+  void PreparationEnded(std::int64_t id, const std::optional<JobRecord>& job);
+
+  double lease_seconds() const { return options_.lease_seconds; }
+
   enum class CancelOutcome { kCancelled, kCancelling, kNotActive };
   // A queued job is cancelled at once; a running one (here or on another daemon) after its
   // current generation, or within a heartbeat and a second.
@@ -135,6 +150,7 @@ class Scheduler {
   std::uint64_t wake_count_ = 0;  // bumped by Wake(): a runner that saw it change looks again
   std::map<std::int64_t, std::shared_ptr<const Problem>> prepared_;  // of jobs submitted here
   std::map<std::int64_t, std::unique_ptr<Running>> running_;
+  std::map<std::int64_t, std::pair<Lease, std::shared_ptr<Preparation>>> preparing_;
   std::atomic<bool> stopping_{false};
   int runners_alive_ = 0;
   std::condition_variable runners_done_;

@@ -139,12 +139,21 @@ void BindBlob(SQLite::Statement& q, int index, const std::string& bytes) {
   q.bind(index, bytes.data(), static_cast<int>(bytes.size()));
 }
 
+// Runs `sql`, whose three parameters are the lease's job, owner and epoch.
+void ExecOnLease(SQLite::Database& db, const char* sql, const Lease& lease) {
+  SQLite::Statement q(db, sql);
+  q.bind(1, lease.job_id);
+  q.bind(2, lease.owner);
+  q.bind(3, lease.epoch);
+  q.exec();
+}
+
 // Throws LeaseLost unless `lease` is the running job's current one. Inside the transaction
 // of the write it fences: SQLite runs one transaction at a time, so nothing claims between.
 void CheckLease(SQLite::Database& db, const Lease& lease) {
   SQLite::Statement q(db,
-                      "SELECT 1 FROM jobs WHERE id = ? AND state = 'running' AND lease_owner = ? "
-                      "AND lease_epoch = ?");
+                      "SELECT 1 FROM jobs WHERE id = ? AND state IN ('running', 'preparing') AND "
+                      "lease_owner = ? AND lease_epoch = ?");
   q.bind(1, lease.job_id);
   q.bind(2, lease.owner);
   q.bind(3, lease.epoch);
@@ -199,6 +208,8 @@ SqliteStore::SqliteStore(const std::string& path) : path_(path) {
     // The lock says no other daemon runs: the leases of running jobs are a dead daemon's
     // (this one's before a crash or a stop), and its jobs resume at once.
     db_->exec("UPDATE jobs SET lease_expires = 0 WHERE state = 'running'");
+    // Its submissions being prepared were never answered: no client holds their ids.
+    db_->exec("DELETE FROM jobs WHERE state = 'preparing'");
     for (int i = 0; i < kReaders; ++i) readers_.push_back(std::make_unique<Reader>());
   } catch (const SQLite::Exception& e) {
     ::close(lock_fd_);
@@ -336,15 +347,19 @@ JobStore::Created SqliteStore::CreateJob(const NewJob& job, int max_queued) {
       SQLite::Statement q(
           db, std::string("SELECT ") + kJobColumns + " FROM jobs WHERE idempotency_key = ?");
       q.bind(1, r.idempotency_key);
-      if (q.executeStep()) return {ReadJob(q), false, false};
+      if (q.executeStep()) return {ReadJob(q), false, false, {}};
     }
-    if (db.execAndGet("SELECT count(*) FROM jobs WHERE state = 'queued'").getInt() >= max_queued) {
-      return {r, false, true};
+    if (db.execAndGet("SELECT count(*) FROM jobs WHERE state IN ('queued', 'preparing')")
+            .getInt() >= max_queued) {
+      return {r, false, true, {}};
     }
+    const bool preparing = !job.preparing_owner.empty();
+    const JobState state = preparing ? JobState::kPreparing : JobState::kQueued;
     SQLite::Statement insert(
         db,
         "INSERT INTO jobs (label, priority, seed, idempotency_key, state, scene_name, genes, "
-        "strategy, max_generations, created_at, scene) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+        "strategy, max_generations, created_at, scene, lease_owner, lease_epoch, lease_expires) "
+        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
     insert.bind(1, r.label);
     insert.bind(2, r.priority);
     insert.bind(3, std::bit_cast<std::int64_t>(r.seed));
@@ -353,19 +368,59 @@ JobStore::Created SqliteStore::CreateJob(const NewJob& job, int max_queued) {
     } else {
       insert.bind(4, r.idempotency_key);
     }
-    insert.bind(5, std::string(proto::JobStateName(JobState::kQueued)));
+    insert.bind(5, std::string(proto::JobStateName(state)));
     insert.bind(6, r.scene_name);
     insert.bind(7, r.genes);
     insert.bind(8, r.strategy);
     insert.bind(9, r.max_generations);
     insert.bind(10, r.created_at);
     insert.bind(11, job.scene_json);
+    if (preparing) {
+      insert.bind(12, job.preparing_owner);
+    } else {
+      insert.bind(12);
+    }
+    insert.bind(13, preparing ? 1 : 0);
+    insert.bind(14, preparing ? UnixNow() + job.lease_seconds : 0.0);
     insert.exec();
-    JobRecord created = r;
-    created.id = db.getLastInsertRowid();
-    created.state = JobState::kQueued;
+    Created created{r, true, false, {}};
+    created.job.id = db.getLastInsertRowid();
+    created.job.state = state;
+    if (preparing) created.lease = {created.job.id, job.preparing_owner, 1};
     tx.commit();
-    return {created, true, false};
+    return created;
+  });
+}
+
+JobState SqliteStore::FinishPreparing(const Lease& lease, const JobRecord& prepared) {
+  return Run([&](SQLite::Database& db) {
+    SQLite::Statement q(
+        db,
+        "UPDATE jobs SET state = CASE WHEN cancel_requested THEN 'cancelled' ELSE 'queued' END, "
+        "finished_at = CASE WHEN cancel_requested THEN ? ELSE 0 END, genes = ?, strategy = ?, "
+        "max_generations = ?, lease_owner = NULL, lease_expires = 0 WHERE id = ? AND state = "
+        "'preparing' AND lease_owner = ? AND lease_epoch = ? RETURNING state");
+    q.bind(1, UnixNow());
+    q.bind(2, prepared.genes);
+    q.bind(3, prepared.strategy);
+    q.bind(4, prepared.max_generations);
+    q.bind(5, lease.job_id);
+    q.bind(6, lease.owner);
+    q.bind(7, lease.epoch);
+    if (!q.executeStep()) {
+      throw LeaseLost("job " + std::to_string(lease.job_id) +
+                      ": no longer being prepared here (its lease expired)");
+    }
+    return proto::ParseJobState(q.getColumn(0).getString()).value_or(JobState::kQueued);
+  });
+}
+
+void SqliteStore::DropPreparing(const Lease& lease) {
+  Run([&](SQLite::Database& db) {
+    ExecOnLease(db,
+                "DELETE FROM jobs WHERE id = ? AND state = 'preparing' AND lease_owner = ? AND "
+                "lease_epoch = ?",
+                lease);
   });
 }
 
@@ -445,6 +500,10 @@ std::optional<Claim> SqliteStore::ClaimNext(const std::string& owner, double lea
   return Run([&](SQLite::Database& db) -> std::optional<Claim> {
     SQLite::Transaction tx(db, SQLite::TransactionBehavior::IMMEDIATE);
     const double now = UnixNow();
+    // Submissions whose daemon stopped renewing them while they were prepared: never answered.
+    SQLite::Statement sweep(db, "DELETE FROM jobs WHERE state = 'preparing' AND lease_expires < ?");
+    sweep.bind(1, now);
+    sweep.exec();
     SQLite::Statement pick(db,
                            // In claim order from the partial index: the first match ends the scan
                            // (the planner, left alone, sorts every queued job at each claim).
@@ -452,7 +511,11 @@ std::optional<Claim> SqliteStore::ClaimNext(const std::string& owner, double lea
                            "'running') AND (state = 'queued' OR lease_expires < ?) ORDER BY "
                            "priority DESC, id LIMIT 1");
     pick.bind(1, now);
-    if (!pick.executeStep()) return std::nullopt;
+    if (!pick.executeStep()) {
+      pick.reset();
+      tx.commit();  // (the sweep)
+      return std::nullopt;
+    }
     const std::int64_t id = pick.getColumn(0).getInt64();
     pick.reset();
     SQLite::Statement take(
@@ -482,8 +545,9 @@ std::optional<Claim> SqliteStore::ClaimNext(const std::string& owner, double lea
 LeaseStatus SqliteStore::RenewLease(const Lease& lease, double lease_seconds) {
   return Run([&](SQLite::Database& db) {
     SQLite::Statement q(db,
-                        "UPDATE jobs SET lease_expires = ? WHERE id = ? AND state = 'running' AND "
-                        "lease_owner = ? AND lease_epoch = ? RETURNING cancel_requested");
+                        "UPDATE jobs SET lease_expires = ? WHERE id = ? AND state IN ('running', "
+                        "'preparing') AND lease_owner = ? AND lease_epoch = ? RETURNING "
+                        "cancel_requested");
     q.bind(1, UnixNow() + lease_seconds);
     q.bind(2, lease.job_id);
     q.bind(3, lease.owner);
@@ -499,13 +563,10 @@ LeaseStatus SqliteStore::RenewLease(const Lease& lease, double lease_seconds) {
 
 void SqliteStore::ReleaseLease(const Lease& lease) {
   Run([&](SQLite::Database& db) {
-    SQLite::Statement q(db,
-                        "UPDATE jobs SET lease_expires = 0 WHERE id = ? AND state = 'running' AND "
-                        "lease_owner = ? AND lease_epoch = ?");
-    q.bind(1, lease.job_id);
-    q.bind(2, lease.owner);
-    q.bind(3, lease.epoch);
-    q.exec();
+    ExecOnLease(db,
+                "UPDATE jobs SET lease_expires = 0 WHERE id = ? AND state = 'running' AND "
+                "lease_owner = ? AND lease_epoch = ?",
+                lease);
   });
 }
 
@@ -634,7 +695,8 @@ JobStore::CancelOutcome SqliteStore::RequestCancel(std::int64_t id) {
       return CancelOutcome::kCancelled;
     }
     SQLite::Statement running(
-        db, "UPDATE jobs SET cancel_requested = 1 WHERE id = ? AND state = 'running'");
+        db,
+        "UPDATE jobs SET cancel_requested = 1 WHERE id = ? AND state IN ('running', 'preparing')");
     running.bind(1, id);
     const bool requested = running.exec() > 0;
     tx.commit();

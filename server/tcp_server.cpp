@@ -41,6 +41,11 @@ class Session : public std::enable_shared_from_this<Session> {
         if (auto self = weak.lock()) self->Notify(notification);
       });
     };
+    context_.notify_now = [weak, &io](const proto::Json& notification) {
+      asio::post(io, [weak, notification] {
+        if (auto self = weak.lock()) self->SendNotification(notification);
+      });
+    };
     ArmIdleTimer();
     Read();
   }
@@ -55,6 +60,7 @@ class Session : public std::enable_shared_from_this<Session> {
   void Close() {
     if (closed_) return;
     closed_ = true;
+    context_.peer_gone->store(true);
     boost::system::error_code ignored;
     socket_.shutdown(tcp::socket::shutdown_both, ignored);
     socket_.close(ignored);

@@ -199,6 +199,7 @@ bool FemEquilibriumSolver::Newton(const Vector& force, double load, double toler
     const double residual = gradient_.size() ? gradient_.cwiseAbs().maxCoeff() : 0.0;
     summary.final_residual = residual;
     if (residual <= tolerance) return true;
+    ThrowIfInterrupted(interruption_);
     // The rest stiffness's factor (RestFreeModes) serves the first step from rest, and every
     // step of a linear material, whose tangent is the same everywhere.
     bool factorised = rest_factor_valid_ && (model_->linear() || u.isZero());

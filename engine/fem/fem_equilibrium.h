@@ -85,8 +85,12 @@ class FemEquilibriumSolver {
 
   // Solves for the equilibrium under `force` (flat d*n; entries of constrained nodes ignored)
   // with constrained nodes at `prescribed` (flat d*n). `u` is set to the equilibrium (flat d*n,
-  // constrained entries = prescribed). Never throws.
+  // constrained entries = prescribed). Throws nothing but Interrupted, when the solver's
+  // interruption stops it between Newton iterations.
   FemSolveSummary Solve(const Vector& force, const Vector& prescribed, Vector& u);
+  // Checked before every Newton iteration (a factorisation: the unit of work that bounds how
+  // soon a stop takes effect). Null: never stopped.
+  void set_interruption(Interruption* interruption) { interruption_ = interruption; }
 
   // E(u) at load fraction 1 and its gradient on the free degrees of freedom (free-node order);
   // `hessian` true also assembles the tangent. Infinite when an element is inadmissible.
@@ -116,6 +120,7 @@ class FemEquilibriumSolver {
   // system slot of that entry of the lower triangle, or -1.
   std::vector<int> slots_;
   SymmetricSystem system_;
+  Interruption* interruption_ = nullptr;
   double stiffness_scale_ = 0.0;  // K_max
   double extent_ = 0.0;
   // The system's factor is the rest stiffness's (from RestFreeModes).

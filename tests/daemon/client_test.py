@@ -668,13 +668,13 @@ def test_preparation_threads(ctx):
                 latencies.append(time.monotonic() - t0)
                 R.expect(info.get("name") == "springfitd", f"server.info: {short(info)}")
                 time.sleep(0.05)
-        pending = [c.silent(0.001) for c in submissions]
+        pending = [not answered(c) for c in submissions]
         R.expect(all(pending), f"a submission was answered before server.info's three answers "
                                f"(pending: {pending}): nothing was shown")
         print(f"  server.info during two 14,400-node preparations: "
               f"{', '.join(f'{1000 * t:.1f} ms' for t in latencies)}", flush=True)
         for i, c in enumerate(submissions):
-            resp = c.read(timeout=120, what=f"the answer to submission {i + 1}")
+            resp = c.read_answer(timeout=120, what=f"the answer to submission {i + 1}")
             err = resp.get("error") or {}
             R.expect(err.get("code") == -32004 and error_data(err).get("limit") == "max_genes",
                      f"submission {i + 1}: expected the max_genes refusal after its preparation, "
@@ -682,6 +682,130 @@ def test_preparation_threads(ctx):
     finally:
         for c in submissions:
             c.close()
+
+
+def answered(conn):
+    """True when an answer (not a job.preparing notification) has arrived on `conn`; the
+    notifications read meanwhile are dropped."""
+    while True:
+        line = conn.read_raw_line(0.001)
+        if line is None:
+            return False
+        if json.loads(line).get("method") != "job.preparing":
+            conn.buf = line + b"\n" + conn.buf  # left for the reader of the answer
+            return True
+
+
+def wait_listed_preparing(c, label, timeout=60):
+    """The id of the job labelled `label` once job.list shows it preparing, or None."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        for job in c.result("job.list", {"state": "preparing", "label": label})["jobs"]:
+            return job["job_id"]
+        time.sleep(0.05)
+    return None
+
+
+def test_preparing_state(ctx):
+    """A large submission is a job from the start of its preparation: listed `preparing`,
+    announced to its submitter (job.preparing), and cancellable through job.cancel, which the
+    submission's answer then reports (issue 15: a 316x316 grid took 22 s to prepare with no id
+    and no way to stop it). A submitter that goes away, or a daemon killed meanwhile, leaves no
+    job: the submission was never acknowledged."""
+    d = ctx.daemon("preparing")
+    scene_text = json.dumps(grid_scene(150, "grid-150"), separators=(",", ":"))
+
+    def submit(label):
+        conn = Conn(d.port)
+        conn.send(('{"jsonrpc":"2.0","id":1,"method":"job.submit","params":{"scene":%s,"label":"%s"}}\n'
+                   % (scene_text, label)).encode())
+        return conn
+
+    with Conn(d.port) as c:
+        # Cancelled while it is prepared.
+        sub = submit("prep-cancel")
+        try:
+            job_id = wait_listed_preparing(c, "prep-cancel")
+            require(job_id is not None, "the submission was never listed as preparing")
+            R.expect(c.result("job.get", {"job_id": job_id})["state"] == "preparing",
+                     "job.get does not show the job preparing")
+            R.expect(not answered(sub), "the submission was answered before it was cancelled")
+            t0 = time.monotonic()
+            answer = c.result("job.cancel", {"job_id": job_id})
+            R.expect(answer.get("state") == "cancelling", f"job.cancel of a preparing job: {short(answer)}")
+            notices = []
+            while True:
+                resp = sub.read(timeout=60, what="the cancelled submission's answer")
+                if resp.get("method") != "job.preparing":
+                    break
+                notices.append(resp["params"])
+            stopped = time.monotonic() - t0
+            job = (resp.get("result") or {}).get("job") or {}
+            R.expect(resp.get("id") == 1 and job.get("job_id") == job_id and job.get("state") == "cancelled",
+                     f"the cancelled submission's answer: {short(resp)}")
+            R.expect(all(n.get("job_id") == job_id for n in notices), f"job.preparing: {short(notices)}")
+            stored = c.result("job.get", {"job_id": job_id})
+            R.expect(stored["state"] == "cancelled", f"the job is not cancelled in the store: {short(stored)}")
+            # Stopped inside its preparation, which therefore never counted its genes.
+            R.expect(stored["genes"] == 0, f"the preparation ran to its end: {stored['genes']} genes")
+            print(f"  a preparing job stopped {1000 * stopped:.0f} ms after job.cancel "
+                  f"({len(notices)} job.preparing notices after it)", flush=True)
+        finally:
+            sub.close()
+
+        # springfit submit prints the id once the preparation has taken a second (job.preparing),
+        # and reports the cancel.
+        scene_path = os.path.join(ctx.tmp, "grid-150.json")
+        with open(scene_path, "w") as f:
+            f.write(scene_text)
+        env = {k: v for k, v in os.environ.items() if not k.startswith("SPRINGFIT_")}
+        cli = subprocess.Popen([ctx.springfit, "submit", scene_path, "--label", "prep-cli",
+                                "--server", f"127.0.0.1:{d.port}"], stdin=subprocess.DEVNULL,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+        try:
+            first = cli.stderr.readline().decode("utf-8", "replace")
+            listed = wait_listed_preparing(c, "prep-cli", timeout=1)
+            R.expect(first.startswith(f"job {listed} preparing"),
+                     f"springfit submit's first line while job {listed} is prepared: {short(first)}")
+            c.result("job.cancel", {"job_id": listed})
+            out, err = cli.communicate(timeout=60)
+            R.expect(cli.returncode == 0 and out.decode().strip() == str(listed)
+                     and f"job {listed} cancelled while it was prepared" in err.decode(),
+                     f"springfit submit of a job cancelled while prepared: exit {cli.returncode}, "
+                     f"stdout {short(out)}, stderr {short(err)}")
+        finally:
+            if cli.poll() is None:
+                cli.kill()
+                cli.wait()
+
+        # Its submitter goes away: the job is dropped.
+        sub = submit("prep-gone")
+        try:
+            gone = wait_listed_preparing(c, "prep-gone")
+            require(gone is not None, "the second submission was never listed as preparing")
+        finally:
+            sub.close()
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and "error" not in c.call("job.get", {"job_id": gone}):
+            time.sleep(0.05)
+        err = c.call("job.get", {"job_id": gone}).get("error") or {}
+        R.expect(err.get("code") == -32002, f"job {gone}, whose submitter went away, is still there: {short(err)}")
+
+        # The daemon killed while it prepares (the submitter still waiting): after the restart
+        # the job is not there.
+        sub = submit("prep-killed")
+    try:
+        with Conn(d.port) as c:
+            killed = wait_listed_preparing(c, "prep-killed")
+            require(killed is not None, "the third submission was never listed as preparing")
+        d.kill9()
+    finally:
+        sub.close()
+    d.start()
+    with Conn(d.port) as c:
+        err = c.call("job.get", {"job_id": killed}).get("error") or {}
+        R.expect(err.get("code") == -32002, f"job {killed}, preparing at a kill -9, is there after the restart: {short(err)}")
+        R.expect(c.result("job.list", {"state": "preparing"})["jobs"] == [], "preparing jobs after the restart")
 
 
 def test_failing_writes(ctx):
@@ -764,6 +888,7 @@ def main(argv):
         ("extreme numbers", test_extreme_numbers, False),
         ("search bounds", test_search_bounds, False),
         ("preparation threads", test_preparation_threads, False),
+        ("preparing state", test_preparing_state, False),
         ("durable cancel", test_durable_cancel, False),
         ("failing writes", test_failing_writes, False),
         ("descriptor limit", test_descriptor_limit, False),

@@ -180,10 +180,18 @@ class Conn:
         self.send(json.dumps(msg).encode() + b"\n")
         return id_
 
+    def read_answer(self, timeout=IO_TIMEOUT, what="a response"):
+        """Like read, skipping the job.preparing notifications a slow job.submit sends before
+        its answer (proto/RPC.md)."""
+        while True:
+            resp = self.read(timeout, what)
+            if not (isinstance(resp, dict) and resp.get("method") == "job.preparing"):
+                return resp
+
     def call(self, method, params=None, timeout=IO_TIMEOUT):
         """Sends a request and reads its response (which must carry its id)."""
         id_ = self.request(method, params)
-        resp = self.read(timeout, what=f"answer to {method}")
+        resp = self.read_answer(timeout, what=f"answer to {method}")
         require(isinstance(resp, dict) and resp.get("id") == id_,
                 f"{method}: expected the answer with id {id_}, got {short(resp)}")
         return resp
@@ -194,7 +202,7 @@ class Conn:
         id_ = self.next_id
         text = '{"jsonrpc":"2.0","id":%d,"method":"%s","params":%s}\n' % (id_, method, params_text)
         self.send(text.encode())
-        resp = self.read(timeout, what=f"answer to {method}")
+        resp = self.read_answer(timeout, what=f"answer to {method}")
         require(isinstance(resp, dict) and resp.get("id") == id_,
                 f"{method}: expected the answer with id {id_}, got {short(resp)}")
         return resp

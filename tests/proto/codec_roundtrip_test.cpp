@@ -510,8 +510,8 @@ TEST(JobCodecRoundTrip, JobRecordsReadBackAsWrittenOnTheWire) {
   EXPECT_TRUE(queued_json.at("idempotency_key").is_null());
   EXPECT_EQ(JobToJson(full).at("checkpoint_generation"), 0);
 
-  for (const JobState state : {JobState::kQueued, JobState::kRunning, JobState::kSucceeded,
-                               JobState::kFailed, JobState::kCancelled}) {
+  for (const JobState state : {JobState::kPreparing, JobState::kQueued, JobState::kRunning,
+                               JobState::kSucceeded, JobState::kFailed, JobState::kCancelled}) {
     EXPECT_EQ(ParseJobState(JobStateName(state)), std::optional<JobState>(state))
         << JobStateName(state);
   }

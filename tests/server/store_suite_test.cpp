@@ -355,6 +355,77 @@ TEST_P(StoreSuite, CancelsAreRequestsTheRunnersHeartbeatReads) {
   EXPECT_EQ(store_->RequestCancel(12345), JobStore::CancelOutcome::kNotActive);
 }
 
+// A submission being prepared: a job from the start, held by its daemon's lease, never
+// claimed; queued (or cancelled) when its preparation ends, or deleted when it was refused,
+// or swept once its lease lapsed (the daemon preparing it died).
+TEST_P(StoreSuite, PreparingJobsAreHeldListedCancellableAndNeverClaimed) {
+  const auto Preparing = [&](const std::string& label, double lease_seconds = 30.0) {
+    NewJob job = Job(label);
+    job.preparing_owner = "daemon-a";
+    job.lease_seconds = lease_seconds;
+    return store_->CreateJob(job, 3);
+  };
+  const auto a = Preparing("a");
+  ASSERT_TRUE(a.created);
+  EXPECT_EQ(a.job.state, JobState::kPreparing);
+  EXPECT_EQ(a.lease.job_id, a.job.id);
+  EXPECT_EQ(a.lease.owner, "daemon-a");
+  EXPECT_EQ(store_->GetJob(a.job.id)->state, JobState::kPreparing);
+  JobFilter preparing;
+  preparing.state = JobState::kPreparing;
+  EXPECT_EQ(store_->ListJobs(preparing).jobs.size(), 1u);
+  EXPECT_EQ(store_->CountJobs()[JobState::kPreparing], 1);
+  EXPECT_FALSE(store_->ClaimNext("daemon-b", 30.0)) << "a job being prepared was claimed";
+  EXPECT_TRUE(store_->RenewLease(a.lease, 30.0).held);
+
+  // Prepared: queued with what the preparation found, then claimed like any other.
+  JobRecord found = a.job;
+  found.genes = 4321;
+  found.strategy = "hybrid";
+  found.max_generations = 77;
+  EXPECT_EQ(store_->FinishPreparing(a.lease, found), JobState::kQueued);
+  const auto queued = store_->GetJob(a.job.id);
+  EXPECT_EQ(queued->state, JobState::kQueued);
+  EXPECT_EQ(queued->genes, 4321);
+  EXPECT_EQ(queued->strategy, "hybrid");
+  EXPECT_EQ(queued->max_generations, 77);
+  EXPECT_THROW(store_->FinishPreparing(a.lease, found), LeaseLost) << "prepared twice";
+  EXPECT_FALSE(store_->RenewLease(a.lease, 30.0).held) << "a queued job's lease renewed";
+  const Claim claim = ClaimOne("daemon-b");
+  EXPECT_EQ(claim.job.id, a.job.id);
+  EXPECT_EQ(claim.job.genes, 4321);
+
+  // A cancel while it is prepared is a request the preparing daemon's heartbeat reads; the
+  // job ends cancelled when the preparation stops (or finishes first: the cancel wins).
+  const auto b = Preparing("b");
+  EXPECT_EQ(store_->RequestCancel(b.job.id), JobStore::CancelOutcome::kRequested);
+  EXPECT_EQ(store_->GetJob(b.job.id)->state, JobState::kPreparing);
+  EXPECT_TRUE(store_->RenewLease(b.lease, 30.0).cancel_requested);
+  EXPECT_EQ(store_->FinishPreparing(b.lease, b.job), JobState::kCancelled);
+  const auto cancelled = store_->GetJob(b.job.id);
+  EXPECT_EQ(cancelled->state, JobState::kCancelled);
+  EXPECT_GT(cancelled->finished_at, 0.0);
+  const auto c = Preparing("c");
+  store_->MarkFinished(c.lease, JobState::kCancelled, "", "", std::nullopt, 2e9);
+  EXPECT_EQ(store_->GetJob(c.job.id)->state, JobState::kCancelled);
+
+  // Refused: deleted, by its holder only. Preparing jobs count toward the queue bound.
+  const auto d = Preparing("d");
+  const auto e = Preparing("e", 0.2);
+  EXPECT_TRUE(store_->CreateJob(Job("over"), 2).queue_full) << "d and e were not counted";
+  Lease stranger = d.lease;
+  stranger.epoch += 1;
+  store_->DropPreparing(stranger);
+  EXPECT_TRUE(store_->GetJob(d.job.id)) << "dropped by a lease that is not its own";
+  store_->DropPreparing(d.lease);
+  EXPECT_FALSE(store_->GetJob(d.job.id));
+  // e's daemon stopped renewing it: the next claim sweeps it, and its late end changes nothing.
+  std::this_thread::sleep_for(400ms);
+  EXPECT_FALSE(store_->ClaimNext("daemon-b", 30.0));
+  EXPECT_FALSE(store_->GetJob(e.job.id)) << "an expired preparation was not swept";
+  EXPECT_THROW(store_->FinishPreparing(e.lease, e.job), LeaseLost);
+}
+
 TEST_P(StoreSuite, DeleteRemovesEverythingOfAFinishedJobOnly) {
   const std::int64_t id = store_->CreateJob(Job("d", 0, "k"), 100).job.id;
   const Lease lease = ClaimOne("d").lease;
@@ -523,7 +594,7 @@ TEST(PostgresStoreOnly, AJobSubmittedThroughOneStoreWakesTheOthers) {
                         r.strategy = "paper";
                         return r;
                       }(),
-                      "{}"},
+                      "{}", "", 10.0},
                10);
   const auto deadline = std::chrono::steady_clock::now() + 5s;
   while (wakes.load() == before && std::chrono::steady_clock::now() < deadline)
