@@ -19,6 +19,9 @@ namespace asio = boost::asio;
 using asio::ip::tcp;
 namespace rpc = proto::rpc;
 
+// Messages longer than this are parsed on the preparation threads (Session::HandleNext).
+constexpr std::size_t kParsedOnPreparers = 64 * 1024;
+
 class Session : public std::enable_shared_from_this<Session> {
  public:
   Session(TcpServer& server, tcp::socket socket)
@@ -155,7 +158,15 @@ class Session : public std::enable_shared_from_this<Session> {
     handling_ = true;
     // A submission validates and prepares its scene, which can take seconds for a large one:
     // once parsed, it waits for a preparation thread, so that every other request
-    // (server.info, job.get) is answered at once meanwhile.
+    // (server.info, job.get) is answered at once meanwhile. A large message is parsed there
+    // too: parsing a 100,000-node scene takes tens of milliseconds, which a request thread
+    // would spend instead of answering; no other request is that large.
+    if (text.size() > kParsedOnPreparers) {
+      asio::post(server_.preparers_, [self = shared_from_this(), text = std::move(text)] {
+        self->Answer(self->server_.service_.Handle(RpcService::Parse(text), self->context_));
+      });
+      return;
+    }
     asio::post(server_.handlers_, [self = shared_from_this(), text = std::move(text)] {
       auto parsed = std::make_shared<RpcService::ParsedMessage>(RpcService::Parse(text));
       if (!parsed->prepares_scene) {

@@ -38,7 +38,8 @@ struct TcpServerOptions {
   double message_seconds = 30.0;  // to complete a message once its first byte arrived
   int handler_threads = 2;
   // job.submit requests (their scenes validated and prepared) run on these, apart from the
-  // handlers, so that a large submission never delays other requests.
+  // handlers, so that a large submission never delays other requests; so does the parsing
+  // of any message over 64 KiB.
   int preparation_threads = 2;
 };
 
