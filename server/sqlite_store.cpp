@@ -169,16 +169,12 @@ void CheckLease(SQLite::Database& db, const Lease& lease) {
 SqliteStore::SqliteStore(const std::string& path) : path_(path) {
   // A new database holds every submitted scene and result: created readable by the daemon's
   // user alone (SQLite gives its -wal and -shm files the database file's permissions).
-  if (path != ":memory:") {
-    const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
-    if (fd >= 0) ::close(fd);
+  const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+  if (fd >= 0) {
+    ::close(fd);
+  } else if (errno != EEXIST) {
+    throw std::runtime_error("cannot create the database " + path + ": " + std::strerror(errno));
   }
-  try {
-    db_ = std::make_unique<SQLite::Database>(path, SQLite::OPEN_READWRITE | SQLite::OPEN_CREATE);
-  } catch (const SQLite::Exception& e) {
-    throw std::runtime_error("cannot open the database " + path + ": " + e.what());
-  }
-  db_.reset();  // (created; opened below once the lock is held)
   // One daemon per SQLite database: a second one would run the first one's jobs too (and its
   // start below would free their leases). An advisory lock on the file, held until closed.
   lock_fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);

@@ -153,6 +153,17 @@ TEST_F(SqliteStoreTest, ASecondDaemonOnTheSameDatabaseIsRefused) {
   EXPECT_EQ(first.CountQueued(), 1);
 }
 
+TEST_F(SqliteStoreTest, ADatabaseInAMissingDirectoryIsRefusedByName) {
+  const std::string path = (dir_ / "missing" / "jobs.db").string();
+  try {
+    SqliteStore store(path);
+    FAIL() << "a store opened in a missing directory";
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "cannot create the database " + path + ": No such file or directory");
+  }
+}
+
 // Damage where opening the store reads nothing (the trace's pages at the end of the file):
 // only the check at the start finds it, before any job trips over it.
 TEST_F(SqliteStoreTest, ADamagedDatabaseIsRefusedAtTheStart) {
