@@ -30,7 +30,7 @@ import threading
 import time
 
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree for harness.py
-from harness import (IO_TIMEOUT, STOP_TIMEOUT, Abort, Conn, Daemon, R, error_data, require, run_suite,
+from harness import (IO_TIMEOUT, grid_scene, STOP_TIMEOUT, Abort, Conn, Daemon, R, error_data, require, run_suite,
                      short, wait_state)
 
 # IO_TIMEOUT (5 s), START_TIMEOUT (10 s) and STOP_TIMEOUT (15 s) are harness.py's.
@@ -623,26 +623,6 @@ def test_emfile_backoff(ctx):
     with Conn(d.port) as c:
         info = c.result("server.info")
         R.expect(info.get("name") == "springfitd", f"server.info after descriptors came back: {short(info)}")
-
-
-def grid_scene(n, name):
-    """An n x n grid MSS (edges and both diagonals of every cell), fixed on the left, pulled on
-    the right: n^2 nodes, a scene the daemon takes seconds to prepare at n = 120."""
-    def idx(x, y):
-        return y * n + x
-    springs = []
-    for y in range(n):
-        for x in range(n):
-            if x + 1 < n:
-                springs.append([idx(x, y), idx(x + 1, y)])
-            if y + 1 < n:
-                springs.append([idx(x, y), idx(x, y + 1)])
-            if x + 1 < n and y + 1 < n:
-                springs += [[idx(x, y), idx(x + 1, y + 1)], [idx(x + 1, y), idx(x, y + 1)]]
-    return {"name": name, "nodes": [[x, y] for y in range(n) for x in range(n)],
-            "reference": {"type": "mss", "springs": springs},
-            "load_cases": [{"fixed": [idx(0, y) for y in range(n)],
-                            "forces": [{"nodes": [idx(n - 1, y) for y in range(n)], "force": [0.01, 0.002]}]}]}
 
 
 def test_preparation_threads(ctx):

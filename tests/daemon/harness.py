@@ -229,6 +229,26 @@ def wait_state(conn, job_id, states, timeout, interval=0.05):
         time.sleep(interval)
 
 
+def grid_scene(n, name):
+    """An n x n grid MSS (edges and both diagonals of every cell), fixed on the left, pulled on
+    the right: n^2 nodes, a scene the daemon takes seconds to prepare at n = 120."""
+    def idx(x, y):
+        return y * n + x
+    springs = []
+    for y in range(n):
+        for x in range(n):
+            if x + 1 < n:
+                springs.append([idx(x, y), idx(x + 1, y)])
+            if y + 1 < n:
+                springs.append([idx(x, y), idx(x, y + 1)])
+            if x + 1 < n and y + 1 < n:
+                springs += [[idx(x, y), idx(x + 1, y + 1)], [idx(x + 1, y), idx(x, y + 1)]]
+    return {"name": name, "nodes": [[x, y] for y in range(n) for x in range(n)],
+            "reference": {"type": "mss", "springs": springs},
+            "load_cases": [{"fixed": [idx(0, y) for y in range(n)],
+                            "forces": [{"nodes": [idx(n - 1, y) for y in range(n)], "force": [0.01, 0.002]}]}]}
+
+
 # --------------------------------------------------------------------------------------------
 # The daemon
 
