@@ -9,6 +9,7 @@
 
 #include "client/exit_codes.h"
 #include "client/progress_line.h"
+#include "proto/rpc.h"
 #include "proto/search_codec.h"
 
 namespace springfit::cli {
@@ -92,6 +93,8 @@ Json WatchJob(RpcClient& client, std::int64_t job_id, bool quiet) {
       if (p["progress"].is_object())
         progress.Report(proto::TraceRowFromJson(p["progress"], "params.progress"), true);
       return p;
+    } else if (n["method"] == "job.gone") {
+      throw RemoteError(proto::rpc::kNoSuchJob, p.value("message", std::string("gone")), Json());
     }
   }
 }

@@ -743,7 +743,9 @@ Json RpcService::JobWatch(const Json& params, SessionContext& session) {
   std::optional<std::uint64_t> token;
   if (notify) {
     token = scheduler_.Watch(before.id, [notify, finished_sent](const Json& n) {
-      if (n.value("method", "") == "job.finished" && finished_sent->exchange(true)) return;
+      const std::string method = n.value("method", "");
+      if ((method == "job.finished" || method == "job.gone") && finished_sent->exchange(true))
+        return;
       notify(n);
     });
   }

@@ -121,7 +121,11 @@ void Scheduler::PreparationEnded(std::int64_t id, const std::optional<JobRecord>
     std::lock_guard lock(mutex_);
     preparing_.erase(id);
   }
-  if (job && proto::IsFinal(job->state)) PublishFinished(id, *job);
+  if (!job) {
+    PublishGone(id);
+  } else if (proto::IsFinal(job->state)) {
+    PublishFinished(id, *job);
+  }
 }
 
 Scheduler::CancelOutcome Scheduler::Cancel(std::int64_t id) {
@@ -196,7 +200,8 @@ void Scheduler::Publish(std::int64_t id, const proto::Json& notification) {
   const auto [first, last] = watchers_.equal_range(id);
   if (first == last) return;
   Announced& announced = announced_[id];
-  if (notification.at("method") == "job.finished") {
+  const proto::Json& method = notification.at("method");
+  if (method == "job.finished" || method == "job.gone") {
     if (announced.finished) return;  // the runner and the monitor may both see the end
     announced.finished = true;
   } else {
@@ -210,6 +215,16 @@ void Scheduler::Publish(std::int64_t id, const proto::Json& notification) {
 
 void Scheduler::PublishFinished(std::int64_t id, const JobRecord& job) {
   Publish(id, proto::rpc::Notification("job.finished", proto::JobToJson(job)));
+}
+
+void Scheduler::PublishGone(std::int64_t id) {
+  proto::Json params;
+  params["job_id"] = id;
+  params["message"] =
+      "job " + std::to_string(id) +
+      " no longer exists: its submission was refused or abandoned while it was prepared (it "
+      "was never acknowledged)";
+  Publish(id, proto::rpc::Notification("job.gone", params));
 }
 
 bool Scheduler::Stop(std::chrono::milliseconds timeout) {
@@ -417,7 +432,11 @@ void Scheduler::FollowWatched() {
       store_errors.Report("cannot follow watched jobs", e);
       return;
     }
-    if (!job) continue;  // deleted: the watch ends with its connection
+    if (!job) {
+      // Only a submission dropped while it was prepared (elsewhere) vanishes unfinished.
+      PublishGone(id);
+      continue;
+    }
     if (proto::IsFinal(job->state)) {
       PublishFinished(id, *job);
     } else if (job->progress) {

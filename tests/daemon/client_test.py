@@ -758,13 +758,33 @@ def test_preparing_state(ctx):
                 cli.kill()
                 cli.wait()
 
-        # Its submitter goes away: the job is dropped.
+        # Its submitter goes away: the job is dropped, and a watcher is told (job.gone).
         sub = submit("prep-gone")
+        watcher = Conn(d.port)
         try:
             gone = wait_listed_preparing(c, "prep-gone")
             require(gone is not None, "the second submission was never listed as preparing")
+            watched = watcher.result("job.watch", {"job_id": gone})
+            R.expect(watched.get("state") == "preparing", f"job.watch of a preparing job: {short(watched)}")
+            cli_watch = subprocess.Popen([ctx.springfit, "watch", str(gone), "--server", f"127.0.0.1:{d.port}"],
+                                         stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                         stderr=subprocess.PIPE, env=env)
+            time.sleep(0.3)  # (its job.watch answered before the drop)
         finally:
             sub.close()
+        try:
+            note = watcher.read(timeout=60, what="job.gone for the dropped submission")
+            R.expect(note.get("method") == "job.gone" and note.get("params", {}).get("job_id") == gone,
+                     f"the watcher of a dropped submission got {short(note)}")
+            _, err = cli_watch.communicate(timeout=60)
+            # (exit 4 either way: "no longer exists", or "no such job" if its job.watch came late)
+            R.expect(cli_watch.returncode == 4 and ("no longer exists" in err.decode() or "no such job" in err.decode()),
+                     f"springfit watch of a dropped submission: exit {cli_watch.returncode}, {short(err)}")
+        finally:
+            watcher.close()
+            if cli_watch.poll() is None:
+                cli_watch.kill()
+                cli_watch.wait()
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline and "error" not in c.call("job.get", {"job_id": gone}):
             time.sleep(0.05)
