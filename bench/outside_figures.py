@@ -42,10 +42,19 @@ NET_ERRORS = (OSError, Abort)  # refused, reset, timed out: the daemon is down o
 
 
 def binary_id():
-    """springfitd's mtime and hash: the build under test is rebuilt by others meanwhile."""
+    """springfitd's mtime and hash, to tie the figures to a build (others may rebuild it)."""
     with open(SPRINGFITD, "rb") as f:
         digest = hashlib.sha256(f.read()).hexdigest()[:12]
     return f"{time.strftime('%Y-%m-%d %H:%M:%S', time.localtime(os.path.getmtime(SPRINGFITD)))} sha256 {digest}"
+
+
+STARTED_BUILDS = set()  # mtimes of the springfitd files the daemons were started from
+
+
+def start(d):
+    d.start()
+    STARTED_BUILDS.add(os.path.getmtime(SPRINGFITD))
+    return d
 
 
 def job_scene(name, generations):
@@ -106,7 +115,7 @@ def wait_all_final(port, ids, timeout):
 def run_reference(tmp, plan, params, problems):
     """The plan on a daemon that is never killed: {key: (result, trace)}."""
     t0, reference = time.monotonic(), {}
-    ref = Daemon(SPRINGFITD, tmp, "reference", DAEMON_FLAGS).start()
+    ref = start(Daemon(SPRINGFITD, tmp, "reference", DAEMON_FLAGS))
     try:
         with Conn(ref.port) as c:
             ids = {k: c.result("job.submit", params(k, n, s), timeout=30)["job"]["job_id"] for k, n, s in plan}
@@ -160,7 +169,7 @@ def kill_loop(tmp, args, problems):
         return {"scene": scenes[name], "seed": seed, "idempotency_key": key, "label": "kill-loop"}
 
     reference = run_reference(tmp, plan, params, problems)
-    d = Daemon(SPRINGFITD, tmp, "killed", DAEMON_FLAGS).start()
+    d = start(Daemon(SPRINGFITD, tmp, "killed", DAEMON_FLAGS))
     acked, counts, done = {}, collections.Counter(), threading.Event()
     thread = threading.Thread(target=submit_all, daemon=True,
                               args=(d, plan, params, args.pace, acked, counts, problems, done))
@@ -183,7 +192,7 @@ def kill_loop(tmp, args, problems):
             counts["preparing"] += "preparing" in states
             for stream in ("stdout", "stderr"):  # keep each run's log: start() truncates them
                 os.replace(os.path.join(d.dir, stream), os.path.join(d.dir, f"{stream}.{counts['kills']}"))
-            d.start()
+            start(d)
         loop_seconds = time.monotonic() - t0
         thread.join(330)
         jobs = wait_all_final(d.port, {i for ids in acked.values() for i in ids}, 600)
@@ -271,7 +280,7 @@ def load_client(port, i, args, scene, barrier, out):
 def load(tmp, args, problems):
     scene = job_scene("paper-iso-5x5", args.load_generations)  # ~0.1 s a job
     # 50 clients + 1 listing connection: the default --max-connections (256) suffices.
-    d = Daemon(SPRINGFITD, tmp, "load", DAEMON_FLAGS).start()
+    d = start(Daemon(SPRINGFITD, tmp, "load", DAEMON_FLAGS))
     barrier = threading.Barrier(args.clients)
     outs = [collections.defaultdict(list) for _ in range(args.clients)]
     threads = [threading.Thread(target=load_client, args=(d.port, i, args, scene, barrier, outs[i]),
@@ -346,8 +355,9 @@ def main():
             print(f"kept {tmp} (databases and daemon logs)")
         else:
             shutil.rmtree(tmp, ignore_errors=True)
-    if binary_id() != build:
-        print(f"WARNING: springfitd was rebuilt during the run (now {binary_id()}): figures mix two builds")
+    if len(STARTED_BUILDS) > 1:
+        print(f"WARNING: springfitd was rebuilt during the run: daemons were started from {len(STARTED_BUILDS)} "
+              f"builds (now {binary_id()}); the figures mix them")
     print(f"{f'FAILED: {len(problems)} problems' if problems else 'OK: nothing lost, nothing differed'} "
           f"({time.monotonic() - t0:.1f}s; load average now {os.getloadavg()[0]:.2f})")
     return 1 if problems else 0
