@@ -151,7 +151,7 @@ std::string Page(const std::string& title, const std::string& body) {
 body{font:14px/1.45 system-ui,sans-serif;margin:1.5em 2em;color:#222;max-width:1400px}
 a{color:#1d5fa8}table{border-collapse:collapse}td,th{padding:3px 10px;border-bottom:1px solid #ddd;text-align:left;vertical-align:top}
 th{background:#f3f3f3}.state{padding:1px 7px;border-radius:8px;font-size:12px;background:#eee}
-.running{background:#d7ecff}.succeeded{background:#d9f3d9}.failed{background:#f8d4d4}.cancelled{background:#eee}.queued{background:#fff2c8}
+.running{background:#d7ecff}.succeeded{background:#d9f3d9}.failed{background:#f8d4d4}.cancelled{background:#eee}.queued{background:#fff2c8}.preparing{background:#efe3ff}
 figure{margin:1em 0}figure svg{max-width:100%;height:auto;border:1px solid #eee}nav{margin-bottom:1em}
 .num{text-align:right;font-variant-numeric:tabular-nums}form.filter input,form.filter select{margin-right:.6em}
 </style></head><body><nav><a href="/">springfitd jobs</a> · <a href="/metrics">metrics</a> · <a href="/healthz">health</a></nav>
@@ -434,12 +434,21 @@ std::string Dashboard::ErrorPlotSvg(const JobRecord& job) {
 }
 
 std::string Dashboard::TopologySvg(const JobRecord& job, bool result) {
+  // What to draw first: the scene is prepared (seconds for a large one) only when there is
+  // something (never for a job still being prepared).
+  std::optional<std::string> text;
+  std::vector<Improvement> improvements;
+  if (result) {
+    text = store_.GetResult(job.id);
+    if (!text) return "";
+  } else {
+    improvements = store_.GetImprovements(job.id);
+    if (improvements.empty()) return "";
+  }
   const std::shared_ptr<const Problem> problem = ProblemOf(job);
   figures::TopologyFigureInput input;
   input.title = "job " + std::to_string(job.id) + ": " + job.scene_name;
   if (result) {
-    const std::optional<std::string> text = store_.GetResult(job.id);
-    if (!text) return "";
     const proto::StoredResult typed = proto::StoredResultFromJson(proto::ParseJson(*text));
     proto::ExpectResultOfScene(typed, *problem);
     input.springs = typed.springs;
@@ -449,8 +458,6 @@ std::string Dashboard::TopologySvg(const JobRecord& job, bool result) {
     input.stiffness = typed.stiffness;
     input.note = typed.stop == "cancelled" ? "cancelled: the best topology so far" : "result";
   } else {
-    const std::vector<Improvement> improvements = store_.GetImprovements(job.id);
-    if (improvements.empty()) return "";
     input.springs = problem->SpringsOfGenome(improvements.back().genome);
     input.note = "best so far, generation " + std::to_string(improvements.back().generation);
   }

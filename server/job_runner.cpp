@@ -67,26 +67,28 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const Claim& claim,
       if (!scene) throw std::runtime_error("the job's scene is missing from the store");
       // A large scene takes a while to prepare (its reference's Newton iterations): a cancel or
       // a shutdown stops the preparation between two of them.
-      Interruption stop(
-          [&] {
-            const Requests r = requests();
-            return r.cancel || r.shutdown;
-          },
-          0.1);
+      const auto stop_requested = [&] {
+        const Requests r = requests();
+        return r.cancel || r.shutdown;
+      };
+      Interruption stop(stop_requested, 0.1);
+      if (stop_requested()) stop.Request();  // (asked before the first poll is due)
       try {
         prepared = std::make_shared<const Problem>(proto::SceneFromText(*scene),
                                                    EquilibriumOptions{}, &stop);
       } catch (const Interrupted&) {
         if (!requests().cancel) {
+          const bool lost = control.lease_lost && control.lease_lost->load();
           spdlog::info(
-              "job {} interrupted by the shutdown while being prepared; it starts again "
-              "at the next start or on another daemon",
-              job.id);
+              "job {} interrupted while being prepared ({}); it starts again {}", job.id,
+              lost ? "its lease was lost" : "by the shutdown",
+              lost ? "on the daemon that took it over" : "at the next start or on another daemon");
           return record;
         }
+        const double finished_at = UnixNow();
+        store.MarkFinished(lease, JobState::kCancelled, "", "", std::nullopt, finished_at);
         record.state = JobState::kCancelled;
-        record.finished_at = UnixNow();
-        store.MarkFinished(lease, record.state, "", "", std::nullopt, record.finished_at);
+        record.finished_at = finished_at;
         spdlog::info("job {} cancelled while being prepared", job.id);
         return record;
       }
@@ -187,11 +189,13 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const Claim& claim,
     // Another daemon runs the job now (this one was paused or cut off past the lease): its
     // work is the job's; this run's is dropped, and nothing of it was written.
     spdlog::warn("job {}: lease lost ({}); stopped without writing", job.id, e.what());
+    record.state = job.state;  // (a final state set before its write failed is not the job's)
     return record;
   } catch (const StoreUnavailable& e) {
     // Nothing more can be written now: the job keeps its last checkpoint and resumes from it
     // when its lease expires and the store answers again (here or on another daemon).
     spdlog::error("job {} interrupted: {}; it resumes from its last checkpoint", job.id, e.what());
+    record.state = job.state;
     return record;
   } catch (const std::exception& e) {
     record.state = JobState::kFailed;

@@ -87,6 +87,12 @@ CREATE TABLE checkpoints (
   state BYTEA NOT NULL               -- server/checkpoint_codec.h
 );
 )sql",
+    // 2: jobs being prepared (state 'preparing', held by a lease), swept when it lapses. A
+    // daemon older than this reads such a job as failed: the version makes it refuse the
+    // store instead.
+    R"sql(
+CREATE INDEX jobs_preparing ON jobs (lease_expires) WHERE state = 'preparing';
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(std::size(kMigrations));
 static_assert(kMigrationCount == PostgresStore::kSchemaVersion);
@@ -168,11 +174,13 @@ const std::pair<const char*, const char*> kStatements[] = {
     {"drop_checkpoint", "DELETE FROM checkpoints WHERE job_id = $1"},
     {"rewind_trace", "DELETE FROM trace WHERE job_id = $1 AND generation > $2"},
     {"rewind_improvements", "DELETE FROM improvements WHERE job_id = $1 AND generation > $2"},
-    {"cancel_queued", "UPDATE jobs SET state = 'cancelled', finished_at = " SF_NOW
-                      " WHERE id = $1 AND state = 'queued'"},
-    {"cancel_running",
-     "UPDATE jobs SET cancel_requested = TRUE WHERE id = $1 AND state IN ('running', "
-     "'preparing')"},
+    // One statement: two (queued, then the others) could each miss a job that a daemon moves
+    // from preparing to queued between them. (The right-hand sides read the row as it was.)
+    {"cancel",
+     "UPDATE jobs SET state = CASE WHEN state = 'queued' THEN 'cancelled' ELSE state END, "
+     "finished_at = CASE WHEN state = 'queued' THEN " SF_NOW " ELSE finished_at END, "
+     "cancel_requested = cancel_requested OR state <> 'queued' WHERE id = $1 AND state IN "
+     "('queued', 'running', 'preparing') RETURNING state"},
     {"get_result", "SELECT result FROM jobs WHERE id = $1"},
     {"get_trace",
      "SELECT generation, wall_seconds, evaluations, cache_hits, best_cost, "
@@ -643,10 +651,10 @@ JobStore::CancelOutcome PostgresStore::RequestCancel(std::int64_t id) {
   return Write([&](pqxx::connection& c) {
     pqxx::work w(c);
     CancelOutcome outcome = CancelOutcome::kNotActive;
-    if (w.exec_prepared("cancel_queued", id).affected_rows() > 0) {
-      outcome = CancelOutcome::kCancelled;
-    } else if (w.exec_prepared("cancel_running", id).affected_rows() > 0) {
-      outcome = CancelOutcome::kRequested;
+    const pqxx::result r = w.exec_prepared("cancel", id);
+    if (!r.empty()) {
+      outcome = r[0][0].as<std::string>() == "cancelled" ? CancelOutcome::kCancelled
+                                                         : CancelOutcome::kRequested;
     }
     if (outcome != CancelOutcome::kNotActive) w.exec_prepared("notify", kChannel, "cancel");
     w.commit();

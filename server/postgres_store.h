@@ -28,7 +28,7 @@ namespace springfit::server {
 
 class PostgresStore final : public JobStore {
  public:
-  static constexpr int kSchemaVersion = 1;
+  static constexpr int kSchemaVersion = 2;
 
   // `url`: a libpq URI (postgresql://...), without a password; `password`: empty for libpq's
   // defaults (PGPASSWORD, PGPASSFILE). Connects, migrates; throws std::runtime_error.

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <limits>
 #include <memory>
+#include <thread>
 
 #include <spdlog/spdlog.h>
 
@@ -59,6 +60,37 @@ int ReadPageLimit(const Json& params, int default_limit, int max) {
 
 // job.preparing notifications to a submitter while its scene is prepared, this often.
 constexpr int kPreparingNoticeSeconds = 5;
+// How long a retry (the same idempotency key) waits for a first submission being prepared
+// before it is answered busy.
+constexpr int kRetryWaitSeconds = 60;
+
+// job.preparing to a submitter whose job takes a while: after a second, then about every
+// kPreparingNoticeSeconds (its answer timeout can count from the last one, however long the
+// preparation). Most scenes are prepared before the first: their submitters see the answer
+// alone.
+class PreparingNotices {
+ public:
+  PreparingNotices(const SessionContext& session, std::int64_t id)
+      : session_(session),
+        id_(id),
+        started_(std::chrono::steady_clock::now()),
+        next_(started_ + std::chrono::seconds(1)) {}
+  void Poll() {
+    const auto now = std::chrono::steady_clock::now();
+    if (!session_.notify_now || now < next_) return;
+    next_ = now + std::chrono::seconds(kPreparingNoticeSeconds);
+    Json params;
+    params["job_id"] = id_;
+    params["seconds"] = std::chrono::duration<double>(now - started_).count();
+    session_.notify_now(rpc::Notification("job.preparing", params));
+  }
+
+ private:
+  const SessionContext& session_;
+  std::int64_t id_;
+  std::chrono::steady_clock::time_point started_;
+  std::chrono::steady_clock::time_point next_;
+};
 
 rpc::RpcError InvalidScene(const InputError& e) {
   Json data;
@@ -388,7 +420,19 @@ Json RpcService::JobSubmit(const Json& params, SessionContext& session) {
   // its reference is solved (seconds to minutes for a large scene).
   job.preparing_owner = scheduler_.owner();
   job.lease_seconds = scheduler_.lease_seconds();
-  const JobStore::Created created = store_.CreateJob(job, options_.limits.max_queued);
+  JobStore::Created created = store_.CreateJob(job, options_.limits.max_queued);
+  // A retry of a submission still being prepared waits for its outcome (the first may yet
+  // be refused, and its job then vanishes: the retry then submits anew).
+  for (int round = 0; !created.created && !created.queue_full &&
+                      created.job.state == JobState::kPreparing && round < 2;
+       ++round) {
+    std::optional<JobRecord> now = WaitWhilePreparing(created.job.id, session);
+    if (now) {
+      created.job = *now;
+    } else {
+      created = store_.CreateJob(job, options_.limits.max_queued);
+    }
+  }
   if (created.queue_full) {
     throw rpc::RpcError(rpc::kBusy, "busy: " + std::to_string(options_.limits.max_queued) +
                                         " jobs are queued already");
@@ -413,6 +457,15 @@ Json RpcService::JobSubmit(const Json& params, SessionContext& session) {
                               " (a key names one submission; use a new key for a new one)",
                           data);
     }
+    if (old.state == JobState::kPreparing) {
+      Json data;
+      data["job_id"] = old.id;
+      throw rpc::RpcError(rpc::kBusy,
+                          "busy: job " + std::to_string(old.id) +
+                              " of this idempotency key is still being prepared (its first "
+                              "submission is not answered yet); retry",
+                          data);
+    }
     Json j;
     j["created"] = false;
     j["job"] = proto::JobToJson(created.job);
@@ -423,6 +476,22 @@ Json RpcService::JobSubmit(const Json& params, SessionContext& session) {
   j["created"] = true;
   j["job"] = proto::JobToJson(prepared);
   return j;
+}
+
+std::optional<JobRecord> RpcService::WaitWhilePreparing(std::int64_t id,
+                                                        const SessionContext& session) {
+  PreparingNotices notices(session, id);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(kRetryWaitSeconds);
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (stopping()) throw rpc::RpcError(rpc::kBusy, "busy: the server is shutting down");
+    if (session.peer_gone && session.peer_gone->load())
+      throw rpc::RpcError(rpc::kBusy, "busy: the connection closed");
+    std::optional<JobRecord> job = store_.GetJob(id);
+    if (!job || job->state != JobState::kPreparing) return job;
+    notices.Poll();
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  return store_.GetJob(id);
 }
 
 JobRecord RpcService::Prepare(const JobStore::Created& created, Scene scene,
@@ -439,49 +508,41 @@ JobRecord RpcService::Prepare(const JobStore::Created& created, Scene scene,
     const Lease& lease;
     std::optional<JobRecord>& outcome;
     ~Ending() {
+      bool dropped = false;
       if (!outcome) {
         try {
           service.store_.DropPreparing(lease);
+          dropped = true;
         } catch (const std::exception& e) {
-          // The next claim deletes it once its lease, no longer renewed, expires.
+          // The next claim deletes it once its lease, no longer renewed, expires (and the
+          // monitor then tells its watchers).
           spdlog::warn("job {}: cannot drop the refused submission now ({})", lease.job_id,
                        e.what());
         }
       }
-      service.scheduler_.PreparationEnded(lease.job_id, outcome);
+      try {
+        service.scheduler_.PreparationEnded(lease.job_id, outcome, dropped);
+      } catch (const std::exception& e) {  // (out of memory telling the watchers)
+        spdlog::error("job {}: {}", lease.job_id, e.what());
+      }
     }
   } ending{*this, lease, outcome};
 
-  // A submitter whose scene takes a while learns the job's id, and that the daemon is at
-  // work: job.preparing after a second, then about every kPreparingNoticeSeconds (a client's
-  // answer timeout can count from the last one, however long the preparation). Most scenes
-  // are prepared before the first: their submitters see the answer alone.
-  const auto started = std::chrono::steady_clock::now();
-  auto next_notice = started + std::chrono::seconds(1);
-  const auto notice = [&] {
-    const auto now = std::chrono::steady_clock::now();
-    if (!session.notify_now || now < next_notice) return;
-    next_notice = now + std::chrono::seconds(kPreparingNoticeSeconds);
-    Json params;
-    params["job_id"] = id;
-    params["seconds"] = std::chrono::duration<double>(now - started).count();
-    session.notify_now(rpc::Notification("job.preparing", params));
-  };
+  PreparingNotices notices(session, id);
   const std::shared_ptr<const std::atomic<bool>> peer_gone = session.peer_gone;
+  const auto stop_requested = [&] {
+    return control->cancel.load() || control->lease_lost.load() || stopping() ||
+           (peer_gone && peer_gone->load());
+  };
   Interruption interruption(
       [&] {
-        notice();
-        return control->cancel.load() || control->lease_lost.load() || stopping() ||
-               (peer_gone && peer_gone->load());
+        notices.Poll();
+        return stop_requested();
       },
       0.1);
-  std::shared_ptr<const Problem> problem;
-  try {
-    problem =
-        std::make_shared<const Problem>(std::move(scene), EquilibriumOptions{}, &interruption);
-  } catch (const InputError& e) {
-    throw InvalidScene(e);
-  } catch (const Interrupted&) {
+  // The preparation stopped, or a stop came after its last check (then too, the job is not
+  // queued for a submitter that has gone or a server that stops).
+  const auto stopped = [&]() -> JobRecord {
     if (control->cancel.load() && !control->lease_lost.load()) {
       r.state = JobState::kCancelled;
       r.finished_at = UnixNow();
@@ -498,7 +559,17 @@ JobRecord RpcService::Prepare(const JobStore::Created& created, Scene scene,
     if (stopping()) throw rpc::RpcError(rpc::kBusy, "busy: the server is shutting down");
     spdlog::info("job {}: its submitter went away while it was prepared; dropped", id);
     throw rpc::RpcError(rpc::kBusy, "busy: the connection closed");
+  };
+  std::shared_ptr<const Problem> problem;
+  try {
+    problem =
+        std::make_shared<const Problem>(std::move(scene), EquilibriumOptions{}, &interruption);
+  } catch (const InputError& e) {
+    throw InvalidScene(e);
+  } catch (const Interrupted&) {
+    return stopped();
   }
+  if (stop_requested()) return stopped();
   if (problem->gene_count() > options_.limits.max_genes) {
     LimitExceeded("max_genes", problem->gene_count(), options_.limits.max_genes);
   }
@@ -690,7 +761,7 @@ Json RpcService::JobCancel(const Json& params) {
     throw rpc::RpcError(rpc::kWrongState,
                         "job " + std::to_string(job.id) + " is " +
                             std::string(proto::JobStateName(job.state)) +
-                            "; only a queued or running job can be cancelled",
+                            "; only a preparing, queued or running job can be cancelled",
                         data);
   }
   Json j;

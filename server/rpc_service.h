@@ -114,6 +114,9 @@ class RpcService {
   // queues it, or returns it cancelled (a cancel came meanwhile), or drops it and throws the
   // error its submitter gets (an invalid scene, a bound, a shutdown, a lost connection).
   JobRecord Prepare(const JobStore::Created& created, Scene scene, const SessionContext& session);
+  // A retry of a submission being prepared (its idempotency key) waits, bounded, for that
+  // preparation's end: the job as it then is, or nothing when it was dropped.
+  std::optional<JobRecord> WaitWhilePreparing(std::int64_t id, const SessionContext& session);
   proto::Json JobGet(const proto::Json& params);
   proto::Json JobResult(const proto::Json& params);
   proto::Json JobTrace(const proto::Json& params);

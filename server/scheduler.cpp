@@ -116,13 +116,14 @@ std::shared_ptr<const Scheduler::Preparation> Scheduler::PreparationStarted(cons
   return preparation;
 }
 
-void Scheduler::PreparationEnded(std::int64_t id, const std::optional<JobRecord>& job) {
+void Scheduler::PreparationEnded(std::int64_t id, const std::optional<JobRecord>& job,
+                                 bool dropped) {
   {
     std::lock_guard lock(mutex_);
     preparing_.erase(id);
   }
   if (!job) {
-    PublishGone(id);
+    if (dropped) PublishGone(id);
   } else if (proto::IsFinal(job->state)) {
     PublishFinished(id, *job);
   }
@@ -220,10 +221,9 @@ void Scheduler::PublishFinished(std::int64_t id, const JobRecord& job) {
 void Scheduler::PublishGone(std::int64_t id) {
   proto::Json params;
   params["job_id"] = id;
-  params["message"] =
-      "job " + std::to_string(id) +
-      " no longer exists: its submission was refused or abandoned while it was prepared (it "
-      "was never acknowledged)";
+  params["message"] = "job " + std::to_string(id) +
+                      " no longer exists (a submission refused or abandoned while it was "
+                      "prepared, which was never acknowledged, or a job deleted)";
   Publish(id, proto::rpc::Notification("job.gone", params));
 }
 

@@ -95,8 +95,9 @@ class Scheduler {
   };
   std::shared_ptr<const Preparation> PreparationStarted(const Lease& lease);
   // `job`: the job as its preparation left it (queued, or cancelled: watchers are told), or
-  // nothing when it was dropped.
-  void PreparationEnded(std::int64_t id, const std::optional<JobRecord>& job);
+  // nothing when it was to be dropped; `dropped`: it was (its watchers get job.gone; else the
+  // monitor tells them once the row is swept).
+  void PreparationEnded(std::int64_t id, const std::optional<JobRecord>& job, bool dropped);
 
   double lease_seconds() const { return options_.lease_seconds; }
 

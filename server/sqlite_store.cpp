@@ -88,6 +88,10 @@ ALTER TABLE jobs ADD COLUMN cancel_requested INTEGER NOT NULL DEFAULT 0;
 -- What a claim scans: the unfinished jobs in claim order, however many finished ones there are.
 CREATE INDEX jobs_to_claim ON jobs (priority DESC, id) WHERE state IN ('queued', 'running');
 )sql",
+    // 3: jobs being prepared (state 'preparing', held by a lease), swept when it lapses.
+    R"sql(
+CREATE INDEX jobs_preparing ON jobs (lease_expires) WHERE state = 'preparing';
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(std::size(kMigrations));
 static_assert(kMigrationCount == SqliteStore::kSchemaVersion);
@@ -137,6 +141,14 @@ void BindBlob(SQLite::Statement& q, int index, const std::string& bytes) {
     throw std::runtime_error("store: a blob over 2 GiB");
   }
   q.bind(index, bytes.data(), static_cast<int>(bytes.size()));
+}
+
+// An UPDATE ... RETURNING of one row, its row read: steps it to its end, where SQLite
+// commits it (autocommit), so that a commit that fails (a full disk, an I/O error) throws
+// here rather than in the statement's destructor, which ignores it.
+void FinishReturning(SQLite::Statement& q) {
+  while (q.executeStep()) {
+  }
 }
 
 // Runs `sql`, whose three parameters are the lease's job, owner and epoch.
@@ -407,7 +419,10 @@ JobState SqliteStore::FinishPreparing(const Lease& lease, const JobRecord& prepa
       throw LeaseLost("job " + std::to_string(lease.job_id) +
                       ": no longer being prepared here (its lease expired)");
     }
-    return proto::ParseJobState(q.getColumn(0).getString()).value_or(JobState::kQueued);
+    const JobState state =
+        proto::ParseJobState(q.getColumn(0).getString()).value_or(JobState::kQueued);
+    FinishReturning(q);
+    return state;
   });
 }
 
@@ -552,6 +567,7 @@ LeaseStatus SqliteStore::RenewLease(const Lease& lease, double lease_seconds) {
     if (q.executeStep()) {
       status.held = true;
       status.cancel_requested = q.getColumn(0).getInt() != 0;
+      FinishReturning(q);
     }
     return status;
   });

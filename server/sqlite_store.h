@@ -30,7 +30,7 @@ namespace springfit::server {
 
 class SqliteStore final : public JobStore {
  public:
-  static constexpr int kSchemaVersion = 2;
+  static constexpr int kSchemaVersion = 3;
 
   // Opens or creates the database; throws std::runtime_error with the reason.
   explicit SqliteStore(const std::string& path);

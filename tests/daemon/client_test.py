@@ -19,6 +19,7 @@ import json
 import os
 import re
 import resource
+import select
 import shutil
 import signal
 import socket
@@ -695,10 +696,11 @@ def test_preparing_state(ctx):
     d = ctx.daemon("preparing")
     scene_text = json.dumps(grid_scene(150, "grid-150"), separators=(",", ":"))
 
-    def submit(label):
+    def submit(label, key=None):
         conn = Conn(d.port)
-        conn.send(('{"jsonrpc":"2.0","id":1,"method":"job.submit","params":{"scene":%s,"label":"%s"}}\n'
-                   % (scene_text, label)).encode())
+        extra = ',"idempotency_key":"%s"' % key if key else ""
+        conn.send(('{"jsonrpc":"2.0","id":1,"method":"job.submit","params":{"scene":%s,"label":"%s"%s}}\n'
+                   % (scene_text, label, extra)).encode())
         return conn
 
     with Conn(d.port) as c:
@@ -743,7 +745,9 @@ def test_preparing_state(ctx):
                                 "--server", f"127.0.0.1:{d.port}"], stdin=subprocess.DEVNULL,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
         try:
-            first = cli.stderr.readline().decode("utf-8", "replace")
+            # (bounded: a submit that never prints would otherwise hang the suite)
+            ready, _, _ = select.select([cli.stderr], [], [], 60)
+            first = cli.stderr.readline().decode("utf-8", "replace") if ready else "(nothing in 60 s)"
             listed = wait_listed_preparing(c, "prep-cli", timeout=1)
             R.expect(first.startswith(f"job {listed} preparing"),
                      f"springfit submit's first line while job {listed} is prepared: {short(first)}")
@@ -759,11 +763,17 @@ def test_preparing_state(ctx):
                 cli.wait()
 
         # Its submitter goes away: the job is dropped, and a watcher is told (job.gone).
-        sub = submit("prep-gone")
+        sub = submit("prep-gone", key="prep-gone-key")
         watcher = Conn(d.port)
         try:
             gone = wait_listed_preparing(c, "prep-gone")
             require(gone is not None, "the second submission was never listed as preparing")
+            # A retry with its key meanwhile waits for the first one's outcome: here the first
+            # submitter goes away, so the retry becomes the submission (checked below).
+            retry = Conn(d.port)
+            retry.send(('{"jsonrpc":"2.0","id":7,"method":"job.submit","params":{"scene":%s,'
+                        '"label":"prep-retry","idempotency_key":"prep-gone-key"}}\n' % scene_text).encode())
+            R.expect(not answered(retry), "the retry was answered while the first was prepared")
             watched = watcher.result("job.watch", {"job_id": gone})
             R.expect(watched.get("state") == "preparing", f"job.watch of a preparing job: {short(watched)}")
             cli_watch = subprocess.Popen([ctx.springfit, "watch", str(gone), "--server", f"127.0.0.1:{d.port}"],
@@ -773,6 +783,13 @@ def test_preparing_state(ctx):
         finally:
             sub.close()
         try:
+            resp = retry.read_answer(timeout=120, what="the retry's answer")
+            job = (resp.get("result") or {}).get("job") or {}
+            R.expect(resp.get("result", {}).get("created") is True and job.get("state") == "queued"
+                     and job.get("job_id") not in (None, gone),
+                     f"the retry of a dropped submission is not a new queued job: {short(resp)}")
+            if job.get("job_id"):
+                c.call("job.cancel", {"job_id": job["job_id"]})
             note = watcher.read(timeout=60, what="job.gone for the dropped submission")
             R.expect(note.get("method") == "job.gone" and note.get("params", {}).get("job_id") == gone,
                      f"the watcher of a dropped submission got {short(note)}")
@@ -782,6 +799,7 @@ def test_preparing_state(ctx):
                      f"springfit watch of a dropped submission: exit {cli_watch.returncode}, {short(err)}")
         finally:
             watcher.close()
+            retry.close()
             if cli_watch.poll() is None:
                 cli_watch.kill()
                 cli_watch.wait()

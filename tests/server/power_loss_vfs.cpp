@@ -37,6 +37,10 @@ struct LossyFile {
   std::string path;
 };
 
+// The most bytes handed to the real VFS's xRead or xWrite at once: the unix VFS masks sizes
+// above 128 KiB.
+constexpr std::size_t kPiece = 64 * 1024;
+
 constexpr int RealOffset() {
   return static_cast<int>((sizeof(LossyFile) + 15) / 16 * 16);
 }
@@ -104,7 +108,6 @@ int Sync(sqlite3_file* f, int flags) {
   const std::string& bytes = file->image->bytes;
   int rc = real->pMethods->xTruncate(real, static_cast<sqlite3_int64>(bytes.size()));
   // In pieces: the unix VFS writes at most 128 KiB per call (it masks larger sizes).
-  constexpr std::size_t kPiece = 64 * 1024;
   for (std::size_t at = 0; rc == SQLITE_OK && at < bytes.size(); at += kPiece) {
     const std::size_t n = std::min(kPiece, bytes.size() - at);
     rc = real->pMethods->xWrite(real, bytes.data() + at, static_cast<int>(n),
@@ -188,12 +191,16 @@ int Open(sqlite3_vfs*, sqlite3_filename name, sqlite3_file* f, int flags, int* o
     sqlite3_int64 size = 0;
     real->pMethods->xFileSize(real, &size);
     image->bytes.resize(static_cast<std::size_t>(size));
-    if (size > 0 &&
-        real->pMethods->xRead(real, image->bytes.data(), static_cast<int>(size), 0) != SQLITE_OK) {
-      state->images.erase(file->path);
-      Close(f);
-      f->pMethods = nullptr;
-      return SQLITE_IOERR_READ;
+    // In pieces, as Sync writes (the unix VFS handles at most 128 KiB per call).
+    for (std::size_t at = 0; at < image->bytes.size(); at += kPiece) {
+      const std::size_t n = std::min(kPiece, image->bytes.size() - at);
+      if (real->pMethods->xRead(real, image->bytes.data() + at, static_cast<int>(n),
+                                static_cast<sqlite3_int64>(at)) != SQLITE_OK) {
+        state->images.erase(file->path);
+        Close(f);
+        f->pMethods = nullptr;
+        return SQLITE_IOERR_READ;
+      }
     }
   }
   file->image = image;

@@ -66,8 +66,6 @@ TEST_F(SqliteStoreTest, DataSurvivesReopeningAndADeadDaemonsLeasesAreFreed) {
   EXPECT_THROW(reopened.SaveProgress(lease, ProgressBatch{}), LeaseLost);
 }
 
-// Reads go to the reader connections: a write waiting for the file's write lock (held here by
-// another connection, as a checkpoint or a backup would) holds the writer, not job.get.
 // A power cut: what SQLite did not sync is lost (power_loss_vfs.h). Every write the store
 // acknowledged (a submission answered, progress and a checkpoint saved, a cancel, a result)
 // was synced before it returned, so all of it is there after the cut; the store, closed by
@@ -119,6 +117,8 @@ TEST_F(SqliteStoreTest, EveryAcknowledgedWriteSurvivesAPowerCut) {
   EXPECT_EQ(resumed->job.checkpoint_generation, 4);
 }
 
+// Reads go to the reader connections: a write waiting for the file's write lock (held here by
+// another connection, as a checkpoint or a backup would) holds the writer, not job.get.
 TEST_F(SqliteStoreTest, ReadsDoNotWaitBehindAWriteInProgress) {
   SqliteStore store(path_);
   const std::int64_t id = store.CreateJob(Job("existing"), 10).job.id;
