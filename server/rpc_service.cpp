@@ -588,11 +588,10 @@ JobRecord RpcService::Prepare(const JobStore::Created& created, Scene scene,
   } catch (const LeaseLost&) {
     throw RecordLost();
   }
+  if (r.state == JobState::kCancelled) r.finished_at = UnixNow();
   outcome = r;
   if (r.state == JobState::kCancelled) {
     // (A cancel reached the store after the last heartbeat: it wins.)
-    r.finished_at = UnixNow();
-    outcome = r;
     spdlog::info("job {} cancelled while being prepared ({})", id, r.scene_name);
     return r;
   }
