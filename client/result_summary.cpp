@@ -152,6 +152,37 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
           << "): its stiffness on the mesh edges reproduces the reference better\n";
     }
   }
+  if (r.contains("generalization") && r["generalization"].is_object()) {
+    const proto::Json& g = r["generalization"];
+    const auto number = [](const proto::Json& j, const char* key) {
+      return j.contains(key) && j[key].is_number() ? Format("%.3g", j[key].get<double>())
+                                                   : std::string("-");
+    };
+    const proto::Json held = g.value("held_out", proto::Json::object());
+    const proto::Json base = g.value("baseline_held_out", proto::Json::object());
+    const proto::Json probes = g.value("probes", proto::Json::object());
+    out << "unseen loads:      " << held.value("probes", 0) << " held-out probes on "
+        << probes.value("supports", 0) << " supports, never fitted: median E "
+        << number(held, "median") << ", 95% " << number(held, "p95") << "; baseline "
+        << number(base, "median") << ", 95% " << number(base, "p95") << "\n";
+    const proto::Json families = g.value("by_family", proto::Json::object());
+    const proto::Json base_families = g.value("baseline_by_family", proto::Json::object());
+    out << "  by family:       ";
+    bool first = true;
+    for (const auto& [name, f] : families.items()) {
+      out << (first ? "" : "; ") << name << " " << number(f, "median") << " (baseline "
+          << number(base_families.value(name, proto::Json::object()), "median") << ")";
+      first = false;
+    }
+    out << " (median E; named: the user's cases, fitted)\n";
+    out << "  every load:      generalised eigenvalues of (K_model, K_ref) on the user's supports "
+           "in ["
+        << number(g, "lambda_min") << ", " << number(g, "lambda_max")
+        << "]: energy-norm error at most " << number(g, "bound") << " of the response\n";
+    if (g.value("returned_baseline", false))
+      out << "WARNING:           THE FITTED MODEL DID NO BETTER THAN THE CLOSED-FORM BASELINE ON "
+             "HELD-OUT LOADS: the baseline is returned\n";
+  }
   if (r.contains("exact") && r["exact"].is_boolean()) {
     out << "reference:         " << (r["exact"].get<bool>() ? "recovered exactly" : "not recovered")
         << " (" << r["missing"].size() << " missing, " << r["extra"].size() << " extra)\n";

@@ -48,6 +48,12 @@ void AddSearchFlags(CLI::App* command, SearchFlags& flags) {
                       "every spring by its own stiffness costs E^2 = 0.01), or auto: the "
                       "strength with the lowest held-out error (one fit per load case and "
                       "strength tried)");
+  command->add_option("--probes", flags.probes,
+                      "Strategy continuous (default on an FEM reference) with an FEM or MSS "
+                      "reference: the probe loads the model is fitted to and judged on (point, "
+                      "patch and body loads on several supports, a part held out): auto, none "
+                      "(the named load cases alone) or about N probes (default: the scene's, "
+                      "else auto)");
 }
 
 void ApplySearchFlags(const SearchFlags& flags, SearchSettings& st) {
@@ -62,11 +68,13 @@ void ApplySearchFlags(const SearchFlags& flags, SearchSettings& st) {
   if (flags.target_error) st.target_error = *flags.target_error;
   if (flags.regularization)
     st.regularization = proto::RegularizationFromText(*flags.regularization, "--regularization");
+  if (flags.probes) st.probes = proto::ProbesFromText(*flags.probes, "--probes");
 }
 
 void ApplySearchFlags(const SearchFlags& flags, proto::Json& scene) {
   if (!(flags.strategy || flags.identify || flags.generations || flags.time_limit || flags.stall ||
-        flags.response || flags.max_springs || flags.target_error || flags.regularization))
+        flags.response || flags.max_springs || flags.target_error || flags.regularization ||
+        flags.probes))
     return;
   proto::Json& search = scene["search"];
   if (search.is_null()) search = proto::Json::object();
@@ -87,6 +95,13 @@ void ApplySearchFlags(const SearchFlags& flags, proto::Json& scene) {
   if (flags.regularization) {
     const auto r = proto::RegularizationFromText(*flags.regularization, "--regularization");
     search["regularization"] = r.automatic ? proto::Json("auto") : proto::Json(r.strength);
+  }
+  if (flags.probes) {
+    const auto probes = proto::ProbesFromText(*flags.probes, "--probes");
+    if (probes)
+      search["probes"] = proto::ProbesToJson(*probes);
+    else
+      search.erase("probes");  // auto: the default
   }
 }
 

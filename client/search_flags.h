@@ -23,6 +23,7 @@ struct SearchFlags {
   std::optional<std::string> response;
   std::optional<int> max_springs;
   std::optional<std::string> regularization;
+  std::optional<std::string> probes;
   std::optional<double> target_error;
 };
 

@@ -197,6 +197,10 @@ struct SearchSettings {
     double strength = 0.0;
   };
   std::optional<Regularization> regularization;
+  // Strategy continuous on an FEM or MSS reference: the probe bank (engine/response/
+  // probe_bank.h) that the model is fitted to and judged on. nullopt: automatic; 0: none (the
+  // named cases alone, judged by cross-validation over them); N > 0: about N generated probes.
+  std::optional<int> probes;
   // The search stops when the normalised error reaches this value (0 = exact recovery,
   // judged within the solver's relative tolerance). Unit-free, >= 0.
   double target_normalized_error = 0.0;

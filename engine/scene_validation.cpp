@@ -360,6 +360,17 @@ void CheckSearch(const Scene& scene) {
                      "regularises the continuous fit: it needs strategy continuous (or default on "
                      "an FEM reference)");
   }
+  if (s.probes && *s.probes > 0 && !continuous) {
+    throw InputError("search.probes",
+                     "sets the probe loads of the continuous fit: it needs strategy continuous "
+                     "(or default on an FEM reference)");
+  }
+  if (s.probes && *s.probes > 0 && scene.reference.kind == Reference::Kind::kPositions) {
+    throw InputError("search.probes",
+                     "a positions reference (measurements) cannot be probed: its model is "
+                     "fitted to its load cases and judged by cross-validation over them; use "
+                     "\"none\" or leave it out");
+  }
   if (s.regularization && !s.regularization->automatic &&
       !(s.regularization->strength >= 0.0 && std::isfinite(s.regularization->strength))) {
     throw InputError("search.regularization", "must be \"auto\" or a finite number >= 0");

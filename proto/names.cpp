@@ -177,6 +177,27 @@ SearchSettings::Regularization RegularizationFromText(const std::string& text,
   return r;
 }
 
+std::optional<int> ProbesFromText(const std::string& text, const std::string& path) {
+  if (text == "auto") return std::nullopt;
+  if (text == "none") return 0;
+  const std::string rule = "must be \"auto\", \"none\" or a count from 1 to " +
+                           std::to_string(SearchOptions::kMaxProbes) + ", got '" + text + "'";
+  std::size_t used = 0;
+  long count = 0;
+  try {
+    count = std::stol(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() || count < 1 || count > SearchOptions::kMaxProbes)
+    throw InputError(path, rule);
+  return static_cast<int>(count);
+}
+
+Json ProbesToJson(int probes) {
+  return probes == 0 ? Json("none") : Json(probes);
+}
+
 std::string_view StopReasonName(StopReason reason) {
   switch (reason) {
     case StopReason::kTargetReached:

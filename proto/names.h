@@ -9,6 +9,8 @@
 #include "engine/equilibrium.h"
 #include "engine/identification/trace.h"
 #include "engine/scene.h"
+#include "engine/search/search_options.h"
+#include "proto/json_reader.h"
 
 namespace springfit::proto {
 
@@ -49,6 +51,12 @@ Response ResponseFromName(const std::string& name, const std::string& path);
 // search.regularization: "auto", or a number >= 0 (as JSON, or as a command line's text).
 SearchSettings::Regularization RegularizationFromText(const std::string& text,
                                                       const std::string& path);
+
+// search.probes: "auto" (nullopt), "none" (0) or a count from 1 to SearchOptions::kMaxProbes,
+// as a command line's text (JSON gives the count as a number). InputError(path, ...) otherwise.
+std::optional<int> ProbesFromText(const std::string& text, const std::string& path);
+// The JSON of search.probes: "none" for 0, else the count.
+Json ProbesToJson(int probes);
 
 // "default, paper, direct, hybrid or continuous": the accepted names, for messages.
 std::string StrategyNames();

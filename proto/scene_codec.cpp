@@ -262,7 +262,7 @@ void ReadSearch(const Json& v, SearchSettings& st) {
   ExpectKeys(v, path,
              {"strategy", "identify", "response", "seed", "population", "crossover_probability",
               "mutation_probability", "max_generations", "target_normalized_error", "max_seconds",
-              "stall_generations", "max_springs", "target_error", "regularization"});
+              "stall_generations", "max_springs", "target_error", "regularization", "probes"});
   if (v.contains("strategy")) {
     st.strategy = StrategyFromName(ReadString(v["strategy"], JoinPath(path, "strategy")),
                                    JoinPath(path, "strategy"));
@@ -306,6 +306,19 @@ void ReadSearch(const Json& v, SearchSettings& st) {
       st.regularization = SearchSettings::Regularization{false, ReadNumber(r, where)};
       if (!(st.regularization->strength >= 0.0))
         throw InputError(where, "must be \"auto\" or a finite number >= 0");
+    }
+  }
+  if (v.contains("probes")) {
+    const Json& r = v["probes"];
+    const std::string where = JoinPath(path, "probes");
+    if (r.is_string()) {
+      st.probes = ProbesFromText(r.get<std::string>(), where);
+    } else {
+      const int count = ReadInt(r, where);
+      if (count < 1 || count > SearchOptions::kMaxProbes)
+        throw InputError(where, "must be \"auto\", \"none\" or a count from 1 to " +
+                                    std::to_string(SearchOptions::kMaxProbes));
+      st.probes = count;
     }
   }
   if (v.contains("target_normalized_error")) {
@@ -517,6 +530,7 @@ Json SceneToJson(const Scene& s) {
     sj["regularization"] =
         st.regularization->automatic ? Json("auto") : Json(st.regularization->strength);
   }
+  if (st.probes) sj["probes"] = ProbesToJson(*st.probes);
   if (st.target_normalized_error != d.target_normalized_error)
     sj["target_normalized_error"] = st.target_normalized_error;
   if (!sj.empty()) j["search"] = std::move(sj);

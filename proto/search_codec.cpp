@@ -34,6 +34,7 @@ Json SearchOptionsToJson(const SearchOptions& o) {
   j["max_springs"] = o.max_springs;
   j["target_error"] = o.target_error;
   j["regularization"] = o.choose_regularization ? Json("auto") : Json(o.regularization);
+  j["probes"] = o.probes == SearchOptions::kAutomaticProbes ? Json("auto") : ProbesToJson(o.probes);
   j["selection"] = o.selection == SearchOptions::Selection::kRoulette ? "roulette" : "tournament";
   if (o.selection == SearchOptions::Selection::kTournament)
     j["tournament_size"] = o.tournament_size;
@@ -202,6 +203,74 @@ Json ContinuousDetailsToJson(const IdentificationResult::Continuous& c) {
   return j;
 }
 
+// A finite number, or null (infinity: no equilibrium; NaN: nothing measured).
+Json NumberOrNull(double v) {
+  return std::isfinite(v) ? Json(v) : Json(nullptr);
+}
+
+Json ErrorSummaryToJson(const response::ErrorSummary& s) {
+  return {{"probes", s.probes},
+          {"median", NumberOrNull(s.median)},
+          {"p95", NumberOrNull(s.p95)},
+          {"rms", NumberOrNull(s.rms)}};
+}
+
+Json FamiliesToJson(const std::vector<response::FamilyErrors>& families) {
+  Json j = Json::object();
+  for (const auto& f : families)
+    j[response::ProbeFamilyName(f.family)] = ErrorSummaryToJson(f.errors);
+  return j;
+}
+
+Json PencilToJson(const response::PencilExtremes& x) {
+  return {{"lambda_min", x.lambda_min},
+          {"lambda_max", x.lambda_max},
+          {"bound", NumberOrNull(x.Bound())}};
+}
+
+Json GeneralizationToJson(const response::Generalization& g) {
+  Json j;
+  j["probes"] = {{"total", g.probes},      {"fitted", g.fitted},
+                 {"choosing", g.choosing}, {"held_out", g.held_out},
+                 {"supports", g.supports}, {"named_weight", g.named_weight}};
+  j["held_out"] = ErrorSummaryToJson(g.model_held_out);
+  j["baseline_held_out"] = ErrorSummaryToJson(g.baseline_held_out);
+  j["by_family"] = FamiliesToJson(g.model);
+  j["baseline_by_family"] = FamiliesToJson(g.baseline);
+  j["lambda_min"] = g.lambda_min;
+  j["lambda_max"] = g.lambda_max;
+  j["bound"] = NumberOrNull(g.bound);
+  Json pencils = Json::array();
+  for (const auto& p : g.pencils)
+    pencils.push_back({{"support", p.support},
+                       {"model", PencilToJson(p.model)},
+                       {"baseline", PencilToJson(p.baseline)}});
+  j["supports"] = std::move(pencils);
+  j["fitted_to_probes"] = g.fitted_to_probes;
+  j["returned_baseline"] = g.returned_baseline;
+  if (g.fitted_to_probes) {
+    Json fit;
+    fit["regularization"] = g.fit.regularization;
+    Json tried = Json::array();
+    const std::vector<double> strengths = response::ResponseFitOptions{}.regularizations;
+    for (std::size_t i = 0; i < g.fit.regularization_select_errors.size() && i < strengths.size();
+         ++i)
+      tried.push_back(
+          {{"strength", strengths[i]},
+           {"choosing_rms_error", NumberOrNull(g.fit.regularization_select_errors[i])}});
+    fit["regularization_tried"] = std::move(tried);
+    Json path = Json::array();
+    for (const auto& p : g.fit.path)
+      path.push_back(
+          {{"springs", p.springs}, {"choosing_rms_error", NumberOrNull(p.select_error)}});
+    fit["path"] = std::move(path);
+    fit["chosen"] = g.fit.chosen;
+    fit["gauss_newton_steps"] = g.fit.gauss_newton_accepted;
+    j["fit"] = std::move(fit);
+  }
+  return j;
+}
+
 }  // namespace
 
 Json ResultToJson(const Problem& problem, const IdentificationResult& r, bool with_trace) {
@@ -268,6 +337,7 @@ Json ResultToJson(const Problem& problem, const IdentificationResult& r, bool wi
   }
   if (r.direct) DirectDetailsToJson(problem, *r.direct, j);
   if (r.continuous) j["continuous"] = ContinuousDetailsToJson(*r.continuous);
+  if (r.generalization) j["generalization"] = GeneralizationToJson(*r.generalization);
   if (with_trace) j["trace"] = TraceToJson(r.trace);
   return j;
 }

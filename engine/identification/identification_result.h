@@ -14,6 +14,7 @@
 #include "engine/fem/closed_form_baseline.h"
 #include "engine/identification/trace.h"
 #include "engine/problem.h"
+#include "engine/response/generalization.h"
 #include "engine/search/fitness_evaluator.h"
 #include "engine/search/search_options.h"
 
@@ -86,6 +87,9 @@ struct IdentificationResult {
   // An FEM reference: the closed-form MSS of its mesh, evaluated before the run (the model an
   // identification must beat, engine/fem/closed_form_baseline.h).
   std::optional<fem::BaselineReport> baseline;
+  // An FEM or MSS reference under strategy continuous with probes: the model judged on loads
+  // it was not fitted to, beside the baseline (engine/response/generalization.h).
+  std::optional<response::Generalization> generalization;
 
   // nullopt when the reference topology is unknown.
   std::optional<bool> exact() const {

@@ -205,6 +205,7 @@ IdentificationResult DirectStrategy::Run(const Problem& problem, const SearchOpt
 
 IdentificationResult ContinuousStrategy::Run(const Problem& problem, const SearchOptions& options,
                                              const RunContext& context, RunMonitor& monitor) const {
+  if (FitsToProbes(problem, options)) return RunProbeFit(problem, options, context, monitor);
   IdentificationResult r;
   r.options = options;  // (RunIdentification sets identify: continuous identifies stiffness)
   r.trace = context.trace;

@@ -61,6 +61,12 @@ class ContinuousStrategy : public IdentificationStrategy {
 };
 
 // ResolvedStrategy (scene.h) for the problem's reference.
+// Strategy continuous fits the reference's whole response (probe_fit_strategy.cpp) when the
+// reference can be probed (FEM or MSS) and the probes are not switched off.
+bool FitsToProbes(const Problem& problem, const SearchOptions& options);
+IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& options,
+                                 const RunContext& context, RunMonitor& monitor);
+
 Strategy ResolvedStrategy(Strategy strategy, const Problem& problem);
 std::unique_ptr<IdentificationStrategy> MakeStrategy(Strategy strategy, const Problem& problem);
 

@@ -42,6 +42,8 @@ void SearchOptions::Validate() const {
                 "0 <= value < infinity (0: none)");
   check.Require(regularization >= 0.0 && std::isfinite(regularization), "regularization",
                 regularization, "0 <= value < infinity (0: none)");
+  check.Require(probes >= kAutomaticProbes && probes <= kMaxProbes, "probes", probes,
+                "-1 (automatic), 0 (none) or 1 <= value <= 20000");
   check.Require(cache_capacity >= 1, "cache_capacity", static_cast<double>(cache_capacity),
                 "value >= 1");
 }
@@ -84,6 +86,7 @@ SearchOptions ResolveSearchOptions(const SearchSettings& settings, int genes) {
     o.choose_regularization = settings.regularization->automatic;
     o.regularization = settings.regularization->strength;
   }
+  if (settings.probes) o.probes = *settings.probes;
   return o;
 }
 

@@ -111,6 +111,11 @@ struct SearchOptions {
   // kRegularizationChoices whose held-out error is lowest.
   double regularization = 0.0;
   bool choose_regularization = false;
+  // Strategy continuous on an FEM or MSS reference: the probe bank's size (SearchSettings::
+  // probes): kAutomaticProbes, 0 (none: the named cases alone) or about that many probes.
+  static constexpr int kAutomaticProbes = -1;
+  static constexpr int kMaxProbes = 20000;
+  int probes = kAutomaticProbes;
 
   // Throws std::invalid_argument naming the field, its value and the rule it breaks.
   void Validate() const;

@@ -290,9 +290,35 @@ assert r["stop"] == "not_reproduced" and r["normalized_error"] >= 1, r["stop"]
 assert "does not reproduce the reference" in r["stop_message"], r["stop_message"]
 PY
 
-# Strategy continuous (default on an FEM reference): the response, the sparsity path, the
-# size limit from the command line, and the trade-off figure.
-expect_exit 0 "run fem continuous" "$sf" run "$src/examples/fem-plate-5x5.json" --max-springs 70 -q -o "$tmp/continuous.json"
+# Strategy continuous (default on an FEM reference) fitted to probe loads: the certificate on
+# loads it was never fitted to, beside the baseline, in the summary and the result.
+expect_exit 0 "run fem probes" "$sf" run "$src/examples/fem-plate-5x5.json" -q -o "$tmp/probes.json"
+grep -q "^unseen loads:      [0-9]* held-out probes on [0-9]* supports, never fitted: median E .*; baseline " "$tmp/out" || fail "run prints the held-out E: $(cat "$tmp/out")"
+grep -q "^  every load:      generalised eigenvalues of (K_model, K_ref)" "$tmp/out" || fail "run prints the pencil's bound: $(cat "$tmp/out")"
+python3 - "$tmp/probes.json" <<'PY' || fail "probe result: $(head -c 300 "$tmp/probes.json")"
+import json, sys
+r = json.load(open(sys.argv[1]))
+g = r["generalization"]
+assert g["fitted_to_probes"] and not g["returned_baseline"], g
+assert g["held_out"]["median"] < 0.5 * g["baseline_held_out"]["median"], g
+assert set(g["by_family"]) == {"point", "patch", "body", "named"}, g["by_family"]
+assert g["lambda_min"] > 0.1 and g["lambda_max"] >= g["lambda_min"], g
+assert g["probes"]["held_out"] > 0 and g["probes"]["supports"] >= 3, g["probes"]
+assert r["options"]["probes"] == "auto"
+PY
+expect_exit 0 "run fem probes 60" "$sf" run "$src/examples/fem-plate-5x5.json" --probes 60 -q -o "$tmp/probes60.json"
+python3 - "$tmp/probes60.json" <<'PY' || fail "probe count: $(head -c 300 "$tmp/probes60.json")"
+import json, sys
+r = json.load(open(sys.argv[1]))
+assert r["scene_definition"]["search"]["probes"] == 60 and r["options"]["probes"] == 60
+assert 50 <= r["generalization"]["probes"]["total"] - len(r["load_cases"]) <= 70, r["generalization"]["probes"]
+PY
+expect_exit 2 "bad probes" "$sf" run "$src/examples/fem-plate-5x5.json" --probes many
+grep -q -- "--probes: must be \"auto\", \"none\" or a count from 1 to 20000, got 'many'" "$tmp/err" || fail "probes names the value: $(cat "$tmp/err")"
+
+# Strategy continuous fitted to the named cases alone (--probes none): the response, the
+# sparsity path, the size limit from the command line, and the trade-off figure.
+expect_exit 0 "run fem continuous" "$sf" run "$src/examples/fem-plate-5x5.json" --probes none --max-springs 70 -q -o "$tmp/continuous.json"
 grep -q "^response:          linear" "$tmp/out" || fail "run prints the response: $(cat "$tmp/out")"
 grep -q "^sparsity path:" "$tmp/out" || fail "run prints the sparsity path: $(cat "$tmp/out")"
 python3 - "$tmp/continuous.json" <<'PY' || fail "continuous result: $(head -c 300 "$tmp/continuous.json")"
@@ -306,6 +332,7 @@ assert c["path"][c["chosen"]]["springs"] <= 70
 assert all(a["springs"] > b["springs"] for a, b in zip(c["path"], c["path"][1:]))
 assert r["rms_error"] < r["baseline"]["rms_error"]
 assert r["scene_definition"]["search"]["max_springs"] == 70
+assert "generalization" not in r and r["options"]["probes"] == "none"
 PY
 expect_exit 0 "plot tradeoff" "$sf" plot --tradeoff "$tmp/continuous.json" -o "$tmp/tradeoff.svg"
 python3 - "$tmp/tradeoff.svg" "$tmp/continuous.json" <<'PY' || fail "tradeoff plot content"
@@ -322,7 +349,7 @@ grep -q "has no sparsity path" "$tmp/err" || fail "tradeoff names what is missin
 expect_exit 2 "max-springs with hybrid" "$sf" run "$src/examples/paper-iso-5x5.json" --strategy hybrid --max-springs 5
 grep -q "search.max_springs: chooses a point of the sparsity path" "$tmp/err" || fail "max-springs needs continuous: $(cat "$tmp/err")"
 # The regularisation: auto cross-validates each strength and runs with the lowest held-out E.
-expect_exit 0 "run regularization auto" "$sf" run "$src/examples/fem-plate-5x5.json" --regularization auto -o "$tmp/regularized.json"
+expect_exit 0 "run regularization auto" "$sf" run "$src/examples/fem-plate-5x5.json" --probes none --regularization auto -o "$tmp/regularized.json"
 grep -q "^regularization:    .*, the lowest held-out E of those tried (0: .*, 0.001: .*, 0.01: .*, 0.1: " "$tmp/out" || fail "run prints the regularisation: $(cat "$tmp/out")"
 grep -q "^  worst predicted: 'stretch +x'" "$tmp/out" || fail "run names the worst predicted case: $(cat "$tmp/out")"
 python3 - "$tmp/regularized.json" <<'PY' || fail "regularization result: $(head -c 300 "$tmp/regularized.json")"
@@ -334,7 +361,7 @@ best = min(g["tried"], key=lambda t: t["held_out_rms_error"])
 assert g["strength"] == best["strength"], g
 assert r["options"]["regularization"] == "auto" and r["scene_definition"]["search"]["regularization"] == "auto"
 PY
-expect_exit 0 "run regularization 0.01" "$sf" run "$src/examples/fem-plate-5x5.json" --regularization 0.01 -q -o "$tmp/regularized.json"
+expect_exit 0 "run regularization 0.01" "$sf" run "$src/examples/fem-plate-5x5.json" --probes none --regularization 0.01 -q -o "$tmp/regularized.json"
 python3 - "$tmp/regularized.json" "$tmp/continuous.json" <<'PY' || fail "a set regularisation: $(head -c 300 "$tmp/regularized.json")"
 import json, sys
 r = json.load(open(sys.argv[1]))

@@ -333,8 +333,15 @@ TEST(SparsityPath, EveryPointCarriesTheLoadsAndTheSizeFalls) {
     EXPECT_LE(near.points[i].normalized_error, bound) << "point " << i;
 }
 
+// Strategy continuous fitted to the named load cases alone (search.probes none): the fit, the
+// sparsity path and the cross-validation over the cases that a positions reference gets.
+Scene NamedCasesOnly(Scene scene) {
+  scene.search.probes = 0;
+  return scene;
+}
+
 TEST(ContinuousStrategy, BeatsTheBaselineOnTheFemPlate) {
-  const Problem problem = Problem::Build(examples::Make("fem-plate-5x5"));
+  const Problem problem = Problem::Build(NamedCasesOnly(examples::Make("fem-plate-5x5")));
   const SearchOptions options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
   ASSERT_EQ(options.strategy, Strategy::kDefault);
   const IdentificationResult r = RunIdentification(problem, options);
@@ -362,7 +369,7 @@ TEST(ContinuousStrategy, BeatsTheBaselineOnTheFemPlate) {
 TEST(ContinuousStrategy, ReturnsOnlyAModelTheStandardEvaluationConfirms) {
   // On the nonlinear kidney the refit of the chosen point has an equilibrium along the fit's
   // path of warm starts but none from the reference's: it is refused, the path's point taken.
-  const Problem problem = Problem::Build(examples::Make("fem-kidney-2d-nl"));
+  const Problem problem = Problem::Build(NamedCasesOnly(examples::Make("fem-kidney-2d-nl")));
   const IdentificationResult r = RunIdentification(
       problem, ResolveSearchOptions(problem.scene().search, problem.gene_count()));
   ASSERT_TRUE(r.continuous);
@@ -374,7 +381,7 @@ TEST(ContinuousStrategy, ReturnsOnlyAModelTheStandardEvaluationConfirms) {
 }
 
 TEST(ContinuousStrategy, MaxSpringsAndTargetErrorChooseThePoint) {
-  Scene scene = examples::Make("fem-plate-5x5");
+  Scene scene = NamedCasesOnly(examples::Make("fem-plate-5x5"));
   scene.search.max_springs = 60;
   const Problem problem = Problem::Build(scene);
   const IdentificationResult r = RunIdentification(
@@ -397,7 +404,7 @@ TEST(ContinuousStrategy, MaxSpringsAndTargetErrorChooseThePoint) {
 }
 
 TEST(ContinuousStrategy, StoppedAfterItsFirstRowKeepsAModelBetterThanTheBaseline) {
-  const Problem problem = Problem::Build(examples::Make("fem-kidney-2d"));
+  const Problem problem = Problem::Build(NamedCasesOnly(examples::Make("fem-kidney-2d")));
   RunContext context;
   context.on_iteration = [](const TraceRow&, const IterationState&) { return false; };
   const IdentificationResult r = RunIdentification(
@@ -411,7 +418,7 @@ TEST(ContinuousStrategy, StoppedAfterItsFirstRowKeepsAModelBetterThanTheBaseline
 
 TEST(ContinuousStrategy, StoppedAtTheFitsLastRowKeepsTheFit) {
   // The fit's last row is written when the path begins: a stop there keeps the fit's model.
-  const Problem problem = Problem::Build(examples::Make("fem-plate-5x5"));
+  const Problem problem = Problem::Build(NamedCasesOnly(examples::Make("fem-plate-5x5")));
   const SearchOptions options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
   const IdentificationResult whole = RunIdentification(problem, options);
   ASSERT_GE(whole.trace.size(), 2u);
@@ -431,7 +438,7 @@ TEST(ContinuousStrategy, StoppedAtTheFitsLastRowKeepsTheFit) {
 
 TEST(ContinuousStrategy, SameResultWithOneOrTwoThreads) {
   // The load cases' solves run on the pool: each case has its own state.
-  const Problem problem = Problem::Build(examples::Make("fem-plate-5x5"));
+  const Problem problem = Problem::Build(NamedCasesOnly(examples::Make("fem-plate-5x5")));
   const SearchOptions options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
   RunContext one, two;
   two.threads = 2;

@@ -94,9 +94,18 @@ grep -q "reference:              fem, 380 triangles" "$tmp/out" || fail "check r
 
 # A size limit that no path point better than the start meets, where the start (the baseline
 # on the 594 mesh edges) does: the start is returned, never a larger model.
-expect_exit 0 "run mesh --max-springs 600" "$sf" run "$tmp/m41.msh" --loads "$loads" --max-springs 600 -q -o "$tmp/r600.json"
+expect_exit 0 "run mesh --max-springs 600" "$sf" run "$tmp/m41.msh" --loads "$loads" --probes none --max-springs 600 -q -o "$tmp/r600.json"
 grep -q "594 springs at E .*, from the start: no point of the path with at most 600 springs passed the final evaluation" "$tmp/out" \
   || fail "max-springs falls back to the start within the limit: $(grep stopped "$tmp/out")"
+# Fitted to probes, the budget holds too: the best model on held-out loads within it.
+expect_exit 0 "run mesh probes --max-springs 600" "$sf" run "$tmp/m41.msh" --loads "$loads" --max-springs 600 -q -o "$tmp/p600.json"
+python3 - "$tmp/p600.json" <<'PY' || fail "probe fit within the budget: $(grep stopped "$tmp/out")"
+import json, sys
+r = json.load(open(sys.argv[1]))
+assert len(r["springs"]) <= 600, len(r["springs"])
+g = r["generalization"]
+assert g["held_out"]["rms"] <= g["baseline_held_out"]["rms"], g
+PY
 
 # 3D: tetrahedra, and named faces as node sets.
 cat >"$tmp/box.geo" <<'GEO'

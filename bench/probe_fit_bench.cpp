@@ -1,0 +1,110 @@
+// The probe fit (engine/response/response_fit.h) on FEM and MSS references: the model's error
+// on held-out probes by family beside the closed-form baseline's, the extreme generalised
+// eigenvalues of (K_model, K_ref) on the user's supports, and the time of each step
+// (bench/RESULTS.md, "Fitting the response").
+//
+//   build/bench/probe_fit_bench examples/fem-plate-5x5.json examples/fem-kidney-2d.json
+//
+// E is the relative RMS nodal error of one load, |u - u_ref| / |u_ref| over the free nodes,
+// both responses linear at rest; times are wall seconds of one run on this machine.
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "engine/fem/closed_form_baseline.h"
+#include "engine/fit/stiffness_fit.h"
+#include "engine/problem.h"
+#include "engine/response/probe_evaluation.h"
+#include "engine/response/response_fit.h"
+#include "engine/response/rest_stiffness.h"
+#include "proto/scene_codec.h"
+
+namespace springfit {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double Seconds(Clock::time_point since) {
+  return std::chrono::duration<double>(Clock::now() - since).count();
+}
+
+void PrintFamilies(const char* what, const response::ProbeBank& bank,
+                   const std::vector<double>& errors) {
+  std::printf("    %-10s", what);
+  for (const auto& f : response::SummarizeByFamily(bank, errors))
+    std::printf("  %s %.3g (p95 %.3g)", response::ProbeFamilyName(f.family), f.errors.median,
+                f.errors.p95);
+  std::printf("\n");
+}
+
+int Main(int argc, char** argv) {
+  CLI::App app{"The probe fit on FEM and MSS references"};
+  std::vector<std::string> files;
+  std::uint64_t seed = 1;
+  app.add_option("scenes", files, "scene files")->required();
+  app.add_option("--seed", seed, "the probe bank's seed");
+  CLI11_PARSE(app, argc, argv);
+  for (const std::string& file : files) {
+    const auto t0 = Clock::now();
+    const Problem problem(proto::LoadSceneFile(file));
+    std::printf("%s: %d genes, prepared in %.2f s\n", file.c_str(), problem.gene_count(),
+                Seconds(t0));
+    const auto t1 = Clock::now();
+    const response::SparseMatrix k_ref = response::ReferenceRestStiffness(problem);
+    response::ResponseFitOptions options;
+    options.probes.seed = seed;
+    const response::ProbeBank bank = response::MakeProbeBank(problem, k_ref, options.probes);
+    std::printf("  probe bank: %zu probes on %zu supports, %.2f s\n", bank.probes.size(),
+                bank.supports.size(), Seconds(t1));
+    std::vector<double> prior;
+    if (const auto baseline = fem::BaselineGeneWeights(problem))
+      prior = *baseline;
+    else
+      prior.assign(static_cast<std::size_t>(problem.gene_count()), problem.training_stiffness());
+    const auto t2 = Clock::now();
+    const response::ResponseFitResult fit =
+        response::FitResponse(problem, bank, k_ref, prior, options);
+    std::printf("  fit: %.2f s (gram %.2f s), %d springs, regularisation %g, %d GN steps\n",
+                Seconds(t2), fit.seconds_gram, PresentSprings(fit.weights), fit.regularization,
+                fit.gauss_newton_accepted);
+    std::printf("    path:");
+    for (const auto& p : fit.path) std::printf(" %d:%.3g", p.springs, p.select_error);
+    std::printf("  (chosen %d)\n", fit.chosen);
+    std::vector<bool> held(bank.probes.size());
+    for (std::size_t p = 0; p < held.size(); ++p)
+      held[p] = bank.probes[p].role == response::ProbeRole::kHeldOut ||
+                bank.probes[p].family == response::ProbeFamily::kNamed;
+    const auto model_errors =
+        response::ProbeErrorsFor(bank, response::SpringRestStiffness(problem, fit.weights), held);
+    const auto base_errors =
+        response::ProbeErrorsFor(bank, response::SpringRestStiffness(problem, prior), held);
+    PrintFamilies("model", bank, model_errors);
+    PrintFamilies("baseline", bank, base_errors);
+    const auto t3 = Clock::now();
+    for (const auto& support : bank.supports) {
+      if (!support.user) continue;
+      const auto x = response::GeneralizedEigenvalueExtremes(
+          response::SpringRestStiffness(problem, fit.weights), k_ref, support.constrained,
+          problem.dimension());
+      const auto b =
+          response::GeneralizedEigenvalueExtremes(response::SpringRestStiffness(problem, prior),
+                                                  k_ref, support.constrained, problem.dimension());
+      std::printf(
+          "    %s: model lambda [%.3g, %.3g] bound %.3g; baseline [%.3g, %.3g] bound %.3g\n",
+          support.description.c_str(), x.lambda_min, x.lambda_max, x.Bound(), b.lambda_min,
+          b.lambda_max, b.Bound());
+    }
+    std::printf("  eigenvalues: %.2f s\n", Seconds(t3));
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace springfit
+
+int main(int argc, char** argv) {
+  return springfit::Main(argc, argv);
+}

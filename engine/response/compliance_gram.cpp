@@ -1,0 +1,120 @@
+#include "engine/response/compliance_gram.h"
+
+namespace springfit::response {
+namespace {
+
+// g_e's entries on a support's free degrees of freedom: up to 2d (index, value) pairs.
+struct Column {
+  int count = 0;
+  int index[6];
+  double value[6];
+};
+
+std::vector<Column> FreeColumns(const GeneSprings& springs, const SupportSystem& support) {
+  const int d = springs.dimension;
+  std::vector<Column> columns(static_cast<std::size_t>(springs.size()));
+  for (int e = 0; e < springs.size(); ++e) {
+    Column& column = columns[static_cast<std::size_t>(e)];
+    const NodePair pair = springs.pairs[static_cast<std::size_t>(e)];
+    for (int side = 0; side < 2; ++side) {
+      const int node = side == 0 ? pair.first : pair.second;
+      const double sign = side == 0 ? -1.0 : 1.0;
+      for (int a = 0; a < d; ++a) {
+        const int free = support.free_index()[static_cast<std::size_t>(d * node + a)];
+        if (free < 0) continue;
+        column.index[column.count] = free;
+        column.value[column.count] = sign * springs.directions(a, e);
+        ++column.count;
+      }
+    }
+  }
+  return columns;
+}
+
+}  // namespace
+
+GeneSprings GeneSpringsOf(const Problem& problem) {
+  const SpringGeometry& geometry = problem.candidates();
+  const int d = geometry.dimension;
+  GeneSprings s;
+  s.dimension = d;
+  const int m = problem.gene_count();
+  s.directions.resize(d, m);
+  for (int g = 0; g < m; ++g) {
+    const int c = problem.gene_candidates()[static_cast<std::size_t>(g)];
+    s.pairs.push_back(geometry.pairs[static_cast<std::size_t>(c)]);
+    // rest_separation is X_i - X_j: the direction from i to j is its opposite.
+    s.directions.col(g) = -geometry.rest_separation.segment(d * c, d) /
+                          geometry.rest_length[static_cast<std::size_t>(c)];
+  }
+  return s;
+}
+
+Vector Elongations(const GeneSprings& springs, const Vector& u) {
+  const int d = springs.dimension;
+  Vector delta(springs.size());
+  for (int e = 0; e < springs.size(); ++e) {
+    const NodePair pair = springs.pairs[static_cast<std::size_t>(e)];
+    delta[e] =
+        springs.directions.col(e).dot(u.segment(d * pair.second, d) - u.segment(d * pair.first, d));
+  }
+  return delta;
+}
+
+Gram BuildGram(const GeneSprings& springs, const std::vector<SupportSystem>& supports,
+               const std::vector<Matrix>& compliance, const std::vector<GramTerm>& terms) {
+  const int m = springs.size();
+  Gram gram;
+  gram.H = Matrix::Zero(m, m);
+  gram.c = Vector::Zero(m);
+  for (std::size_t s = 0; s < supports.size(); ++s) {
+    std::vector<const GramTerm*> mine;
+    for (const GramTerm& term : terms)
+      if (term.support == static_cast<int>(s)) mine.push_back(&term);
+    if (mine.empty()) continue;
+    const Matrix& C = compliance[s];
+    const std::vector<Column> columns = FreeColumns(springs, supports[s]);
+    // M = G^T C^2 G, through W = C^2 and T = W G.
+    const Matrix W = C * C;
+    const int n = static_cast<int>(W.rows());
+    Matrix T = Matrix::Zero(n, m);
+    for (int e = 0; e < m; ++e) {
+      const Column& column = columns[static_cast<std::size_t>(e)];
+      for (int a = 0; a < column.count; ++a) T.col(e) += column.value[a] * W.col(column.index[a]);
+    }
+    Matrix M(m, m);
+    for (int f = 0; f < m; ++f) {
+      const double* t = T.col(f).data();
+      for (int e = 0; e < m; ++e) {
+        const Column& column = columns[static_cast<std::size_t>(e)];
+        double v = 0.0;
+        for (int a = 0; a < column.count; ++a) v += column.value[a] * t[column.index[a]];
+        M(e, f) = v;
+      }
+    }
+    // P = sum_p w_p delta_p delta_p^T, and c.
+    Matrix Delta(m, static_cast<Eigen::Index>(mine.size()));
+    for (std::size_t p = 0; p < mine.size(); ++p) {
+      const GramTerm& term = *mine[p];
+      Delta.col(static_cast<Eigen::Index>(p)) = std::sqrt(term.weight) * term.elongation;
+      const Vector y = C * term.target;
+      Vector z(m);
+      for (int e = 0; e < m; ++e) {
+        const Column& column = columns[static_cast<std::size_t>(e)];
+        double v = 0.0;
+        for (int a = 0; a < column.count; ++a) v += column.value[a] * y[column.index[a]];
+        z[e] = v;
+      }
+      gram.c += term.weight * term.elongation.cwiseProduct(z);
+      gram.constant += term.weight * term.target.squaredNorm();
+    }
+    Matrix P(m, m);
+    P.setZero();
+    P.selfadjointView<Eigen::Lower>().rankUpdate(Delta);
+    P.triangularView<Eigen::StrictlyUpper>() = P.transpose();
+    gram.H += M.cwiseProduct(P);
+  }
+  return gram;
+}
+
+}  // namespace springfit::response

@@ -1,0 +1,51 @@
+// The certificate of a model on an FEM or MSS reference: how it does on loads it was not
+// fitted to, beside the closed-form baseline, and the bound the stiffness pencil gives for
+// every load on the user's supports (issue 31, "A certificate on every result").
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "engine/response/probe_evaluation.h"
+#include "engine/response/response_fit.h"
+
+namespace springfit::response {
+
+struct Generalization {
+  // The bank.
+  int probes = 0;  // in all, the named cases included
+  int fitted = 0;
+  int choosing = 0;
+  int held_out = 0;
+  int supports = 0;
+  double named_weight = 0.0;
+  // E on the held-out probes by family (point, patch, body), and on the named cases (rest
+  // linear responses), of the model and of the baseline; and over every held-out probe.
+  std::vector<FamilyErrors> model;
+  std::vector<FamilyErrors> baseline;
+  ErrorSummary model_held_out;
+  ErrorSummary baseline_held_out;
+  // The pencil (K_model, K_ref) on each user support, and the extremes over them.
+  struct SupportPencil {
+    std::string support;
+    PencilExtremes model;
+    PencilExtremes baseline;
+  };
+  std::vector<SupportPencil> pencils;
+  double lambda_min = 0.0;
+  double lambda_max = 0.0;
+  double bound = 0.0;  // PencilExtremes::Bound of the extremes
+  // The fit (absent when the model was not fitted to probes: only judged on them).
+  bool fitted_to_probes = false;
+  ResponseFitResult fit;
+  // The baseline was returned: the fitted model's held-out E was not below it.
+  bool returned_baseline = false;
+};
+
+// Judges `model` (per-gene weights) and `baseline` (a rest stiffness) on the bank's held-out
+// probes and named cases, and bounds the model's pencil on the user's supports.
+Generalization Certify(const Problem& problem, const ProbeBank& bank,
+                       const SparseMatrix& reference_stiffness, const std::vector<double>& model,
+                       const SparseMatrix& baseline);
+
+}  // namespace springfit::response

@@ -1,0 +1,330 @@
+#include "engine/response/probe_bank.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numeric>
+
+#include "engine/fem/fem_model.h"
+#include "engine/input_error.h"
+#include "engine/options_check.h"
+#include "engine/response/support_system.h"
+#include "engine/search/random_stream.h"
+
+namespace springfit::response {
+namespace {
+
+// A direction drawn uniformly on the unit circle or sphere (Box-Muller on the stream's own
+// uniform draws, so the same seed gives the same directions everywhere).
+Vector RandomDirection(int d, RandomStream& random) {
+  Vector v(d);
+  do {
+    for (int c = 0; c < d; ++c) {
+      const double u1 = 1.0 - random.Uniform();  // (0, 1]
+      const double u2 = random.Uniform();
+      v[c] = std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
+    }
+  } while (v.norm() < 1e-12);
+  return v / v.norm();
+}
+
+struct Surface {
+  std::vector<int> nodes;  // ascending
+  Vector normal;           // flat d*n, outward unit normals (zero off the surface)
+};
+
+// The FEM mesh's boundary: facets of one element, with outward normals summed per node.
+Surface FemSurface(const Scene& scene) {
+  const int d = scene.dimension;
+  const int n = scene.node_count();
+  std::map<std::vector<int>, std::pair<int, int>> facets;  // facet -> (count, opposite)
+  fem::ForEachFacet(scene.reference.fem, d,
+                    [&](std::size_t, const std::vector<int>& facet, int opposite) {
+                      auto [it, inserted] = facets.try_emplace(facet, 0, opposite);
+                      ++it->second.first;
+                    });
+  Surface s;
+  s.normal = Vector::Zero(d * n);
+  std::vector<bool> on(static_cast<std::size_t>(n), false);
+  const auto x = [&](int node) { return Vector(scene.rest.segment(d * node, d)); };
+  for (const auto& [facet, info] : facets) {
+    if (info.first != 1) continue;
+    Vector normal(d);
+    if (d == 2) {
+      const Vector t = x(facet[1]) - x(facet[0]);
+      normal << t[1], -t[0];
+    } else {
+      const Eigen::Vector3d a = x(facet[1]) - x(facet[0]);
+      const Eigen::Vector3d b = x(facet[2]) - x(facet[0]);
+      normal = a.cross(b);
+    }
+    if (normal.dot(x(info.second) - x(facet[0])) > 0.0) normal = -normal;
+    for (int node : facet) {
+      s.normal.segment(d * node, d) += normal;
+      on[static_cast<std::size_t>(node)] = true;
+    }
+  }
+  for (int node = 0; node < n; ++node) {
+    if (!on[static_cast<std::size_t>(node)]) continue;
+    s.nodes.push_back(node);
+    const double length = s.normal.segment(d * node, d).norm();
+    if (length > 0.0) s.normal.segment(d * node, d) /= length;
+  }
+  return s;
+}
+
+Surface AnySurface(const Scene& scene) {
+  if (scene.reference.kind == Reference::Kind::kFem) return FemSurface(scene);
+  Surface s;
+  s.nodes.resize(static_cast<std::size_t>(scene.node_count()));
+  std::iota(s.nodes.begin(), s.nodes.end(), 0);
+  s.normal = Vector::Zero(scene.rest.size());
+  return s;
+}
+
+// The `count` nodes of `pool` nearest to node `centre` (centre first), ties by index.
+std::vector<int> Nearest(const Scene& scene, const std::vector<int>& pool, int centre, int count) {
+  const int d = scene.dimension;
+  std::vector<std::pair<double, int>> by_distance;
+  for (int node : pool)
+    by_distance.emplace_back(
+        (scene.rest.segment(d * node, d) - scene.rest.segment(d * centre, d)).squaredNorm(), node);
+  const auto end = by_distance.begin() + std::min<std::ptrdiff_t>(count, by_distance.size());
+  std::partial_sort(by_distance.begin(), end, by_distance.end());
+  std::vector<int> nodes;
+  for (auto it = by_distance.begin(); it != end; ++it) nodes.push_back(it->second);
+  return nodes;
+}
+
+// Lumped nodal volumes: each element's volume shared equally by its nodes (1 per node without
+// elements).
+Vector NodalVolumes(const Scene& scene) {
+  const int n = scene.node_count();
+  if (scene.reference.kind != Reference::Kind::kFem) return Vector::Ones(n);
+  const fem::FemModel model = fem::FemModel::Build(scene);
+  Vector v = Vector::Zero(n);
+  const auto add = [&](const auto& elements) {
+    for (const auto& e : elements)
+      for (int node : e.nodes) v[node] += e.volume / static_cast<double>(e.nodes.size());
+  };
+  if (scene.dimension == 2)
+    add(model.elements2());
+  else
+    add(model.elements3());
+  return v;
+}
+
+double LargestNodal(int d, const Vector& u) {
+  double largest = 0.0;
+  for (int i = 0; i < static_cast<int>(u.size()) / d; ++i)
+    largest = std::max(largest, u.segment(d * i, d).norm());
+  return largest;
+}
+
+// Marks the roles of probes [begin, end): shuffled, the first held out, the next chosen on.
+void AssignRoles(std::vector<Probe>& probes, std::size_t begin, const ProbeOptions& options,
+                 RandomStream& random) {
+  const std::size_t count = probes.size() - begin;
+  if (count == 0) return;
+  std::vector<std::size_t> order(count);
+  std::iota(order.begin(), order.end(), begin);
+  for (std::size_t i = count; i > 1; --i)
+    std::swap(order[i - 1], order[static_cast<std::size_t>(random.Below(static_cast<int>(i)))]);
+  const auto held =
+      static_cast<std::size_t>(std::ceil(options.held_out_fraction * static_cast<double>(count)));
+  const auto select =
+      static_cast<std::size_t>(std::ceil(options.select_fraction * static_cast<double>(count)));
+  for (std::size_t i = 0; i < count; ++i) {
+    probes[order[i]].role = i < held            ? ProbeRole::kHeldOut
+                            : i < held + select ? ProbeRole::kSelect
+                                                : ProbeRole::kFit;
+  }
+}
+
+}  // namespace
+
+const char* ProbeFamilyName(ProbeFamily family) {
+  switch (family) {
+    case ProbeFamily::kPoint:
+      return "point";
+    case ProbeFamily::kPatch:
+      return "patch";
+    case ProbeFamily::kBody:
+      return "body";
+    case ProbeFamily::kNamed:
+      return "named";
+  }
+  return "?";
+}
+
+void ProbeOptions::Validate(const std::string& owner) const {
+  const OptionsCheck check(owner);
+  check.Require(count >= 0, "count", count, "value >= 0");
+  check.Require(extra_supports >= 0 && extra_supports <= 64, "extra_supports", extra_supports,
+                "0 <= value <= 64");
+  check.Require(support_fraction > 0.0 && support_fraction <= 0.5, "support_fraction",
+                support_fraction, "0 < value <= 0.5");
+  check.Require(select_fraction > 0.0 && select_fraction <= 0.5, "select_fraction", select_fraction,
+                "0 < value <= 0.5");
+  check.Require(held_out_fraction > 0.0 && held_out_fraction <= 0.5, "held_out_fraction",
+                held_out_fraction, "0 < value <= 0.5");
+  check.Require(named_weight >= 0.0 && named_weight < 1.0, "named_weight", named_weight,
+                "0 <= value < 1");
+}
+
+ProbeBank MakeProbeBank(const Problem& problem, const SparseMatrix& reference_stiffness,
+                        const ProbeOptions& options) {
+  options.Validate();
+  const Scene& scene = problem.scene();
+  const int d = scene.dimension;
+  const int n = scene.node_count();
+  RandomStream random(options.seed);
+  ProbeBank bank;
+  const Surface surface = AnySurface(scene);
+  bank.boundary = surface.nodes;
+
+  // The user's supports, one per distinct free set, and their systems.
+  std::vector<SupportSystem> systems;
+  std::vector<int> support_of_free_set(problem.free_sets().size(), -1);
+  for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
+    const int set = problem.load_cases()[k].free_set;
+    if (support_of_free_set[static_cast<std::size_t>(set)] >= 0) continue;
+    Support support;
+    support.user = true;
+    support.description = "load case '" + scene.load_cases[k].name + "'";
+    support.constrained.resize(static_cast<std::size_t>(n));
+    for (int node = 0; node < n; ++node)
+      support.constrained[static_cast<std::size_t>(node)] =
+          problem.free_sets()[static_cast<std::size_t>(set)]
+              .free_index[static_cast<std::size_t>(node)] < 0;
+    SupportSystem system(d, support.constrained);
+    if (!system.Factorize(reference_stiffness))
+      throw InputError("load_cases[" + std::to_string(k) + "].fixed",
+                       "the reference is not held by this load case's supports (a rigid motion "
+                       "or a mechanism is left free): no probe can be solved on it");
+    support_of_free_set[static_cast<std::size_t>(set)] = static_cast<int>(bank.supports.size());
+    bank.supports.push_back(std::move(support));
+    systems.push_back(std::move(system));
+  }
+
+  // The named cases, all fitted; their largest displacement sets the probes' amplitude.
+  std::vector<double> named_largest;
+  for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
+    const PreparedLoadCase& lc = problem.load_cases()[k];
+    Probe probe;
+    probe.family = ProbeFamily::kNamed;
+    probe.support = support_of_free_set[static_cast<std::size_t>(lc.free_set)];
+    probe.named_case = static_cast<int>(k);
+    probe.force = lc.force;
+    probe.prescribed = lc.prescribed;
+    probe.reference =
+        systems[static_cast<std::size_t>(probe.support)].Displacement(lc.force, lc.prescribed);
+    named_largest.push_back(LargestNodal(d, probe.reference));
+    bank.probes.push_back(std::move(probe));
+  }
+  std::sort(named_largest.begin(), named_largest.end());
+  bank.amplitude = named_largest.empty() ? 0.0 : named_largest[named_largest.size() / 2];
+  if (!(bank.amplitude > 0.0)) bank.amplitude = 0.05 * scene.Bounds().Diagonal();
+
+  // Supports drawn from the boundary.
+  const int patch_size =
+      std::max(d, static_cast<int>(std::lround(options.support_fraction *
+                                               static_cast<double>(surface.nodes.size()))));
+  for (int s = 0, tries = 0; s < options.extra_supports && tries < 4 * options.extra_supports + 4;
+       ++tries) {
+    if (surface.nodes.size() < static_cast<std::size_t>(patch_size) + 2) break;
+    const int centre =
+        surface
+            .nodes[static_cast<std::size_t>(random.Below(static_cast<int>(surface.nodes.size())))];
+    Support support;
+    support.constrained.assign(static_cast<std::size_t>(n), false);
+    for (int node : Nearest(scene, surface.nodes, centre, patch_size))
+      support.constrained[static_cast<std::size_t>(node)] = true;
+    support.description = "boundary patch around node " + std::to_string(centre);
+    bool duplicate = false;
+    for (const Support& other : bank.supports)
+      duplicate |= other.constrained == support.constrained;
+    if (duplicate) continue;
+    SupportSystem system(d, support.constrained);
+    if (!system.Factorize(reference_stiffness)) continue;  // too small a patch to hold it
+    bank.supports.push_back(std::move(support));
+    systems.push_back(std::move(system));
+    ++s;
+  }
+
+  // Generated probes per support.
+  const int supports = static_cast<int>(bank.supports.size());
+  int points = std::min<int>(static_cast<int>(surface.nodes.size()), 24);
+  int patches = 12;
+  int bodies = d + 2;
+  if (options.count > 0) {
+    const double per_support = static_cast<double>(options.count) / supports;
+    points = std::max(1, static_cast<int>(std::lround(0.6 * per_support)));
+    patches = std::max(1, static_cast<int>(std::lround(0.3 * per_support)));
+    bodies = std::max(1, static_cast<int>(std::lround(0.1 * per_support)));
+  }
+  const Vector volumes = NodalVolumes(scene);
+  for (int s = 0; s < supports; ++s) {
+    const Support& support = bank.supports[static_cast<std::size_t>(s)];
+    const SupportSystem& system = systems[static_cast<std::size_t>(s)];
+    std::vector<int> loadable;
+    for (int node : surface.nodes)
+      if (!support.constrained[static_cast<std::size_t>(node)]) loadable.push_back(node);
+    const auto add = [&](ProbeFamily family, Vector force) {
+      Probe probe;
+      probe.family = family;
+      probe.support = s;
+      probe.prescribed = Vector::Zero(d * n);
+      probe.reference = system.Displacement(force, probe.prescribed);
+      const double largest = LargestNodal(d, probe.reference);
+      if (!(largest > 0.0)) return;
+      const double scale = bank.amplitude / largest;
+      probe.force = force * scale;
+      probe.reference *= scale;
+      bank.probes.push_back(std::move(probe));
+    };
+    for (ProbeFamily family : {ProbeFamily::kPoint, ProbeFamily::kPatch, ProbeFamily::kBody}) {
+      const std::size_t begin = bank.probes.size();
+      if (family == ProbeFamily::kPoint && !loadable.empty()) {
+        for (int i = 0; i < points; ++i) {
+          const int node =
+              loadable[static_cast<std::size_t>(random.Below(static_cast<int>(loadable.size())))];
+          const Vector normal = surface.normal.segment(d * node, d);
+          Vector force = Vector::Zero(d * n);
+          force.segment(d * node, d) =
+              i % 2 == 0 && normal.norm() > 0.5 ? Vector(-normal) : RandomDirection(d, random);
+          add(family, force);
+        }
+      } else if (family == ProbeFamily::kPatch && !loadable.empty()) {
+        for (int i = 0; i < patches; ++i) {
+          const int centre =
+              loadable[static_cast<std::size_t>(random.Below(static_cast<int>(loadable.size())))];
+          const int size = 3 + random.Below(6);
+          const Vector direction = RandomDirection(d, random);
+          Vector force = Vector::Zero(d * n);
+          for (int node : Nearest(scene, loadable, centre, size))
+            force.segment(d * node, d) = direction;
+          add(family, force);
+        }
+      } else if (family == ProbeFamily::kBody) {
+        for (int i = 0; i < bodies; ++i) {
+          const Vector direction = i < d ? Vector(Vector::Unit(d, i)) : RandomDirection(d, random);
+          Vector force = Vector::Zero(d * n);
+          for (int node = 0; node < n; ++node) {
+            if (support.constrained[static_cast<std::size_t>(node)]) continue;
+            force.segment(d * node, d) = volumes[node] * direction;
+          }
+          add(family, force);
+        }
+      }
+      AssignRoles(bank.probes, begin, options, random);
+    }
+  }
+  for (Probe& probe : bank.probes) {
+    const Vector free = systems[static_cast<std::size_t>(probe.support)].Gather(probe.reference);
+    probe.reference_norm2 = free.squaredNorm();
+  }
+  return bank;
+}
+
+}  // namespace springfit::response

@@ -1,0 +1,98 @@
+// The probe bank: load cases springfit generates from the reference itself, so that an
+// identification sees the whole response and is judged on loads it was not fitted to
+// (DESIGN.md §5, issue 31).
+//
+// Supports: the user's (each distinct set of nodes the named load cases hold) and
+// `extra_supports` more, each a patch of boundary nodes around a random boundary node (the
+// nearest boundary nodes to it, `support_fraction` of the boundary), kept when the reference
+// is held by it (its rest stiffness is positive definite on the free nodes).
+// Families, on every support (no load on a held node):
+//   point  a force on one boundary node: half of them along the inward normal (a tool pushing
+//          the surface in), half in a uniformly random direction;
+//   patch  a force spread evenly on a boundary node and its nearest boundary neighbours (3 to
+//          8 nodes in all), in a random direction: a grasp, a contact;
+//   body   a uniform body force (lumped by element volume) along each axis and along random
+//          directions: gravity, inertia;
+//   named  the user's load cases (in the fit with the stated weight `named_weight`).
+// Every generated probe is scaled so that its largest nodal displacement in the reference equals
+// the named cases' median largest displacement (the loads a simulator applies are of that
+// size; the linear response does not care, a nonlinear one does).
+// Roles: each (support, family) group of generated probes is shuffled and split into a part
+// that is fitted, a part that chooses among fitted models (the regularisation, the point of
+// the sparsity path), and a held-out part that no fit and no choice ever sees, on which the
+// certificate reports. The named cases are all fitted.
+//
+// Boundary: for an FEM reference, the nodes of the facets (edges in 2D, faces in 3D) that belong
+// to one element only, with the outward normal summed over them; for an MSS reference (no
+// surface), every node, with no normal (point loads then take random directions).
+//
+// The same problem, options and seed give the same bank.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "engine/problem.h"
+#include "engine/response/rest_stiffness.h"
+
+namespace springfit::response {
+
+enum class ProbeFamily { kPoint, kPatch, kBody, kNamed };
+inline constexpr int kProbeFamilies = 4;
+// "point", "patch", "body", "named": the words of the result's `generalization` object.
+const char* ProbeFamilyName(ProbeFamily family);
+
+enum class ProbeRole { kFit, kSelect, kHeldOut };
+
+struct ProbeOptions {
+  // Generated probes in all, spread over the supports and families; 0: automatic (per support,
+  // min(boundary nodes, 24) point loads, 12 patches and d + 2 body forces).
+  int count = 0;
+  // Supports drawn from the boundary beside the user's, >= 0.
+  int extra_supports = 3;
+  // Of the boundary's nodes held by a drawn support, in (0, 0.5].
+  double support_fraction = 0.15;
+  // Of each group of generated probes: chosen on, and held out; both in (0, 0.5].
+  double select_fraction = 0.2;
+  double held_out_fraction = 0.25;
+  // The named cases' share of the fitted objective (the generated families share the rest
+  // equally), in [0, 1).
+  double named_weight = 0.25;
+  std::uint64_t seed = 1;
+
+  // Throws std::invalid_argument naming the field, its value and the rule.
+  void Validate(const std::string& owner = "ProbeOptions") const;
+};
+
+struct Support {
+  std::vector<bool> constrained;  // per node
+  bool user = false;              // held by some named load case
+  std::string description;        // "load case 'stretch'", "boundary patch around node 17"
+};
+
+struct Probe {
+  ProbeFamily family = ProbeFamily::kPoint;
+  ProbeRole role = ProbeRole::kFit;
+  int support = 0;               // index into ProbeBank::supports
+  int named_case = -1;           // kNamed: the problem's load case
+  Vector force;                  // flat d*n
+  Vector prescribed;             // flat d*n: the named cases' prescribed displacements, else 0
+  Vector reference;              // the reference's rest-linear displacement under it, flat d*n
+  double reference_norm2 = 0.0;  // |u| over the support's free nodes, squared
+};
+
+struct ProbeBank {
+  std::vector<Support> supports;
+  std::vector<Probe> probes;
+  std::vector<int> boundary;  // the boundary's nodes, ascending
+  double amplitude = 0.0;     // the generated probes' largest nodal displacement
+};
+
+// Precondition: the problem's reference is FEM or MSS; `reference_stiffness` is its
+// ReferenceRestStiffness. Throws std::invalid_argument for invalid options, and InputError
+// when no user support holds the reference (a load case that leaves it free to move).
+ProbeBank MakeProbeBank(const Problem& problem, const SparseMatrix& reference_stiffness,
+                        const ProbeOptions& options);
+
+}  // namespace springfit::response

@@ -1,0 +1,153 @@
+#include "engine/response/probe_evaluation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include <Eigen/Eigenvalues>
+
+#include "engine/search/random_stream.h"
+
+namespace springfit::response {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+double Quantile(std::vector<double> sorted, double q) {
+  std::sort(sorted.begin(), sorted.end());
+  const double position = q * static_cast<double>(sorted.size() - 1);
+  const auto below = static_cast<std::size_t>(std::floor(position));
+  const std::size_t above = std::min(below + 1, sorted.size() - 1);
+  if (std::isinf(sorted[above]) || std::isinf(sorted[below]))
+    return sorted[above];  // (an interpolation with infinity)
+  return sorted[below] + (position - static_cast<double>(below)) * (sorted[above] - sorted[below]);
+}
+
+// The largest eigenvalue of B^-1 A by Lanczos in the B inner product; `b` holds B's factor.
+double LargestPencilEigenvalue(const SupportSystem& a, const SupportSystem& b, int iterations,
+                               std::uint64_t seed) {
+  const int n = a.free_dofs();
+  RandomStream random(seed);
+  Vector q(n);
+  for (int i = 0; i < n; ++i) q[i] = random.Uniform() - 0.5;
+  const int steps = std::min(iterations, n);
+  std::vector<Vector> basis, b_basis;  // q_j and B q_j
+  std::vector<double> alpha, beta;
+  Vector bq = b.Multiply(q);
+  double norm = std::sqrt(q.dot(bq));
+  q /= norm;
+  bq /= norm;
+  for (int j = 0; j < steps; ++j) {
+    basis.push_back(q);
+    b_basis.push_back(bq);
+    const Vector aq = a.Multiply(q);
+    alpha.push_back(q.dot(aq));
+    Vector w = aq;
+    b.Solve(w);                           // B^-1 A q
+    for (int pass = 0; pass < 2; ++pass)  // full reorthogonalisation, twice
+      for (std::size_t i = 0; i < basis.size(); ++i) w -= b_basis[i].dot(w) * basis[i];
+    const Vector bw = b.Multiply(w);
+    const double next = std::sqrt(std::max(w.dot(bw), 0.0));
+    if (!(next > 1e-12 * std::abs(alpha.back()))) break;
+    beta.push_back(next);
+    q = w / next;
+    bq = bw / next;
+  }
+  const int k = static_cast<int>(alpha.size());
+  Matrix t = Matrix::Zero(k, k);
+  for (int i = 0; i < k; ++i) {
+    t(i, i) = alpha[static_cast<std::size_t>(i)];
+    if (i + 1 < k) t(i, i + 1) = t(i + 1, i) = beta[static_cast<std::size_t>(i)];
+  }
+  Eigen::SelfAdjointEigenSolver<Matrix> eig(t, Eigen::EigenvaluesOnly);
+  return eig.eigenvalues().maxCoeff();
+}
+
+}  // namespace
+
+std::vector<double> ProbeErrorsFor(const ProbeBank& bank, const SparseMatrix& model,
+                                   const std::vector<bool>& include) {
+  std::vector<double> errors(bank.probes.size(), kNaN);
+  const int d = bank.probes.empty() ? 2
+                                    : static_cast<int>(bank.probes[0].force.size()) /
+                                          static_cast<int>(bank.supports[0].constrained.size());
+  for (std::size_t s = 0; s < bank.supports.size(); ++s) {
+    bool any = false;
+    for (std::size_t p = 0; p < bank.probes.size(); ++p)
+      any |= include[p] && bank.probes[p].support == static_cast<int>(s);
+    if (!any) continue;
+    SupportSystem system(d, bank.supports[s].constrained);
+    const bool held = system.Factorize(model);
+    for (std::size_t p = 0; p < bank.probes.size(); ++p) {
+      const Probe& probe = bank.probes[p];
+      if (!include[p] || probe.support != static_cast<int>(s)) continue;
+      if (!held) {
+        errors[p] = kInf;
+        continue;
+      }
+      const Vector u = system.Displacement(probe.force, probe.prescribed);
+      const double e2 = system.Gather(u - probe.reference).squaredNorm();
+      errors[p] = std::sqrt(e2 / probe.reference_norm2);
+    }
+  }
+  return errors;
+}
+
+ErrorSummary Summarize(const std::vector<double>& errors) {
+  std::vector<double> values;
+  for (double e : errors)
+    if (!std::isnan(e)) values.push_back(e);
+  ErrorSummary s;
+  s.probes = static_cast<int>(values.size());
+  if (values.empty()) return s;
+  s.median = Quantile(values, 0.5);
+  s.p95 = Quantile(values, 0.95);
+  double sum = 0.0;
+  for (double e : values) sum += e * e;
+  s.rms = std::sqrt(sum / static_cast<double>(values.size()));
+  return s;
+}
+
+std::vector<FamilyErrors> SummarizeByFamily(const ProbeBank& bank,
+                                            const std::vector<double>& errors) {
+  std::vector<FamilyErrors> out;
+  for (int f = 0; f < kProbeFamilies; ++f) {
+    std::vector<double> mine;
+    for (std::size_t p = 0; p < bank.probes.size(); ++p)
+      if (static_cast<int>(bank.probes[p].family) == f && !std::isnan(errors[p]))
+        mine.push_back(errors[p]);
+    if (mine.empty()) continue;
+    out.push_back({static_cast<ProbeFamily>(f), Summarize(mine)});
+  }
+  return out;
+}
+
+double FamilyBalancedRms(const ProbeBank& bank, const std::vector<double>& errors) {
+  const std::vector<FamilyErrors> families = SummarizeByFamily(bank, errors);
+  if (families.empty()) return kNaN;
+  double sum = 0.0;
+  for (const FamilyErrors& f : families) sum += f.errors.rms * f.errors.rms;
+  return std::sqrt(sum / static_cast<double>(families.size()));
+}
+
+double PencilExtremes::Bound() const {
+  if (!(lambda_min > 0.0)) return kInf;
+  return std::max(1.0 / lambda_min - 1.0, 1.0 - 1.0 / lambda_max);
+}
+
+PencilExtremes GeneralizedEigenvalueExtremes(const SparseMatrix& model,
+                                             const SparseMatrix& reference,
+                                             const std::vector<bool>& constrained, int dimension,
+                                             int iterations) {
+  SupportSystem m(dimension, constrained);
+  SupportSystem r(dimension, constrained);
+  PencilExtremes x;
+  if (!r.Factorize(reference)) return x;  // (callers pass supports that hold the reference)
+  const bool held = m.Factorize(model);
+  x.lambda_max = LargestPencilEigenvalue(m, r, iterations, 1);
+  if (held) x.lambda_min = 1.0 / LargestPencilEigenvalue(r, m, iterations, 2);
+  return x;
+}
+
+}  // namespace springfit::response

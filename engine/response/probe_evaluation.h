@@ -1,0 +1,59 @@
+// A model judged on probes (probe_bank.h): its displacement error under each, and the extreme
+// generalised eigenvalues of its rest stiffness against the reference's on a support.
+//
+// E_p = |u_model - u_ref| / |u_ref| over the support's free nodes (the relative RMS nodal error
+// of one load), both responses linear at rest; infinity where the model is not held by the
+// support (a mechanism).
+//
+// The pencil (K_model, K_ref) on a support's free degrees of freedom: if every generalised
+// eigenvalue lies in [lambda_min, lambda_max], then for every load on that support
+//   |u_model - u_ref|_K_ref <= max(1/lambda_min - 1, 1 - 1/lambda_max) |u_ref|_K_ref,
+// the energy norm's worst case (DESIGN.md §5, "Every mode supported"). lambda_min near 0 is a
+// mode the model leaves soft.
+#pragma once
+
+#include <limits>
+#include <vector>
+
+#include "engine/response/probe_bank.h"
+#include "engine/response/support_system.h"
+
+namespace springfit::response {
+
+// Per probe of the bank, E_p where `include[p]` (NaN for the others).
+std::vector<double> ProbeErrorsFor(const ProbeBank& bank, const SparseMatrix& model,
+                                   const std::vector<bool>& include);
+
+struct ErrorSummary {
+  int probes = 0;
+  double median = std::numeric_limits<double>::quiet_NaN();
+  double p95 = std::numeric_limits<double>::quiet_NaN();  // the 95th percentile
+  double rms = std::numeric_limits<double>::quiet_NaN();  // sqrt(mean E_p^2)
+};
+// Of the finite and infinite entries of `errors` (NaN entries are skipped).
+ErrorSummary Summarize(const std::vector<double>& errors);
+
+// Per family of the probes whose error is not NaN; families without any are left out.
+struct FamilyErrors {
+  ProbeFamily family = ProbeFamily::kPoint;
+  ErrorSummary errors;
+};
+std::vector<FamilyErrors> SummarizeByFamily(const ProbeBank& bank,
+                                            const std::vector<double>& errors);
+// sqrt of the mean over families of each family's mean E_p^2: every family counts alike.
+double FamilyBalancedRms(const ProbeBank& bank, const std::vector<double>& errors);
+
+struct PencilExtremes {
+  double lambda_min = 0.0;  // 0 when the model is not held by the support
+  double lambda_max = 0.0;
+  // max(1/lambda_min - 1, 1 - 1/lambda_max): infinity when lambda_min is 0.
+  double Bound() const;
+};
+// By Lanczos iterations (full reorthogonalisation, at most `iterations`, seeded) in the
+// reference's energy inner product, on the free degrees of freedom of `constrained`.
+PencilExtremes GeneralizedEigenvalueExtremes(const SparseMatrix& model,
+                                             const SparseMatrix& reference,
+                                             const std::vector<bool>& constrained, int dimension,
+                                             int iterations = 80);
+
+}  // namespace springfit::response

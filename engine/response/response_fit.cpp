@@ -1,0 +1,352 @@
+#include "engine/response/response_fit.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include "engine/fit/stiffness_fit.h"
+#include "engine/options_check.h"
+#include "engine/response/compliance_gram.h"
+#include "engine/response/probe_evaluation.h"
+
+namespace springfit::response {
+namespace {
+
+constexpr double kNoModel = std::numeric_limits<double>::infinity();  // no model: no error
+
+// Per probe, its weight in the fitted objective: the named cases share `named_weight`, the
+// generated families present in the fit share the rest equally, and within a family every
+// probe counts alike as a relative error (1 / |u_ref|^2). Probes not fitted weigh 0.
+std::vector<double> FitWeights(const ProbeBank& bank, const ProbeOptions& options) {
+  std::vector<int> count(kProbeFamilies, 0);
+  for (const Probe& p : bank.probes)
+    if (p.role == ProbeRole::kFit) ++count[static_cast<std::size_t>(p.family)];
+  int generated = 0;
+  for (int f = 0; f < kProbeFamilies; ++f)
+    if (f != static_cast<int>(ProbeFamily::kNamed) && count[static_cast<std::size_t>(f)] > 0)
+      ++generated;
+  const double named_share = generated == 0 ? 1.0 : options.named_weight;
+  std::vector<double> w(bank.probes.size(), 0.0);
+  for (std::size_t p = 0; p < bank.probes.size(); ++p) {
+    const Probe& probe = bank.probes[p];
+    if (probe.role != ProbeRole::kFit || !(probe.reference_norm2 > 0.0)) continue;
+    const double family_share =
+        probe.family == ProbeFamily::kNamed ? named_share : (1.0 - named_share) / generated;
+    w[p] = family_share / count[static_cast<std::size_t>(probe.family)] / probe.reference_norm2;
+  }
+  return w;
+}
+
+std::vector<bool> RoleMask(const ProbeBank& bank, ProbeRole role) {
+  std::vector<bool> mask(bank.probes.size());
+  for (std::size_t p = 0; p < bank.probes.size(); ++p) mask[p] = bank.probes[p].role == role;
+  return mask;
+}
+
+// The fit in scaled variables x = k / scale: q(x) = 1/2 x^T A x - b^T x.
+struct ScaledQuadratic {
+  Matrix A;
+  Vector b;
+};
+
+ScaledQuadratic Scaled(const Gram& gram, const Vector& scale, double regularization,
+                       const Vector& prior_scaled) {
+  const double m = static_cast<double>(scale.size());
+  ScaledQuadratic q;
+  q.A = 2.0 * scale.asDiagonal() * gram.H * scale.asDiagonal();
+  q.b = 2.0 * scale.cwiseProduct(gram.c);
+  q.A.diagonal().array() += 2.0 * regularization / m;
+  q.b += (2.0 * regularization / m) * prior_scaled;
+  return q;
+}
+
+class Fit {
+ public:
+  Fit(const Problem& problem, const ProbeBank& bank, const SparseMatrix& reference_stiffness,
+      const std::vector<double>& prior, const ResponseFitOptions& options,
+      Interruption* interruption)
+      : problem_(problem),
+        bank_(bank),
+        options_(options),
+        interruption_(interruption),
+        springs_(GeneSpringsOf(problem)),
+        weight_(FitWeights(bank, options.probes)),
+        fit_(RoleMask(bank, ProbeRole::kFit)),
+        select_(RoleMask(bank, ProbeRole::kSelect)) {
+    const int m = problem.gene_count();
+    const double median = MedianPositive(prior);
+    scale_.resize(m);
+    prior_scaled_.resize(m);
+    for (int e = 0; e < m; ++e) {
+      scale_[e] = std::max(prior[static_cast<std::size_t>(e)], 0.1 * median);
+      prior_scaled_[e] = prior[static_cast<std::size_t>(e)] / scale_[e];
+    }
+    const int d = problem.dimension();
+    for (const Support& support : bank.supports) {
+      reference_.emplace_back(d, support.constrained);
+      reference_.back().Factorize(reference_stiffness);
+    }
+  }
+
+  // The first-order Gram matrix over the fitted probes, normalised so that its value is the
+  // weighted mean squared relative error.
+  Gram FirstOrderGram() {
+    std::vector<Matrix> compliance(bank_.supports.size());
+    std::vector<GramTerm> terms;
+    for (std::size_t p = 0; p < bank_.probes.size(); ++p) {
+      if (!(weight_[p] > 0.0)) continue;
+      const Probe& probe = bank_.probes[p];
+      const SupportSystem& system = reference_[static_cast<std::size_t>(probe.support)];
+      Matrix& c = compliance[static_cast<std::size_t>(probe.support)];
+      if (c.size() == 0) {
+        if (interruption_ && interruption_->Check()) throw Interrupted();
+        c = system.Compliance();
+      }
+      GramTerm term;
+      term.support = probe.support;
+      term.weight = weight_[p];
+      term.elongation = Elongations(springs_, probe.reference);
+      term.target = c * system.Gather(probe.force);
+      terms.push_back(std::move(term));
+    }
+    return BuildGram(springs_, reference_, compliance, terms);
+  }
+
+  // The Gauss-Newton Gram of the exact error about `weights`; false when the model is not held
+  // by some fitted support.
+  bool GaussNewtonGram(const std::vector<double>& weights, Gram& gram) {
+    const SparseMatrix k = SpringRestStiffness(problem_, weights);
+    std::vector<SupportSystem> model;
+    std::vector<Matrix> compliance(bank_.supports.size());
+    for (const Support& support : bank_.supports)
+      model.emplace_back(problem_.dimension(), support.constrained);
+    std::vector<GramTerm> terms;
+    for (std::size_t p = 0; p < bank_.probes.size(); ++p) {
+      if (!(weight_[p] > 0.0)) continue;
+      const Probe& probe = bank_.probes[p];
+      SupportSystem& system = model[static_cast<std::size_t>(probe.support)];
+      Matrix& c = compliance[static_cast<std::size_t>(probe.support)];
+      if (c.size() == 0) {
+        if (interruption_ && interruption_->Check()) throw Interrupted();
+        if (!system.Factorize(k)) return false;
+        c = system.Compliance();
+      }
+      const Vector u = system.Displacement(probe.force, probe.prescribed);
+      GramTerm term;
+      term.support = probe.support;
+      term.weight = weight_[p];
+      term.elongation = Elongations(springs_, u);
+      term.target = system.Gather(u - probe.reference) + c * system.Gather(probe.force);
+      terms.push_back(std::move(term));
+    }
+    gram = BuildGram(springs_, model, compliance, terms);
+    return true;
+  }
+
+  // The exact fitted objective: weighted mean squared relative error plus the regularisation.
+  double Objective(const std::vector<double>& weights, double regularization) const {
+    const std::vector<double> e =
+        ProbeErrorsFor(bank_, SpringRestStiffness(problem_, weights), fit_);
+    double f = 0.0;
+    for (std::size_t p = 0; p < e.size(); ++p)
+      if (weight_[p] > 0.0) f += weight_[p] * bank_.probes[p].reference_norm2 * e[p] * e[p];
+    double r = 0.0;
+    for (std::size_t g = 0; g < weights.size(); ++g) {
+      const double dx = weights[g] / scale_[static_cast<Eigen::Index>(g)] -
+                        prior_scaled_[static_cast<Eigen::Index>(g)];
+      r += dx * dx;
+    }
+    return f + regularization * r / static_cast<double>(weights.size());
+  }
+
+  double SelectError(const std::vector<double>& weights) const {
+    if (PresentSprings(weights) == 0) return kNoModel;
+    return FamilyBalancedRms(
+        bank_, ProbeErrorsFor(bank_, SpringRestStiffness(problem_, weights), select_));
+  }
+
+  std::vector<double> Weights(const Vector& x) const {
+    std::vector<double> k(static_cast<std::size_t>(x.size()));
+    for (Eigen::Index e = 0; e < x.size(); ++e) k[static_cast<std::size_t>(e)] = x[e] * scale_[e];
+    const double floor = options_.dust * MedianPositive(k);
+    for (double& w : k)
+      if (w < floor) w = 0.0;
+    return k;
+  }
+
+  Vector Scaled(const std::vector<double>& weights) const {
+    Vector x(scale_.size());
+    for (Eigen::Index e = 0; e < x.size(); ++e)
+      x[e] = weights[static_cast<std::size_t>(e)] / scale_[e];
+    return x;
+  }
+
+  const Vector& scale() const { return scale_; }
+  const Vector& prior_scaled() const { return prior_scaled_; }
+
+ private:
+  const Problem& problem_;
+  const ProbeBank& bank_;
+  const ResponseFitOptions& options_;
+  Interruption* interruption_;
+  GeneSprings springs_;
+  std::vector<double> weight_;
+  std::vector<bool> fit_, select_;
+  std::vector<SupportSystem> reference_;
+  Vector scale_, prior_scaled_;
+};
+
+}  // namespace
+
+void ResponseFitOptions::Validate(const std::string& owner) const {
+  const OptionsCheck check(owner);
+  probes.Validate(check.Nested("probes"));
+  nnls.Validate(check.Nested("nnls"));
+  check.Require(!regularizations.empty(), "regularizations", 0.0, "at least one strength");
+  for (double r : regularizations)
+    check.Require(r >= 0.0 && std::isfinite(r), "regularizations", r, "every value >= 0");
+  check.Require(InOpenUnit(prune_fraction), "prune_fraction", prune_fraction, "0 < value < 1");
+  check.Require(max_error_growth > 1.0, "max_error_growth", max_error_growth, "value > 1");
+  check.Require(max_retries >= 0, "max_retries", max_retries, "value >= 0");
+  check.Require(max_path_points >= 1, "max_path_points", max_path_points, "value >= 1");
+  check.Require(stop_error_factor > 1.0, "stop_error_factor", stop_error_factor, "value > 1");
+  check.Require(tolerance >= 0.0, "tolerance", tolerance, "value >= 0");
+  check.Require(dust >= 0.0 && dust < 1.0, "dust", dust, "0 <= value < 1");
+  check.Require(max_springs >= 0, "max_springs", max_springs, "value >= 0 (0: none)");
+  check.Require(gauss_newton_steps >= 0, "gauss_newton_steps", gauss_newton_steps, "value >= 0");
+}
+
+ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
+                              const SparseMatrix& reference_stiffness,
+                              const std::vector<double>& prior, const ResponseFitOptions& options,
+                              Interruption* interruption, const ResponseProgress& progress) {
+  options.Validate();
+  const auto tell = [&](const char* phase, double error) {
+    if (progress) progress(phase, error);
+  };
+  Fit fit(problem, bank, reference_stiffness, prior, options, interruption);
+  ResponseFitResult r;
+
+  // 2. The first-order fit, one per regularisation strength.
+  const auto gram_start = std::chrono::steady_clock::now();
+  const Gram gram = fit.FirstOrderGram();
+  r.seconds_gram =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - gram_start).count();
+  double best = kNoModel;
+  Vector best_x;
+  for (double strength : options.regularizations) {
+    const ScaledQuadratic q = Scaled(gram, fit.scale(), strength, fit.prior_scaled());
+    const QuadraticNnlsResult solved =
+        SolveQuadraticNnls(q.A, q.b, fit.prior_scaled(), {}, options.nnls, interruption);
+    const std::vector<double> weights = fit.Weights(solved.x);
+    const double error = fit.SelectError(weights);
+    r.regularization_select_errors.push_back(error);
+    if (error < best * (1.0 - 1e-3)) {  // (the weaker strength on a tie)
+      best = error;
+      best_x = solved.x;
+      r.regularization = strength;
+    }
+    tell("probe_fit", best);
+  }
+  if (best_x.size() == 0) best_x = fit.prior_scaled();  // (every model a mechanism)
+
+  // 3. The sparsity path.
+  const ScaledQuadratic q = Scaled(gram, fit.scale(), r.regularization, fit.prior_scaled());
+  std::vector<std::vector<double>> point_weights;
+  std::vector<double> weights = fit.Weights(best_x);
+  double best_on_path = kNoModel;
+  double trial_error = best;
+  for (int point = 0; point < options.max_path_points; ++point) {
+    const double error = point == 0 ? best : trial_error;
+    r.path.push_back({PresentSprings(weights), error});
+    point_weights.push_back(weights);
+    best_on_path = std::min(best_on_path, error);
+    tell("probe_path", best_on_path);
+    const bool within_budget =
+        options.max_springs == 0 || r.path.back().springs <= options.max_springs;
+    if (within_budget && error > options.stop_error_factor * best_on_path) break;
+    const Vector x = fit.Scaled(weights);
+    std::vector<std::pair<double, int>> saliency;
+    for (int e = 0; e < x.size(); ++e)
+      if (x[e] > 0.0) saliency.emplace_back(0.5 * x[e] * x[e] * q.A(e, e), e);
+    const auto remove = static_cast<std::size_t>(
+        std::ceil(options.prune_fraction * static_cast<double>(saliency.size())));
+    if (saliency.size() <= 1 || remove == 0) break;
+    std::sort(saliency.begin(), saliency.end());
+    // A removal that raises the choosing error by more than max_error_growth is retried with
+    // half as many springs (the saliencies ignore how springs stand in for each other).
+    std::size_t count = remove;
+    for (int attempt = 0;; ++attempt) {
+      std::vector<bool> fixed(static_cast<std::size_t>(x.size()));
+      for (int e = 0; e < x.size(); ++e) fixed[static_cast<std::size_t>(e)] = !(x[e] > 0.0);
+      for (std::size_t i = 0; i < count; ++i)
+        fixed[static_cast<std::size_t>(saliency[i].second)] = true;
+      const QuadraticNnlsResult solved =
+          SolveQuadraticNnls(q.A, q.b, x, fixed, options.nnls, interruption);
+      std::vector<double> trial = fit.Weights(solved.x);
+      trial_error = fit.SelectError(trial);
+      if (trial_error <= options.max_error_growth * error || attempt >= options.max_retries ||
+          count == 1) {
+        weights = std::move(trial);
+        break;
+      }
+      count = std::max<std::size_t>(1, count / 2);
+    }
+  }
+  // The fewest springs within the tolerance of the best; with a budget, the best within it.
+  r.chosen = 0;
+  if (options.max_springs > 0) {
+    r.chosen = static_cast<int>(r.path.size()) - 1;  // the smallest, unless one is within
+    double best_within = kNoModel;
+    for (std::size_t i = 0; i < r.path.size(); ++i) {
+      if (r.path[i].springs <= options.max_springs && r.path[i].select_error < best_within) {
+        best_within = r.path[i].select_error;
+        r.chosen = static_cast<int>(i);
+      }
+    }
+  } else {
+    for (std::size_t i = 0; i < r.path.size(); ++i) {
+      if (r.path[i].select_error <= (1.0 + options.tolerance) * best_on_path &&
+          r.path[i].springs <= r.path[static_cast<std::size_t>(r.chosen)].springs)
+        r.chosen = static_cast<int>(i);
+    }
+  }
+  weights = point_weights[static_cast<std::size_t>(r.chosen)];
+  r.select_error = r.path[static_cast<std::size_t>(r.chosen)].select_error;
+
+  // 4. Gauss-Newton on the exact error, over the chosen springs.
+  std::vector<bool> absent(weights.size());
+  for (std::size_t g = 0; g < weights.size(); ++g) absent[g] = !(weights[g] > 0.0);
+  double objective = fit.Objective(weights, r.regularization);
+  for (int step = 0; step < options.gauss_newton_steps; ++step) {
+    Gram newton;
+    if (!fit.GaussNewtonGram(weights, newton)) break;
+    const ScaledQuadratic qn = Scaled(newton, fit.scale(), r.regularization, fit.prior_scaled());
+    const Vector x0 = fit.Scaled(weights);
+    const QuadraticNnlsResult solved =
+        SolveQuadraticNnls(qn.A, qn.b, x0, absent, options.nnls, interruption);
+    bool accepted = false;
+    for (int halving = 0; halving < 4 && !accepted; ++halving) {
+      const double t = std::ldexp(1.0, -halving);
+      const std::vector<double> trial = fit.Weights(x0 + t * (solved.x - x0));
+      if (PresentSprings(trial) == 0) continue;
+      const double value = fit.Objective(trial, r.regularization);
+      if (!(value < objective)) continue;
+      const double error = fit.SelectError(trial);
+      if (!(error <= r.select_error * 1.001)) break;  // the fit gains, the choosing probes lose
+      weights = trial;
+      objective = value;
+      r.select_error = error;
+      ++r.gauss_newton_accepted;
+      accepted = true;
+    }
+    tell("probe_refine", r.select_error);
+    if (!accepted) break;
+  }
+  r.weights = weights;
+  return r;
+}
+
+}  // namespace springfit::response

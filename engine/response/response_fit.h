@@ -1,0 +1,86 @@
+// The probe fit: per-spring stiffness fitted to the reference's whole response at rest, not
+// to the named load cases alone (DESIGN.md §5, issue 31).
+//
+// Steps, each judged on probes no fit sees:
+//  1. Probe bank (probe_bank.h): the named cases and generated loads on several supports,
+//     split into fitted, choosing and held-out parts.
+//  2. First-order fit (compliance_gram.h): the error of the model's displacement under the
+//     fitted probes, to first order in K(k) - K_ref, is a convex quadratic in k; minimised over
+//     k >= 0 (quadratic_nnls.h) with a Tikhonov pull toward the prior (the closed-form
+//     baseline) of each strength in `regularizations`, in variables scaled by the prior so the
+//     result does not depend on units. The strength whose model does best on the choosing
+//     probes is kept.
+//  3. Sparsity path: the springs whose removal raises the quadratic least (saliency
+//     1/2 k_e^2 H_ee) are removed, `prune_fraction` at a time, and the rest refitted; each
+//     point is judged on the choosing probes, and the fewest springs within `tolerance` of
+//     the best is kept. Springs the fit leaves below `dust` of the median stiffness are never
+//     part of a model.
+//  4. Gauss-Newton refinement of the exact (linear) error on the fitted probes over the kept
+//     springs, each step kept only if the choosing probes do not get worse.
+// The model is the rest-linear one; a nonlinear reference's model describes its small-load
+// limit.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "engine/interruption.h"
+#include "engine/response/probe_bank.h"
+#include "engine/response/quadratic_nnls.h"
+
+namespace springfit::response {
+
+struct ResponseFitOptions {
+  ProbeOptions probes;
+  // The Tikhonov strengths tried: moving every spring by its own prior stiffness costs as much
+  // as a mean squared relative error of this. Each >= 0.
+  std::vector<double> regularizations = {0.0, 1e-4, 1e-3, 1e-2};
+  double prune_fraction = 0.1;  // of the present springs per path point, in (0, 1)
+  // A removal that multiplies the choosing error by more than this is retried with half as
+  // many springs (> 1), at most `max_retries` times per point.
+  double max_error_growth = 1.3;
+  int max_retries = 3;
+  int max_path_points = 60;  // >= 1
+  // The path ends once the choosing probes' error passes this many times its best (> 1).
+  double stop_error_factor = 1.5;
+  // The returned point: the fewest springs within (1 + tolerance) of the best choosing error.
+  double tolerance = 0.02;
+  // Weights below this fraction of the median weight are removed (0 <= value < 1).
+  double dust = 1e-6;
+  int gauss_newton_steps = 4;  // >= 0
+  // A spring budget (> 0): the path runs at least down to it, and the returned point is the
+  // one with the lowest choosing error within it (the smallest when none is). 0: none.
+  int max_springs = 0;
+  QuadraticNnlsOptions nnls;
+
+  void Validate(const std::string& owner = "ResponseFitOptions") const;
+};
+
+struct ResponseFitResult {
+  std::vector<double> weights;  // per gene, >= 0
+  struct Point {
+    int springs = 0;
+    double select_error = 0.0;  // FamilyBalancedRms on the choosing probes
+  };
+  std::vector<Point> path;
+  int chosen = 0;  // the path point refined into `weights`
+  double regularization = 0.0;
+  std::vector<double> regularization_select_errors;  // per ResponseFitOptions::regularizations
+  double select_error = 0.0;                         // of `weights`
+  int gauss_newton_accepted = 0;
+  double seconds_gram = 0.0;  // building the first-order fit's Gram matrix
+};
+
+// Progress: called with the phase ("probe_fit", "probe_path", "probe_refine") and the best
+// choosing error so far.
+using ResponseProgress = std::function<void(const char* phase, double error)>;
+
+// `prior` and the returned weights are per gene; `prior` > 0 somewhere. Throws Interrupted
+// when `interruption` stops it.
+ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
+                              const SparseMatrix& reference_stiffness,
+                              const std::vector<double>& prior, const ResponseFitOptions& options,
+                              Interruption* interruption = nullptr,
+                              const ResponseProgress& progress = {});
+
+}  // namespace springfit::response

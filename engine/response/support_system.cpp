@@ -1,0 +1,87 @@
+#include "engine/response/support_system.h"
+
+#include <Eigen/Cholesky>
+
+namespace springfit::response {
+
+SupportSystem::SupportSystem(int dimension, const std::vector<bool>& constrained)
+    : dimension_(dimension), constrained_(constrained) {
+  const int d = dimension;
+  free_index_.assign(constrained.size() * static_cast<std::size_t>(d), -1);
+  for (std::size_t node = 0; node < constrained.size(); ++node) {
+    if (constrained[node]) continue;
+    for (int c = 0; c < d; ++c) {
+      const int dof = d * static_cast<int>(node) + c;
+      free_index_[static_cast<std::size_t>(dof)] = static_cast<int>(free_dofs_.size());
+      free_dofs_.push_back(dof);
+    }
+  }
+}
+
+bool SupportSystem::Factorize(const SparseMatrix& full) {
+  full_ = full;
+  const int n = free_dofs();
+  std::vector<Eigen::Triplet<double>> t;
+  t.reserve(static_cast<std::size_t>(full.nonZeros()));
+  for (int col = 0; col < full.outerSize(); ++col) {
+    const int c = free_index_[static_cast<std::size_t>(col)];
+    if (c < 0) continue;
+    for (SparseMatrix::InnerIterator it(full, col); it; ++it) {
+      const int r = free_index_[static_cast<std::size_t>(it.row())];
+      if (r >= c) t.emplace_back(r, c, it.value());
+    }
+  }
+  restricted_.resize(n, n);
+  restricted_.setFromTriplets(t.begin(), t.end());
+  llt_ = std::make_unique<Llt>();
+  if (n == 0) return false;
+  llt_->compute(restricted_);
+  if (llt_->info() != Eigen::Success) return false;
+  // A positive pivot far below the largest is a mechanism as well (round-off of a singular
+  // matrix): the same unit-free test as the equilibrium solver's, on the diagonal of L.
+  const Vector diagonal = llt_->matrixL().nestedExpression().diagonal();
+  const double largest = diagonal.cwiseAbs().maxCoeff();
+  return diagonal.minCoeff() > 1e-7 * largest;
+}
+
+Vector SupportSystem::Gather(const Vector& full) const {
+  Vector free(free_dofs());
+  for (int i = 0; i < free_dofs(); ++i) free[i] = full[free_dofs_[static_cast<std::size_t>(i)]];
+  return free;
+}
+
+Vector SupportSystem::Scatter(const Vector& free, const Vector& prescribed) const {
+  Vector full = prescribed;
+  for (int i = 0; i < free_dofs(); ++i) full[free_dofs_[static_cast<std::size_t>(i)]] = free[i];
+  return full;
+}
+
+Vector SupportSystem::RightHandSide(const Vector& force, const Vector& prescribed) const {
+  if (prescribed.isZero(0.0)) return Gather(force);
+  return Gather(force - full_ * prescribed);
+}
+
+void SupportSystem::Solve(Vector& b) const {
+  b = llt_->solve(b);
+}
+
+Vector SupportSystem::Displacement(const Vector& force, const Vector& prescribed) const {
+  Vector free = RightHandSide(force, prescribed);
+  Solve(free);
+  Vector constrained_part = prescribed;
+  for (int dof : free_dofs_) constrained_part[dof] = 0.0;
+  return Scatter(free, constrained_part);
+}
+
+Vector SupportSystem::Multiply(const Vector& x) const {
+  return restricted_.selfadjointView<Eigen::Lower>() * x;
+}
+
+Matrix SupportSystem::Compliance() const {
+  const int n = free_dofs();
+  Matrix c = Matrix::Identity(n, n);
+  c = llt_->solve(c);
+  return c;
+}
+
+}  // namespace springfit::response

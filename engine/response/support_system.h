@@ -1,0 +1,67 @@
+// A linear system restricted to one support: the degrees of freedom of the nodes a support
+// leaves free, and the factorisation of a rest stiffness there.
+//
+// With f the external forces and u_c the prescribed displacements of the constrained nodes, the
+// free displacements solve K_ff u_f = f_f - K_fc u_c. The factorisation is Eigen's simplicial
+// Cholesky (AMD ordering): the probe fit's systems have at most a few thousand free degrees of
+// freedom per support, and it solves many right-hand sides with one factor.
+//
+// Not thread-safe for Factorize(); Solve() and the gathers are const and may be called from
+// several threads at once.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include <Eigen/SparseCholesky>
+
+#include "engine/response/rest_stiffness.h"
+
+namespace springfit::response {
+
+class SupportSystem {
+ public:
+  // `constrained[node]`: held (fixed or displaced) by this support.
+  SupportSystem(int dimension, const std::vector<bool>& constrained);
+  SupportSystem(SupportSystem&&) = default;
+  SupportSystem& operator=(SupportSystem&&) = default;
+
+  int dimension() const { return dimension_; }
+  int free_dofs() const { return static_cast<int>(free_dofs_.size()); }
+  const std::vector<bool>& constrained() const { return constrained_; }
+  // Per free degree of freedom, its index in the flat d*n vector.
+  const std::vector<int>& free_dof_list() const { return free_dofs_; }
+  // Per flat degree of freedom, its free index, or -1 when constrained.
+  const std::vector<int>& free_index() const { return free_index_; }
+
+  // Factorises `full` (d*n square) restricted to the free degrees of freedom, and keeps it for
+  // the prescribed displacements' coupling. False when that restriction is not positive
+  // definite: the support leaves a mechanism (or the matrix is indefinite).
+  bool Factorize(const SparseMatrix& full);
+  // The free entries of a flat d*n vector.
+  Vector Gather(const Vector& full) const;
+  // A flat d*n vector: `free` on the free degrees of freedom, `prescribed`'s entries elsewhere.
+  Vector Scatter(const Vector& free, const Vector& prescribed) const;
+  // The right-hand side f_f - K_fc u_c of a load (flat force and prescribed displacements).
+  Vector RightHandSide(const Vector& force, const Vector& prescribed) const;
+  // Overwrites b (free) with K_ff^-1 b. Precondition: Factorize() returned true.
+  void Solve(Vector& b) const;
+  // The full displacement (flat d*n) under a load.
+  Vector Displacement(const Vector& force, const Vector& prescribed) const;
+  // K_ff^-1, dense (free x free).
+  Matrix Compliance() const;
+  // K_ff x for x on the free degrees of freedom (the matrix last given to Factorize()).
+  Vector Multiply(const Vector& x) const;
+
+ private:
+  int dimension_ = 2;
+  std::vector<bool> constrained_;
+  std::vector<int> free_dofs_;
+  std::vector<int> free_index_;
+  SparseMatrix full_;
+  SparseMatrix restricted_;  // K_ff, lower triangle
+  using Llt = Eigen::SimplicialLLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>>;
+  std::unique_ptr<Llt> llt_;
+};
+
+}  // namespace springfit::response

@@ -1,0 +1,271 @@
+// The probe fit (engine/response/): the probe bank, the first-order Gram matrix, the pencil's
+// eigenvalue bound, and strategy continuous fitted to probes (issue 31).
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include <Eigen/Eigenvalues>
+
+#include "engine/fem/closed_form_baseline.h"
+#include "engine/identification/identify.h"
+#include "engine/response/compliance_gram.h"
+#include "engine/response/generalization.h"
+#include "engine/response/probe_bank.h"
+#include "engine/response/probe_evaluation.h"
+#include "engine/response/response_fit.h"
+#include "engine/response/rest_stiffness.h"
+#include "io/example_catalog.h"
+
+namespace springfit::response {
+namespace {
+
+TEST(ProbeBank, EverySupportHasEveryFamilyInEveryDirectionAndAHeldOutPart) {
+  const Problem problem(examples::Make("fem-plate-5x5"));
+  const SparseMatrix k = ReferenceRestStiffness(problem);
+  const ProbeBank bank = MakeProbeBank(problem, k, ProbeOptions{});
+  ASSERT_GE(bank.supports.size(), 4u);  // the user's two and drawn ones
+  int user = 0;
+  for (const Support& s : bank.supports) user += s.user;
+  EXPECT_EQ(user, 2);
+  for (std::size_t s = 0; s < bank.supports.size(); ++s) {
+    for (ProbeFamily family : {ProbeFamily::kPoint, ProbeFamily::kPatch, ProbeFamily::kBody}) {
+      int count = 0, held = 0, fitted = 0;
+      Matrix directions = Matrix::Zero(2, 2);  // sum of f f^T over the family's forces
+      for (const Probe& p : bank.probes) {
+        if (p.support != static_cast<int>(s) || p.family != family) continue;
+        ++count;
+        held += p.role == ProbeRole::kHeldOut;
+        fitted += p.role == ProbeRole::kFit;
+        for (int node = 0; node < problem.scene().node_count(); ++node) {
+          const Vector f = p.force.segment(2 * node, 2);
+          directions += f * f.transpose() / std::max(f.squaredNorm(), 1e-300);
+          // No load on a held node.
+          if (bank.supports[s].constrained[static_cast<std::size_t>(node)]) {
+            EXPECT_EQ(f.norm(), 0.0);
+          }
+        }
+      }
+      EXPECT_GT(count, 0) << "support " << s << " family " << ProbeFamilyName(family);
+      EXPECT_GT(held, 0);
+      EXPECT_GT(fitted, 0);
+      // Both directions of the plane are loaded.
+      const Eigen::SelfAdjointEigenSolver<Matrix> eig(directions);
+      EXPECT_GT(eig.eigenvalues()[0], 0.05 * eig.eigenvalues()[1]) << ProbeFamilyName(family);
+    }
+  }
+  // Same options, same bank.
+  const ProbeBank again = MakeProbeBank(problem, k, ProbeOptions{});
+  ASSERT_EQ(again.probes.size(), bank.probes.size());
+  for (std::size_t p = 0; p < bank.probes.size(); ++p) {
+    EXPECT_EQ(again.probes[p].force, bank.probes[p].force);
+    EXPECT_EQ(again.probes[p].role, bank.probes[p].role);
+  }
+}
+
+TEST(ResponseFit, HeldOutProbesNeverEnterTheFit) {
+  const Problem problem(examples::Make("fem-plate-5x5"));
+  const SparseMatrix k = ReferenceRestStiffness(problem);
+  ResponseFitOptions options;
+  const ProbeBank bank = MakeProbeBank(problem, k, options.probes);
+  const std::vector<double> prior = *fem::BaselineGeneWeights(problem);
+  const ResponseFitResult fit = FitResponse(problem, bank, k, prior, options);
+  // Held-out probes made nonsense: the fit cannot tell.
+  ProbeBank corrupted = bank;
+  for (Probe& p : corrupted.probes) {
+    if (p.role != ProbeRole::kHeldOut) continue;
+    p.reference *= -3.0;
+    p.force.setRandom();
+  }
+  const ResponseFitResult again = FitResponse(problem, corrupted, k, prior, options);
+  EXPECT_EQ(again.weights, fit.weights);
+}
+
+// The first-order Gram matrix of every `stride`-th probe of a problem's bank, with what it was
+// built from.
+struct FirstOrder {
+  ProbeBank bank;
+  GeneSprings springs;
+  std::vector<SupportSystem> systems;
+  std::vector<Matrix> compliance;
+  std::vector<std::size_t> probes;  // the bank's probes in the Gram, parallel to terms
+  std::vector<GramTerm> terms;
+  Gram gram;
+};
+
+FirstOrder FirstOrderOf(const Problem& problem, std::size_t stride) {
+  FirstOrder f;
+  const SparseMatrix kref = ReferenceRestStiffness(problem);
+  f.bank = MakeProbeBank(problem, kref, ProbeOptions{});
+  f.springs = GeneSpringsOf(problem);
+  for (const Support& s : f.bank.supports) {
+    f.systems.emplace_back(problem.dimension(), s.constrained);
+    EXPECT_TRUE(f.systems.back().Factorize(kref));
+    f.compliance.push_back(f.systems.back().Compliance());
+  }
+  for (std::size_t p = 0; p < f.bank.probes.size(); p += stride) {
+    const Probe& probe = f.bank.probes[p];
+    const auto s = static_cast<std::size_t>(probe.support);
+    GramTerm t;
+    t.support = probe.support;
+    t.weight = 1.0 / probe.reference_norm2;
+    t.elongation = Elongations(f.springs, probe.reference);
+    t.target = f.compliance[s] * f.systems[s].Gather(probe.force);
+    f.probes.push_back(p);
+    f.terms.push_back(t);
+  }
+  f.gram = BuildGram(f.springs, f.systems, f.compliance, f.terms);
+  return f;
+}
+
+// The Gram matrix is the quadratic it claims to be: f(k) = sum_p w_p |C (A(u_p) k - f_p)|^2,
+// computed here densely for random stiffness.
+TEST(ComplianceGram, MatchesTheDenseQuadraticItStandsFor) {
+  const Problem problem(examples::Make("fem-plate-5x5"));
+  const FirstOrder f = FirstOrderOf(problem, 7);
+  std::srand(3);
+  for (int trial = 0; trial < 3; ++trial) {
+    Vector k = (Vector::Random(f.springs.size()).array() + 1.0).matrix();
+    std::vector<double> weights(k.data(), k.data() + k.size());
+    const SparseMatrix km = SpringRestStiffness(problem, weights);
+    double direct = 0.0;
+    for (std::size_t i = 0; i < f.terms.size(); ++i) {
+      const Probe& probe = f.bank.probes[f.probes[i]];
+      const auto s = static_cast<std::size_t>(probe.support);
+      const Vector residual = f.systems[s].Gather(km * probe.reference - probe.force);
+      direct += f.terms[i].weight * (f.compliance[s] * residual).squaredNorm();
+    }
+    EXPECT_NEAR(f.gram.Value(k), direct, 1e-9 * direct);
+  }
+}
+
+// To first order the Gram's error is the exact one: at the reference stiffness of an MSS
+// reference both vanish, and a small change moves them alike.
+TEST(ComplianceGram, IsTheExactErrorToFirstOrder) {
+  const Problem problem(examples::Make("paper-iso-5x5"));
+  const FirstOrder f = FirstOrderOf(problem, 1);
+  std::vector<double> reference = problem.ReferenceWeights();
+  const Vector kr =
+      Eigen::Map<const Vector>(reference.data(), static_cast<Eigen::Index>(reference.size()));
+  EXPECT_NEAR(f.gram.Value(kr), 0.0, 1e-10 * f.gram.constant);
+  std::vector<bool> all(f.bank.probes.size(), true);
+  for (double h : {1e-2, 1e-3}) {
+    Vector dk = h * Vector::Ones(kr.size());
+    for (Eigen::Index e = 0; e < dk.size(); e += 2) dk[e] = -dk[e];
+    std::vector<double> moved(reference);
+    for (std::size_t e = 0; e < moved.size(); ++e) moved[e] += dk[static_cast<Eigen::Index>(e)];
+    const std::vector<double> errors =
+        ProbeErrorsFor(f.bank, SpringRestStiffness(problem, moved), all);
+    double exact = 0.0;
+    for (double e : errors) exact += e * e;
+    EXPECT_NEAR(f.gram.Value(kr + dk), exact, 5.0 * h * exact) << "h " << h;
+  }
+}
+
+TEST(PencilExtremes, MatchADenseGeneralisedEigensolver) {
+  const Problem problem(examples::Make("fem-plate-5x5"));
+  const SparseMatrix kref = ReferenceRestStiffness(problem);
+  const SparseMatrix kb = SpringRestStiffness(problem, *fem::BaselineGeneWeights(problem));
+  const ProbeBank bank = MakeProbeBank(problem, kref, ProbeOptions{});
+  const Support& support = bank.supports[0];
+  const PencilExtremes x = GeneralizedEigenvalueExtremes(kb, kref, support.constrained, 2);
+  SupportSystem a(2, support.constrained), b(2, support.constrained);
+  a.Factorize(kb);
+  b.Factorize(kref);
+  const int n = a.free_dofs();
+  Matrix A(n, n), B(n, n);
+  for (int j = 0; j < n; ++j) {
+    A.col(j) = a.Multiply(Vector::Unit(n, j));
+    B.col(j) = b.Multiply(Vector::Unit(n, j));
+  }
+  Eigen::GeneralizedSelfAdjointEigenSolver<Matrix> dense(A, B, Eigen::EigenvaluesOnly);
+  EXPECT_NEAR(x.lambda_min, dense.eigenvalues().minCoeff(), 1e-6 * x.lambda_max);
+  EXPECT_NEAR(x.lambda_max, dense.eigenvalues().maxCoeff(), 1e-6 * x.lambda_max);
+  EXPECT_NEAR(x.Bound(), std::max(1.0 / x.lambda_min - 1.0, 1.0 - 1.0 / x.lambda_max), 1e-12);
+}
+
+Scene PlateWithOneCase() {
+  Scene s = examples::Make("fem-plate-5x5");
+  s.load_cases.resize(1);  // stretch +y only: shear and the other support are never loaded
+  return s;
+}
+
+// A named case that leaves modes unloaded: the model fitted to probes still holds every load
+// on the user's support, and does better than the baseline on loads it never saw.
+TEST(ProbeFitStrategy, SupportsModesTheNamedCasesLeaveUnloaded) {
+  const Problem problem(PlateWithOneCase());
+  SearchOptions options = StrategyDefaults(Strategy::kContinuous, problem.gene_count());
+  options.strategy = Strategy::kContinuous;
+  const IdentificationResult r = RunIdentification(problem, options);
+  ASSERT_TRUE(r.generalization);
+  const Generalization& g = *r.generalization;
+  EXPECT_TRUE(g.fitted_to_probes);
+  EXPECT_FALSE(g.returned_baseline);
+  EXPECT_GT(g.lambda_min, 0.1);
+  EXPECT_LT(g.model_held_out.median, 0.5 * g.baseline_held_out.median);
+  EXPECT_TRUE(r.usable());
+}
+
+// Lengths, loads and moduli scaled: the same model, its stiffness scaled, the same errors.
+TEST(ProbeFitStrategy, ResultDoesNotDependOnUnits) {
+  const Scene base = examples::Make("fem-plate-5x5");
+  Scene scaled = base;
+  // Lengths by 1e-3 (thickness too), moduli by 1e4: 2D forces scale like E t l, spring
+  // stiffness like E t, displacements like l.
+  const double length = 1e-3, modulus = 1e4, force = length * length * modulus;
+  scaled.rest *= length;
+  scaled.reference.fem.thickness *= length;
+  for (Material& m : scaled.reference.fem.materials) m.young *= modulus;
+  for (LoadCase& lc : scaled.load_cases) {
+    for (NodalLoad& f : lc.forces) f.value *= force;
+    for (NodalLoad& d : lc.displacements) d.value *= length;
+    for (Traction& t : lc.tractions) t.value *= t.total ? force : force / length;
+  }
+  if (scaled.training_stiffness) *scaled.training_stiffness *= modulus * length;
+  const Problem a(base), b(scaled);
+  SearchOptions options = StrategyDefaults(Strategy::kContinuous, a.gene_count());
+  options.strategy = Strategy::kContinuous;
+  const IdentificationResult ra = RunIdentification(a, options);
+  const IdentificationResult rb = RunIdentification(b, options);
+  ASSERT_EQ(ra.best, rb.best);
+  for (std::size_t s = 0; s < ra.stiffness.size(); ++s)
+    EXPECT_NEAR(rb.stiffness[s], ra.stiffness[s] * modulus * length, 1e-6 * rb.stiffness[s]);
+  EXPECT_NEAR(rb.generalization->model_held_out.median, ra.generalization->model_held_out.median,
+              1e-6 * ra.generalization->model_held_out.median);
+}
+
+TEST(ProbeFitStrategy, ProbesNoneKeepsTheNamedCaseFit) {
+  Scene s = examples::Make("fem-plate-5x5");
+  s.search.probes = 0;
+  const Problem problem(s);
+  SearchOptions options = ResolveSearchOptions(s.search, problem.gene_count());
+  options.strategy = Strategy::kContinuous;
+  const IdentificationResult r = RunIdentification(problem, options);
+  EXPECT_FALSE(r.generalization);
+  ASSERT_TRUE(r.continuous);
+  EXPECT_GE(r.continuous->path.size(), 2u);
+}
+
+}  // namespace
+}  // namespace springfit::response
+
+namespace springfit::response {
+namespace {
+
+TEST(ProbeFitStrategy, ASpringBudgetGivesTheBestModelWithinIt) {
+  Scene s = examples::Make("fem-plate-5x5");
+  s.search.max_springs = 40;
+  const Problem problem(s);
+  const SearchOptions options = ResolveSearchOptions(s.search, problem.gene_count());
+  const IdentificationResult r = RunIdentification(problem, options);
+  ASSERT_TRUE(r.generalization);
+  EXPECT_LE(static_cast<int>(r.springs.size()), 40);
+  const auto& path = r.generalization->fit.path;
+  const auto& chosen = path[static_cast<std::size_t>(r.generalization->fit.chosen)];
+  for (const auto& p : path)
+    if (p.springs <= 40) {
+      EXPECT_GE(p.select_error, chosen.select_error);
+    }
+}
+
+}  // namespace
+}  // namespace springfit::response
