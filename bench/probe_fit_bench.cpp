@@ -67,9 +67,12 @@ int Main(int argc, char** argv) {
     const auto t2 = Clock::now();
     const response::ResponseFitResult fit =
         response::FitResponse(problem, bank, k_ref, prior, options);
-    std::printf("  fit: %.2f s (gram %.2f s), %d springs, regularisation %g, %d GN steps\n",
-                Seconds(t2), fit.seconds_gram, PresentSprings(fit.weights), fit.regularization,
-                fit.gauss_newton_accepted);
+    std::printf(
+        "  fit: %.2f s (gram %.2f s, first-order fits %.2f s, path %.2f s, Gauss-Newton %.2f s), "
+        "%d springs, regularisation %g, %d GN steps\n",
+        Seconds(t2), fit.seconds_gram, fit.seconds_first_order, fit.seconds_path,
+        fit.seconds_refine, PresentSprings(fit.weights), fit.regularization,
+        fit.gauss_newton_accepted);
     std::printf("    path:");
     for (const auto& p : fit.path) std::printf(" %d:%.3g", p.springs, p.select_error);
     std::printf("  (chosen %d)\n", fit.chosen);

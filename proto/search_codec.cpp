@@ -252,17 +252,16 @@ Json GeneralizationToJson(const response::Generalization& g) {
     Json fit;
     fit["regularization"] = g.fit.regularization;
     Json tried = Json::array();
-    const std::vector<double> strengths = response::ResponseFitOptions{}.regularizations;
-    for (std::size_t i = 0; i < g.fit.regularization_select_errors.size() && i < strengths.size();
-         ++i)
-      tried.push_back(
-          {{"strength", strengths[i]},
-           {"choosing_rms_error", NumberOrNull(g.fit.regularization_select_errors[i])}});
+    for (std::size_t i = 0; i < g.fit.regularizations.size(); ++i)
+      tried.push_back({{"strength", g.fit.regularizations[i]},
+                       {"choosing_rms_error", NumberOrNull(g.fit.regularization_select_errors[i])},
+                       {"lambda_min", g.fit.regularization_lambda_min[i]}});
     fit["regularization_tried"] = std::move(tried);
     Json path = Json::array();
     for (const auto& p : g.fit.path)
-      path.push_back(
-          {{"springs", p.springs}, {"choosing_rms_error", NumberOrNull(p.select_error)}});
+      path.push_back({{"springs", p.springs},
+                      {"choosing_rms_error", NumberOrNull(p.select_error)},
+                      {"lambda_min", p.lambda_min}});
     fit["path"] = std::move(path);
     fit["chosen"] = g.fit.chosen;
     fit["gauss_newton_steps"] = g.fit.gauss_newton_accepted;
@@ -277,6 +276,7 @@ Json ResultToJson(const Problem& problem, const IdentificationResult& r, bool wi
   Json j;
   j["scene"] = problem.scene().name;
   j["strategy"] = StrategyName(r.options.strategy);
+  j["ran"] = StrategyName(r.ran);
   j["identify"] = IdentifyName(r.options.identify);
   j["response"] = ResponseName(problem.response());
   j["seed"] = r.options.seed;

@@ -308,7 +308,21 @@ void Scheduler::RunClaimed(const Claim& claim) {
   Running* running = nullptr;
   std::shared_ptr<const Problem> prepared;
   {
-    std::lock_guard lock(mutex_);
+    std::unique_lock lock(mutex_);
+    // This daemon may claim a job it is still running: its lease lapsed while the daemon
+    // stood still (a host suspend, SIGSTOP, a store stall longer than the lease) and the
+    // store handed it out again, to us. The older run has lost its lease to this claim: it is
+    // told so, and this one starts only once it has stopped (one run of a job per process;
+    // the new run resumes from the last checkpoint, so the result is the same).
+    if (const auto old = running_.find(id); old != running_.end()) {
+      if (!old->second->lease_lost.exchange(true)) {
+        spdlog::warn(
+            "job {}: claimed again (lease epoch {}) while its run of epoch {} goes on "
+            "here: that run stops first",
+            id, claim.lease.epoch, old->second->lease.epoch);
+      }
+      run_ended_.wait(lock, [&] { return !running_.contains(id); });
+    }
     if (const auto p = prepared_.find(id); p != prepared_.end()) {
       prepared = std::move(p->second);
       prepared_.erase(p);
@@ -354,7 +368,11 @@ void Scheduler::RunClaimed(const Claim& claim) {
     }
   }
   std::lock_guard lock(mutex_);
-  running_.erase(id);
+  // (Only this run's slot: a claim of the same job waits for it to go, run_ended_.)
+  if (const auto r = running_.find(id); r != running_.end() && r->second.get() == running) {
+    running_.erase(r);
+    run_ended_.notify_all();
+  }
 }
 
 void Scheduler::MonitorLoop() {

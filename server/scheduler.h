@@ -152,7 +152,9 @@ class Scheduler {
   std::condition_variable wake_;
   std::uint64_t wake_count_ = 0;  // bumped by Wake(): a runner that saw it change looks again
   std::map<std::int64_t, std::shared_ptr<const Problem>> prepared_;  // of jobs submitted here
+  // At most one run per job: a claim of a job still running here waits on run_ended_.
   std::map<std::int64_t, std::unique_ptr<Running>> running_;
+  std::condition_variable run_ended_;
   std::map<std::int64_t, std::pair<Lease, std::shared_ptr<Preparation>>> preparing_;
   std::atomic<bool> stopping_{false};
   int runners_alive_ = 0;

@@ -21,7 +21,8 @@
 namespace springfit {
 
 struct IdentificationResult {
-  SearchOptions options;
+  SearchOptions options;            // as asked (options.strategy may be `default`)
+  Strategy ran = Strategy::kPaper;  // the strategy that ran (`default` resolved)
   StopReason stop = StopReason::kGenerationLimit;
   std::string stop_message;  // one line: the stop reason's criterion, in words
   Genome best;

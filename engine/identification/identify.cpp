@@ -171,14 +171,15 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
   // `default` (they do not know the reference).
   if (ResolvedStrategy(options.strategy, problem) == Strategy::kContinuous)
     r.options.identify = Identify::kTopologyAndStiffness;
+  r.ran = ResolvedStrategy(options.strategy, problem);
   r.identifiability = std::move(identifiability);
   r.baseline = std::move(baseline);
   // A run that ended by itself (not by request, time or target) with no answer says so
   // first, then why it ended.
+  // (Whether or not the strategy wrote its own message: continuous always does.)
   if (r.stop != StopReason::kCancelled && r.stop != StopReason::kTimeLimit &&
-      r.stop != StopReason::kTargetReached && r.stop_message.empty() &&
-      (r.evaluation.mechanism || !r.evaluation.converged)) {
-    const std::string ended = StopMessage(r);
+      r.stop != StopReason::kTargetReached && (r.evaluation.mechanism || !r.evaluation.converged)) {
+    const std::string ended = r.stop_message.empty() ? StopMessage(r) : r.stop_message;
     r.stop = r.evaluation.mechanism ? StopReason::kMechanism : StopReason::kNoEquilibrium;
     r.stop_message = StopMessage(r) + " (the run ended: " + ended + ")";
   }

@@ -14,10 +14,58 @@
 
 namespace springfit {
 
+namespace {
+
+bool Probeable(const Problem& problem, const SearchOptions& options) {
+  return options.probes != 0 && problem.scene().reference.kind != Reference::Kind::kPositions;
+}
+
+// The closed-form baseline's rest stiffness (on the mesh edges, whether or not they are all
+// candidates); `start` for an MSS reference, which has no closed-form model.
+response::SparseMatrix BaselineStiffness(const Problem& problem,
+                                         const std::optional<std::vector<double>>& on_genes,
+                                         const std::vector<double>& start) {
+  if (on_genes) return response::SpringRestStiffness(problem, *on_genes);
+  if (problem.scene().reference.kind == Reference::Kind::kFem) {
+    const fem::ClosedFormModel closed = fem::VanGelderModel(problem.scene());
+    return response::SpringRestStiffness(problem.dimension(), problem.scene().rest, closed.springs,
+                                         closed.stiffness);
+  }
+  return response::SpringRestStiffness(problem, start);
+}
+
+response::ProbeOptions ProbeOptionsOf(const SearchOptions& options) {
+  response::ProbeOptions o;
+  o.seed = options.seed;
+  if (options.probes > 0) o.count = options.probes;
+  return o;
+}
+
+}  // namespace
+
 bool FitsToProbes(const Problem& problem, const SearchOptions& options) {
   // (A target error chooses by the named cases' E along their own path: sparsity_path.h.)
-  return options.probes != 0 && options.target_error == 0.0 &&
-         problem.scene().reference.kind != Reference::Kind::kPositions;
+  return Probeable(problem, options) && options.target_error == 0.0 &&
+         problem.gene_count() <= kMaxProbeFitGenes;
+}
+
+std::optional<response::Generalization> CertifyOnProbes(const Problem& problem,
+                                                        const SearchOptions& options,
+                                                        const std::vector<double>& weights,
+                                                        const std::vector<double>& start) {
+  if (!Probeable(problem, options)) return std::nullopt;
+  std::optional<std::vector<double>> baseline_weights;
+  if (problem.scene().reference.kind == Reference::Kind::kFem)
+    baseline_weights = fem::BaselineGeneWeights(problem);
+  const response::SparseMatrix reference_stiffness = response::ReferenceRestStiffness(problem);
+  const response::ProbeOptions probe_options = ProbeOptionsOf(options);
+  const response::ProbeBank bank =
+      response::MakeProbeBank(problem, reference_stiffness, probe_options);
+  response::Generalization g =
+      response::Certify(problem, bank, reference_stiffness, weights,
+                        BaselineStiffness(problem, baseline_weights, start));
+  g.named_weight = probe_options.named_weight;
+  return g;
 }
 
 IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& options,
@@ -42,16 +90,8 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
       baseline_weights
           ? *baseline_weights
           : std::vector<double>(static_cast<std::size_t>(genes), problem.training_stiffness());
-  response::SparseMatrix baseline_stiffness;
-  if (baseline_weights) {
-    baseline_stiffness = response::SpringRestStiffness(problem, *baseline_weights);
-  } else if (problem.scene().reference.kind == Reference::Kind::kFem) {
-    const fem::ClosedFormModel closed = fem::VanGelderModel(problem.scene());
-    baseline_stiffness = response::SpringRestStiffness(problem.dimension(), problem.scene().rest,
-                                                       closed.springs, closed.stiffness);
-  } else {
-    baseline_stiffness = response::SpringRestStiffness(problem, start);
-  }
+  const response::SparseMatrix baseline_stiffness =
+      BaselineStiffness(problem, baseline_weights, start);
 
   double current = std::numeric_limits<double>::quiet_NaN();
   std::string phase = "probes";
@@ -60,8 +100,7 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
     beat.best_normalized_error = current * current;
   });
   response::ResponseFitOptions fit_options;
-  fit_options.probes.seed = options.seed;
-  if (options.probes > 0) fit_options.probes.count = options.probes;
+  fit_options.probes = ProbeOptionsOf(options);
   fit_options.max_springs = options.max_springs;
   // A strength set by the user is the one used; none (0) or auto: chosen on the choosing probes.
   if (!options.choose_regularization && options.regularization > 0.0)

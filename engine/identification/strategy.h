@@ -62,8 +62,20 @@ class ContinuousStrategy : public IdentificationStrategy {
 
 // ResolvedStrategy (scene.h) for the problem's reference.
 // Strategy continuous fits the reference's whole response (probe_fit_strategy.cpp) when the
-// reference can be probed (FEM or MSS) and the probes are not switched off.
+// reference can be probed (FEM or MSS), the probes are not switched off, no target error is
+// set (it chooses along the named cases' path) and the genes are at most kMaxProbeFitGenes:
+// the fit's Gram matrix is dense in the genes (m^2 doubles, m^3 / 3 per Newton step), so a
+// larger scene (fem-block-3d's 6,264 genes) would take minutes (bench/RESULTS.md, "Fitting the
+// response"); it runs the named-case fit, certified on the probes all the same.
+inline constexpr int kMaxProbeFitGenes = 3000;
 bool FitsToProbes(const Problem& problem, const SearchOptions& options);
+// The certificate of a model (per-gene weights) on the probe bank, when the reference can be
+// probed and the probes are not switched off; `start` is the baseline's stand-in for an MSS
+// reference.
+std::optional<response::Generalization> CertifyOnProbes(const Problem& problem,
+                                                        const SearchOptions& options,
+                                                        const std::vector<double>& weights,
+                                                        const std::vector<double>& start);
 IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& options,
                                  const RunContext& context, RunMonitor& monitor);
 

@@ -50,6 +50,17 @@ GeneSprings GeneSpringsOf(const Problem& problem) {
   return s;
 }
 
+GeneSprings Subset(const GeneSprings& springs, const std::vector<int>& genes) {
+  GeneSprings s;
+  s.dimension = springs.dimension;
+  s.directions.resize(springs.dimension, static_cast<Eigen::Index>(genes.size()));
+  for (std::size_t i = 0; i < genes.size(); ++i) {
+    s.pairs.push_back(springs.pairs[static_cast<std::size_t>(genes[i])]);
+    s.directions.col(static_cast<Eigen::Index>(i)) = springs.directions.col(genes[i]);
+  }
+  return s;
+}
+
 Vector Elongations(const GeneSprings& springs, const Vector& u) {
   const int d = springs.dimension;
   Vector delta(springs.size());

@@ -34,6 +34,9 @@ struct GeneSprings {
 };
 GeneSprings GeneSpringsOf(const Problem& problem);
 
+// The springs of some genes, in the order given.
+GeneSprings Subset(const GeneSprings& springs, const std::vector<int>& genes);
+
 // delta_e = g_e^T u for every gene (u flat d*n).
 Vector Elongations(const GeneSprings& springs, const Vector& u);
 

@@ -136,6 +136,13 @@ double PencilExtremes::Bound() const {
   return std::max(1.0 / lambda_min - 1.0, 1.0 - 1.0 / lambda_max);
 }
 
+double SmallestGeneralizedEigenvalue(const SparseMatrix& model, const SupportSystem& reference,
+                                     int iterations) {
+  SupportSystem m(reference.dimension(), reference.constrained());
+  if (!m.Factorize(model)) return 0.0;
+  return 1.0 / LargestPencilEigenvalue(reference, m, iterations, 2);
+}
+
 PencilExtremes GeneralizedEigenvalueExtremes(const SparseMatrix& model,
                                              const SparseMatrix& reference,
                                              const std::vector<bool>& constrained, int dimension,

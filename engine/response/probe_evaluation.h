@@ -49,6 +49,10 @@ struct PencilExtremes {
   // max(1/lambda_min - 1, 1 - 1/lambda_max): infinity when lambda_min is 0.
   double Bound() const;
 };
+// The smallest generalised eigenvalue of (model, reference) on `reference`'s support, whose
+// factorisation it uses: 0 when the model is not held there.
+double SmallestGeneralizedEigenvalue(const SparseMatrix& model, const SupportSystem& reference,
+                                     int iterations = 80);
 // By Lanczos iterations (full reorthogonalisation, at most `iterations`, seeded) in the
 // reference's energy inner product, on the free degrees of freedom of `constrained`.
 PencilExtremes GeneralizedEigenvalueExtremes(const SparseMatrix& model,

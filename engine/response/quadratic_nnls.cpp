@@ -40,8 +40,17 @@ QuadraticNnlsResult SolveQuadraticNnls(const Matrix& H, const Vector& c, const V
   for (r.iterations = 0; r.iterations < options.max_iterations; ++r.iterations) {
     if (interruption && interruption->Check()) throw Interrupted();
     const Vector g = H * r.x - c;
-    // The free variables: away from the bound, or at it with a gradient pointing inside.
-    const double eps = 1e-12 * std::max(r.x.maxCoeff(), 1.0);
+    // The free variables: away from the bound, or near it with a gradient pointing inside.
+    // "Near" is Bertsekas' epsilon: as wide as the projected (diagonally scaled) gradient
+    // step, so that variables on their way to 0 are fixed together rather than one per
+    // iteration, and narrowing to 0 at the solution.
+    double wide = 0.0;
+    for (int i = 0; i < m; ++i) {
+      if (held(i)) continue;
+      const double diagonal = std::max(H(i, i), 1e-300);
+      wide = std::max(wide, std::abs(r.x[i] - std::max(r.x[i] - g[i] / diagonal, 0.0)));
+    }
+    const double eps = std::min(1e-2 * std::max(r.x.maxCoeff(), 1.0), wide);
     std::vector<int> free;
     double projected = 0.0;
     for (int i = 0; i < m; ++i) {

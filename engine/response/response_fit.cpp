@@ -51,9 +51,11 @@ struct ScaledQuadratic {
   Vector b;
 };
 
+// The regularisation is a mean over `genes` (every gene, also where the quadratic covers only
+// some of them).
 ScaledQuadratic Scaled(const Gram& gram, const Vector& scale, double regularization,
-                       const Vector& prior_scaled) {
-  const double m = static_cast<double>(scale.size());
+                       const Vector& prior_scaled, Eigen::Index genes) {
+  const double m = static_cast<double>(genes);
   ScaledQuadratic q;
   q.A = 2.0 * scale.asDiagonal() * gram.H * scale.asDiagonal();
   q.b = 2.0 * scale.cwiseProduct(gram.c);
@@ -116,7 +118,7 @@ class Fit {
 
   // The Gauss-Newton Gram of the exact error about `weights`; false when the model is not held
   // by some fitted support.
-  bool GaussNewtonGram(const std::vector<double>& weights, Gram& gram) {
+  bool GaussNewtonGram(const std::vector<double>& weights, const GeneSprings& springs, Gram& gram) {
     const SparseMatrix k = SpringRestStiffness(problem_, weights);
     std::vector<SupportSystem> model;
     std::vector<Matrix> compliance(bank_.supports.size());
@@ -137,11 +139,11 @@ class Fit {
       GramTerm term;
       term.support = probe.support;
       term.weight = weight_[p];
-      term.elongation = Elongations(springs_, u);
+      term.elongation = Elongations(springs, u);
       term.target = system.Gather(u - probe.reference) + c * system.Gather(probe.force);
       terms.push_back(std::move(term));
     }
-    gram = BuildGram(springs_, model, compliance, terms);
+    gram = BuildGram(springs, model, compliance, terms);
     return true;
   }
 
@@ -159,6 +161,18 @@ class Fit {
       r += dx * dx;
     }
     return f + regularization * r / static_cast<double>(weights.size());
+  }
+
+  // The smallest generalised eigenvalue of (K_model, K_ref) over the user supports.
+  double LambdaMin(const std::vector<double>& weights) const {
+    if (PresentSprings(weights) == 0) return 0.0;
+    const SparseMatrix k = SpringRestStiffness(problem_, weights);
+    double smallest = std::numeric_limits<double>::infinity();
+    for (std::size_t s = 0; s < bank_.supports.size(); ++s) {
+      if (!bank_.supports[s].user) continue;
+      smallest = std::min(smallest, SmallestGeneralizedEigenvalue(k, reference_[s]));
+    }
+    return std::isfinite(smallest) ? smallest : 0.0;
   }
 
   double SelectError(const std::vector<double>& weights) const {
@@ -183,6 +197,7 @@ class Fit {
     return x;
   }
 
+  const GeneSprings& springs() const { return springs_; }
   const Vector& scale() const { return scale_; }
   const Vector& prior_scaled() const { return prior_scaled_; }
 
@@ -215,6 +230,7 @@ void ResponseFitOptions::Validate(const std::string& owner) const {
   check.Require(tolerance >= 0.0, "tolerance", tolerance, "value >= 0");
   check.Require(dust >= 0.0 && dust < 1.0, "dust", dust, "0 <= value < 1");
   check.Require(max_springs >= 0, "max_springs", max_springs, "value >= 0 (0: none)");
+  check.Require(min_lambda >= 0.0 && min_lambda < 1.0, "min_lambda", min_lambda, "0 <= value < 1");
   check.Require(gauss_newton_steps >= 0, "gauss_newton_steps", gauss_newton_steps, "value >= 0");
 }
 
@@ -230,37 +246,87 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
   ResponseFitResult r;
 
   // 2. The first-order fit, one per regularisation strength.
-  const auto gram_start = std::chrono::steady_clock::now();
+  auto lap = std::chrono::steady_clock::now();
+  const auto seconds = [&lap] {
+    const auto now = std::chrono::steady_clock::now();
+    const double s = std::chrono::duration<double>(now - lap).count();
+    lap = now;
+    return s;
+  };
   const Gram gram = fit.FirstOrderGram();
-  r.seconds_gram =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - gram_start).count();
+  r.seconds_gram = seconds();
+  // Strongest first, each solve started from the previous one's solution (continuation: the
+  // strongly regularised problem is well conditioned, and each weaker one starts near its
+  // answer).
+  std::vector<std::size_t> order(options.regularizations.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return options.regularizations[a] > options.regularizations[b];
+  });
+  r.regularizations = options.regularizations;
+  r.regularization_select_errors.assign(r.regularizations.size(), kNoModel);
+  r.regularization_lambda_min.assign(r.regularizations.size(), 0.0);
+  Vector previous = fit.prior_scaled();
+  std::vector<Vector> solutions(r.regularizations.size());
+  const auto solve = [&](std::size_t i) {
+    const ScaledQuadratic q =
+        Scaled(gram, fit.scale(), r.regularizations[i], fit.prior_scaled(), fit.scale().size());
+    const QuadraticNnlsResult solved =
+        SolveQuadraticNnls(q.A, q.b, previous, {}, options.nnls, interruption);
+    previous = solutions[i] = solved.x;
+    const std::vector<double> weights = fit.Weights(solved.x);
+    r.regularization_select_errors[i] = fit.SelectError(weights);
+    r.regularization_lambda_min[i] = fit.LambdaMin(weights);
+    tell("probe_fit", *std::min_element(r.regularization_select_errors.begin(),
+                                        r.regularization_select_errors.end()));
+  };
+  for (std::size_t i : order) solve(i);
+  const auto qualified = [&](double lambda) { return lambda >= options.min_lambda; };
+  // No strength keeps every mode supported: stronger pulls toward the prior.
+  for (int raise = 0; raise < 3; ++raise) {
+    if (std::any_of(r.regularization_lambda_min.begin(), r.regularization_lambda_min.end(),
+                    qualified))
+      break;
+    const double strongest = *std::max_element(r.regularizations.begin(), r.regularizations.end());
+    r.regularizations.push_back(std::max(10.0 * strongest, 1e-3));
+    r.regularization_select_errors.push_back(kNoModel);
+    r.regularization_lambda_min.push_back(0.0);
+    solutions.emplace_back();
+    order.push_back(r.regularizations.size() - 1);
+    previous = fit.prior_scaled();
+    solve(r.regularizations.size() - 1);
+  }
+  // The lowest choosing error among the models that support every mode (among all when none
+  // does); the weaker strength on a tie within 0.1%.
+  const bool any_qualified = std::any_of(r.regularization_lambda_min.begin(),
+                                         r.regularization_lambda_min.end(), qualified);
   double best = kNoModel;
   Vector best_x;
-  for (double strength : options.regularizations) {
-    const ScaledQuadratic q = Scaled(gram, fit.scale(), strength, fit.prior_scaled());
-    const QuadraticNnlsResult solved =
-        SolveQuadraticNnls(q.A, q.b, fit.prior_scaled(), {}, options.nnls, interruption);
-    const std::vector<double> weights = fit.Weights(solved.x);
-    const double error = fit.SelectError(weights);
-    r.regularization_select_errors.push_back(error);
-    if (error < best * (1.0 - 1e-3)) {  // (the weaker strength on a tie)
-      best = error;
-      best_x = solved.x;
-      r.regularization = strength;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return r.regularizations[a] > r.regularizations[b];
+  });
+  for (std::size_t i : order) {
+    if (any_qualified && !qualified(r.regularization_lambda_min[i])) continue;
+    const double error = r.regularization_select_errors[i];
+    if (error <= best * (1.0 + 1e-3)) {
+      best = std::min(best, error);
+      r.regularization = r.regularizations[i];
+      best_x = solutions[i];
     }
-    tell("probe_fit", best);
   }
   if (best_x.size() == 0) best_x = fit.prior_scaled();  // (every model a mechanism)
+  r.seconds_first_order = seconds();
 
   // 3. The sparsity path.
-  const ScaledQuadratic q = Scaled(gram, fit.scale(), r.regularization, fit.prior_scaled());
+  const ScaledQuadratic q =
+      Scaled(gram, fit.scale(), r.regularization, fit.prior_scaled(), fit.scale().size());
   std::vector<std::vector<double>> point_weights;
   std::vector<double> weights = fit.Weights(best_x);
   double best_on_path = kNoModel;
   double trial_error = best;
   for (int point = 0; point < options.max_path_points; ++point) {
     const double error = point == 0 ? best : trial_error;
-    r.path.push_back({PresentSprings(weights), error});
+    r.path.push_back({PresentSprings(weights), error, fit.LambdaMin(weights)});
     point_weights.push_back(weights);
     best_on_path = std::min(best_on_path, error);
     tell("probe_path", best_on_path);
@@ -296,46 +362,74 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
     }
   }
   // The fewest springs within the tolerance of the best; with a budget, the best within it.
+  // Points that leave a mode soft are passed over while any other qualifies.
+  const bool path_qualified = std::any_of(r.path.begin(), r.path.end(),
+                                          [&](const auto& p) { return qualified(p.lambda_min); });
+  std::vector<double> score;  // the choosing error, infinite for a point passed over
+  for (const auto& p : r.path)
+    score.push_back(path_qualified && !qualified(p.lambda_min) ? kNoModel : p.select_error);
+  best_on_path = *std::min_element(score.begin(), score.end());
   r.chosen = 0;
   if (options.max_springs > 0) {
     r.chosen = static_cast<int>(r.path.size()) - 1;  // the smallest, unless one is within
     double best_within = kNoModel;
     for (std::size_t i = 0; i < r.path.size(); ++i) {
-      if (r.path[i].springs <= options.max_springs && r.path[i].select_error < best_within) {
-        best_within = r.path[i].select_error;
+      if (r.path[i].springs <= options.max_springs && score[i] < best_within) {
+        best_within = score[i];
         r.chosen = static_cast<int>(i);
       }
     }
   } else {
     for (std::size_t i = 0; i < r.path.size(); ++i) {
-      if (r.path[i].select_error <= (1.0 + options.tolerance) * best_on_path &&
+      if (score[i] <= (1.0 + options.tolerance) * best_on_path &&
           r.path[i].springs <= r.path[static_cast<std::size_t>(r.chosen)].springs)
         r.chosen = static_cast<int>(i);
     }
   }
   weights = point_weights[static_cast<std::size_t>(r.chosen)];
   r.select_error = r.path[static_cast<std::size_t>(r.chosen)].select_error;
+  r.lambda_min = r.path[static_cast<std::size_t>(r.chosen)].lambda_min;
 
-  // 4. Gauss-Newton on the exact error, over the chosen springs.
-  std::vector<bool> absent(weights.size());
-  for (std::size_t g = 0; g < weights.size(); ++g) absent[g] = !(weights[g] > 0.0);
+  r.seconds_path = seconds();
+
+  // 4. Gauss-Newton on the exact error, over the chosen springs only (its Gram matrix on them
+  // alone: a fraction of the first-order one).
+  std::vector<int> present;
+  for (std::size_t g = 0; g < weights.size(); ++g)
+    if (weights[g] > 0.0) present.push_back(static_cast<int>(g));
+  const GeneSprings kept = Subset(fit.springs(), present);
+  const auto on_kept = [&](const Vector& full) {
+    Vector v(static_cast<Eigen::Index>(present.size()));
+    for (std::size_t i = 0; i < present.size(); ++i)
+      v[static_cast<Eigen::Index>(i)] = full[present[i]];
+    return v;
+  };
+  const Vector kept_scale = on_kept(fit.scale());
+  const Vector kept_prior = on_kept(fit.prior_scaled());
   double objective = fit.Objective(weights, r.regularization);
   for (int step = 0; step < options.gauss_newton_steps; ++step) {
     Gram newton;
-    if (!fit.GaussNewtonGram(weights, newton)) break;
-    const ScaledQuadratic qn = Scaled(newton, fit.scale(), r.regularization, fit.prior_scaled());
+    if (!fit.GaussNewtonGram(weights, kept, newton)) break;
+    const ScaledQuadratic qn =
+        Scaled(newton, kept_scale, r.regularization, kept_prior, fit.scale().size());
     const Vector x0 = fit.Scaled(weights);
     const QuadraticNnlsResult solved =
-        SolveQuadraticNnls(qn.A, qn.b, x0, absent, options.nnls, interruption);
+        SolveQuadraticNnls(qn.A, qn.b, on_kept(x0), {}, options.nnls, interruption);
+    Vector x1 = x0;
+    for (std::size_t i = 0; i < present.size(); ++i)
+      x1[present[i]] = solved.x[static_cast<Eigen::Index>(i)];
     bool accepted = false;
     for (int halving = 0; halving < 4 && !accepted; ++halving) {
       const double t = std::ldexp(1.0, -halving);
-      const std::vector<double> trial = fit.Weights(x0 + t * (solved.x - x0));
+      const std::vector<double> trial = fit.Weights(x0 + t * (x1 - x0));
       if (PresentSprings(trial) == 0) continue;
       const double value = fit.Objective(trial, r.regularization);
       if (!(value < objective)) continue;
       const double error = fit.SelectError(trial);
       if (!(error <= r.select_error * 1.001)) break;  // the fit gains, the choosing probes lose
+      const double lambda = fit.LambdaMin(trial);
+      if (qualified(r.lambda_min) && !qualified(lambda)) break;  // a mode left soft
+      r.lambda_min = lambda;
       weights = trial;
       objective = value;
       r.select_error = error;
@@ -345,6 +439,7 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
     tell("probe_refine", r.select_error);
     if (!accepted) break;
   }
+  r.seconds_refine = seconds();
   r.weights = weights;
   return r;
 }

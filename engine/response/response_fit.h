@@ -34,7 +34,7 @@ struct ResponseFitOptions {
   ProbeOptions probes;
   // The Tikhonov strengths tried: moving every spring by its own prior stiffness costs as much
   // as a mean squared relative error of this. Each >= 0.
-  std::vector<double> regularizations = {0.0, 1e-4, 1e-3, 1e-2};
+  std::vector<double> regularizations = {1e-4, 1e-3, 1e-2, 1e-1, 1.0};
   double prune_fraction = 0.1;  // of the present springs per path point, in (0, 1)
   // A removal that multiplies the choosing error by more than this is retried with half as
   // many springs (> 1), at most `max_retries` times per point.
@@ -48,6 +48,11 @@ struct ResponseFitOptions {
   // Weights below this fraction of the median weight are removed (0 <= value < 1).
   double dust = 1e-6;
   int gauss_newton_steps = 4;  // >= 0
+  // Every mode supported: a model whose smallest generalised eigenvalue of (K_model, K_ref) on
+  // a user support is below this leaves a mode soft that some load on that support finds
+  // (probe_evaluation.h). Such models are chosen only when no model of the fit reaches it:
+  // the strengths are raised tenfold (at most 3 times) until one does. In [0, 1).
+  double min_lambda = 0.1;
   // A spring budget (> 0): the path runs at least down to it, and the returned point is the
   // one with the lowest choosing error within it (the smallest when none is). 0: none.
   int max_springs = 0;
@@ -61,14 +66,25 @@ struct ResponseFitResult {
   struct Point {
     int springs = 0;
     double select_error = 0.0;  // FamilyBalancedRms on the choosing probes
+    double lambda_min = 0.0;    // the smallest over the user supports
   };
   std::vector<Point> path;
   int chosen = 0;  // the path point refined into `weights`
   double regularization = 0.0;
-  std::vector<double> regularization_select_errors;  // per ResponseFitOptions::regularizations
-  double select_error = 0.0;                         // of `weights`
+  // The strengths tried (ResponseFitOptions::regularizations, then any raised for min_lambda),
+  // and per strength its model's choosing error and smallest eigenvalue.
+  std::vector<double> regularizations;
+  std::vector<double> regularization_select_errors;
+  std::vector<double> regularization_lambda_min;
+  double lambda_min = 0.0;    // of `weights`
+  double select_error = 0.0;  // of `weights`
   int gauss_newton_accepted = 0;
-  double seconds_gram = 0.0;  // building the first-order fit's Gram matrix
+  // Wall seconds: building the first-order fit's Gram matrix, its solves (one per strength),
+  // the sparsity path, the Gauss-Newton steps.
+  double seconds_gram = 0.0;
+  double seconds_first_order = 0.0;
+  double seconds_path = 0.0;
+  double seconds_refine = 0.0;
 };
 
 // Progress: called with the phase ("probe_fit", "probe_path", "probe_refine") and the best

@@ -269,3 +269,38 @@ TEST(ProbeFitStrategy, ASpringBudgetGivesTheBestModelWithinIt) {
 
 }  // namespace
 }  // namespace springfit::response
+
+namespace springfit {
+namespace {
+
+// A continuous run whose only model cannot carry the loads says so in its stop reason, and the
+// result names the strategy that ran.
+TEST(ContinuousStrategyVerdict, AMechanismIsNeverCompleted) {
+  Scene s = examples::Make("paper-iso-5x5");
+  s.candidates.kind = CandidateSpec::Kind::kPairs;
+  s.candidates.pairs.clear();
+  for (int row = 0; row < 5; ++row)  // horizontals only: nothing holds a vertical load
+    for (int col = 0; col + 1 < 5; ++col)
+      s.candidates.pairs.push_back({5 * row + col, 5 * row + col + 1});
+  s.search.strategy = Strategy::kContinuous;
+  s.search.probes = 0;
+  const Problem problem(s);
+  const IdentificationResult r =
+      RunIdentification(problem, ResolveSearchOptions(s.search, problem.gene_count()));
+  EXPECT_EQ(r.ran, Strategy::kContinuous);
+  EXPECT_EQ(r.stop, StopReason::kMechanism) << r.stop_message;
+  EXPECT_NE(r.stop_message.find("(the run ended: no model with an equilibrium"), std::string::npos)
+      << r.stop_message;
+  EXPECT_FALSE(r.usable());
+}
+
+TEST(ContinuousStrategyVerdict, TheResultNamesTheStrategyThatRan) {
+  const Problem fem(examples::Make("fem-plate-5x5"));
+  const IdentificationResult r =
+      RunIdentification(fem, ResolveSearchOptions(fem.scene().search, fem.gene_count()));
+  EXPECT_EQ(r.options.strategy, Strategy::kDefault);
+  EXPECT_EQ(r.ran, Strategy::kContinuous);
+}
+
+}  // namespace
+}  // namespace springfit

@@ -109,6 +109,38 @@ class HookedStore final : public ForwardingStore {
     std::lock_guard lock(mutex_);
     finishes_[lease.job_id].push_back(state);
   }
+  // The next lease renewal stalls before it reaches the store (a stalled database) until
+  // `until` holds (30 s at most).
+  void StallNextRenewal(std::function<bool()> until) {
+    std::lock_guard lock(mutex_);
+    stall_until_ = std::move(until);
+  }
+  LeaseStatus RenewLease(const Lease& lease, double lease_seconds) override {
+    std::function<bool()> until;
+    {
+      std::lock_guard lock(mutex_);
+      std::swap(until, stall_until_);
+    }
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (until && !until() && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    return inner_.RenewLease(lease, lease_seconds);
+  }
+  // Every progress write attempted, in order: (job, lease epoch).
+  void SaveProgress(const Lease& lease, const ProgressBatch& batch) override {
+    {
+      std::lock_guard lock(mutex_);
+      progress_writes_.emplace_back(lease.job_id, lease.epoch);
+    }
+    inner_.SaveProgress(lease, batch);
+  }
+  std::vector<std::int64_t> ProgressEpochs(std::int64_t id) {
+    std::lock_guard lock(mutex_);
+    std::vector<std::int64_t> epochs;
+    for (const auto& [job, epoch] : progress_writes_)
+      if (job == id) epochs.push_back(epoch);
+    return epochs;
+  }
   CancelOutcome RequestCancel(std::int64_t id) override {
     const CancelOutcome outcome = inner_.RequestCancel(id);
     if (outcome == CancelOutcome::kCancelled) {
@@ -119,6 +151,8 @@ class HookedStore final : public ForwardingStore {
   }
 
  private:
+  std::function<bool()> stall_until_;
+  std::vector<std::pair<std::int64_t, std::int64_t>> progress_writes_;
   std::map<std::int64_t, int> scene_reads_;
   std::mutex mutex_;
   std::set<std::int64_t> armed_;
@@ -420,6 +454,65 @@ TEST_F(SchedulerTest, AShutdownInsideAGenerationLeavesTheJobToResume) {
     EXPECT_TRUE(store.Finishes(id).empty());
     EXPECT_TRUE(inbox.Of(id, "job.finished").empty());
   }
+}
+
+// A heartbeat that stalls past the lease while a runner is idle: the store hands the job out
+// again, to the same daemon. The run going on here stops first (its lease is lost), the new
+// claim resumes the job, and from then on one run holds it: its heartbeat keeps its lease, so
+// it is not claimed a third time, and no write of the old run follows the new run's first.
+TEST_F(SchedulerTest, AJobItsOwnDaemonClaimsAgainRunsOnceAtATime) {
+  SqliteStore sqlite(path_);
+  HookedStore store(sqlite);
+  // (The endless grid breeds a million generations in about 5 s here: a larger budget.)
+  scene_.search.max_generations = 100000000;
+  scene_.search.max_seconds = 60.0;
+  const std::int64_t id = sqlite.CreateJob(Job("stalled"), 100).job.id;
+  SchedulerOptions options = Options(2);
+  options.lease_seconds = 1.0;
+  options.heartbeat_seconds = 0.2;
+  Notifications inbox;
+  Scheduler scheduler(store, options);
+  scheduler.Watch(id, inbox.For(id));
+  scheduler.Start();
+  const auto wait_until = [](const std::function<bool()>& done, std::chrono::seconds bound) {
+    const auto deadline = std::chrono::steady_clock::now() + bound;
+    while (!done() && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    return done();
+  };
+  const auto claims = [&] {
+    const std::vector<std::int64_t> claimed = store.Claimed();
+    return std::count(claimed.begin(), claimed.end(), id);
+  };
+  ASSERT_TRUE(
+      wait_until([&] { return !store.ProgressEpochs(id).empty(); }, std::chrono::seconds(30)));
+  // The heartbeat stalls until the lapsed lease has been claimed again.
+  store.StallNextRenewal([&] { return claims() >= 2; });
+  ASSERT_TRUE(wait_until([&] { return claims() == 2; }, std::chrono::seconds(30)))
+      << "the idle runner did not claim the lapsed job";
+  const std::int64_t first_epoch = store.ProgressEpochs(id).front();
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const auto epochs = store.ProgressEpochs(id);
+        return std::count_if(epochs.begin(), epochs.end(),
+                             [&](std::int64_t e) { return e != first_epoch; }) >= 2;
+      },
+      std::chrono::seconds(30)))
+      << "the new claim made no progress";
+  // Three leases' worth of time: the new run's heartbeat keeps its lease.
+  std::this_thread::sleep_for(std::chrono::seconds(3));
+  EXPECT_EQ(claims(), 2);
+  EXPECT_TRUE(scheduler.IsRunningHere(id));
+  const std::vector<std::int64_t> epochs = store.ProgressEpochs(id);
+  const auto first_new =
+      std::find_if(epochs.begin(), epochs.end(), [&](std::int64_t e) { return e != first_epoch; });
+  EXPECT_TRUE(std::all_of(first_new, epochs.end(), [&](std::int64_t e) { return e == *first_new; }))
+      << "a write of the old run after the new run's first";
+  EXPECT_EQ(scheduler.Cancel(id), Scheduler::CancelOutcome::kCancelling);
+  ASSERT_TRUE(inbox.WaitFinished({id}));
+  ExpectFinishedOnceCancelled(inbox, id);
+  ASSERT_TRUE(scheduler.Stop(std::chrono::seconds(30)));
+  ExpectNothingLeft(sqlite, scheduler, {id});
 }
 
 // The race for real: 30 endless jobs, 3 runners claiming from the moment Start() returns, and
