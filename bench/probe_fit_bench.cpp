@@ -46,6 +46,15 @@ int Main(int argc, char** argv) {
   std::uint64_t seed = 1;
   app.add_option("scenes", files, "scene files")->required();
   app.add_option("--seed", seed, "the probe bank's seed");
+  response::ResponseFitOptions defaults;
+  app.add_option("--min-lambda", defaults.min_lambda, "ResponseFitOptions::min_lambda");
+  app.add_option("--regularizations", defaults.regularizations,
+                 "ResponseFitOptions::regularizations");
+  app.add_option("--gauss-newton-steps", defaults.gauss_newton_steps,
+                 "ResponseFitOptions::gauss_newton_steps");
+  app.add_option("--named-weight", defaults.probes.named_weight, "ProbeOptions::named_weight");
+  app.add_option("--extra-supports", defaults.probes.extra_supports,
+                 "ProbeOptions::extra_supports");
   CLI11_PARSE(app, argc, argv);
   for (const std::string& file : files) {
     const auto t0 = Clock::now();
@@ -54,7 +63,7 @@ int Main(int argc, char** argv) {
                 Seconds(t0));
     const auto t1 = Clock::now();
     const response::SparseMatrix k_ref = response::ReferenceRestStiffness(problem);
-    response::ResponseFitOptions options;
+    response::ResponseFitOptions options = defaults;
     options.probes.seed = seed;
     const response::ProbeBank bank = response::MakeProbeBank(problem, k_ref, options.probes);
     std::printf("  probe bank: %zu probes on %zu supports, %.2f s\n", bank.probes.size(),

@@ -45,6 +45,23 @@ std::vector<bool> RoleMask(const ProbeBank& bank, ProbeRole role) {
   return mask;
 }
 
+// The choosing errors of candidate models with those that leave a mode soft (smallest
+// eigenvalue below min_lambda) made infinite, when a model that does not is within
+// lambda_slack of the best: a supported model is preferred where it costs little.
+std::vector<double> PreferSupported(const std::vector<double>& errors,
+                                    const std::vector<double>& lambda_min,
+                                    const ResponseFitOptions& options) {
+  const double best = *std::min_element(errors.begin(), errors.end());
+  bool near = false;
+  for (std::size_t i = 0; i < errors.size(); ++i)
+    near |= lambda_min[i] >= options.min_lambda && errors[i] <= (1.0 + options.lambda_slack) * best;
+  std::vector<double> score = errors;
+  for (std::size_t i = 0; i < errors.size(); ++i)
+    if (near && lambda_min[i] < options.min_lambda)
+      score[i] = std::numeric_limits<double>::infinity();
+  return score;
+}
+
 // The fit in scaled variables x = k / scale: q(x) = 1/2 x^T A x - b^T x.
 struct ScaledQuadratic {
   Matrix A;
@@ -231,6 +248,7 @@ void ResponseFitOptions::Validate(const std::string& owner) const {
   check.Require(dust >= 0.0 && dust < 1.0, "dust", dust, "0 <= value < 1");
   check.Require(max_springs >= 0, "max_springs", max_springs, "value >= 0 (0: none)");
   check.Require(min_lambda >= 0.0 && min_lambda < 1.0, "min_lambda", min_lambda, "0 <= value < 1");
+  check.Require(lambda_slack >= 0.0, "lambda_slack", lambda_slack, "value >= 0");
   check.Require(gauss_newton_steps >= 0, "gauss_newton_steps", gauss_newton_steps, "value >= 0");
 }
 
@@ -282,32 +300,14 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
   };
   for (std::size_t i : order) solve(i);
   const auto qualified = [&](double lambda) { return lambda >= options.min_lambda; };
-  // No strength keeps every mode supported: stronger pulls toward the prior.
-  for (int raise = 0; raise < 3; ++raise) {
-    if (std::any_of(r.regularization_lambda_min.begin(), r.regularization_lambda_min.end(),
-                    qualified))
-      break;
-    const double strongest = *std::max_element(r.regularizations.begin(), r.regularizations.end());
-    r.regularizations.push_back(std::max(10.0 * strongest, 1e-3));
-    r.regularization_select_errors.push_back(kNoModel);
-    r.regularization_lambda_min.push_back(0.0);
-    solutions.emplace_back();
-    order.push_back(r.regularizations.size() - 1);
-    previous = fit.prior_scaled();
-    solve(r.regularizations.size() - 1);
-  }
-  // The lowest choosing error among the models that support every mode (among all when none
-  // does); the weaker strength on a tie within 0.1%.
-  const bool any_qualified = std::any_of(r.regularization_lambda_min.begin(),
-                                         r.regularization_lambda_min.end(), qualified);
+  // The lowest choosing error, preferring models that support every mode (the weaker strength
+  // on a tie within 0.1%).
+  const std::vector<double> strength_score =
+      PreferSupported(r.regularization_select_errors, r.regularization_lambda_min, options);
   double best = kNoModel;
   Vector best_x;
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return r.regularizations[a] > r.regularizations[b];
-  });
   for (std::size_t i : order) {
-    if (any_qualified && !qualified(r.regularization_lambda_min[i])) continue;
-    const double error = r.regularization_select_errors[i];
+    const double error = strength_score[i];
     if (error <= best * (1.0 + 1e-3)) {
       best = std::min(best, error);
       r.regularization = r.regularizations[i];
@@ -362,12 +362,13 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
     }
   }
   // The fewest springs within the tolerance of the best; with a budget, the best within it.
-  // Points that leave a mode soft are passed over while any other qualifies.
-  const bool path_qualified = std::any_of(r.path.begin(), r.path.end(),
-                                          [&](const auto& p) { return qualified(p.lambda_min); });
-  std::vector<double> score;  // the choosing error, infinite for a point passed over
-  for (const auto& p : r.path)
-    score.push_back(path_qualified && !qualified(p.lambda_min) ? kNoModel : p.select_error);
+  // Points that leave a mode soft are passed over for one that does not, nearly as good.
+  std::vector<double> path_errors, path_lambdas;
+  for (const auto& p : r.path) {
+    path_errors.push_back(p.select_error);
+    path_lambdas.push_back(p.lambda_min);
+  }
+  const std::vector<double> score = PreferSupported(path_errors, path_lambdas, options);
   best_on_path = *std::min_element(score.begin(), score.end());
   r.chosen = 0;
   if (options.max_springs > 0) {
@@ -406,8 +407,14 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
   };
   const Vector kept_scale = on_kept(fit.scale());
   const Vector kept_prior = on_kept(fit.prior_scaled());
+  // Each step is kept when it lowers the fitted objective; the iterate returned is the one that
+  // does best on the choosing probes (early stopping), among those that support every mode
+  // when the start does. The steps end after three without a better choosing error.
   double objective = fit.Objective(weights, r.regularization);
-  for (int step = 0; step < options.gauss_newton_steps; ++step) {
+  std::vector<std::vector<double>> iterates{weights};
+  std::vector<double> iterate_errors{r.select_error}, iterate_lambdas{r.lambda_min};
+  int since_best = 0;
+  for (int step = 0; step < options.gauss_newton_steps && since_best < 3; ++step) {
     Gram newton;
     if (!fit.GaussNewtonGram(weights, kept, newton)) break;
     const ScaledQuadratic qn =
@@ -425,22 +432,30 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
       if (PresentSprings(trial) == 0) continue;
       const double value = fit.Objective(trial, r.regularization);
       if (!(value < objective)) continue;
-      const double error = fit.SelectError(trial);
-      if (!(error <= r.select_error * 1.001)) break;  // the fit gains, the choosing probes lose
-      const double lambda = fit.LambdaMin(trial);
-      if (qualified(r.lambda_min) && !qualified(lambda)) break;  // a mode left soft
-      r.lambda_min = lambda;
       weights = trial;
       objective = value;
-      r.select_error = error;
-      ++r.gauss_newton_accepted;
       accepted = true;
+      ++since_best;
+      const double error = fit.SelectError(trial);
+      iterates.push_back(weights);
+      iterate_errors.push_back(error);
+      iterate_lambdas.push_back(fit.LambdaMin(trial));
+      if (error <
+          *std::min_element(iterate_errors.begin(), iterate_errors.end() - 1) * (1.0 - 1e-3))
+        since_best = 0;
     }
-    tell("probe_refine", r.select_error);
+    tell("probe_refine", *std::min_element(iterate_errors.begin(), iterate_errors.end()));
     if (!accepted) break;
   }
+  const std::vector<double> iterate_score =
+      PreferSupported(iterate_errors, iterate_lambdas, options);
+  const auto returned = static_cast<std::size_t>(
+      std::min_element(iterate_score.begin(), iterate_score.end()) - iterate_score.begin());
+  r.gauss_newton_accepted = static_cast<int>(returned);
+  r.select_error = iterate_errors[returned];
+  r.lambda_min = iterate_lambdas[returned];
   r.seconds_refine = seconds();
-  r.weights = weights;
+  r.weights = iterates[returned];
   return r;
 }
 

@@ -47,12 +47,16 @@ struct ResponseFitOptions {
   double tolerance = 0.02;
   // Weights below this fraction of the median weight are removed (0 <= value < 1).
   double dust = 1e-6;
-  int gauss_newton_steps = 4;  // >= 0
+  // Gauss-Newton steps at most (>= 0); they end earlier after three without a better choosing
+  // error.
+  int gauss_newton_steps = 20;
   // Every mode supported: a model whose smallest generalised eigenvalue of (K_model, K_ref) on
-  // a user support is below this leaves a mode soft that some load on that support finds
-  // (probe_evaluation.h). Such models are chosen only when no model of the fit reaches it:
-  // the strengths are raised tenfold (at most 3 times) until one does. In [0, 1).
+  // a user support is below `min_lambda` leaves a mode soft that some load on that support
+  // finds (probe_evaluation.h). Wherever a choice is made (the strength, the path point, the
+  // Gauss-Newton iterate), a model that reaches it is preferred when its choosing error is
+  // within `lambda_slack` of the best. In [0, 1) and >= 0.
   double min_lambda = 0.1;
+  double lambda_slack = 0.1;
   // A spring budget (> 0): the path runs at least down to it, and the returned point is the
   // one with the lowest choosing error within it (the smallest when none is). 0: none.
   int max_springs = 0;
