@@ -85,10 +85,7 @@ Json WatchJob(RpcClient& client, std::int64_t job_id, bool quiet) {
     const Json& p = n["params"];
     if (p.value("job_id", std::int64_t{-1}) != job_id) continue;
     if (n["method"] == "job.progress") {
-      Json row = p;
-      row.erase("job_id");
-      row.erase("max_generations");
-      progress.Report(proto::TraceRowFromJson(row, "params"), false);
+      progress.Report(proto::TraceRowFromJson(p, "params"), false);
     } else if (n["method"] == "job.finished") {
       if (p["progress"].is_object())
         progress.Report(proto::TraceRowFromJson(p["progress"], "params.progress"), true);

@@ -27,6 +27,7 @@ packages=(
   gmsh                     # meshes a 2D shape for the FEM reference tests; reads exported .msh
   libgmsh-dev              # the Gmsh library: writes (and reads) Gmsh's mesh files
   python3-meshio           # an independent reader of the exported .vtk, .vtu, .msh (tests/io)
+  python3-scipy            # the independent evaluator bench/generalization.py (sparse and bounded fits)
 )
 
 missing=()

@@ -517,6 +517,34 @@ TEST(JobCodecRoundTrip, JobRecordsReadBackAsWrittenOnTheWire) {
   }
 }
 
+// A client reads what a newer server writes: members it does not know are ignored, in a job,
+// its progress row and a job.progress notification's params.
+TEST(JobCodecRoundTrip, AReaderIgnoresMembersOfANewerServer) {
+  JobRecord job;
+  job.id = 7;
+  job.scene_name = "s";
+  job.strategy = "default";
+  job.created_at = 1.5e9;
+  TraceRow row;
+  row.generation = 3;
+  row.best_normalized_error = 0.25;
+  job.progress = row;
+  Json json = JobToJson(job);
+  json["ran"] = "continuous";
+  json["verdict"] = {{"usable", true}};
+  json["progress"]["phase"] = "probe_fit";
+  const JobRecord back = JobFromJson(ParseJson(rpc::Serialize(json)));  // as read off the wire
+  EXPECT_EQ(back.id, 7);
+  ASSERT_TRUE(back.progress);
+  EXPECT_EQ(back.progress->generation, 3);
+  Json params = TraceRowToJson(row);
+  params["job_id"] = 7;
+  params["max_generations"] = 100;
+  params["phase"] = "probe_fit";
+  EXPECT_EQ(TraceRowFromJson(ParseJson(rpc::Serialize(params)), "params").best_normalized_error,
+            0.25);
+}
+
 TEST(TopologyCodecRoundTrip, AnyMaskSurvivesATopologyFile) {
   const Problem p = Problem::Build(examples::Make("kidney-2d"));
   const std::size_t n = static_cast<std::size_t>(p.candidates().size());
