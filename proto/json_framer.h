@@ -42,6 +42,10 @@ class JsonFramer {
 
   JsonFramer() : JsonFramer(Options{}) {}
   explicit JsonFramer(Options options) : options_(options) {}
+  // A new bound for the messages framed from now on (the daemon raises it once a connection
+  // has authenticated).
+  void set_max_message_bytes(std::size_t bytes) { options_.max_message_bytes = bytes; }
+  std::size_t max_message_bytes() const { return options_.max_message_bytes; }
 
   // Scans `bytes` and returns the frames they complete, in order. Bytes of an unfinished
   // message are kept for the next call. After kTooLarge, everything is ignored.

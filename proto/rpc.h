@@ -24,6 +24,7 @@ inline constexpr int kLimitExceeded = -32004;     // data.limit: which bound (me
 inline constexpr int kBusy = -32005;              // queue full, connection limit, shutting down
 inline constexpr int kWrongState = -32006;        // e.g. deleting a running job
 inline constexpr int kStoreUnavailable = -32007;  // the database does not answer; retry later
+inline constexpr int kStoreCorrupt = -32008;      // a stored record is damaged; data.incident
 
 // An error a method reports; `data` is attached to the error object when not null.
 class RpcError : public std::runtime_error {

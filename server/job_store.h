@@ -96,6 +96,19 @@ class StoreUnavailable : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A stored record cannot be read: the database holds a value no springfitd writes (an unknown
+// state, a progress column that is not a trace row). Nothing was changed; the other records
+// stay readable. The RPC answers it with kStoreCorrupt and an incident number (proto/RPC.md).
+class StoreCorrupt : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// The job state stored for `job_id`, or StoreCorrupt naming the value.
+JobState StoredJobState(std::int64_t job_id, const std::string& text);
+// The progress row stored for `job_id` (its JSON text), or StoreCorrupt naming what is wrong.
+TraceRow StoredProgress(std::int64_t job_id, const std::string& text);
+
 struct JobFilter {
   std::optional<JobState> state;
   std::optional<std::string> label;

@@ -54,6 +54,8 @@ struct DaemonArgs {
   sf::ServiceLimits limits;
   int max_connections = 256;
   std::size_t max_message_bytes = std::size_t{16} << 20;
+  std::size_t max_unauthenticated_bytes = std::size_t{64} << 10;
+  std::size_t max_inbox_bytes = std::size_t{32} << 20;
 };
 
 // The token file: a secret, so like ssh with its keys the daemon refuses one that others
@@ -154,6 +156,8 @@ int RunDaemon(const DaemonArgs& args) {
   net.port = address.port;
   net.max_connections = args.max_connections;
   net.max_message_bytes = args.max_message_bytes;
+  net.max_unauthenticated_message_bytes = args.max_unauthenticated_bytes;
+  net.max_inbox_bytes = args.max_inbox_bytes;
   net.idle_seconds = args.idle_seconds;
   net.message_seconds = args.message_seconds;
   sf::TcpServer server(io, service, net);
@@ -305,6 +309,15 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--max-message-bytes", args.max_message_bytes, "Bytes in one JSON-RPC message")
       ->check(CLI::Range(std::size_t{1024}, std::size_t{1} << 30))
+      ->capture_default_str();
+  app.add_option("--max-unauthenticated-bytes", args.max_unauthenticated_bytes,
+                 "With a token: bytes in one message before the connection's session.auth")
+      ->check(CLI::Range(std::size_t{256}, std::size_t{1} << 30))
+      ->capture_default_str();
+  app.add_option("--max-inbox-bytes", args.max_inbox_bytes,
+                 "Bytes of one connection's messages waiting to be handled; reading pauses "
+                 "beyond")
+      ->check(CLI::Range(std::size_t{1024}, std::size_t{1} << 34))
       ->capture_default_str();
   app.add_option("--max-nodes", args.limits.max_nodes, "Nodes in a submitted scene")
       ->check(CLI::Range(2, 100000000))

@@ -203,7 +203,7 @@ JobRecord ReadJob(const pqxx::row& q) {
   j.priority = q[2].as<int>();
   j.seed = std::bit_cast<std::uint64_t>(q[3].as<std::int64_t>());
   if (!q[4].is_null()) j.idempotency_key = q[4].as<std::string>();
-  j.state = proto::ParseJobState(q[5].as<std::string>()).value_or(JobState::kFailed);
+  j.state = StoredJobState(j.id, q[5].as<std::string>());
   j.error = q[6].as<std::string>();
   j.scene_name = q[7].as<std::string>();
   j.genes = q[8].as<int>();
@@ -212,8 +212,7 @@ JobRecord ReadJob(const pqxx::row& q) {
   j.created_at = q[11].as<double>();
   j.started_at = q[12].as<double>();
   j.finished_at = q[13].as<double>();
-  if (!q[14].is_null())
-    j.progress = proto::TraceRowFromJson(proto::ParseJson(q[14].as<std::string>()), "progress");
+  if (!q[14].is_null()) j.progress = StoredProgress(j.id, q[14].as<std::string>());
   j.checkpoint_generation = q[15].as<int>();
   if (!q[16].is_null()) j.exact = q[16].as<bool>();
   return j;

@@ -228,6 +228,17 @@ Json RpcService::HandleRequest(const Json& request, SessionContext& session) {
     data["path"] = e.path();
     response =
         rpc::Error(id, rpc::kInvalidParams, std::string("invalid params: ") + e.what(), data);
+  } catch (const StoreCorrupt& e) {
+    // Not the client's fault, and not to be retried: the database holds a damaged record.
+    const std::uint64_t incident = ++incidents_;
+    spdlog::error("{}: damaged record in the store (incident {}): {}", method->get<std::string>(),
+                  incident, e.what());
+    Json data;
+    data["incident"] = incident;
+    response = rpc::Error(id, rpc::kStoreCorrupt,
+                          std::string("the store holds a damaged record (incident ") +
+                              std::to_string(incident) + " in the server's log): " + e.what(),
+                          data);
   } catch (const StoreUnavailable& e) {
     // Nothing was stored or changed: the client may retry (with its idempotency key).
     response = rpc::Error(id, rpc::kStoreUnavailable,
@@ -711,9 +722,10 @@ Json RpcService::JobList(const Json& params) {
     const std::string name = proto::ReadString(*v, ParamPath("state"));
     filter.state = proto::ParseJobState(name);
     if (!filter.state) {
-      throw InputError(ParamPath("state"),
-                       "unknown state '" + name +
-                           "' (expected queued, running, succeeded, failed or cancelled)");
+      throw InputError(
+          ParamPath("state"),
+          "unknown state '" + name +
+              "' (expected preparing, queued, running, succeeded, failed or cancelled)");
     }
   }
   if (const Json* v = Optional(params, "label"))

@@ -78,6 +78,8 @@ inline constexpr int kMaxWrongTokens = 5;
 class RpcService {
  public:
   RpcService(JobStore& store, Scheduler& scheduler, ServiceOptions options);
+  // A token is set: a connection must present it (session.auth) before any job method.
+  bool requires_token() const { return !options_.token.empty(); }
 
   // A framed message parsed, not yet handled. The daemon parses on its request threads and
   // hands what prepares a scene to its preparation threads (tcp_server.cpp), by the method

@@ -109,7 +109,7 @@ JobRecord ReadJob(SQLite::Statement& q) {
   j.priority = q.getColumn(2).getInt();
   j.seed = std::bit_cast<std::uint64_t>(q.getColumn(3).getInt64());
   if (!q.getColumn(4).isNull()) j.idempotency_key = q.getColumn(4).getString();
-  j.state = proto::ParseJobState(q.getColumn(5).getString()).value_or(JobState::kFailed);
+  j.state = StoredJobState(j.id, q.getColumn(5).getString());
   j.error = q.getColumn(6).getString();
   j.scene_name = q.getColumn(7).getString();
   j.genes = q.getColumn(8).getInt();
@@ -118,8 +118,7 @@ JobRecord ReadJob(SQLite::Statement& q) {
   j.created_at = q.getColumn(11).getDouble();
   j.started_at = q.getColumn(12).getDouble();
   j.finished_at = q.getColumn(13).getDouble();
-  if (!q.getColumn(14).isNull())
-    j.progress = proto::TraceRowFromJson(proto::ParseJson(q.getColumn(14).getString()), "progress");
+  if (!q.getColumn(14).isNull()) j.progress = StoredProgress(j.id, q.getColumn(14).getString());
   j.checkpoint_generation = q.getColumn(15).getInt();
   if (!q.getColumn(16).isNull()) j.exact = q.getColumn(16).getInt() != 0;
   return j;

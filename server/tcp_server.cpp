@@ -29,7 +29,7 @@ class Session : public std::enable_shared_from_this<Session> {
         socket_(std::move(socket)),
         idle_timer_(server.io_),
         message_timer_(server.io_),
-        framer_(proto::JsonFramer::Options{server.options_.max_message_bytes, 64}) {
+        framer_(proto::JsonFramer::Options{server.MessageBound(false), 64}) {
     boost::system::error_code ec;
     const auto remote = socket_.remote_endpoint(ec);
     peer_ =
@@ -78,7 +78,9 @@ class Session : public std::enable_shared_from_this<Session> {
   // Reads unless a read is outstanding, the connection is ending, or many messages wait:
   // one client cannot queue unbounded work.
   void Read() {
-    if (reading_ || closed_ || close_after_write_ || too_large_ || inbox_.size() >= 64) return;
+    if (reading_ || closed_ || close_after_write_ || too_large_ || inbox_.size() >= 64 ||
+        inbox_bytes_ >= server_.options_.max_inbox_bytes)
+      return;
     reading_ = true;
     socket_.async_read_some(asio::buffer(buffer_),
                             [self = shared_from_this()](boost::system::error_code ec,
@@ -109,6 +111,7 @@ class Session : public std::enable_shared_from_this<Session> {
     for (proto::JsonFramer::Frame& frame : framer_.Feed(std::string_view(buffer_.data(), n))) {
       switch (frame.kind) {
         case proto::JsonFramer::Frame::Kind::kMessage:
+          inbox_bytes_ += frame.text.size();
           inbox_.push_back(std::move(frame.text));
           break;
         case proto::JsonFramer::Frame::Kind::kMalformed:
@@ -120,9 +123,13 @@ class Session : public std::enable_shared_from_this<Session> {
         case proto::JsonFramer::Frame::Kind::kTooLarge: {
           spdlog::warn("connection {}: {}; closing", peer_, frame.error);
           proto::Json data;
-          data["limit"] = "max_message_bytes";
-          data["max"] = server_.options_.max_message_bytes;
-          too_large_ = rpc::Serialize(rpc::Error(nullptr, rpc::kLimitExceeded, frame.error, data));
+          const bool before_auth = framer_.max_message_bytes() < server_.MessageBound(true);
+          data["limit"] = before_auth ? "max_unauthenticated_message_bytes" : "max_message_bytes";
+          data["max"] = framer_.max_message_bytes();
+          too_large_ = rpc::Serialize(rpc::Error(
+              nullptr, rpc::kLimitExceeded,
+              before_auth ? frame.error + " before session.auth (the token first)" : frame.error,
+              data));
           break;
         }
       }
@@ -148,6 +155,7 @@ class Session : public std::enable_shared_from_this<Session> {
     }
     std::string text = std::move(inbox_.front());
     inbox_.pop_front();
+    inbox_bytes_ -= text.size();
     if (text.empty()) {  // a malformed frame
       Send(std::move(errors_.front()));
       errors_.pop_front();
@@ -188,6 +196,8 @@ class Session : public std::enable_shared_from_this<Session> {
 
   void OnHandled(std::string answer) {
     handling_ = false;
+    // (context_ was written by the handler thread; this post back is the hand-over.)
+    if (context_.authenticated) framer_.set_max_message_bytes(server_.MessageBound(true));
     if (closed_) {
       server_.service_.EndSession(context_);
       return;
@@ -197,8 +207,9 @@ class Session : public std::enable_shared_from_this<Session> {
       return;
     }
     if (!answer.empty()) Send(std::move(answer));
-    for (proto::Json& n : deferred_) SendNotification(n);
+    for (std::string& n : deferred_) Send(std::move(n));
     deferred_.clear();
+    deferred_bytes_ = 0;
     HandleNext();
     Read();
   }
@@ -206,7 +217,17 @@ class Session : public std::enable_shared_from_this<Session> {
   void Notify(const proto::Json& notification) {
     if (closed_) return;
     if (handling_) {
-      deferred_.push_back(notification);  // after the answer being prepared
+      // After the answer being prepared; counted in the output bound meanwhile, so that a
+      // watch during a long request cannot queue without limit.
+      std::string text = rpc::Serialize(notification);
+      deferred_bytes_ += text.size();
+      if (pending_output_ + deferred_bytes_ > server_.options_.max_pending_output) {
+        spdlog::warn("connection {}: {} bytes of notifications waiting; closing", peer_,
+                     deferred_bytes_);
+        Close();
+        return;
+      }
+      deferred_.push_back(std::move(text));
     } else {
       SendNotification(notification);
     }
@@ -306,7 +327,9 @@ class Session : public std::enable_shared_from_this<Session> {
   std::deque<std::string> errors_;  // the answers of the malformed ones, in order
   std::optional<std::string> too_large_;
   std::deque<std::string> outbox_;
-  std::vector<proto::Json> deferred_;
+  std::vector<std::string> deferred_;  // notifications held behind the answer being prepared
+  std::size_t deferred_bytes_ = 0;
+  std::size_t inbox_bytes_ = 0;
   std::size_t pending_output_ = 0;
   // When the message being received began (unset between messages).
   std::optional<std::chrono::steady_clock::time_point> message_started_;

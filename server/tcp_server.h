@@ -13,6 +13,7 @@
 // connection), and the number
 // of connections (refused with an error).
 #pragma once
+#include <algorithm>
 #include <chrono>
 #include <cstddef>
 #include <memory>
@@ -34,6 +35,13 @@ struct TcpServerOptions {
   std::size_t max_message_bytes = std::size_t{16} << 20;
   std::size_t max_pending_output = std::size_t{64}
                                    << 20;  // unread answers before a slow reader is dropped
+  // With a token set, a connection that has not authenticated may send messages of at most
+  // this many bytes (session.auth and server.info need a few dozen): nothing larger is
+  // buffered, let alone parsed, for a client that has not shown the token.
+  std::size_t max_unauthenticated_message_bytes = std::size_t{64} << 10;
+  // A connection's framed messages waiting for their turn, in bytes (besides at most 64 of
+  // them): reading stops beyond it until they are handled.
+  std::size_t max_inbox_bytes = std::size_t{32} << 20;
   double idle_seconds = 300.0;
   double message_seconds = 30.0;  // to complete a message once its first byte arrived
   int handler_threads = 2;
@@ -60,6 +68,12 @@ class TcpServer {
 
  private:
   friend class Session;
+  // The largest message a connection may send: max_unauthenticated_message_bytes until it has
+  // authenticated, where a token is required.
+  std::size_t MessageBound(bool authenticated) const {
+    if (authenticated || !service_.requires_token()) return options_.max_message_bytes;
+    return std::min(options_.max_message_bytes, options_.max_unauthenticated_message_bytes);
+  }
   void Accept();
   void Remove(const std::shared_ptr<Session>& session);
 

@@ -433,6 +433,28 @@ def test_auth(ctx):
         R.expect(r == {"authenticated": True}, f"session.auth: {short(r)}")
         r = c.result("job.list")
         R.expect(r.get("jobs") == [] and r.get("next_cursor") is None, f"job.list after auth: {short(r)}")
+        # Before session.auth only small messages are taken: a large one is refused unread
+        # (and the connection closed), not buffered and parsed for a client without the token.
+        with Conn(d.port) as big:
+            # server.info needs no token: only the size is refused here.
+            msg = b'{"jsonrpc":"2.0","id":1,"method":"server.info"' + b" " * 200000 + b'}\n'
+            try:
+                big.send(msg)
+            except (BrokenPipeError, ConnectionResetError):
+                pass
+            resp = big.read(what="the -32004 error before auth")
+            err = expect_error(resp, -32004, "a 200 kB message before session.auth", None)
+            R.expect(error_data(err).get("limit") == "max_unauthenticated_message_bytes"
+                     and error_data(err).get("max") == 65536,
+                     f"200 kB before auth: data names the bound: {short(resp)}")
+            R.expect("before session.auth" in err.get("message", ""),
+                     f"200 kB before auth: the message says why: {short(resp)}")
+            R.expect(big.wait_closed(IO_TIMEOUT), "the connection was not closed after -32004")
+        # Once authenticated, the same message is taken (and answered).
+        c.send(b'{"jsonrpc":"2.0","id":"big","method":"server.info"' + b" " * 200000 + b'}\n')
+        resp = c.read(what="the answer to a 200 kB message after auth")
+        R.expect(resp.get("id") == "big" and "result" in resp,
+                 f"200 kB after auth: {short(resp)}")
         # Authentication belongs to one connection.
         resp = other.call("job.list")
         expect_error(resp, -32001, "job.list on another, unauthenticated connection", resp["id"])

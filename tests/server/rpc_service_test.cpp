@@ -9,6 +9,7 @@
 
 #include <thread>
 
+#include <SQLiteCpp/SQLiteCpp.h>
 #include <gtest/gtest.h>
 
 #include "io/example_catalog.h"
@@ -167,6 +168,36 @@ TEST_F(RpcServiceTest, InternalErrorsAnswerDocumentedMessagesNotLibraryTexts) {
   EXPECT_EQ(memory["error"]["message"],
             "internal error: out of memory: the server could not get the memory this request "
             "needs");
+}
+
+// A damaged row in the store: its own documented error with an incident number, not invalid
+// params and not a job of another state; the server answers the next request as before.
+TEST_F(RpcServiceTest, ADamagedStoredJobIsCorruptionWithAnIncident) {
+  MakeService(false);
+  const std::int64_t id = Submit("paper-iso-5x5")["result"]["job"]["job_id"].get<std::int64_t>();
+  {
+    SQLite::Database db((dir_ / "jobs.db").string(), SQLite::OPEN_READWRITE);
+    db.exec("UPDATE jobs SET state = 'bogus' WHERE id = " + std::to_string(id));
+  }
+  const Json got = Call("job.get", {{"job_id", id}});
+  ASSERT_TRUE(got.contains("error")) << got.dump();
+  EXPECT_EQ(Code(got), rpc::kStoreCorrupt);
+  EXPECT_EQ(got["error"]["data"]["incident"], 1);
+  const std::string message = got["error"]["message"].get<std::string>();
+  EXPECT_NE(message.find("the store holds a damaged record (incident 1"), std::string::npos)
+      << message;
+  EXPECT_NE(message.find("unknown state 'bogus'"), std::string::npos) << message;
+  EXPECT_TRUE(Call("server.info").contains("result"));
+}
+
+TEST_F(RpcServiceTest, AnUnknownListStateNamesEveryState) {
+  MakeService(false);
+  const Json r = Call("job.list", {{"state", "bogus"}});
+  EXPECT_EQ(Code(r), rpc::kInvalidParams);
+  EXPECT_NE(r["error"]["message"].get<std::string>().find(
+                "(expected preparing, queued, running, succeeded, failed or cancelled)"),
+            std::string::npos)
+      << r.dump();
 }
 
 TEST(RpcServiceParse, SubmissionsAreFoundByTheirParsedMethod) {

@@ -16,6 +16,7 @@
 #include <thread>
 #include <vector>
 
+#include <SQLiteCpp/SQLiteCpp.h>
 #include <gtest/gtest.h>
 #include <pqxx/pqxx>
 
@@ -39,6 +40,8 @@ class StoreFactory {
   virtual ~StoreFactory() = default;
   virtual std::unique_ptr<JobStore> Open() = 0;
   virtual std::unique_ptr<JobStore> Second() = 0;
+  // Runs SQL on the database behind the store's back (damage for the tests).
+  virtual void ExecRaw(const std::string& sql) = 0;
 };
 
 class SqliteFactory final : public StoreFactory {
@@ -46,6 +49,10 @@ class SqliteFactory final : public StoreFactory {
   explicit SqliteFactory(std::string path) : path_(std::move(path)) {}
   std::unique_ptr<JobStore> Open() override { return std::make_unique<SqliteStore>(path_); }
   std::unique_ptr<JobStore> Second() override { return nullptr; }
+  void ExecRaw(const std::string& sql) override {
+    SQLite::Database db(path_, SQLite::OPEN_READWRITE);
+    db.exec(sql);
+  }
 
  private:
   std::string path_;
@@ -73,6 +80,11 @@ class PostgresFactory final : public StoreFactory {
   }
   std::unique_ptr<JobStore> Open() override { return std::make_unique<PostgresStore>(url_, ""); }
   std::unique_ptr<JobStore> Second() override { return Open(); }
+  void ExecRaw(const std::string& sql) override {
+    pqxx::connection c(url_);
+    pqxx::nontransaction w(c);
+    w.exec(sql);
+  }
 
  private:
   std::string url_;
@@ -147,6 +159,35 @@ TEST_P(StoreSuite, CreateGetIdempotencyKeysAndTheQueueBound) {
   EXPECT_EQ(store_->GetJob(b.job.id)->idempotency_key, "");
   EXPECT_EQ(*store_->GetScene(a.job.id), R"({"name":"s"})");
   EXPECT_FALSE(store_->GetJob(999));
+}
+
+// A damaged row is its own error, naming the job and the value, never a job of another state
+// or the client's fault; the other jobs stay readable.
+TEST_P(StoreSuite, ADamagedRowIsReportedAsCorruptionNotAState) {
+  const std::int64_t good = Create("good");
+  const std::int64_t bogus = Create("bogus state");
+  const std::int64_t garbled = Create("bad progress");
+  factory_->ExecRaw("UPDATE jobs SET state = 'bogus' WHERE id = " + std::to_string(bogus));
+  factory_->ExecRaw("UPDATE jobs SET progress = '{\"generation\": \"x\"' WHERE id = " +
+                    std::to_string(garbled));
+  try {
+    store_->GetJob(bogus);
+    ADD_FAILURE() << "a job of unknown state was read";
+  } catch (const StoreCorrupt& e) {
+    EXPECT_NE(std::string(e.what()).find("job " + std::to_string(bogus) +
+                                         ": the store holds the unknown state 'bogus'"),
+              std::string::npos)
+        << e.what();
+  }
+  try {
+    store_->GetJob(garbled);
+    ADD_FAILURE() << "a job with a garbled progress column was read";
+  } catch (const StoreCorrupt& e) {
+    EXPECT_NE(std::string(e.what()).find("progress column"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(store_->ListJobs(JobFilter{}), StoreCorrupt);
+  ASSERT_TRUE(store_->GetJob(good));
+  EXPECT_EQ(store_->GetJob(good)->state, JobState::kQueued);
 }
 
 TEST_P(StoreSuite, ListPagesAndFilters) {

@@ -1,0 +1,24 @@
+#include "server/job_store.h"
+
+#include "engine/input_error.h"
+#include "proto/json_reader.h"
+#include "proto/search_codec.h"
+
+namespace springfit::server {
+
+JobState StoredJobState(std::int64_t job_id, const std::string& text) {
+  if (const auto state = proto::ParseJobState(text)) return *state;
+  throw StoreCorrupt("job " + std::to_string(job_id) + ": the store holds the unknown state '" +
+                     text + "'");
+}
+
+TraceRow StoredProgress(std::int64_t job_id, const std::string& text) {
+  try {
+    return proto::TraceRowFromJson(proto::ParseJson(text), "progress");
+  } catch (const std::exception& e) {
+    throw StoreCorrupt("job " + std::to_string(job_id) +
+                       ": the store's progress column is not a trace row (" + e.what() + ")");
+  }
+}
+
+}  // namespace springfit::server
