@@ -85,8 +85,13 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       Write(r, false);
       return;
     }
-    // Answered off the I/O thread; written back on it.
-    boost::asio::post(server_.handlers_, [self = shared_from_this(), request, keep_alive] {
+    // Answered off the I/O thread; written back on it. Health and metrics on their own thread:
+    // a monitor's probe never waits behind pages and figures (a figure of a large job builds
+    // its problem, seconds on the handler threads).
+    const std::string path = request.target.substr(0, request.target.find('?'));
+    boost::asio::thread_pool& pool =
+        path == "/healthz" || path == "/metrics" ? server_.health_ : server_.handlers_;
+    boost::asio::post(pool, [self = shared_from_this(), request, keep_alive] {
       HttpResponse response = self->server_.dashboard_.Handle(request);
       boost::asio::post(self->stream_.get_executor(),
                         [self, response = std::move(response), keep_alive] {
@@ -136,10 +141,12 @@ HttpServer::HttpServer(boost::asio::io_context& io, Dashboard& dashboard, HttpSe
       dashboard_(dashboard),
       options_(std::move(options)),
       acceptor_(io),
-      handlers_(static_cast<std::size_t>(std::max(1, options_.handler_threads))) {}
+      handlers_(static_cast<std::size_t>(std::max(1, options_.handler_threads))),
+      health_(1) {}
 
 HttpServer::~HttpServer() {
   handlers_.join();
+  health_.join();
 }
 
 void HttpServer::Start() {

@@ -26,7 +26,7 @@ struct HttpServerOptions {
   int max_header_count = 64;
   std::size_t max_body_bytes = 16384;  // GET pages and the login form only
   double timeout_seconds = 15.0;       // to receive a request, or to send an answer
-  int handler_threads = 2;
+  int handler_threads = 2;  // pages and figures; /healthz and /metrics have a thread of their own
 };
 
 class HttpSession;
@@ -52,6 +52,7 @@ class HttpServer {
   HttpServerOptions options_;
   boost::asio::ip::tcp::acceptor acceptor_;
   boost::asio::thread_pool handlers_;
+  boost::asio::thread_pool health_;  // /healthz and /metrics alone
   std::set<std::shared_ptr<HttpSession>> sessions_;
   unsigned short port_ = 0;
 };

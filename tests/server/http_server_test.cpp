@@ -1,0 +1,113 @@
+// The dashboard's HTTP server: health and metrics answer while every page thread is busy
+// (issue 32 item 4: two figure requests of large jobs used to make a health check time out).
+#include "server/http_server.h"
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <string>
+#include <thread>
+
+#include <gtest/gtest.h>
+#include <boost/asio/io_context.hpp>
+
+#include "server/dashboard.h"
+#include "server/forwarding_store.h"
+#include "server/metrics.h"
+#include "server/scheduler.h"
+#include "server/sqlite_store.h"
+
+namespace springfit::server {
+namespace {
+
+// Job reads stall until released (a figure building a large job's problem stands for them).
+class StallingStore final : public ForwardingStore {
+ public:
+  using ForwardingStore::ForwardingStore;
+  std::atomic<bool> stall{false};
+  std::atomic<int> stalled{0};
+  std::optional<JobRecord> GetJob(std::int64_t id) override {
+    ++stalled;
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (stall.load() && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    --stalled;
+    return inner_.GetJob(id);
+  }
+};
+
+// GET `target` on 127.0.0.1:port; the status line, or "" when no answer came within 10 s.
+std::string Get(unsigned short port, const std::string& target) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  timeval timeout{10, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(port);
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  std::string status;
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) == 0) {
+    const std::string request =
+        "GET " + target + " HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n";
+    if (::send(fd, request.data(), request.size(), 0) == static_cast<ssize_t>(request.size())) {
+      char buffer[256];
+      const ssize_t n = ::recv(fd, buffer, sizeof buffer, 0);
+      if (n > 0) status.assign(buffer, static_cast<std::size_t>(n));
+      status = status.substr(0, status.find("\r\n"));
+    }
+  }
+  ::close(fd);
+  return status;
+}
+
+TEST(HttpServer, HealthAndMetricsAnswerWhilePagesKeepEveryThreadBusy) {
+  const auto dir = std::filesystem::temp_directory_path() / "springfit-http-health";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  {
+    SqliteStore sqlite((dir / "jobs.db").string());
+    StallingStore store(sqlite);
+    Metrics metrics;
+    Scheduler scheduler(store, SchedulerOptions{});
+    Dashboard dashboard(store, scheduler, metrics, DashboardOptions{});
+    boost::asio::io_context io;
+    HttpServerOptions options;
+    options.port = 0;
+    options.handler_threads = 2;
+    HttpServer http(io, dashboard, options);
+    http.Start();
+    std::thread loop([&] { io.run(); });
+
+    store.stall = true;
+    std::thread page1([&] { Get(http.port(), "/jobs/1/error.svg"); });
+    std::thread page2([&] { Get(http.port(), "/jobs/1/topology.svg"); });
+    const auto busy_by = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (store.stalled.load() < 2 && std::chrono::steady_clock::now() < busy_by)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    ASSERT_EQ(store.stalled.load(), 2) << "the two page requests did not reach the store";
+
+    for (const char* target : {"/healthz", "/metrics"}) {
+      const auto start = std::chrono::steady_clock::now();
+      const std::string status = Get(http.port(), target);
+      const double seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      EXPECT_EQ(status, "HTTP/1.1 200 OK") << target;
+      EXPECT_LT(seconds, 2.0) << target << " waited behind the pages";
+    }
+    store.stall = false;
+    page1.join();
+    page2.join();
+    http.Stop();
+    io.stop();
+    loop.join();
+  }
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace springfit::server
