@@ -46,6 +46,8 @@ int Main(int argc, char** argv) {
   std::uint64_t seed = 1;
   app.add_option("scenes", files, "scene files")->required();
   app.add_option("--seed", seed, "the probe bank's seed");
+  int threads = 1;
+  app.add_option("--threads", threads, "threads of the fit")->check(CLI::Range(1, 256));
   response::ResponseFitOptions defaults;
   app.add_option("--min-lambda", defaults.min_lambda, "ResponseFitOptions::min_lambda");
   app.add_option("--regularizations", defaults.regularizations,
@@ -56,6 +58,8 @@ int Main(int argc, char** argv) {
   app.add_option("--extra-supports", defaults.probes.extra_supports,
                  "ProbeOptions::extra_supports");
   CLI11_PARSE(app, argc, argv);
+  std::unique_ptr<WorkerPool> pool;
+  if (threads > 1) pool = std::make_unique<WorkerPool>(threads);
   for (const std::string& file : files) {
     const auto t0 = Clock::now();
     const Problem problem(proto::LoadSceneFile(file));
@@ -75,7 +79,7 @@ int Main(int argc, char** argv) {
       prior.assign(static_cast<std::size_t>(problem.gene_count()), problem.training_stiffness());
     const auto t2 = Clock::now();
     const response::ResponseFitResult fit =
-        response::FitResponse(problem, bank, k_ref, prior, options);
+        response::FitResponse(problem, bank, k_ref, prior, options, nullptr, {}, pool.get());
     std::printf(
         "  fit: %.2f s (gram %.2f s, first-order fits %.2f s, path %.2f s, Gauss-Newton %.2f s), "
         "%d springs, regularisation %g, %d GN steps\n",

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 
 #include "engine/cost.h"
 #include "engine/fem/closed_form_baseline.h"
@@ -111,20 +112,28 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   const response::SparseMatrix reference_stiffness = response::ReferenceRestStiffness(problem);
   const response::ProbeBank bank =
       response::MakeProbeBank(problem, reference_stiffness, fit_options.probes);
+  // The run's threads: the caller's pool, else one of context.threads (none for one thread).
+  std::unique_ptr<WorkerPool> own_pool;
+  WorkerPool* pool = context.pool;
+  if (!pool && context.threads > 1) {
+    own_pool = std::make_unique<WorkerPool>(context.threads);
+    pool = own_pool.get();
+  }
+  const response::ResponseProgress progress = [&](const char* name, double error) {
+    current = error;
+    if (phase != name) {
+      phase = name;
+      monitor.SetPhase(phase, [&](ProgressBeat& beat) {
+        beat.wall_seconds = since();
+        beat.best_normalized_error = current * current;
+      });
+    }
+    if (monitor.TimeLimitPassed()) throw Interrupted();
+  };
   try {
     response::ResponseFitResult fit =
         response::FitResponse(problem, bank, reference_stiffness, start, fit_options,
-                              &monitor.interruption(), [&](const char* name, double error) {
-                                current = error;
-                                if (phase != name) {
-                                  phase = name;
-                                  monitor.SetPhase(phase, [&](ProgressBeat& beat) {
-                                    beat.wall_seconds = since();
-                                    beat.best_normalized_error = current * current;
-                                  });
-                                }
-                                if (monitor.TimeLimitPassed()) throw Interrupted();
-                              });
+                              &monitor.interruption(), progress, pool);
     weights = fit.weights;
     certificate =
         response::Certify(problem, bank, reference_stiffness, weights, baseline_stiffness);

@@ -72,58 +72,89 @@ Vector Elongations(const GeneSprings& springs, const Vector& u) {
   return delta;
 }
 
-Gram BuildGram(const GeneSprings& springs, const std::vector<SupportSystem>& supports,
-               const std::vector<Matrix>& compliance, const std::vector<GramTerm>& terms) {
+namespace {
+
+// One support's part of the Gram matrix (every term on it).
+Gram SupportGram(const GeneSprings& springs, const SupportSystem& support, const Matrix& C,
+                 const std::vector<const GramTerm*>& mine) {
   const int m = springs.size();
+  Gram part;
+  part.c = Vector::Zero(m);
+  const std::vector<Column> columns = FreeColumns(springs, support);
+  // M = G^T C^2 G, through W = C^2 and T = W G.
+  const Matrix W = C * C;
+  const int n = static_cast<int>(W.rows());
+  Matrix T = Matrix::Zero(n, m);
+  for (int e = 0; e < m; ++e) {
+    const Column& column = columns[static_cast<std::size_t>(e)];
+    for (int a = 0; a < column.count; ++a) T.col(e) += column.value[a] * W.col(column.index[a]);
+  }
+  Matrix M(m, m);
+  for (int f = 0; f < m; ++f) {
+    const double* t = T.col(f).data();
+    for (int e = 0; e < m; ++e) {
+      const Column& column = columns[static_cast<std::size_t>(e)];
+      double v = 0.0;
+      for (int a = 0; a < column.count; ++a) v += column.value[a] * t[column.index[a]];
+      M(e, f) = v;
+    }
+  }
+  // P = sum_p w_p delta_p delta_p^T, and c.
+  Matrix Delta(m, static_cast<Eigen::Index>(mine.size()));
+  for (std::size_t p = 0; p < mine.size(); ++p) {
+    const GramTerm& term = *mine[p];
+    Delta.col(static_cast<Eigen::Index>(p)) = std::sqrt(term.weight) * term.elongation;
+    const Vector y = C * term.target;
+    Vector z(m);
+    for (int e = 0; e < m; ++e) {
+      const Column& column = columns[static_cast<std::size_t>(e)];
+      double v = 0.0;
+      for (int a = 0; a < column.count; ++a) v += column.value[a] * y[column.index[a]];
+      z[e] = v;
+    }
+    part.c += term.weight * term.elongation.cwiseProduct(z);
+    part.constant += term.weight * term.target.squaredNorm();
+  }
+  Matrix P(m, m);
+  P.setZero();
+  P.selfadjointView<Eigen::Lower>().rankUpdate(Delta);
+  P.triangularView<Eigen::StrictlyUpper>() = P.transpose();
+  part.H = M.cwiseProduct(P);
+  return part;
+}
+
+}  // namespace
+
+Gram BuildGram(const GeneSprings& springs, const std::vector<SupportSystem>& supports,
+               const std::vector<Matrix>& compliance, const std::vector<GramTerm>& terms,
+               WorkerPool* pool) {
+  const int m = springs.size();
+  std::vector<std::vector<const GramTerm*>> mine(supports.size());
+  for (const GramTerm& term : terms) mine[static_cast<std::size_t>(term.support)].push_back(&term);
+  std::vector<std::size_t> used;
+  for (std::size_t s = 0; s < supports.size(); ++s)
+    if (!mine[s].empty()) used.push_back(s);
+  // Each support's part on its own (in parallel on the pool), summed in support order: the
+  // result does not depend on the threads.
+  std::vector<Gram> parts(used.size());
+  const auto body = [&](int slot) {
+    const std::size_t s = used[static_cast<std::size_t>(slot)];
+    parts[static_cast<std::size_t>(slot)] =
+        SupportGram(springs, supports[s], compliance[s], mine[s]);
+  };
+  if (pool) {
+    pool->Run(static_cast<int>(used.size()), body);
+  } else {
+    for (int slot = 0; slot < static_cast<int>(used.size()); ++slot) body(slot);
+  }
   Gram gram;
   gram.H = Matrix::Zero(m, m);
   gram.c = Vector::Zero(m);
-  for (std::size_t s = 0; s < supports.size(); ++s) {
-    std::vector<const GramTerm*> mine;
-    for (const GramTerm& term : terms)
-      if (term.support == static_cast<int>(s)) mine.push_back(&term);
-    if (mine.empty()) continue;
-    const Matrix& C = compliance[s];
-    const std::vector<Column> columns = FreeColumns(springs, supports[s]);
-    // M = G^T C^2 G, through W = C^2 and T = W G.
-    const Matrix W = C * C;
-    const int n = static_cast<int>(W.rows());
-    Matrix T = Matrix::Zero(n, m);
-    for (int e = 0; e < m; ++e) {
-      const Column& column = columns[static_cast<std::size_t>(e)];
-      for (int a = 0; a < column.count; ++a) T.col(e) += column.value[a] * W.col(column.index[a]);
-    }
-    Matrix M(m, m);
-    for (int f = 0; f < m; ++f) {
-      const double* t = T.col(f).data();
-      for (int e = 0; e < m; ++e) {
-        const Column& column = columns[static_cast<std::size_t>(e)];
-        double v = 0.0;
-        for (int a = 0; a < column.count; ++a) v += column.value[a] * t[column.index[a]];
-        M(e, f) = v;
-      }
-    }
-    // P = sum_p w_p delta_p delta_p^T, and c.
-    Matrix Delta(m, static_cast<Eigen::Index>(mine.size()));
-    for (std::size_t p = 0; p < mine.size(); ++p) {
-      const GramTerm& term = *mine[p];
-      Delta.col(static_cast<Eigen::Index>(p)) = std::sqrt(term.weight) * term.elongation;
-      const Vector y = C * term.target;
-      Vector z(m);
-      for (int e = 0; e < m; ++e) {
-        const Column& column = columns[static_cast<std::size_t>(e)];
-        double v = 0.0;
-        for (int a = 0; a < column.count; ++a) v += column.value[a] * y[column.index[a]];
-        z[e] = v;
-      }
-      gram.c += term.weight * term.elongation.cwiseProduct(z);
-      gram.constant += term.weight * term.target.squaredNorm();
-    }
-    Matrix P(m, m);
-    P.setZero();
-    P.selfadjointView<Eigen::Lower>().rankUpdate(Delta);
-    P.triangularView<Eigen::StrictlyUpper>() = P.transpose();
-    gram.H += M.cwiseProduct(P);
+  for (Gram& part : parts) {
+    gram.H += part.H;
+    gram.c += part.c;
+    gram.constant += part.constant;
+    part.H.resize(0, 0);
   }
   return gram;
 }

@@ -22,6 +22,7 @@
 
 #include "engine/problem.h"
 #include "engine/response/support_system.h"
+#include "engine/search/worker_pool.h"
 
 namespace springfit::response {
 
@@ -56,8 +57,10 @@ struct Gram {
 };
 
 // `compliance[s]` is C_s (dense, the support's free degrees of freedom). Supports without a
-// term are skipped (their compliance may be empty).
+// term are skipped (their compliance may be empty). With a pool the supports' parts are
+// computed in parallel (each support's part holds m^2 doubles until they are summed).
 Gram BuildGram(const GeneSprings& springs, const std::vector<SupportSystem>& supports,
-               const std::vector<Matrix>& compliance, const std::vector<GramTerm>& terms);
+               const std::vector<Matrix>& compliance, const std::vector<GramTerm>& terms,
+               WorkerPool* pool = nullptr);
 
 }  // namespace springfit::response

@@ -85,8 +85,9 @@ class Fit {
  public:
   Fit(const Problem& problem, const ProbeBank& bank, const SparseMatrix& reference_stiffness,
       const std::vector<double>& prior, const ResponseFitOptions& options,
-      Interruption* interruption)
+      Interruption* interruption, WorkerPool* pool)
       : problem_(problem),
+        pool_(pool),
         bank_(bank),
         options_(options),
         interruption_(interruption),
@@ -112,17 +113,16 @@ class Fit {
   // The first-order Gram matrix over the fitted probes, normalised so that its value is the
   // weighted mean squared relative error.
   Gram FirstOrderGram() {
+    if (interruption_ && interruption_->Check()) throw Interrupted();
     std::vector<Matrix> compliance(bank_.supports.size());
+    ForFittedSupports([&](std::size_t s) { compliance[s] = reference_[s].Compliance(); });
+    if (interruption_ && interruption_->Check()) throw Interrupted();
     std::vector<GramTerm> terms;
     for (std::size_t p = 0; p < bank_.probes.size(); ++p) {
       if (!(weight_[p] > 0.0)) continue;
       const Probe& probe = bank_.probes[p];
       const SupportSystem& system = reference_[static_cast<std::size_t>(probe.support)];
-      Matrix& c = compliance[static_cast<std::size_t>(probe.support)];
-      if (c.size() == 0) {
-        if (interruption_ && interruption_->Check()) throw Interrupted();
-        c = system.Compliance();
-      }
+      const Matrix& c = compliance[static_cast<std::size_t>(probe.support)];
       GramTerm term;
       term.support = probe.support;
       term.weight = weight_[p];
@@ -130,28 +130,50 @@ class Fit {
       term.target = c * system.Gather(probe.force);
       terms.push_back(std::move(term));
     }
-    return BuildGram(springs_, reference_, compliance, terms);
+    return BuildGram(springs_, reference_, compliance, terms, pool_);
+  }
+
+  // f(s) for every support with a fitted probe, in parallel on the pool (each its own s).
+  void ForFittedSupports(const std::function<void(std::size_t)>& f) {
+    std::vector<std::size_t> used;
+    for (std::size_t s = 0; s < bank_.supports.size(); ++s) {
+      for (std::size_t p = 0; p < bank_.probes.size(); ++p) {
+        if (weight_[p] > 0.0 && bank_.probes[p].support == static_cast<int>(s)) {
+          used.push_back(s);
+          break;
+        }
+      }
+    }
+    const auto body = [&](int slot) { f(used[static_cast<std::size_t>(slot)]); };
+    if (pool_) {
+      pool_->Run(static_cast<int>(used.size()), body);
+    } else {
+      for (int slot = 0; slot < static_cast<int>(used.size()); ++slot) body(slot);
+    }
   }
 
   // The Gauss-Newton Gram of the exact error about `weights`; false when the model is not held
   // by some fitted support.
   bool GaussNewtonGram(const std::vector<double>& weights, const GeneSprings& springs, Gram& gram) {
+    if (interruption_ && interruption_->Check()) throw Interrupted();
     const SparseMatrix k = SpringRestStiffness(problem_, weights);
     std::vector<SupportSystem> model;
     std::vector<Matrix> compliance(bank_.supports.size());
     for (const Support& support : bank_.supports)
       model.emplace_back(problem_.dimension(), support.constrained);
+    std::vector<char> held(bank_.supports.size(), 1);
+    ForFittedSupports([&](std::size_t s) {
+      held[s] = model[s].Factorize(k);
+      if (held[s]) compliance[s] = model[s].Compliance();
+    });
+    if (std::find(held.begin(), held.end(), 0) != held.end()) return false;
+    if (interruption_ && interruption_->Check()) throw Interrupted();
     std::vector<GramTerm> terms;
     for (std::size_t p = 0; p < bank_.probes.size(); ++p) {
       if (!(weight_[p] > 0.0)) continue;
       const Probe& probe = bank_.probes[p];
-      SupportSystem& system = model[static_cast<std::size_t>(probe.support)];
-      Matrix& c = compliance[static_cast<std::size_t>(probe.support)];
-      if (c.size() == 0) {
-        if (interruption_ && interruption_->Check()) throw Interrupted();
-        if (!system.Factorize(k)) return false;
-        c = system.Compliance();
-      }
+      const SupportSystem& system = model[static_cast<std::size_t>(probe.support)];
+      const Matrix& c = compliance[static_cast<std::size_t>(probe.support)];
       const Vector u = system.Displacement(probe.force, probe.prescribed);
       GramTerm term;
       term.support = probe.support;
@@ -160,7 +182,7 @@ class Fit {
       term.target = system.Gather(u - probe.reference) + c * system.Gather(probe.force);
       terms.push_back(std::move(term));
     }
-    gram = BuildGram(springs, model, compliance, terms);
+    gram = BuildGram(springs, model, compliance, terms, pool_);
     return true;
   }
 
@@ -220,6 +242,7 @@ class Fit {
 
  private:
   const Problem& problem_;
+  WorkerPool* pool_;
   const ProbeBank& bank_;
   const ResponseFitOptions& options_;
   Interruption* interruption_;
@@ -255,12 +278,13 @@ void ResponseFitOptions::Validate(const std::string& owner) const {
 ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
                               const SparseMatrix& reference_stiffness,
                               const std::vector<double>& prior, const ResponseFitOptions& options,
-                              Interruption* interruption, const ResponseProgress& progress) {
+                              Interruption* interruption, const ResponseProgress& progress,
+                              WorkerPool* pool) {
   options.Validate();
   const auto tell = [&](const char* phase, double error) {
     if (progress) progress(phase, error);
   };
-  Fit fit(problem, bank, reference_stiffness, prior, options, interruption);
+  Fit fit(problem, bank, reference_stiffness, prior, options, interruption, pool);
   ResponseFitResult r;
 
   // 2. The first-order fit, one per regularisation strength.

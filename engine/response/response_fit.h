@@ -27,6 +27,7 @@
 #include "engine/interruption.h"
 #include "engine/response/probe_bank.h"
 #include "engine/response/quadratic_nnls.h"
+#include "engine/search/worker_pool.h"
 
 namespace springfit::response {
 
@@ -96,11 +97,13 @@ struct ResponseFitResult {
 using ResponseProgress = std::function<void(const char* phase, double error)>;
 
 // `prior` and the returned weights are per gene; `prior` > 0 somewhere. Throws Interrupted
-// when `interruption` stops it.
+// when `interruption` stops it. With a pool, each support's compliance, factorisation and
+// part of the Gram matrices are computed in parallel; the result does not depend on the
+// threads.
 ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
                               const SparseMatrix& reference_stiffness,
                               const std::vector<double>& prior, const ResponseFitOptions& options,
                               Interruption* interruption = nullptr,
-                              const ResponseProgress& progress = {});
+                              const ResponseProgress& progress = {}, WorkerPool* pool = nullptr);
 
 }  // namespace springfit::response

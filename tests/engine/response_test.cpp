@@ -304,3 +304,23 @@ TEST(ContinuousStrategyVerdict, TheResultNamesTheStrategyThatRan) {
 
 }  // namespace
 }  // namespace springfit
+
+namespace springfit::response {
+namespace {
+
+// The supports' work runs on the pool: the same model whatever the threads.
+TEST(ResponseFit, SameModelWithOneOrTwoThreads) {
+  const Problem problem(examples::Make("fem-kidney-2d"));
+  const SparseMatrix k = ReferenceRestStiffness(problem);
+  ResponseFitOptions options;
+  const ProbeBank bank = MakeProbeBank(problem, k, options.probes);
+  const std::vector<double> prior = *fem::BaselineGeneWeights(problem);
+  WorkerPool two(2);
+  const ResponseFitResult a = FitResponse(problem, bank, k, prior, options);
+  const ResponseFitResult b = FitResponse(problem, bank, k, prior, options, nullptr, {}, &two);
+  EXPECT_EQ(a.weights, b.weights);
+  EXPECT_EQ(a.select_error, b.select_error);
+}
+
+}  // namespace
+}  // namespace springfit::response
