@@ -21,6 +21,7 @@
 #include "engine/response/probe_evaluation.h"
 #include "engine/response/response_fit.h"
 #include "engine/response/rest_stiffness.h"
+#include "proto/names.h"
 #include "proto/scene_codec.h"
 
 namespace springfit {
@@ -35,7 +36,7 @@ void PrintFamilies(const char* what, const response::ProbeBank& bank,
                    const std::vector<double>& errors) {
   std::printf("    %-10s", what);
   for (const auto& f : response::SummarizeByFamily(bank, errors))
-    std::printf("  %s %.3g (p95 %.3g)", response::ProbeFamilyName(f.family), f.errors.median,
+    std::printf("  %s %.3g (p95 %.3g)", proto::ProbeFamilyName(f.family), f.errors.median,
                 f.errors.p95);
   std::printf("\n");
 }

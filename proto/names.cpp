@@ -198,6 +198,20 @@ Json ProbesToJson(int probes) {
   return probes == 0 ? Json("none") : Json(probes);
 }
 
+const char* ProbeFamilyName(response::ProbeFamily family) {
+  switch (family) {
+    case response::ProbeFamily::kPoint:
+      return "point";
+    case response::ProbeFamily::kPatch:
+      return "patch";
+    case response::ProbeFamily::kBody:
+      return "body";
+    case response::ProbeFamily::kNamed:
+      return "named";
+  }
+  return "?";
+}
+
 std::string_view StopReasonName(StopReason reason) {
   switch (reason) {
     case StopReason::kTargetReached:

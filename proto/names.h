@@ -8,6 +8,7 @@
 
 #include "engine/equilibrium.h"
 #include "engine/identification/trace.h"
+#include "engine/response/probe_bank.h"
 #include "engine/scene.h"
 #include "engine/search/search_options.h"
 #include "proto/json_reader.h"
@@ -57,6 +58,9 @@ SearchSettings::Regularization RegularizationFromText(const std::string& text,
 std::optional<int> ProbesFromText(const std::string& text, const std::string& path);
 // The JSON of search.probes: "none" for 0, else the count.
 Json ProbesToJson(int probes);
+
+// "point", "patch", "body", "named": the words of the result's `generalization` object.
+const char* ProbeFamilyName(response::ProbeFamily family);
 
 // "default, paper, direct, hybrid or continuous": the accepted names, for messages.
 std::string StrategyNames();

@@ -215,8 +215,7 @@ Json ErrorSummaryToJson(const response::ErrorSummary& s) {
 
 Json FamiliesToJson(const std::vector<response::FamilyErrors>& families) {
   Json j = Json::object();
-  for (const auto& f : families)
-    j[response::ProbeFamilyName(f.family)] = ErrorSummaryToJson(f.errors);
+  for (const auto& f : families) j[ProbeFamilyName(f.family)] = ErrorSummaryToJson(f.errors);
   return j;
 }
 

@@ -112,13 +112,8 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   const response::SparseMatrix reference_stiffness = response::ReferenceRestStiffness(problem);
   const response::ProbeBank bank =
       response::MakeProbeBank(problem, reference_stiffness, fit_options.probes);
-  // The run's threads: the caller's pool, else one of context.threads (none for one thread).
   std::unique_ptr<WorkerPool> own_pool;
-  WorkerPool* pool = context.pool;
-  if (!pool && context.threads > 1) {
-    own_pool = std::make_unique<WorkerPool>(context.threads);
-    pool = own_pool.get();
-  }
+  WorkerPool* pool = PoolOf(context, own_pool);
   const response::ResponseProgress progress = [&](const char* name, double error) {
     current = error;
     if (phase != name) {

@@ -24,14 +24,6 @@ struct Seed {
   Evaluation evaluation;
 };
 
-// The run's threads: the caller's pool, else one of context.threads kept in `own` (none for
-// one thread).
-WorkerPool* PoolOf(const RunContext& context, std::unique_ptr<WorkerPool>& own) {
-  if (context.pool || context.threads <= 1) return context.pool;
-  own = std::make_unique<WorkerPool>(context.threads);
-  return own.get();
-}
-
 // Before the GA's first generation (not on a resumed run): a hook that may seed it.
 using BeforeStart =
     std::function<std::optional<Seed>(GeneticSearch&, FitnessEvaluator&, IdentificationResult&)>;
@@ -531,6 +523,12 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
   }
   r.continuous = std::move(details);
   return r;
+}
+
+WorkerPool* PoolOf(const RunContext& context, std::unique_ptr<WorkerPool>& own) {
+  if (context.pool || context.threads <= 1) return context.pool;
+  own = std::make_unique<WorkerPool>(context.threads);
+  return own.get();
 }
 
 Strategy ResolvedStrategy(Strategy strategy, const Problem& problem) {

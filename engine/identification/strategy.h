@@ -61,6 +61,10 @@ class ContinuousStrategy : public IdentificationStrategy {
 };
 
 // ResolvedStrategy (scene.h) for the problem's reference.
+// The run's threads: the caller's pool, else one of context.threads kept in `own` (none for
+// one thread).
+WorkerPool* PoolOf(const RunContext& context, std::unique_ptr<WorkerPool>& own);
+
 // Strategy continuous fits the reference's whole response (probe_fit_strategy.cpp) when the
 // reference can be probed (FEM or MSS), the probes are not switched off, no target error is
 // set (it chooses along the named cases' path) and the genes are at most kMaxProbeFitGenes:

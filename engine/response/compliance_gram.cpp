@@ -142,11 +142,7 @@ Gram BuildGram(const GeneSprings& springs, const std::vector<SupportSystem>& sup
     parts[static_cast<std::size_t>(slot)] =
         SupportGram(springs, supports[s], compliance[s], mine[s]);
   };
-  if (pool) {
-    pool->Run(static_cast<int>(used.size()), body);
-  } else {
-    for (int slot = 0; slot < static_cast<int>(used.size()); ++slot) body(slot);
-  }
+  RunSlots(pool, static_cast<int>(used.size()), body);
   Gram gram;
   gram.H = Matrix::Zero(m, m);
   gram.c = Vector::Zero(m);

@@ -76,8 +76,8 @@ Surface FemSurface(const Scene& scene) {
 Surface AnySurface(const Scene& scene) {
   if (scene.reference.kind == Reference::Kind::kFem) return FemSurface(scene);
   Surface s;
-  s.nodes.resize(static_cast<std::size_t>(scene.node_count()));
-  std::iota(s.nodes.begin(), s.nodes.end(), 0);
+  s.nodes.reserve(static_cast<std::size_t>(scene.node_count()));
+  for (int node = 0; node < scene.node_count(); ++node) s.nodes.push_back(node);
   s.normal = Vector::Zero(scene.rest.size());
   return s;
 }
@@ -142,20 +142,6 @@ void AssignRoles(std::vector<Probe>& probes, std::size_t begin, const ProbeOptio
 }
 
 }  // namespace
-
-const char* ProbeFamilyName(ProbeFamily family) {
-  switch (family) {
-    case ProbeFamily::kPoint:
-      return "point";
-    case ProbeFamily::kPatch:
-      return "patch";
-    case ProbeFamily::kBody:
-      return "body";
-    case ProbeFamily::kNamed:
-      return "named";
-  }
-  return "?";
-}
 
 void ProbeOptions::Validate(const std::string& owner) const {
   const OptionsCheck check(owner);

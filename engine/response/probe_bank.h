@@ -39,9 +39,7 @@
 namespace springfit::response {
 
 enum class ProbeFamily { kPoint, kPatch, kBody, kNamed };
-inline constexpr int kProbeFamilies = 4;
-// "point", "patch", "body", "named": the words of the result's `generalization` object.
-const char* ProbeFamilyName(ProbeFamily family);
+inline constexpr int kProbeFamilies = 4;  // (their names: proto/names.h, ProbeFamilyName)
 
 enum class ProbeRole { kFit, kSelect, kHeldOut };
 

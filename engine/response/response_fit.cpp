@@ -144,12 +144,13 @@ class Fit {
         }
       }
     }
-    const auto body = [&](int slot) { f(used[static_cast<std::size_t>(slot)]); };
-    if (pool_) {
-      pool_->Run(static_cast<int>(used.size()), body);
-    } else {
-      for (int slot = 0; slot < static_cast<int>(used.size()); ++slot) body(slot);
-    }
+    // (While the pool works, the owner keeps polling: progress beats and stop requests go on.)
+    RunSlots(
+        pool_, static_cast<int>(used.size()),
+        [&](int slot) { f(used[static_cast<std::size_t>(slot)]); },
+        [this] {
+          if (interruption_) interruption_->Check();
+        });
   }
 
   // The Gauss-Newton Gram of the exact error about `weights`; false when the model is not held
@@ -323,7 +324,6 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
                                         r.regularization_select_errors.end()));
   };
   for (std::size_t i : order) solve(i);
-  const auto qualified = [&](double lambda) { return lambda >= options.min_lambda; };
   // The lowest choosing error, preferring models that support every mode (the weaker strength
   // on a tie within 0.1%).
   const std::vector<double> strength_score =

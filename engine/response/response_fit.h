@@ -7,16 +7,18 @@
 //  2. First-order fit (compliance_gram.h): the error of the model's displacement under the
 //     fitted probes, to first order in K(k) - K_ref, is a convex quadratic in k; minimised over
 //     k >= 0 (quadratic_nnls.h) with a Tikhonov pull toward the prior (the closed-form
-//     baseline) of each strength in `regularizations`, in variables scaled by the prior so the
-//     result does not depend on units. The strength whose model does best on the choosing
-//     probes is kept.
+//     baseline) of each strength in `regularizations` (strongest first, each started from the
+//     last), in variables scaled by the prior so the result does not depend on units. The
+//     strength whose model does best on the choosing probes is kept.
 //  3. Sparsity path: the springs whose removal raises the quadratic least (saliency
 //     1/2 k_e^2 H_ee) are removed, `prune_fraction` at a time, and the rest refitted; each
 //     point is judged on the choosing probes, and the fewest springs within `tolerance` of
 //     the best is kept. Springs the fit leaves below `dust` of the median stiffness are never
 //     part of a model.
 //  4. Gauss-Newton refinement of the exact (linear) error on the fitted probes over the kept
-//     springs, each step kept only if the choosing probes do not get worse.
+//     springs; the iterate that does best on the choosing probes is returned (early stopping).
+// At every choice a model that supports every mode (min_lambda) is preferred when nearly as
+// good (lambda_slack).
 // The model is the rest-linear one; a nonlinear reference's model describes its small-load
 // limit.
 #pragma once

@@ -21,7 +21,7 @@ void AddSpring(int d, int i, int j, const Vector& direction, double k, Triplets&
 }
 
 template <int D>
-void AddElements(const fem::FemModel& model, const std::vector<fem::Element<D>>& elements,
+void AddElements(const std::vector<fem::Element<D>>& elements,
                  const std::vector<fem::MaterialLaw<D>>& laws, Triplets& t) {
   const MatD<D> at_rest = MatD<D>::Zero();
   for (const fem::Element<D>& element : elements) {
@@ -42,7 +42,6 @@ void AddElements(const fem::FemModel& model, const std::vector<fem::Element<D>>&
       }
     }
   }
-  (void)model;
 }
 
 SparseMatrix FromTriplets(int size, const Triplets& t) {
@@ -60,9 +59,9 @@ SparseMatrix ReferenceRestStiffness(const Problem& problem) {
     const fem::FemModel model = fem::FemModel::Build(scene);
     Triplets t;
     if (d == 2)
-      AddElements<2>(model, model.elements2(), model.laws2(), t);
+      AddElements<2>(model.elements2(), model.laws2(), t);
     else
-      AddElements<3>(model, model.elements3(), model.laws3(), t);
+      AddElements<3>(model.elements3(), model.laws3(), t);
     return FromTriplets(static_cast<int>(model.rest().size()), t);
   }
   const Reference& reference = scene.reference;

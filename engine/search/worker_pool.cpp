@@ -94,4 +94,13 @@ void WorkerPool::Run(int slots, const std::function<void(int slot)>& body,
   if (batch->failure) std::rethrow_exception(batch->failure);
 }
 
+void RunSlots(WorkerPool* pool, int slots, const std::function<void(int slot)>& body,
+              const std::function<void()>& while_waiting) {
+  if (pool) {
+    pool->Run(slots, body, while_waiting);
+    return;
+  }
+  for (int slot = 0; slot < slots; ++slot) body(slot);
+}
+
 }  // namespace springfit

@@ -36,7 +36,13 @@ class WorkerPool {
 
  private:
   int threads_;
+
   std::unique_ptr<boost::asio::thread_pool> pool_;
 };
+
+// pool->Run(slots, body, while_waiting), or body(0), body(1), ... on the calling thread when
+// there is no pool: for callers whose pool is optional. Each slot must have its own state.
+void RunSlots(WorkerPool* pool, int slots, const std::function<void(int slot)>& body,
+              const std::function<void()>& while_waiting = {});
 
 }  // namespace springfit

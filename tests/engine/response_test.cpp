@@ -15,6 +15,7 @@
 #include "engine/response/response_fit.h"
 #include "engine/response/rest_stiffness.h"
 #include "io/example_catalog.h"
+#include "proto/names.h"
 
 namespace springfit::response {
 namespace {
@@ -45,12 +46,13 @@ TEST(ProbeBank, EverySupportHasEveryFamilyInEveryDirectionAndAHeldOutPart) {
           }
         }
       }
-      EXPECT_GT(count, 0) << "support " << s << " family " << ProbeFamilyName(family);
+      EXPECT_GT(count, 0) << "support " << s << " family " << proto::ProbeFamilyName(family);
       EXPECT_GT(held, 0);
       EXPECT_GT(fitted, 0);
       // Both directions of the plane are loaded.
       const Eigen::SelfAdjointEigenSolver<Matrix> eig(directions);
-      EXPECT_GT(eig.eigenvalues()[0], 0.05 * eig.eigenvalues()[1]) << ProbeFamilyName(family);
+      EXPECT_GT(eig.eigenvalues()[0], 0.05 * eig.eigenvalues()[1])
+          << proto::ProbeFamilyName(family);
     }
   }
   // Same options, same bank.
