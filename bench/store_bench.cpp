@@ -63,7 +63,7 @@ int main(int argc, char** argv) {
     claim.push_back(Time([&] { c = store->ClaimNext("bench", 60.0); }));
     renew.push_back(Time([&] { store->RenewLease(c->lease, 60.0); }));
     save.push_back(Time([&] { store->SaveProgress(c->lease, batch); }));
-    store->MarkFinished(c->lease, JobState::kSucceeded, "", "{}", true, 0.0);
+    store->MarkFinished(c->lease, {JobState::kSucceeded, "", "{}", true, 0.0, ""});
   }
   Report("submit (CreateJob)", create);
   Report("claim (ClaimNext)", claim);

@@ -1,6 +1,8 @@
 // Exit codes of the springfit program (documented in README.md, "Exit codes").
 #pragma once
 
+#include "engine/identification/verdict.h"
+
 namespace springfit::cli {
 
 inline constexpr int kExitOk = 0;
@@ -13,11 +15,28 @@ inline constexpr int kExitUnauthorized = 6;  // the server wants a (different) t
 inline constexpr int kExitCancelled = 7;     // the job was cancelled
 inline constexpr int kExitBusy = 8;  // a server limit: queue full, too many connections, too large
 inline constexpr int kExitWrongState = 9;  // e.g. the result of a job that has not finished
-// run: the search ended with a model that is no answer (IdentificationResult::usable(): a
-// mechanism, no equilibrium, or worse than the rest shape); the result is still written.
+// run, submit --wait, watch, result: the result's verdict is unusable (engine/identification/
+// verdict.h: a mechanism, no equilibrium, or worse than the rest shape); the result is still
+// written.
 inline constexpr int kExitUnusable = 10;
+// run, submit --wait, watch, result: a usable model that does not meet a hard request (a spring
+// budget, a target error); a WARNING line says which.
+inline constexpr int kExitUnmetRequest = 11;
 inline constexpr int kExitUsage = 64;  // bad command line (unknown option, missing argument)
 inline constexpr int kExitInterrupted =
     130;  // stopped by SIGINT/SIGTERM (run: the result so far is still written)
+
+// The exit code of a result's verdict: usable 0, unmet_request 11, unusable 10.
+inline int ExitCodeOfVerdict(Verdict verdict) {
+  switch (verdict) {
+    case Verdict::kUsable:
+      return kExitOk;
+    case Verdict::kUnmetRequest:
+      return kExitUnmetRequest;
+    case Verdict::kUnusable:
+      return kExitUnusable;
+  }
+  return kExitUnusable;
+}
 
 }  // namespace springfit::cli

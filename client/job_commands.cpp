@@ -1,5 +1,7 @@
 // springfit status | watch | result | trace | cancel | delete | list | info: reading and
 // managing springfitd's jobs (README.md, "The daemon"; proto/RPC.md).
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <ctime>
 #include <iostream>
@@ -53,6 +55,14 @@ std::string ErrorText(double e) {
   return text;
 }
 
+// Where an unfinished job has got to: a genetic search's generation of its limit; strategy
+// continuous (its progress rows count steps, not generations) its step.
+std::string ProgressText(const proto::JobRecord& j) {
+  if (!j.progress) return "-";
+  if (j.strategy == "continuous") return "step " + std::to_string(j.progress->generation);
+  return "gen " + std::to_string(j.progress->generation) + "/" + std::to_string(j.max_generations);
+}
+
 void PrintJob(const proto::JobRecord& j) {
   std::cout << "job:               " << j.id << (j.label.empty() ? "" : " (" + j.label + ")")
             << "\n"
@@ -64,10 +74,16 @@ void PrintJob(const proto::JobRecord& j) {
             << "created:           " << LocalTime(j.created_at) << "\n"
             << "started:           " << LocalTime(j.started_at) << "\n"
             << "finished:          " << LocalTime(j.finished_at) << "\n";
-  if (j.progress) {
+  if (j.outcome) {
+    // A finished job: its verdict, in the words of `springfit run` (verdict.h).
+    std::cout << "verdict:           " << j.outcome->Headline() << "\n";
+    for (const std::string& line : j.outcome->unmet)
+      std::cout << "WARNING:           " << line << "\n";
+    if (!j.outcome->reason.empty()) std::cout << "NO USABLE MODEL:   " << j.outcome->reason << "\n";
+  } else if (j.progress) {
     const TraceRow& p = *j.progress;
-    std::cout << "generation:        " << p.generation << " of " << j.max_generations << "\n"
-              << "normalized error:  " << ErrorText(p.best_normalized_error) << "\n"
+    std::cout << "progress:          " << ProgressText(j) << "\n"
+              << "E so far:          " << ErrorText(std::sqrt(p.best_normalized_error)) << "\n"
               << "evaluations:       " << p.evaluations << "\n";
     if (p.missing >= 0)
       std::cout << "against reference: " << p.missing << " missing, " << p.extra << " extra\n";
@@ -97,7 +113,7 @@ int Watch(const JobArgs& a) {
   } else {
     PrintJob(proto::JobFromJson(finished));
   }
-  return ExitCodeOfJobState(finished["state"].get<std::string>());
+  return ExitCodeOfJob(finished);
 }
 
 int Result(const JobArgs& a) {
@@ -113,7 +129,7 @@ int Result(const JobArgs& a) {
                     client.Call("job.scene", JobIdParams(a.job_id))["scene"]);
   }
   PrintResult(result, a.json);
-  return ExitCodeOfJobState(result.value("state", std::string("succeeded")));
+  return ExitCodeOfJob(result);
 }
 
 int Trace(const JobArgs& a) {
@@ -189,19 +205,30 @@ int List(const JobArgs& a) {
     std::cout << out.dump() << std::endl;
     return kExitOk;
   }
-  std::printf("%6s  %-9s  %-16s  %-20s  %-8s  %15s  %11s  %s\n", "id", "state", "label", "scene",
-              "strategy", "generation", "norm. error", "exact");
+  // E is the returned model's (its verdict's) once finished; while running, the best so far.
+  std::printf("%6s  %-9s  %-13s  %-16s  %-20s  %-10s  %11s  %7s  %9s  %s\n", "id", "state",
+              "verdict", "label", "scene", "strategy", "progress", "springs", "E", "exact");
   for (const Json& j : jobs) {
     const proto::JobRecord r = proto::JobFromJson(j);
-    const std::string generation = r.progress ? std::to_string(r.progress->generation) + "/" +
-                                                    std::to_string(r.max_generations)
-                                              : "-";
-    std::printf("%6lld  %-9s  %-16s  %-20s  %-8s  %15s  %11s  %s\n", static_cast<long long>(r.id),
-                std::string(proto::JobStateName(r.state)).c_str(), r.label.c_str(),
-                r.scene_name.c_str(), r.strategy.c_str(), generation.c_str(),
-                r.progress ? ErrorText(r.progress->best_normalized_error).c_str() : "-",
-                r.exact ? (*r.exact ? "yes" : "no") : "-");
+    std::string progress = "-";
+    std::string e = "-";
+    std::string springs = "-";
+    if (r.outcome) {
+      springs = std::to_string(r.outcome->springs);
+      if (r.outcome->rms_error) e = ErrorText(*r.outcome->rms_error);
+    } else if (r.progress) {
+      progress = ProgressText(r);
+      e = ErrorText(std::sqrt(r.progress->best_normalized_error)) + "~";
+    }
+    std::printf("%6lld  %-9s  %-13s  %-16s  %-20s  %-10s  %11s  %7s  %9s  %s\n",
+                static_cast<long long>(r.id), std::string(proto::JobStateName(r.state)).c_str(),
+                r.outcome ? std::string(VerdictName(r.outcome->verdict)).c_str() : "-",
+                r.label.c_str(), r.scene_name.c_str(), r.strategy.c_str(), progress.c_str(),
+                springs.c_str(), e.c_str(), r.exact ? (*r.exact ? "yes" : "no") : "-");
   }
+  if (std::any_of(jobs.begin(), jobs.end(),
+                  [](const Json& j) { return j["outcome"].is_null() && !j["progress"].is_null(); }))
+    std::cout << "(E~: the best so far of a job not finished)\n";
   if (!next_cursor.is_null())
     std::cerr << "more jobs: springfit list --cursor " << next_cursor.dump()
               << (a.oldest_first ? " --oldest-first" : "") << "\n";

@@ -9,6 +9,7 @@
 
 #include "client/exit_codes.h"
 #include "client/progress_line.h"
+#include "proto/outcome_codec.h"
 #include "proto/rpc.h"
 #include "proto/search_codec.h"
 
@@ -111,11 +112,14 @@ std::vector<TraceRow> FetchTrace(RpcClient& client, std::int64_t job_id) {
   }
 }
 
-int ExitCodeOfJobState(const std::string& state) {
-  if (state == "succeeded") return kExitOk;
+int ExitCodeOfJob(const proto::Json& job) {
+  const std::string state = job.value("state", std::string("succeeded"));
   if (state == "cancelled") return kExitCancelled;
   if (state == "failed") return kExitJobFailed;
-  return kExitWrongState;
+  if (state != "succeeded") return kExitWrongState;
+  // (An older daemon's job has no outcome: its state alone.)
+  if (!job.contains("outcome") || !job["outcome"].is_object()) return kExitOk;
+  return ExitCodeOfVerdict(proto::OutcomeFromJson(job["outcome"], "outcome").verdict);
 }
 
 }  // namespace springfit::cli

@@ -25,7 +25,8 @@ proto::Json WatchJob(RpcClient& client, std::int64_t job_id, bool quiet);
 // Every stored trace row of a job, following job.trace's pages.
 std::vector<TraceRow> FetchTrace(RpcClient& client, std::int64_t job_id);
 
-// succeeded 0, failed kExitJobFailed, cancelled kExitCancelled.
-int ExitCodeOfJobState(const std::string& state);
+// The exit code of a finished job or of its result (both carry `state` and `outcome`):
+// cancelled kExitCancelled, failed kExitJobFailed, succeeded its verdict's (ExitCodeOfVerdict).
+int ExitCodeOfJob(const proto::Json& job);
 
 }  // namespace springfit::cli

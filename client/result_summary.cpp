@@ -8,6 +8,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "proto/outcome_codec.h"
+
 namespace springfit::cli {
 namespace {
 
@@ -25,6 +27,16 @@ void PrintPairs(std::ostream& out, const char* label, const proto::Json& pairs) 
   out << "\n";
 }
 
+// The verdict (engine/identification/verdict.h) first: the one line a pipeline reads, then a
+// WARNING line per unmet request, or why there is no usable model.
+void PrintVerdict(const proto::Json& r, std::ostream& out) {
+  if (!r.contains("outcome") || !r["outcome"].is_object()) return;
+  const Outcome o = proto::OutcomeFromJson(r["outcome"], "outcome");
+  out << "verdict:           " << o.Headline() << "\n";
+  for (const std::string& line : o.unmet) out << "WARNING:           " << line << "\n";
+  if (!o.reason.empty()) out << "NO USABLE MODEL:   " << o.reason << "\n";
+}
+
 }  // namespace
 
 void PrintResultSummary(const proto::Json& r, std::ostream& out) {
@@ -32,8 +44,11 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
   if (r.contains("job_id"))
     out << "job:               " << r["job_id"].get<long long>() << " ("
         << r.value("state", std::string()) << ")\n";
-  out << "strategy:          " << r.value("strategy", std::string()) << " (seed "
-      << r.value("seed", std::uint64_t{0}) << ")\n";
+  PrintVerdict(r, out);
+  out << "strategy:          " << r.value("strategy", std::string());
+  if (r.contains("ran") && r["ran"] != r["strategy"])
+    out << " (ran " << r["ran"].get<std::string>() << ")";
+  out << " (seed " << r.value("seed", std::uint64_t{0}) << ")\n";
   if (r.contains("identify"))
     out << "identified:        " << r.value("identify", std::string()) << "\n";
   if (r.contains("response"))
@@ -74,14 +89,18 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
     out << "\n";
   }
   out << "springs:           " << r.value("springs", proto::Json::array()).size() << " of "
-      << r.value("genes", 0) << " genes\n";
-  out << "cost:              " << Format("%.6g", r.value("cost", 0.0)) << "\n";
-  out << "normalized error:  " << Format("%.6g", r.value("normalized_error", 0.0))
-      << (r.value("mechanism", false) ? " (mechanism)" : "") << "\n";
-  if (r.contains("rms_error")) {
-    out << "E (RMS nodal):     " << Format("%.6g", r["rms_error"].get<double>())
-        << " (relative RMS nodal error against the reference)\n";
-  }
+      << r.value("genes", 0) << " genes";
+  const int unseen = r.contains("outcome") ? r["outcome"].value("unseen_springs", 0) : 0;
+  if (unseen > 0)
+    out << " (+" << unseen
+        << " candidates no load case sees, added by exports at the training stiffness)";
+  out << "\n";
+  // E is the one quality measure shown (the normalised error and the cost are in --json).
+  out << "E (RMS nodal):     "
+      << (r.contains("rms_error") ? Format("%.6g", r["rms_error"].get<double>())
+                                  : std::string("- (no equilibrium)"))
+      << " on the named load cases (relative RMS nodal error against the reference)"
+      << (r.value("mechanism", false) ? "; a mechanism" : "") << "\n";
   if (continuous) {
     const proto::Json& c = r["continuous"];
     const proto::Json& path = c["path"];

@@ -128,7 +128,7 @@ int Run(const RunArgs& args) {
   if (args.json) j["threads"] = args.threads;
   PrintResult(j, args.json);
   if (result.stop == StopReason::kCancelled) return kExitInterrupted;
-  return result.usable() ? kExitOk : kExitUnusable;
+  return ExitCodeOfVerdict(result.outcome.verdict);
 }
 
 }  // namespace

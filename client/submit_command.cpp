@@ -83,7 +83,7 @@ int Submit(const SubmitArgs& args) {
   } catch (const RemoteError&) {
     std::cerr << "springfit: job " << id << " " << final_state << " before it ran\n";
   }
-  return ExitCodeOfJobState(final_state);
+  return ExitCodeOfJob(finished);
 }
 
 }  // namespace

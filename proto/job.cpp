@@ -4,6 +4,7 @@
 #include <utility>
 
 #include "engine/input_error.h"
+#include "proto/outcome_codec.h"
 #include "proto/search_codec.h"
 
 namespace springfit::proto {
@@ -68,6 +69,7 @@ Json JobToJson(const JobRecord& job) {
   j["checkpoint_generation"] =
       job.checkpoint_generation >= 0 ? Json(job.checkpoint_generation) : Json(nullptr);
   j["exact"] = job.exact ? Json(*job.exact) : Json(nullptr);
+  j["outcome"] = job.outcome ? OutcomeToJson(*job.outcome) : Json(nullptr);
   return j;
 }
 
@@ -104,6 +106,9 @@ JobRecord JobFromJson(const Json& j) {
     if (!at("exact").is_boolean()) throw InputError(sub("exact"), "expected a boolean");
     job.exact = at("exact").get<bool>();
   }
+  // (Absent from an older daemon's answer.)
+  if (j.contains("outcome") && !j["outcome"].is_null())
+    job.outcome = OutcomeFromJson(j["outcome"], sub("outcome"));
   return job;
 }
 

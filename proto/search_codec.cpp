@@ -7,6 +7,7 @@
 #include "engine/input_error.h"
 #include "proto/evaluation_codec.h"
 #include "proto/names.h"
+#include "proto/outcome_codec.h"
 #include "proto/scene_codec.h"
 
 namespace springfit::proto {
@@ -279,6 +280,7 @@ Json ResultToJson(const Problem& problem, const IdentificationResult& r, bool wi
   j["seed"] = r.options.seed;
   j["stop"] = StopReasonName(r.stop);
   j["stop_message"] = r.stop_message;
+  j["outcome"] = OutcomeToJson(r.outcome);
   if (const auto exact = r.exact()) {
     j["exact"] = *exact;
     j["hamming"] = r.difference->hamming();

@@ -137,6 +137,12 @@ std::string ErrorText(double e) {
   return fmt::format("{:.4g}", e);
 }
 
+// E of the returned model once the job has a verdict; while it runs the best so far (~).
+std::string EText(const JobRecord& job) {
+  if (job.outcome) return job.outcome->rms_error ? ErrorText(*job.outcome->rms_error) : "-";
+  return job.progress ? ErrorText(std::sqrt(job.progress->best_normalized_error)) + "~" : "-";
+}
+
 std::string GenerationText(const JobRecord& job) {
   return job.progress ? fmt::format("{} / {}", job.progress->generation, job.max_generations)
                       : fmt::format("- / {}", job.max_generations);
@@ -171,6 +177,59 @@ std::string Row(const std::string& key, const std::string& value_html) {
 // The live update: a request a second while the job is queued or running; the page reloads
 // once when it ends, to show the result. data-updates counts the updates received (the
 // browser test reads it).
+// The result card: the verdict and the numbers that matter first, in the words of `springfit
+// run` (engine/identification/verdict.h), then the regularisation and the certificate's bound
+// from the result, then every search setting submitted.
+std::string ResultCard(const Outcome& o, const Json& result, const Json& search) {
+  std::string body = "<table id=\"result-card\">\n";
+  body += Row("verdict", "<strong class=\"verdict " + std::string(VerdictName(o.verdict)) + "\">" +
+                             std::string(VerdictName(o.verdict)) + "</strong>");
+  for (const std::string& line : o.unmet) body += Row("WARNING", XmlEscape(line));
+  if (!o.reason.empty()) body += Row("no usable model", XmlEscape(o.reason));
+  body += Row("springs",
+              std::to_string(o.springs) +
+                  (o.unseen_springs > 0
+                       ? fmt::format(" (+{} no load case sees, added by exports)", o.unseen_springs)
+                       : std::string()));
+  body += Row("E (named cases)", o.rms_error ? ErrorText(*o.rms_error) : "- (no equilibrium)");
+  if (o.baseline_rms_error) {
+    body += Row("baseline E", ErrorText(*o.baseline_rms_error));
+    if (o.rms_error && *o.baseline_rms_error > 0.0)
+      body += Row("E / baseline", ErrorText(*o.rms_error / *o.baseline_rms_error));
+  }
+  if (o.held_out_rms_error) {
+    std::string text = "median " + ErrorText(*o.held_out_rms_error);
+    if (o.held_out_p95) text += ", worst 5% above " + ErrorText(*o.held_out_p95);
+    if (o.baseline_held_out_rms_error)
+      text += " (baseline median " + ErrorText(*o.baseline_held_out_rms_error) + ")";
+    body += Row("E on unseen " + o.held_out_of, text);
+  }
+  if (const auto g = result.find("generalization"); g != result.end() && g->is_object()) {
+    if ((*g)["lambda_min"].is_number() && (*g)["lambda_max"].is_number())
+      body += Row("generalised eigenvalues",
+                  fmt::format("[{}, {}]", ErrorText((*g)["lambda_min"].get<double>()),
+                              ErrorText((*g)["lambda_max"].get<double>())));
+    if (g->contains("fit") && (*g)["fit"]["regularization"].is_number())
+      body += Row("regularisation", ErrorText((*g)["fit"]["regularization"].get<double>()));
+  } else if (const auto c = result.find("continuous"); c != result.end() && c->is_object()) {
+    if ((*c)["regularization"].is_object() && (*c)["regularization"]["strength"].is_number())
+      body += Row("regularisation", ErrorText((*c)["regularization"]["strength"].get<double>()));
+  }
+  if (result.contains("ran") && result["ran"].is_string())
+    body += Row("strategy that ran", XmlEscape(result["ran"].get<std::string>()));
+  // What was asked (the scene's search settings; none: every default), then every option as
+  // it ran.
+  std::string asked;
+  if (search.is_object())
+    for (const auto& [key, value] : search.items())
+      asked += (asked.empty() ? "" : ", ") + key + " " + value.dump();
+  body += Row("settings submitted", XmlEscape(asked.empty() ? "none (the defaults)" : asked));
+  if (const auto options = result.find("options"); options != result.end() && options->is_object())
+    for (const auto& [key, value] : options->items())
+      body += Row("option: " + key, XmlEscape(value.dump()));
+  return body + "</table>\n";
+}
+
 constexpr const char* kLiveScript = R"(<script>
 (function () {
   var live = document.getElementById('live');
@@ -384,16 +443,19 @@ HttpResponse Dashboard::ListView(const std::map<std::string, std::string>& query
   body +=
       "<table id=\"jobs\"><tr><th>job</th><th>label</th><th>scene</th><th>state</th>"
       "<th>strategy</th><th class=\"num\">genes</th><th class=\"num\">generation</th>"
-      "<th class=\"num\">best error</th><th class=\"num\">elapsed</th><th>exact</th></tr>\n";
+      "<th>verdict</th><th class=\"num\">springs</th><th class=\"num\">E</th>"
+      "<th class=\"num\">elapsed</th><th>exact</th></tr>\n";
   for (const JobRecord& stored : page.jobs) {
     const JobRecord job = Live(stored);
     body += fmt::format(
         "<tr><td><a href=\"/jobs/{0}\">{0}</a></td><td>{1}</td><td>{2}</td><td>{3}</td>"
-        "<td>{4}</td><td class=\"num\">{5}</td><td class=\"num\">{6}</td><td class=\"num\">{7}</td>"
-        "<td class=\"num\">{8}</td><td>{9}</td></tr>\n",
+        "<td>{4}</td><td class=\"num\">{5}</td><td class=\"num\">{6}</td><td>{7}</td>"
+        "<td class=\"num\">{8}</td><td class=\"num\">{9}</td><td class=\"num\">{10}</td>"
+        "<td>{11}</td></tr>\n",
         job.id, XmlEscape(job.label), XmlEscape(job.scene_name), StateBadge(job.state),
         XmlEscape(job.strategy), job.genes, GenerationText(job),
-        job.progress ? ErrorText(job.progress->best_normalized_error) : "-", Seconds(Elapsed(job)),
+        job.outcome ? std::string(VerdictName(job.outcome->verdict)) : "-",
+        job.outcome ? std::to_string(job.outcome->springs) : "-", EText(job), Seconds(Elapsed(job)),
         job.exact ? (*job.exact ? "yes" : "no") : "-");
   }
   body += "</table>\n";
@@ -468,7 +530,23 @@ HttpResponse Dashboard::JobView(const JobRecord& job) {
   const bool final = proto::IsFinal(job.state);
   std::string body = fmt::format("<h1>Job {} · {} {}</h1>\n", job.id, XmlEscape(job.scene_name),
                                  StateBadge(job.state));
-  body += "<table id=\"settings\">\n";
+  std::string result_json;
+  if (final) {
+    if (auto r = store_.GetResult(job.id)) result_json = *r;
+  }
+  if (job.outcome) {
+    Json search;
+    try {
+      if (const auto scene = store_.GetScene(job.id))
+        search = proto::ParseJson(*scene).value("search", Json::object());
+    } catch (const std::exception&) {
+    }
+    body +=
+        "<h2>Result</h2>\n" +
+        ResultCard(*job.outcome,
+                   result_json.empty() ? Json::object() : proto::ParseJson(result_json), search);
+  }
+  body += "<h2>Job</h2>\n<table id=\"settings\">\n";
   body += Row("label", XmlEscape(job.label));
   body += Row("strategy", XmlEscape(job.strategy));
   body += Row("seed", std::to_string(job.seed));
@@ -489,10 +567,7 @@ HttpResponse Dashboard::JobView(const JobRecord& job) {
   body += Row("state",
               "<span id=\"p-state\">" + std::string(proto::JobStateName(job.state)) + "</span>");
   body += Row("generation", "<span id=\"p-generation\">" + GenerationText(job) + "</span>");
-  body +=
-      Row("best normalised error",
-          "<span id=\"p-best\">" +
-              (job.progress ? ErrorText(job.progress->best_normalized_error) : "-") + "</span>");
+  body += Row("E (relative RMS nodal error)", "<span id=\"p-best\">" + EText(job) + "</span>");
   body += Row("evaluations", "<span id=\"p-evaluations\">" +
                                  (job.progress ? std::to_string(job.progress->evaluations) : "-") +
                                  "</span>");
@@ -504,13 +579,9 @@ HttpResponse Dashboard::JobView(const JobRecord& job) {
   body += plot.empty() ? "<p>No generation stored yet.</p>" : Inline(plot);
   body += "</figure>\n";
 
-  std::string result_json;
-  if (final) {
-    if (auto r = store_.GetResult(job.id)) result_json = *r;
-  }
   try {
     const std::string best = TopologySvg(job, !result_json.empty());
-    body += result_json.empty() ? "<h2>Best topology so far</h2>\n" : "<h2>Result</h2>\n";
+    body += result_json.empty() ? "<h2>Best topology so far</h2>\n" : "<h2>Model</h2>\n";
     body += "<figure id=\"topology\">" +
             (best.empty() ? std::string("<p>No model evaluated yet.</p>") : Inline(best)) +
             "</figure>\n";
@@ -523,8 +594,6 @@ HttpResponse Dashboard::JobView(const JobRecord& job) {
     if (r.contains("stop")) body += Row("stop", XmlEscape(r.value("stop", "")));
     if (r.contains("stop_message") && r["stop_message"].is_string())
       body += Row("why", XmlEscape(r["stop_message"].get<std::string>()));
-    if (r.contains("rms_error") && r["rms_error"].is_number())
-      body += Row("E (relative RMS nodal error)", ErrorText(r["rms_error"].get<double>()));
     if (const auto id = r.find("identifiability"); id != r.end() && id->is_object()) {
       const Json& rep = *id;
       body += Row("candidates no load case sees",
@@ -566,7 +635,7 @@ HttpResponse Dashboard::Progress(const JobRecord& job) {
   p["final"] = proto::IsFinal(job.state);
   p["generation"] = GenerationText(job);
   p["generation_number"] = job.progress ? job.progress->generation : -1;
-  p["best"] = job.progress ? ErrorText(job.progress->best_normalized_error) : "-";
+  p["best"] = EText(job);
   p["evaluations"] = job.progress ? std::to_string(job.progress->evaluations) : "-";
   p["elapsed"] = Seconds(Elapsed(job));
   return Content("application/json", p.dump());

@@ -32,10 +32,8 @@ class ForwardingStore : public JobStore {
   void SaveProgress(const Lease& lease, const ProgressBatch& batch) override {
     inner_.SaveProgress(lease, batch);
   }
-  void MarkFinished(const Lease& lease, JobState state, const std::string& error,
-                    const std::string& result_json, std::optional<bool> exact,
-                    double finished_at) override {
-    inner_.MarkFinished(lease, state, error, result_json, exact, finished_at);
+  void MarkFinished(const Lease& lease, const JobEnd& end) override {
+    inner_.MarkFinished(lease, end);
   }
   void RewindTo(const Lease& lease, int generation) override { inner_.RewindTo(lease, generation); }
   CancelOutcome RequestCancel(std::int64_t id) override { return inner_.RequestCancel(id); }

@@ -6,6 +6,8 @@
 #include <spdlog/spdlog.h>
 
 #include "engine/identification/identify.h"
+#include "proto/names.h"
+#include "proto/outcome_codec.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
 #include "server/checkpoint_codec.h"
@@ -31,13 +33,18 @@ JobRecord FinishJob(JobStore& store, const Lease& lease, JobRecord& record, Fini
   record.state =
       result.stop == StopReason::kCancelled ? JobState::kCancelled : JobState::kSucceeded;
   record.exact = result.exact();
+  record.outcome = result.outcome;
   record.finished_at = UnixNow();
-  store.MarkFinished(lease, record.state, "", finished.json.dump(), record.exact,
-                     record.finished_at);
-  spdlog::info("job {} {} after {} generations, {:.3f} s, normalized error {:.3g}{}", record.id,
-               proto::JobStateName(record.state), result.generations, result.wall_seconds,
-               result.evaluation.normalized_error,
-               record.exact ? (*record.exact ? ", exact" : ", not exact") : "");
+  store.MarkFinished(lease, {record.state, "", finished.json.dump(), record.exact,
+                             record.finished_at, proto::OutcomeToJson(result.outcome).dump()});
+  // The verdict in the same words as `springfit run` and `result` (verdict.h).
+  spdlog::info("job {} {} ({}), {:.3f} s{}: {}", record.id, proto::JobStateName(record.state),
+               proto::StrategyName(result.ran), result.wall_seconds,
+               record.exact ? (*record.exact ? ", exact" : ", not exact") : "",
+               result.outcome.Headline());
+  for (const std::string& line : result.outcome.unmet) spdlog::warn("job {}: {}", record.id, line);
+  if (!result.outcome.reason.empty())
+    spdlog::warn("job {}: no usable model: {}", record.id, result.outcome.reason);
   return record;
 }
 
@@ -86,7 +93,7 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const Claim& claim,
           return record;
         }
         const double finished_at = UnixNow();
-        store.MarkFinished(lease, JobState::kCancelled, "", "", std::nullopt, finished_at);
+        store.MarkFinished(lease, {JobState::kCancelled, "", "", std::nullopt, finished_at, ""});
         record.state = JobState::kCancelled;
         record.finished_at = finished_at;
         spdlog::info("job {} cancelled while being prepared", job.id);
@@ -203,7 +210,8 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const Claim& claim,
     record.finished_at = UnixNow();
     spdlog::error("job {} failed: {}", job.id, record.error);
     try {
-      store.MarkFinished(lease, record.state, record.error, "", std::nullopt, record.finished_at);
+      store.MarkFinished(lease,
+                         {record.state, record.error, "", std::nullopt, record.finished_at, ""});
     } catch (const std::exception& e2) {
       // Lease lost, or the store unavailable: the job stays running in the store and is
       // claimed again (where it fails again, and that failure is recorded).

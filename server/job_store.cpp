@@ -2,6 +2,7 @@
 
 #include "engine/input_error.h"
 #include "proto/json_reader.h"
+#include "proto/outcome_codec.h"
 #include "proto/search_codec.h"
 
 namespace springfit::server {
@@ -18,6 +19,15 @@ TraceRow StoredProgress(std::int64_t job_id, const std::string& text) {
   } catch (const std::exception& e) {
     throw StoreCorrupt("job " + std::to_string(job_id) +
                        ": the store's progress column is not a trace row (" + e.what() + ")");
+  }
+}
+
+Outcome StoredOutcome(std::int64_t job_id, const std::string& text) {
+  try {
+    return proto::OutcomeFromJson(proto::ParseJson(text), "outcome");
+  } catch (const std::exception& e) {
+    throw StoreCorrupt("job " + std::to_string(job_id) +
+                       ": the store's outcome column is not a verdict (" + e.what() + ")");
   }
 }
 

@@ -76,6 +76,16 @@ struct Claim {
   bool cancel_requested = false;
 };
 
+// How a job ended, as MarkFinished stores it.
+struct JobEnd {
+  JobState state = JobState::kSucceeded;
+  std::string error;          // why it failed
+  std::string result_json;    // succeeded or cancelled; may be empty
+  std::optional<bool> exact;  // when the reference topology is known
+  double finished_at = 0.0;
+  std::string outcome_json;  // the result's verdict (proto/outcome_codec.h); empty: none
+};
+
 // What a heartbeat learns: whether the lease is still this daemon's, and whether a client
 // asked (through any daemon) to cancel the job.
 struct LeaseStatus {
@@ -108,6 +118,8 @@ class StoreCorrupt : public std::runtime_error {
 JobState StoredJobState(std::int64_t job_id, const std::string& text);
 // The progress row stored for `job_id` (its JSON text), or StoreCorrupt naming what is wrong.
 TraceRow StoredProgress(std::int64_t job_id, const std::string& text);
+// The verdict stored for `job_id` (its JSON text), or StoreCorrupt naming what is wrong.
+Outcome StoredOutcome(std::int64_t job_id, const std::string& text);
 
 struct JobFilter {
   std::optional<JobState> state;
@@ -169,10 +181,8 @@ class JobStore {
   // Fenced writes: each throws LeaseLost when `lease` is no longer the job's. MarkFinished
   // also ends a preparing job (cancelled while being prepared).
   virtual void SaveProgress(const Lease& lease, const ProgressBatch& batch) = 0;
-  // Final state, its error (failed) and result JSON (succeeded or cancelled; may be empty).
-  virtual void MarkFinished(const Lease& lease, JobState state, const std::string& error,
-                            const std::string& result_json, std::optional<bool> exact,
-                            double finished_at) = 0;
+  // The final state and what goes with it (JobEnd).
+  virtual void MarkFinished(const Lease& lease, const JobEnd& end) = 0;
   // Before a job resumes from its checkpoint (or restarts, at -1): drops the trace rows and
   // improvements recorded after that generation, which the job is about to produce again.
   virtual void RewindTo(const Lease& lease, int generation) = 0;

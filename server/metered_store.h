@@ -34,11 +34,8 @@ class MeteredStore final : public ForwardingStore {
   void SaveProgress(const Lease& lease, const ProgressBatch& batch) override {
     Timed("progress", [&] { inner_.SaveProgress(lease, batch); });
   }
-  void MarkFinished(const Lease& lease, JobState state, const std::string& error,
-                    const std::string& result_json, std::optional<bool> exact,
-                    double finished_at) override {
-    Timed("finish",
-          [&] { inner_.MarkFinished(lease, state, error, result_json, exact, finished_at); });
+  void MarkFinished(const Lease& lease, const JobEnd& end) override {
+    Timed("finish", [&] { inner_.MarkFinished(lease, end); });
   }
   void RewindTo(const Lease& lease, int generation) override {
     Timed("rewind", [&] { inner_.RewindTo(lease, generation); });

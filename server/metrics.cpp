@@ -49,6 +49,12 @@ void Metrics::CountHttpRequest(int status) {
   ++http_[status];
 }
 
+void Metrics::CountFinished(proto::JobState state, const std::optional<Outcome>& outcome) {
+  std::lock_guard lock(mutex_);
+  ++finished_[{std::string(proto::JobStateName(state)),
+               outcome ? std::string(VerdictName(outcome->verdict)) : std::string("none")}];
+}
+
 double Metrics::EvaluationsPerSecondLocked() {
   const auto now = std::chrono::steady_clock::now();
   while (recent_.size() > 1 && now - recent_.front().first > kRateWindow) recent_.pop_front();
@@ -73,6 +79,15 @@ std::string Metrics::Render(const Gauges& g) {
       out += fmt::format("springfit_jobs{{state=\"{}\"}} {}\n", proto::JobStateName(s),
                          it == g.jobs->end() ? 0 : it->second);
     }
+  }
+  {
+    std::lock_guard lock(mutex_);
+    header("springfit_jobs_finished_total", "counter",
+           "Jobs run on this daemon that ended, by state and by their result's verdict (usable, "
+           "unmet_request, unusable; none without a result).");
+    for (const auto& [key, count] : finished_)
+      out += fmt::format("springfit_jobs_finished_total{{state=\"{}\",verdict=\"{}\"}} {}\n",
+                         key.first, key.second, count);
   }
   header("springfit_running_jobs", "gauge", "Jobs running on this daemon.");
   out += fmt::format("springfit_running_jobs {}\n", g.running_here);

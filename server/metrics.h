@@ -31,6 +31,8 @@ class Metrics {
   // Evaluations done since the last call, by any job running here.
   void AddEvaluations(std::int64_t evaluations);
   void CountHttpRequest(int status);
+  // A job run here ended: counted by its state and, with a result, its verdict (verdict.h).
+  void CountFinished(proto::JobState state, const std::optional<Outcome>& outcome);
 
   struct Gauges {
     std::optional<std::map<proto::JobState, int>> jobs;  // null: the store did not answer
@@ -57,6 +59,8 @@ class Metrics {
   std::map<std::string, Requests, std::less<>> requests_;
   std::map<std::string, Latency, std::less<>> store_writes_;
   std::map<int, std::uint64_t> http_;
+  // (state, verdict or "none"): jobs finished here.
+  std::map<std::pair<std::string, std::string>, std::uint64_t> finished_;
   std::uint64_t evaluations_ = 0;
   // (time, evaluations so far): the last ten seconds, for a rate that needs no PromQL.
   std::deque<std::pair<std::chrono::steady_clock::time_point, std::uint64_t>> recent_;

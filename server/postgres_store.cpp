@@ -93,6 +93,10 @@ CREATE TABLE checkpoints (
     R"sql(
 CREATE INDEX jobs_preparing ON jobs (lease_expires) WHERE state = 'preparing';
 )sql",
+    // 3: a finished job's verdict and headline (proto/outcome_codec.h), for listings.
+    R"sql(
+ALTER TABLE jobs ADD COLUMN outcome TEXT;
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(std::size(kMigrations));
 static_assert(kMigrationCount == PostgresStore::kSchemaVersion);
@@ -100,8 +104,8 @@ static_assert(kMigrationCount == PostgresStore::kSchemaVersion);
 #define SF_JOB_COLUMNS                                                                      \
   "id, label, priority, seed, idempotency_key, state, error, scene_name, genes, strategy, " \
   "max_generations, created_at, started_at, finished_at, progress, checkpoint_generation, " \
-  "exact"
-constexpr int kJobColumnCount = 17;
+  "exact, outcome"
+constexpr int kJobColumnCount = 18;
 
 // The fence of every write of a running job: locks its row, so that no claim takes it
 // before the write's transaction ends, and fails unless the lease is still the job's.
@@ -169,8 +173,9 @@ const std::pair<const char*, const char*> kStatements[] = {
     {"set_checkpoint_generation", "UPDATE jobs SET checkpoint_generation = $2 WHERE id = $1"},
     {"finish",
      "UPDATE jobs SET state = $2, error = $3, result = NULLIF($4, ''), exact = CASE $5::int WHEN "
-     "-1 THEN NULL ELSE $5::int <> 0 END, finished_at = $6, lease_owner = NULL, lease_expires = 0 "
-     "WHERE id = $1"},
+     "-1 THEN NULL ELSE $5::int <> 0 END, finished_at = $6, outcome = NULLIF($7, ''), lease_owner "
+     "= "
+     "NULL, lease_expires = 0 WHERE id = $1"},
     {"drop_checkpoint", "DELETE FROM checkpoints WHERE job_id = $1"},
     {"rewind_trace", "DELETE FROM trace WHERE job_id = $1 AND generation > $2"},
     {"rewind_improvements", "DELETE FROM improvements WHERE job_id = $1 AND generation > $2"},
@@ -215,6 +220,7 @@ JobRecord ReadJob(const pqxx::row& q) {
   if (!q[14].is_null()) j.progress = StoredProgress(j.id, q[14].as<std::string>());
   j.checkpoint_generation = q[15].as<int>();
   if (!q[16].is_null()) j.exact = q[16].as<bool>();
+  if (!q[17].is_null()) j.outcome = StoredOutcome(j.id, q[17].as<std::string>());
   return j;
 }
 
@@ -621,14 +627,13 @@ void PostgresStore::SaveProgress(const Lease& lease, const ProgressBatch& b) {
   });
 }
 
-void PostgresStore::MarkFinished(const Lease& lease, JobState state, const std::string& error,
-                                 const std::string& result_json, std::optional<bool> exact,
-                                 double finished_at) {
+void PostgresStore::MarkFinished(const Lease& lease, const JobEnd& end) {
   Write([&](pqxx::connection& c) {
     pqxx::work w(c);
     Fence(w, lease);
-    w.exec_prepared("finish", lease.job_id, std::string(proto::JobStateName(state)), error,
-                    result_json, exact ? (*exact ? 1 : 0) : -1, finished_at);
+    w.exec_prepared("finish", lease.job_id, std::string(proto::JobStateName(end.state)), end.error,
+                    end.result_json, end.exact ? (*end.exact ? 1 : 0) : -1, end.finished_at,
+                    end.outcome_json);
     // A finished job is never resumed: its checkpoint is dead weight.
     w.exec_prepared("drop_checkpoint", lease.job_id);
     w.exec_prepared("notify", kChannel, "finished");

@@ -28,7 +28,7 @@ namespace springfit::server {
 
 class PostgresStore final : public JobStore {
  public:
-  static constexpr int kSchemaVersion = 2;
+  static constexpr int kSchemaVersion = 3;
 
   // `url`: a libpq URI (postgresql://...), without a password; `password`: empty for libpq's
   // defaults (PGPASSWORD, PGPASSFILE). Connects, migrates; throws std::runtime_error.
@@ -48,9 +48,7 @@ class PostgresStore final : public JobStore {
   LeaseStatus RenewLease(const Lease& lease, double lease_seconds) override;
   void ReleaseLease(const Lease& lease) override;
   void SaveProgress(const Lease& lease, const ProgressBatch& batch) override;
-  void MarkFinished(const Lease& lease, JobState state, const std::string& error,
-                    const std::string& result_json, std::optional<bool> exact,
-                    double finished_at) override;
+  void MarkFinished(const Lease& lease, const JobEnd& end) override;
   void RewindTo(const Lease& lease, int generation) override;
   CancelOutcome RequestCancel(std::int64_t id) override;
   std::optional<std::string> GetResult(std::int64_t id) override;

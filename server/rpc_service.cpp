@@ -558,7 +558,7 @@ JobRecord RpcService::Prepare(const JobStore::Created& created, Scene scene,
       r.state = JobState::kCancelled;
       r.finished_at = UnixNow();
       try {
-        store_.MarkFinished(lease, r.state, "", "", std::nullopt, r.finished_at);
+        store_.MarkFinished(lease, {r.state, "", "", std::nullopt, r.finished_at, ""});
       } catch (const LeaseLost&) {
         throw RecordLost();
       }

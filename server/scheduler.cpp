@@ -353,6 +353,7 @@ void Scheduler::RunClaimed(const Claim& claim) {
   const JobRecord after =
       RunJob(store_, pool_, claim, std::move(prepared), options_.runner, control);
   if (proto::IsFinal(after.state)) {
+    if (options_.metrics) options_.metrics->CountFinished(after.state, after.outcome);
     std::optional<JobRecord> final_record;
     try {
       final_record = store_.GetJob(id);

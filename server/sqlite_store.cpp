@@ -92,6 +92,10 @@ CREATE INDEX jobs_to_claim ON jobs (priority DESC, id) WHERE state IN ('queued',
     R"sql(
 CREATE INDEX jobs_preparing ON jobs (lease_expires) WHERE state = 'preparing';
 )sql",
+    // 4: a finished job's verdict and headline (proto/outcome_codec.h), for listings.
+    R"sql(
+ALTER TABLE jobs ADD COLUMN outcome TEXT;
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(std::size(kMigrations));
 static_assert(kMigrationCount == SqliteStore::kSchemaVersion);
@@ -99,8 +103,8 @@ static_assert(kMigrationCount == SqliteStore::kSchemaVersion);
 constexpr const char* kJobColumns =
     "id, label, priority, seed, idempotency_key, state, error, scene_name, genes, strategy, "
     "max_generations, "
-    "created_at, started_at, finished_at, progress, checkpoint_generation, exact";
-constexpr int kJobColumnCount = 17;
+    "created_at, started_at, finished_at, progress, checkpoint_generation, exact, outcome";
+constexpr int kJobColumnCount = 18;
 
 JobRecord ReadJob(SQLite::Statement& q) {
   JobRecord j;
@@ -121,6 +125,7 @@ JobRecord ReadJob(SQLite::Statement& q) {
   if (!q.getColumn(14).isNull()) j.progress = StoredProgress(j.id, q.getColumn(14).getString());
   j.checkpoint_generation = q.getColumn(15).getInt();
   if (!q.getColumn(16).isNull()) j.exact = q.getColumn(16).getInt() != 0;
+  if (!q.getColumn(17).isNull()) j.outcome = StoredOutcome(j.id, q.getColumn(17).getString());
   return j;
 }
 
@@ -646,29 +651,32 @@ void SqliteStore::SaveProgress(const Lease& lease, const ProgressBatch& b) {
   });
 }
 
-void SqliteStore::MarkFinished(const Lease& lease, JobState state, const std::string& error,
-                               const std::string& result_json, std::optional<bool> exact,
-                               double finished_at) {
+void SqliteStore::MarkFinished(const Lease& lease, const JobEnd& end) {
   Run([&](SQLite::Database& db) {
     SQLite::Transaction tx(db, SQLite::TransactionBehavior::IMMEDIATE);
     CheckLease(db, lease);
     SQLite::Statement q(db,
                         "UPDATE jobs SET state = ?, error = ?, result = ?, exact = ?, finished_at "
-                        "= ?, lease_owner = NULL, lease_expires = 0 WHERE id = ?");
-    q.bind(1, std::string(proto::JobStateName(state)));
-    q.bind(2, error);
-    if (result_json.empty()) {
+                        "= ?, outcome = ?, lease_owner = NULL, lease_expires = 0 WHERE id = ?");
+    q.bind(1, std::string(proto::JobStateName(end.state)));
+    q.bind(2, end.error);
+    if (end.result_json.empty()) {
       q.bind(3);
     } else {
-      q.bind(3, result_json);
+      q.bind(3, end.result_json);
     }
-    if (exact) {
-      q.bind(4, *exact ? 1 : 0);
+    if (end.exact) {
+      q.bind(4, *end.exact ? 1 : 0);
     } else {
       q.bind(4);
     }
-    q.bind(5, finished_at);
-    q.bind(6, lease.job_id);
+    q.bind(5, end.finished_at);
+    if (end.outcome_json.empty()) {
+      q.bind(6);
+    } else {
+      q.bind(6, end.outcome_json);
+    }
+    q.bind(7, lease.job_id);
     q.exec();
     // A finished job is never resumed: its checkpoint is dead weight.
     SQLite::Statement d(db, "DELETE FROM checkpoints WHERE job_id = ?");

@@ -30,7 +30,7 @@ namespace springfit::server {
 
 class SqliteStore final : public JobStore {
  public:
-  static constexpr int kSchemaVersion = 3;
+  static constexpr int kSchemaVersion = 4;
 
   // Opens or creates the database; throws std::runtime_error with the reason.
   explicit SqliteStore(const std::string& path);
@@ -49,9 +49,7 @@ class SqliteStore final : public JobStore {
   LeaseStatus RenewLease(const Lease& lease, double lease_seconds) override;
   void ReleaseLease(const Lease& lease) override;
   void SaveProgress(const Lease& lease, const ProgressBatch& batch) override;
-  void MarkFinished(const Lease& lease, JobState state, const std::string& error,
-                    const std::string& result_json, std::optional<bool> exact,
-                    double finished_at) override;
+  void MarkFinished(const Lease& lease, const JobEnd& end) override;
   void RewindTo(const Lease& lease, int generation) override;
   CancelOutcome RequestCancel(std::int64_t id) override;
   std::optional<std::string> GetResult(std::int64_t id) override;

@@ -13,6 +13,7 @@
 #include "engine/direct/identifiability.h"
 #include "engine/fem/closed_form_baseline.h"
 #include "engine/identification/trace.h"
+#include "engine/identification/verdict.h"
 #include "engine/problem.h"
 #include "engine/response/generalization.h"
 #include "engine/search/fitness_evaluator.h"
@@ -30,12 +31,14 @@ struct IdentificationResult {
   std::vector<double> stiffness;  // per spring of `springs`: identified, or the training stiffness
   Evaluation evaluation;          // of the best model, per load case
 
-  // The model is an answer: it carries every load case, its equilibria were found, and it
+  // The verdict and the headline numbers, decided once at the end of RunIdentification
+  // (verdict.h): every surface shows them and the exit codes follow them.
+  Outcome outcome;
+  // The model is an answer: it carries every load case, its equilibria were found, it
   // predicts the reference better than the rest shape does (normalised error < 1; a model
-  // predicting no displacement at all scores exactly 1). `springfit run` exits 3 otherwise.
-  bool usable() const {
-    return !evaluation.mechanism && evaluation.converged && evaluation.normalized_error < 1.0;
-  }
+  // predicting no displacement at all scores exactly 1), and no load on the user's supports
+  // finds a mode it leaves free. `springfit run` exits 10 otherwise.
+  bool usable() const { return outcome.verdict != Verdict::kUnusable; }
   std::optional<TopologyDifference> difference;  // against the reference, when known
   int generations = 0;                           // bred after the initial population
   int best_generation = 0;                       // when the best was found

@@ -187,6 +187,7 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
   r.difference = problem.CompareWithReference(r.best);
   if (r.stiffness.empty()) r.stiffness.assign(r.springs.size(), problem.training_stiffness());
   if (r.stop_message.empty()) r.stop_message = StopMessage(r);
+  r.outcome = JudgeResult(problem, r);
   return r;
 }
 

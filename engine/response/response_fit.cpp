@@ -395,15 +395,30 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
   const std::vector<double> score = PreferSupported(path_errors, path_lambdas, options);
   best_on_path = *std::min_element(score.begin(), score.end());
   r.chosen = 0;
+  // Within a budget: the best point that is a model (a finite choosing error, every mode held);
+  // when none is, the choice without a budget, and the verdict says the budget was not met
+  // (engine/identification/verdict.h) rather than returning a mechanism that meets it.
+  // (Among those points alone a supported one is preferred when nearly as good.)
+  int within = -1;
   if (options.max_springs > 0) {
-    r.chosen = static_cast<int>(r.path.size()) - 1;  // the smallest, unless one is within
-    double best_within = kNoModel;
+    std::vector<int> models;
+    std::vector<double> errors, lambdas;
     for (std::size_t i = 0; i < r.path.size(); ++i) {
-      if (r.path[i].springs <= options.max_springs && score[i] < best_within) {
-        best_within = score[i];
-        r.chosen = static_cast<int>(i);
+      if (r.path[i].springs <= options.max_springs && r.path[i].lambda_min > 0.0 &&
+          r.path[i].select_error < kNoModel) {
+        models.push_back(static_cast<int>(i));
+        errors.push_back(r.path[i].select_error);
+        lambdas.push_back(r.path[i].lambda_min);
       }
     }
+    if (!models.empty()) {
+      const std::vector<double> within_score = PreferSupported(errors, lambdas, options);
+      within = models[static_cast<std::size_t>(
+          std::min_element(within_score.begin(), within_score.end()) - within_score.begin())];
+    }
+  }
+  if (within >= 0) {
+    r.chosen = within;
   } else {
     for (std::size_t i = 0; i < r.path.size(); ++i) {
       if (score[i] <= (1.0 + options.tolerance) * best_on_path &&

@@ -61,7 +61,9 @@ struct ResponseFitOptions {
   double min_lambda = 0.1;
   double lambda_slack = 0.1;
   // A spring budget (> 0): the path runs at least down to it, and the returned point is the
-  // one with the lowest choosing error within it (the smallest when none is). 0: none.
+  // one with the lowest choosing error within it among the models (every mode held); when no
+  // point within it is one, the point chosen as without a budget (the verdict then says the
+  // budget is not met). 0: none.
   int max_springs = 0;
   QuadraticNnlsOptions nnls;
 

@@ -41,14 +41,30 @@ wait_for_checkpoint() {
   return 1
 }
 
+# The exit codes a finished job's result may give: its verdict's (usable 0, unusable 10, unmet
+# request 11), the same as `springfit run`'s of the same scene.
+verdict_code() { case $1 in 0|10|11) return 0 ;; *) return 1 ;; esac; }
+# Watches job $1 to its end; its exit code in $watched.
+watch_job() {
+  "$sf" watch "$1" -q >/dev/null
+  watched=$?
+  verdict_code "$watched" || fail "watch $1: exit $watched"
+}
+
 # The daemon's result and trace of job $1 equal a local run of scene $2 with the flags after it,
 # wall times and cache hits aside (a job resumed from a checkpoint starts with an empty fitness
 # cache, which changes only how many evaluations it answers from the cache).
 expect_same_as_local() {
   local id=$1 scene=$2; shift 2
-  "$sf" result "$id" --json >"$tmp/daemon.json" || fail "result $id"
+  "$sf" result "$id" --json >"$tmp/daemon.json"
+  local result_code=$?
+  verdict_code "$result_code" || fail "result $id: exit $result_code"
   "$sf" trace "$id" --csv | cut -d, -f1,3,5- >"$tmp/daemon.csv"
   "$sf" run "$scene" "$@" --json -q --threads 1 --trace "$tmp/local_full.csv" >"$tmp/local.json"
+  local local_code=$?
+  # One verdict: watch, result and a local run exit alike.
+  [ "$result_code" = "$local_code" ] || fail "job $id: result exits $result_code, a local run $local_code"
+  [ "$watched" = "$local_code" ] || fail "job $id: watch exited $watched, a local run $local_code"
   cut -d, -f1,3,5- "$tmp/local_full.csv" >"$tmp/local.csv"  # wall time and cache hits aside
   cmp -s "$tmp/daemon.csv" "$tmp/local.csv" || fail "job $id: trace differs from an uninterrupted local run"
   python3 - "$tmp/daemon.json" "$tmp/local.json" <<'PY' || fail "job $id: result differs from an uninterrupted local run"
@@ -80,7 +96,7 @@ start_daemon
 # (The resume is logged just after the daemon listens: wait for the line, bounded.)
 for _ in $(seq 100); do grep -q "resumed from its checkpoint" "$tmp/daemon.log" && break; sleep 0.1; done
 grep -q "resumed from its checkpoint" "$tmp/daemon.log" || fail "the restart did not resume job $id from a checkpoint"
-"$sf" watch "$id" -q >/dev/null || fail "watch $id after the restart: exit $?"
+watch_job "$id"
 expect_same_as_local "$id" "$kidney" "${run_flags[@]}" --seed 5
 "$sf" result "$kept_id" --json >"$tmp/kept_after.json"
 cmp -s "$tmp/kept_before.json" "$tmp/kept_after.json" || fail "a finished job changed across the crash"
@@ -98,11 +114,12 @@ start_daemon
 "$sf" status "$id2" --json >"$tmp/s2.json"
 state=$(json_field "$tmp/s2.json" state)
 [ "$state" = running ] || [ "$state" = queued ] || [ "$state" = succeeded ] || fail "job $id2 after the restart: $state"
-"$sf" watch "$id2" -q >/dev/null || fail "watch $id2: exit $?"
+watch_job "$id2"
 expect_same_as_local "$id2" "$kidney" "${run_flags[@]}" --seed 6
 
 # result -o carries the trace; exit codes of a cancelled job and of a job not found.
-"$sf" result "$id2" -o "$tmp/r.json" >/dev/null || fail "result -o"
+"$sf" result "$id2" -o "$tmp/r.json" >/dev/null
+verdict_code $? || fail "result -o"
 python3 -c "import json,sys; r=json.load(open(sys.argv[1])); assert len(r['trace'])==r['generations']+1" "$tmp/r.json" \
   || fail "result -o: the trace has one row per generation"
 # render and plot by job id; result -o carries the scene, so its file renders offline too.
@@ -119,8 +136,9 @@ cmp -s "$tmp/m-id.json" "$tmp/m-file.json" || fail "export by id and of result -
 gmsh "$src/examples/pipeline/inclusion.geo" -2 -o "$tmp/inclusion.msh" >/dev/null || fail "gmsh"
 "$sf" import "$tmp/inclusion.msh" --loads "$src/examples/pipeline/inclusion-loads.json" -o "$tmp/inclusion.json" 2>/dev/null || fail "import"
 id_mesh=$("$sf" submit "$tmp/inclusion.msh" --loads "$src/examples/pipeline/inclusion-loads.json" --max-springs 700 2>/dev/null) || fail "submit a mesh"
-"$sf" watch "$id_mesh" -q >/dev/null || fail "watch the mesh's job"
-"$sf" result "$id_mesh" -o "$tmp/mesh-result.json" >/dev/null || fail "result of the mesh's job"
+watch_job "$id_mesh"
+"$sf" result "$id_mesh" -o "$tmp/mesh-result.json" >/dev/null
+[ $? = "$watched" ] || fail "result of the mesh's job: another exit code than its watch's ($watched)"
 python3 - "$tmp/mesh-result.json" "$tmp/inclusion.json" <<'PY' || fail "the job ran the imported scene"
 import json, sys
 r = json.load(open(sys.argv[1]))
@@ -143,10 +161,34 @@ id3=$("$sf" submit "$kidney" --strategy paper --generations 100000 2>/dev/null)
 # An FEM reference through the daemon: the same result as a local run, with E and the baseline.
 fem="$src/examples/fem-kidney-2d-nl.json"
 fem_id=$("$sf" submit "$fem" --strategy paper --generations 5 --seed 3 2>/dev/null) || fail "submit fem"
-"$sf" watch "$fem_id" -q >/dev/null || fail "watch fem job $fem_id: exit $?"
+watch_job "$fem_id"
 expect_same_as_local "$fem_id" "$fem" --strategy paper --generations 5 --seed 3
 python3 -c "import json,sys; r=json.load(open(sys.argv[1])); assert r['baseline']['recipe']=='van_gelder_1998' and r['rms_error']>0, r" \
   "$tmp/daemon.json" || fail "fem job result carries E and the baseline"
+
+# One verdict (issue 33): what `run` says of a model, the daemon says too, with the same exit
+# code. A useless model (direct on the FEM kidney: E above 1) is not "succeeded, exit 0".
+"$sf" submit "$src/examples/fem-kidney-2d.json" --strategy direct --label useless --wait >"$tmp/useless.txt" 2>&1
+code=$?
+[ $code -eq 10 ] || fail "submit --wait of a useless model: exit $code, expected 10 as run gives"
+grep -q "^NO USABLE MODEL: " "$tmp/useless.txt" || fail "submit --wait of a useless model says why: $(head -5 "$tmp/useless.txt")"
+useless_id=$("$sf" list --label useless --json | python3 -c "import json,sys; print(json.load(sys.stdin)['jobs'][0]['job_id'])")
+grep -q "job $useless_id: no usable model: " "$tmp/daemon.log" || fail "the daemon's log names the useless model"
+# A spring budget no model meets: the model and a WARNING line, exit 11, listed as such.
+"$sf" submit "$src/examples/fem-plate-5x5.json" --strategy continuous --max-springs 1 --label budget --wait >"$tmp/budget.txt" 2>&1
+code=$?
+[ $code -eq 11 ] || fail "submit --wait with an unmet spring budget: exit $code, expected 11"
+grep -q "^WARNING: *spring budget not met" "$tmp/budget.txt" || fail "no WARNING line for the unmet budget: $(head -5 "$tmp/budget.txt")"
+"$sf" run "$src/examples/fem-plate-5x5.json" --strategy continuous --max-springs 1 -q >/dev/null
+[ $? -eq 11 ] || fail "run with an unmet spring budget does not exit 11"
+"$sf" list --label budget >"$tmp/budget-list.txt"
+grep -q " succeeded  unmet_request " "$tmp/budget-list.txt" || fail "list does not show the verdict: $(cat "$tmp/budget-list.txt")"
+budget_id=$("$sf" list --label budget --json | python3 -c "import json,sys; print(json.load(sys.stdin)['jobs'][0]['job_id'])")
+"$sf" watch "$budget_id" -q >/dev/null
+[ $? -eq 11 ] || fail "watch of the unmet budget's job does not exit 11"
+"$sf" result "$budget_id" >/dev/null
+[ $? -eq 11 ] || fail "result of the unmet budget's job does not exit 11"
+"$sf" status "$budget_id" | grep -q "^verdict: *unmet_request: " || fail "status does not show the verdict"
 
 kill -TERM "$pid"
 wait "$pid"

@@ -139,6 +139,21 @@ def check_pages(rpc_port, port):
     status, _, page = get(port, f"/jobs/{done}")
     expect(re.search(r'<figure id="topology"><svg', page), "no result figure on the finished job's page")
     expect('id="identifiability"' in page, "no identifiability report")
+    # The page opens with the result card: the verdict and E as `springfit result` gives them.
+    result = json.loads(cli(rpc_port, "result", str(done), "--json").stdout)
+    card = page.find('id="result-card"')
+    expect(0 <= card < page.find('id="settings"') and card < page.find('id="topology"'),
+           "the finished job's page does not open with its result card")
+    expect('<strong class="verdict usable">usable</strong>' in page, "the card lacks the verdict")
+    expect(f"<th>springs</th><td>{len(result['springs'])}</td>" in page,
+           "the card's spring count is not the result's")
+    expect(f"<th>E (named cases)</th><td>{result['outcome']['rms_error']:.3g}</td>" in page,
+           "the card's E is not the result's")
+    expect("<th>settings submitted</th>" in page and "<th>option: max_generations</th>" in page,
+           "the card lacks the settings submitted and the options as run")
+    status, _, listing = get(port, "/?label=quick")
+    expect(f"<td>usable</td><td class=\"num\">{len(result['springs'])}</td>" in listing,
+           "/ does not list the verdict and springs")
     for link in ("result.json", "trace.csv", "model.vtu"):
         expect(f'/jobs/{done}/{link}"' in page, f"no link to {link}")
     status, headers, body = get(port, f"/jobs/{done}/result.json")
@@ -164,6 +179,8 @@ def check_pages(rpc_port, port):
     expect(status == 200 and headers["content-type"].startswith("text/plain; version=0.0.4"),
            "/metrics content type")
     for needle in ('springfit_jobs{state="running"} 1', 'springfit_jobs{state="succeeded"} 1',
+                   # The finished job's verdict, as `springfit run` gives it (issue 33).
+                   'springfit_jobs_finished_total{state="succeeded",verdict="usable"} 1',
                    "springfit_running_jobs 1", "springfit_queue_length 0",
                    'springfit_rpc_requests_total{method="job.submit"} 2',
                    'springfit_store_write_seconds_bucket{operation="progress",le="+Inf"}',

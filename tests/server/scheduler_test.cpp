@@ -102,12 +102,10 @@ class HookedStore final : public ForwardingStore {
     std::lock_guard lock(mutex_);
     return scene_reads_[id];
   }
-  void MarkFinished(const Lease& lease, JobState state, const std::string& error,
-                    const std::string& result_json, std::optional<bool> exact,
-                    double finished_at) override {
-    inner_.MarkFinished(lease, state, error, result_json, exact, finished_at);
+  void MarkFinished(const Lease& lease, const JobEnd& end) override {
+    inner_.MarkFinished(lease, end);
     std::lock_guard lock(mutex_);
-    finishes_[lease.job_id].push_back(state);
+    finishes_[lease.job_id].push_back(end.state);
   }
   // The next lease renewal stalls before it reaches the store (a stalled database) until
   // `until` holds (30 s at most).

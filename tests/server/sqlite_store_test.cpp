@@ -92,7 +92,8 @@ TEST_F(SqliteStoreTest, EveryAcknowledgedWriteSurvivesAPowerCut) {
     ASSERT_EQ(store.RequestCancel(cancelled), JobStore::CancelOutcome::kCancelled);
     const Claim second = *store.ClaimNext("daemon-a", 30.0);
     finished = second.job.id;
-    store.MarkFinished(second.lease, JobState::kSucceeded, "", R"({"stop":"target"})", true, 2e9);
+    store.MarkFinished(second.lease,
+                       {JobState::kSucceeded, "", R"({"stop":"target"})", true, 2e9, ""});
     EXPECT_GT(vfs.Syncs("-wal"), 0) << "nothing was synced: the VFS is not in use";
     vfs.Cut();
   }  // (its connections close as the process dies: their last checkpoint reaches nothing)

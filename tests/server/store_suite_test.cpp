@@ -20,6 +20,7 @@
 #include <gtest/gtest.h>
 #include <pqxx/pqxx>
 
+#include "proto/outcome_codec.h"
 #include "proto/scene_codec.h"
 #include "server/forwarding_store.h"
 #include "server/postgres_store.h"
@@ -193,7 +194,7 @@ TEST_P(StoreSuite, ADamagedRowIsReportedAsCorruptionNotAState) {
 TEST_P(StoreSuite, ListPagesAndFilters) {
   for (int i = 0; i < 7; ++i) Create(i % 2 ? "odd" : "even");
   const Claim first = ClaimOne("d");
-  store_->MarkFinished(first.lease, JobState::kSucceeded, "", "{}", true, 2e9);
+  store_->MarkFinished(first.lease, {JobState::kSucceeded, "", "{}", true, 2e9, ""});
   JobFilter f;
   f.limit = 3;
   std::vector<std::int64_t> ids;
@@ -303,10 +304,23 @@ TEST_P(StoreSuite, ProgressCheckpointRewindAndFinish) {
   store_->SaveProgress(lease, again);
   EXPECT_EQ(store_->GetTrace(id, 3, 10)[0].best_normalized_error, 0.01);
 
-  store_->MarkFinished(lease, JobState::kSucceeded, "", R"({"cost":0})", false, 1.7e9);
+  // The verdict is kept beside the result and read back with the job (listings).
+  Outcome outcome;
+  outcome.verdict = Verdict::kUnmetRequest;
+  outcome.springs = 759;
+  outcome.rms_error = 0.038;
+  outcome.unmet = {"spring budget not met"};
+  store_->MarkFinished(lease, {JobState::kSucceeded, "", R"({"cost":0})", false, 1.7e9,
+                               proto::OutcomeToJson(outcome).dump()});
   EXPECT_FALSE(store_->GetCheckpoint(id));  // a finished job never resumes
   EXPECT_EQ(*store_->GetResult(id), R"({"cost":0})");
   EXPECT_EQ(store_->GetJob(id)->exact, std::optional<bool>(false));
+  const std::optional<Outcome> stored = store_->GetJob(id)->outcome;
+  ASSERT_TRUE(stored);
+  EXPECT_EQ(stored->verdict, Verdict::kUnmetRequest);
+  EXPECT_EQ(stored->springs, 759);
+  EXPECT_EQ(stored->rms_error, std::optional<double>(0.038));
+  EXPECT_EQ(stored->unmet, outcome.unmet);
   EXPECT_EQ(store_->GetJob(id)->state, JobState::kSucceeded);
   EXPECT_TRUE(store_->UnfinishedJobs().empty());
 }
@@ -335,7 +349,7 @@ TEST_P(StoreSuite, AnExpiredLeaseIsClaimedAgainAndItsOldHolderCannotWrite) {
   late.checkpoint_generation = 1;
   EXPECT_THROW(store_->SaveProgress(old_lease, late), LeaseLost);
   EXPECT_THROW(store_->RewindTo(old_lease, -1), LeaseLost);
-  EXPECT_THROW(store_->MarkFinished(old_lease, JobState::kSucceeded, "", "{}", true, 2e9),
+  EXPECT_THROW(store_->MarkFinished(old_lease, {JobState::kSucceeded, "", "{}", true, 2e9, ""}),
                LeaseLost);
   EXPECT_FALSE(store_->RenewLease(old_lease, 30.0).held);
   store_->ReleaseLease(old_lease);  // a no-op: not its lease
@@ -346,7 +360,7 @@ TEST_P(StoreSuite, AnExpiredLeaseIsClaimedAgainAndItsOldHolderCannotWrite) {
   EXPECT_EQ(store_->GetJob(id)->state, JobState::kRunning);
 
   store_->SaveProgress(taken.lease, late);
-  store_->MarkFinished(taken.lease, JobState::kSucceeded, "", "{}", true, 2e9);
+  store_->MarkFinished(taken.lease, {JobState::kSucceeded, "", "{}", true, 2e9, ""});
   EXPECT_EQ(store_->GetJob(id)->state, JobState::kSucceeded);
   // A finished job's lease is no one's.
   EXPECT_THROW(store_->SaveProgress(taken.lease, late), LeaseLost);
@@ -391,7 +405,7 @@ TEST_P(StoreSuite, CancelsAreRequestsTheRunnersHeartbeatReads) {
   std::this_thread::sleep_for(400ms);
   const Claim again = ClaimOne("daemon-b");
   EXPECT_TRUE(again.cancel_requested);
-  store_->MarkFinished(again.lease, JobState::kCancelled, "", "{}", std::nullopt, 2e9);
+  store_->MarkFinished(again.lease, {JobState::kCancelled, "", "{}", std::nullopt, 2e9, ""});
   EXPECT_EQ(store_->RequestCancel(running), JobStore::CancelOutcome::kNotActive);
   EXPECT_EQ(store_->RequestCancel(12345), JobStore::CancelOutcome::kNotActive);
 }
@@ -447,7 +461,7 @@ TEST_P(StoreSuite, PreparingJobsAreHeldListedCancellableAndNeverClaimed) {
   EXPECT_EQ(cancelled->state, JobState::kCancelled);
   EXPECT_GT(cancelled->finished_at, 0.0);
   const auto c = Preparing("c");
-  store_->MarkFinished(c.lease, JobState::kCancelled, "", "", std::nullopt, 2e9);
+  store_->MarkFinished(c.lease, {JobState::kCancelled, "", "", std::nullopt, 2e9, ""});
   EXPECT_EQ(store_->GetJob(c.job.id)->state, JobState::kCancelled);
 
   // Refused: deleted, by its holder only. Preparing jobs count toward the queue bound.
@@ -477,7 +491,7 @@ TEST_P(StoreSuite, DeleteRemovesEverythingOfAFinishedJobOnly) {
   b.checkpoint_generation = 0;
   store_->SaveProgress(lease, b);
   EXPECT_FALSE(store_->DeleteJob(id)) << "deleted a running job";
-  store_->MarkFinished(lease, JobState::kFailed, "boom", "", std::nullopt, 1.7e9);
+  store_->MarkFinished(lease, {JobState::kFailed, "boom", "", std::nullopt, 1.7e9, ""});
   EXPECT_EQ(store_->GetJob(id)->error, "boom");
   EXPECT_FALSE(store_->GetResult(id));
   EXPECT_TRUE(store_->DeleteJob(id));
