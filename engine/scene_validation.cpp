@@ -365,6 +365,30 @@ void CheckSearch(const Scene& scene) {
                      "sets the probe loads of the continuous fit: it needs strategy continuous "
                      "(or default on an FEM reference)");
   }
+  // The genetic search's settings, where no genetic search runs (issue 33: an option that
+  // does nothing is refused, naming the one that acts).
+  if (runs == Strategy::kContinuous || runs == Strategy::kDirect) {
+    const std::string ran = std::string(runs == Strategy::kContinuous ? "continuous" : "direct") +
+                            (s.strategy == Strategy::kDefault ? " (default for this scene)" : "");
+    const auto refuse = [&](const char* field, const char* flag) {
+      throw InputError(std::string("search.") + field,
+                       std::string("is read by the genetic search only (--") + flag +
+                           "), and this scene runs strategy " + ran +
+                           (runs == Strategy::kContinuous
+                                ? ": the fit's stopping choice is search.target_error "
+                                  "(--target-error E, the relative RMS error), its size "
+                                  "search.max_springs (--max-springs)"
+                                : "") +
+                           "; leave it out, or run strategy paper or hybrid");
+    };
+    if (s.population) refuse("population", "population");
+    if (s.crossover_probability) refuse("crossover_probability", "crossover");
+    if (s.mutation_probability) refuse("mutation_probability", "mutation");
+    if (s.stall_generations) refuse("stall_generations", "stall");
+    // (Direct reads the target: a model above it is not_reproduced.)
+    if (runs == Strategy::kContinuous && s.target_normalized_error > 0.0)
+      refuse("target_normalized_error", "target");
+  }
   if (s.probes && *s.probes > 0 && scene.reference.kind == Reference::Kind::kPositions) {
     throw InputError("search.probes",
                      "a positions reference (measurements) cannot be probed: its model is "

@@ -348,6 +348,9 @@ expect_exit 2 "plot tradeoff without a path" "$sf" plot --tradeoff "$tmp/result.
 grep -q "has no sparsity path" "$tmp/err" || fail "tradeoff names what is missing: $(cat "$tmp/err")"
 expect_exit 2 "max-springs with hybrid" "$sf" run "$src/examples/paper-iso-5x5.json" --strategy hybrid --max-springs 5
 grep -q "search.max_springs: chooses a point of the sparsity path" "$tmp/err" || fail "max-springs needs continuous: $(cat "$tmp/err")"
+# An option the strategy that runs ignores is refused, naming the one that acts (issue 33).
+expect_exit 2 "target with continuous" "$sf" run "$src/examples/fem-plate-5x5.json" --target 0.01
+grep -q "search.target_normalized_error: is read by the genetic search only (--target).*--target-error" "$tmp/err" || fail "--target with continuous names --target-error: $(cat "$tmp/err")"
 # The regularisation: auto cross-validates each strength and runs with the lowest held-out E.
 expect_exit 0 "run regularization auto" "$sf" run "$src/examples/fem-plate-5x5.json" --probes none --regularization auto -o "$tmp/regularized.json"
 grep -q "^regularization:    .*, the lowest held-out E of those tried (0: .*, 0.001: .*, 0.01: .*, 0.1: " "$tmp/out" || fail "run prints the regularisation: $(cat "$tmp/out")"

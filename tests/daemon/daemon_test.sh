@@ -174,6 +174,17 @@ code=$?
 grep -q "^NO USABLE MODEL: " "$tmp/useless.txt" || fail "submit --wait of a useless model says why: $(head -5 "$tmp/useless.txt")"
 useless_id=$("$sf" list --label useless --json | python3 -c "import json,sys; print(json.load(sys.stdin)['jobs'][0]['job_id'])")
 grep -q "job $useless_id: no usable model: " "$tmp/daemon.log" || fail "the daemon's log names the useless model"
+# An option the strategy that runs ignores is refused at the door, as run refuses it.
+python3 - "$src/examples/fem-plate-5x5.json" "$tmp/plate-target.json" <<'PY'
+import json, sys
+scene = json.load(open(sys.argv[1]))
+scene["search"] = {"target_normalized_error": 0.01}
+json.dump(scene, open(sys.argv[2], "w"))
+PY
+"$sf" submit "$tmp/plate-target.json" >/dev/null 2>"$tmp/target.err"
+code=$?
+[ $code -eq 2 ] || fail "submit of a continuous scene with a genetic target: exit $code, expected 2"
+grep -q "search.target_normalized_error: is read by the genetic search only" "$tmp/target.err" || fail "the refusal names the setting: $(cat "$tmp/target.err")"
 # A spring budget no model meets: the model and a WARNING line, exit 11, listed as such.
 "$sf" submit "$src/examples/fem-plate-5x5.json" --strategy continuous --max-springs 1 --label budget --wait >"$tmp/budget.txt" 2>&1
 code=$?

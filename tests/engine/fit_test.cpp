@@ -464,5 +464,40 @@ TEST(ContinuousStrategy, SettingsThatDoNotFitTheStrategyAreRefused) {
   EXPECT_THROW(Problem::Build(s), InputError);
 }
 
+// The genetic search's settings where no genetic search runs (issue 33 item 5): refused, naming
+// the setting that acts; accepted where one runs.
+TEST(ContinuousStrategy, GeneticSettingsAreRefusedWhereNoGeneticSearchRuns) {
+  const auto message = [](const Scene& s) -> std::string {
+    try {
+      Problem::Build(s);
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  Scene s = examples::Make("fem-plate-5x5");  // default: continuous
+  s.search.target_normalized_error = 0.01;
+  std::string m = message(s);
+  EXPECT_NE(m.find("search.target_normalized_error"), std::string::npos) << m;
+  EXPECT_NE(m.find("--target-error"), std::string::npos) << m;
+  s.search.target_normalized_error = 0.0;
+  s.search.population = 20;
+  m = message(s);
+  EXPECT_NE(m.find("search.population"), std::string::npos) << m;
+  s.search.strategy = Strategy::kPaper;
+  EXPECT_EQ(message(s), "");
+  s = examples::Make("paper-iso-5x5");
+  s.search.strategy = Strategy::kDirect;
+  s.search.stall_generations = 5;
+  m = message(s);
+  EXPECT_NE(m.find("search.stall_generations"), std::string::npos) << m;
+  s.search.stall_generations.reset();
+  s.search.target_normalized_error = 0.01;  // direct reads the target
+  EXPECT_EQ(message(s), "");
+  s.search.strategy = Strategy::kHybrid;
+  s.search.mutation_probability = 0.1;
+  EXPECT_EQ(message(s), "");
+}
+
 }  // namespace
 }  // namespace springfit
