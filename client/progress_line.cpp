@@ -78,12 +78,13 @@ void ProgressLine::Report(const TraceRow& row, bool last) {
     eta = "  ETA <= " +
           ClockText(row.wall_seconds / row.generation * (max_generations_ - row.generation));
   }
-  // The most telling first, so that a narrow terminal cuts the least: progress, error, the
-  // topology's distance, time and ETA, then the evaluation rate and the cost.
+  // The most telling first, so that a narrow terminal cuts the least: progress, E (the one
+  // error measure shown, proto/RUN.md), the topology's distance, time and ETA, then the
+  // evaluation rate.
   char line[320];
-  std::snprintf(line, sizeof line, "gen %d/%d  error %.4g%s  %s%s  %.0f eval/s  cost %.4g",
-                row.generation, max_generations_, row.best_normalized_error, topology.c_str(),
-                ClockText(row.wall_seconds).c_str(), eta.c_str(), rate, row.best_cost);
+  std::snprintf(line, sizeof line, "gen %d/%d  E %.4g%s  %s%s  %.0f eval/s", row.generation,
+                max_generations_, std::sqrt(row.best_normalized_error), topology.c_str(),
+                ClockText(row.wall_seconds).c_str(), eta.c_str(), rate);
   Show(line, last);
 }
 
@@ -97,7 +98,7 @@ void ProgressLine::Show(const char* line, bool last) const {
   std::fflush(stderr);
 }
 
-void ProgressLine::Beat(const ProgressBeat& beat, double reference_norm2) {
+void ProgressLine::Beat(const ProgressBeat& beat) {
   if (quiet_) return;
   // Beats come about once a second: a terminal shows each, a log one every two seconds.
   // (A new phase starts its own clock: its first beat is shown.)
@@ -108,11 +109,9 @@ void ProgressLine::Beat(const ProgressBeat& beat, double reference_norm2) {
   char line[320];
   if (beat.phase == "genetic" && !std::isnan(beat.best_normalized_error)) {
     std::snprintf(line, sizeof line,
-                  "generation %d/%d in progress  best cost %.4g  normalized error %.4g  %lld "
-                  "evaluations  %.1f s",
-                  beat.generation, max_generations_, beat.best_normalized_error * reference_norm2,
-                  beat.best_normalized_error, static_cast<long long>(beat.evaluations),
-                  beat.wall_seconds);
+                  "generation %d/%d in progress  E %.4g  %lld evaluations  %.1f s", beat.generation,
+                  max_generations_, std::sqrt(beat.best_normalized_error),
+                  static_cast<long long>(beat.evaluations), beat.wall_seconds);
   } else if (beat.phase == "fit" && !std::isnan(beat.best_normalized_error)) {
     std::snprintf(line, sizeof line, "fit step %lld in progress  E %.4g  %.1f s",
                   static_cast<long long>(beat.evaluations), std::sqrt(beat.best_normalized_error),

@@ -23,8 +23,8 @@ class ProgressLine {
   // `last`: the final row (ends the live line).
   void Report(const TraceRow& row, bool last);
   // Inside a step: the generation in progress as far as it has got, or the phase before the
-  // genetic one (analysis, direct) with its clock. `reference_norm2` turns errors into costs.
-  void Beat(const ProgressBeat& beat, double reference_norm2);
+  // genetic one (analysis, direct) with its clock.
+  void Beat(const ProgressBeat& beat);
 
  private:
   // Redrawn in place on a terminal (`last` ends the line), a line of its own otherwise.

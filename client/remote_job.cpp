@@ -80,7 +80,10 @@ class DetachOnInterrupt {
 Json WatchJob(RpcClient& client, std::int64_t job_id, bool quiet) {
   const DetachOnInterrupt detach(job_id);
   const Json job = client.Call("job.watch", JobIdParams(job_id));
-  ProgressLine progress(job.value("max_generations", 0), quiet);
+  // A continuous job's rows are steps of its fit, not generations (the job's strategy is the
+  // one that runs, `default` resolved when it was prepared).
+  ProgressLine progress(job.value("max_generations", 0), quiet,
+                        job.value("strategy", std::string()) == "continuous");
   while (true) {
     const Json n = client.NextNotification();
     const Json& p = n["params"];

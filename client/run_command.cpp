@@ -97,7 +97,7 @@ int Run(const RunArgs& args) {
     return !g_interrupted.load();
   };
   run.on_beat = [&](const ProgressBeat& beat) {
-    progress.Beat(beat, problem.reference_norm2());
+    progress.Beat(beat);
     return !g_interrupted.load();
   };
   if (!args.quiet) {

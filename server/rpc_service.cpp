@@ -594,6 +594,8 @@ JobRecord RpcService::Prepare(const JobStore::Created& created, Scene scene,
   }
   r.genes = problem->gene_count();
   r.max_generations = options.max_generations;
+  // The strategy that runs, `default` resolved (the stored scene keeps what was asked).
+  r.strategy = proto::StrategyName(ResolvedStrategy(options.strategy, problem->scene()));
   try {
     r.state = store_.FinishPreparing(lease, r);
   } catch (const LeaseLost&) {

@@ -185,6 +185,13 @@ PY
 code=$?
 [ $code -eq 2 ] || fail "submit of a continuous scene with a genetic target: exit $code, expected 2"
 grep -q "search.target_normalized_error: is read by the genetic search only" "$tmp/target.err" || fail "the refusal names the setting: $(cat "$tmp/target.err")"
+# One vocabulary per strategy: a continuous job is shown by its fit's steps and E, never as
+# generations with an ETA, and the job names the strategy that ran.
+"$sf" submit "$src/examples/fem-plate-5x5.json" --label vocabulary --watch >/dev/null 2>"$tmp/vocabulary.err"
+grep -q "^fit step [0-9]*  E " "$tmp/vocabulary.err" || fail "submit --watch of a continuous job does not show its fit steps: $(head -3 "$tmp/vocabulary.err")"
+! grep -q "^gen \|ETA" "$tmp/vocabulary.err" || fail "a continuous job is shown as a genetic run: $(grep -m1 "^gen \|ETA" "$tmp/vocabulary.err")"
+"$sf" list --label vocabulary --json | python3 -c "import json,sys; j=json.load(sys.stdin)['jobs'][0]; assert j['strategy']=='continuous', j['strategy']" \
+  || fail "the job does not name the strategy that ran"
 # A spring budget no model meets: the model and a WARNING line, exit 11, listed as such.
 "$sf" submit "$src/examples/fem-plate-5x5.json" --strategy continuous --max-springs 1 --label budget --wait >"$tmp/budget.txt" 2>&1
 code=$?
