@@ -2,6 +2,7 @@
 // or from a daemon's job (README.md, "Figures").
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -126,6 +127,8 @@ int PlotTradeoff(const PlotArgs& a) {
     curve.label = where + ": " + Describe(typed);
     for (const auto& p : typed.path) curve.points.emplace_back(p.springs, p.rms_error);
     if (typed.chosen) curve.chosen = static_cast<std::size_t>(*typed.chosen);
+    if (typed.rms_error)
+      curve.returned = {static_cast<int>(typed.springs.size()), *typed.rms_error};
     curve.baseline_error = typed.baseline_rms_error;
     curve.baseline_springs = typed.baseline_springs;
     curves.push_back(std::move(curve));
@@ -148,8 +151,9 @@ ErrorCurve CurveOf(const std::vector<TraceRow>& rows, std::string label, const s
   double best = std::numeric_limits<double>::infinity();
   for (const TraceRow& row : rows) {
     // Exact recovery as the search counts it (proto/RUN.md), drawn as 0.
-    const double e =
-        row.best_normalized_error <= kExactNormalizedError ? 0.0 : row.best_normalized_error;
+    const double e = row.best_normalized_error <= kExactNormalizedError
+                         ? 0.0
+                         : std::sqrt(row.best_normalized_error);
     if (e < best || curve.points.empty()) curve.points.emplace_back(XOf(row, x), e);
     best = std::min(best, e);
   }
@@ -235,7 +239,7 @@ void RegisterFigureCommands(CLI::App& app, int& exit_code) {
   {
     auto args = std::make_shared<PlotArgs>();
     auto* cmd = app.add_subcommand("plot",
-                                   "Draw normalized error against wall time, log scales, or with "
+                                   "Draw the best E against wall time, log scales, or with "
                                    "--tradeoff E against the number of springs (SVG)");
     cmd->add_option("RESULT_OR_ID", args->sources,
                     "Result files (run -o, result -o) or job ids, one curve each")

@@ -63,7 +63,7 @@ std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::st
   svg.Rect({kPlotLeft, kPlotTop}, plot_w, plot_h, "frame");
   svg.Text({kPlotLeft + plot_w / 2, kPlotTop + plot_h + 40}, options.x_label, "",
            SvgDocument::Anchor::kMiddle);
-  svg.VerticalText({22, kPlotTop + plot_h / 2}, "best normalized error", "");
+  svg.VerticalText({22, kPlotTop + plot_h / 2}, "best E (relative RMS nodal error)", "");
 
   for (std::size_t i = 0; i < curves.size(); ++i) {
     const ErrorCurve& c = curves[i];

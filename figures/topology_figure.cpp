@@ -154,7 +154,7 @@ class FigureWriter {
                               difference_ ? &difference_->missing : nullptr,
                               difference_ ? &difference_->extra : nullptr, identified_stiffness};
       const LoadCaseEvaluation& eval = evaluation_.load_cases[k];
-      std::string caption = "identified: normalized error " + Format("%.3g", eval.normalized_error);
+      std::string caption = "identified: E " + Format("%.3g", std::sqrt(eval.normalized_error));
       bool warn = false;
       if (eval.solve.termination == Termination::kMechanism) {
         caption = "identified: a mechanism (" + std::to_string(eval.solve.mechanism_modes) +
@@ -192,8 +192,8 @@ class FigureWriter {
                             difference_ ? &difference_->extra : nullptr,
                             input.stiffness.empty() ? nullptr : &input.stiffness};
     Panel(svg, {kMargin + p + kGap, top}, -1, identified,
-          "identified topology, at rest: normalized error " +
-              Format("%.3g", evaluation_.normalized_error));
+          "identified topology, at rest: E " +
+              Format("%.3g", std::sqrt(evaluation_.normalized_error)));
     return svg.str();
   }
 
@@ -290,8 +290,9 @@ class FigureWriter {
     } else {
       s += "reference topology unknown";
     }
-    return s + "; " + std::to_string(input.springs.size()) + " springs; normalized error " +
-           Format("%.3g", evaluation_.normalized_error);
+    // E, the one error measure shown (proto/RUN.md); the springs as the result counts them.
+    return s + "; " + std::to_string(input.springs.size()) + " springs; E " +
+           Format("%.3g", std::sqrt(evaluation_.normalized_error));
   }
 
   double Magnification() const {

@@ -40,6 +40,12 @@ std::string RenderTradeoffPlot(const std::vector<TradeoffCurve>& curves, const s
       e_lo = std::min(e_lo, e);
       e_hi = std::max(e_hi, e);
     }
+    if (c.returned && Drawable(c.returned->second)) {
+      s_lo = std::min(s_lo, static_cast<double>(c.returned->first));
+      s_hi = std::max(s_hi, static_cast<double>(c.returned->first));
+      e_lo = std::min(e_lo, c.returned->second);
+      e_hi = std::max(e_hi, c.returned->second);
+    }
     if (c.baseline_error && Drawable(*c.baseline_error)) {
       e_lo = std::min(e_lo, *c.baseline_error);
       e_hi = std::max(e_hi, *c.baseline_error);
@@ -58,7 +64,8 @@ std::string RenderTradeoffPlot(const std::vector<TradeoffCurve>& curves, const s
                x_hi = std::ceil(s_hi / step) * step + (s_hi == s_lo ? step : 0.0);
   const LogAxis y_axis = LogAxis::Over(e_lo, e_hi);
 
-  const double legend_height = kLegendRow * static_cast<double>(curves.size() + 1) + 10;
+  // Two legend rows per curve (its name; the returned model), one for the baseline.
+  const double legend_height = kLegendRow * static_cast<double>(2 * curves.size() + 1) + 10;
   const double plot_w = options.width - kPlotLeft - kPlotRight;
   const double plot_h = options.height - kPlotTop - kPlotBottom;
   auto px = [&](double springs) { return kPlotLeft + plot_w * (springs - x_lo) / (x_hi - x_lo); };
@@ -99,6 +106,11 @@ std::string RenderTradeoffPlot(const std::vector<TradeoffCurve>& curves, const s
       const auto& [springs, e] = c.points[*c.chosen];
       svg.Circle({px(springs), py(e)}, 6.0, "exact" + cls);
     }
+    if (c.returned && Drawable(c.returned->second)) {
+      // A square: the model the result returns, where the user reads its springs and E.
+      const Point2 p{px(c.returned->first), py(c.returned->second)};
+      svg.Rect({p.x - 5.0, p.y - 5.0}, 10.0, 10.0, "curve" + cls);
+    }
     if (c.baseline_error && Drawable(*c.baseline_error)) {
       const double y = py(*c.baseline_error);
       svg.Line({kPlotLeft, y}, {kPlotLeft + plot_w, y}, "reference");
@@ -108,23 +120,31 @@ std::string RenderTradeoffPlot(const std::vector<TradeoffCurve>& curves, const s
 
   const double legend_top = options.height;
   for (std::size_t i = 0; i < curves.size(); ++i) {
-    const double y = legend_top + kLegendRow * static_cast<double>(i);
+    const TradeoffCurve& c = curves[i];
+    const double y = legend_top + kLegendRow * static_cast<double>(2 * i);
     svg.Line({kPlotLeft, y - 4}, {kPlotLeft + 26, y - 4}, "curve" + std::to_string(i));
-    std::string label = curves[i].label;
-    if (curves[i].chosen && *curves[i].chosen < curves[i].points.size()) {
-      const auto& [springs, e] = curves[i].points[*curves[i].chosen];
-      char tail[96];
-      std::snprintf(tail, sizeof tail,
-                    "  (returned from the point of %d springs, E %.3g: large dot)", springs, e);
-      label += tail;
+    svg.Text({kPlotLeft + 32, y}, c.label, "");
+    std::string text;
+    char part[128];
+    if (c.returned) {
+      std::snprintf(part, sizeof part, "returned model (square): %d springs, E %.3g",
+                    c.returned->first, c.returned->second);
+      text = part;
     }
-    svg.Text({kPlotLeft + 32, y}, label, "");
+    if (c.chosen && *c.chosen < c.points.size()) {
+      std::snprintf(part, sizeof part,
+                    "%srefitted from path point %zu of %zu (%d springs, E %.3g: large dot)",
+                    text.empty() ? "" : "; ", *c.chosen + 1, c.points.size(),
+                    c.points[*c.chosen].first, c.points[*c.chosen].second);
+      text += part;
+    }
+    if (!text.empty()) svg.Text({kPlotLeft + 32, y + kLegendRow}, text, "");
   }
   const bool any_baseline = std::any_of(curves.begin(), curves.end(), [](const TradeoffCurve& c) {
     return c.baseline_error && Drawable(*c.baseline_error);
   });
   if (any_baseline) {
-    const double y = legend_top + kLegendRow * static_cast<double>(curves.size());
+    const double y = legend_top + kLegendRow * static_cast<double>(2 * curves.size());
     svg.Line({kPlotLeft, y - 4}, {kPlotLeft + 26, y - 4}, "reference");
     svg.Text({kPlotLeft + 32, y}, "closed-form baseline (van Gelder 1998) on the mesh edges", "");
   }

@@ -490,7 +490,7 @@ std::string Dashboard::ErrorPlotSvg(const JobRecord& job) {
   figures::ErrorCurve curve;
   curve.label = "job " + std::to_string(job.id);
   for (const TraceRow& row : store_.GetTrace(job.id, -1, kMaxTraceRows))
-    curve.points.emplace_back(row.wall_seconds, row.best_normalized_error);
+    curve.points.emplace_back(row.wall_seconds, std::sqrt(row.best_normalized_error));
   if (curve.points.empty()) return "";
   return figures::RenderErrorPlot({curve}, "job " + std::to_string(job.id) + ": " + job.scene_name);
 }

@@ -109,7 +109,7 @@ assert worst < 1e-6, worst
 assert r["direct"]["force_residual"] < 1e-9 and r["direct"]["unseen"] == [], r["direct"]
 PY
 expect_exit 0 "render direct" "$sf" render "$tmp/direct.json" -o "$tmp/direct.svg"
-grep -q "exact recovery; 72 springs; normalized error 0<" "$tmp/direct.svg" || fail "render draws a direct result with its own stiffness (error 0, not that of stiffness 1)"
+grep -q "exact recovery; 72 springs; E 0<" "$tmp/direct.svg" || fail "render draws a direct result with its own stiffness (error 0, not that of stiffness 1)"
 # Per-spring stiffness as line width: 5 widths by log stiffness over 1e-4 .. 1e4, the same bins
 # in both panels (the reference's stiffness is the result's here), and the range in the heading.
 python3 - "$tmp/direct.svg" "$tmp/direct.json" <<'PY' || fail "render line widths"
@@ -343,6 +343,12 @@ path = json.load(open(sys.argv[2]))["continuous"]["path"]
 lines = [e for e in svg.iter(ns + "polyline") if e.get("class") == "curve0"]
 assert len(lines) == 1 and len(lines[0].get("points").split()) == len(path)
 assert sum(1 for e in svg.iter(ns + "line") if e.get("class") == "reference") == 2  # level + legend
+# The returned model is drawn (a square) and named with the result's own springs and E.
+r = json.load(open(sys.argv[2]))
+assert sum(1 for e in svg.iter(ns + "rect") if e.get("class") == "curve0") == 1
+text = " ".join(e.text or "" for e in svg.iter(ns + "text"))
+assert f"returned model (square): {len(r['springs'])} springs, E {r['rms_error']:.3g}" in text, text
+assert f"path point {r['continuous']['chosen'] + 1} of {len(path)}" in text, text
 PY
 expect_exit 2 "plot tradeoff without a path" "$sf" plot --tradeoff "$tmp/result.json" -o "$tmp/x.svg"
 grep -q "has no sparsity path" "$tmp/err" || fail "tradeoff names what is missing: $(cat "$tmp/err")"
