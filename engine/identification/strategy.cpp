@@ -415,13 +415,17 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
     }
   }
 
-  r.best.assign(static_cast<std::size_t>(genes), 0);
-  for (int g = 0; g < genes; ++g) {
-    if (weights[g] > 0.0) {
-      r.best[g] = 1;
-      r.stiffness.push_back(weights[g]);  // gene order is candidate order
+  const auto take = [&](const std::vector<double>& model) {
+    r.best.assign(static_cast<std::size_t>(genes), 0);
+    r.stiffness.clear();
+    for (int g = 0; g < genes; ++g) {
+      if (model[g] > 0.0) {
+        r.best[g] = 1;
+        r.stiffness.push_back(model[g]);  // gene order is candidate order
+      }
     }
-  }
+  };
+  take(weights);
   r.counters.evaluations = details.steps;
   r.wall_seconds = SecondsSince(start_time);
   const double e = r.evaluation.normalized_error;
@@ -519,6 +523,31 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
                     r.generalization->held_out, r.generalization->model_held_out.median,
                     r.generalization->baseline_held_out.median);
       r.stop_message += judged;
+      // The baseline guarantee on unseen loads (issue 31 item 4), as the probe fit keeps it: a
+      // model no better than the closed-form baseline on the held-out probes (one that leaves
+      // a mode free is infinitely worse) gives way to the baseline, within the spring budget.
+      const response::Generalization& g = *r.generalization;
+      const bool within_budget =
+          options.max_springs == 0 || PresentSprings(*start) <= options.max_springs;
+      if (details.started_from_baseline && within_budget &&
+          !(g.model_held_out.rms < g.baseline_held_out.rms)) {
+        std::snprintf(judged, sizeof judged,
+                      "; the closed-form baseline (%d springs) is returned: the fitted model's "
+                      "held-out E (RMS over %d probes) %.3g was not below the baseline's %.3g",
+                      PresentSprings(*start), g.held_out, g.model_held_out.rms,
+                      g.baseline_held_out.rms);
+        r.stop_message += judged;
+        weights = *start;
+        take(weights);
+        r.evaluation = cost.Evaluate(problem.SpringsOfWeights(weights));
+        details.chosen = -1;
+        details.held_out_normalized_error.reset();
+        details.held_out_per_case.clear();
+        r.generalization = CertifyOnProbes(problem, options, weights, *start);
+        r.generalization->returned_baseline = true;
+        if (r.stop == StopReason::kTargetReached && !(r.evaluation.normalized_error <= target))
+          r.stop = StopReason::kCompleted;
+      }
     }
   }
   r.continuous = std::move(details);

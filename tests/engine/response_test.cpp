@@ -253,6 +253,31 @@ TEST(ProbeFitStrategy, ProbesNoneKeepsTheNamedCaseFit) {
 namespace springfit::response {
 namespace {
 
+// The baseline guarantee on unseen loads also holds where the model is fitted to the named
+// cases alone (a target error chooses along their path): on the kidney that model is worse
+// than van Gelder's on the held-out probes, so the baseline is returned, and says so.
+TEST(ProbeFitStrategy, TheNamedCaseFitGivesWayToTheBaselineWhenWorseOnUnseenLoads) {
+  Scene s = examples::Make("fem-kidney-2d");
+  s.search.target_error = 1e-9;
+  const Problem problem(s);
+  const SearchOptions options = ResolveSearchOptions(s.search, problem.gene_count());
+  const IdentificationResult r = RunIdentification(problem, options);
+  ASSERT_TRUE(r.generalization);
+  EXPECT_FALSE(r.generalization->fitted_to_probes);
+  EXPECT_TRUE(r.generalization->returned_baseline);
+  const std::optional<std::vector<double>> baseline = fem::BaselineGeneWeights(problem);
+  ASSERT_TRUE(baseline);
+  int baseline_springs = 0;
+  for (double w : *baseline) baseline_springs += w > 0.0;
+  EXPECT_EQ(static_cast<int>(r.springs.size()), baseline_springs);
+  EXPECT_DOUBLE_EQ(r.generalization->model_held_out.rms, r.generalization->baseline_held_out.rms);
+  ASSERT_TRUE(r.baseline);
+  EXPECT_NEAR(std::sqrt(r.evaluation.normalized_error), r.baseline->rms_error,
+              1e-9 * r.baseline->rms_error);
+  EXPECT_NE(r.stop_message.find("the closed-form baseline"), std::string::npos) << r.stop_message;
+  EXPECT_EQ(r.outcome.verdict, Verdict::kUnmetRequest);  // the target is not met
+}
+
 // The best model within a budget that models can meet (the plate's 5x5 nodes need about 45
 // springs to hold every mode); a budget none meets is verdict_test.cpp's.
 TEST(ProbeFitStrategy, ASpringBudgetGivesTheBestModelWithinIt) {
