@@ -19,17 +19,20 @@
 namespace springfit::cli {
 namespace {
 
+// Node pairs, eight to an indented line (hundreds of them stay readable).
 std::string PairList(const std::vector<NodePair>& pairs) {
   std::string out;
-  for (const NodePair& p : pairs)
-    out += " (" + std::to_string(p.first) + ", " + std::to_string(p.second) + ")";
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    out += (i % 8 == 0 ? "\n    " : " ");
+    out += "(" + std::to_string(pairs[i].first) + ", " + std::to_string(pairs[i].second) + ")";
+  }
   return out;
 }
 
 void PrintIdentifiability(const IdentifiabilityReport& report) {
   std::cout << "unseen springs:         " << report.unseen.size();
   if (!report.unseen.empty())
-    std::cout << " (no load case changes their length:" << PairList(report.unseen) << ")";
+    std::cout << " (no load case changes their length):" << PairList(report.unseen);
   std::cout << "\n";
   if (!report.groups_analysed) {
     std::cout << "dependent groups:       not analysed (more than "
@@ -95,15 +98,14 @@ int Check(const SceneInput& input) {
             << "genes:                  " << problem.gene_count() << "\n"
             << "unidentifiable springs: " << problem.unidentifiable().size();
   if (!problem.unidentifiable().empty()) {
-    std::cout << " (both nodes constrained in every load case:";
-    for (int c : problem.unidentifiable()) {
-      std::cout << " (" << problem.candidates().pairs[c].first << ", "
-                << problem.candidates().pairs[c].second << ")";
-    }
-    std::cout << ")";
+    std::vector<NodePair> pairs;
+    for (int c : problem.unidentifiable()) pairs.push_back(problem.candidates().pairs[c]);
+    std::cout << " (both nodes constrained in every load case):" << PairList(pairs);
   }
   std::cout << "\n";
   PrintIdentifiability(Identifiability(problem));
+  for (const std::string& notice : SceneNotices(problem))
+    std::cout << "notice:                 " << notice << "\n";
   if (s.reference.kind == Reference::Kind::kMss) {
     std::cout << "reference:              mss, " << s.reference.springs.size() << " springs";
     if (problem.reference_mask()) {

@@ -249,7 +249,15 @@ int Info(const JobArgs& a) {
             << "jobs:              " << info["running"] << " running, " << info["queued"]
             << " queued\n"
             << "token required:    " << (info["auth_required"].get<bool>() ? "yes" : "no") << "\n"
-            << "limits:            " << info["limits"].dump() << "\n";
+            << "limits:\n";
+  // One limit a line, as the daemon's flags name them (proto/RPC.md, "server.info").
+  if (info["limits"].is_object()) {
+    for (const auto& [key, value] : info["limits"].items()) {
+      std::string name = key + ":";
+      name.resize(std::max<std::size_t>(name.size() + 1, 24), ' ');
+      std::cout << "  " << name << value.dump() << "\n";
+    }
+  }
   return kExitOk;
 }
 

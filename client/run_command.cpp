@@ -66,6 +66,8 @@ int Run(const RunArgs& args) {
   if (args.target) st.target_normalized_error = *args.target;
   const Problem problem = Problem::Build(std::move(scene));
   const SearchOptions options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
+  for (const std::string& notice : SceneNotices(problem))
+    std::fprintf(stderr, "springfit: notice: %s\n", notice.c_str());
 
   // The result file is written at the end: a name that cannot be written is said now, not
   // after a run of hours (opened to append, and removed again if this made it).

@@ -50,9 +50,16 @@ Scene SceneOfImported(const SceneInput& input, const proto::Json& json) {
   try {
     return proto::SceneFromJson(json);
   } catch (const InputError& e) {
-    const std::string from =
-        input.loads.empty() ? input.path : input.loads + " (over " + input.path + ")";
-    throw InputError("", from + ": " + e.what());
+    // (The caller names the mesh; the loads file is named here, the field in both.)
+    if (input.loads.empty()) {
+      if (e.path() == "load_cases")
+        throw InputError("load_cases",
+                         "required: a mesh carries no load cases; pass them with --loads "
+                         "LOADS.json (material, fixed node sets and loads on the mesh's physical "
+                         "groups: proto/IMPORT.md)");
+      throw;
+    }
+    throw InputError("", input.loads + " (over " + input.path + "): " + e.what());
   }
 }
 

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
+#include <optional>
 #include <string>
 
 #include "engine/candidates.h"
@@ -102,6 +104,39 @@ Response ResolveResponse(const Scene& scene) {
   return Response::kLinear;
 }
 
+std::vector<std::string> SceneNotices(const Problem& problem) {
+  std::vector<std::string> notices;
+  const Scene& s = problem.scene();
+  if (s.reference.kind != Reference::Kind::kFem) return notices;
+  for (const Material& m : s.reference.fem.materials)
+    if (m.model != MaterialModel::kLinear) return notices;
+  const double size = BoundingBox::Of(s.dimension, s.rest).Diagonal();
+  if (!(size > 0.0)) return notices;
+  for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
+    const Vector& u = problem.load_cases()[k].reference;
+    double largest = 0.0;
+    int node = 0;
+    for (int i = 0; i < s.node_count(); ++i) {
+      const double d = u.segment(s.dimension * i, s.dimension).norm();
+      if (d > largest) {
+        largest = d;
+        node = i;
+      }
+    }
+    if (largest > kLargeDisplacementFraction * size) {
+      char text[400];
+      std::snprintf(text, sizeof text,
+                    "load_cases[%zu] ('%s'): the linear reference moves node %d by %.0f%% of the "
+                    "body's size; a linear material is a small-strain model, so its response at "
+                    "this load means little (scale the loads down: the linear fit does not "
+                    "depend on their size; or use a nonlinear material)",
+                    k, s.load_cases[k].name.c_str(), node, 100.0 * largest / size);
+      notices.push_back(text);
+    }
+  }
+  return notices;
+}
+
 Problem::Problem(Scene scene, EquilibriumOptions solver_options, Interruption* interruption) {
   ValidateScene(scene);
   ThrowIfInterrupted(interruption);
@@ -114,11 +149,13 @@ Problem::Problem(Scene scene, EquilibriumOptions solver_options, Interruption* i
   const int d = s.dimension;
   const int n = s.node_count();
   p.training_stiffness_ = s.EffectiveTrainingStiffness();
+  std::optional<fem::ClosedFormModel> closed_form;
   if (!s.training_stiffness && s.reference.kind == Reference::Kind::kFem) {
     // An FEM reference has no spring stiffness: the training springs take the median of the
     // closed-form recipe's on the mesh edges (engine/fem/closed_form_baseline.h), which has the
     // material's scale (a stiffness of 1 would be off by the Young's modulus).
-    std::vector<double> k = fem::VanGelderModel(s).stiffness;
+    closed_form = fem::VanGelderModel(s);
+    std::vector<double> k = closed_form->stiffness;
     std::nth_element(k.begin(), k.begin() + static_cast<std::ptrdiff_t>(k.size() / 2), k.end());
     p.training_stiffness_ = k[k.size() / 2];
   }
@@ -149,6 +186,17 @@ Problem::Problem(Scene scene, EquilibriumOptions solver_options, Interruption* i
     if (constrained_anywhere_never_free[pair.first] &&
         constrained_anywhere_never_free[pair.second]) {
       p.unidentifiable_.push_back(c);
+      // (Its stiffness: the closed-form model's on a mesh edge, else the training stiffness.)
+      double k = p.training_stiffness_;
+      if (closed_form) {
+        const NodePair ordered{std::min(pair.first, pair.second),
+                               std::max(pair.first, pair.second)};
+        const auto it =
+            std::lower_bound(closed_form->springs.begin(), closed_form->springs.end(), ordered);
+        if (it != closed_form->springs.end() && *it == ordered)
+          k = closed_form->stiffness[static_cast<std::size_t>(it - closed_form->springs.begin())];
+      }
+      p.unidentifiable_stiffness_.push_back(k);
     } else {
       p.gene_candidate_.push_back(c);
     }

@@ -75,6 +75,14 @@ struct TopologyDifference {
 // at the FEM's load would mix a load-level artefact into the model error), nonlinear otherwise.
 Response ResolveResponse(const Scene& scene);
 
+// Notices about the scene that are not errors, one line each: a linear FEM reference whose
+// displacement in some load case exceeds kLargeDisplacementFraction of the body's size (a
+// linear material is a small-strain model; the linear fit does not depend on the loads' size,
+// so scaling them down changes nothing but the reference's meaning). `run` and `check` print
+// them.
+inline constexpr double kLargeDisplacementFraction = 0.05;
+std::vector<std::string> SceneNotices(const Problem& problem);
+
 // The training stiffness of a positions reference given without one: the median of the
 // springs the force balance at the reference's positions keeps (its non-negative
 // least-squares weights above 1e-3 of the largest, engine/direct/nnls.h): the stiffness the
@@ -120,8 +128,14 @@ class Problem {
   int gene_count() const { return static_cast<int>(gene_candidate_.size()); }
   // The candidate index of each gene, ascending.
   const std::vector<int>& gene_candidates() const { return gene_candidate_; }
-  // Candidates no load case can see.
+  // Candidates no load case can see (both nodes held in every load case).
   const std::vector<int>& unidentifiable() const { return unidentifiable_; }
+  // Their stiffness in every model, parallel to unidentifiable(): no fit can tell it, but under
+  // other supports (a simulator's, the probe bank's) they hold the body. The closed-form
+  // model's on an FEM reference's mesh edge (not fitted: the baseline is the best guess there),
+  // the training stiffness otherwise. Exports write them (io/spring_model.h); the rest-linear
+  // stiffness of a model includes them (engine/response/rest_stiffness.h).
+  const std::vector<double>& unidentifiable_stiffness() const { return unidentifiable_stiffness_; }
   // The scene's `stiffness`, else: an MSS reference's single stiffness, the closed-form
   // baseline's median on an FEM reference, PositionsTrainingStiffness on a positions one.
   double training_stiffness() const { return training_stiffness_; }
@@ -168,6 +182,7 @@ class Problem {
   std::vector<PreparedLoadCase> load_cases_;
   std::vector<int> gene_candidate_;
   std::vector<int> unidentifiable_;
+  std::vector<double> unidentifiable_stiffness_;
   double training_stiffness_ = 1.0;
   double reference_norm2_ = 0.0;
   std::optional<std::vector<std::uint8_t>> reference_mask_;

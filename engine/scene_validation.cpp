@@ -233,14 +233,14 @@ void CheckReference(const Scene& s) {
   }
 }
 
-void CheckRigidMotion(const Scene& s, const std::vector<int>& constrained,
-                      const std::string& path) {
+void CheckRigidMotion(const Scene& s, const std::vector<int>& constrained, const std::string& path,
+                      const std::string& what) {
   const int d = s.dimension;
   const char* rule = d == 2
                          ? "at least two constrained (fixed or displaced) nodes"
                          : "at least three constrained (fixed or displaced) nodes not on one line";
   if (static_cast<int>(constrained.size()) < d) {
-    throw InputError(path, std::string("rigid motion is left free: a load case needs ") + rule);
+    throw InputError(path, what + "a load case needs " + rule);
   }
   if (d == 2) return;
   const double extent = Extent(s);
@@ -250,7 +250,7 @@ void CheckRigidMotion(const Scene& s, const std::vector<int>& constrained,
     const Eigen::Vector3d c = s.rest.segment<3>(3 * constrained[m]);
     if ((b - a).cross(c - a).norm() > 1e-9 * extent * extent) return;
   }
-  throw InputError(path, std::string("rigid motion is left free: a load case needs ") + rule);
+  throw InputError(path, what + "a load case needs " + rule);
 }
 
 void CheckLoads(const Scene& s, const std::vector<NodalLoad>& loads, const std::string& path,
@@ -260,15 +260,18 @@ void CheckLoads(const Scene& s, const std::vector<NodalLoad>& loads, const std::
     const NodalLoad& load = loads[m];
     if (load.nodes.empty()) throw InputError(p + ".nodes", "must not be empty");
     for (std::size_t q = 0; q < load.nodes.size(); ++q) {
+      // A node of a named set: the load the user wrote is named, then the set's entry.
       const std::string np = load.single        ? p + ".node"
                              : load.set.empty() ? Index(p + ".nodes", q)
-                                                : Index("node_sets." + load.set, q);
+                                                : p + ".nodes ('" + load.set + "', " +
+                                                      Index("node_sets." + load.set, q) + ")";
       CheckNode(s, load.nodes[q], np);
       int& r = role[load.nodes[q]];
       if (role_id == 2) {  // a force
         if (r == 0 || r == 1) {
           throw InputError(np, "node " + std::to_string(load.nodes[q]) +
-                                   " is constrained in this load case; forces go on free nodes");
+                                   " is constrained in this load case; forces go on free nodes "
+                                   "(a support and a load on one node set: load another set)");
         }
       } else {
         if (r == 0 || r == 1) {
@@ -323,7 +326,11 @@ void CheckLoadCases(const Scene& s) {
     for (int i = 0; i < s.node_count(); ++i) {
       if (role[i] == 0 || role[i] == 1) constrained.push_back(i);
     }
-    CheckRigidMotion(s, constrained, p);
+    // The case's name beside its index (what the user wrote in the loads file), and the
+    // fields that hold it.
+    CheckRigidMotion(s, constrained, p,
+                     (lc.name.empty() ? std::string() : "case '" + lc.name + "': ") +
+                         "its `fixed` and `displacements` leave rigid motion free: ");
     if (static_cast<int>(constrained.size()) == s.node_count()) {
       throw InputError(p, "every node is constrained: nothing is left to deform");
     }

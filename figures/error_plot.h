@@ -8,9 +8,9 @@ namespace springfit::figures {
 
 struct ErrorCurve {
   std::string label;
-  // (x, best E so far: the relative RMS nodal error), in the order of the trace; x is wall seconds by
-  // default (ErrorPlotOptions::x_label says what else). The best error
-  // never rises; an error of 0 is exact recovery, drawn on the bottom axis with a marker.
+  // (x, best E so far: the relative RMS nodal error), in the order of the trace; x is wall seconds
+  // by default (ErrorPlotOptions::x_label says what else). The best error never rises; an error of
+  // 0 is exact recovery, drawn on the bottom axis with a marker.
   std::vector<std::pair<double, double>> points;
 };
 

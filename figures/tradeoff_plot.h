@@ -12,7 +12,7 @@ namespace springfit::figures {
 struct TradeoffCurve {
   std::string label;
   std::vector<std::pair<int, double>> points;  // (springs, E); E not finite: not drawn
-  std::optional<std::size_t> chosen;     // the point the returned model came from (none: the start)
+  std::optional<std::size_t> chosen;  // the point the returned model came from (none: the start)
   // The returned model itself (springs, E): after its refit it is off the path.
   std::optional<std::pair<int, double>> returned;
   std::optional<double> baseline_error;  // the baseline's E

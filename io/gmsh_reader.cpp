@@ -117,7 +117,9 @@ ImportedMesh ReadGmshMesh(const std::string& path) {
   if (top == 2 && largest_z > 1e-12 * extent) {
     throw InputError("", path + ": a 2D mesh must lie in the plane z = 0 (a node has z = " +
                              std::to_string(largest_z) +
-                             "); a surface in space is not a plane model");
+                             "); a surface in space is not a plane model. A 3D geometry "
+                             "meshed with `gmsh -2` gives its surface only: mesh it with "
+                             "`gmsh -3` for tetrahedra");
   }
   mesh.dimension = top;
   for (std::size_t tag : used) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <set>
 #include <utility>
 
@@ -59,9 +60,19 @@ SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& res
     }
     add(p, result.stiffness.empty() ? training : result.stiffness[i], !undetermined.count(p));
   }
+  // The candidates no load case sees, with the problem's stiffness for them (Problem::
+  // unidentifiable_stiffness: the closed-form model's on an FEM mesh edge): the model as the
+  // certificate judged it.
+  std::map<NodePair, double> unseen_stiffness;
+  for (std::size_t u = 0; u < problem.unidentifiable().size(); ++u)
+    unseen_stiffness[Ordered(
+        problem.candidates().pairs[static_cast<std::size_t>(problem.unidentifiable()[u])])] =
+        problem.unidentifiable_stiffness()[u];
   for (const NodePair& u : result.unidentifiable) {
     const NodePair p = Ordered(u);
-    if (candidates.count(p) && present.insert(p).second) add(p, training, false);
+    const auto k = unseen_stiffness.find(p);
+    if (candidates.count(p) && present.insert(p).second)
+      add(p, k == unseen_stiffness.end() ? training : k->second, false);
   }
   return model;
 }

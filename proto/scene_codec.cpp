@@ -1,5 +1,6 @@
 #include "proto/scene_codec.h"
 
+#include <cctype>
 #include <fstream>
 #include <sstream>
 
@@ -177,7 +178,26 @@ std::vector<int> ReadNodeList(const Json& v, const std::string& path, const Scen
                               std::string& set) {
   if (!v.is_string()) return ReadIndices(v, path);
   set = v.get<std::string>();
-  const auto it = s.node_sets.find(set);
+  auto it = s.node_sets.find(set);
+  if (it == s.node_sets.end()) {
+    // As in a CalculiX deck, whose set names are case-insensitive: `left` names a mesh's
+    // `Left` when no other set differs from it by case alone.
+    const auto lower = [](std::string text) {
+      for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      return text;
+    };
+    std::vector<decltype(it)> matches;
+    for (auto m = s.node_sets.begin(); m != s.node_sets.end(); ++m)
+      if (lower(m->first) == lower(set)) matches.push_back(m);
+    if (matches.size() > 1)
+      throw InputError(path, "node set '" + set + "' matches " + matches[0]->first + " and " +
+                                 matches[1]->first +
+                                 " but by case alone: write the name as the scene spells it");
+    if (matches.size() == 1) {
+      set = matches[0]->first;
+      return matches[0]->second;
+    }
+  }
   if (it == s.node_sets.end()) {
     std::string known;
     for (const auto& [name, nodes] : s.node_sets) known += (known.empty() ? "" : ", ") + name;

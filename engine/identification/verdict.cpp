@@ -20,10 +20,13 @@ std::string UnusableReason(const IdentificationResult& r) {
   if (!(e.normalized_error < 1.0))
     return "E " + NumberText(std::sqrt(e.normalized_error)) +
            " on the load cases: the model predicts the reference no better than the rest shape";
-  if (r.generalization && !std::isfinite(r.generalization->model_held_out.p95))
-    return "loads on the user's supports find a mode the model leaves free (lambda_min " +
-           NumberText(r.generalization->lambda_min) +
-           "): it has no equilibrium under some held-out probe loads";
+  if (r.generalization && !std::isfinite(r.generalization->model_held_out.p95)) {
+    if (!(r.generalization->lambda_min > 0.0))
+      return "loads on the user's supports find a mode the model leaves free (lambda_min 0): "
+             "it has no equilibrium under some held-out probe loads";
+    return "held on other parts of its boundary, the model leaves a mode free that the "
+           "reference holds: it has no equilibrium under some held-out probe loads";
+  }
   return "";
 }
 

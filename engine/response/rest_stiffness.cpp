@@ -88,6 +88,15 @@ SparseMatrix SpringRestStiffness(const Problem& problem, const std::vector<doubl
                              geometry.rest_length[static_cast<std::size_t>(c)];
     AddSpring(d, pair.first, pair.second, direction, weights[g], t);
   }
+  // The springs no load case sees, with the problem's stiffness for them: part of every model.
+  const std::vector<int>& unseen = problem.unidentifiable();
+  for (std::size_t u = 0; u < unseen.size(); ++u) {
+    const int c = unseen[u];
+    const NodePair pair = geometry.pairs[static_cast<std::size_t>(c)];
+    const Vector direction = geometry.rest_separation.segment(d * c, d) /
+                             geometry.rest_length[static_cast<std::size_t>(c)];
+    AddSpring(d, pair.first, pair.second, direction, problem.unidentifiable_stiffness()[u], t);
+  }
   return FromTriplets(static_cast<int>(problem.scene().rest.size()), t);
 }
 

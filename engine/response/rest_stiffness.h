@@ -25,7 +25,9 @@ using SparseMatrix = Eigen::SparseMatrix<double>;
 // stiffness. Precondition: the reference is FEM or MSS (not positions).
 SparseMatrix ReferenceRestStiffness(const Problem& problem);
 
-// The rest stiffness of springs over the problem's candidates: `weights` per gene (0 = absent).
+// The rest stiffness of springs over the problem's candidates: `weights` per gene (0 = absent),
+// and the candidates no load case sees at Problem::unidentifiable_stiffness (part of every
+// model: they hold the body under the probe bank's other supports as under a simulator's).
 SparseMatrix SpringRestStiffness(const Problem& problem, const std::vector<double>& weights);
 
 // The same for explicit springs over the scene's nodes.

@@ -385,4 +385,71 @@ grep -q "search.regularization: regularises the continuous fit" "$tmp/err" || fa
 expect_exit 2 "bad response" "$sf" run "$src/examples/fem-plate-5x5.json" --response small
 grep -q -- "--response: unknown value 'small' (expected linear or nonlinear)" "$tmp/err" || fail "response names the value: $(cat "$tmp/err")"
 
+# Messages that name the file, the case and the field the user wrote, with the fix (issue 33).
+gmsh "$src/examples/pipeline/inclusion.geo" -2 -o "$tmp/inclusion.msh" >/dev/null 2>&1 || fail "gmsh"
+expect_exit 2 "a mesh without --loads" "$sf" run "$tmp/inclusion.msh"
+grep -q "load_cases: required: a mesh carries no load cases; pass them with --loads" "$tmp/err" || fail "a mesh without --loads: $(cat "$tmp/err")"
+[ "$(grep -o "inclusion.msh" "$tmp/err" | wc -l)" -eq 1 ] || fail "a mesh without --loads names the mesh once: $(cat "$tmp/err")"
+# Node-set names match without regard to case, as in a CalculiX deck.
+python3 - "$src/examples/pipeline/inclusion-loads.json" "$tmp/upper-loads.json" <<'PY'
+import json, sys
+loads = json.load(open(sys.argv[1]))
+for lc in loads["load_cases"]:
+    lc["fixed"] = lc["fixed"].upper()
+json.dump(loads, open(sys.argv[2], "w"))
+PY
+expect_exit 0 "node sets by another case" "$sf" check "$tmp/inclusion.msh" --loads "$tmp/upper-loads.json"
+python3 - "$src/examples/paper-iso-5x5.json" "$tmp/on-fixed.json" "$tmp/unsupported.json" "$tmp/large.json" "$src/examples/fem-kidney-2d.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+s["node_sets"] = {"bottom": [0, 1, 2, 3, 4], "top": [20, 21, 22, 23, 24]}
+s["load_cases"][0]["fixed"] = "bottom"
+s["load_cases"][0]["forces"] = [{"nodes": "top", "force": [0, 0.05]}, {"nodes": "bottom", "force": [0, 0.05]}]
+json.dump(s, open(sys.argv[2], "w"))
+s = json.load(open(sys.argv[1]))
+s["load_cases"][1]["fixed"] = []
+json.dump(s, open(sys.argv[3], "w"))
+plate = json.load(open(sys.argv[5]))  # (a linear material: the kidney's)
+for lc in plate["load_cases"]:
+    for t in lc.get("tractions", []):
+        for key in ("total", "per_length", "per_area"):
+            if key in t:
+                t[key] = [4.0 * x for x in t[key]]
+    for f in lc.get("forces", []):
+        f["force"] = [4.0 * x for x in f["force"]]
+json.dump(plate, open(sys.argv[4], "w"))
+PY
+expect_exit 2 "a force on a fixed set" "$sf" check "$tmp/on-fixed.json"
+grep -q "load_cases\[0\].forces\[1\].nodes ('bottom', node_sets.bottom\[0\]): node 0 is constrained in this load case" "$tmp/err" || fail "a force on a fixed set names the force: $(cat "$tmp/err")"
+expect_exit 2 "a case without supports" "$sf" check "$tmp/unsupported.json"
+grep -q "load_cases\[1\]: case '[^']*': its \`fixed\` and \`displacements\` leave rigid motion free" "$tmp/err" || fail "a case without supports names the case: $(cat "$tmp/err")"
+# A linear material displaced by a large fraction of the body: a notice, not silence.
+"$sf" check "$tmp/large.json" >"$tmp/large.txt" 2>&1 || fail "check of a large-load scene"
+grep -q "^notice: .*the linear reference moves node [0-9]* by [0-9]*% of the body's size" "$tmp/large.txt" || fail "no notice on a large load: $(tail -3 "$tmp/large.txt")"
+"$sf" check "$src/examples/fem-kidney-2d.json" >"$tmp/small-check.txt" 2>&1
+! grep -q "^notice:" "$tmp/small-check.txt" || fail "a notice on the kidney's small loads"
+# A 3D geometry meshed with gmsh -2: the hint to mesh it with -3.
+cat >"$tmp/box.geo" <<'GEO'
+SetFactory("OpenCASCADE");
+Box(1) = {0, 0, 0, 1, 1, 1};
+Physical Surface("skin") = {1, 2, 3, 4, 5, 6};
+Physical Volume("body") = {1};
+GEO
+gmsh "$tmp/box.geo" -2 -o "$tmp/box-surface.msh" >/dev/null 2>&1 || fail "gmsh box"
+expect_exit 2 "a 3D geometry meshed in 2D" "$sf" import "$tmp/box-surface.msh" -o "$tmp/box.json"
+grep -q "mesh it with \`gmsh -3\`" "$tmp/err" || fail "no -3 hint: $(cat "$tmp/err")"
+# check lists many pairs eight to a line: every case holds the same two rows of the grid.
+python3 - "$src/examples/paper-iso-5x5.json" "$tmp/held-rows.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+for lc in s["load_cases"]:
+    lc["fixed"] = list(range(10))
+    for f in lc.get("forces", []):
+        f["nodes"] = [n for n in f.get("nodes", []) if n >= 10] or [20, 21, 22, 23, 24]
+json.dump(s, open(sys.argv[2], "w"))
+PY
+"$sf" check "$tmp/held-rows.json" >"$tmp/held-check.txt" 2>&1 || fail "check of the held rows: $(tail -2 "$tmp/held-check.txt")"
+[ "$(grep -c "^    (" "$tmp/held-check.txt")" -ge 2 ] || fail "check does not wrap its pairs: $(grep -m1 unidentifiable "$tmp/held-check.txt" | cut -c1-200)"
+grep -v "^description:" "$tmp/held-check.txt" | awk 'length > 200 { exit 1 }' || fail "check prints a line longer than 200 characters"
+
 finish cli

@@ -192,6 +192,10 @@ grep -q "^fit step [0-9]*  E " "$tmp/vocabulary.err" || fail "submit --watch of 
 ! grep -q "^gen \|ETA" "$tmp/vocabulary.err" || fail "a continuous job is shown as a genetic run: $(grep -m1 "^gen \|ETA" "$tmp/vocabulary.err")"
 "$sf" list --label vocabulary --json | python3 -c "import json,sys; j=json.load(sys.stdin)['jobs'][0]; assert j['strategy']=='continuous', j['strategy']" \
   || fail "the job does not name the strategy that ran"
+# info shows its limits one to a line, not as one raw JSON line.
+"$sf" info >"$tmp/info.txt" || fail "info"
+grep -q "^  max_nodes: *[0-9]" "$tmp/info.txt" || fail "info does not list its limits one to a line: $(cat "$tmp/info.txt")"
+! grep -q "^limits: *{" "$tmp/info.txt" || fail "info prints its limits as raw JSON"
 # A spring budget no model meets: the model and a WARNING line, exit 11, listed as such.
 "$sf" submit "$src/examples/fem-plate-5x5.json" --strategy continuous --max-springs 1 --label budget --wait >"$tmp/budget.txt" 2>&1
 code=$?

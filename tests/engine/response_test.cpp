@@ -253,6 +253,38 @@ TEST(ProbeFitStrategy, ProbesNoneKeepsTheNamedCaseFit) {
 namespace springfit::response {
 namespace {
 
+// Supports drawn from a 3D boundary hold every rigid motion: a patch along one edge of the
+// block would leave the rotation about it free for every model (the held-out E of
+// 1e17), and the closed-form baseline, a sound model, has a finite error on every probe.
+TEST(ProbeBank, DrawnSupportsOnA3DBoundaryHoldEveryRigidMotion) {
+  const Problem problem(examples::Make("fem-block-3d"));
+  const SparseMatrix k = ReferenceRestStiffness(problem);
+  const ProbeBank bank = MakeProbeBank(problem, k, ProbeOptions{});
+  const int d = problem.dimension();
+  int drawn = 0;
+  for (const Support& s : bank.supports) {
+    if (s.user) continue;
+    ++drawn;
+    std::vector<Eigen::Vector3d> held;
+    for (int node = 0; node < problem.scene().node_count(); ++node)
+      if (s.constrained[static_cast<std::size_t>(node)])
+        held.push_back(problem.scene().rest.segment<3>(d * node));
+    ASSERT_GE(held.size(), 3u);
+    double area = 0.0, longest = 0.0;
+    for (const auto& b : held) longest = std::max(longest, (b - held[0]).norm());
+    for (const auto& b : held)
+      for (const auto& c : held) area = std::max(area, (b - held[0]).cross(c - held[0]).norm());
+    EXPECT_GT(area, 0.05 * longest * longest) << s.description;
+  }
+  EXPECT_GE(drawn, 1);
+  const std::optional<std::vector<double>> baseline = fem::BaselineGeneWeights(problem);
+  ASSERT_TRUE(baseline);
+  const SparseMatrix baseline_k = SpringRestStiffness(problem, *baseline);
+  const Generalization g = Certify(problem, bank, k, *baseline, baseline_k);
+  EXPECT_TRUE(std::isfinite(g.model_held_out.p95)) << g.model_held_out.p95;
+  EXPECT_GT(g.lambda_min, 0.0);
+}
+
 // The baseline guarantee on unseen loads also holds where the model is fitted to the named
 // cases alone (a target error chooses along their path): on the kidney that model is worse
 // than van Gelder's on the held-out probes, so the baseline is returned, and says so.
