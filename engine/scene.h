@@ -228,6 +228,15 @@ struct Scene {
   // it is one value for all springs, otherwise 1.
   std::optional<double> training_stiffness;
   SearchSettings search;
+  // The units the scene's numbers are in (proto/SCENE.md, "Units"): stated by the user, checked
+  // for consistency, carried into results and exports. Absent: unstated (springfit's numbers
+  // are consistent in any units; only a reader needs them).
+  struct Units {
+    std::string length;   // m, cm, mm, um
+    std::string force;    // N, mN, uN, kN
+    std::string modulus;  // Pa, kPa, MPa, GPa; empty: derived (force / length^2)
+  };
+  std::optional<Units> units;
 
   int node_count() const { return dimension == 0 ? 0 : static_cast<int>(rest.size()) / dimension; }
   // The rest positions' bounding box (needs at least one node).

@@ -1,4 +1,5 @@
 #include "engine/scene_validation.h"
+#include "engine/units.h"
 
 #include <Eigen/Eigenvalues>
 
@@ -458,6 +459,7 @@ void ValidateScene(const Scene& s) {
     CheckPositive(*s.training_stiffness, "stiffness", "stiffness");
   }
   CheckSearch(s);
+  if (s.units) DeriveUnits(*s.units);
 }
 
 }  // namespace springfit

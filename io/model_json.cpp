@@ -12,6 +12,14 @@ std::string ModelJsonText(const SpringModel& model) {
   j["version"] = 1;
   j["name"] = model.name;
   j["description"] = model.description;
+  if (model.units) {
+    j["units"] = {{"length", model.units->length},
+                  {"force", model.units->force},
+                  {"stiffness", model.units->stiffness},
+                  {"modulus", model.units->modulus}};
+  } else {
+    j["units"] = nullptr;
+  }
   j["dimension"] = model.dimension;
   Json nodes = Json::array();
   for (int p = 0; p < model.node_count(); ++p) {

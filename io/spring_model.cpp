@@ -33,6 +33,12 @@ SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& res
     std::snprintf(e, sizeof e, ", E %.4g", *result.rms_error);
     model.description += e;
   }
+  // Units, where the scene states them: in the description every format writes, and as data.
+  if (scene.units) {
+    model.units = DeriveUnits(*scene.units);
+    model.description += "; units: length " + model.units->length + ", force " +
+                         model.units->force + ", stiffness " + model.units->stiffness;
+  }
 
   std::set<NodePair> candidates;
   for (const NodePair& p : problem.candidates().pairs) candidates.insert(Ordered(p));

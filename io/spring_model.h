@@ -3,17 +3,21 @@
 // built from a result and its scene, whatever the strategy.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "engine/problem.h"
+#include "engine/units.h"
 #include "proto/search_codec.h"
 
 namespace springfit::io {
 
 struct SpringModel {
-  std::string name;          // the scene's
-  std::string description;   // where it comes from: strategy, seed, E
+  std::string name;         // the scene's
+  std::string description;  // where it comes from: strategy, seed, E, units
+  // The scene's units (engine/units.h), when it states them.
+  std::optional<DerivedUnits> units;
   int dimension = 2;         // 2 or 3
   std::vector<double> rest;  // flat rest positions, `dimension` per node
 

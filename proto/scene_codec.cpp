@@ -425,7 +425,7 @@ Json PairsToJson(const std::vector<NodePair>& pairs) {
 Scene SceneFromJson(const Json& json) {
   ExpectKeys(json, "",
              {"name", "description", "nodes", "candidates", "node_sets", "reference", "load_cases",
-              "stiffness", "search"});
+              "stiffness", "search", "units"});
   Scene s;
   if (json.contains("name")) s.name = ReadString(json["name"], "name");
   if (json.contains("description")) s.description = ReadString(json["description"], "description");
@@ -441,6 +441,16 @@ Scene SceneFromJson(const Json& json) {
     s.candidates = FemDefaultCandidates();
   if (json.contains("stiffness")) s.training_stiffness = ReadNumber(json["stiffness"], "stiffness");
   if (json.contains("search")) ReadSearch(json["search"], s.search);
+  if (json.contains("units")) {
+    const Json& u = json["units"];
+    ExpectObject(u, "units");
+    ExpectKeys(u, "units", {"length", "force", "modulus"});
+    Scene::Units units;
+    units.length = ReadString(RequiredMember(u, "units", "length"), "units.length");
+    units.force = ReadString(RequiredMember(u, "units", "force"), "units.force");
+    if (u.contains("modulus")) units.modulus = ReadString(u["modulus"], "units.modulus");
+    s.units = units;
+  }
   return s;
 }
 
@@ -554,6 +564,13 @@ Json SceneToJson(const Scene& s) {
   if (st.target_normalized_error != d.target_normalized_error)
     sj["target_normalized_error"] = st.target_normalized_error;
   if (!sj.empty()) j["search"] = std::move(sj);
+  if (s.units) {
+    Json u;
+    u["length"] = s.units->length;
+    u["force"] = s.units->force;
+    if (!s.units->modulus.empty()) u["modulus"] = s.units->modulus;
+    j["units"] = std::move(u);
+  }
   return j;
 }
 

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "engine/input_error.h"
+#include "engine/units.h"
 #include "proto/evaluation_codec.h"
 #include "proto/names.h"
 #include "proto/outcome_codec.h"
@@ -281,6 +282,16 @@ Json ResultToJson(const Problem& problem, const IdentificationResult& r, bool wi
   j["stop"] = StopReasonName(r.stop);
   j["stop_message"] = r.stop_message;
   j["outcome"] = OutcomeToJson(r.outcome);
+  // The units the numbers are in, as the scene states them (null: unstated).
+  if (problem.scene().units) {
+    const DerivedUnits u = DeriveUnits(*problem.scene().units);
+    j["units"] = {{"length", u.length},
+                  {"force", u.force},
+                  {"stiffness", u.stiffness},
+                  {"modulus", u.modulus}};
+  } else {
+    j["units"] = nullptr;
+  }
   if (const auto exact = r.exact()) {
     j["exact"] = *exact;
     j["hamming"] = r.difference->hamming();

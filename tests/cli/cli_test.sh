@@ -390,6 +390,17 @@ gmsh "$src/examples/pipeline/inclusion.geo" -2 -o "$tmp/inclusion.msh" >/dev/nul
 expect_exit 2 "a mesh without --loads" "$sf" run "$tmp/inclusion.msh"
 grep -q "load_cases: required: a mesh carries no load cases; pass them with --loads" "$tmp/err" || fail "a mesh without --loads: $(cat "$tmp/err")"
 [ "$(grep -o "inclusion.msh" "$tmp/err" | wc -l)" -eq 1 ] || fail "a mesh without --loads names the mesh once: $(cat "$tmp/err")"
+# Units stated in the loads file reach the result and every export (issue 33).
+"$sf" run "$tmp/inclusion.msh" --loads "$src/examples/pipeline/inclusion-loads.json" --strategy direct -q -o "$tmp/inclusion-direct.json" >/dev/null 2>&1
+python3 - "$tmp/inclusion-direct.json" <<'PY' || fail "the result carries the units"
+import json, sys
+r = json.load(open(sys.argv[1]))
+assert r["units"] == {"length": "mm", "force": "mN", "stiffness": "mN/mm", "modulus": "kPa"}, r["units"]
+PY
+"$sf" export "$tmp/inclusion-direct.json" -o "$tmp/inclusion-model.json" >/dev/null || fail "export with units"
+python3 -c "import json,sys; m=json.load(open(sys.argv[1])); assert m['units']['stiffness']=='mN/mm', m['units']" "$tmp/inclusion-model.json" || fail "the JSON model carries the units"
+"$sf" export "$tmp/inclusion-direct.json" -o "$tmp/inclusion-model.vtu" >/dev/null || fail "export vtu with units"
+grep -q "units: length mm, force mN, stiffness mN/mm" "$tmp/inclusion-model.vtu" || fail "the VTU model does not state its units"
 # Node-set names match without regard to case, as in a CalculiX deck.
 python3 - "$src/examples/pipeline/inclusion-loads.json" "$tmp/upper-loads.json" <<'PY'
 import json, sys

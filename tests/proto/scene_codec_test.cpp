@@ -1,5 +1,6 @@
 // Reading scenes: every validation rule rejects with a message naming the JSON path.
 #include "proto/scene_codec.h"
+#include "engine/units.h"
 
 #include <functional>
 
@@ -39,6 +40,22 @@ std::string ErrorPath(const Json& j, std::string* message) {
     return e.path();
   }
   return "<accepted>";
+}
+
+TEST(SceneCodec, UnitsRoundTripAndAConsistentModulusIsAccepted) {
+  Json j = ParseJson(kMinimal);
+  j["units"] = {{"length", "mm"}, {"force", "mN"}, {"modulus", "kPa"}};
+  const Scene s = SceneFromJson(j);
+  ASSERT_TRUE(s.units);
+  EXPECT_EQ(s.units->length, "mm");
+  EXPECT_EQ(s.units->force, "mN");
+  EXPECT_EQ(s.units->modulus, "kPa");
+  EXPECT_EQ(SceneToJson(s)["units"], j["units"]);
+  const DerivedUnits d = DeriveUnits(*s.units);
+  EXPECT_EQ(d.stiffness, "mN/mm");
+  EXPECT_EQ(d.modulus, "kPa");
+  EXPECT_EQ(DeriveUnits({"m", "uN", ""}).modulus, "uN/m^2");  // no named unit
+  EXPECT_FALSE(SceneFromJson(ParseJson(kMinimal)).units);
 }
 
 TEST(SceneCodec, MinimalSceneReadsWithDefaults) {
@@ -128,6 +145,24 @@ TEST(SceneCodec, EveryRuleNamesTheField) {
        "load_cases[1].forces[0]", "exactly one of"},
       {"rigid motion free", [](Json& j) { j["load_cases"][0]["fixed"] = {1}; }, "load_cases[0]",
        "rigid motion"},
+      // Units (issue 33): known names, and a modulus that is force / length^2.
+      {"unknown length unit",
+       [](Json& j) {
+         j["units"] = {{"length", "inch"}, {"force", "N"}};
+       },
+       "units.length", "unknown unit 'inch' (expected m, cm, mm, um)"},
+      {"units without a force",
+       [](Json& j) {
+         j["units"] = {{"length", "mm"}};
+       },
+       "units.force", "required"},
+      {"inconsistent modulus",
+       [](Json& j) {
+         j["units"] = {{"length", "mm"}, {"force", "N"}, {"modulus", "kPa"}};
+       },
+       "units.modulus",
+       "N/mm^2 is MPa, so moduli and forces would be read 1000 times apart; "
+       "write modulus 'MPa' or force 'mN'"},
       {"no load",
        [](Json& j) {
          j["load_cases"][0]["forces"][0]["force"] = {0, 0};
