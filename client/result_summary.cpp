@@ -173,7 +173,9 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
   }
   if (r.contains("generalization") && r["generalization"].is_object()) {
     const proto::Json& g = r["generalization"];
+    // ("inf": some probe finds a mode the model leaves free; "-": not measured.)
     const auto number = [](const proto::Json& j, const char* key) {
+      if (j.contains(key) && j[key].is_string()) return j[key].get<std::string>();
       return j.contains(key) && j[key].is_number() ? Format("%.3g", j[key].get<double>())
                                                    : std::string("-");
     };

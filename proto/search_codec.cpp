@@ -50,12 +50,10 @@ Json SearchOptionsToJson(const SearchOptions& o) {
   j["local_search"] = o.local_search;
   if (o.local_search) {
     j["local_search_batch"] = o.local_search_batch;
-    j["local_search_max_batches"] = o.local_search_max_batches;
     j["local_search_combine"] = o.local_search_combine;
     j["local_search_swaps"] = o.local_search_swaps;
     if (o.local_search_swaps) j["swap_radius"] = o.swap_radius;
   }
-  j["restart_after"] = o.restart_after;
   return j;
 }
 
@@ -208,11 +206,14 @@ Json NumberOrNull(double v) {
   return std::isfinite(v) ? Json(v) : Json(nullptr);
 }
 
+// (Infinite where some probe finds a mode the model leaves free: the string "inf"; null where
+// nothing was measured.)
 Json ErrorSummaryToJson(const response::ErrorSummary& s) {
+  const auto number = [](double v) { return std::isnan(v) ? Json(nullptr) : NumberOrText(v); };
   return {{"probes", s.probes},
-          {"median", NumberOrNull(s.median)},
-          {"p95", NumberOrNull(s.p95)},
-          {"rms", NumberOrNull(s.rms)}};
+          {"median", number(s.median)},
+          {"p95", number(s.p95)},
+          {"rms", number(s.rms)}};
 }
 
 Json FamiliesToJson(const std::vector<response::FamilyErrors>& families) {

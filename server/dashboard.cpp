@@ -582,9 +582,22 @@ HttpResponse Dashboard::JobView(const JobRecord& job) {
   try {
     const std::string best = TopologySvg(job, !result_json.empty());
     body += result_json.empty() ? "<h2>Best topology so far</h2>\n" : "<h2>Model</h2>\n";
-    body += "<figure id=\"topology\">" +
-            (best.empty() ? std::string("<p>No model evaluated yet.</p>") : Inline(best)) +
-            "</figure>\n";
+    // A large figure (a 3D mesh's springs: megabytes of SVG) is a file the browser fetches,
+    // not part of the page.
+    std::string figure;
+    if (best.empty()) {
+      figure = "<p>No model evaluated yet.</p>";
+    } else if (best.size() > options_.max_inline_figure_bytes) {
+      figure = fmt::format(
+          "<img src=\"/jobs/{}/topology.svg?of={}\" alt=\"the model's springs\" "
+          "style=\"max-width:100%\"><p><a href=\"/jobs/{}/topology.svg?of={}\">the figure</a> "
+          "({} KB)</p>",
+          job.id, result_json.empty() ? "best" : "result", job.id,
+          result_json.empty() ? "best" : "result", best.size() / 1024);
+    } else {
+      figure = Inline(best);
+    }
+    body += "<figure id=\"topology\">" + figure + "</figure>\n";
   } catch (const std::exception& e) {
     body += "<p>The topology figure cannot be drawn: " + XmlEscape(e.what()) + "</p>\n";
   }

@@ -43,6 +43,9 @@ struct DashboardOptions {
   int page_size = 50;  // jobs per page of /
   // Scenes kept prepared for the topology figures (preparing a large one takes a while).
   int cached_problems = 4;
+  // A topology figure larger than this is linked from the job's page (an <img> the browser
+  // fetches), not inlined: a 3D mesh's springs make megabytes of SVG.
+  std::size_t max_inline_figure_bytes = 256 * 1024;
 };
 
 class Dashboard {

@@ -96,9 +96,6 @@ TraceRow GeneticSearch::Step() {
   if (interrupted_) return Row();
   state_.stall =
       state_.best_fitness.normalized_error < before.normalized_error ? 0 : state_.stall + 1;
-  if (options_.restart_after > 0 && state_.stall >= options_.restart_after && !Finished()) {
-    Restart();
-  }
   return Row();
 }
 
@@ -249,9 +246,7 @@ void GeneticSearch::LocalSearch() {
   std::size_t unimproved = 0;  // moves tried in a row without an improvement
   bool optimum = false;
   std::vector<Genome> neighbours;
-  for (int batches = 0;
-       !(options_.local_search_max_batches > 0 && batches >= options_.local_search_max_batches);
-       ++batches) {
+  while (true) {
     if (unimproved >= moves.size()) {
       // A whole pass without improvement: single flips give way to swaps; after swaps too,
       // the genome is a local optimum.
@@ -341,20 +336,6 @@ void GeneticSearch::LocalSearch() {
   state_.population[b] = std::move(genome);
   state_.fitness[b] = fitness;
   UpdateBest();
-}
-
-void GeneticSearch::Restart() {
-  // Keep the best; draw everyone else anew as in the initial population.
-  const int n = options_.population;
-  std::vector<Genome> fresh;
-  fresh.push_back(state_.best);
-  for (int i = 1; i < n; ++i) fresh.push_back(InitialGenome(i));
-  // Evaluated before it replaces the population: an interruption leaves the old one whole.
-  std::vector<Fitness> fitness = evaluator_->Evaluate(fresh);
-  state_.population = std::move(fresh);
-  state_.fitness = std::move(fitness);
-  UpdateBest();
-  state_.stall = 0;
 }
 
 TraceRow GeneticSearch::Row() const {

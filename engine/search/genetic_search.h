@@ -102,7 +102,6 @@ class GeneticSearch {
   int Select(const std::vector<double>& weights_or_errors);
   void LocalSearch();
   void UpdateBest();
-  void Restart();
   TraceRow Row() const;
 
   const Problem* problem_;

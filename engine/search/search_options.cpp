@@ -32,11 +32,8 @@ void SearchOptions::Validate() const {
   check.Require(probability(initial_density_high) && initial_density_high >= initial_density_low,
                 "initial_density_high", initial_density_high, "initial_density_low <= value <= 1");
   check.Require(local_search_batch >= 1, "local_search_batch", local_search_batch, "value >= 1");
-  check.Require(local_search_max_batches >= 0, "local_search_max_batches", local_search_max_batches,
-                "value >= 0 (0: no limit)");
   check.Require(swap_radius >= 0.0 && std::isfinite(swap_radius), "swap_radius", swap_radius,
                 "0 <= value < infinity");
-  check.Require(restart_after >= 0, "restart_after", restart_after, "value >= 0 (0: never)");
   check.Require(max_springs >= 0, "max_springs", max_springs, "value >= 0 (0: no limit)");
   check.Require(target_error >= 0.0 && std::isfinite(target_error), "target_error", target_error,
                 "0 <= value < infinity (0: none)");

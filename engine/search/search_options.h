@@ -79,24 +79,18 @@ struct SearchOptions {
   // the initial population counts as new; elites do not): its single-gene neighbours are
   // evaluated `local_search_batch` at a time (a fixed number, so the run does not depend on
   // the thread count) and the best improving one is taken, until a whole pass over the genes
-  // finds no improvement or `local_search_max_batches` batches (0 = no limit) have been spent
-  // in this generation.
+  // finds no improvement.
   // With `local_search_swaps`, a genome no single flip improves is then tried with swaps:
   // one present spring removed and one absent spring added whose midpoints lie within
   // `swap_radius` times the shorter rest length (the two diagonals of a cell; a diagonal and
   // a side). Any improvement returns to single flips; the search ends where neither helps.
   bool local_search = false;
   int local_search_batch = 16;
-  int local_search_max_batches = 0;
   // When several moves of a batch improve, also try all of them at once (one evaluation more)
   // and keep that when it is better than the best single move.
   bool local_search_combine = true;
   bool local_search_swaps = true;
   double swap_radius = 0.5;
-  // Generations without improvement of the best before every other individual is drawn
-  // anew (0 = never; restarts after 3 or 20 stalled generations measured no better on
-  // paper-aniso-5x5, bench/RESULTS.md).
-  int restart_after = 0;
 
   std::size_t cache_capacity = FitnessCache::kDefaultCapacity;
 

@@ -16,6 +16,11 @@
 #include <gtest/gtest.h>
 #include <boost/asio/io_context.hpp>
 
+#include "engine/identification/identify.h"
+#include "io/example_catalog.h"
+#include "proto/outcome_codec.h"
+#include "proto/scene_codec.h"
+#include "proto/search_codec.h"
 #include "server/dashboard.h"
 #include "server/forwarding_store.h"
 #include "server/metrics.h"
@@ -105,6 +110,49 @@ TEST(HttpServer, HealthAndMetricsAnswerWhilePagesKeepEveryThreadBusy) {
     http.Stop();
     io.stop();
     loop.join();
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// The job page opens with the result card and links a large figure instead of inlining it
+// (issue 33 item 4).
+TEST(Dashboard, TheJobPageLinksALargeFigureInsteadOfInliningIt) {
+  const auto dir = std::filesystem::temp_directory_path() / "springfit-dashboard-figure";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  {
+    SqliteStore store((dir / "jobs.db").string());
+    Metrics metrics;
+    Scheduler scheduler(store, SchedulerOptions{});
+    const Scene scene = examples::Make("paper-iso-5x5");
+    const Problem problem(scene);
+    const IdentificationResult r = RunIdentification(
+        problem, ResolveSearchOptions(scene.search, problem.gene_count()), RunContext{});
+    NewJob job;
+    job.record.label = "figure";
+    job.record.scene_name = scene.name;
+    job.record.genes = problem.gene_count();
+    job.record.strategy = "direct";
+    job.scene_json = proto::SceneToJson(scene).dump();
+    const std::int64_t id = store.CreateJob(job, 100).job.id;
+    const std::optional<Claim> claim = store.ClaimNext("test", 30.0);
+    ASSERT_TRUE(claim);
+    store.MarkFinished(claim->lease,
+                       {JobState::kSucceeded, "", proto::ResultToJson(problem, r, false).dump(),
+                        r.exact(), 1.7e9, proto::OutcomeToJson(r.outcome).dump()});
+    const std::string target = "/jobs/" + std::to_string(id);
+    const std::string img = "<img src=\"" + target + "/topology.svg?of=result\"";
+    for (const std::size_t limit : {std::size_t{1} << 30, std::size_t{1000}}) {
+      DashboardOptions options;
+      options.max_inline_figure_bytes = limit;
+      Dashboard dashboard(store, scheduler, metrics, options);
+      const HttpResponse page = dashboard.Handle({"GET", target, {}, ""});
+      ASSERT_EQ(page.status, 200) << page.body;
+      const bool linked = limit < 1000000;
+      EXPECT_EQ(page.body.find("<figure id=\"topology\"><svg") != std::string::npos, !linked);
+      EXPECT_EQ(page.body.find(img) != std::string::npos, linked);
+      EXPECT_LT(page.body.find("id=\"result-card\""), page.body.find("id=\"topology\""));
+    }
   }
   std::filesystem::remove_all(dir);
 }
