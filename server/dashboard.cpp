@@ -504,7 +504,7 @@ std::string Dashboard::TopologySvg(const JobRecord& job, bool result) {
     text = store_.GetResult(job.id);
     if (!text) return "";
   } else {
-    improvements = store_.GetImprovements(job.id);
+    improvements = store_.GetImprovements(job.id, {.last = true});  // the best so far
     if (improvements.empty()) return "";
   }
   const std::shared_ptr<const Problem> problem = ProblemOf(job);

@@ -41,8 +41,9 @@ class ForwardingStore : public JobStore {
   std::vector<TraceRow> GetTrace(std::int64_t id, int after, int limit) override {
     return inner_.GetTrace(id, after, limit);
   }
-  std::vector<Improvement> GetImprovements(std::int64_t id) override {
-    return inner_.GetImprovements(id);
+  using JobStore::GetImprovements;
+  std::vector<Improvement> GetImprovements(std::int64_t id, const ImprovementPage& page) override {
+    return inner_.GetImprovements(id, page);
   }
   std::optional<std::string> GetCheckpoint(std::int64_t id) override {
     return inner_.GetCheckpoint(id);

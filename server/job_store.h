@@ -196,7 +196,16 @@ class JobStore {
   virtual std::optional<std::string> GetResult(std::int64_t id) = 0;
   // Trace rows with generation > after, oldest first, at most `limit`.
   virtual std::vector<TraceRow> GetTrace(std::int64_t id, int after, int limit) = 0;
-  virtual std::vector<Improvement> GetImprovements(std::int64_t id) = 0;
+  // Improvements with generation > page.after, oldest first, at most page.limit (0: all); with
+  // page.last the newest one alone (what a figure of the best so far needs).
+  struct ImprovementPage {
+    int after = -1;
+    int limit = 0;
+    bool last = false;
+  };
+  virtual std::vector<Improvement> GetImprovements(std::int64_t id,
+                                                   const ImprovementPage& page) = 0;
+  std::vector<Improvement> GetImprovements(std::int64_t id) { return GetImprovements(id, {}); }
   virtual std::optional<std::string> GetCheckpoint(std::int64_t id) = 0;
   // Deletes a finished job and everything stored with it; false when there is no such job
   // or it is not finished.

@@ -194,7 +194,11 @@ const std::pair<const char*, const char*> kStatements[] = {
     {"get_improvements",
      "SELECT i.generation, i.wall_seconds, i.cost, i.normalized_error, i.missing, i.extra, "
      "i.genome, j.genes FROM improvements i JOIN jobs j ON j.id = i.job_id WHERE i.job_id = $1 "
-     "ORDER BY i.generation"},
+     "AND i.generation > $2 ORDER BY i.generation LIMIT $3"},
+    {"get_last_improvement",
+     "SELECT i.generation, i.wall_seconds, i.cost, i.normalized_error, i.missing, i.extra, "
+     "i.genome, j.genes FROM improvements i JOIN jobs j ON j.id = i.job_id WHERE i.job_id = $1 "
+     "ORDER BY i.generation DESC LIMIT 1"},
     {"get_checkpoint", "SELECT state FROM checkpoints WHERE job_id = $1"},
     {"delete_job",
      "DELETE FROM jobs WHERE id = $1 AND state IN ('succeeded', 'failed', 'cancelled')"},
@@ -696,11 +700,18 @@ std::vector<TraceRow> PostgresStore::GetTrace(std::int64_t id, int after, int li
   });
 }
 
-std::vector<Improvement> PostgresStore::GetImprovements(std::int64_t id) {
+std::vector<Improvement> PostgresStore::GetImprovements(std::int64_t id,
+                                                        const ImprovementPage& page) {
   return Read([&](pqxx::connection& c) {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     std::vector<Improvement> out;
-    for (const auto& q : w.exec_prepared("get_improvements", id)) {
+    // (LIMIT NULL: no limit.)
+    const pqxx::result rows =
+        page.last ? w.exec_prepared("get_last_improvement", id)
+                  : w.exec_prepared("get_improvements", id, page.after,
+                                    page.limit > 0 ? std::optional<long long>(page.limit)
+                                                   : std::optional<long long>());
+    for (const auto& q : rows) {
       Improvement m;
       m.generation = q[0].as<int>();
       m.wall_seconds = q[1].as<double>();

@@ -686,10 +686,28 @@ Json RpcService::JobScene(const Json& params) {
 }
 
 Json RpcService::JobImprovements(const Json& params) {
-  proto::ExpectKeys(params, "params", {"job_id"});
+  proto::ExpectKeys(params, "params", {"job_id", "after", "limit", "last"});
   const JobRecord job = RequireJob(params);
+  // Paged as job.trace is (a genome per row: a long run's rows would pass any message limit),
+  // and bounded in bytes as job.list is; `last`: the best so far alone.
+  JobStore::ImprovementPage page;
+  if (const Json* v = Optional(params, "after"))
+    page.after = proto::ReadInt(*v, ParamPath("after"));
+  page.limit = ReadPageLimit(params, 1000, options_.limits.max_page);
+  if (const Json* v = Optional(params, "last")) {
+    if (!v->is_boolean()) throw InputError(ParamPath("last"), "expected true or false");
+    page.last = v->get<bool>();
+  }
+  const std::vector<Improvement> rows = store_.GetImprovements(job.id, page);
   Json list = Json::array();
-  for (const Improvement& improvement : store_.GetImprovements(job.id)) {
+  std::size_t bytes = 0;
+  bool cut = false;
+  for (const Improvement& improvement : rows) {
+    if (!list.empty() && bytes > options_.limits.max_list_bytes) {
+      cut = true;
+      break;
+    }
+    bytes += improvement.genome.size() + 160;
     Json row;
     row["generation"] = improvement.generation;
     row["wall_seconds"] = improvement.wall_seconds;
@@ -706,6 +724,8 @@ Json RpcService::JobImprovements(const Json& params) {
   }
   Json j;
   j["job_id"] = job.id;
+  const bool more = !page.last && (cut || static_cast<int>(rows.size()) == page.limit);
+  j["next_after"] = more ? Json(list.back()["generation"]) : Json(nullptr);
   j["improvements"] = std::move(list);
   return j;
 }

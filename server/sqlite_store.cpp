@@ -759,13 +759,18 @@ std::vector<TraceRow> SqliteStore::GetTrace(std::int64_t id, int after, int limi
   });
 }
 
-std::vector<Improvement> SqliteStore::GetImprovements(std::int64_t id) {
+std::vector<Improvement> SqliteStore::GetImprovements(std::int64_t id,
+                                                      const ImprovementPage& page) {
   return Read([&](SQLite::Database& db) {
-    SQLite::Statement q(db,
-                        "SELECT i.generation, i.wall_seconds, i.cost, i.normalized_error, "
-                        "i.missing, i.extra, i.genome, j.genes FROM improvements i JOIN jobs j ON "
-                        "j.id = i.job_id WHERE i.job_id = ? ORDER BY i.generation");
+    SQLite::Statement q(db, std::string("SELECT i.generation, i.wall_seconds, i.cost, "
+                                        "i.normalized_error, i.missing, i.extra, i.genome, "
+                                        "j.genes FROM improvements i JOIN jobs j ON j.id = "
+                                        "i.job_id WHERE i.job_id = ? AND i.generation > ? ") +
+                                (page.last ? "ORDER BY i.generation DESC LIMIT 1"
+                                           : "ORDER BY i.generation LIMIT ?"));
     q.bind(1, id);
+    q.bind(2, page.last ? -1 : page.after);
+    if (!page.last) q.bind(3, page.limit > 0 ? page.limit : -1);  // (-1: no limit)
     std::vector<Improvement> out;
     while (q.executeStep()) {
       Improvement m;

@@ -54,7 +54,8 @@ class SqliteStore final : public JobStore {
   CancelOutcome RequestCancel(std::int64_t id) override;
   std::optional<std::string> GetResult(std::int64_t id) override;
   std::vector<TraceRow> GetTrace(std::int64_t id, int after, int limit) override;
-  std::vector<Improvement> GetImprovements(std::int64_t id) override;
+  using JobStore::GetImprovements;
+  std::vector<Improvement> GetImprovements(std::int64_t id, const ImprovementPage& page) override;
   std::optional<std::string> GetCheckpoint(std::int64_t id) override;
   bool DeleteJob(std::int64_t id) override;
   std::string Describe() const override;

@@ -474,6 +474,18 @@ TEST_F(RpcServiceTest, SceneAndImprovementsOfAFinishedJob) {
   }
   const Json& last = improvements.back();
   EXPECT_EQ(last["cost"], result["cost"]);
+  // Paged: a page of one says where the next starts; `last` is the best alone.
+  const Json first_page = Call("job.improvements", {{"job_id", id}, {"limit", 1}})["result"];
+  ASSERT_EQ(first_page["improvements"].size(), 1u);
+  EXPECT_EQ(first_page["improvements"][0], improvements[0]);
+  EXPECT_EQ(first_page["next_after"], improvements[0]["generation"]);
+  const Json rest =
+      Call("job.improvements", {{"job_id", id}, {"after", first_page["next_after"]}})["result"];
+  EXPECT_EQ(rest["improvements"].size(), improvements.size() - 1);
+  EXPECT_TRUE(rest["next_after"].is_null());
+  const Json best = Call("job.improvements", {{"job_id", id}, {"last", true}})["result"];
+  ASSERT_EQ(best["improvements"].size(), 1u);
+  EXPECT_EQ(best["improvements"][0], last);
   EXPECT_EQ(last["generation"], result["best_generation"]);
   const std::string genome = last["genome"].get<std::string>();
   const Problem problem = Problem::Build(read);
@@ -487,7 +499,9 @@ TEST_F(RpcServiceTest, SceneAndImprovementsOfAFinishedJob) {
   }
   EXPECT_EQ(springs, result["springs"]);
   EXPECT_EQ(Code(Call("job.scene", {{"job_id", id + 100}})), rpc::kNoSuchJob);
-  EXPECT_EQ(Code(Call("job.improvements", {{"job_id", id}, {"after", 3}})), rpc::kInvalidParams);
+  EXPECT_EQ(Code(Call("job.improvements", {{"job_id", id}, {"last", 3}})), rpc::kInvalidParams);
+  EXPECT_EQ(Code(Call("job.improvements", {{"job_id", id}, {"newest", true}})),
+            rpc::kInvalidParams);
   service_->EndSession(session_);
 }
 

@@ -295,6 +295,10 @@ TEST_P(StoreSuite, ProgressCheckpointRewindAndFinish) {
   EXPECT_EQ(store_->GetTrace(id, -1, 100).size(), 5u);
   const auto improvements = store_->GetImprovements(id);
   ASSERT_EQ(improvements.size(), 1u);
+  // (Paged: the newest alone, and none after it.)
+  ASSERT_EQ(store_->GetImprovements(id, {.last = true}).size(), 1u);
+  EXPECT_EQ(store_->GetImprovements(id, {.last = true})[0].generation, improvements[0].generation);
+  EXPECT_TRUE(store_->GetImprovements(id, {.after = improvements[0].generation}).empty());
   EXPECT_EQ(improvements[0].genome, (Genome{1, 0, 1, 1, 0, 0, 0, 0, 1, 1, 1, 0}));
   EXPECT_EQ(improvements[0].missing, -1);
 
