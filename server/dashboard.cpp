@@ -143,7 +143,11 @@ std::string EText(const JobRecord& job) {
   return job.progress ? ErrorText(std::sqrt(job.progress->best_normalized_error)) + "~" : "-";
 }
 
+// A genetic run's generation of its limit; a continuous run's step (its rows are the fit's
+// steps, not generations: no limit to show).
 std::string GenerationText(const JobRecord& job) {
+  if (job.strategy == "continuous")
+    return job.progress ? fmt::format("step {}", job.progress->generation) : "-";
   return job.progress ? fmt::format("{} / {}", job.progress->generation, job.max_generations)
                       : fmt::format("- / {}", job.max_generations);
 }
@@ -241,7 +245,7 @@ constexpr const char* kLiveScript = R"(<script>
       .then(function (r) { return r.ok ? r.json() : null; })
       .then(function (p) {
         if (p) {
-          ['state', 'generation', 'best', 'elapsed', 'evaluations'].forEach(function (k) { set(k, p[k]); });
+          ['state', 'generation', 'phase', 'best', 'elapsed', 'evaluations'].forEach(function (k) { set(k, p[k]); });
           live.setAttribute('data-generation', p.generation_number);
           live.setAttribute('data-updates', ++updates);
           if (updates % 5 === 0) {
@@ -353,6 +357,15 @@ HttpResponse Dashboard::Route(const HttpRequest&, const std::string& path,
     if (what == std::string("model.") + ext) return Model(job, ext);
   }
   return Text(404, "not found\n");
+}
+
+// Where a job running here is inside its step (Scheduler::Phase): "fit, 12.3 s, E 0.05".
+std::string Dashboard::PhaseText(std::int64_t id) const {
+  const std::optional<Scheduler::LivePhase> phase = scheduler_.Phase(id);
+  if (!phase) return "-";
+  std::string text = phase->phase + ", " + Seconds(phase->wall_seconds);
+  if (std::isfinite(phase->rms_error)) text += ", E " + ErrorText(phase->rms_error);
+  return text;
 }
 
 JobRecord Dashboard::Live(JobRecord job) const {
@@ -566,7 +579,9 @@ HttpResponse Dashboard::JobView(const JobRecord& job) {
       job.progress ? job.progress->generation : -1, final ? "true" : "false");
   body += Row("state",
               "<span id=\"p-state\">" + std::string(proto::JobStateName(job.state)) + "</span>");
-  body += Row("generation", "<span id=\"p-generation\">" + GenerationText(job) + "</span>");
+  body += Row(job.strategy == "continuous" ? "progress" : "generation",
+              "<span id=\"p-generation\">" + GenerationText(job) + "</span>");
+  body += Row("phase", "<span id=\"p-phase\">" + XmlEscape(PhaseText(job.id)) + "</span>");
   body += Row("E (relative RMS nodal error)", "<span id=\"p-best\">" + EText(job) + "</span>");
   body += Row("evaluations", "<span id=\"p-evaluations\">" +
                                  (job.progress ? std::to_string(job.progress->evaluations) : "-") +
@@ -649,6 +664,7 @@ HttpResponse Dashboard::Progress(const JobRecord& job) {
   p["generation"] = GenerationText(job);
   p["generation_number"] = job.progress ? job.progress->generation : -1;
   p["best"] = EText(job);
+  p["phase"] = PhaseText(job.id);
   p["evaluations"] = job.progress ? std::to_string(job.progress->evaluations) : "-";
   p["elapsed"] = Seconds(Elapsed(job));
   return Content("application/json", p.dump());

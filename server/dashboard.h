@@ -74,6 +74,7 @@ class Dashboard {
 
   // The job's record with its live progress when it runs here.
   JobRecord Live(JobRecord job) const;
+  std::string PhaseText(std::int64_t id) const;
   std::shared_ptr<const Problem> ProblemOf(const JobRecord& job);
   std::string ErrorPlotSvg(const JobRecord& job);
   // The topology figure of the result (finished jobs) or of the best so far; empty when

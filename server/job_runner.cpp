@@ -174,7 +174,8 @@ JobRecord RunJob(JobStore& store, WorkerPool& pool, const Claim& claim,
     };
     // Inside any step (analysis, direct phase, a generation): cancel and shutdown take effect
     // within a second (a shutdown then resumes from the last checkpoint, at a generation's end).
-    run.on_beat = [&](const ProgressBeat&) {
+    run.on_beat = [&](const ProgressBeat& beat) {
+      if (control.on_beat) control.on_beat(beat);
       const Requests asked = requests();
       if (asked.shutdown) interrupted = true;
       return !asked.cancel && !asked.shutdown;

@@ -6,6 +6,7 @@
 #include <functional>
 #include <memory>
 
+#include "engine/identification/identify.h"
 #include "engine/problem.h"
 #include "engine/search/worker_pool.h"
 #include "server/job_store.h"
@@ -24,6 +25,9 @@ struct JobControl {
   const std::atomic<bool>* lease_lost = nullptr;
   // Every generation, on the job's thread (throttling is the listener's business).
   std::function<void(const TraceRow&)> on_generation;
+  // Inside a step, about once a second: its phase (analysis, direct, genetic; a continuous
+  // run's fit, path, refit...), on the job's thread.
+  std::function<void(const ProgressBeat&)> on_beat;
 };
 
 // The job's record after the run: finished (succeeded, failed, cancelled), or still running

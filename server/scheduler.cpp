@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <random>
 #include <stdexcept>
 
@@ -164,6 +165,13 @@ std::optional<TraceRow> Scheduler::LiveProgress(std::int64_t id) const {
   const auto r = running_.find(id);
   if (r == running_.end()) return std::nullopt;
   return r->second->progress;
+}
+
+std::optional<Scheduler::LivePhase> Scheduler::Phase(std::int64_t id) const {
+  std::lock_guard lock(mutex_);
+  const auto r = running_.find(id);
+  if (r == running_.end()) return std::nullopt;
+  return r->second->phase;
 }
 
 bool Scheduler::IsRunningHere(std::int64_t id) const {
@@ -350,6 +358,11 @@ void Scheduler::RunClaimed(const Claim& claim) {
   control.shutdown = &stopping_;
   control.lease_lost = &running->lease_lost;
   control.on_generation = [&](const TraceRow& row) { OnGeneration(id, *running, claim.job, row); };
+  control.on_beat = [&](const ProgressBeat& beat) {
+    std::lock_guard lock(mutex_);
+    running->phase = LivePhase{std::string(beat.phase), beat.wall_seconds,
+                               std::sqrt(beat.best_normalized_error)};
+  };
   const JobRecord after =
       RunJob(store_, pool_, claim, std::move(prepared), options_.runner, control);
   if (proto::IsFinal(after.state)) {

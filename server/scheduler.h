@@ -108,6 +108,14 @@ class Scheduler {
 
   // The latest generation of a job running here (fresher than the store's, which is flushed).
   std::optional<TraceRow> LiveProgress(std::int64_t id) const;
+  // Where a job running here has got to inside its step (RunContext::on_beat): the phase, its
+  // clock, and E so far (NaN: none yet). nullopt: not running here, or no beat yet.
+  struct LivePhase {
+    std::string phase;
+    double wall_seconds = 0.0;
+    double rms_error = 0.0;
+  };
+  std::optional<LivePhase> Phase(std::int64_t id) const;
   bool IsRunningHere(std::int64_t id) const;
 
   std::uint64_t Watch(std::int64_t id, Listener listener);
@@ -127,6 +135,7 @@ class Scheduler {
     std::atomic<bool> cancel{false};
     std::atomic<bool> lease_lost{false};
     std::optional<TraceRow> progress;  // guarded by mutex_
+    std::optional<LivePhase> phase;    // guarded by mutex_
     std::chrono::steady_clock::time_point last_notified{};
     std::int64_t evaluations = 0;  // counted into the metrics so far (the job's thread)
   };

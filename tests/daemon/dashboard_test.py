@@ -261,12 +261,36 @@ def check_token():
     expect(get(port, "/", headers={"Cookie": value})[0] == 200, "the login cookie opens /")
 
 
+def check_phase(rpc_port, port):
+    """A running continuous job shows its phase and E, live, and its steps, not generations of
+    a limit (issue 33)."""
+    global current
+    current = "phase"
+    job = int(cli(rpc_port, "submit", os.path.join(SRC, "examples", "fem-kidney-2d-fine.json"),
+                  "--label", "phase").stdout)
+    seen = {}
+
+    def phase_shown():
+        p = json.loads(get(port, f"/jobs/{job}/progress.json")[2])
+        seen.update(p)
+        return p.get("phase", "-") != "-"
+    expect(wait_for(phase_shown, 30), f"no phase shown for the running continuous job: {seen}")
+    name = seen.get("phase", "-").split(",")[0]
+    expect(name in ("analysis", "probes", "probe_fit", "probe_path", "probe_refine", "fit", "path",
+                    "refit", "held_out"), f"an unexpected phase: {seen.get('phase')}")
+    expect("/" not in seen.get("generation", ""), f"a continuous job shown by generations: {seen}")
+    status, _, page = get(port, f"/jobs/{job}")
+    expect(status == 200 and '<span id="p-phase">' in page, "the job page has no live phase")
+    cli(rpc_port, "cancel", str(job))
+
+
 def main():
     global current
     try:
         _, rpc_port, port = start("main")
         running = check_pages(rpc_port, port)
         check_browser(port, running)
+        check_phase(rpc_port, port)
         check_token()
     except Exception as e:  # noqa: BLE001 - a crash is a failure of the check it was in
         fail(f"{type(e).__name__}: {e}")
@@ -274,7 +298,7 @@ def main():
         for p in procs:
             p.send_signal(signal.SIGKILL)
             p.wait()
-    checks = ("pages", "browser", "token")
+    checks = ("pages", "browser", "phase", "token")
     failed = {name for name, _ in failures}
     for name in checks:
         print(f"{'FAIL' if name in failed else 'PASS'}: {name}")
