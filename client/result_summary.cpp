@@ -81,7 +81,7 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
   if (r.contains("direct_phase") && r["direct_phase"].is_object()) {
     const proto::Json& phase = r["direct_phase"];
     out << "direct seed:       " << Format("%.3f", phase.value("seconds", 0.0))
-        << " s, normalized error " << Format("%.6g", phase.value("normalized_error", 0.0));
+        << " s, E " << Format("%.4g", std::sqrt(phase.value("normalized_error", 0.0)));
     if (phase.contains("missing") && phase["missing"].is_number()) {
       out << " (" << phase["missing"].get<long long>() << " missing, "
           << phase["extra"].get<long long>() << " extra)";
