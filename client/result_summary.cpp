@@ -35,6 +35,9 @@ void PrintVerdict(const proto::Json& r, std::ostream& out) {
   out << "verdict:           " << o.Headline() << "\n";
   for (const std::string& line : o.unmet) out << "WARNING:           " << line << "\n";
   if (!o.reason.empty()) out << "NO USABLE MODEL:   " << o.reason << "\n";
+  if (r.contains("notices") && r["notices"].is_array())
+    for (const proto::Json& notice : r["notices"])
+      if (notice.is_string()) out << "notice:            " << notice.get<std::string>() << "\n";
 }
 
 }  // namespace
@@ -80,8 +83,8 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
   out << "\n";
   if (r.contains("direct_phase") && r["direct_phase"].is_object()) {
     const proto::Json& phase = r["direct_phase"];
-    out << "direct seed:       " << Format("%.3f", phase.value("seconds", 0.0))
-        << " s, E " << Format("%.4g", std::sqrt(phase.value("normalized_error", 0.0)));
+    out << "direct seed:       " << Format("%.3f", phase.value("seconds", 0.0)) << " s, E "
+        << Format("%.4g", std::sqrt(phase.value("normalized_error", 0.0)));
     if (phase.contains("missing") && phase["missing"].is_number()) {
       out << " (" << phase["missing"].get<long long>() << " missing, "
           << phase["extra"].get<long long>() << " extra)";

@@ -196,6 +196,19 @@ grep -q "^fit step [0-9]*  E " "$tmp/vocabulary.err" || fail "submit --watch of 
 "$sf" info >"$tmp/info.txt" || fail "info"
 grep -q "^  max_nodes: *[0-9]" "$tmp/info.txt" || fail "info does not list its limits one to a line: $(cat "$tmp/info.txt")"
 ! grep -q "^limits: *{" "$tmp/info.txt" || fail "info prints its limits as raw JSON"
+# The load-size notice reaches a pipeline through the daemon too (the result carries it).
+python3 - "$src/examples/fem-kidney-2d.json" "$tmp/kidney-large.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+for lc in s["load_cases"]:
+    for t in lc.get("tractions", []):
+        for key in ("total", "per_length"):
+            if key in t:
+                t[key] = [4.0 * x for x in t[key]]
+json.dump(s, open(sys.argv[2], "w"))
+PY
+"$sf" submit "$tmp/kidney-large.json" --wait >"$tmp/large.txt" 2>&1
+grep -q "^notice: .*the linear reference moves node" "$tmp/large.txt" || fail "submit --wait does not show the load-size notice: $(head -5 "$tmp/large.txt")"
 # A spring budget no model meets: the model and a WARNING line, exit 11, listed as such.
 "$sf" submit "$src/examples/fem-plate-5x5.json" --strategy continuous --max-springs 1 --label budget --wait >"$tmp/budget.txt" 2>&1
 code=$?
