@@ -75,11 +75,7 @@ void PrintJob(const proto::JobRecord& j) {
             << "started:           " << LocalTime(j.started_at) << "\n"
             << "finished:          " << LocalTime(j.finished_at) << "\n";
   if (j.outcome) {
-    // A finished job: its verdict, in the words of `springfit run` (verdict.h).
-    std::cout << "verdict:           " << j.outcome->Headline() << "\n";
-    for (const std::string& line : j.outcome->unmet)
-      std::cout << "WARNING:           " << line << "\n";
-    if (!j.outcome->reason.empty()) std::cout << "NO USABLE MODEL:   " << j.outcome->reason << "\n";
+    PrintOutcome(*j.outcome, std::cout);  // in the words of `springfit run`
   } else if (j.progress) {
     const TraceRow& p = *j.progress;
     std::cout << "progress:          " << ProgressText(j) << "\n"

@@ -27,20 +27,22 @@ void PrintPairs(std::ostream& out, const char* label, const proto::Json& pairs) 
   out << "\n";
 }
 
-// The verdict (engine/identification/verdict.h) first: the one line a pipeline reads, then a
-// WARNING line per unmet request, or why there is no usable model.
+// The verdict first (a result's, as every summary shows it), then the scene's notices.
 void PrintVerdict(const proto::Json& r, std::ostream& out) {
   if (!r.contains("outcome") || !r["outcome"].is_object()) return;
-  const Outcome o = proto::OutcomeFromJson(r["outcome"], "outcome");
-  out << "verdict:           " << o.Headline() << "\n";
-  for (const std::string& line : o.unmet) out << "WARNING:           " << line << "\n";
-  if (!o.reason.empty()) out << "NO USABLE MODEL:   " << o.reason << "\n";
+  PrintOutcome(proto::OutcomeFromJson(r["outcome"], "outcome"), out);
   if (r.contains("notices") && r["notices"].is_array())
     for (const proto::Json& notice : r["notices"])
       if (notice.is_string()) out << "notice:            " << notice.get<std::string>() << "\n";
 }
 
 }  // namespace
+
+void PrintOutcome(const Outcome& o, std::ostream& out) {
+  out << "verdict:           " << o.Headline() << "\n";
+  for (const std::string& line : o.unmet) out << "WARNING:           " << line << "\n";
+  if (!o.reason.empty()) out << "NO USABLE MODEL:   " << o.reason << "\n";
+}
 
 void PrintResultSummary(const proto::Json& r, std::ostream& out) {
   out << "scene:             " << r.value("scene", std::string()) << "\n";

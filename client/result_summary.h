@@ -4,11 +4,16 @@
 #include <ostream>
 #include <string>
 
+#include "engine/identification/verdict.h"
 #include "proto/json_reader.h"
 
 namespace springfit::cli {
 
 void PrintResultSummary(const proto::Json& result, std::ostream& out);
+// The verdict (engine/identification/verdict.h): the one line a pipeline reads, then a WARNING
+// line per unmet request, or why there is no usable model. The same words for a result and a
+// job (`status`, `watch`).
+void PrintOutcome(const Outcome& outcome, std::ostream& out);
 
 // On standard output: one compact JSON object (`--json`), or the summary.
 void PrintResult(const proto::Json& result, bool as_json);

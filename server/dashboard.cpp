@@ -547,6 +547,7 @@ HttpResponse Dashboard::JobView(const JobRecord& job) {
   if (final) {
     if (auto r = store_.GetResult(job.id)) result_json = *r;
   }
+  const Json result = result_json.empty() ? Json::object() : proto::ParseJson(result_json);
   if (job.outcome) {
     Json search;
     try {
@@ -554,10 +555,7 @@ HttpResponse Dashboard::JobView(const JobRecord& job) {
         search = proto::ParseJson(*scene).value("search", Json::object());
     } catch (const std::exception&) {
     }
-    body +=
-        "<h2>Result</h2>\n" +
-        ResultCard(*job.outcome,
-                   result_json.empty() ? Json::object() : proto::ParseJson(result_json), search);
+    body += "<h2>Result</h2>\n" + ResultCard(*job.outcome, result, search);
   }
   body += "<h2>Job</h2>\n<table id=\"settings\">\n";
   body += Row("label", XmlEscape(job.label));
@@ -617,7 +615,7 @@ HttpResponse Dashboard::JobView(const JobRecord& job) {
     body += "<p>The topology figure cannot be drawn: " + XmlEscape(e.what()) + "</p>\n";
   }
   if (!result_json.empty()) {
-    const Json r = proto::ParseJson(result_json);
+    const Json& r = result;
     body += "<h2>Identifiability</h2>\n<table id=\"identifiability\">\n";
     if (r.contains("stop")) body += Row("stop", XmlEscape(r.value("stop", "")));
     if (r.contains("stop_message") && r["stop_message"].is_string())
