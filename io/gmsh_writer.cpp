@@ -1,9 +1,12 @@
 // Gmsh: the model as 2-node line elements (Gmsh type 1) of one discrete curve, through the
 // Gmsh library, in MSH 4.1 ASCII; the per-spring values as element-data views appended to the
 // same file. Nodes and elements are numbered from 1 (node p is tag p + 1, spring i element
-// i + 1).
+// i + 1). MSH 4.1 has no field for a description: the model's (strategy, seed, E, units) goes
+// in a `$Comments` section after the views, which Gmsh and meshio skip as the format allows for
+// sections they do not know.
 #include <gmsh.h>
 
+#include <fstream>
 #include <stdexcept>
 
 #include "io/gmsh_session.h"
@@ -58,6 +61,13 @@ void WriteGmshFile(const SpringModel& model, const std::string& path) {
   } catch (...) {
     throw std::runtime_error(path + ": cannot write the model (Gmsh)");
   }
+  // One line, whatever the scene's name holds, so that no line of it can end the section.
+  std::string line = "springfit model " + model.name + ": " + model.description;
+  for (char& c : line)
+    if (c == '\n' || c == '\r') c = ' ';
+  std::ofstream out(path, std::ios::app);
+  out << "$Comments\n" << line << "\n$EndComments\n";
+  if (!out.flush()) throw std::runtime_error(path + ": cannot write the model's description");
 }
 
 }  // namespace springfit::io

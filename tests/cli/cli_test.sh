@@ -401,6 +401,11 @@ PY
 python3 -c "import json,sys; m=json.load(open(sys.argv[1])); assert m['units']['stiffness']=='mN/mm', m['units']" "$tmp/inclusion-model.json" || fail "the JSON model carries the units"
 "$sf" export "$tmp/inclusion-direct.json" -o "$tmp/inclusion-model.vtu" >/dev/null || fail "export vtu with units"
 grep -q "units: length mm, force mN, stiffness mN/mm" "$tmp/inclusion-model.vtu" || fail "the VTU model does not state its units"
+"$sf" export "$tmp/inclusion-direct.json" -o "$tmp/inclusion-model.msh" >/dev/null || fail "export msh with units"
+# (MSH 4.1 has no description field: a $Comments section, which gmsh itself must still read)
+grep -A1 '^\$Comments$' "$tmp/inclusion-model.msh" | grep -q "units: length mm, force mN, stiffness mN/mm" \
+  || fail "the Gmsh model does not state its units"
+gmsh "$tmp/inclusion-model.msh" -0 -o "$tmp/inclusion-model-gmsh.msh" >/dev/null 2>&1 || fail "gmsh reads the model with its comments"
 # Node-set names match without regard to case, as in a CalculiX deck.
 python3 - "$src/examples/pipeline/inclusion-loads.json" "$tmp/upper-loads.json" <<'PY'
 import json, sys
