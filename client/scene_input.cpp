@@ -1,5 +1,7 @@
 #include "client/scene_input.h"
 
+#include <cstdio>
+
 #include "engine/input_error.h"
 #include "io/mesh_import.h"
 #include "proto/scene_codec.h"
@@ -21,7 +23,13 @@ proto::Json SceneJsonOf(const SceneInput& input) {
   if (io::IsMeshFile(input.path)) {
     std::vector<std::string> paths{input.path};
     paths.insert(paths.end(), input.more.begin(), input.more.end());
-    return io::ImportSceneFiles(paths, input.loads, input.results);
+    // What the import leaves out or reads differently from ccx, on stderr: every command that
+    // takes a mesh or deck (import, run, submit, check, ...) says it alike.
+    std::vector<std::string> notes;
+    proto::Json scene = io::ImportSceneFiles(paths, input.loads, input.results, &notes);
+    for (const std::string& note : notes)
+      std::fprintf(stderr, "springfit: note: %s\n", note.c_str());
+    return scene;
   }
   if (!input.loads.empty()) {
     throw InputError("", "--loads applies to a mesh (.msh); " + input.path + " is a scene");

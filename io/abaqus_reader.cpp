@@ -152,7 +152,9 @@ long Integer(const Line& line, const std::string& text, const char* what) {
 
 // What the decks describe, with the deck's own ids.
 struct Deck {
-  int dimension = 0;                          // from the element types
+  // The dimension of the mesh (SelectMeshElements): 3 with tetrahedra, 2 with triangles, the
+  // trusses' otherwise.
+  int dimension = 0;
   std::map<long, std::vector<double>> nodes;  // id -> x, y, z
   struct Element {
     long id = 0;
@@ -162,6 +164,8 @@ struct Deck {
   std::vector<Element> elements;
   std::map<std::string, std::vector<long>> nsets, elsets;  // upper-case names
   std::map<std::string, std::string> set_names;            // upper -> as first written
+  std::vector<std::string> group_elsets;       // upper names given by *ELSET, in order (regions)
+  std::map<std::string, long> element_counts;  // by type, as read (before SelectMeshElements)
   struct Material {
     std::optional<double> young, poisson;
   };
@@ -286,14 +290,14 @@ void ReadDeck(const std::string& path, Deck& deck) {
         d = 3, count = 4;
       } else if (type == "T2D2" || type == "T3D2") {
         d = type == "T2D2" ? 2 : 3, count = 2;
-        deck.truss = true;
       } else {
         Fail(at, "element type '" + card.Get("TYPE") +
                      "': springfit reads CPS3, CPE3 (2D triangles), C3D4 (tetrahedra) and T2D2, "
                      "T3D2 (2-node trusses: an MSS reference)");
       }
-      if (deck.dimension != 0 && deck.dimension != d) Fail(at, "2D and 3D elements in one model");
-      deck.dimension = d;
+      // Lower-dimensional elements beside the mesh's (Gmsh writes physical curves as T3D2
+      // and a 3D mesh's boundary as CPS3) are left out later (SelectMeshElements).
+      if (count > 2) deck.dimension = std::max(deck.dimension, d);
       const std::string set = card.Get("ELSET");
       for (const Line& l : card.data) {
         const std::vector<std::string> f = SplitFields(l.text);
@@ -308,6 +312,7 @@ void ReadDeck(const std::string& path, Deck& deck) {
         for (int c = 1; c <= count; ++c) e.nodes.push_back(Integer(l, ids[c], "a node"));
         if (!set.empty()) deck.elsets[Upper(set)].push_back(e.id);
         deck.elements.push_back(std::move(e));
+        ++deck.element_counts[type];
       }
       if (!set.empty()) deck.set_names.emplace(Upper(set), set);
     } else if (k == "NSET" || k == "ELSET") {
@@ -316,6 +321,9 @@ void ReadDeck(const std::string& path, Deck& deck) {
       if (name.empty()) Fail(at, "*" + k + " needs " + k + "=name");
       std::vector<long>& ids = (nodes ? deck.nsets : deck.elsets)[Upper(name)];
       deck.set_names.emplace(Upper(name), name);
+      if (!nodes && std::find(deck.group_elsets.begin(), deck.group_elsets.end(), Upper(name)) ==
+                        deck.group_elsets.end())
+        deck.group_elsets.push_back(Upper(name));
       for (const Line& l : card.data) {
         const std::vector<std::string> f = SplitFields(l.text);
         if (card.Has("GENERATE")) {
@@ -485,20 +493,129 @@ std::string SectionsText(const Deck& deck) {
   return out.str();
 }
 
+// The mesh's elements: tetrahedra where there are any, else triangles, else trusses (an MSS
+// reference). Lower-dimensional elements beside them (Gmsh writes a 2D mesh's physical curves
+// as T3D2 lines and a 3D mesh's boundary as CPS3) are left out with one note; every element
+// set still names its elements' nodes (below). Sets `deck.dimension` and `deck.truss`.
+void SelectMeshElements(Deck& deck, const std::string& path, std::vector<std::string>& notes) {
+  // Sets given by *ELSET name their nodes too, as a Gmsh physical group does in a .msh, unless a
+  // node set has the name: a Gmsh deck's physical groups are *ELSETs (and *NSETs only with
+  // Mesh.SaveGroupsOfNodes); its elementary entities (ELSET= on *ELEMENT) are not groups.
+  std::map<long, const Deck::Element*> by_id;
+  for (const auto& e : deck.elements) by_id.emplace(e.id, &e);
+  for (const std::string& upper : deck.group_elsets) {
+    const std::vector<long>& ids = deck.elsets.at(upper);
+    if (deck.nsets.count(upper)) continue;
+    std::set<long> nodes;
+    for (long id : ids) {
+      const auto it = by_id.find(id);
+      if (it != by_id.end()) nodes.insert(it->second->nodes.begin(), it->second->nodes.end());
+    }
+    if (!nodes.empty()) deck.nsets[upper].assign(nodes.begin(), nodes.end());
+  }
+  const auto count = [&](const char* type) {
+    const auto it = deck.element_counts.find(type);
+    return it == deck.element_counts.end() ? 0L : it->second;
+  };
+  std::set<std::string> kept;
+  if (deck.dimension == 3) {
+    kept = {"C3D4"};
+  } else if (deck.dimension == 2) {
+    kept = {"CPS3", "CPE3"};
+  } else {
+    if (count("T2D2") > 0 && count("T3D2") > 0)
+      throw InputError("", path + ": T2D2 and T3D2 trusses in one model (2D and 3D)");
+    deck.dimension = count("T2D2") > 0 ? 2 : 3;
+    deck.truss = true;
+    return;
+  }
+  std::string ignored;
+  for (const auto& [type, n] : deck.element_counts) {
+    if (kept.count(type)) continue;
+    ignored += (ignored.empty() ? "" : ", ") + std::to_string(n) + " " + type;
+  }
+  if (ignored.empty()) return;
+  std::erase_if(deck.elements, [&](const Deck::Element& e) { return !kept.count(e.type); });
+  notes.push_back(path + ": " + ignored + " element(s) beside the " +
+                  std::to_string(deck.elements.size()) +
+                  (deck.dimension == 3 ? " tetrahedra" : " triangles") +
+                  " left out (lower-dimensional: a mesher's curves or boundary faces; their "
+                  "element sets still name their nodes)");
+}
+
+// Without sections, the regions `--loads` may give materials by (as a Gmsh mesh's physical
+// surfaces or volumes): each element's first *ELSET, in the deck's order, made of mesh
+// elements only.
+void ElementRegions(const Deck& deck, DeckImport& out) {
+  std::map<long, std::string> region_of;
+  std::set<long> mesh;
+  for (const auto& e : deck.elements) mesh.insert(e.id);
+  for (const std::string& upper : deck.group_elsets) {
+    const std::vector<long>& ids = deck.elsets.at(upper);
+    if (ids.empty() ||
+        !std::all_of(ids.begin(), ids.end(), [&](long id) { return mesh.count(id); }))
+      continue;
+    for (long id : ids) region_of.emplace(id, deck.set_names.at(upper));
+  }
+  if (region_of.empty()) return;
+  for (const auto& e : deck.elements) {
+    const auto it = region_of.find(e.id);
+    out.element_regions.push_back(it == region_of.end() ? std::string() : it->second);
+    if (it != region_of.end()) ++out.region_elements[it->second];
+  }
+}
+
+// Elements a solver would reject as inverted: clockwise triangles (negative area), tetrahedra
+// of negative volume by CalculiX's node order (ccx stops on a nonpositive Jacobian). springfit's
+// FEM solves either orientation, so this is a note for a user who runs the deck in ccx too.
+void NoteInvertedElements(const Deck& deck, const std::string& path,
+                          std::vector<std::string>& notes) {
+  std::vector<long> inverted;
+  for (const auto& e : deck.elements) {
+    if (e.nodes.size() < 3) continue;
+    const auto x = [&](std::size_t k) {
+      const std::vector<double>& p = deck.nodes.at(e.nodes[k]);
+      return Eigen::Vector3d(p[0], p[1], p[2]);
+    };
+    const Eigen::Vector3d a = x(1) - x(0), b = x(2) - x(0);
+    const double measure =
+        e.nodes.size() == 3 ? a.x() * b.y() - a.y() * b.x() : a.cross(b).dot(x(3) - x(0));
+    if (measure < 0.0) inverted.push_back(e.id);
+  }
+  if (inverted.empty()) return;
+  std::string ids;
+  for (std::size_t i = 0; i < inverted.size() && i < 8; ++i)
+    ids += (i > 0 ? ", " : "") + std::to_string(inverted[i]);
+  if (inverted.size() > 8) ids += ", ...";
+  notes.push_back(path + ": " + std::to_string(inverted.size()) + " of " +
+                  std::to_string(deck.elements.size()) + " elements are inverted (" +
+                  (deck.dimension == 2 ? "clockwise" : "negative volume") + ": " + ids +
+                  "); springfit solves them as they are, ccx refuses them (nonpositive "
+                  "Jacobian): to run the deck in ccx, swap two nodes of each (in Gmsh, reverse "
+                  "the " +
+                  (deck.dimension == 2 ? "surface" : "volume") + ")");
+}
+
 }  // namespace
 
 bool IsAbaqusDeck(const std::string& path) {
   return LowerExtension(path) == ".inp";
 }
 
-Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, std::vector<long>* node_ids) {
+Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, DeckImport* found) {
+  DeckImport ignored;
+  DeckImport& out = found ? *found : ignored;
+  std::vector<long>* node_ids = &out.node_ids;
   // The model from the first deck; every other deck must describe the same one.
   Deck first;
   ReadDeck(paths[0], first);
+  SelectMeshElements(first, paths[0], out.notes);
   std::vector<Deck::Step> steps = first.steps;
   for (std::size_t i = 1; i < paths.size(); ++i) {
     Deck other;
     ReadDeck(paths[i], other);
+    std::vector<std::string> same_notes;
+    SelectMeshElements(other, paths[i], same_notes);
     if (other.nodes != first.nodes)
       throw InputError("", paths[i] + ": its nodes differ from " + paths[0] +
                                "'s (decks of one model share the mesh)");
@@ -514,8 +631,20 @@ Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, std::vector<long>
   }
   const std::string& deck_name = paths[0];
   if (first.elements.empty()) throw InputError("", deck_name + ": no *ELEMENT");
-  if (steps.empty()) throw InputError("", deck_name + ": no *STEP: each step is a load case");
+  // A deck without steps (as Gmsh writes one) takes its load cases from --loads; one without
+  // sections its material (ImportSceneFiles checks that the loads give them).
+  out.has_steps = !steps.empty();
+  out.has_sections = !first.sections.empty();
   const int d = first.dimension;
+  NoteInvertedElements(first, deck_name, out.notes);
+  if (d == 2 && first.element_counts.count("CPS3")) {
+    out.notes.push_back(
+        deck_name +
+        ": CPS3 read as springfit's plane-stress triangle (the exact 2D law); ccx expands CPS3 "
+        "into wedges, whose answers differ by about 1e-2 (5x5 plate sheared at nu 0.45); ccx's "
+        "CPE3 with the plane-stress constants E(1+2nu)/(1+nu)^2 and nu/(1+nu) matches "
+        "springfit's answer exactly");
+  }
 
   // Nodes the elements use, in id order, numbered from 0.
   std::map<long, int> index;
@@ -580,7 +709,7 @@ Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, std::vector<long>
     if (!m->second.young) Fail(sec.line, "material '" + sec.material + "' has no *ELASTIC");
     for (long e : set->second) section_of[e] = s;
   }
-  const bool nlgeom = steps.front().nlgeom;
+  const bool nlgeom = !steps.empty() && steps.front().nlgeom;
   for (const auto& s : steps)
     if (s.nlgeom != nlgeom)
       Fail(s.line, "NLGEOM in some steps and not in others: one material law per model");
@@ -621,6 +750,7 @@ Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, std::vector<long>
       Json nodes_of = Json::array();
       for (long n : e.nodes) nodes_of.push_back(index.at(n));
       elements.push_back(std::move(nodes_of));
+      if (!out.has_sections) continue;  // the material comes from --loads
       const auto s = section_of.find(e.id);
       if (s == section_of.end())
         throw InputError("", deck_name + ": element " + std::to_string(e.id) +
@@ -641,7 +771,9 @@ Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, std::vector<long>
       element_materials.push_back(it->second);
     }
     reference["elements"] = std::move(elements);
-    if (materials.size() == 1) {
+    if (!out.has_sections) {
+      ElementRegions(first, out);
+    } else if (materials.size() == 1) {
       reference["material"] = materials[0];
     } else {
       reference["materials"] = std::move(materials);
@@ -734,7 +866,7 @@ Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, std::vector<long>
     if (!forces.empty()) lc["forces"] = std::move(forces);
     cases.push_back(std::move(lc));
   }
-  scene["load_cases"] = std::move(cases);
+  if (!steps.empty()) scene["load_cases"] = std::move(cases);
   return scene;
 }
 

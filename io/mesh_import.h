@@ -49,9 +49,19 @@ proto::Json SceneOfMesh(const ImportedMesh& mesh, const proto::Json& loads,
 // Output requests and solver controls are skipped; any other keyword or parameter is an error
 // naming its file and line.
 bool IsAbaqusDeck(const std::string& path);
-// `node_ids` (when given) receives the deck's id of each scene node.
-proto::Json SceneOfAbaqusDecks(const std::vector<std::string>& paths,
-                               std::vector<long>* node_ids = nullptr);
+// What reading decks finds beside the scene.
+struct DeckImport {
+  std::vector<long> node_ids;  // the deck's id of each scene node
+  // Without *SOLID SECTION: each element's region (its first *ELSET of mesh elements; empty
+  // for none), for materials by region in --loads; the elements per region.
+  std::vector<std::string> element_regions;
+  std::map<std::string, int> region_elements;
+  bool has_sections = true;  // false: the material must come from --loads
+  bool has_steps = true;     // false: the load cases must come from --loads
+  // One line each, for the user: elements left out, inverted elements, what CPS3 means here.
+  std::vector<std::string> notes;
+};
+proto::Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, DeckImport* found = nullptr);
 
 // Nodal displacements (by node id) per step from CalculiX results: a .frd file (*NODE FILE, U;
 // per step its last increment) or a .dat file (*NODE PRINT, U; its last block: one file per
@@ -63,10 +73,12 @@ std::vector<std::map<long, std::array<double, 3>>> ReadCalculixDisplacements(
 bool IsMeshFile(const std::string& path);
 
 // The scene of a Gmsh mesh, or of one or several decks, with the loads file at `loads_path`
-// (empty: no loads) merged over it. Throws InputError naming the file.
+// (empty: no loads) merged over it. Throws InputError naming the file. `notes` (when given)
+// receives what the user should know of the import (DeckImport::notes).
 // With `results` (CalculiX .frd / .dat, decks only), the reference is those positions: one
 // step's displacements per load case, in order, and the candidates the elements' edges.
 proto::Json ImportSceneFiles(const std::vector<std::string>& paths, const std::string& loads_path,
-                             const std::vector<std::string>& results = {});
+                             const std::vector<std::string>& results = {},
+                             std::vector<std::string>* notes = nullptr);
 
 }  // namespace springfit::io

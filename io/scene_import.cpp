@@ -214,7 +214,7 @@ Json SceneOfMesh(const ImportedMesh& mesh, const Json& loads, const std::string&
 }
 
 Json ImportSceneFiles(const std::vector<std::string>& paths, const std::string& loads_path,
-                      const std::vector<std::string>& results) {
+                      const std::vector<std::string>& results, std::vector<std::string>* notes) {
   Json loads;
   if (!loads_path.empty()) {
     try {
@@ -224,10 +224,40 @@ Json ImportSceneFiles(const std::vector<std::string>& paths, const std::string& 
     }
   }
   if (std::all_of(paths.begin(), paths.end(), IsAbaqusDeck)) {
-    std::vector<long> ids;
-    Json scene = SceneOfAbaqusDecks(paths, &ids);
-    if (!results.empty()) UseResults(scene, ids, results);
+    DeckImport deck;
+    Json scene = SceneOfAbaqusDecks(paths, &deck);
+    if (notes) notes->insert(notes->end(), deck.notes.begin(), deck.notes.end());
+    if (!results.empty()) UseResults(scene, deck.node_ids, results);
+    const bool fem = scene["reference"]["type"] == Json("fem");
     MergeLoads(scene, loads, loads_path);
+    // What a deck as Gmsh writes it lacks (no sections, no steps) must come from --loads.
+    const std::string from_loads =
+        loads_path.empty() ? "pass --loads LOADS.json with it" : "give it in " + loads_path;
+    if (!deck.has_steps && !scene.contains("load_cases")) {
+      throw InputError("", paths[0] + ": no *STEP (each step is a load case), and no load_cases: " +
+                               from_loads + " (proto/IMPORT.md)");
+    }
+    if (fem && !deck.has_sections) {
+      Json& reference = scene["reference"];
+      if (reference["type"] == Json("fem")) {
+        ImportedMesh regions;
+        regions.source = paths[0];
+        regions.dimension = static_cast<int>(scene["nodes"][0].size());
+        regions.element_regions = deck.element_regions;
+        regions.region_elements = deck.region_elements;
+        ResolveRegionMaterials(reference, regions, loads_path);
+        if (!reference.contains("material") && !reference.contains("materials")) {
+          std::string names;
+          for (const auto& [name, n] : deck.region_elements)
+            names += (names.empty() ? "" : ", ") + name;
+          throw InputError(
+              "", paths[0] + ": no *SOLID SECTION (the elements' material): " + from_loads +
+                      " as reference.material" +
+                      (names.empty() ? std::string()
+                                     : ", or reference.materials by region (" + names + ")"));
+        }
+      }
+    }
     return scene;
   }
   if (!results.empty()) {
