@@ -1,5 +1,6 @@
 // springfit export RESULT_OR_ID -o FILE: the identified model in a simulator's or viewer's
 // format, chosen by the file's extension (io/model_writers.h, proto/MODEL.md).
+#include <cstdio>
 #include <iostream>
 #include <memory>
 
@@ -8,6 +9,7 @@
 #include "client/exit_codes.h"
 #include "client/remote_job.h"
 #include "client/result_source.h"
+#include "engine/input_error.h"
 #include "io/model_writers.h"
 #include "io/spring_model.h"
 
@@ -19,20 +21,59 @@ struct ExportArgs {
   std::string source;
   std::string output;
   std::string scene_path;
+  io::ModelOptions model;
+  io::SofaOptions sofa;
+  std::vector<double> gravity;
+  std::vector<std::string> sofa_flags_given;  // for a refusal when the output is not .scn
 };
+
+// The facts a simulator needs, one line (proto/MODEL.md, "Simulator facts").
+std::string FactsLine(const io::SpringModel& model) {
+  const auto& f = model.facts;
+  char line[512];
+  std::snprintf(line, sizeof line,
+                "stiffness %.4g to %.4g, median %.4g (spread %.3g); %d dead springs (below %.3g "
+                "x the median)%s",
+                f.min_stiffness, f.max_stiffness, f.median_stiffness,
+                f.min_stiffness > 0.0 ? f.max_stiffness / f.min_stiffness : 0.0, f.dead,
+                f.median_stiffness > 0.0 ? f.dead_threshold / f.median_stiffness : 0.0,
+                f.dead == 0      ? ""
+                : f.dead_dropped ? ", left out"
+                                 : ", kept and flagged");
+  std::string text = line;
+  if (f.total_mass) {
+    std::snprintf(line, sizeof line, "; total mass %.4g (%s)", *f.total_mass,
+                  model.mass_source.c_str());
+    text += line;
+  } else {
+    text += "; no masses (give a density in the scene's material, --density or --node-mass)";
+  }
+  if (f.stable_time_step) {
+    std::snprintf(line, sizeof line, "; stable explicit time step at most %.4g",
+                  *f.stable_time_step);
+    text += line;
+  }
+  return text;
+}
 
 int Export(const ExportArgs& a) {
   // The format first: an unknown extension is refused before anything is read or fetched.
   const io::ModelFormat format = io::ModelFormatOfPath(a.output);
+  if (format != io::ModelFormat::kSofa && !a.sofa_flags_given.empty())
+    throw InputError(a.sofa_flags_given.front(), "applies to a SOFA scene (.scn); " + a.output +
+                                                     " is " +
+                                                     std::string(io::ModelFormatName(format)));
+  a.model.Validate();
+  a.sofa.Validate();
   const ResultWithScene loaded = LoadResultWithScene(a.source, a.server, a.scene_path);
-  const io::SpringModel model = io::ModelOfResult(*loaded.problem, loaded.result);
-  io::WriteModelFile(model, a.output);
+  const io::SpringModel model = io::ModelOfResult(*loaded.problem, loaded.result, a.model);
+  io::WriteModelFile(model, a.output, a.sofa);
   int undetermined = 0;
   for (const auto& s : model.springs) undetermined += s.identified ? 0 : 1;
   std::cout << a.output << ": " << io::ModelFormatName(format) << ", " << model.node_count()
             << " nodes, " << model.springs.size() << " springs";
   if (undetermined > 0) std::cout << " (" << undetermined << " not determined by the data)";
-  std::cout << ", from " << loaded.where << "\n";
+  std::cout << ", from " << loaded.where << "\n" << a.output << ": " << FactsLine(model) << "\n";
   return kExitOk;
 }
 
@@ -49,8 +90,48 @@ void RegisterExport(CLI::App& app, int& exit_code) {
   cmd->add_option("-o,--output", args->output, "The model file to write")->required();
   cmd->add_option("--scene", args->scene_path,
                   "The scene, for a result file that does not carry it");
+  cmd->add_option("--density", args->model.density,
+                  "Mass per volume lumped on the FEM mesh's nodes (default: the materials' "
+                  "density, when the scene states it)");
+  cmd->add_option("--node-mass", args->model.node_mass, "Every node this mass (any scene)");
+  cmd->add_option("--dead-fraction", args->model.dead_fraction,
+                  "Springs below this fraction of the median stiffness are dead: flagged, or "
+                  "left out with --drop-dead")
+      ->capture_default_str();
+  cmd->add_flag("--drop-dead", args->model.drop_dead, "Leave the dead springs out of the model");
+  // The SOFA scene's own (.scn only).
+  const auto sofa = [&](CLI::Option* option) {
+    option->each([args, name = option->get_name()](const std::string&) {
+      args->sofa_flags_given.push_back(name);
+    });
+    return option;
+  };
+  sofa(cmd->add_option("--sofa-version", args->sofa.release,
+                       "The SOFA release whose components the .scn uses: v23.06, v23.12, v24.06, "
+                       "v24.12, v25.06, v25.12 or v26.06")
+           ->capture_default_str());
+  sofa(cmd->add_option("--case", args->sofa.load_case,
+                       "The load case whose supports and forces the .scn applies (default: the "
+                       "first)"));
+  sofa(cmd->add_flag("--dynamic", args->sofa.dynamic,
+                     "Implicit Euler time steps with Rayleigh damping instead of a static solve "
+                     "(needs masses)"));
+  sofa(cmd->add_option("--rayleigh-stiffness", args->sofa.rayleigh_stiffness,
+                       "--dynamic: damping proportional to the stiffness")
+           ->capture_default_str());
+  sofa(cmd->add_option("--rayleigh-mass", args->sofa.rayleigh_mass,
+                       "--dynamic: damping proportional to the mass")
+           ->capture_default_str());
+  sofa(cmd->add_option("--dt", args->sofa.time_step, "The scene's time step")
+           ->capture_default_str());
+  sofa(cmd->add_option("--gravity", args->gravity, "Gravity, 2 or 3 components (needs masses)")
+           ->expected(2, 3)
+           ->delimiter(','));
   AddServerFlags(cmd, args->server);
   cmd->callback([args, &exit_code] {
+    if (!args->gravity.empty())
+      for (std::size_t c = 0; c < args->gravity.size(); ++c)
+        args->sofa.gravity[c] = args->gravity[c];
     exit_code = RunReportingErrors("export", [&] { return Export(*args); });
   });
 }

@@ -84,6 +84,10 @@ struct Material {
   MaterialModel model = MaterialModel::kLinear;
   double young = 0.0;    // Young's modulus, > 0 (force per area)
   double poisson = 0.0;  // Poisson's ratio, in (-1, 0.5)
+  // Mass per volume (> 0), for the masses an exported model carries (io/spring_model.h); the
+  // static identification does not use it. In the scene's units: mass = force / (length /
+  // time^2), e.g. tonnes per mm^3 in mm and N.
+  std::optional<double> density;
   friend bool operator==(const Material&, const Material&) = default;
 };
 

@@ -1,6 +1,8 @@
 // springfit's own model format (proto/MODEL.md): the model alone, without the run.
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+
 #include "io/model_writers.h"
 
 namespace springfit::io {
@@ -33,9 +35,50 @@ std::string ModelJsonText(const SpringModel& model) {
     springs.push_back({{"nodes", {s.a, s.b}},
                        {"stiffness", s.stiffness},
                        {"rest_length", s.rest_length},
-                       {"identified", s.identified}});
+                       {"identified", s.identified},
+                       {"dead", s.dead}});
   }
   j["springs"] = std::move(springs);
+  j["masses"] = model.mass.empty() ? Json(nullptr) : Json(model.mass);
+  j["mass_source"] = model.mass_source;
+  const auto& f = model.facts;
+  j["facts"] = {
+      {"min_stiffness", f.min_stiffness},
+      {"median_stiffness", f.median_stiffness},
+      {"max_stiffness", f.max_stiffness},
+      {"dead_threshold", f.dead_threshold},
+      {"dead_springs", f.dead},
+      {"dead_dropped", f.dead_dropped},
+      {"total_mass", f.total_mass ? Json(*f.total_mass) : Json(nullptr)},
+      {"stable_time_step", f.stable_time_step ? Json(*f.stable_time_step) : Json(nullptr)}};
+  j["response"] = model.response;
+  j["elements"] = model.elements;
+  j["node_sets"] = model.node_sets;
+  // Per load case: what a simulator applies and the two equilibria to compare, per node.
+  const int d = model.dimension;
+  const auto per_node = [&](const std::vector<double>& flat) {
+    if (flat.empty()) return Json(nullptr);
+    Json rows = Json::array();
+    for (int p = 0; p < model.node_count(); ++p)
+      rows.push_back(std::vector<double>(flat.begin() + d * p, flat.begin() + d * (p + 1)));
+    return rows;
+  };
+  Json cases = Json::array();
+  for (const auto& lc : model.load_cases) {
+    Json forces = Json::array();
+    for (int p = 0; p < model.node_count(); ++p) {
+      const std::vector<double> force(lc.force.begin() + d * p, lc.force.begin() + d * (p + 1));
+      if (std::any_of(force.begin(), force.end(), [](double x) { return x != 0.0; }))
+        forces.push_back({{"node", p}, {"force", force}});
+    }
+    cases.push_back({{"name", lc.name},
+                     {"held", lc.held},
+                     {"start", per_node(lc.start)},
+                     {"forces", std::move(forces)},
+                     {"reference_displacement", per_node(lc.reference_displacement)},
+                     {"model_displacement", per_node(lc.model_displacement)}});
+  }
+  j["load_cases"] = std::move(cases);
   return j.dump(1) + "\n";
 }
 

@@ -36,7 +36,7 @@ std::string_view ModelFormatName(ModelFormat format) {
   return "?";
 }
 
-void WriteModelFile(const SpringModel& model, const std::string& path) {
+void WriteModelFile(const SpringModel& model, const std::string& path, const SofaOptions& sofa) {
   const ModelFormat format = ModelFormatOfPath(path);
   if (format == ModelFormat::kGmsh) {
     WriteGmshFile(model, path);
@@ -44,7 +44,7 @@ void WriteModelFile(const SpringModel& model, const std::string& path) {
   }
   const std::string text = format == ModelFormat::kVtkLegacy ? VtkLegacyText(model)
                            : format == ModelFormat::kVtu     ? VtuText(model)
-                           : format == ModelFormat::kSofa    ? SofaSceneText(model)
+                           : format == ModelFormat::kSofa    ? SofaSceneText(model, sofa)
                                                              : ModelJsonText(model);
   std::ofstream out(path, std::ios::binary);
   out << text;

@@ -7,7 +7,9 @@
 #include <set>
 #include <utility>
 
+#include "engine/cost.h"
 #include "engine/input_error.h"
+#include "io/model_facts.h"
 
 namespace springfit::io {
 namespace {
@@ -17,9 +19,53 @@ NodePair Ordered(NodePair p) {
   return p;
 }
 
+// Each load case as a simulator applies it, the reference's equilibrium, and the model's own
+// (with the problem's response, as the certificate judged it).
+void AddLoadCases(SpringModel& model, const Problem& problem) {
+  const Scene& scene = problem.scene();
+  const int d = model.dimension;
+  ActiveSprings springs;
+  for (const auto& s : model.springs) {
+    springs.index.push_back(problem.CandidateIndex({s.a, s.b}));
+    springs.stiffness.push_back(s.stiffness);
+  }
+  CostOptions every_case;
+  every_case.solve_cases_of_mechanisms = true;
+  CostFunction cost(problem, every_case);
+  std::vector<Vector> displacements;
+  cost.Evaluate(springs, &displacements);
+  for (std::size_t k = 0; k < scene.load_cases.size(); ++k) {
+    const LoadCase& lc = scene.load_cases[k];
+    const PreparedLoadCase& prepared = problem.load_cases()[k];
+    SpringModel::LoadCase out;
+    out.name = lc.name;
+    std::set<int> held(lc.fixed.begin(), lc.fixed.end());
+    for (const NodalLoad& m : lc.displacements) held.insert(m.nodes.begin(), m.nodes.end());
+    out.held.assign(held.begin(), held.end());
+    out.start = model.rest;
+    out.force.assign(prepared.force.data(), prepared.force.data() + prepared.force.size());
+    for (int i = 0; i < model.node_count(); ++i) {
+      for (int c = 0; c < d; ++c) {
+        if (held.count(i)) {
+          out.start[d * i + c] += prepared.prescribed[d * i + c];
+          out.force[d * i + c] = 0.0;  // a force on a held node goes to the support
+        }
+      }
+    }
+    out.reference_displacement.assign(prepared.reference.data(),
+                                      prepared.reference.data() + prepared.reference.size());
+    if (k < displacements.size() && displacements[k].size() == prepared.reference.size())
+      out.model_displacement.assign(displacements[k].data(),
+                                    displacements[k].data() + displacements[k].size());
+    model.load_cases.push_back(std::move(out));
+  }
+}
+
 }  // namespace
 
-SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& result) {
+SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& result,
+                          const ModelOptions& options) {
+  options.Validate();
   const Scene& scene = problem.scene();
   proto::ExpectResultOfScene(result, problem);
   SpringModel model;
@@ -80,6 +126,14 @@ SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& res
     if (candidates.count(p) && present.insert(p).second)
       add(p, k == unseen_stiffness.end() ? training : k->second, false);
   }
+  model.response = problem.response() == Response::kLinear ? "linear" : "nonlinear";
+  model.node_sets = scene.node_sets;
+  if (scene.reference.kind == Reference::Kind::kFem) model.elements = scene.reference.fem.elements;
+  MarkDeadSprings(model, options);
+  LumpMasses(model, scene, options);
+  AddLoadCases(model, problem);
+  model.facts.total_mass = TotalMass(model);
+  model.facts.stable_time_step = StableExplicitTimeStep(model);
   return model;
 }
 

@@ -3,6 +3,7 @@
 // built from a result and its scene, whatever the strategy.
 #pragma once
 
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -13,6 +14,23 @@
 
 namespace springfit::io {
 
+// How an export builds the model beyond the result: masses and dead springs. Defaults as
+// documented; Validate() throws InputError naming the option.
+struct ModelOptions {
+  // Mass per volume lumped onto the nodes of the FEM reference's mesh (each element's mass in
+  // equal shares to its d + 1 nodes), overriding the materials' `density`. nullopt: the
+  // materials' own, when every material states one.
+  std::optional<double> density;
+  // Every node this mass instead (any scene, also one without a mesh). Not with `density`.
+  std::optional<double> node_mass;
+  // Springs stiffer than nothing but weaker than this fraction of the median stiffness are
+  // dead: they carry no load a simulator would notice and only slow an explicit integrator
+  // down by nothing. Flagged (`dead`), or left out with drop_dead. In [0, 1).
+  double dead_fraction = 1e-3;
+  bool drop_dead = false;
+  void Validate() const;
+};
+
 struct SpringModel {
   std::string name;         // the scene's
   std::string description;  // where it comes from: strategy, seed, E, units
@@ -20,6 +38,9 @@ struct SpringModel {
   std::optional<DerivedUnits> units;
   int dimension = 2;         // 2 or 3
   std::vector<double> rest;  // flat rest positions, `dimension` per node
+  // The response the model was judged with (Problem::response): "linear" (the linearised
+  // response at rest) or "nonlinear" (springs that turn and stretch).
+  std::string response;
 
   struct Spring {
     int a = 0, b = 0;  // nodes, a < b
@@ -29,8 +50,46 @@ struct SpringModel {
     // spring, or it is in a group of springs they cannot tell apart, or both its nodes are
     // held in every case): the value is then the fit's or the training stiffness, not data.
     bool identified = true;
+    // Below ModelOptions::dead_fraction of the median stiffness (kept: drop_dead was false).
+    bool dead = false;
   };
   std::vector<Spring> springs;
+
+  // Mass per node (empty: none known: no density and no node mass given), and how it was
+  // found, in words ("density 1e-06 lumped on the 380 triangles").
+  std::vector<double> mass;
+  std::string mass_source;
+
+  // The FEM reference's mesh (triangles or tetrahedra, node indices), empty for other
+  // references; the scene's node sets. For viewers and a simulator's visual or collision mesh.
+  std::vector<std::vector<int>> elements;
+  std::map<std::string, std::vector<int>> node_sets;
+
+  // Each load case of the scene as a simulator applies it, and the two answers to compare.
+  struct LoadCase {
+    std::string name;
+    std::vector<int> held;      // nodes held: fixed, or moved by a prescribed displacement
+    std::vector<double> start;  // flat: rest, with the prescribed nodes moved
+    std::vector<double> force;  // flat external forces (tractions resolved), 0 on held nodes
+    std::vector<double> reference_displacement;  // flat, the reference's equilibrium
+    // Flat, the model's own equilibrium under the case (its response), empty when it has
+    // none (a mechanism, or a solve that did not converge).
+    std::vector<double> model_displacement;
+  };
+  std::vector<LoadCase> load_cases;
+
+  // What a simulator needs to know of the springs and masses (model_facts.h).
+  struct Facts {
+    double min_stiffness = 0.0, median_stiffness = 0.0, max_stiffness = 0.0;
+    double dead_threshold = 0.0;  // dead_fraction x the median
+    int dead = 0;                 // springs below it (dropped or flagged)
+    bool dead_dropped = false;
+    std::optional<double> total_mass;
+    // The largest step of an explicit integrator (symplectic Euler, central differences) that
+    // stays stable without damping: 2 / omega_max, from a bound on omega_max (safe).
+    std::optional<double> stable_time_step;
+  };
+  Facts facts;
 
   int node_count() const { return static_cast<int>(rest.size()) / dimension; }
 };
@@ -38,8 +97,11 @@ struct SpringModel {
 // The model of `result` (a result of `problem`'s scene): its springs with their stiffness (the
 // training stiffness where the result has none, as for topology-only strategies), then the
 // candidates no load case can see, at the training stiffness and not identified, so that the
-// model is complete. Throws InputError when the result does not fit the scene (another scene's
-// name or gene count, a spring that is no candidate).
-SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& result);
+// model is complete; masses, load cases with both equilibria, and facts. Throws InputError
+// when the result does not fit the scene (another scene's name or gene count, a spring that is
+// no candidate) or the options do not fit it (a density without a mesh, materials without a
+// density for some).
+SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& result,
+                          const ModelOptions& options = {});
 
 }  // namespace springfit::io

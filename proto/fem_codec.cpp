@@ -7,7 +7,7 @@ namespace springfit::proto {
 namespace {
 
 Material ReadMaterial(const Json& v, const std::string& path) {
-  ExpectKeys(v, path, {"model", "young", "poisson"});
+  ExpectKeys(v, path, {"model", "young", "poisson", "density"});
   Material m;
   const std::string model = ReadString(RequiredMember(v, path, "model"), JoinPath(path, "model"));
   const auto parsed = ParseMaterialModel(model);
@@ -19,6 +19,7 @@ Material ReadMaterial(const Json& v, const std::string& path) {
   m.model = *parsed;
   m.young = ReadNumber(RequiredMember(v, path, "young"), JoinPath(path, "young"));
   m.poisson = ReadNumber(RequiredMember(v, path, "poisson"), JoinPath(path, "poisson"));
+  if (v.contains("density")) m.density = ReadNumber(v["density"], JoinPath(path, "density"));
   return m;
 }
 
@@ -27,6 +28,7 @@ Json MaterialToJson(const Material& m) {
   j["model"] = MaterialModelName(m.model);
   j["young"] = m.young;
   j["poisson"] = m.poisson;
+  if (m.density) j["density"] = *m.density;
   return j;
 }
 

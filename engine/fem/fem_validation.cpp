@@ -39,6 +39,11 @@ void CheckMaterial(const Material& m, const std::string& path) {
   if (!std::isfinite(m.poisson) || !(m.poisson > -1.0 && m.poisson < 0.5)) {
     throw InputError(path + ".poisson", "must be in (-1, 0.5), got " + Number(m.poisson));
   }
+  if (m.density && (!std::isfinite(*m.density) || !(*m.density > 0.0) || *m.density > 1e100 ||
+                    *m.density < 1e-100)) {
+    throw InputError(path + ".density",
+                     "must be a finite number in [1e-100, 1e+100], got " + Number(*m.density));
+  }
 }
 
 // Which side of the facet's line (2D) or plane (3D) point p lies on: +1, -1, or 0.

@@ -76,11 +76,11 @@ assert root.tag == "Node"
 plugins = {p.get("name") for p in root.iter("RequiredPlugin")}
 assert {"Sofa.Component.StateContainer", "Sofa.Component.Topology.Container.Dynamic",
         "Sofa.Component.SolidMechanics.Spring"} <= plugins, plugins
-template = "Vec%dd" % d
+template = "Vec3d"  # every release's DiagonalMass needs it (proto/MODEL.md); 2D at z = 0
 dofs = root.find(".//MechanicalObject")
 assert dofs.get("template") == template
-position = [float(x) for x in dofs.get("position").split()]
-assert len(position) == d * len(nodes) and all(close(position[d * i + c], nodes[i][c]) for i in range(len(nodes)) for c in range(d))
+position = [float(x) for x in dofs.get("rest_position").split()]
+assert len(position) == 3 * len(nodes) and all(close(position[3 * i + c], nodes[i][c] if c < d else 0.0) for i in range(len(nodes)) for c in range(3))
 edges = [int(x) for x in root.find(".//EdgeSetTopologyContainer").get("edges").split()]
 assert [tuple(edges[i:i + 2]) for i in range(0, len(edges), 2)] == pairs
 ff = root.find(".//SpringForceField")

@@ -1,0 +1,249 @@
+// SOFA: every model is written with Vec3d coordinates, a 2D one at z = 0 with its nodes held
+// along z: DiagonalMass, the only component taking a mass per node as given, has no Vec2d
+// variant before v26.06 (DiagonalMass<Vec2,Vec3> needs a 3D geometry state).
+#include "io/sofa_scene.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "engine/input_error.h"
+#include "io/text_output.h"
+#include "io/xml_text.h"
+
+namespace springfit::io {
+namespace {
+
+int ReleaseIndex(const std::string& release) {
+  for (std::size_t i = 0; i < kSofaReleases.size(); ++i)
+    if (release == kSofaReleases[i]) return static_cast<int>(i);
+  return -1;
+}
+
+std::string KnownReleases() {
+  std::string s;
+  for (const char* r : kSofaReleases) s += (s.empty() ? "" : ", ") + std::string(r);
+  return s;
+}
+
+// Node p's position in 3D from a flat vector of `d` per node.
+void Point(std::ostream& out, const std::vector<double>& x, int d, int p) {
+  for (int c = 0; c < 3; ++c)
+    out << (c > 0 ? " " : "")
+        << (c < d ? ExactNumber(x[static_cast<std::size_t>(d * p + c)]) : "0");
+}
+
+}  // namespace
+
+void SofaOptions::Validate() const {
+  if (ReleaseIndex(release) < 0)
+    throw InputError("--sofa-version",
+                     "unknown SOFA release '" + release + "' (known: " + KnownReleases() + ")");
+  if (!(rayleigh_stiffness >= 0.0) || !std::isfinite(rayleigh_stiffness))
+    throw InputError("--rayleigh-stiffness", "must be a finite number >= 0");
+  if (!(rayleigh_mass >= 0.0) || !std::isfinite(rayleigh_mass))
+    throw InputError("--rayleigh-mass", "must be a finite number >= 0");
+  if (!(time_step > 0.0) || !std::isfinite(time_step))
+    throw InputError("--dt", "must be a finite number > 0");
+  for (double g : gravity)
+    if (!std::isfinite(g)) throw InputError("--gravity", "must be finite");
+  if (newton_iterations < 1) throw InputError("--newton-iterations", "must be >= 1");
+}
+
+SofaComponents SofaComponentsOf(const std::string& release) {
+  const int i = ReleaseIndex(release);
+  if (i < 0) throw InputError("--sofa-version", "unknown SOFA release '" + release + "'");
+  const bool from_24_06 = i >= ReleaseIndex("v24.06");
+  const bool from_24_12 = i >= ReleaseIndex("v24.12");
+  return {from_24_12 ? "SpringForceField" : "StiffSpringForceField",
+          from_24_06 ? "FixedProjectiveConstraint" : "FixedConstraint",
+          from_24_06 ? "PartialFixedProjectiveConstraint" : "PartialFixedConstraint",
+          i >= ReleaseIndex("v25.06")};
+}
+
+std::string SofaSceneText(const SpringModel& model, const SofaOptions& options) {
+  options.Validate();
+  const SofaComponents parts = SofaComponentsOf(options.release);
+  if (model.load_cases.empty()) throw InputError("--case", "the scene has no load case");
+  const SpringModel::LoadCase* lc = &model.load_cases.front();
+  if (!options.load_case.empty()) {
+    const auto it = std::find_if(model.load_cases.begin(), model.load_cases.end(),
+                                 [&](const auto& c) { return c.name == options.load_case; });
+    if (it == model.load_cases.end()) {
+      std::string names;
+      for (const auto& c : model.load_cases) names += (names.empty() ? "'" : ", '") + c.name + "'";
+      throw InputError("--case",
+                       "no load case '" + options.load_case + "' (the scene's: " + names + ")");
+    }
+    lc = &*it;
+  }
+  const bool masses = !model.mass.empty();
+  const bool gravity = std::any_of(options.gravity.begin(), options.gravity.end(),
+                                   [](double g) { return g != 0.0; });
+  if ((options.dynamic || gravity) && !masses) {
+    throw InputError(options.dynamic ? "--dynamic" : "--gravity",
+                     "needs the nodes' masses: give the material's density in the scene, "
+                     "--density (lumped on the mesh) or --node-mass");
+  }
+  const int d = model.dimension;
+  const int n = model.node_count();
+
+  // Scales for the solver's stopping tests: the body's size and the load's size.
+  double size = 0.0, force_scale = 0.0;
+  for (int c = 0; c < d; ++c) {
+    double lo = model.rest[static_cast<std::size_t>(c)], hi = lo;
+    for (int p = 0; p < n; ++p) {
+      lo = std::min(lo, model.rest[static_cast<std::size_t>(d * p + c)]);
+      hi = std::max(hi, model.rest[static_cast<std::size_t>(d * p + c)]);
+    }
+    size = std::max(size, hi - lo);
+  }
+  std::vector<int> loaded;
+  for (int p = 0; p < n; ++p) {
+    double f2 = 0.0;
+    for (int c = 0; c < d; ++c) f2 += std::pow(lc->force[static_cast<std::size_t>(d * p + c)], 2);
+    if (f2 > 0.0) loaded.push_back(p);
+    force_scale = std::max(force_scale, std::sqrt(f2));
+  }
+  if (force_scale == 0.0) force_scale = 1.0;  // a case of prescribed displacements alone
+
+  std::ostringstream out;
+  const auto number = [](double x) { return ExactNumber(x); };
+  out << "<?xml version=\"1.0\"?>\n<!-- springfit model " << XmlCommentText(model.name) << ": "
+      << XmlCommentText(model.description) << ".\n     SOFA " << options.release
+      << " (the release chosen at export; components as that release names them, "
+         "proto/MODEL.md).\n     Load case '"
+      << XmlCommentText(lc->name) << "': " << lc->held.size() << " held nodes, " << loaded.size()
+      << " loaded nodes. "
+      << (options.dynamic
+              ? "Dynamic: implicit Euler, Rayleigh damping " + number(options.rayleigh_stiffness) +
+                    " K + " + number(options.rayleigh_mass) + " M."
+              : "Static: Newton iterations to the equilibrium.")
+      << "\n     Masses: "
+      << (masses ? XmlCommentText(model.mass_source)
+                 : std::string("none (a static solve needs none)"))
+      << ".";
+  if (model.facts.stable_time_step)
+    out << " Stable explicit time step at most " << number(*model.facts.stable_time_step)
+        << " (undamped).";
+  if (d == 2) out << "\n     2D model: Vec3d at z = 0, every node held along z.";
+  out << " -->\n";
+
+  out << "<Node name=\"root\" gravity=\"" << number(options.gravity[0]) << " "
+      << number(options.gravity[1]) << " " << number(options.gravity[2]) << "\" dt=\""
+      << number(options.time_step) << "\">\n";
+  std::vector<std::string> plugins = {
+      "Sofa.Component.StateContainer",        "Sofa.Component.Topology.Container.Dynamic",
+      "Sofa.Component.SolidMechanics.Spring", "Sofa.Component.Constraint.Projective",
+      "Sofa.Component.ODESolver.Backward",    "Sofa.Component.LinearSolver.Direct"};
+  if (!loaded.empty()) plugins.push_back("Sofa.Component.MechanicalLoad");
+  if (masses) plugins.push_back("Sofa.Component.Mass");
+  for (const auto& p : plugins) out << "  <RequiredPlugin name=\"" << p << "\"/>\n";
+  out << "  <DefaultAnimationLoop/>\n";
+  out << "  <Node name=\"" << XmlEscape(model.name) << "\">\n";
+
+  // Solver.
+  const auto short_number = [](double x) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.3g", x);
+    return std::string(text);
+  };
+  const std::string residual = short_number(1e-12 * force_scale);
+  const std::string correction = short_number(1e-12 * (size > 0.0 ? size : 1.0));
+  if (options.dynamic) {
+    out << "    <EulerImplicitSolver name=\"odesolver\" rayleighStiffness=\""
+        << number(options.rayleigh_stiffness) << "\" rayleighMass=\""
+        << number(options.rayleigh_mass) << "\"/>\n";
+  } else if (parts.newton_raphson_component) {
+    out << "    <NewtonRaphsonSolver name=\"newton\" maxNbIterationsNewton=\""
+        << options.newton_iterations << "\" absoluteResidualStoppingThreshold=\"" << residual
+        << "\" relativeInitialStoppingThreshold=\"1e-12\" absoluteEstimateDifferenceThreshold=\""
+        << correction << "\" relativeEstimateDifferenceThreshold=\"1e-12\"/>\n"
+        << "    <StaticSolver name=\"odesolver\" newtonSolver=\"@newton\"/>\n";
+  } else {
+    out << "    <StaticSolver name=\"odesolver\" newton_iterations=\"" << options.newton_iterations
+        << "\" absolute_residual_tolerance_threshold=\"" << residual
+        << "\" relative_residual_tolerance_threshold=\"1e-12\" "
+           "absolute_correction_tolerance_threshold=\""
+        << correction << "\" relative_correction_tolerance_threshold=\"1e-12\"/>\n";
+  }
+  out << "    <SparseLDLSolver name=\"linearsolver\" "
+         "template=\"CompressedRowSparseMatrixMat3x3d\"/>\n";
+
+  // Topology (its points: every node, also those no spring holds), state, mass.
+  out << "    <EdgeSetTopologyContainer name=\"topology\" position=\"";
+  for (int p = 0; p < n; ++p) {
+    if (p > 0) out << "  ";
+    Point(out, model.rest, d, p);
+  }
+  out << "\" edges=\"";
+  for (std::size_t i = 0; i < model.springs.size(); ++i)
+    out << (i > 0 ? "  " : "") << model.springs[i].a << " " << model.springs[i].b;
+  out << "\"/>\n    <MechanicalObject name=\"dofs\" template=\"Vec3d\" position=\"";
+  for (int p = 0; p < n; ++p) {
+    if (p > 0) out << "  ";
+    Point(out, lc->start, d, p);
+  }
+  out << "\" rest_position=\"";
+  for (int p = 0; p < n; ++p) {
+    if (p > 0) out << "  ";
+    Point(out, model.rest, d, p);
+  }
+  out << "\"/>\n";
+  if (masses) {
+    const bool uniform = std::all_of(model.mass.begin(), model.mass.end(),
+                                     [&](double m) { return m == model.mass.front(); });
+    if (uniform) {
+      out << "    <UniformMass name=\"mass\" vertexMass=\"" << number(model.mass.front())
+          << "\"/>\n";
+    } else {
+      out << "    <DiagonalMass name=\"mass\" vertexMass=\"";
+      for (int p = 0; p < n; ++p)
+        out << (p > 0 ? " " : "") << number(model.mass[static_cast<std::size_t>(p)]);
+      out << "\"/>\n";
+    }
+  }
+
+  // Springs: "index1 index2 stiffness damping rest_length" each (SOFA's LinearSpring).
+  out << "    <" << parts.springs << " name=\"springs\" template=\"Vec3d\" spring=\"";
+  for (std::size_t i = 0; i < model.springs.size(); ++i) {
+    const auto& s = model.springs[i];
+    out << (i > 0 ? "  " : "") << s.a << " " << s.b << " " << number(s.stiffness) << " 0 "
+        << number(s.rest_length);
+  }
+  out << "\"/>\n";
+  std::string flagged;
+  for (std::size_t i = 0; i < model.springs.size(); ++i)
+    if (!model.springs[i].identified) flagged += " " + std::to_string(i);
+  if (!flagged.empty()) {
+    out << "    <!-- springs (0-based, in the order above) whose stiffness the load cases do not "
+           "determine:"
+        << flagged << " -->\n";
+  }
+
+  // Supports and loads of the case.
+  if (!lc->held.empty()) {
+    out << "    <" << parts.fixed << " name=\"supports\" indices=\"";
+    for (std::size_t i = 0; i < lc->held.size(); ++i) out << (i > 0 ? " " : "") << lc->held[i];
+    out << "\"/>\n";
+  }
+  if (d == 2) {
+    out << "    <" << parts.partial_fixed
+        << " name=\"plane\" fixAll=\"1\" fixedDirections=\"0 0 1\"/>\n";
+  }
+  if (!loaded.empty()) {
+    out << "    <ConstantForceField name=\"loads\" indices=\"";
+    for (std::size_t i = 0; i < loaded.size(); ++i) out << (i > 0 ? " " : "") << loaded[i];
+    out << "\" forces=\"";
+    for (std::size_t i = 0; i < loaded.size(); ++i) {
+      if (i > 0) out << "  ";
+      Point(out, lc->force, d, loaded[i]);
+    }
+    out << "\"/>\n";
+  }
+  out << "  </Node>\n</Node>\n";
+  return out.str();
+}
+
+}  // namespace springfit::io
