@@ -87,7 +87,7 @@ struct Material {
   // Mass per volume (> 0), for the masses an exported model carries (io/spring_model.h); the
   // static identification does not use it. In the scene's units: mass = force / (length /
   // time^2), e.g. tonnes per mm^3 in mm and N.
-  std::optional<double> density;
+  std::optional<double> density = std::nullopt;
   friend bool operator==(const Material&, const Material&) = default;
 };
 
@@ -228,6 +228,9 @@ struct Scene {
   std::vector<LoadCase> load_cases;
   // Named node sets, usable wherever a list of nodes is expected (fixed, loaded, tractions).
   std::map<std::string, std::vector<int>> node_sets;
+  // The input's own number of each node (a Gmsh mesh's node tags, a deck's node ids), which
+  // springfit renumbers from 0; empty for a scene written by hand. Exports carry them.
+  std::vector<long long> node_tags;
   // Stiffness of every spring of the training model. nullopt = the reference's stiffness when
   // it is one value for all springs, otherwise 1.
   std::optional<double> training_stiffness;

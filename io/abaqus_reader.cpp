@@ -676,6 +676,7 @@ Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, DeckImport* found
     nodes.push_back(d == 2 ? Json{x[0], x[1]} : Json{x[0], x[1], x[2]});
   }
   scene["nodes"] = std::move(nodes);
+  scene["node_tags"] = out.node_ids;  // the deck's ids, which exports carry
   const auto node_of = [&](long id, const Line& where) {
     const auto it = index.find(id);
     if (it == index.end()) Fail(where, "node " + std::to_string(id) + ", which no element uses");

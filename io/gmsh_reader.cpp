@@ -124,6 +124,7 @@ ImportedMesh ReadGmshMesh(const std::string& path) {
   mesh.dimension = top;
   for (std::size_t tag : used) {
     index_of_tag.emplace(tag, static_cast<int>(index_of_tag.size()));
+    mesh.node_tags.push_back(static_cast<long long>(tag));
     const std::size_t at = position_of_tag[tag];
     for (int c = 0; c < top; ++c) mesh.nodes.push_back(coords[3 * at + c]);
   }

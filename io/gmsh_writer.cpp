@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "io/gmsh_session.h"
+#include "io/model_fields.h"
 #include "io/model_writers.h"
 
 namespace springfit::io {
@@ -29,7 +30,7 @@ void WriteGmshFile(const SpringModel& model, const std::string& path) {
     }
     gmsh::model::mesh::addNodes(1, curve, node_tags, coords);
     std::vector<std::size_t> element_tags, element_nodes;
-    std::vector<std::vector<double>> stiffness, rest_length, identified;
+    std::vector<std::vector<double>> stiffness, rest_length, identified, dead, cell_kind;
     for (std::size_t i = 0; i < model.springs.size(); ++i) {
       const auto& s = model.springs[i];
       element_tags.push_back(i + 1);
@@ -38,11 +39,32 @@ void WriteGmshFile(const SpringModel& model, const std::string& path) {
       stiffness.push_back({s.stiffness});
       rest_length.push_back({s.rest_length});
       identified.push_back({s.identified ? 1.0 : 0.0});
+      dead.push_back({s.dead ? 1.0 : 0.0});
+      cell_kind.push_back({0.0});
     }
+    std::vector<std::size_t> data_tags = element_tags;  // every element: views cover them all
     constexpr int kTwoNodeLine = 1;
     gmsh::model::mesh::addElementsByType(curve, kTwoNodeLine, element_tags, element_nodes);
     const int group = gmsh::model::addPhysicalGroup(1, {curve});
     gmsh::model::setPhysicalName(1, group, "springs");
+    // The FEM mesh (triangles, Gmsh type 2; tetrahedra, type 4) as its own entity and
+    // physical group `mesh`, elements numbered after the springs.
+    if (!model.elements.empty()) {
+      const int body = gmsh::model::addDiscreteEntity(model.dimension);
+      std::vector<std::size_t> tags, nodes;
+      for (std::size_t e = 0; e < model.elements.size(); ++e) {
+        tags.push_back(model.springs.size() + e + 1);
+        for (int v : model.elements[e]) nodes.push_back(static_cast<std::size_t>(v) + 1);
+      }
+      gmsh::model::mesh::addElementsByType(body, model.dimension == 2 ? 2 : 4, tags, nodes);
+      // The spring data is 0 on the mesh's elements, cell_kind 1 (as in the VTK files).
+      data_tags.insert(data_tags.end(), tags.begin(), tags.end());
+      for (auto* values : {&stiffness, &rest_length, &identified, &dead})
+        values->resize(data_tags.size(), {0.0});
+      cell_kind.resize(data_tags.size(), {1.0});
+      const int mesh = gmsh::model::addPhysicalGroup(model.dimension, {body});
+      gmsh::model::setPhysicalName(model.dimension, mesh, "mesh");
+    }
     gmsh::option::setNumber("Mesh.MshFileVersion", 4.1);
     gmsh::option::setNumber("Mesh.Binary", 0);
     gmsh::option::setNumber("Mesh.SaveAll", 1);  // every node, also those no spring holds
@@ -51,9 +73,21 @@ void WriteGmshFile(const SpringModel& model, const std::string& path) {
     gmsh::model::getCurrent(model_name);
     for (const auto& [name, values] :
          {std::pair{"stiffness", &stiffness}, std::pair{"rest_length", &rest_length},
-          std::pair{"identified", &identified}}) {
+          std::pair{"identified", &identified}, std::pair{"dead", &dead},
+          std::pair{"cell_kind", &cell_kind}}) {
       const int view = gmsh::view::add(name);
-      gmsh::view::addModelData(view, 0, model_name, "ElementData", element_tags, *values, 0.0, 1);
+      gmsh::view::addModelData(view, 0, model_name, "ElementData", data_tags, *values, 0.0, 1);
+      gmsh::view::write(view, path, true);
+    }
+    // The validation fields, one node-data view each.
+    for (const PointField& f : PointFieldsOf(model)) {
+      const int view = gmsh::view::add(f.name);
+      std::vector<std::vector<double>> values;
+      for (int p = 0; p < model.node_count(); ++p)
+        values.emplace_back(f.values.begin() + f.components * p,
+                            f.values.begin() + f.components * (p + 1));
+      gmsh::view::addModelData(view, 0, model_name, "NodeData", node_tags, values, 0.0,
+                               f.components);
       gmsh::view::write(view, path, true);
     }
   } catch (const std::exception& e) {

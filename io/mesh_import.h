@@ -18,6 +18,7 @@ struct ImportedMesh {
   std::string source;                      // the file
   int dimension = 2;                       // 2: triangles in the plane z = 0; 3: tetrahedra
   std::vector<double> nodes;               // flat, `dimension` per node
+  std::vector<long long> node_tags;        // each node's Gmsh tag
   std::vector<std::vector<int>> elements;  // triangles or tetrahedra
   // Per element, the name of the region (physical surface in 2D, volume in 3D) it belongs to;
   // empty when the mesh names none.

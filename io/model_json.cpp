@@ -54,6 +54,7 @@ std::string ModelJsonText(const SpringModel& model) {
   j["response"] = model.response;
   j["elements"] = model.elements;
   j["node_sets"] = model.node_sets;
+  j["node_tags"] = model.node_tags.empty() ? Json(nullptr) : Json(model.node_tags);
   // Per load case: what a simulator applies and the two equilibria to compare, per node.
   const int d = model.dimension;
   const auto per_node = [&](const std::vector<double>& flat) {

@@ -205,6 +205,7 @@ Json SceneOfMesh(const ImportedMesh& mesh, const Json& loads, const std::string&
     nodes.push_back(std::move(x));
   }
   scene["nodes"] = std::move(nodes);
+  scene["node_tags"] = mesh.node_tags;
   if (!mesh.node_sets.empty()) scene["node_sets"] = mesh.node_sets;
   scene["reference"] = {{"type", "fem"}, {"elements", mesh.elements}};
 

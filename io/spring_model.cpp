@@ -128,6 +128,7 @@ SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& res
   }
   model.response = problem.response() == Response::kLinear ? "linear" : "nonlinear";
   model.node_sets = scene.node_sets;
+  model.node_tags = scene.node_tags;
   if (scene.reference.kind == Reference::Kind::kFem) model.elements = scene.reference.fem.elements;
   MarkDeadSprings(model, options);
   LumpMasses(model, scene, options);

@@ -36,8 +36,9 @@ struct SpringModel {
   std::string description;  // where it comes from: strategy, seed, E, units
   // The scene's units (engine/units.h), when it states them.
   std::optional<DerivedUnits> units;
-  int dimension = 2;         // 2 or 3
-  std::vector<double> rest;  // flat rest positions, `dimension` per node
+  int dimension = 2;                 // 2 or 3
+  std::vector<double> rest;          // flat rest positions, `dimension` per node
+  std::vector<long long> node_tags;  // the input's own node numbers (Scene::node_tags), or empty
   // The response the model was judged with (Problem::response): "linear" (the linearised
   // response at rest) or "nonlinear" (springs that turn and stretch).
   std::string response;

@@ -1,5 +1,7 @@
 #include "proto/scene_codec.h"
 
+#include <cmath>
+
 #include <cctype>
 #include <fstream>
 #include <sstream>
@@ -424,8 +426,8 @@ Json PairsToJson(const std::vector<NodePair>& pairs) {
 
 Scene SceneFromJson(const Json& json) {
   ExpectKeys(json, "",
-             {"name", "description", "nodes", "candidates", "node_sets", "reference", "load_cases",
-              "stiffness", "search", "units"});
+             {"name", "description", "nodes", "node_tags", "candidates", "node_sets", "reference",
+              "load_cases", "stiffness", "search", "units"});
   Scene s;
   if (json.contains("name")) s.name = ReadString(json["name"], "name");
   if (json.contains("description")) s.description = ReadString(json["description"], "description");
@@ -433,6 +435,22 @@ Scene SceneFromJson(const Json& json) {
     if (!json.contains(key)) throw InputError(key, "required");
   }
   ReadNodes(json["nodes"], s);
+  if (json.contains("node_tags")) {
+    const Json& tags = json["node_tags"];
+    ExpectArray(tags, "node_tags");
+    if (tags.size() != static_cast<std::size_t>(s.rest.size() / s.dimension)) {
+      throw InputError("node_tags", std::to_string(tags.size()) + " tags for " +
+                                        std::to_string(s.rest.size() / s.dimension) +
+                                        " nodes (one per node, in the nodes' order)");
+    }
+    for (std::size_t i = 0; i < tags.size(); ++i) {
+      const std::string p = "node_tags[" + std::to_string(i) + "]";
+      const double t = ReadNumber(tags[i], p);
+      if (t != std::floor(t) || std::abs(t) > 9007199254740992.0)
+        throw InputError(p, "must be an integer");
+      s.node_tags.push_back(static_cast<long long>(t));
+    }
+  }
   if (json.contains("candidates")) ReadCandidates(json["candidates"], s);
   if (json.contains("node_sets")) ReadNodeSets(json["node_sets"], s);
   ReadLoadCases(json["load_cases"], s);
@@ -512,6 +530,7 @@ Json SceneToJson(const Scene& s) {
     j["candidates"] = std::move(cj);
   }
 
+  if (!s.node_tags.empty()) j["node_tags"] = s.node_tags;
   if (!s.node_sets.empty()) {
     Json sets = Json::object();
     for (const auto& [name, nodes] : s.node_sets) sets[name] = nodes;

@@ -48,27 +48,49 @@ def check_values(stiffness, rest, flags, where):
         assert close(rest[i], length[i]), (where, i, rest[i], length[i])
         assert bool(flags[i]) == identified[i], (where, i, flags[i])
 
+j = json.load(open(base + ".json"))
+fem = scene["reference"]["type"] == "fem"
+elements = scene["reference"]["elements"] if fem else []
 for ext in ("vtk", "vtu", "msh"):
     m = meshio.read(base + "." + ext)
     assert m.points.shape == (len(nodes), 3), (ext, m.points.shape)
     for p, x in zip(m.points, nodes):
         assert all(close(p[c], x[c]) for c in range(d)) and (d == 3 or p[2] == 0), (ext, p, x)
-    lines = [c for c in m.cells if c.type == "line"]
-    assert len(lines) == 1 and len(m.cells) == 1, (ext, [c.type for c in m.cells])
+    # The springs, then the FEM mesh's elements as their own block (proto/MODEL.md).
+    types = [c.type for c in m.cells]
+    assert types == (["line", "triangle" if d == 2 else "tetra"] if fem else ["line"]), (ext, types)
     # (meshio numbers nodes from 0 in every format: it maps Gmsh's tags)
-    cells = [tuple(sorted(int(v) for v in c)) for c in lines[0].data]
+    cells = [tuple(sorted(int(v) for v in c)) for c in m.cells[0].data]
     assert cells == pairs, (ext, cells[:3], pairs[:3])
+    if fem:
+        assert [sorted(int(v) for v in c) for c in m.cells[1].data] == [sorted(e) for e in elements], ext
+        kinds = [{int(v) for v in block.ravel()} for block in m.cell_data["cell_kind"]]
+        assert kinds == [{0}, {1}], (ext, kinds)
     data = {name: list(v[0]) for name, v in m.cell_data.items()}
     check_values(data["stiffness"], data["rest_length"], data["identified"], ext)
+    # Validation fields per node: node sets, and per load case the reference's displacement,
+    # the model's own and their difference, as the JSON model has them.
+    for name, members in scene.get("node_sets", {}).items():
+        field = m.point_data["set_" + "".join(c if c.isalnum() or c in "_-." else "_" for c in name)]
+        assert [i for i, v in enumerate(field) if v] == sorted(members), (ext, name)
+    for lc, case in zip(j["load_cases"], scene["load_cases"]):
+        key = "".join(c if c.isalnum() or c in "_-." else "_" for c in case.get("name", ""))
+        ref, own, err = (m.point_data[f"u_{w}_{key}"] for w in ("reference", "model", "error"))
+        for i in range(len(nodes)):
+            for c in range(d):
+                assert close(ref[i][c], lc["reference_displacement"][i][c]), (ext, key, i)
+                assert close(own[i][c], lc["model_displacement"][i][c]), (ext, key, i)
+                assert abs(err[i][c] - (own[i][c] - ref[i][c])) <= 1e-12 * max(abs(own[i][c]), abs(ref[i][c]), 1e-300), (ext, key, i)
 
 # .vtu against the VTK XML layout itself, not only meshio's reading of it.
 vtu = ET.parse(base + ".vtu").getroot()
 assert vtu.get("type") == "UnstructuredGrid"
 piece = vtu.find("UnstructuredGrid/Piece")
-assert int(piece.get("NumberOfPoints")) == len(nodes) and int(piece.get("NumberOfCells")) == len(pairs)
+assert int(piece.get("NumberOfPoints")) == len(nodes) and int(piece.get("NumberOfCells")) == len(pairs) + len(elements)
 arrays = {a.get("Name"): a.text.split() for a in piece.iter("DataArray")}
-assert arrays["offsets"] == [str(2 * (i + 1)) for i in range(len(pairs))]
-assert set(arrays["types"]) == {"3"}
+assert arrays["offsets"][:len(pairs)] == [str(2 * (i + 1)) for i in range(len(pairs))]
+assert arrays["offsets"][len(pairs):] == [str(2 * len(pairs) + (d + 1) * (i + 1)) for i in range(len(elements))]
+assert arrays["types"] == ["3"] * len(pairs) + [("5" if d == 2 else "10")] * len(elements)
 
 # .scn: SOFA's components and data.
 root = ET.parse(base + ".scn").getroot()
@@ -93,7 +115,6 @@ assert all(float(s[3]) == 0.0 for s in springs)  # no damping
 check_values([float(s[2]) for s in springs], [float(s[4]) for s in springs], identified, "scn")
 
 # .json: the model alone (proto/MODEL.md).
-j = json.load(open(base + ".json"))
 assert j["format"] == "springfit-model" and j["version"] == 1 and j["dimension"] == d
 assert j["name"] == r["scene"] and j["nodes"] == nodes
 assert [tuple(s["nodes"]) for s in j["springs"]] == pairs

@@ -65,6 +65,31 @@ for ca, cb in zip(A, B):
     assert worst <= 1e-9 * scale, (worst, scale)
 PY
 
+# The input's own node numbers travel: the .msh's tags and the deck's ids in the scene, and
+# into the exported model (point data node_tag) for a user who maps results back.
+expect_exit 0 "run the deck" "$sf" run "$tmp/inp.json" --probes none -q -o "$tmp/inp-result.json"
+expect_exit 0 "export the deck's model" "$sf" export "$tmp/inp-result.json" -o "$tmp/inp-model.vtu"
+"$debian_python" - "$tmp/msh.json" "$tmp/inp.json" "$tmp/inclusion.msh" "$tmp/inclusion.inp" "$tmp/inp-model.vtu" <<'PY' || fail "node tags"
+import sys, meshio
+import json
+msh, inp = (json.load(open(p)) for p in sys.argv[1:3])
+m = meshio.read(sys.argv[3])
+# Gmsh's tags, in the order springfit numbers the nodes: the tag's point is the scene's node.
+tags = msh["node_tags"]
+assert len(tags) == len(msh["nodes"]) and len(set(tags)) == len(tags)
+ids = {}
+for line in open(sys.argv[4]).read().split("*ELEMENT")[0].split("\n")[3:]:
+    f = [x.strip() for x in line.split(",")]
+    if len(f) == 4:
+        ids[int(f[0])] = (float(f[1]), float(f[2]))
+for tag, x in zip(inp["node_tags"], inp["nodes"]):
+    assert ids[tag] == tuple(x), (tag, ids[tag], x)
+v = meshio.read(sys.argv[5])
+assert [int(t) for t in v.point_data["node_tag"]] == inp["node_tags"]
+PY
+python3 -c "import json,sys; s=json.load(open(sys.argv[1])); s['node_tags'].pop(); json.dump(s, open(sys.argv[2],'w'))" "$tmp/inp.json" "$tmp/short-tags.json"
+expect_exit 2 "node_tags of the wrong length" "$sf" check "$tmp/short-tags.json"
+grep -qF "node_tags: 214 tags for 215 nodes" "$tmp/err" || fail "node_tags length: $(cat "$tmp/err")"
 # What the deck lacks must come from --loads, each named.
 expect_exit 2 "a Gmsh deck without --loads" "$sf" import "$tmp/inclusion.inp" -o "$tmp/x.json"
 grep -qF "inclusion.inp: no *STEP (each step is a load case), and no load_cases: pass --loads LOADS.json" "$tmp/err" \
