@@ -23,6 +23,7 @@ packages=(
   clang-format             # the format check (tests/format_check.sh)
   git                      # the format check lists the tracked files
   python3                  # the end-to-end tests drive the CLI and the daemon with it
+  python3-pip python3-setuptools python3-wheel  # pip install --no-build-isolation ./python, offline
   calculix-ccx             # CalculiX: independent answers for the FEM reference tests
   gmsh                     # meshes a 2D shape for the FEM reference tests; reads exported .msh
   libgmsh-dev              # the Gmsh library: writes (and reads) Gmsh's mesh files
