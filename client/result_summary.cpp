@@ -1,5 +1,7 @@
 #include "client/result_summary.h"
 
+#include "io/model_facts.h"
+
 #include <cmath>
 
 #include <cstdio>
@@ -100,6 +102,19 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
     out << " (+" << unseen
         << " candidates no load case sees, added by exports at the training stiffness)";
   out << "\n";
+  // The stiffness a simulator will get (proto/MODEL.md, "Simulator facts"): its range, and
+  // the dead springs an export flags or drops, where the result identifies stiffness.
+  if (r.value("identify", "") == "topology_and_stiffness" && r.contains("stiffness") &&
+      r["stiffness"].is_array() && !r["stiffness"].empty()) {
+    const std::vector<double> k = r["stiffness"].get<std::vector<double>>();
+    const io::StiffnessSpread spread = io::SpreadOf(k);
+    const double fraction = io::ModelOptions{}.dead_fraction;
+    out << "stiffness:         " << Format("%.4g", spread.min) << " to "
+        << Format("%.4g", spread.max) << ", median " << Format("%.4g", spread.median) << " (spread "
+        << Format("%.3g", spread.min > 0.0 ? spread.max / spread.min : 0.0) << "); "
+        << spread.below(k, fraction) << " dead (below " << Format("%g", fraction)
+        << " x the median: export flags them, --drop-dead leaves them out)\n";
+  }
   // E is the one quality measure shown (the normalised error and the cost are in --json).
   out << "E (RMS nodal):     "
       << (r.contains("rms_error") ? Format("%.6g", r["rms_error"].get<double>())

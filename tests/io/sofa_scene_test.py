@@ -228,13 +228,18 @@ def check_model(label, result, dim, case_index, extra=()):
 with tempfile.TemporaryDirectory() as work:
     plate = f"{work}/plate.json"
     run("example", "fem-plate-5x5", "-o", f"{work}/plate-scene.json")
-    run("run", f"{work}/plate-scene.json", "-o", plate)
+    summary = run("run", f"{work}/plate-scene.json", "-o", plate).stdout
     grid = f"{work}/grid.json"
     run("run", f"{SRC}/examples/grid3d-4x4x4.json", "--strategy", "direct", "-o", grid)
     kidney = f"{work}/kidney.json"
     run("run", f"{SRC}/examples/kidney-2d.json", "--strategy", "direct", "-o", kidney)
 
-    check_model("2D FEM plate (linear response)", plate, 2, 1)
+    _, plate_model = check_model("2D FEM plate (linear response)", plate, 2, 1)
+    # The run's summary states the same stiffness facts as the export.
+    f = plate_model["facts"]
+    line = next((l for l in summary.splitlines() if l.startswith("stiffness:")), "")
+    check(f"{f['min_stiffness']:.4g} to {f['max_stiffness']:.4g}, median {f['median_stiffness']:.4g}" in line
+          and f"; {f['dead_springs']} dead" in line, f"the run's stiffness line: {line!r} vs {f}")
     check_model("3D grid (nonlinear)", grid, 3, 4)
     check_model("2D kidney MSS (nonlinear)", kidney, 2, 0)
 
@@ -278,6 +283,19 @@ with tempfile.TemporaryDirectory() as work:
     run("export", plate, "-o", f"{work}/uniform.scn", "--node-mass", "0.5")
     s = read_scene(f"{work}/uniform.scn", "v26.06", 2)
     check("UniformMass" in s["tags"] and np.all(s["mass"] == 0.5), "UniformMass of --node-mass")
+
+    # Dead springs: below --dead-fraction of the median, flagged, or left out with --drop-dead.
+    run("export", plate, "-o", f"{work}/flagged.json", "--dead-fraction", "0.2")
+    flagged = json.load(open(f"{work}/flagged.json"))
+    median = flagged["facts"]["median_stiffness"]
+    dead = [s for s in flagged["springs"] if s["dead"]]
+    check(dead and all(s["stiffness"] < 0.2 * median for s in dead)
+          and all(s["stiffness"] >= 0.2 * median for s in flagged["springs"] if not s["dead"])
+          and flagged["facts"]["dead_springs"] == len(dead), "dead springs flagged")
+    p = run("export", plate, "-o", f"{work}/dropped.scn", "--dead-fraction", "0.2", "--drop-dead")
+    s = read_scene(f"{work}/dropped.scn", "v26.06", 2)
+    check(len(s["springs"]) == len(flagged["springs"]) - len(dead), "--drop-dead leaves them out")
+    check(f"{len(dead)} dead springs (below 0.2 x the median), left out" in p.stdout, p.stdout)
 
     # The stable explicit time step: safe (at most 2 / omega_max of the model linearised at
     # rest with its masses), and not far below it.
