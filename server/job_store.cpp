@@ -1,11 +1,29 @@
 #include "server/job_store.h"
 
+#include <algorithm>
+
 #include "engine/input_error.h"
 #include "proto/json_reader.h"
 #include "proto/outcome_codec.h"
 #include "proto/search_codec.h"
 
 namespace springfit::server {
+
+namespace {
+thread_local double t_store_deadline = 0.0;
+}  // namespace
+
+ScopedStoreDeadline::ScopedStoreDeadline(double seconds) : previous_(t_store_deadline) {
+  t_store_deadline = previous_ > 0.0 ? std::min(previous_, seconds) : seconds;
+}
+
+ScopedStoreDeadline::~ScopedStoreDeadline() {
+  t_store_deadline = previous_;
+}
+
+double ScopedStoreDeadline::Current() {
+  return t_store_deadline;
+}
 
 JobState StoredJobState(std::int64_t job_id, const std::string& text) {
   if (const auto state = proto::ParseJobState(text)) return *state;

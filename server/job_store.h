@@ -106,6 +106,23 @@ class StoreUnavailable : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Within its scope, this thread's calls to the store give up after `seconds` (a
+// StoreUnavailable saying so) where the store bounds its calls (PostgreSQL: PostgresStore::
+// Options::call_seconds, which a shorter deadline here overrides): for answers that must come
+// at once whatever the store does, such as server.info's count of the queue.
+class ScopedStoreDeadline {
+ public:
+  explicit ScopedStoreDeadline(double seconds);
+  ~ScopedStoreDeadline();
+  ScopedStoreDeadline(const ScopedStoreDeadline&) = delete;
+  ScopedStoreDeadline& operator=(const ScopedStoreDeadline&) = delete;
+  // The innermost deadline of this thread (seconds), or 0 for none.
+  static double Current();
+
+ private:
+  double previous_;
+};
+
 // A stored record cannot be read: the database holds a value no springfitd writes (an unknown
 // state, a progress column that is not a trace row). Nothing was changed; the other records
 // stay readable. The RPC answers it with kStoreCorrupt and an incident number (proto/RPC.md).

@@ -38,6 +38,7 @@ struct DaemonArgs {
   std::string db;     // --db FILE: the same as --store sqlite:///FILE
   std::string store;  // --store URL
   std::string store_password_file;
+  double store_timeout = 10.0;
   std::string name;
   double lease_seconds = 10.0;
   int workers = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
@@ -128,6 +129,7 @@ int RunDaemon(const DaemonArgs& args) {
                          : args.store);
   if (!args.store_password_file.empty())
     location.password = sf::ReadPasswordFile(args.store_password_file);
+  location.timeout_seconds = args.store_timeout;
   CheckDescriptorLimit(args.max_connections + (args.http.empty() ? 0 : 64));
   const std::unique_ptr<sf::JobStore> store_owner = sf::OpenStore(location);
   sf::Metrics metrics;
@@ -260,6 +262,13 @@ int main(int argc, char** argv) {
       ->excludes(store_option);
   app.add_option("--store-password-file", args.store_password_file,
                  "File holding the PostgreSQL password (first line)");
+  app.add_option("--store-timeout", args.store_timeout,
+                 "PostgreSQL: every call to the database (heartbeat, claim, read, write) gives up "
+                 "after this many seconds when the server does not answer (stopped, "
+                 "partitioned), and is tried again later; server.info's count of the queue "
+                 "after at most 1.5")
+      ->check(CLI::Range(0.1, 3600.0))
+      ->capture_default_str();
   app.add_option("--name", args.name,
                  "This daemon's name in the leases of the jobs it runs; unique among the daemons "
                  "of one store (default host:pid:random)");

@@ -1,5 +1,7 @@
 #include "server/postgres_store.h"
 
+#include <sys/socket.h>
+
 #include <bit>
 #include <chrono>
 #include <cmath>
@@ -296,24 +298,84 @@ void Fence(pqxx::work& w, const Lease& lease) {
 }  // namespace
 
 struct PostgresStore::Slot {
-  std::mutex mutex;
-  std::unique_ptr<pqxx::connection> connection;
+  std::timed_mutex mutex;  // one call at a time; a caller waits for it until its deadline
+  // Asynchronous: its socket exists before the server has answered, so that the watchdog can
+  // end a connect to a server that does not answer, as it ends a statement.
+  std::unique_ptr<pqxx::asyncconnection> connection;
+  // The call in progress, for the watchdog (under `watch`).
+  std::mutex watch;
+  int socket = -1;  // -1: no call, or not connected yet
+  std::chrono::steady_clock::time_point deadline;
+  bool fired = false;  // the watchdog shut the socket down: the call ran out of time
 };
 
-PostgresStore::PostgresStore(const std::string& url, const std::string& password, int readers)
-    : conninfo_(WithPassword(url, password)), url_(url), writer_(std::make_unique<Slot>()) {
-  for (int i = 0; i < std::max(1, readers); ++i) readers_.push_back(std::make_unique<Slot>());
+void PostgresStore::Options::Validate() const {
+  if (!(call_seconds > 0.0) || !std::isfinite(call_seconds))
+    throw std::runtime_error("--store-timeout: must be a number of seconds > 0");
+  if (readers < 1) throw std::runtime_error("the store needs at least one reading connection");
+}
+
+namespace {
+
+// libpq's own bound on connecting (the listening connection's; the calls' connects are the
+// watchdog's): whole seconds, at least 2 (libpq reads 1 as 2), unless the URL sets one.
+std::string WithConnectTimeout(const std::string& conninfo, double seconds) {
+  if (conninfo.find("connect_timeout=") != std::string::npos) return conninfo;
+  const int whole = std::max(2, static_cast<int>(std::ceil(seconds)));
+  return conninfo + (conninfo.find('?') == std::string::npos ? "?" : "&") +
+         "connect_timeout=" + std::to_string(whole);
+}
+
+}  // namespace
+
+PostgresStore::PostgresStore(const std::string& url, const std::string& password, Options options)
+    : options_(options),
+      conninfo_(WithConnectTimeout(WithPassword(url, password), options.call_seconds)),
+      url_(url),
+      writer_(std::make_unique<Slot>()) {
+  options_.Validate();
+  for (int i = 0; i < options_.readers; ++i) readers_.push_back(std::make_unique<Slot>());
+  watchdog_ = std::thread([this] { WatchdogLoop(); });
   try {
     Migrate();
   } catch (const std::exception& e) {
+    stopping_.store(true);
+    watchdog_.join();
     throw std::runtime_error("cannot open the store " + url_ + ": " + e.what());
   }
   listener_ = std::thread([this] { ListenLoop(); });
 }
 
+PostgresStore::PostgresStore(const std::string& url, const std::string& password)
+    : PostgresStore(url, password, Options{}) {}
+
 PostgresStore::~PostgresStore() {
   stopping_.store(true);
   if (listener_.joinable()) listener_.join();
+  if (watchdog_.joinable()) watchdog_.join();
+}
+
+double PostgresStore::CallLimit() const {
+  const double scoped = ScopedStoreDeadline::Current();
+  return scoped > 0.0 ? std::min(scoped, options_.call_seconds) : options_.call_seconds;
+}
+
+void PostgresStore::WatchdogLoop() {
+  // Every 50 ms: a call past its deadline has its socket shut down (not closed: the descriptor
+  // stays the connection's, which its owner drops when libpq reports the error).
+  while (!stopping_.load()) {
+    const auto now = std::chrono::steady_clock::now();
+    std::vector<Slot*> slots{writer_.get()};
+    for (const auto& r : readers_) slots.push_back(r.get());
+    for (Slot* slot : slots) {
+      std::lock_guard lock(slot->watch);
+      if (slot->socket >= 0 && !slot->fired && now >= slot->deadline) {
+        ::shutdown(slot->socket, SHUT_RDWR);
+        slot->fired = true;
+      }
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
 }
 
 std::string PostgresStore::Describe() const {
@@ -322,26 +384,55 @@ std::string PostgresStore::Describe() const {
 
 template <typename F>
 auto PostgresStore::With(Slot& slot, F&& f) {
-  std::lock_guard lock(slot.mutex);
+  const double limit = CallLimit();
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                            std::chrono::duration<double>(limit));
+  const std::string late = fmt::format("the database did not answer within {:g} s", limit);
+  std::unique_lock lock(slot.mutex, std::defer_lock);
+  if (!lock.try_lock_until(deadline))
+    throw StoreUnavailable(late + " (its connection is held by a call that has not returned)");
+  // The watchdog's view of this call: armed once the connection has a socket, disarmed
+  // before the connection is dropped (its descriptor may then be reused).
+  const auto arm = [&] {
+    std::lock_guard watch(slot.watch);
+    slot.socket = slot.connection->sock();
+    slot.deadline = deadline;
+    slot.fired = false;
+  };
+  const auto disarm = [&] {
+    std::lock_guard watch(slot.watch);
+    slot.socket = -1;
+    return slot.fired;
+  };
+  struct Disarm {
+    const decltype(disarm)& off;
+    ~Disarm() { off(); }
+  } disarm_at_end{disarm};
+  const auto drop = [&](const std::string& what) {
+    const bool timed_out = disarm();
+    slot.connection.reset();
+    return StoreUnavailable(timed_out ? late : what);
+  };
   try {
     if (!slot.connection || !slot.connection->is_open()) {
-      auto c = std::make_unique<pqxx::connection>(conninfo_);
-      for (const auto& [name, sql] : kStatements) c->prepare(name, sql);
-      slot.connection = std::move(c);
+      slot.connection = std::make_unique<pqxx::asyncconnection>(conninfo_);
+      arm();
+      for (const auto& [name, sql] : kStatements) slot.connection->prepare(name, sql);
+      // The connect completes here, under the watchdog: a first round trip, since some calls
+      // quote text (which needs the server's encoding) before their first statement.
+      pqxx::nontransaction(*slot.connection).exec("SELECT 1");
+    } else {
+      arm();
     }
     return f(*slot.connection);
   } catch (const pqxx::broken_connection& e) {
-    slot.connection.reset();
-    throw StoreUnavailable(std::string("the database connection failed: ") + e.what());
+    throw drop(std::string("the database connection failed: ") + e.what());
   } catch (const pqxx::in_doubt_error& e) {
-    slot.connection.reset();
-    throw StoreUnavailable(std::string("the database connection failed during a commit: ") +
-                           e.what());
+    throw drop(std::string("the database connection failed during a commit: ") + e.what());
   } catch (const pqxx::sql_error& e) {
-    if (IsUnavailable(e.sqlstate())) {
-      slot.connection.reset();
-      throw StoreUnavailable(std::string("the database is unavailable: ") + e.what());
-    }
+    if (IsUnavailable(e.sqlstate()) || disarm())
+      throw drop(std::string("the database is unavailable: ") + e.what());
     throw std::runtime_error(std::string("database: ") + e.what());
   }
 }
@@ -357,7 +448,7 @@ auto PostgresStore::Read(F&& f) {
 }
 
 void PostgresStore::Migrate() {
-  Write([&](pqxx::connection& c) {
+  Write([&](pqxx::connection_base& c) {
     pqxx::work w(c);
     w.exec("SELECT pg_advisory_xact_lock(" + std::to_string(kMigrationLock) + ")");
     w.exec("CREATE TABLE IF NOT EXISTS springfit_schema (version INTEGER NOT NULL)");
@@ -383,7 +474,7 @@ void PostgresStore::Migrate() {
 }
 
 int PostgresStore::schema_version() {
-  return Read([&](pqxx::connection& c) {
+  return Read([&](pqxx::connection_base& c) {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     return w.exec("SELECT version FROM springfit_schema")[0][0].as<int>();
   });
@@ -424,7 +515,7 @@ void PostgresStore::ListenLoop() {
 }
 
 JobStore::Created PostgresStore::CreateJob(const NewJob& job, int max_queued) {
-  return Write([&](pqxx::connection& c) -> Created {
+  return Write([&](pqxx::connection_base& c) -> Created {
     pqxx::work w(c);
     // Serialises submits (all daemons): the count and the insert are one step, and two
     // submits of one idempotency key cannot both insert.
@@ -452,7 +543,7 @@ JobStore::Created PostgresStore::CreateJob(const NewJob& job, int max_queued) {
 }
 
 JobState PostgresStore::FinishPreparing(const Lease& lease, const JobRecord& prepared) {
-  return Write([&](pqxx::connection& c) {
+  return Write([&](pqxx::connection_base& c) {
     pqxx::work w(c);
     const pqxx::result r =
         w.exec_prepared("finish_preparing", lease.job_id, lease.owner, lease.epoch, prepared.genes,
@@ -470,7 +561,7 @@ JobState PostgresStore::FinishPreparing(const Lease& lease, const JobRecord& pre
 }
 
 void PostgresStore::DropPreparing(const Lease& lease) {
-  Write([&](pqxx::connection& c) {
+  Write([&](pqxx::connection_base& c) {
     pqxx::work w(c);
     w.exec_prepared("drop_preparing", lease.job_id, lease.owner, lease.epoch);
     w.commit();
@@ -478,7 +569,7 @@ void PostgresStore::DropPreparing(const Lease& lease) {
 }
 
 std::optional<JobRecord> PostgresStore::GetJob(std::int64_t id) {
-  return Read([&](pqxx::connection& c) -> std::optional<JobRecord> {
+  return Read([&](pqxx::connection_base& c) -> std::optional<JobRecord> {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     const pqxx::result r = w.exec_prepared("get_job", id);
     if (r.empty()) return std::nullopt;
@@ -487,7 +578,7 @@ std::optional<JobRecord> PostgresStore::GetJob(std::int64_t id) {
 }
 
 std::optional<std::string> PostgresStore::GetScene(std::int64_t id) {
-  return Read([&](pqxx::connection& c) -> std::optional<std::string> {
+  return Read([&](pqxx::connection_base& c) -> std::optional<std::string> {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     const pqxx::result r = w.exec_prepared("get_scene", id);
     if (r.empty()) return std::nullopt;
@@ -496,7 +587,7 @@ std::optional<std::string> PostgresStore::GetScene(std::int64_t id) {
 }
 
 JobPage PostgresStore::ListJobs(const JobFilter& f) {
-  return Read([&](pqxx::connection& c) {
+  return Read([&](pqxx::connection_base& c) {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     // Four shapes of one query; the parameters are bound, never spliced.
     std::string sql = std::string("SELECT " SF_JOB_COLUMNS " FROM jobs WHERE ") +
@@ -530,7 +621,7 @@ JobPage PostgresStore::ListJobs(const JobFilter& f) {
 }
 
 std::vector<JobRecord> PostgresStore::UnfinishedJobs() {
-  return Read([&](pqxx::connection& c) {
+  return Read([&](pqxx::connection_base& c) {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     std::vector<JobRecord> jobs;
     for (const auto& row : w.exec_prepared("unfinished")) jobs.push_back(ReadJob(row));
@@ -539,14 +630,14 @@ std::vector<JobRecord> PostgresStore::UnfinishedJobs() {
 }
 
 int PostgresStore::CountQueued() {
-  return Read([&](pqxx::connection& c) {
+  return Read([&](pqxx::connection_base& c) {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     return w.exec_prepared("count_queued")[0][0].as<int>();
   });
 }
 
 std::map<JobState, int> PostgresStore::CountJobs() {
-  return Read([&](pqxx::connection& c) {
+  return Read([&](pqxx::connection_base& c) {
     pqxx::nontransaction w(c);
     std::map<JobState, int> counts;
     for (const auto& row : w.exec("SELECT state, count(*) FROM jobs GROUP BY state")) {
@@ -558,7 +649,7 @@ std::map<JobState, int> PostgresStore::CountJobs() {
 }
 
 std::optional<Claim> PostgresStore::ClaimNext(const std::string& owner, double lease_seconds) {
-  return Write([&](pqxx::connection& c) -> std::optional<Claim> {
+  return Write([&](pqxx::connection_base& c) -> std::optional<Claim> {
     pqxx::work w(c);
     // Submissions whose daemon stopped renewing them while they were prepared: never answered.
     w.exec_prepared("sweep_preparing");
@@ -574,7 +665,7 @@ std::optional<Claim> PostgresStore::ClaimNext(const std::string& owner, double l
 }
 
 LeaseStatus PostgresStore::RenewLease(const Lease& lease, double lease_seconds) {
-  return Write([&](pqxx::connection& c) {
+  return Write([&](pqxx::connection_base& c) {
     pqxx::work w(c);
     const pqxx::result r =
         w.exec_prepared("renew", lease.job_id, lease.owner, lease.epoch, lease_seconds);
@@ -589,7 +680,7 @@ LeaseStatus PostgresStore::RenewLease(const Lease& lease, double lease_seconds) 
 }
 
 void PostgresStore::ReleaseLease(const Lease& lease) {
-  Write([&](pqxx::connection& c) {
+  Write([&](pqxx::connection_base& c) {
     pqxx::work w(c);
     if (w.exec_prepared("release", lease.job_id, lease.owner, lease.epoch).affected_rows() > 0)
       w.exec_prepared("notify", kChannel, "released");
@@ -598,7 +689,7 @@ void PostgresStore::ReleaseLease(const Lease& lease) {
 }
 
 void PostgresStore::SaveProgress(const Lease& lease, const ProgressBatch& b) {
-  Write([&](pqxx::connection& c) {
+  Write([&](pqxx::connection_base& c) {
     pqxx::work w(c);
     Fence(w, lease);
     const std::int64_t id = lease.job_id;
@@ -632,7 +723,7 @@ void PostgresStore::SaveProgress(const Lease& lease, const ProgressBatch& b) {
 }
 
 void PostgresStore::MarkFinished(const Lease& lease, const JobEnd& end) {
-  Write([&](pqxx::connection& c) {
+  Write([&](pqxx::connection_base& c) {
     pqxx::work w(c);
     Fence(w, lease);
     w.exec_prepared("finish", lease.job_id, std::string(proto::JobStateName(end.state)), end.error,
@@ -646,7 +737,7 @@ void PostgresStore::MarkFinished(const Lease& lease, const JobEnd& end) {
 }
 
 void PostgresStore::RewindTo(const Lease& lease, int generation) {
-  Write([&](pqxx::connection& c) {
+  Write([&](pqxx::connection_base& c) {
     pqxx::work w(c);
     Fence(w, lease);
     w.exec_prepared("rewind_trace", lease.job_id, generation);
@@ -656,7 +747,7 @@ void PostgresStore::RewindTo(const Lease& lease, int generation) {
 }
 
 JobStore::CancelOutcome PostgresStore::RequestCancel(std::int64_t id) {
-  return Write([&](pqxx::connection& c) {
+  return Write([&](pqxx::connection_base& c) {
     pqxx::work w(c);
     CancelOutcome outcome = CancelOutcome::kNotActive;
     const pqxx::result r = w.exec_prepared("cancel", id);
@@ -671,7 +762,7 @@ JobStore::CancelOutcome PostgresStore::RequestCancel(std::int64_t id) {
 }
 
 std::optional<std::string> PostgresStore::GetResult(std::int64_t id) {
-  return Read([&](pqxx::connection& c) -> std::optional<std::string> {
+  return Read([&](pqxx::connection_base& c) -> std::optional<std::string> {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     const pqxx::result r = w.exec_prepared("get_result", id);
     if (r.empty() || r[0][0].is_null()) return std::nullopt;
@@ -680,7 +771,7 @@ std::optional<std::string> PostgresStore::GetResult(std::int64_t id) {
 }
 
 std::vector<TraceRow> PostgresStore::GetTrace(std::int64_t id, int after, int limit) {
-  return Read([&](pqxx::connection& c) {
+  return Read([&](pqxx::connection_base& c) {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     std::vector<TraceRow> rows;
     for (const auto& q : w.exec_prepared("get_trace", id, after, limit)) {
@@ -702,7 +793,7 @@ std::vector<TraceRow> PostgresStore::GetTrace(std::int64_t id, int after, int li
 
 std::vector<Improvement> PostgresStore::GetImprovements(std::int64_t id,
                                                         const ImprovementPage& page) {
-  return Read([&](pqxx::connection& c) {
+  return Read([&](pqxx::connection_base& c) {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     std::vector<Improvement> out;
     // (LIMIT NULL: no limit.)
@@ -727,7 +818,7 @@ std::vector<Improvement> PostgresStore::GetImprovements(std::int64_t id,
 }
 
 std::optional<std::string> PostgresStore::GetCheckpoint(std::int64_t id) {
-  return Read([&](pqxx::connection& c) -> std::optional<std::string> {
+  return Read([&](pqxx::connection_base& c) -> std::optional<std::string> {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     const pqxx::result r = w.exec_prepared("get_checkpoint", id);
     if (r.empty()) return std::nullopt;
@@ -736,7 +827,7 @@ std::optional<std::string> PostgresStore::GetCheckpoint(std::int64_t id) {
 }
 
 bool PostgresStore::DeleteJob(std::int64_t id) {
-  return Write([&](pqxx::connection& c) {
+  return Write([&](pqxx::connection_base& c) {
     pqxx::work w(c);
     const bool deleted = w.exec_prepared("delete_job", id).affected_rows() > 0;
     w.commit();

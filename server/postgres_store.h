@@ -12,7 +12,11 @@
 //
 // A lost connection (server restart, network) fails the call in progress with
 // StoreUnavailable, and the next call connects again; nothing half-written is left, since
-// every write is one transaction.
+// every write is one transaction. A server that does not answer (stopped, partitioned, its
+// machine frozen: the kernel still accepts the bytes, so no socket error comes) fails every
+// call within Options::call_seconds: the wait for the slot's connection, the connecting and the
+// statements alike. A watchdog shuts down the socket of a call past its deadline, which ends
+// libpq's wait; the connection is then opened anew by the next call.
 #pragma once
 #include <atomic>
 #include <functional>
@@ -30,9 +34,19 @@ class PostgresStore final : public JobStore {
  public:
   static constexpr int kSchemaVersion = 3;
 
+  struct Options {
+    // Each call gives up after this long with StoreUnavailable (seconds, > 0): heartbeats,
+    // claims and reads never hang on a server that does not answer. A call whose thread set a
+    // shorter ScopedStoreDeadline (server.info) gives up after that.
+    double call_seconds = 10.0;
+    int readers = 2;  // connections for reads (>= 1)
+    void Validate() const;
+  };
+
   // `url`: a libpq URI (postgresql://...), without a password; `password`: empty for libpq's
   // defaults (PGPASSWORD, PGPASSFILE). Connects, migrates; throws std::runtime_error.
-  PostgresStore(const std::string& url, const std::string& password, int readers = 2);
+  PostgresStore(const std::string& url, const std::string& password, Options options);
+  PostgresStore(const std::string& url, const std::string& password);  // default Options
   ~PostgresStore() override;
 
   Created CreateJob(const NewJob& job, int max_queued) override;
@@ -74,8 +88,11 @@ class PostgresStore final : public JobStore {
   auto Read(F&& f);
   void Migrate();
   void ListenLoop();
+  void WatchdogLoop();
+  double CallLimit() const;
 
-  std::string conninfo_;  // the URL with the password: never logged
+  Options options_;
+  std::string conninfo_;  // the URL with the password and connect_timeout: never logged
   std::string url_;
   std::unique_ptr<Slot> writer_;
   std::vector<std::unique_ptr<Slot>> readers_;
@@ -85,6 +102,7 @@ class PostgresStore final : public JobStore {
   std::function<void()> on_change_;
   std::atomic<bool> stopping_{false};
   std::thread listener_;
+  std::thread watchdog_;
 };
 
 }  // namespace springfit::server

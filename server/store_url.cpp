@@ -61,7 +61,9 @@ std::string ReadPasswordFile(const std::string& path) {
 std::unique_ptr<JobStore> OpenStore(const StoreLocation& location) {
   if (location.kind == StoreLocation::Kind::kSqlite)
     return std::make_unique<SqliteStore>(location.path);
-  return std::make_unique<PostgresStore>(location.url, location.password);
+  PostgresStore::Options options;
+  options.call_seconds = location.timeout_seconds;
+  return std::make_unique<PostgresStore>(location.url, location.password, options);
 }
 
 }  // namespace springfit::server

@@ -16,9 +16,10 @@ namespace springfit::server {
 struct StoreLocation {
   enum class Kind { kSqlite, kPostgres };
   Kind kind = Kind::kSqlite;
-  std::string path;      // kSqlite: the database file
-  std::string url;       // kPostgres: the URI as given (no password)
-  std::string password;  // kPostgres: from a file; empty: libpq's defaults
+  std::string path;               // kSqlite: the database file
+  std::string url;                // kPostgres: the URI as given (no password)
+  std::string password;           // kPostgres: from a file; empty: libpq's defaults
+  double timeout_seconds = 10.0;  // kPostgres: every call's bound (--store-timeout)
 };
 
 // Throws std::runtime_error naming what is wrong with the URL.

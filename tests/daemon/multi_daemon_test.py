@@ -380,6 +380,56 @@ def check_restart():
     stop_all()
 
 
+def pg_pids():
+    """The private server's processes: the postmaster (postmaster.pid's first line) and its
+    children."""
+    with open(os.path.join(PG_DIR, "data", "postmaster.pid")) as f:
+        master = int(f.readline())
+    children = subprocess.run(["pgrep", "-P", str(master)], capture_output=True, text=True).stdout
+    return [master] + [int(p) for p in children.split()]
+
+
+def check_stall():
+    """PostgreSQL frozen (every process SIGSTOPped: the kernel still takes the bytes, so no
+    socket error comes) past the lease: server.info answers within 2 s with the store's error,
+    the job runs on once the server does, with the result of an uninterrupted run."""
+    url = new_database("stall")
+    a = Daemon("stall-a", url)
+    flags = ["--strategy", "paper", "--generations", "60", "--seed", "11"]
+    job_id = int(a.cli("submit", KIDNEY, *flags).stdout.strip())
+    if not wait_checkpoint(a, job_id, 3):
+        fail("stall", f"job {job_id} reached no checkpoint")
+    pids = pg_pids()
+    for pid in pids:
+        os.kill(pid, signal.SIGSTOP)
+    try:
+        time.sleep(0.5)
+        for attempt in (1, 2, 3):  # with the connection open, then reconnecting
+            t0 = time.monotonic()
+            info = rpc(a, "server.info")
+            took = time.monotonic() - t0
+            result = info.get("result", {})
+            if took > 2.0 or result.get("queued") is not None or \
+                    "did not answer within" not in result.get("store_error", ""):
+                fail("stall", f"server.info {attempt} with the database frozen: {took:.2f} s, "
+                              f"{json.dumps(info)[:300]}")
+        time.sleep(LEASE + 1.0)
+        if a.proc.poll() is not None:
+            fail("stall", f"the daemon died while the database was frozen: {a.log()[-500:]}")
+    finally:
+        for pid in pids:
+            os.kill(pid, signal.SIGCONT)
+    job = wait_state(a, job_id, ("succeeded", "failed", "cancelled"), 90)
+    if job["state"] != "succeeded":
+        fail("stall", f"job {job_id} after the database woke: {job['state']} {job.get('error')}")
+    else:
+        same_as_local("stall", a, job_id, KIDNEY, *flags)
+    info = rpc(a, "server.info").get("result", {})
+    if info.get("queued") != 0 or "store_error" in info:
+        fail("stall", f"server.info after the database woke: {info}")
+    stop_all()
+
+
 def check_remote():
     url = new_database("remote")
     b = Daemon("remote-b", url)
@@ -409,7 +459,7 @@ def check_remote():
 
 
 def main():
-    checks = [check_load, check_kill, check_pause, check_restart, check_remote]
+    checks = [check_load, check_kill, check_pause, check_restart, check_stall, check_remote]
     only = os.environ.get("MULTI_ONLY")  # one check by name, when debugging
     ran = 0
     for check in checks:
