@@ -12,13 +12,13 @@ packages=(
   libnanoflann-dev         # k-d tree: candidates and coincident nodes in O(n log n)
   libboost-dev             # Asio (header-only) for networking and thread pools
   nlohmann-json3-dev       # JSON
-  libsqlite3-dev libsqlitecpp-dev sqlite3
+  libsqlite3-dev libsqlitecpp-dev
   libpqxx-dev              # the shared PostgreSQL store (libpq's C++ client)
   postgresql               # a private server the store and multi-daemon tests start
   chromium                 # headless, loads the dashboard in tests/daemon/dashboard_test.py
   libcli11-dev             # command line
   libspdlog-dev libfmt-dev # logging
-  libgtest-dev libgmock-dev libbenchmark-dev
+  libgtest-dev libbenchmark-dev
   clang libclang-rt-14-dev # libFuzzer targets and sanitizer runtime
   clang-format             # the format check (tests/format_check.sh)
   git                      # the format check lists the tracked files

@@ -30,10 +30,6 @@ class RandomStream {
   std::string SaveState() const;
   void RestoreState(const std::string& state);
 
-  friend bool operator==(const RandomStream& a, const RandomStream& b) {
-    return a.engine_ == b.engine_;
-  }
-
  private:
   std::mt19937_64 engine_;
 };

@@ -385,8 +385,18 @@ def pg_pids():
     children."""
     with open(os.path.join(PG_DIR, "data", "postmaster.pid")) as f:
         master = int(f.readline())
-    children = subprocess.run(["pgrep", "-P", str(master)], capture_output=True, text=True).stdout
-    return [master] + [int(p) for p in children.split()]
+    children = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat") as f:
+                ppid = int(f.read().rsplit(")", 1)[1].split()[1])  # after "pid (comm) state"
+        except (OSError, ValueError, IndexError):
+            continue
+        if ppid == master:
+            children.append(int(entry))
+    return [master] + children
 
 
 def check_stall():
