@@ -2,6 +2,8 @@
 
 #include <sys/socket.h>
 
+#include <condition_variable>
+
 #include <bit>
 #include <chrono>
 #include <cmath>
@@ -298,7 +300,12 @@ void Fence(pqxx::work& w, const Lease& lease) {
 }  // namespace
 
 struct PostgresStore::Slot {
-  std::timed_mutex mutex;  // one call at a time; a caller waits for it until its deadline
+  // One call at a time: `busy` under `mutex`, a caller waiting on `free` until its deadline.
+  // (Not a std::timed_mutex: its timed lock is pthread_mutex_clocklock, which GCC 12's
+  // ThreadSanitizer does not see, so every unlock would be reported.)
+  std::mutex mutex;
+  std::condition_variable free;
+  bool busy = false;
   // Asynchronous: its socket exists before the server has answered, so that the watchdog can
   // end a connect to a server that does not answer, as it ends a statement.
   std::unique_ptr<pqxx::asyncconnection> connection;
@@ -389,9 +396,22 @@ auto PostgresStore::With(Slot& slot, F&& f) {
                         std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                             std::chrono::duration<double>(limit));
   const std::string late = fmt::format("the database did not answer within {:g} s", limit);
-  std::unique_lock lock(slot.mutex, std::defer_lock);
-  if (!lock.try_lock_until(deadline))
-    throw StoreUnavailable(late + " (its connection is held by a call that has not returned)");
+  {
+    std::unique_lock lock(slot.mutex);
+    if (!slot.free.wait_until(lock, deadline, [&] { return !slot.busy; }))
+      throw StoreUnavailable(late + " (its connection is held by a call that has not returned)");
+    slot.busy = true;
+  }
+  struct Release {
+    Slot& slot;
+    ~Release() {
+      {
+        std::lock_guard lock(slot.mutex);
+        slot.busy = false;
+      }
+      slot.free.notify_one();
+    }
+  } release{slot};
   // The watchdog's view of this call: armed once the connection has a socket, disarmed
   // before the connection is dropped (its descriptor may then be reused).
   const auto arm = [&] {
