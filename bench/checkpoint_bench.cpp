@@ -3,7 +3,7 @@
 //
 //   build/bench/checkpoint_bench --scene kidney-2d --strategy paper --generations 1000
 //
-// Runs the search in this process and encodes a checkpoint (server/checkpoint_codec.h) every
+// Runs the search in this process and encodes a checkpoint (server/jobs/checkpoint_codec.h) every
 // `--every` generations, as the daemon would every 10 s.
 #include <CLI/CLI.hpp>
 
@@ -14,7 +14,7 @@
 #include "engine/identification/identify.h"
 #include "io/example_catalog.h"
 #include "proto/names.h"
-#include "server/checkpoint_codec.h"
+#include "server/jobs/checkpoint_codec.h"
 
 int main(int argc, char** argv) {
   using namespace springfit;

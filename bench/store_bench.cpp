@@ -11,7 +11,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include "server/store_url.h"
+#include "server/store/store_url.h"
 
 namespace {
 using namespace springfit::server;

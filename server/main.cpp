@@ -19,15 +19,15 @@
 
 #include "proto/scene_codec.h"
 #include "proto/server_address.h"
-#include "server/dashboard.h"
-#include "server/http_server.h"
+#include "server/jobs/scheduler.h"
 #include "server/log_format.h"
-#include "server/metered_store.h"
-#include "server/rpc_service.h"
-#include "server/scheduler.h"
-#include "server/store_url.h"
-#include "server/tcp_server.h"
+#include "server/net/http_server.h"
+#include "server/net/tcp_server.h"
+#include "server/rpc/rpc_service.h"
+#include "server/store/metered_store.h"
+#include "server/store/store_url.h"
 #include "server/version.h"
+#include "server/web/dashboard.h"
 
 namespace {
 

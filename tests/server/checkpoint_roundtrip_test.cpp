@@ -2,7 +2,7 @@
 // again to the same bytes: real snapshots of a search, and hand-made states with the edge
 // values (genes not a multiple of 8, empty and non-empty genomes, -0.0, denormals, infinity,
 // binary keys and random state) that checkpoint_codec_test.cpp does not reach.
-#include "server/checkpoint_codec.h"
+#include "server/jobs/checkpoint_codec.h"
 
 #include <bit>
 #include <cmath>

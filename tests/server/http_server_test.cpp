@@ -1,6 +1,6 @@
 // The dashboard's HTTP server: health and metrics answer while every page thread is busy
 // (issue 32 item 4: two figure requests of large jobs used to make a health check time out).
-#include "server/http_server.h"
+#include "server/net/http_server.h"
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
@@ -21,11 +21,11 @@
 #include "proto/outcome_codec.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
-#include "server/dashboard.h"
-#include "server/forwarding_store.h"
-#include "server/metrics.h"
-#include "server/scheduler.h"
-#include "server/sqlite_store.h"
+#include "server/jobs/scheduler.h"
+#include "server/store/forwarding_store.h"
+#include "server/store/sqlite_store.h"
+#include "server/web/dashboard.h"
+#include "server/web/metrics.h"
 
 namespace springfit::server {
 namespace {

@@ -1,5 +1,5 @@
 // The daemon's methods without sockets: RpcService over a real SQLite store and scheduler.
-#include "server/rpc_service.h"
+#include "server/rpc/rpc_service.h"
 
 #include <algorithm>
 #include <chrono>
@@ -15,8 +15,8 @@
 #include "io/example_catalog.h"
 #include "proto/rpc.h"
 #include "proto/scene_codec.h"
-#include "server/forwarding_store.h"
-#include "server/sqlite_store.h"
+#include "server/store/forwarding_store.h"
+#include "server/store/sqlite_store.h"
 
 namespace springfit::server {
 namespace {

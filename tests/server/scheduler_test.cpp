@@ -6,7 +6,7 @@
 // The claim is one store call (ClaimNext); HookedStore runs a hook right after it returns,
 // before the runner has registered the job, so "cancelled at the moment of the claim" is
 // reproduced deterministically; the many-jobs test races the two sides for real.
-#include "server/scheduler.h"
+#include "server/jobs/scheduler.h"
 
 #include <algorithm>
 #include <atomic>
@@ -31,8 +31,8 @@
 #include "proto/rpc.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
-#include "server/forwarding_store.h"
-#include "server/sqlite_store.h"
+#include "server/store/forwarding_store.h"
+#include "server/store/sqlite_store.h"
 #include "tests/test_scenes.h"
 
 namespace springfit::server {

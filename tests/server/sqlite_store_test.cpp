@@ -1,4 +1,4 @@
-#include "server/sqlite_store.h"
+#include "server/store/sqlite_store.h"
 
 #include "tests/server/power_loss_vfs.h"
 #include "tests/server/store_test_data.h"

@@ -1,4 +1,4 @@
-// One suite, two stores: every behaviour the daemons rely on (server/job_store.h), run
+// One suite, two stores: every behaviour the daemons rely on (server/store/job_store.h), run
 // against the embedded SQLite store and against a real PostgreSQL server. The PostgreSQL
 // half needs SPRINGFIT_TEST_PG_URL, the URL of a private server that
 // tests/server/with_postgres.sh starts around this program; without it those tests fail,
@@ -22,10 +22,10 @@
 
 #include "proto/outcome_codec.h"
 #include "proto/scene_codec.h"
-#include "server/forwarding_store.h"
-#include "server/postgres_store.h"
-#include "server/scheduler.h"
-#include "server/sqlite_store.h"
+#include "server/jobs/scheduler.h"
+#include "server/store/forwarding_store.h"
+#include "server/store/postgres_store.h"
+#include "server/store/sqlite_store.h"
 #include "tests/server/store_test_data.h"
 #include "tests/test_scenes.h"
 

@@ -4,7 +4,7 @@
 #include <limits>
 #include <string>
 
-#include "server/job_store.h"
+#include "server/store/job_store.h"
 
 namespace springfit::server {
 

@@ -1,4 +1,4 @@
-#include "server/store_url.h"
+#include "server/store/store_url.h"
 
 #include <stdexcept>
 #include <string>

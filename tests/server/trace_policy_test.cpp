@@ -1,7 +1,7 @@
-// Which rows of a job's trace the store keeps (server/trace_policy.h): every generation below
+// Which rows of a job's trace the store keeps (server/jobs/trace_policy.h): every generation below
 // 10,000, then every 10th, 100th, ... per decade, the stride growing no further than 100,000
 // (from 100,000,000 on, up to INT_MAX); a row that improved the best, and the last row, always.
-#include "server/trace_policy.h"
+#include "server/jobs/trace_policy.h"
 
 #include <algorithm>
 #include <cstdint>

@@ -1,4 +1,4 @@
-#include "server/tcp_server.h"
+#include "server/net/tcp_server.h"
 
 #include <array>
 #include <chrono>

@@ -18,9 +18,9 @@
 #include <vector>
 
 #include "engine/problem.h"
-#include "server/job_store.h"
-#include "server/metrics.h"
-#include "server/scheduler.h"
+#include "server/jobs/scheduler.h"
+#include "server/store/job_store.h"
+#include "server/web/metrics.h"
 
 namespace springfit::server {
 

@@ -1,4 +1,4 @@
-#include "server/scheduler.h"
+#include "server/jobs/scheduler.h"
 
 #include <unistd.h>
 
@@ -10,7 +10,7 @@
 
 #include "proto/rpc.h"
 #include "proto/search_codec.h"
-#include "server/unix_time.h"
+#include "server/store/unix_time.h"
 
 namespace springfit::server {
 namespace {

@@ -1,4 +1,4 @@
-#include "server/rpc_service.h"
+#include "server/rpc/rpc_service.h"
 
 #include "server/version.h"
 
@@ -20,8 +20,8 @@
 #include "proto/rpc.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
-#include "server/token.h"
-#include "server/unix_time.h"
+#include "server/rpc/token.h"
+#include "server/store/unix_time.h"
 
 namespace springfit::server {
 namespace rpc = proto::rpc;

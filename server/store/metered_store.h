@@ -1,11 +1,11 @@
-// A store that times its writes for /metrics (server/metrics.h): every call that changes the
+// A store that times its writes for /metrics (server/web/metrics.h): every call that changes the
 // store, by operation, with its failures. Reads are not timed: their cost shows in the
 // latency of the RPC answers.
 #pragma once
 #include <chrono>
 
-#include "server/forwarding_store.h"
-#include "server/metrics.h"
+#include "server/store/forwarding_store.h"
+#include "server/web/metrics.h"
 
 namespace springfit::server {
 

@@ -57,7 +57,7 @@ struct ProgressBatch {
   std::vector<TraceRow> trace;  // rows to keep (the trace policy already applied)
   std::vector<Improvement> improvements;
   std::optional<TraceRow> latest;         // the newest generation, kept or not
-  std::optional<std::string> checkpoint;  // server/checkpoint_codec.h; replaces the last one
+  std::optional<std::string> checkpoint;  // server/jobs/checkpoint_codec.h; replaces the last one
   int checkpoint_generation = -1;
 };
 

@@ -12,9 +12,9 @@
 
 #include "proto/json_reader.h"
 #include "proto/rpc.h"
-#include "server/job_store.h"
-#include "server/metrics.h"
-#include "server/scheduler.h"
+#include "server/jobs/scheduler.h"
+#include "server/store/job_store.h"
+#include "server/web/metrics.h"
 
 namespace springfit::server {
 

@@ -1,6 +1,6 @@
 // The daemon's runners: the threads that claim jobs from the store and run them.
 //
-// The queue is the store's (server/job_store.h): each runner claims the next job there (by
+// The queue is the store's (server/store/job_store.h): each runner claims the next job there (by
 // priority, then submission order), so several daemons on one store share one queue. Up to
 // `max_running` jobs run at once, each on its own runner thread; all of them share one
 // WorkerPool for their fitness evaluations, so a job running alone uses every worker, and
@@ -28,9 +28,9 @@
 
 #include "engine/search/worker_pool.h"
 #include "proto/json_reader.h"
-#include "server/job_runner.h"
-#include "server/job_store.h"
-#include "server/metrics.h"
+#include "server/jobs/job_runner.h"
+#include "server/store/job_store.h"
+#include "server/web/metrics.h"
 
 namespace springfit::server {
 
@@ -85,7 +85,7 @@ class Scheduler {
   // caller has it and this daemon claims the job) and wakes an idle runner.
   void JobSubmitted(std::int64_t id, std::shared_ptr<const Problem> prepared = nullptr);
 
-  // A submission being prepared here (a job in state preparing, server/job_store.h): the
+  // A submission being prepared here (a job in state preparing, server/store/job_store.h): the
   // heartbeat renews its lease with the running jobs', and a cancel requested through any
   // daemon, or the lease lost, sets its flags; the preparation polls them. End it with
   // PreparationEnded, whatever the outcome.

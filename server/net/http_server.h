@@ -14,7 +14,7 @@
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/thread_pool.hpp>
 
-#include "server/dashboard.h"
+#include "server/web/dashboard.h"
 
 namespace springfit::server {
 

@@ -1,5 +1,5 @@
 // The shared store: one PostgreSQL database that several daemons, on one host or many, claim
-// jobs from (server/job_store.h; README "Several daemons on one database").
+// jobs from (server/store/job_store.h; README "Several daemons on one database").
 //
 // libpqxx, with prepared statements on every connection: one connection for the writes,
 // a small pool for the reads (job.get, job.list, job.trace never wait behind a checkpoint),
@@ -26,7 +26,7 @@
 #include <thread>
 #include <vector>
 
-#include "server/job_store.h"
+#include "server/store/job_store.h"
 
 namespace springfit::server {
 

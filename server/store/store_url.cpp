@@ -1,10 +1,10 @@
-#include "server/store_url.h"
+#include "server/store/store_url.h"
 
 #include <fstream>
 #include <stdexcept>
 
-#include "server/postgres_store.h"
-#include "server/sqlite_store.h"
+#include "server/store/postgres_store.h"
+#include "server/store/sqlite_store.h"
 
 namespace springfit::server {
 namespace {

@@ -1,4 +1,4 @@
-// The embedded store: one SQLite database file in WAL mode (server/job_store.h), for one
+// The embedded store: one SQLite database file in WAL mode (server/store/job_store.h), for one
 // daemon: opening it takes an advisory lock on the file, so a second springfitd on the same
 // database is refused, and frees the leases a crashed or stopped daemon left.
 //
@@ -19,7 +19,7 @@
 #include <utility>
 #include <vector>
 
-#include "server/job_store.h"
+#include "server/store/job_store.h"
 
 namespace SQLite {
 class Database;
@@ -93,7 +93,7 @@ class SqliteStore final : public JobStore {
   template <typename F>
   auto OnConnection(std::unique_ptr<SQLite::Database>& db, ConnectionState& state, bool read_only,
                     F& f) -> decltype(f(std::declval<SQLite::Database&>()));
-  // I/O failures and a full disk make the store unavailable (server/job_store.h), not wrong,
+  // I/O failures and a full disk make the store unavailable (server/store/job_store.h), not wrong,
   // and mark the connection for reopening; a damaged file is named as such.
   [[noreturn]] void Rethrow(const SQLite::Exception& e, ConnectionState& state) const;
 

@@ -1,7 +1,7 @@
 // A JobStore that forwards every call to another store: the base of stores that add to some
 // calls (MeteredStore's timings; the tests' hooked and failing stores).
 #pragma once
-#include "server/job_store.h"
+#include "server/store/job_store.h"
 
 namespace springfit::server {
 

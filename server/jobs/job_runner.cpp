@@ -1,4 +1,4 @@
-#include "server/job_runner.h"
+#include "server/jobs/job_runner.h"
 
 #include <chrono>
 #include <limits>
@@ -10,9 +10,9 @@
 #include "proto/outcome_codec.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
-#include "server/checkpoint_codec.h"
-#include "server/trace_policy.h"
-#include "server/unix_time.h"
+#include "server/jobs/checkpoint_codec.h"
+#include "server/jobs/trace_policy.h"
+#include "server/store/unix_time.h"
 
 namespace springfit::server {
 namespace {

@@ -1,4 +1,4 @@
-#include "server/checkpoint_codec.h"
+#include "server/jobs/checkpoint_codec.h"
 
 #include <cstdint>
 #include <cstring>

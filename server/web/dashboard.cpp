@@ -1,4 +1,4 @@
-#include "server/dashboard.h"
+#include "server/web/dashboard.h"
 
 #include <algorithm>
 #include <cmath>
@@ -16,8 +16,8 @@
 #include "io/xml_text.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
-#include "server/token.h"
-#include "server/unix_time.h"
+#include "server/rpc/token.h"
+#include "server/store/unix_time.h"
 
 namespace springfit::server {
 namespace {

@@ -1,4 +1,4 @@
-#include "server/sqlite_store.h"
+#include "server/store/sqlite_store.h"
 
 #include <fcntl.h>
 #include <sys/file.h>
@@ -17,7 +17,7 @@
 
 #include "engine/search/fitness_cache.h"
 #include "proto/search_codec.h"
-#include "server/unix_time.h"
+#include "server/store/unix_time.h"
 
 namespace springfit::server {
 namespace {
@@ -75,10 +75,10 @@ CREATE TABLE improvements (
 CREATE TABLE checkpoints (
   job_id INTEGER PRIMARY KEY REFERENCES jobs (id) ON DELETE CASCADE,
   generation INTEGER NOT NULL,
-  state BLOB NOT NULL                -- server/checkpoint_codec.h
+  state BLOB NOT NULL                -- server/jobs/checkpoint_codec.h
 );
 )sql",
-    // 2: the lease a daemon holds a running job by (server/job_store.h) and job.cancel as a
+    // 2: the lease a daemon holds a running job by (server/store/job_store.h) and job.cancel as a
     // request its runner reads.
     R"sql(
 ALTER TABLE jobs ADD COLUMN lease_owner TEXT;

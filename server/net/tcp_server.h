@@ -24,7 +24,7 @@
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/thread_pool.hpp>
 
-#include "server/rpc_service.h"
+#include "server/rpc/rpc_service.h"
 
 namespace springfit::server {
 

@@ -9,7 +9,7 @@
 #include <memory>
 #include <string>
 
-#include "server/job_store.h"
+#include "server/store/job_store.h"
 
 namespace springfit::server {
 

@@ -1,4 +1,4 @@
-#include "server/postgres_store.h"
+#include "server/store/postgres_store.h"
 
 #include <sys/socket.h>
 
@@ -88,7 +88,7 @@ CREATE TABLE improvements (
 CREATE TABLE checkpoints (
   job_id BIGINT PRIMARY KEY REFERENCES jobs (id) ON DELETE CASCADE,
   generation INTEGER NOT NULL,
-  state BYTEA NOT NULL               -- server/checkpoint_codec.h
+  state BYTEA NOT NULL               -- server/jobs/checkpoint_codec.h
 );
 )sql",
     // 2: jobs being prepared (state 'preparing', held by a lease), swept when it lapses. A
