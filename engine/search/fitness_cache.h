@@ -15,6 +15,7 @@
 #include <utility>
 #include <vector>
 
+#include "engine/genome_packing.h"
 #include "engine/problem.h"
 #include "engine/search/fitness.h"
 
@@ -27,10 +28,8 @@ class FitnessCache {
 
   explicit FitnessCache(std::size_t capacity = kDefaultCapacity) : capacity_(capacity) {}
 
-  // The genome packed 8 genes per byte: the cache key.
-  static std::string Key(const Genome& genome);
-  // The genome of a key (`genes` long; bits beyond the key are 0).
-  static Genome Unpack(const std::string& key, int genes);
+  // Keys are packed genomes (engine/genome_packing.h).
+  static std::string Key(const Genome& genome) { return PackGenome(genome); }
 
   std::optional<Fitness> Find(const std::string& key) const;
   // No-op when the key is present; evicts the oldest entry when full.

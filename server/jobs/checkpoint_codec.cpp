@@ -5,7 +5,7 @@
 #include <stdexcept>
 #include <type_traits>
 
-#include "engine/search/fitness_cache.h"
+#include "engine/genome_packing.h"
 #include "proto/search_codec.h"
 #include "server/version.h"
 
@@ -30,7 +30,7 @@ class Writer {
   }
   void PutGenome(const Genome& g) {
     Put<std::uint8_t>(g.empty() ? 0 : 1);
-    if (!g.empty()) PutString(FitnessCache::Key(g));
+    if (!g.empty()) PutString(PackGenome(g));
   }
   void PutFitness(const Fitness& f) {
     Put(f.cost);
@@ -68,7 +68,7 @@ class Reader {
     const std::string key = GetString();
     if (key.size() != (static_cast<std::size_t>(genes_) + 7) / 8)
       throw std::runtime_error("checkpoint: genome size");
-    return FitnessCache::Unpack(key, genes_);
+    return UnpackGenome(key, genes_);
   }
   Fitness GetFitness() {
     Fitness f;

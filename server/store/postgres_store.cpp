@@ -14,7 +14,7 @@
 #include <spdlog/spdlog.h>
 #include <pqxx/pqxx>
 
-#include "engine/search/fitness_cache.h"
+#include "engine/genome_packing.h"
 #include "proto/search_codec.h"
 
 namespace springfit::server {
@@ -82,7 +82,7 @@ CREATE TABLE improvements (
   normalized_error DOUBLE PRECISION NOT NULL,
   missing INTEGER,
   extra INTEGER,
-  genome BYTEA NOT NULL,             -- packed 8 genes per byte (FitnessCache::Key)
+  genome BYTEA NOT NULL,             -- packed 8 genes per byte (engine/genome_packing.h)
   PRIMARY KEY (job_id, generation)
 );
 CREATE TABLE checkpoints (
@@ -727,7 +727,7 @@ void PostgresStore::SaveProgress(const Lease& lease, const ProgressBatch& b) {
                       ArrayLiteral(b.trace, &TraceRow::extra, count));
     }
     for (const Improvement& m : b.improvements) {
-      const std::string genome = FitnessCache::Key(m.genome);
+      const std::string genome = PackGenome(m.genome);
       w.exec_prepared("insert_improvement", id, m.generation, m.wall_seconds, m.cost,
                       m.normalized_error, m.missing, m.extra,
                       pqxx::binarystring(genome.data(), genome.size()));
@@ -830,7 +830,7 @@ std::vector<Improvement> PostgresStore::GetImprovements(std::int64_t id,
       m.normalized_error = q[3].as<double>();
       m.missing = CountOrMinusOne(q[4]);
       m.extra = CountOrMinusOne(q[5]);
-      m.genome = FitnessCache::Unpack(Bytes(q[6]), q[7].as<int>());
+      m.genome = UnpackGenome(Bytes(q[6]), q[7].as<int>());
       out.push_back(std::move(m));
     }
     return out;

@@ -15,7 +15,7 @@
 #include <spdlog/spdlog.h>
 #include <sqlite3.h>
 
-#include "engine/search/fitness_cache.h"
+#include "engine/genome_packing.h"
 #include "proto/search_codec.h"
 #include "server/store/unix_time.h"
 
@@ -69,7 +69,7 @@ CREATE TABLE improvements (
   normalized_error REAL NOT NULL,
   missing INTEGER,
   extra INTEGER,
-  genome BLOB NOT NULL,              -- packed 8 genes per byte (FitnessCache::Key)
+  genome BLOB NOT NULL,              -- packed 8 genes per byte (engine/genome_packing.h)
   PRIMARY KEY (job_id, generation)
 );
 CREATE TABLE checkpoints (
@@ -624,7 +624,7 @@ void SqliteStore::SaveProgress(const Lease& lease, const ProgressBatch& b) {
         q.bind(5, m.normalized_error);
         BindCount(q, 6, m.missing);
         BindCount(q, 7, m.extra);
-        BindBlob(q, 8, FitnessCache::Key(m.genome));
+        BindBlob(q, 8, PackGenome(m.genome));
         q.exec();
         q.reset();
       }
@@ -780,7 +780,7 @@ std::vector<Improvement> SqliteStore::GetImprovements(std::int64_t id,
       m.normalized_error = q.getColumn(3).getDouble();
       m.missing = CountOrNull(q.getColumn(4)).value_or(-1);
       m.extra = CountOrNull(q.getColumn(5)).value_or(-1);
-      m.genome = FitnessCache::Unpack(q.getColumn(6).getString(), q.getColumn(7).getInt());
+      m.genome = UnpackGenome(q.getColumn(6).getString(), q.getColumn(7).getInt());
       out.push_back(std::move(m));
     }
     return out;

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include "engine/genome_packing.h"
 #include "engine/search/fitness_cache.h"
 #include "engine/search/genetic_operators.h"
 #include "engine/search/random_stream.h"
@@ -154,6 +155,23 @@ TEST(GeneticOperators, TournamentPicksTheSmallestErrorOfItsDraws) {
   ExpectBinomial(counts[2], n, 5.0 / 16.0);
   ExpectBinomial(counts[0], n, 3.0 / 16.0);
   ExpectBinomial(counts[3], n, 1.0 / 16.0);
+}
+
+// The packed form is what checkpoints and both stores keep on disk: its layout is pinned.
+TEST(GenomePacking, GeneIIsBitIModulo8OfByteIOver8AndRoundTrips) {
+  Genome g(11, 0);
+  g[0] = g[3] = g[8] = g[10] = 1;
+  const std::string packed = PackGenome(g);
+  ASSERT_EQ(packed.size(), 2u);
+  EXPECT_EQ(static_cast<unsigned char>(packed[0]), 0x09);  // genes 0 and 3
+  EXPECT_EQ(static_cast<unsigned char>(packed[1]), 0x05);  // genes 8 and 10
+  EXPECT_EQ(UnpackGenome(packed, 11), g);
+  EXPECT_EQ(UnpackGenome(packed, 13), [&] {
+    Genome longer = g;
+    longer.resize(13, 0);
+    return longer;
+  }());
+  EXPECT_EQ(PackGenome(Genome{}), "");
 }
 
 TEST(FitnessCache, KeysAreDistinctAndEvictionIsFirstInFirstOut) {
