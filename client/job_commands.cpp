@@ -59,7 +59,8 @@ std::string ErrorText(double e) {
 // continuous (its progress rows count steps, not generations) its step.
 std::string ProgressText(const proto::JobRecord& j) {
   if (!j.progress) return "-";
-  if (j.strategy == "continuous") return "step " + std::to_string(j.progress->generation);
+  if (proto::ProgressCountsSteps(j.strategy))
+    return "step " + std::to_string(j.progress->generation);
   return "gen " + std::to_string(j.progress->generation) + "/" + std::to_string(j.max_generations);
 }
 
@@ -207,14 +208,12 @@ int List(const JobArgs& a) {
   for (const Json& j : jobs) {
     const proto::JobRecord r = proto::JobFromJson(j);
     std::string progress = "-";
-    std::string e = "-";
     std::string springs = "-";
+    const std::string e = proto::JobErrorText(r);
     if (r.outcome) {
       springs = std::to_string(r.outcome->springs);
-      if (r.outcome->rms_error) e = ErrorText(*r.outcome->rms_error);
     } else if (r.progress) {
       progress = ProgressText(r);
-      e = ErrorText(std::sqrt(r.progress->best_normalized_error)) + "~";
     }
     std::printf("%6lld  %-9s  %-13s  %-16s  %-20s  %-10s  %11s  %7s  %9s  %s\n",
                 static_cast<long long>(r.id), std::string(proto::JobStateName(r.state)).c_str(),

@@ -83,7 +83,7 @@ Json WatchJob(RpcClient& client, std::int64_t job_id, bool quiet) {
   // A continuous job's rows are steps of its fit, not generations (the job's strategy is the
   // one that runs, `default` resolved when it was prepared).
   ProgressLine progress(job.value("max_generations", 0), quiet,
-                        job.value("strategy", std::string()) == "continuous");
+                        proto::ProgressCountsSteps(job.value("strategy", std::string())));
   while (true) {
     const Json n = client.NextNotification();
     const Json& p = n["params"];

@@ -1,9 +1,14 @@
 #include "proto/job.h"
 
+#include <cstdio>
+
+#include <cmath>
+
 #include <array>
 #include <utility>
 
 #include "engine/input_error.h"
+#include "proto/names.h"
 #include "proto/outcome_codec.h"
 #include "proto/search_codec.h"
 
@@ -47,6 +52,21 @@ std::optional<JobState> ParseJobState(std::string_view name) {
     if (n == name) return s;
   }
   return std::nullopt;
+}
+
+bool ProgressCountsSteps(std::string_view strategy) {
+  return strategy == StrategyName(Strategy::kContinuous);
+}
+
+std::string JobErrorText(const JobRecord& job) {
+  const auto text = [](double e) {
+    if (!std::isfinite(e)) return std::string("-");
+    char buffer[32];
+    std::snprintf(buffer, sizeof buffer, "%.3g", e);
+    return std::string(buffer);
+  };
+  if (job.outcome) return job.outcome->rms_error ? text(*job.outcome->rms_error) : "-";
+  return job.progress ? text(std::sqrt(job.progress->best_normalized_error)) + "~" : "-";
 }
 
 Json JobToJson(const JobRecord& job) {

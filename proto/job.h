@@ -52,6 +52,14 @@ struct JobRecord {
   std::optional<Outcome> outcome;
 };
 
+// A job whose progress rows count the steps of a fit (strategy continuous; a job's strategy
+// is the one that runs) rather than generations of a genetic search up to max_generations:
+// the one test of it for run, list, watch and the dashboard.
+bool ProgressCountsSteps(std::string_view strategy);
+// E of a job as list and the dashboard show it: the returned model's once the job has a
+// verdict, the best so far marked "~" while it runs, "-" without either (3 digits).
+std::string JobErrorText(const JobRecord& job);
+
 Json JobToJson(const JobRecord& job);
 JobRecord JobFromJson(const Json& json);  // the client's reading; throws InputError
 

@@ -137,16 +137,10 @@ std::string ErrorText(double e) {
   return fmt::format("{:.4g}", e);
 }
 
-// E of the returned model once the job has a verdict; while it runs the best so far (~).
-std::string EText(const JobRecord& job) {
-  if (job.outcome) return job.outcome->rms_error ? ErrorText(*job.outcome->rms_error) : "-";
-  return job.progress ? ErrorText(std::sqrt(job.progress->best_normalized_error)) + "~" : "-";
-}
-
 // A genetic run's generation of its limit; a continuous run's step (its rows are the fit's
 // steps, not generations: no limit to show).
 std::string GenerationText(const JobRecord& job) {
-  if (job.strategy == "continuous")
+  if (proto::ProgressCountsSteps(job.strategy))
     return job.progress ? fmt::format("step {}", job.progress->generation) : "-";
   return job.progress ? fmt::format("{} / {}", job.progress->generation, job.max_generations)
                       : fmt::format("- / {}", job.max_generations);
@@ -468,8 +462,8 @@ HttpResponse Dashboard::ListView(const std::map<std::string, std::string>& query
         job.id, XmlEscape(job.label), XmlEscape(job.scene_name), StateBadge(job.state),
         XmlEscape(job.strategy), job.genes, GenerationText(job),
         job.outcome ? std::string(VerdictName(job.outcome->verdict)) : "-",
-        job.outcome ? std::to_string(job.outcome->springs) : "-", EText(job), Seconds(Elapsed(job)),
-        job.exact ? (*job.exact ? "yes" : "no") : "-");
+        job.outcome ? std::to_string(job.outcome->springs) : "-", proto::JobErrorText(job),
+        Seconds(Elapsed(job)), job.exact ? (*job.exact ? "yes" : "no") : "-");
   }
   body += "</table>\n";
   if (page.jobs.empty()) body += "<p>No jobs.</p>\n";
@@ -577,10 +571,11 @@ HttpResponse Dashboard::JobView(const JobRecord& job) {
       job.progress ? job.progress->generation : -1, final ? "true" : "false");
   body += Row("state",
               "<span id=\"p-state\">" + std::string(proto::JobStateName(job.state)) + "</span>");
-  body += Row(job.strategy == "continuous" ? "progress" : "generation",
+  body += Row(proto::ProgressCountsSteps(job.strategy) ? "progress" : "generation",
               "<span id=\"p-generation\">" + GenerationText(job) + "</span>");
   body += Row("phase", "<span id=\"p-phase\">" + XmlEscape(PhaseText(job.id)) + "</span>");
-  body += Row("E (relative RMS nodal error)", "<span id=\"p-best\">" + EText(job) + "</span>");
+  body += Row("E (relative RMS nodal error)",
+              "<span id=\"p-best\">" + proto::JobErrorText(job) + "</span>");
   body += Row("evaluations", "<span id=\"p-evaluations\">" +
                                  (job.progress ? std::to_string(job.progress->evaluations) : "-") +
                                  "</span>");
@@ -661,7 +656,7 @@ HttpResponse Dashboard::Progress(const JobRecord& job) {
   p["final"] = proto::IsFinal(job.state);
   p["generation"] = GenerationText(job);
   p["generation_number"] = job.progress ? job.progress->generation : -1;
-  p["best"] = EText(job);
+  p["best"] = proto::JobErrorText(job);
   p["phase"] = PhaseText(job.id);
   p["evaluations"] = job.progress ? std::to_string(job.progress->evaluations) : "-";
   p["elapsed"] = Seconds(Elapsed(job));

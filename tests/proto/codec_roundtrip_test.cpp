@@ -573,5 +573,24 @@ TEST(TopologyCodecRoundTrip, AnyMaskSurvivesATopologyFile) {
   }
 }
 
+// The one wording of a job's E (list, the dashboard) and the one test of step-counted progress.
+TEST(JobText, ErrorIsTheVerdictsOnceFinishedAndTheBestSoFarWhileRunning) {
+  JobRecord job;
+  EXPECT_EQ(JobErrorText(job), "-");
+  TraceRow row;
+  row.best_normalized_error = 0.04;  // E 0.2
+  job.progress = row;
+  EXPECT_EQ(JobErrorText(job), "0.2~");
+  Outcome outcome;
+  outcome.rms_error = 0.0123456;
+  job.outcome = outcome;
+  EXPECT_EQ(JobErrorText(job), "0.0123");
+  job.outcome->rms_error.reset();
+  EXPECT_EQ(JobErrorText(job), "-");
+  EXPECT_TRUE(ProgressCountsSteps("continuous"));
+  EXPECT_FALSE(ProgressCountsSteps("hybrid"));
+  EXPECT_FALSE(ProgressCountsSteps("default"));
+}
+
 }  // namespace
 }  // namespace springfit::proto
