@@ -6,8 +6,8 @@
 #include <string_view>
 #include <vector>
 
-#include "engine/identification/trace.h"
 #include "engine/identification/verdict.h"
+#include "engine/trace.h"
 #include "proto/json_reader.h"
 
 namespace springfit::proto {

@@ -7,10 +7,10 @@
 #include <vector>
 
 #include "engine/equilibrium.h"
-#include "engine/identification/trace.h"
 #include "engine/response/probe_bank.h"
 #include "engine/scene.h"
 #include "engine/search/search_options.h"
+#include "engine/trace.h"
 #include "proto/json_reader.h"
 
 namespace springfit::proto {

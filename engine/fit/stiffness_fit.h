@@ -26,7 +26,7 @@
 
 #include "engine/interruption.h"
 #include "engine/problem.h"
-#include "engine/search/worker_pool.h"
+#include "engine/worker_pool.h"
 
 namespace springfit {
 

@@ -12,12 +12,12 @@
 #include "engine/direct/direct_identification.h"
 #include "engine/direct/identifiability.h"
 #include "engine/fem/closed_form_baseline.h"
-#include "engine/identification/trace.h"
 #include "engine/identification/verdict.h"
 #include "engine/problem.h"
 #include "engine/response/generalization.h"
 #include "engine/search/fitness_evaluator.h"
 #include "engine/search/search_options.h"
+#include "engine/trace.h"
 
 namespace springfit {
 

@@ -20,7 +20,7 @@
 
 #include "engine/identification/identification_result.h"
 #include "engine/search/genetic_search.h"
-#include "engine/search/worker_pool.h"
+#include "engine/worker_pool.h"
 
 namespace springfit {
 

@@ -22,7 +22,7 @@
 
 #include "engine/problem.h"
 #include "engine/response/support_system.h"
-#include "engine/search/worker_pool.h"
+#include "engine/worker_pool.h"
 
 namespace springfit::response {
 

@@ -29,7 +29,7 @@
 #include "engine/interruption.h"
 #include "engine/response/probe_bank.h"
 #include "engine/response/quadratic_nnls.h"
-#include "engine/search/worker_pool.h"
+#include "engine/worker_pool.h"
 
 namespace springfit::response {
 

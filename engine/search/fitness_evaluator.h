@@ -17,7 +17,7 @@
 #include "engine/problem.h"
 #include "engine/search/fitness.h"
 #include "engine/search/fitness_cache.h"
-#include "engine/search/worker_pool.h"
+#include "engine/worker_pool.h"
 
 namespace springfit {
 

@@ -15,11 +15,11 @@
 #include <string>
 #include <vector>
 
-#include "engine/identification/trace.h"
 #include "engine/problem.h"
 #include "engine/search/fitness_evaluator.h"
 #include "engine/search/random_stream.h"
 #include "engine/search/search_options.h"
+#include "engine/trace.h"
 
 namespace springfit {
 

@@ -8,7 +8,7 @@
 
 #include "engine/identification/identify.h"
 #include "engine/problem.h"
-#include "engine/search/worker_pool.h"
+#include "engine/worker_pool.h"
 #include "server/store/job_store.h"
 
 namespace springfit::server {

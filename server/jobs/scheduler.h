@@ -26,7 +26,7 @@
 #include <utility>
 #include <vector>
 
-#include "engine/search/worker_pool.h"
+#include "engine/worker_pool.h"
 #include "proto/json_reader.h"
 #include "server/jobs/job_runner.h"
 #include "server/store/job_store.h"

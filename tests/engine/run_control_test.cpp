@@ -16,7 +16,7 @@
 #include "engine/direct/direct_identification.h"
 #include "engine/identification/strategy.h"
 #include "engine/interruption.h"
-#include "engine/search/worker_pool.h"
+#include "engine/worker_pool.h"
 #include "io/example_catalog.h"
 
 namespace springfit {

@@ -1,4 +1,4 @@
-#include "engine/search/worker_pool.h"
+#include "engine/worker_pool.h"
 
 #include <condition_variable>
 #include <exception>

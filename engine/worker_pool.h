@@ -1,4 +1,5 @@
-// Threads that run the fitness evaluations of a generation.
+// Threads that run a batch of independent work: a generation's fitness evaluations, the
+// stiffness fit's solves (below every part of the engine that runs in parallel).
 //
 // A thin layer over boost::asio::thread_pool. Run(slots, body) calls body(slot) once for
 // every slot in [0, slots) and returns when all have returned. The calling thread claims
