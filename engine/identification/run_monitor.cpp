@@ -7,6 +7,9 @@ namespace springfit {
 RunMonitor::RunMonitor(const RunContext& context, double max_seconds)
     : context_(context),
       max_seconds_(max_seconds),
+      // A resumed run's clock goes on from its checkpoint, as the GA's does (SearchState::
+      // elapsed_seconds): one clock for the time limit, whichever of them checks it.
+      before_(context.resume_from ? context.resume_from->elapsed_seconds : 0.0),
       start_(std::chrono::steady_clock::now()),
       interruption_([this] { return Poll(); }, context.beat_seconds) {}
 
@@ -16,7 +19,7 @@ void RunMonitor::SetPhase(std::string_view phase, std::function<void(ProgressBea
 }
 
 double RunMonitor::SecondsSinceStart() const {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  return before_ + std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
 }
 
 bool RunMonitor::TimeLimitPassed() {

@@ -33,6 +33,7 @@ class RunMonitor {
   bool time_limit_reached() const { return time_limit_reached_; }
   // Checks the time limit now (between iterations, where no poll may be due).
   bool TimeLimitPassed();
+  // The run's clock: seconds since it began, a resumed run's earlier seconds included.
   double SecondsSinceStart() const;
 
  private:
@@ -40,6 +41,7 @@ class RunMonitor {
 
   const RunContext& context_;
   double max_seconds_;
+  double before_;  // a resumed run's seconds before this process (its checkpoint's clock)
   std::chrono::steady_clock::time_point start_;
   std::string_view phase_ = "analysis";
   std::function<void(ProgressBeat&)> fill_;

@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include "engine/direct/direct_identification.h"
+#include "engine/identification/run_monitor.h"
 #include "engine/identification/strategy.h"
 #include "engine/interruption.h"
 #include "engine/worker_pool.h"
@@ -198,6 +199,24 @@ TEST(RunControl, AResumedRunStoppedBeforeItsFirstStepKeepsTheCheckpointsBest) {
   EXPECT_EQ(r.generations, snapshot->generation);
   EXPECT_EQ(r.evaluation.normalized_error, snapshot->best_fitness.normalized_error);
   EXPECT_NE(r.stop_message.find("checkpoint's best"), std::string::npos) << r.stop_message;
+}
+
+// One clock for the time limit (issue 32 item 5): a resumed run's monitor counts the time its
+// checkpoint had used, as the GA's clock does, so that a limit already spent stops it at the
+// first poll rather than a whole limit later.
+TEST(RunControl, AResumedRunsClockGoesOnFromItsCheckpoint) {
+  SearchState resumed;
+  resumed.elapsed_seconds = 100.0;
+  RunContext context;
+  context.resume_from = resumed;
+  RunMonitor monitor(context, 50.0);
+  EXPECT_GE(monitor.SecondsSinceStart(), 100.0);
+  EXPECT_TRUE(monitor.TimeLimitPassed());
+  EXPECT_TRUE(monitor.time_limit_reached());
+  RunContext fresh;
+  RunMonitor fresh_monitor(fresh, 50.0);
+  EXPECT_LT(fresh_monitor.SecondsSinceStart(), 50.0);
+  EXPECT_FALSE(fresh_monitor.TimeLimitPassed());
 }
 
 TEST(WorkerPool, AThrowingWaitCallbackStillWaitsForTheRunningSlots) {
