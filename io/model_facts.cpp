@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <string>
 
+#include "engine/fem/fem_model.h"
 #include "engine/input_error.h"
 
 namespace springfit::io {
@@ -88,18 +89,13 @@ void LumpMasses(SpringModel& model, const Scene& scene, const ModelOptions& opti
     }
   }
   const int d = model.dimension;
+  // Each element's rest measure (2D: area x thickness) as the FEM model computes it.
+  const fem::FemModel fem_model = fem::FemModel::Build(scene);
   model.mass.assign(static_cast<std::size_t>(n), 0.0);
   for (std::size_t e = 0; e < mesh.elements.size(); ++e) {
     const std::vector<int>& nodes = mesh.elements[e];
-    const auto x = [&](int k) { return scene.rest.segment(d * nodes[k], d); };
-    double measure = 0.0;
-    if (d == 2) {
-      const Eigen::Vector2d a = x(1) - x(0), b = x(2) - x(0);
-      measure = 0.5 * std::abs(a.x() * b.y() - a.y() * b.x()) * mesh.thickness;
-    } else {
-      const Eigen::Vector3d a = x(1) - x(0), b = x(2) - x(0), c = x(3) - x(0);
-      measure = std::abs(a.cross(b).dot(c)) / 6.0;
-    }
+    const double measure =
+        d == 2 ? fem_model.elements2()[e].volume : fem_model.elements3()[e].volume;
     const double rho = options.density ? *options.density : *mesh.MaterialOf(e).density;
     for (int node : nodes) model.mass[node] += rho * measure / static_cast<double>(nodes.size());
   }
