@@ -55,6 +55,11 @@ int Main(int argc, char** argv) {
                  "ResponseFitOptions::regularizations");
   app.add_option("--gauss-newton-steps", defaults.gauss_newton_steps,
                  "ResponseFitOptions::gauss_newton_steps");
+  app.add_option("--dense-max-genes", defaults.dense_max_genes,
+                 "ResponseFitOptions::dense_max_genes");
+  app.add_option("--steps-per-strength", defaults.steps_per_strength,
+                 "ResponseFitOptions::steps_per_strength");
+  app.add_option("--cg-iterations", defaults.cg_iterations, "ResponseFitOptions::cg_iterations");
   app.add_option("--named-weight", defaults.probes.named_weight, "ProbeOptions::named_weight");
   app.add_option("--extra-supports", defaults.probes.extra_supports,
                  "ProbeOptions::extra_supports");
@@ -87,7 +92,11 @@ int Main(int argc, char** argv) {
         Seconds(t2), fit.seconds_gram, fit.seconds_first_order, fit.seconds_path,
         fit.seconds_refine, PresentSprings(fit.weights), fit.regularization,
         fit.gauss_newton_accepted);
-    std::printf("    path:");
+    std::printf("    %s fit, strengths:", fit.method.c_str());
+    for (std::size_t i = 0; i < fit.regularizations.size(); ++i)
+      std::printf(" %g:%.3g (lambda %.3g)", fit.regularizations[i],
+                  fit.regularization_select_errors[i], fit.regularization_lambda_min[i]);
+    std::printf("\n    path:");
     for (const auto& p : fit.path) std::printf(" %d:%.3g", p.springs, p.select_error);
     std::printf("  (chosen %d)\n", fit.chosen);
     std::vector<bool> held(bank.probes.size());

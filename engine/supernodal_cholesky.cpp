@@ -2,10 +2,32 @@
 
 #include <cholmod.h>
 
+#include <dlfcn.h>
+
 #include <cstring>
+#include <mutex>
 #include <stdexcept>
 
 namespace springfit {
+
+namespace {
+
+// The supernodes' dense kernels run in whatever BLAS libblas.so.3 is: the install script
+// installs OpenBLAS (several times faster than the reference BLAS on them). Its own threads are
+// switched off: springfit's pool runs the factorisations in parallel, one per worker, and a
+// result must not depend on the machine's cores (OpenBLAS then gives the same bits whatever
+// the pool's threads; its single-threaded build does not, being unsafe to call from several
+// threads at once). Looked up at run time, so any BLAS works.
+void OneBlasThread() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    using SetThreads = void (*)(int);
+    if (auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads")))
+      set(1);
+  });
+}
+
+}  // namespace
 
 struct SupernodalCholesky::State {
   int n = 0;
@@ -22,6 +44,7 @@ struct SupernodalCholesky::State {
 
 SupernodalCholesky::SupernodalCholesky(int n, const int* outer, const int* inner)
     : state_(std::make_unique<State>()) {
+  OneBlasThread();
   State& s = *state_;
   s.n = n;
   s.common.print = 0;  // failures are reported by the return value, never on standard output
@@ -76,21 +99,35 @@ Vector SupernodalCholesky::Pivots() const {
   return pivots;
 }
 
-void SupernodalCholesky::Solve(Vector& b) const {
-  State& s = *state_;
+namespace {
+
+// Overwrites the n x columns array `b` (column-major) with A^-1 b.
+void SolveInPlace(cholmod_factor* factor, cholmod_common& common, int n, Eigen::Index columns,
+                  double* b) {
+  if (columns == 0) return;
   cholmod_dense rhs;
   std::memset(&rhs, 0, sizeof rhs);
-  rhs.nrow = static_cast<std::size_t>(s.n);
-  rhs.ncol = 1;
-  rhs.nzmax = static_cast<std::size_t>(s.n);
-  rhs.d = static_cast<std::size_t>(s.n);
-  rhs.x = b.data();
+  rhs.nrow = static_cast<std::size_t>(n);
+  rhs.ncol = static_cast<std::size_t>(columns);
+  rhs.nzmax = rhs.nrow * rhs.ncol;
+  rhs.d = static_cast<std::size_t>(n);
+  rhs.x = b;
   rhs.xtype = CHOLMOD_REAL;
   rhs.dtype = CHOLMOD_DOUBLE;
-  cholmod_dense* x = cholmod_solve(CHOLMOD_A, s.factor, &rhs, &s.common);
+  cholmod_dense* x = cholmod_solve(CHOLMOD_A, factor, &rhs, &common);
   if (!x) throw std::runtime_error("CHOLMOD solve failed");
-  std::memcpy(b.data(), x->x, sizeof(double) * static_cast<std::size_t>(s.n));
-  cholmod_free_dense(&x, &s.common);
+  std::memcpy(b, x->x, sizeof(double) * rhs.nzmax);
+  cholmod_free_dense(&x, &common);
+}
+
+}  // namespace
+
+void SupernodalCholesky::Solve(Vector& b) const {
+  SolveInPlace(state_->factor, state_->common, state_->n, 1, b.data());
+}
+
+void SupernodalCholesky::Solve(Matrix& b) const {
+  SolveInPlace(state_->factor, state_->common, state_->n, b.cols(), b.data());
 }
 
 }  // namespace springfit

@@ -31,6 +31,8 @@ class SupernodalCholesky {
   Vector Pivots() const;
   // Overwrites b with A^-1 b, using the last successful factorisation.
   void Solve(Vector& b) const;
+  // The same for every column of B at once (the supernodes' blocks then work on all columns).
+  void Solve(Matrix& b) const;
 
  private:
   struct State;

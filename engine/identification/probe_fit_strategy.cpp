@@ -46,8 +46,7 @@ response::ProbeOptions ProbeOptionsOf(const SearchOptions& options) {
 
 bool FitsToProbes(const Problem& problem, const SearchOptions& options) {
   // (A target error chooses by the named cases' E along their own path: sparsity_path.h.)
-  return Probeable(problem, options) && options.target_error == 0.0 &&
-         problem.gene_count() <= kMaxProbeFitGenes;
+  return Probeable(problem, options) && options.target_error == 0.0;
 }
 
 std::optional<response::Generalization> CertifyOnProbes(const Problem& problem,

@@ -508,18 +508,15 @@ IdentificationResult ContinuousStrategy::Run(const Problem& problem, const Searc
         refused);
   }
   r.stop_message = message;
-  // Judged on the probe bank as a probe fit is, where the reference can be probed (a scene too
-  // large for the probe fit, or a target error: FitsToProbes).
+  // Judged on the probe bank as a probe fit is, where the reference can be probed (a target
+  // error: FitsToProbes).
   if (!stopped && !path.points.empty()) {
     r.generalization = CertifyOnProbes(problem, options, weights, *start);
     if (r.generalization) {
       char judged[200];
       std::snprintf(judged, sizeof judged,
-                    "; fitted to the named cases (%s), judged on %d held-out probes: median E "
-                    "%.3g (baseline %.3g)",
-                    problem.gene_count() > kMaxProbeFitGenes
-                        ? "the probe fit takes at most 3000 genes"
-                        : "a target error chooses along their path",
+                    "; fitted to the named cases (a target error chooses along their path), "
+                    "judged on %d held-out probes: median E %.3g (baseline %.3g)",
                     r.generalization->held_out, r.generalization->model_held_out.median,
                     r.generalization->baseline_held_out.median);
       r.stop_message += judged;

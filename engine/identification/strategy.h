@@ -66,12 +66,9 @@ class ContinuousStrategy : public IdentificationStrategy {
 WorkerPool* PoolOf(const RunContext& context, std::unique_ptr<WorkerPool>& own);
 
 // Strategy continuous fits the reference's whole response (probe_fit_strategy.cpp) when the
-// reference can be probed (FEM or MSS), the probes are not switched off, no target error is
-// set (it chooses along the named cases' path) and the genes are at most kMaxProbeFitGenes:
-// the fit's Gram matrix is dense in the genes (m^2 doubles, m^3 / 3 per Newton step), so a
-// larger scene (fem-block-3d's 6,264 genes) would take minutes (bench/RESULTS.md, "Fitting the
-// response"); it runs the named-case fit, certified on the probes all the same.
-inline constexpr int kMaxProbeFitGenes = 3000;
+// reference can be probed (FEM or MSS), the probes are not switched off and no target error is
+// set (it chooses along the named cases' path). Large scenes (above
+// ResponseFitOptions::dense_max_genes) are fitted without a Gram matrix (matrix_free_fit.h).
 bool FitsToProbes(const Problem& problem, const SearchOptions& options);
 // The certificate of a model (per-gene weights) on the probe bank, when the reference can be
 // probed and the probes are not switched off; `start` is the baseline's stand-in for an MSS

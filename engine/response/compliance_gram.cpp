@@ -1,20 +1,11 @@
 #include "engine/response/compliance_gram.h"
 
 namespace springfit::response {
-namespace {
-
-// g_e's entries on a support's free degrees of freedom: up to 2d (index, value) pairs.
-struct Column {
-  int count = 0;
-  int index[6];
-  double value[6];
-};
-
-std::vector<Column> FreeColumns(const GeneSprings& springs, const SupportSystem& support) {
+std::vector<SpringColumn> FreeColumns(const GeneSprings& springs, const SupportSystem& support) {
   const int d = springs.dimension;
-  std::vector<Column> columns(static_cast<std::size_t>(springs.size()));
+  std::vector<SpringColumn> columns(static_cast<std::size_t>(springs.size()));
   for (int e = 0; e < springs.size(); ++e) {
-    Column& column = columns[static_cast<std::size_t>(e)];
+    SpringColumn& column = columns[static_cast<std::size_t>(e)];
     const NodePair pair = springs.pairs[static_cast<std::size_t>(e)];
     for (int side = 0; side < 2; ++side) {
       const int node = side == 0 ? pair.first : pair.second;
@@ -30,8 +21,6 @@ std::vector<Column> FreeColumns(const GeneSprings& springs, const SupportSystem&
   }
   return columns;
 }
-
-}  // namespace
 
 GeneSprings GeneSpringsOf(const Problem& problem) {
   const SpringGeometry& geometry = problem.candidates();
@@ -80,20 +69,20 @@ Gram SupportGram(const GeneSprings& springs, const SupportSystem& support, const
   const int m = springs.size();
   Gram part;
   part.c = Vector::Zero(m);
-  const std::vector<Column> columns = FreeColumns(springs, support);
+  const std::vector<SpringColumn> columns = FreeColumns(springs, support);
   // M = G^T C^2 G, through W = C^2 and T = W G.
   const Matrix W = C * C;
   const int n = static_cast<int>(W.rows());
   Matrix T = Matrix::Zero(n, m);
   for (int e = 0; e < m; ++e) {
-    const Column& column = columns[static_cast<std::size_t>(e)];
+    const SpringColumn& column = columns[static_cast<std::size_t>(e)];
     for (int a = 0; a < column.count; ++a) T.col(e) += column.value[a] * W.col(column.index[a]);
   }
   Matrix M(m, m);
   for (int f = 0; f < m; ++f) {
     const double* t = T.col(f).data();
     for (int e = 0; e < m; ++e) {
-      const Column& column = columns[static_cast<std::size_t>(e)];
+      const SpringColumn& column = columns[static_cast<std::size_t>(e)];
       double v = 0.0;
       for (int a = 0; a < column.count; ++a) v += column.value[a] * t[column.index[a]];
       M(e, f) = v;
@@ -107,7 +96,7 @@ Gram SupportGram(const GeneSprings& springs, const SupportSystem& support, const
     const Vector y = C * term.target;
     Vector z(m);
     for (int e = 0; e < m; ++e) {
-      const Column& column = columns[static_cast<std::size_t>(e)];
+      const SpringColumn& column = columns[static_cast<std::size_t>(e)];
       double v = 0.0;
       for (int a = 0; a < column.count; ++a) v += column.value[a] * y[column.index[a]];
       z[e] = v;

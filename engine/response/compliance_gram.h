@@ -38,6 +38,24 @@ GeneSprings GeneSpringsOf(const Problem& problem);
 // The springs of some genes, in the order given.
 GeneSprings Subset(const GeneSprings& springs, const std::vector<int>& genes);
 
+// g_e's entries on a support's free degrees of freedom: up to 2d (index, value) pairs.
+struct SpringColumn {
+  int count = 0;
+  int index[6];
+  double value[6];
+  // g_e^T z for z on the support's free degrees of freedom.
+  double Dot(const double* z) const {
+    double v = 0.0;
+    for (int a = 0; a < count; ++a) v += value[a] * z[index[a]];
+    return v;
+  }
+  // y += s g_e.
+  void AddTo(double s, double* y) const {
+    for (int a = 0; a < count; ++a) y[index[a]] += s * value[a];
+  }
+};
+std::vector<SpringColumn> FreeColumns(const GeneSprings& springs, const SupportSystem& support);
+
 // delta_e = g_e^T u for every gene (u flat d*n).
 Vector Elongations(const GeneSprings& springs, const Vector& u);
 

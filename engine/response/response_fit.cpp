@@ -9,58 +9,14 @@
 #include "engine/fit/stiffness_fit.h"
 #include "engine/options_check.h"
 #include "engine/response/compliance_gram.h"
+#include "engine/response/matrix_free_fit.h"
 #include "engine/response/probe_evaluation.h"
+#include "engine/response/probe_objective.h"
 
 namespace springfit::response {
 namespace {
 
 constexpr double kNoModel = std::numeric_limits<double>::infinity();  // no model: no error
-
-// Per probe, its weight in the fitted objective: the named cases share `named_weight`, the
-// generated families present in the fit share the rest equally, and within a family every
-// probe counts alike as a relative error (1 / |u_ref|^2). Probes not fitted weigh 0.
-std::vector<double> FitWeights(const ProbeBank& bank, const ProbeOptions& options) {
-  std::vector<int> count(kProbeFamilies, 0);
-  for (const Probe& p : bank.probes)
-    if (p.role == ProbeRole::kFit) ++count[static_cast<std::size_t>(p.family)];
-  int generated = 0;
-  for (int f = 0; f < kProbeFamilies; ++f)
-    if (f != static_cast<int>(ProbeFamily::kNamed) && count[static_cast<std::size_t>(f)] > 0)
-      ++generated;
-  const double named_share = generated == 0 ? 1.0 : options.named_weight;
-  std::vector<double> w(bank.probes.size(), 0.0);
-  for (std::size_t p = 0; p < bank.probes.size(); ++p) {
-    const Probe& probe = bank.probes[p];
-    if (probe.role != ProbeRole::kFit || !(probe.reference_norm2 > 0.0)) continue;
-    const double family_share =
-        probe.family == ProbeFamily::kNamed ? named_share : (1.0 - named_share) / generated;
-    w[p] = family_share / count[static_cast<std::size_t>(probe.family)] / probe.reference_norm2;
-  }
-  return w;
-}
-
-std::vector<bool> RoleMask(const ProbeBank& bank, ProbeRole role) {
-  std::vector<bool> mask(bank.probes.size());
-  for (std::size_t p = 0; p < bank.probes.size(); ++p) mask[p] = bank.probes[p].role == role;
-  return mask;
-}
-
-// The choosing errors of candidate models with those that leave a mode soft (smallest
-// eigenvalue below min_lambda) made infinite, when a model that does not is within
-// lambda_slack of the best: a supported model is preferred where it costs little.
-std::vector<double> PreferSupported(const std::vector<double>& errors,
-                                    const std::vector<double>& lambda_min,
-                                    const ResponseFitOptions& options) {
-  const double best = *std::min_element(errors.begin(), errors.end());
-  bool near = false;
-  for (std::size_t i = 0; i < errors.size(); ++i)
-    near |= lambda_min[i] >= options.min_lambda && errors[i] <= (1.0 + options.lambda_slack) * best;
-  std::vector<double> score = errors;
-  for (std::size_t i = 0; i < errors.size(); ++i)
-    if (near && lambda_min[i] < options.min_lambda)
-      score[i] = std::numeric_limits<double>::infinity();
-  return score;
-}
 
 // The fit in scaled variables x = k / scale: q(x) = 1/2 x^T A x - b^T x.
 struct ScaledQuadratic {
@@ -81,69 +37,43 @@ ScaledQuadratic Scaled(const Gram& gram, const Vector& scale, double regularizat
   return q;
 }
 
-class Fit {
+// The dense fit's Gram matrices (compliance_gram.h) over the objective's probes.
+class Fit : public ProbeObjective {
  public:
   Fit(const Problem& problem, const ProbeBank& bank, const SparseMatrix& reference_stiffness,
       const std::vector<double>& prior, const ResponseFitOptions& options,
       Interruption* interruption, WorkerPool* pool)
-      : problem_(problem),
+      : ProbeObjective(problem, bank, reference_stiffness, prior, options),
         pool_(pool),
-        bank_(bank),
-        options_(options),
         interruption_(interruption),
-        springs_(GeneSpringsOf(problem)),
-        weight_(FitWeights(bank, options.probes)),
-        fit_(RoleMask(bank, ProbeRole::kFit)),
-        select_(RoleMask(bank, ProbeRole::kSelect)) {
-    const int m = problem.gene_count();
-    const double median = MedianPositive(prior);
-    scale_.resize(m);
-    prior_scaled_.resize(m);
-    for (int e = 0; e < m; ++e) {
-      scale_[e] = std::max(prior[static_cast<std::size_t>(e)], 0.1 * median);
-      prior_scaled_[e] = prior[static_cast<std::size_t>(e)] / scale_[e];
-    }
-    const int d = problem.dimension();
-    for (const Support& support : bank.supports) {
-      reference_.emplace_back(d, support.constrained);
-      reference_.back().Factorize(reference_stiffness);
-    }
-  }
+        springs_(GeneSpringsOf(problem)) {}
 
   // The first-order Gram matrix over the fitted probes, normalised so that its value is the
   // weighted mean squared relative error.
   Gram FirstOrderGram() {
     if (interruption_ && interruption_->Check()) throw Interrupted();
-    std::vector<Matrix> compliance(bank_.supports.size());
-    ForFittedSupports([&](std::size_t s) { compliance[s] = reference_[s].Compliance(); });
+    std::vector<Matrix> compliance(bank().supports.size());
+    ForFittedSupports([&](std::size_t s) { compliance[s] = reference()[s].Compliance(); });
     if (interruption_ && interruption_->Check()) throw Interrupted();
     std::vector<GramTerm> terms;
-    for (std::size_t p = 0; p < bank_.probes.size(); ++p) {
-      if (!(weight_[p] > 0.0)) continue;
-      const Probe& probe = bank_.probes[p];
-      const SupportSystem& system = reference_[static_cast<std::size_t>(probe.support)];
+    for (std::size_t p = 0; p < bank().probes.size(); ++p) {
+      if (!(weight()[p] > 0.0)) continue;
+      const Probe& probe = bank().probes[p];
+      const SupportSystem& system = reference()[static_cast<std::size_t>(probe.support)];
       const Matrix& c = compliance[static_cast<std::size_t>(probe.support)];
       GramTerm term;
       term.support = probe.support;
-      term.weight = weight_[p];
+      term.weight = weight()[p];
       term.elongation = Elongations(springs_, probe.reference);
       term.target = c * system.Gather(probe.force);
       terms.push_back(std::move(term));
     }
-    return BuildGram(springs_, reference_, compliance, terms, pool_);
+    return BuildGram(springs_, reference(), compliance, terms, pool_);
   }
 
   // f(s) for every support with a fitted probe, in parallel on the pool (each its own s).
   void ForFittedSupports(const std::function<void(std::size_t)>& f) {
-    std::vector<std::size_t> used;
-    for (std::size_t s = 0; s < bank_.supports.size(); ++s) {
-      for (std::size_t p = 0; p < bank_.probes.size(); ++p) {
-        if (weight_[p] > 0.0 && bank_.probes[p].support == static_cast<int>(s)) {
-          used.push_back(s);
-          break;
-        }
-      }
-    }
+    const std::vector<std::size_t>& used = fitted_supports();
     // (While the pool works, the owner keeps polling: progress beats and stop requests go on.)
     RunSlots(
         pool_, static_cast<int>(used.size()),
@@ -157,12 +87,12 @@ class Fit {
   // by some fitted support.
   bool GaussNewtonGram(const std::vector<double>& weights, const GeneSprings& springs, Gram& gram) {
     if (interruption_ && interruption_->Check()) throw Interrupted();
-    const SparseMatrix k = SpringRestStiffness(problem_, weights);
+    const SparseMatrix k = SpringRestStiffness(problem(), weights);
     std::vector<SupportSystem> model;
-    std::vector<Matrix> compliance(bank_.supports.size());
-    for (const Support& support : bank_.supports)
-      model.emplace_back(problem_.dimension(), support.constrained);
-    std::vector<char> held(bank_.supports.size(), 1);
+    std::vector<Matrix> compliance(bank().supports.size());
+    for (const Support& support : bank().supports)
+      model.emplace_back(problem().dimension(), support.constrained);
+    std::vector<char> held(bank().supports.size(), 1);
     ForFittedSupports([&](std::size_t s) {
       held[s] = model[s].Factorize(k);
       if (held[s]) compliance[s] = model[s].Compliance();
@@ -170,15 +100,15 @@ class Fit {
     if (std::find(held.begin(), held.end(), 0) != held.end()) return false;
     if (interruption_ && interruption_->Check()) throw Interrupted();
     std::vector<GramTerm> terms;
-    for (std::size_t p = 0; p < bank_.probes.size(); ++p) {
-      if (!(weight_[p] > 0.0)) continue;
-      const Probe& probe = bank_.probes[p];
+    for (std::size_t p = 0; p < bank().probes.size(); ++p) {
+      if (!(weight()[p] > 0.0)) continue;
+      const Probe& probe = bank().probes[p];
       const SupportSystem& system = model[static_cast<std::size_t>(probe.support)];
       const Matrix& c = compliance[static_cast<std::size_t>(probe.support)];
       const Vector u = system.Displacement(probe.force, probe.prescribed);
       GramTerm term;
       term.support = probe.support;
-      term.weight = weight_[p];
+      term.weight = weight()[p];
       term.elongation = Elongations(springs, u);
       term.target = system.Gather(u - probe.reference) + c * system.Gather(probe.force);
       terms.push_back(std::move(term));
@@ -187,71 +117,12 @@ class Fit {
     return true;
   }
 
-  // The exact fitted objective: weighted mean squared relative error plus the regularisation.
-  double Objective(const std::vector<double>& weights, double regularization) const {
-    const std::vector<double> e =
-        ProbeErrorsFor(bank_, SpringRestStiffness(problem_, weights), fit_);
-    double f = 0.0;
-    for (std::size_t p = 0; p < e.size(); ++p)
-      if (weight_[p] > 0.0) f += weight_[p] * bank_.probes[p].reference_norm2 * e[p] * e[p];
-    double r = 0.0;
-    for (std::size_t g = 0; g < weights.size(); ++g) {
-      const double dx = weights[g] / scale_[static_cast<Eigen::Index>(g)] -
-                        prior_scaled_[static_cast<Eigen::Index>(g)];
-      r += dx * dx;
-    }
-    return f + regularization * r / static_cast<double>(weights.size());
-  }
-
-  // The smallest generalised eigenvalue of (K_model, K_ref) over the user supports.
-  double LambdaMin(const std::vector<double>& weights) const {
-    if (PresentSprings(weights) == 0) return 0.0;
-    const SparseMatrix k = SpringRestStiffness(problem_, weights);
-    double smallest = std::numeric_limits<double>::infinity();
-    for (std::size_t s = 0; s < bank_.supports.size(); ++s) {
-      if (!bank_.supports[s].user) continue;
-      smallest = std::min(smallest, SmallestGeneralizedEigenvalue(k, reference_[s]));
-    }
-    return std::isfinite(smallest) ? smallest : 0.0;
-  }
-
-  double SelectError(const std::vector<double>& weights) const {
-    if (PresentSprings(weights) == 0) return kNoModel;
-    return FamilyBalancedRms(
-        bank_, ProbeErrorsFor(bank_, SpringRestStiffness(problem_, weights), select_));
-  }
-
-  std::vector<double> Weights(const Vector& x) const {
-    std::vector<double> k(static_cast<std::size_t>(x.size()));
-    for (Eigen::Index e = 0; e < x.size(); ++e) k[static_cast<std::size_t>(e)] = x[e] * scale_[e];
-    const double floor = options_.dust * MedianPositive(k);
-    for (double& w : k)
-      if (w < floor) w = 0.0;
-    return k;
-  }
-
-  Vector Scaled(const std::vector<double>& weights) const {
-    Vector x(scale_.size());
-    for (Eigen::Index e = 0; e < x.size(); ++e)
-      x[e] = weights[static_cast<std::size_t>(e)] / scale_[e];
-    return x;
-  }
-
   const GeneSprings& springs() const { return springs_; }
-  const Vector& scale() const { return scale_; }
-  const Vector& prior_scaled() const { return prior_scaled_; }
 
  private:
-  const Problem& problem_;
   WorkerPool* pool_;
-  const ProbeBank& bank_;
-  const ResponseFitOptions& options_;
   Interruption* interruption_;
   GeneSprings springs_;
-  std::vector<double> weight_;
-  std::vector<bool> fit_, select_;
-  std::vector<SupportSystem> reference_;
-  Vector scale_, prior_scaled_;
 };
 
 }  // namespace
@@ -274,6 +145,11 @@ void ResponseFitOptions::Validate(const std::string& owner) const {
   check.Require(min_lambda >= 0.0 && min_lambda < 1.0, "min_lambda", min_lambda, "0 <= value < 1");
   check.Require(lambda_slack >= 0.0, "lambda_slack", lambda_slack, "value >= 0");
   check.Require(gauss_newton_steps >= 0, "gauss_newton_steps", gauss_newton_steps, "value >= 0");
+  check.Require(dense_max_genes >= 1, "dense_max_genes", dense_max_genes, "value >= 1");
+  check.Require(steps_per_strength >= 1, "steps_per_strength", steps_per_strength, "value >= 1");
+  check.Require(cg_iterations >= 1, "cg_iterations", cg_iterations, "value >= 1");
+  check.Require(InOpenUnit(cg_tolerance), "cg_tolerance", cg_tolerance, "0 < value < 1");
+  check.Require(diagonal_samples >= 1, "diagonal_samples", diagonal_samples, "value >= 1");
 }
 
 ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
@@ -282,6 +158,9 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
                               Interruption* interruption, const ResponseProgress& progress,
                               WorkerPool* pool) {
   options.Validate();
+  if (problem.gene_count() > options.dense_max_genes)
+    return FitResponseMatrixFree(problem, bank, reference_stiffness, prior, options, interruption,
+                                 progress, pool);
   const auto tell = [&](const char* phase, double error) {
     if (progress) progress(phase, error);
   };

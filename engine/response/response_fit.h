@@ -66,12 +66,23 @@ struct ResponseFitOptions {
   // budget is not met). 0: none.
   int max_springs = 0;
   QuadraticNnlsOptions nnls;
+  // Above this many genes the fit runs without a Gram matrix (matrix_free_fit.h): the dense
+  // fit's memory is m^2 doubles and each of its Newton steps m^3 / 3 (>= 1).
+  int dense_max_genes = 3000;
+  // The matrix-free fit: Gauss-Newton steps per strength (>= 1); conjugate-gradient iterations
+  // per step (>= 1) and their relative residual (in (0, 1)); random vectors per support that
+  // estimate the preconditioner (>= 1).
+  int steps_per_strength = 3;
+  int cg_iterations = 20;
+  double cg_tolerance = 0.1;
+  int diagonal_samples = 16;
 
   void Validate(const std::string& owner = "ResponseFitOptions") const;
 };
 
 struct ResponseFitResult {
-  std::vector<double> weights;  // per gene, >= 0
+  std::vector<double> weights;   // per gene, >= 0
+  std::string method = "dense";  // or "matrix-free" (ResponseFitOptions::dense_max_genes)
   struct Point {
     int springs = 0;
     double select_error = 0.0;  // FamilyBalancedRms on the choosing probes

@@ -33,12 +33,24 @@ bool SupportSystem::Factorize(const SparseMatrix& full) {
   }
   restricted_.resize(n, n);
   restricted_.setFromTriplets(t.begin(), t.end());
-  llt_ = std::make_unique<Llt>();
+  llt_.reset();
+  supernodal_.reset();
   if (n == 0) return false;
-  llt_->compute(restricted_);
-  if (llt_->info() != Eigen::Success) return false;
   // A positive pivot far below the largest is a mechanism as well (round-off of a singular
   // matrix): the same unit-free test as the equilibrium solver's, on the diagonal of L.
+  if (dimension_ == 3 && n >= kSupernodalMinDofs3d) {
+    restricted_.makeCompressed();
+    supernodal_ = std::make_unique<SupernodalCholesky>(n, restricted_.outerIndexPtr(),
+                                                       restricted_.innerIndexPtr());
+    if (!supernodal_->Factorize(restricted_.outerIndexPtr(), restricted_.innerIndexPtr(),
+                                restricted_.valuePtr()))
+      return false;
+    const Vector pivots = supernodal_->Pivots();
+    return pivots.minCoeff() > 1e-14 * pivots.maxCoeff();
+  }
+  llt_ = std::make_unique<Llt>();
+  llt_->compute(restricted_);
+  if (llt_->info() != Eigen::Success) return false;
   const Vector diagonal = llt_->matrixL().nestedExpression().diagonal();
   const double largest = diagonal.cwiseAbs().maxCoeff();
   return diagonal.minCoeff() > 1e-7 * largest;
@@ -62,7 +74,17 @@ Vector SupportSystem::RightHandSide(const Vector& force, const Vector& prescribe
 }
 
 void SupportSystem::Solve(Vector& b) const {
-  b = llt_->solve(b);
+  if (supernodal_)
+    supernodal_->Solve(b);
+  else
+    b = llt_->solve(b);
+}
+
+void SupportSystem::SolveColumns(Matrix& b) const {
+  if (supernodal_)
+    supernodal_->Solve(b);
+  else
+    b = llt_->solve(b);
 }
 
 Vector SupportSystem::Displacement(const Vector& force, const Vector& prescribed) const {
@@ -80,7 +102,7 @@ Vector SupportSystem::Multiply(const Vector& x) const {
 Matrix SupportSystem::Compliance() const {
   const int n = free_dofs();
   Matrix c = Matrix::Identity(n, n);
-  c = llt_->solve(c);
+  SolveColumns(c);
   return c;
 }
 

@@ -3,11 +3,12 @@
 //
 // With f the external forces and u_c the prescribed displacements of the constrained nodes, the
 // free displacements solve K_ff u_f = f_f - K_fc u_c. The factorisation is Eigen's simplicial
-// Cholesky (AMD ordering): the probe fit's systems have at most a few thousand free degrees of
-// freedom per support, and it solves many right-hand sides with one factor.
+// Cholesky (AMD ordering) for 2D systems and small 3D ones, CHOLMOD's supernodal one
+// (supernodal_cholesky.h) for 3D ones from kSupernodalMinDofs3d free degrees of freedom: a 3D
+// mesh's factor fills in dense blocks that the supernodes handle several times faster, and a
+// 2D one's hardly does (bench/RESULTS.md, "Fitting the response").
 //
-// Not thread-safe for Factorize(); Solve() and the gathers are const and may be called from
-// several threads at once.
+// Not thread-safe: one thread at a time per object (the gathers alone are safe to share).
 #pragma once
 
 #include <memory>
@@ -16,11 +17,13 @@
 #include <Eigen/SparseCholesky>
 
 #include "engine/response/rest_stiffness.h"
+#include "engine/supernodal_cholesky.h"
 
 namespace springfit::response {
 
 class SupportSystem {
  public:
+  static constexpr int kSupernodalMinDofs3d = 1000;
   // `constrained[node]`: held (fixed or displaced) by this support.
   SupportSystem(int dimension, const std::vector<bool>& constrained);
   SupportSystem(SupportSystem&&) = default;
@@ -46,6 +49,8 @@ class SupportSystem {
   Vector RightHandSide(const Vector& force, const Vector& prescribed) const;
   // Overwrites b (free) with K_ff^-1 b. Precondition: Factorize() returned true.
   void Solve(Vector& b) const;
+  // The same for every column of B (free x columns) at once.
+  void SolveColumns(Matrix& b) const;
   // The full displacement (flat d*n) under a load.
   Vector Displacement(const Vector& force, const Vector& prescribed) const;
   // K_ff^-1, dense (free x free).
@@ -62,6 +67,7 @@ class SupportSystem {
   SparseMatrix restricted_;  // K_ff, lower triangle
   using Llt = Eigen::SimplicialLLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>>;
   std::unique_ptr<Llt> llt_;
+  std::unique_ptr<SupernodalCholesky> supernodal_;  // (3D, from kSupernodalMinDofs3d)
 };
 
 }  // namespace springfit::response

@@ -1,0 +1,40 @@
+// The probe fit without a Gram matrix (response_fit.h, FitResponse's choice above
+// ResponseFitOptions::dense_max_genes): for meshes whose genes are too many for the dense fit's
+// m^2 doubles and m^3 / 3 per Newton step (a 3D mesh of a thousand nodes has six thousand
+// springs). It uses only sparse solves with each support's factorisation, so its memory grows
+// with the mesh and the probes, not with the square of the springs.
+//
+// Projected Gauss-Newton on the exact error (the rest-linear responses) over the fitted probes,
+// started from the prior (the closed-form baseline), in the scaled variables x = k / scale:
+//   minimise  Phi(x) = sum_p w_p |u_p(k) - u_ref,p|^2 + (lambda / m) |x - x_prior|^2,  x >= 0.
+// With u_p = C(k) f_p, C the model's compliance on the probe's support, the Jacobian is
+// J_p = -sqrt(w_p) C G diag(delta_p) S (G the springs' force columns, delta_p the model's
+// elongations, S the scales). Each step:
+//   1. the model factorised on every fitted support, its displacements (one solve per probe);
+//   2. the gradient g = J^T r + (lambda / m)(x - x_prior) (one solve per probe);
+//   3. the Gauss-Newton system (J^T J + lambda / m) d = -g on the springs not held at their
+//      bound (x_e = 0 with g_e > 0), by conjugate gradients preconditioned with J^T J's
+//      diagonal (estimated from `diagonal_samples` random vectors per support: |C g_e|^2 by
+//      Hutchinson's estimator); each product J^T J v is two solves per probe;
+//   4. the projected step max(x + t d, 0), t halved until Phi falls (Bertsekas' projected arc).
+// The Tikhonov strengths are a continuation (strongest first, `steps_per_strength` steps each):
+// every accepted iterate is judged on the choosing probes and the best is returned, preferring
+// one that holds every mode (min_lambda), as the dense fit chooses. Springs the fit drives to 0,
+// or to dust, leave the model. With a spring budget, the least salient springs of the chosen
+// model (1/2 x_e^2 (J^T J)_ee) are removed down to it and the rest refitted.
+// The work per step is solves, in parallel over the supports on the pool; the sums run in
+// support order, so the result does not depend on the threads.
+#pragma once
+
+#include "engine/response/response_fit.h"
+
+namespace springfit::response {
+
+ResponseFitResult FitResponseMatrixFree(const Problem& problem, const ProbeBank& bank,
+                                        const SparseMatrix& reference_stiffness,
+                                        const std::vector<double>& prior,
+                                        const ResponseFitOptions& options,
+                                        Interruption* interruption,
+                                        const ResponseProgress& progress, WorkerPool* pool);
+
+}  // namespace springfit::response

@@ -1,0 +1,73 @@
+// What every probe fit judges a model by (response_fit.h): the fitted objective, the choosing
+// error, the smallest generalised eigenvalue, and the scaled variables the fits work in. Shared
+// by the dense fit (a Gram matrix in the genes) and the matrix-free one (solves only), so that
+// both choose by the same numbers.
+#pragma once
+
+#include <vector>
+
+#include "engine/response/probe_bank.h"
+#include "engine/response/support_system.h"
+
+namespace springfit::response {
+
+struct ResponseFitOptions;
+
+// Per probe, its weight in the fitted objective: the named cases share `named_weight`, the
+// generated families present in the fit share the rest equally, and within a family every
+// probe counts alike as a relative error (1 / |u_ref|^2). Probes not fitted weigh 0.
+std::vector<double> FitWeights(const ProbeBank& bank, const ProbeOptions& options);
+
+// The choosing errors of candidate models with those that leave a mode soft (smallest
+// eigenvalue below min_lambda) made infinite, when a model that does not is within
+// lambda_slack of the best: a supported model is preferred where it costs little.
+std::vector<double> PreferSupported(const std::vector<double>& errors,
+                                    const std::vector<double>& lambda_min,
+                                    const ResponseFitOptions& options);
+
+// The fits work in scaled variables x = k / scale, scale = the prior stiffness (at least a tenth
+// of its median), so that a fit does not depend on units and the Tikhonov pull moves every
+// spring by its own prior alike.
+class ProbeObjective {
+ public:
+  // Factorises the reference on every support of the bank.
+  ProbeObjective(const Problem& problem, const ProbeBank& bank,
+                 const SparseMatrix& reference_stiffness, const std::vector<double>& prior,
+                 const ResponseFitOptions& options);
+
+  // The exact fitted objective: weighted mean squared relative error plus the regularisation
+  // (`regularization` / genes per unit of squared scaled distance from the prior).
+  double Objective(const std::vector<double>& weights, double regularization) const;
+  // The regularisation term alone.
+  double Regularization(const std::vector<double>& weights, double regularization) const;
+  // The smallest generalised eigenvalue of (K_model, K_ref) over the user supports.
+  double LambdaMin(const std::vector<double>& weights) const;
+  // FamilyBalancedRms on the choosing probes; infinity for no model.
+  double SelectError(const std::vector<double>& weights) const;
+
+  // Per-gene weights of scaled variables, with the dust (below options.dust of the median)
+  // removed; and back.
+  std::vector<double> Weights(const Vector& x) const;
+  Vector Scaled(const std::vector<double>& weights) const;
+
+  const Problem& problem() const { return problem_; }
+  const ProbeBank& bank() const { return bank_; }
+  const std::vector<double>& weight() const { return weight_; }  // per probe (FitWeights)
+  const Vector& scale() const { return scale_; }
+  const Vector& prior_scaled() const { return prior_scaled_; }
+  const std::vector<SupportSystem>& reference() const { return reference_; }
+  // The supports with a fitted probe, ascending.
+  const std::vector<std::size_t>& fitted_supports() const { return fitted_supports_; }
+
+ private:
+  const Problem& problem_;
+  const ProbeBank& bank_;
+  const ResponseFitOptions& options_;
+  std::vector<double> weight_;
+  std::vector<bool> fit_, select_;
+  std::vector<SupportSystem> reference_;
+  std::vector<std::size_t> fitted_supports_;
+  Vector scale_, prior_scaled_;
+};
+
+}  // namespace springfit::response
