@@ -12,12 +12,12 @@ namespace springfit {
 
 namespace {
 
-// The supernodes' dense kernels run in whatever BLAS libblas.so.3 is: the install script
-// installs OpenBLAS (several times faster than the reference BLAS on them). Its own threads are
+// The supernodes' dense kernels run in whatever BLAS libblas.so.3 is. The install script leaves
+// Debian's reference BLAS, whose results are the same bits on every x86-64 machine (the
+// examples and determinism across daemons rely on that; an optimised BLAS chooses its kernels by
+// the processor). Where one has been installed all the same (OpenBLAS), its own threads are
 // switched off: springfit's pool runs the factorisations in parallel, one per worker, and a
-// result must not depend on the machine's cores (OpenBLAS then gives the same bits whatever
-// the pool's threads; its single-threaded build does not, being unsafe to call from several
-// threads at once). Looked up at run time, so any BLAS works.
+// result must not depend on the machine's cores. Looked up at run time, so any BLAS works.
 void OneBlasThread() {
   static std::once_flag once;
   std::call_once(once, [] {

@@ -250,6 +250,7 @@ Json GeneralizationToJson(const response::Generalization& g) {
   j["returned_baseline"] = g.returned_baseline;
   if (g.fitted_to_probes) {
     Json fit;
+    fit["method"] = g.fit.method;
     fit["regularization"] = g.fit.regularization;
     Json tried = Json::array();
     for (std::size_t i = 0; i < g.fit.regularizations.size(); ++i)

@@ -9,8 +9,6 @@ packages=(
   libeigen3-dev            # linear algebra, sparse factorisation
   libsuitesparse-dev       # CHOLMOD: supernodal sparse Cholesky (strategy direct at scale)
   liblapack-dev            # band Cholesky of the small equilibrium systems
-  libopenblas0-pthread     # BLAS and LAPACK behind CHOLMOD's supernodes (Debian's alternatives pick
-                           # it over the reference BLAS): 3D factorisations and solves ~3x faster
   libnanoflann-dev         # k-d tree: candidates and coincident nodes in O(n log n)
   libboost-dev             # Asio (header-only) for networking and thread pools
   nlohmann-json3-dev       # JSON

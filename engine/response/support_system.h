@@ -23,7 +23,7 @@ namespace springfit::response {
 
 class SupportSystem {
  public:
-  static constexpr int kSupernodalMinDofs3d = 1000;
+  static constexpr int kSupernodalMinDofs3d = 6000;
   // `constrained[node]`: held (fixed or displaced) by this support.
   SupportSystem(int dimension, const std::vector<bool>& constrained);
   SupportSystem(SupportSystem&&) = default;

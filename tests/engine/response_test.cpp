@@ -10,8 +10,10 @@
 #include "engine/identification/identify.h"
 #include "engine/response/compliance_gram.h"
 #include "engine/response/generalization.h"
+#include "engine/response/linearized_response.h"
 #include "engine/response/probe_bank.h"
 #include "engine/response/probe_evaluation.h"
+#include "engine/response/probe_objective.h"
 #include "engine/response/response_fit.h"
 #include "engine/response/rest_stiffness.h"
 #include "io/example_catalog.h"
@@ -384,6 +386,98 @@ TEST(ResponseFit, SameModelWithOneOrTwoThreads) {
   const ResponseFitResult b = FitResponse(problem, bank, k, prior, options, nullptr, {}, &two);
   EXPECT_EQ(a.weights, b.weights);
   EXPECT_EQ(a.select_error, b.select_error);
+}
+
+}  // namespace
+}  // namespace springfit::response
+
+namespace springfit::response {
+namespace {
+
+// The matrix-free fit's operators (linearized_response.h) against finite differences of the
+// exact residuals: J^T r is half the objective's gradient, and v^T J^T J v = |J v|^2 with J v the
+// residuals' derivative along v; J^T J is symmetric.
+TEST(LinearizedResponse, GradientAndNormalProductMatchFiniteDifferences) {
+  const Problem problem(examples::Make("fem-plate-5x5"));
+  const SparseMatrix k = ReferenceRestStiffness(problem);
+  ResponseFitOptions options;
+  options.dust = 0.0;
+  const ProbeBank bank = MakeProbeBank(problem, k, options.probes);
+  const std::vector<double> prior = *fem::BaselineGeneWeights(problem);
+  const ProbeObjective objective(problem, bank, k, prior, options);
+  const GeneSprings springs = GeneSpringsOf(problem);
+  const Vector x = objective.Scaled(prior);
+  // A direction that keeps every present spring present and every absent one absent.
+  Vector u(x.size()), v(x.size());
+  for (Eigen::Index e = 0; e < x.size(); ++e) {
+    u[e] = x[e] > 0.0 ? std::sin(1.0 + 3.0 * static_cast<double>(e)) : 0.0;
+    v[e] = x[e] > 0.0 ? std::cos(2.0 + 5.0 * static_cast<double>(e)) : 0.0;
+  }
+  const auto residuals = [&](const Vector& at) {
+    LinearizedResponse l(objective, springs);
+    EXPECT_TRUE(l.At(objective.Weights(at)));
+    return l.Residuals();
+  };
+  LinearizedResponse at(objective, springs);
+  ASSERT_TRUE(at.At(objective.Weights(x)));
+  const double h = 1e-5;
+  const Vector jv = (residuals(x + h * v) - residuals(x - h * v)) / (2.0 * h);
+  const Vector r = at.Residuals();
+  // d/dt |r(x + t v)|^2 = 2 r^T J v = 2 (J^T r)^T v.
+  EXPECT_NEAR(at.Gradient().dot(v), r.dot(jv), 1e-6 * std::abs(r.dot(jv)));
+  EXPECT_NEAR(v.dot(at.NormalProduct(v)), jv.squaredNorm(), 1e-6 * jv.squaredNorm());
+  const double uhv = u.dot(at.NormalProduct(v)), vhu = v.dot(at.NormalProduct(u));
+  EXPECT_NEAR(uhv, vhu, 1e-10 * std::abs(uhv) + 1e-14);
+  EXPECT_NEAR(at.ResidualNorm2(), r.squaredNorm(), 1e-12 * r.squaredNorm());
+  // The diagonal's estimate: positive, and of the order of the exact one on a few genes.
+  const Vector diagonal = at.NormalDiagonal(64, 1);
+  for (Eigen::Index e = 0; e < x.size(); e += 17) {
+    if (!(x[e] > 0.0)) continue;
+    Vector unit = Vector::Zero(x.size());
+    unit[e] = 1.0;
+    const double exact = at.NormalProduct(unit)[e];
+    EXPECT_GT(diagonal[e], 0.3 * exact) << e;
+    EXPECT_LT(diagonal[e], 3.0 * exact) << e;
+  }
+}
+
+// Above dense_max_genes the fit runs without a Gram matrix: a model far better than the
+// closed-form baseline on held-out probes, the same with one or two threads.
+TEST(ResponseFit, TheMatrixFreeFitBeatsTheBaselineOnHeldOutProbesWhateverTheThreads) {
+  const Problem problem(examples::Make("fem-kidney-2d"));
+  const SparseMatrix k = ReferenceRestStiffness(problem);
+  ResponseFitOptions options;
+  options.dense_max_genes = problem.gene_count() - 1;
+  const ProbeBank bank = MakeProbeBank(problem, k, options.probes);
+  const std::vector<double> prior = *fem::BaselineGeneWeights(problem);
+  WorkerPool two(2);
+  const ResponseFitResult a = FitResponse(problem, bank, k, prior, options);
+  const ResponseFitResult b = FitResponse(problem, bank, k, prior, options, nullptr, {}, &two);
+  EXPECT_EQ(a.method, "matrix-free");
+  EXPECT_EQ(a.weights, b.weights);
+  EXPECT_GT(a.gauss_newton_accepted, 0);
+  const Generalization g =
+      Certify(problem, bank, k, a.weights, SpringRestStiffness(problem, prior));
+  EXPECT_LT(g.model_held_out.median, 0.5 * g.baseline_held_out.median)
+      << g.model_held_out.median << " vs " << g.baseline_held_out.median;
+  EXPECT_GT(g.lambda_min, 0.0);
+}
+
+// A 3D mesh above the dense fit's bound (fem-block-3d, 6,256 genes) is fitted to probes too.
+TEST(ProbeFitStrategy, A3DMeshAboveTheDenseBoundIsFittedToProbes) {
+  const Problem problem(examples::Make("fem-block-3d"));
+  ASSERT_GT(problem.gene_count(), ResponseFitOptions{}.dense_max_genes);
+  const SearchOptions options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
+  const IdentificationResult r = RunIdentification(problem, options);
+  ASSERT_TRUE(r.generalization);
+  const Generalization& g = *r.generalization;
+  EXPECT_TRUE(g.fitted_to_probes);
+  EXPECT_FALSE(g.returned_baseline);
+  EXPECT_EQ(g.fit.method, "matrix-free");
+  EXPECT_LT(g.model_held_out.median, 0.5 * g.baseline_held_out.median)
+      << g.model_held_out.median << " vs " << g.baseline_held_out.median;
+  EXPECT_TRUE(std::isfinite(g.model_held_out.p95));
+  EXPECT_LT(std::sqrt(r.evaluation.normalized_error), 0.5 * r.baseline->rms_error);
 }
 
 }  // namespace
