@@ -38,7 +38,6 @@ bool LinearizedResponse::At(const std::vector<double>& weights) {
     const auto count = static_cast<Eigen::Index>(part.probes.size());
     const int n = part.system.free_dofs();
     Matrix u(n, count);
-    std::vector<Vector> prescribed(part.probes.size());
     for (Eigen::Index j = 0; j < count; ++j) {
       const Probe& probe = bank.probes[static_cast<std::size_t>(part.probes[j])];
       u.col(j) = part.system.RightHandSide(probe.force, probe.prescribed);
@@ -50,9 +49,7 @@ bool LinearizedResponse::At(const std::vector<double>& weights) {
       const std::size_t p = static_cast<std::size_t>(part.probes[j]);
       const Probe& probe = bank.probes[p];
       const double root = std::sqrt(objective_->weight()[p]);
-      Vector constrained_part = probe.prescribed;
-      for (int dof : part.system.free_dof_list()) constrained_part[dof] = 0.0;
-      const Vector full = part.system.Scatter(u.col(j), constrained_part);
+      const Vector full = part.system.Scatter(u.col(j), probe.prescribed);
       part.residual.col(j) = root * (u.col(j) - part.system.Gather(probe.reference));
       part.elongation.col(j) = root * Elongations(*springs_, full);
     }

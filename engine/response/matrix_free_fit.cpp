@@ -16,6 +16,8 @@ namespace {
 constexpr double kNoModel = std::numeric_limits<double>::infinity();
 // Jacobi-preconditioned conjugate gradients for A d = b on the entries where `free` holds (d is
 // 0 elsewhere); at most `iterations`, or until the residual falls below `tolerance` |b|.
+// (Eigen's ConjugateGradient takes a matrix-free operator only as a sparse-matrix-like
+// expression type; a closure over the masked products is the shorter and clearer form here.)
 Vector ConjugateGradients(const std::function<Vector(const Vector&)>& multiply, const Vector& b,
                           const Vector& diagonal, const std::vector<bool>& free, int iterations,
                           double tolerance) {
@@ -79,8 +81,8 @@ ResponseFitResult FitResponseMatrixFree(const Problem& problem, const ProbeBank&
     if (progress) progress("probe_fit", best);
   };
 
-  // Gauss-Newton steps at one strength from `weights` (springs with `removed` set stay out);
-  // returns the steps accepted, each judged.
+  // Gauss-Newton steps at one strength from `weights`, `at` its linearisation (springs with
+  // `removed` set stay out); each accepted step is judged, and `weights` and `at` follow it.
   int step_count = 0;
   const auto descend = [&](std::vector<double>& weights, LinearizedResponse& at,
                            double regularization, int steps, const std::vector<bool>& removed) {

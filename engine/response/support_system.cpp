@@ -90,9 +90,7 @@ void SupportSystem::SolveColumns(Matrix& b) const {
 Vector SupportSystem::Displacement(const Vector& force, const Vector& prescribed) const {
   Vector free = RightHandSide(force, prescribed);
   Solve(free);
-  Vector constrained_part = prescribed;
-  for (int dof : free_dofs_) constrained_part[dof] = 0.0;
-  return Scatter(free, constrained_part);
+  return Scatter(free, prescribed);  // (every free entry overwritten)
 }
 
 Vector SupportSystem::Multiply(const Vector& x) const {

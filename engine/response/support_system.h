@@ -4,9 +4,10 @@
 // With f the external forces and u_c the prescribed displacements of the constrained nodes, the
 // free displacements solve K_ff u_f = f_f - K_fc u_c. The factorisation is Eigen's simplicial
 // Cholesky (AMD ordering) for 2D systems and small 3D ones, CHOLMOD's supernodal one
-// (supernodal_cholesky.h) for 3D ones from kSupernodalMinDofs3d free degrees of freedom: a 3D
-// mesh's factor fills in dense blocks that the supernodes handle several times faster, and a
-// 2D one's hardly does (bench/RESULTS.md, "Fitting the response").
+// (supernodal_cholesky.h) for 3D ones from kSupernodalMinDofs3d free degrees of freedom. With the
+// reference BLAS both took the same time on fem-block-3d (3,000 free degrees of freedom); the
+// threshold is set where a 3D factor's dense blocks grow, not measured (bench/RESULTS.md,
+// "Large 3D meshes").
 //
 // Not thread-safe: one thread at a time per object (the gathers alone are safe to share).
 #pragma once

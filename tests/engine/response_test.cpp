@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "engine/fem/closed_form_baseline.h"
+#include "engine/fit/stiffness_fit.h"
 #include "engine/identification/identify.h"
 #include "engine/response/compliance_gram.h"
 #include "engine/response/generalization.h"
@@ -375,17 +376,27 @@ namespace springfit::response {
 namespace {
 
 // The supports' work runs on the pool: the same model whatever the threads.
-TEST(ResponseFit, SameModelWithOneOrTwoThreads) {
-  const Problem problem(examples::Make("fem-kidney-2d"));
-  const SparseMatrix k = ReferenceRestStiffness(problem);
+// The kidney's probe bank and baseline, fitted with one thread and with a pool of two.
+struct KidneyFits {
+  Problem problem{examples::Make("fem-kidney-2d")};
+  SparseMatrix k = ReferenceRestStiffness(problem);
   ResponseFitOptions options;
-  const ProbeBank bank = MakeProbeBank(problem, k, options.probes);
-  const std::vector<double> prior = *fem::BaselineGeneWeights(problem);
-  WorkerPool two(2);
-  const ResponseFitResult a = FitResponse(problem, bank, k, prior, options);
-  const ResponseFitResult b = FitResponse(problem, bank, k, prior, options, nullptr, {}, &two);
-  EXPECT_EQ(a.weights, b.weights);
-  EXPECT_EQ(a.select_error, b.select_error);
+  ProbeBank bank = MakeProbeBank(problem, k, options.probes);
+  std::vector<double> prior = *fem::BaselineGeneWeights(problem);
+  ResponseFitResult one, two;
+  // `matrix_free`: the kidney's genes above dense_max_genes.
+  explicit KidneyFits(bool matrix_free = false) {
+    if (matrix_free) options.dense_max_genes = problem.gene_count() - 1;
+    WorkerPool pool(2);
+    one = FitResponse(problem, bank, k, prior, options);
+    two = FitResponse(problem, bank, k, prior, options, nullptr, {}, &pool);
+  }
+};
+
+TEST(ResponseFit, SameModelWithOneOrTwoThreads) {
+  const KidneyFits fits;
+  EXPECT_EQ(fits.one.weights, fits.two.weights);
+  EXPECT_EQ(fits.one.select_error, fits.two.select_error);
 }
 
 }  // namespace
@@ -444,23 +455,35 @@ TEST(LinearizedResponse, GradientAndNormalProductMatchFiniteDifferences) {
 // Above dense_max_genes the fit runs without a Gram matrix: a model far better than the
 // closed-form baseline on held-out probes, the same with one or two threads.
 TEST(ResponseFit, TheMatrixFreeFitBeatsTheBaselineOnHeldOutProbesWhateverTheThreads) {
+  const KidneyFits fits(/*matrix_free=*/true);
+  const ResponseFitResult& a = fits.one;
+  EXPECT_EQ(a.method, "matrix-free");
+  EXPECT_EQ(a.weights, fits.two.weights);
+  EXPECT_GT(a.gauss_newton_accepted, 0);
+  const Generalization g = Certify(fits.problem, fits.bank, fits.k, a.weights,
+                                   SpringRestStiffness(fits.problem, fits.prior));
+  EXPECT_LT(g.model_held_out.median, 0.5 * g.baseline_held_out.median)
+      << g.model_held_out.median << " vs " << g.baseline_held_out.median;
+  EXPECT_GT(g.lambda_min, 0.0);
+}
+
+// The matrix-free fit within a spring budget: the least salient springs out, the rest refitted,
+// a model that holds every support within the budget.
+TEST(ResponseFit, TheMatrixFreeFitKeepsASpringBudget) {
   const Problem problem(examples::Make("fem-kidney-2d"));
   const SparseMatrix k = ReferenceRestStiffness(problem);
   ResponseFitOptions options;
   options.dense_max_genes = problem.gene_count() - 1;
+  options.max_springs = 300;
   const ProbeBank bank = MakeProbeBank(problem, k, options.probes);
   const std::vector<double> prior = *fem::BaselineGeneWeights(problem);
-  WorkerPool two(2);
-  const ResponseFitResult a = FitResponse(problem, bank, k, prior, options);
-  const ResponseFitResult b = FitResponse(problem, bank, k, prior, options, nullptr, {}, &two);
-  EXPECT_EQ(a.method, "matrix-free");
-  EXPECT_EQ(a.weights, b.weights);
-  EXPECT_GT(a.gauss_newton_accepted, 0);
-  const Generalization g =
-      Certify(problem, bank, k, a.weights, SpringRestStiffness(problem, prior));
-  EXPECT_LT(g.model_held_out.median, 0.5 * g.baseline_held_out.median)
-      << g.model_held_out.median << " vs " << g.baseline_held_out.median;
-  EXPECT_GT(g.lambda_min, 0.0);
+  const ResponseFitResult r = FitResponse(problem, bank, k, prior, options);
+  ASSERT_EQ(r.path.size(), 2u);
+  EXPECT_GT(r.path[0].springs, 300);
+  EXPECT_EQ(r.chosen, 1);
+  EXPECT_LE(PresentSprings(r.weights), 300);
+  EXPECT_GT(r.lambda_min, 0.0);
+  EXPECT_LT(r.select_error, 2.0 * r.path[0].select_error);
 }
 
 // A 3D mesh above the dense fit's bound (fem-block-3d, 6,256 genes) is fitted to probes too.
