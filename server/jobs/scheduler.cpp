@@ -24,7 +24,7 @@ std::chrono::milliseconds Millis(double seconds) {
 class ErrorLog {
  public:
   void Report(const std::string& what, const std::exception& e) {
-    std::lock_guard lock(mutex_);
+    MutexLock lock(mutex_);
     const auto now = std::chrono::steady_clock::now();
     const std::string message = what + ": " + e.what();
     if (message == last_ && now - logged_at_ < std::chrono::seconds(10)) return;
@@ -34,9 +34,9 @@ class ErrorLog {
   }
 
  private:
-  std::mutex mutex_;
-  std::string last_;
-  std::chrono::steady_clock::time_point logged_at_{};
+  Mutex mutex_;
+  std::string last_ SF_GUARDED_BY(mutex_);
+  std::chrono::steady_clock::time_point logged_at_ SF_GUARDED_BY(mutex_){};
 };
 ErrorLog store_errors;
 
@@ -84,7 +84,7 @@ Scheduler::~Scheduler() {
 
 void Scheduler::Start() {
   store_.SetChangeListener([this] { Wake(); });
-  std::lock_guard lock(mutex_);
+  MutexLock lock(mutex_);
   const int n = std::max(1, options_.max_running);
   runners_alive_ = n;
   for (int i = 0; i < n; ++i) runners_.emplace_back([this] { RunnerLoop(); });
@@ -93,7 +93,7 @@ void Scheduler::Start() {
 
 void Scheduler::Wake() {
   {
-    std::lock_guard lock(mutex_);
+    MutexLock lock(mutex_);
     ++wake_count_;
   }
   wake_.notify_all();
@@ -101,7 +101,7 @@ void Scheduler::Wake() {
 
 void Scheduler::JobSubmitted(std::int64_t id, std::shared_ptr<const Problem> prepared) {
   if (prepared) {
-    std::lock_guard lock(mutex_);
+    MutexLock lock(mutex_);
     // Oldest first out: a job submitted here long ago has most likely been claimed elsewhere.
     while (!prepared_.empty() && static_cast<int>(prepared_.size()) >= options_.max_prepared)
       prepared_.erase(prepared_.begin());
@@ -112,7 +112,7 @@ void Scheduler::JobSubmitted(std::int64_t id, std::shared_ptr<const Problem> pre
 
 std::shared_ptr<const Scheduler::Preparation> Scheduler::PreparationStarted(const Lease& lease) {
   auto preparation = std::make_shared<Preparation>();
-  std::lock_guard lock(mutex_);
+  MutexLock lock(mutex_);
   preparing_[lease.job_id] = {lease, preparation};
   return preparation;
 }
@@ -120,7 +120,7 @@ std::shared_ptr<const Scheduler::Preparation> Scheduler::PreparationStarted(cons
 void Scheduler::PreparationEnded(std::int64_t id, const std::optional<JobRecord>& job,
                                  bool dropped) {
   {
-    std::lock_guard lock(mutex_);
+    MutexLock lock(mutex_);
     preparing_.erase(id);
   }
   if (!job) {
@@ -135,7 +135,7 @@ Scheduler::CancelOutcome Scheduler::Cancel(std::int64_t id) {
   {
     // A job running (or being prepared) here stops at once; the request is written all the
     // same, so that it survives a crash of this daemon before the job ends.
-    std::lock_guard lock(mutex_);
+    MutexLock lock(mutex_);
     if (const auto r = running_.find(id); r != running_.end()) {
       r->second->cancel.store(true);
       here = true;
@@ -152,7 +152,7 @@ Scheduler::CancelOutcome Scheduler::Cancel(std::int64_t id) {
     return here ? CancelOutcome::kCancelling : CancelOutcome::kNotActive;
   if (outcome == JobStore::CancelOutcome::kRequested) return CancelOutcome::kCancelling;
   {
-    std::lock_guard lock(mutex_);
+    MutexLock lock(mutex_);
     prepared_.erase(id);
   }
   spdlog::info("job {} cancelled while queued", id);
@@ -161,31 +161,33 @@ Scheduler::CancelOutcome Scheduler::Cancel(std::int64_t id) {
 }
 
 std::optional<TraceRow> Scheduler::LiveProgress(std::int64_t id) const {
-  std::lock_guard lock(mutex_);
+  MutexLock lock(mutex_);
   const auto r = running_.find(id);
   if (r == running_.end()) return std::nullopt;
+  MutexLock live(r->second->live_mutex);
   return r->second->progress;
 }
 
 std::optional<Scheduler::LivePhase> Scheduler::Phase(std::int64_t id) const {
-  std::lock_guard lock(mutex_);
+  MutexLock lock(mutex_);
   const auto r = running_.find(id);
   if (r == running_.end()) return std::nullopt;
+  MutexLock live(r->second->live_mutex);
   return r->second->phase;
 }
 
 bool Scheduler::IsRunningHere(std::int64_t id) const {
-  std::lock_guard lock(mutex_);
+  MutexLock lock(mutex_);
   return running_.contains(id);
 }
 
 int Scheduler::running() const {
-  std::lock_guard lock(mutex_);
+  MutexLock lock(mutex_);
   return static_cast<int>(running_.size());
 }
 
 std::uint64_t Scheduler::Watch(std::int64_t id, Listener listener) {
-  std::lock_guard lock(watch_mutex_);
+  MutexLock lock(watch_mutex_);
   const std::uint64_t token = next_token_++;
   watchers_.emplace(id, std::make_pair(token, std::move(listener)));
   announced_.try_emplace(id);
@@ -193,7 +195,7 @@ std::uint64_t Scheduler::Watch(std::int64_t id, Listener listener) {
 }
 
 void Scheduler::Unwatch(std::uint64_t token) {
-  std::lock_guard lock(watch_mutex_);
+  MutexLock lock(watch_mutex_);
   for (auto it = watchers_.begin(); it != watchers_.end(); ++it) {
     if (it->second.first == token) {
       const std::int64_t id = it->first;
@@ -205,7 +207,7 @@ void Scheduler::Unwatch(std::uint64_t token) {
 }
 
 void Scheduler::Publish(std::int64_t id, const proto::Json& notification) {
-  std::lock_guard lock(watch_mutex_);
+  MutexLock lock(watch_mutex_);
   const auto [first, last] = watchers_.equal_range(id);
   if (first == last) return;
   Announced& announced = announced_[id];
@@ -238,14 +240,18 @@ void Scheduler::PublishGone(std::int64_t id) {
 bool Scheduler::Stop(std::chrono::milliseconds timeout) {
   {
     // Under the mutex: a runner between its check and its wait would miss the wake-up.
-    std::lock_guard lock(mutex_);
+    MutexLock lock(mutex_);
     stopping_.store(true);
   }
   wake_.notify_all();
-  std::unique_lock lock(mutex_);
-  const bool stopped =
-      runners_done_.wait_for(lock, timeout, [this] { return runners_alive_ == 0; });
-  lock.unlock();
+  bool stopped = false;
+  {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    MutexLock lock(mutex_);
+    while (runners_alive_ != 0 && lock.WaitUntil(runners_done_, deadline)) {
+    }
+    stopped = runners_alive_ == 0;
+  }
   if (stopped) {
     for (std::thread& t : runners_) {
       if (t.joinable()) t.join();
@@ -258,7 +264,7 @@ bool Scheduler::Stop(std::chrono::milliseconds timeout) {
 void Scheduler::OnGeneration(std::int64_t id, Running& running, const JobRecord& job,
                              const TraceRow& row) {
   {
-    std::lock_guard lock(mutex_);
+    MutexLock lock(running.live_mutex);
     running.progress = row;
   }
   if (options_.metrics) {
@@ -283,7 +289,7 @@ void Scheduler::RunnerLoop() {
   while (!stopping_.load()) {
     std::uint64_t seen = 0;
     {
-      std::lock_guard lock(mutex_);
+      MutexLock lock(mutex_);
       seen = wake_count_;
     }
     std::optional<Claim> claim;
@@ -302,11 +308,13 @@ void Scheduler::RunnerLoop() {
     const double wait = failures == 0
                             ? options_.poll_seconds
                             : std::min(5.0, 0.1 * static_cast<double>(1 << std::min(failures, 6)));
-    std::unique_lock lock(mutex_);
-    wake_.wait_for(lock, Millis(wait),
-                   [&] { return stopping_.load() || (failures == 0 && wake_count_ != seen); });
+    const auto deadline = std::chrono::steady_clock::now() + Millis(wait);
+    MutexLock lock(mutex_);
+    while (!stopping_.load() && !(failures == 0 && wake_count_ != seen) &&
+           lock.WaitUntil(wake_, deadline)) {
+    }
   }
-  std::lock_guard lock(mutex_);
+  MutexLock lock(mutex_);
   if (--runners_alive_ == 0) runners_done_.notify_all();
   wake_.notify_all();  // the monitor ends with the last runner
 }
@@ -316,7 +324,7 @@ void Scheduler::RunClaimed(const Claim& claim) {
   Running* running = nullptr;
   std::shared_ptr<const Problem> prepared;
   {
-    std::unique_lock lock(mutex_);
+    MutexLock lock(mutex_);
     // This daemon may claim a job it is still running: its lease lapsed while the daemon
     // stood still (a host suspend, SIGSTOP, a store stall longer than the lease) and the
     // store handed it out again, to us. The older run has lost its lease to this claim: it is
@@ -329,7 +337,7 @@ void Scheduler::RunClaimed(const Claim& claim) {
             "here: that run stops first",
             id, claim.lease.epoch, old->second->lease.epoch);
       }
-      run_ended_.wait(lock, [&] { return !running_.contains(id); });
+      while (running_.contains(id)) lock.Wait(run_ended_);
     }
     if (const auto p = prepared_.find(id); p != prepared_.end()) {
       prepared = std::move(p->second);
@@ -359,7 +367,7 @@ void Scheduler::RunClaimed(const Claim& claim) {
   control.lease_lost = &running->lease_lost;
   control.on_generation = [&](const TraceRow& row) { OnGeneration(id, *running, claim.job, row); };
   control.on_beat = [&](const ProgressBeat& beat) {
-    std::lock_guard lock(mutex_);
+    MutexLock lock(running->live_mutex);
     running->phase = LivePhase{std::string(beat.phase), beat.wall_seconds,
                                std::sqrt(beat.best_normalized_error)};
   };
@@ -381,7 +389,7 @@ void Scheduler::RunClaimed(const Claim& claim) {
       store_errors.Report("job " + std::to_string(id) + ": cannot release its lease", e);
     }
   }
-  std::lock_guard lock(mutex_);
+  MutexLock lock(mutex_);
   // (Only this run's slot: a claim of the same job waits for it to go, run_ended_.)
   if (const auto r = running_.find(id); r != running_.end() && r->second.get() == running) {
     running_.erase(r);
@@ -394,7 +402,7 @@ void Scheduler::MonitorLoop() {
   while (true) {
     std::uint64_t seen = 0;
     {
-      std::unique_lock lock(mutex_);
+      MutexLock lock(mutex_);
       if (runners_alive_ == 0) break;
       seen = wake_count_;
     }
@@ -403,15 +411,16 @@ void Scheduler::MonitorLoop() {
       next_beat = std::chrono::steady_clock::now() + Millis(options_.heartbeat_seconds);
     }
     FollowWatched();
-    std::unique_lock lock(mutex_);
-    wake_.wait_until(lock, next_beat, [&] { return runners_alive_ == 0 || wake_count_ != seen; });
+    MutexLock lock(mutex_);
+    while (runners_alive_ != 0 && wake_count_ == seen && lock.WaitUntil(wake_, next_beat)) {
+    }
   }
 }
 
 void Scheduler::Heartbeat() {
   std::vector<std::pair<Lease, Running*>> leases;
   {
-    std::lock_guard lock(mutex_);
+    MutexLock lock(mutex_);
     for (auto& [id, running] : running_) leases.emplace_back(running->lease, running.get());
   }
   for (auto& [lease, running] : leases) {
@@ -419,7 +428,7 @@ void Scheduler::Heartbeat() {
       const LeaseStatus status = store_.RenewLease(lease, options_.lease_seconds);
       // The Running slot lives until its runner erases it, under mutex_, after RunJob: read
       // it under the mutex, since a job may have ended since the snapshot.
-      std::lock_guard lock(mutex_);
+      MutexLock lock(mutex_);
       const auto r = running_.find(lease.job_id);
       if (r == running_.end() || r->second.get() != running) continue;
       if (!status.held && !running->lease_lost.exchange(true)) {
@@ -433,7 +442,7 @@ void Scheduler::Heartbeat() {
   // Submissions being prepared here: their slots are shared with the preparing threads.
   std::vector<std::pair<Lease, std::shared_ptr<Preparation>>> preparing;
   {
-    std::lock_guard lock(mutex_);
+    MutexLock lock(mutex_);
     for (const auto& [id, entry] : preparing_) preparing.push_back(entry);
   }
   for (const auto& [lease, preparation] : preparing) {
@@ -450,7 +459,7 @@ void Scheduler::Heartbeat() {
 void Scheduler::FollowWatched() {
   std::vector<std::int64_t> ids;
   {
-    std::lock_guard lock(watch_mutex_);
+    MutexLock lock(watch_mutex_);
     for (const auto& [id, announced] : announced_) {
       if (!announced.finished) ids.push_back(id);
     }

@@ -29,6 +29,7 @@
 #include "engine/worker_pool.h"
 #include "proto/json_reader.h"
 #include "server/jobs/job_runner.h"
+#include "server/mutex.h"
 #include "server/store/job_store.h"
 #include "server/web/metrics.h"
 
@@ -134,8 +135,11 @@ class Scheduler {
     Lease lease;
     std::atomic<bool> cancel{false};
     std::atomic<bool> lease_lost{false};
-    std::optional<TraceRow> progress;  // guarded by mutex_
-    std::optional<LivePhase> phase;    // guarded by mutex_
+    // The job's thread writes them, readers of the scheduler read them (after mutex_, when
+    // both are held).
+    mutable Mutex live_mutex;
+    std::optional<TraceRow> progress SF_GUARDED_BY(live_mutex);
+    std::optional<LivePhase> phase SF_GUARDED_BY(live_mutex);
     std::chrono::steady_clock::time_point last_notified{};
     std::int64_t evaluations = 0;  // counted into the metrics so far (the job's thread)
   };
@@ -157,29 +161,33 @@ class Scheduler {
   SchedulerOptions options_;
   WorkerPool pool_;
 
-  mutable std::mutex mutex_;
+  mutable Mutex mutex_;
   std::condition_variable wake_;
-  std::uint64_t wake_count_ = 0;  // bumped by Wake(): a runner that saw it change looks again
-  std::map<std::int64_t, std::shared_ptr<const Problem>> prepared_;  // of jobs submitted here
+  // Bumped by Wake(): a runner that saw it change looks again.
+  std::uint64_t wake_count_ SF_GUARDED_BY(mutex_) = 0;
+  // Of jobs submitted here.
+  std::map<std::int64_t, std::shared_ptr<const Problem>> prepared_ SF_GUARDED_BY(mutex_);
   // At most one run per job: a claim of a job still running here waits on run_ended_.
-  std::map<std::int64_t, std::unique_ptr<Running>> running_;
+  std::map<std::int64_t, std::unique_ptr<Running>> running_ SF_GUARDED_BY(mutex_);
   std::condition_variable run_ended_;
-  std::map<std::int64_t, std::pair<Lease, std::shared_ptr<Preparation>>> preparing_;
+  std::map<std::int64_t, std::pair<Lease, std::shared_ptr<Preparation>>> preparing_
+      SF_GUARDED_BY(mutex_);
   std::atomic<bool> stopping_{false};
-  int runners_alive_ = 0;
+  int runners_alive_ SF_GUARDED_BY(mutex_) = 0;
   std::condition_variable runners_done_;
   std::vector<std::thread> runners_;
   std::thread monitor_;
 
-  std::mutex watch_mutex_;
-  std::uint64_t next_token_ = 1;
-  std::multimap<std::int64_t, std::pair<std::uint64_t, Listener>> watchers_;
+  Mutex watch_mutex_;
+  std::uint64_t next_token_ SF_GUARDED_BY(watch_mutex_) = 1;
+  std::multimap<std::int64_t, std::pair<std::uint64_t, Listener>> watchers_
+      SF_GUARDED_BY(watch_mutex_);
   // Per watched job: the last generation announced (-1: none) and whether job.finished was.
   struct Announced {
     int generation = -1;
     bool finished = false;
   };
-  std::map<std::int64_t, Announced> announced_;
+  std::map<std::int64_t, Announced> announced_ SF_GUARDED_BY(watch_mutex_);
 };
 
 }  // namespace springfit::server

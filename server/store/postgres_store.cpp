@@ -303,17 +303,18 @@ struct PostgresStore::Slot {
   // One call at a time: `busy` under `mutex`, a caller waiting on `free` until its deadline.
   // (Not a std::timed_mutex: its timed lock is pthread_mutex_clocklock, which GCC 12's
   // ThreadSanitizer does not see, so every unlock would be reported.)
-  std::mutex mutex;
+  Mutex mutex;
   std::condition_variable free;
-  bool busy = false;
+  bool busy SF_GUARDED_BY(mutex) = false;
   // Asynchronous: its socket exists before the server has answered, so that the watchdog can
   // end a connect to a server that does not answer, as it ends a statement.
   std::unique_ptr<pqxx::asyncconnection> connection;
   // The call in progress, for the watchdog (under `watch`).
-  std::mutex watch;
-  int socket = -1;  // -1: no call, or not connected yet
-  std::chrono::steady_clock::time_point deadline;
-  bool fired = false;  // the watchdog shut the socket down: the call ran out of time
+  Mutex watch;
+  int socket SF_GUARDED_BY(watch) = -1;  // -1: no call, or not connected yet
+  std::chrono::steady_clock::time_point deadline SF_GUARDED_BY(watch);
+  // The watchdog shut the socket down: the call ran out of time.
+  bool fired SF_GUARDED_BY(watch) = false;
 };
 
 void PostgresStore::Options::Validate() const {
@@ -375,7 +376,7 @@ void PostgresStore::WatchdogLoop() {
     std::vector<Slot*> slots{writer_.get()};
     for (const auto& r : readers_) slots.push_back(r.get());
     for (Slot* slot : slots) {
-      std::lock_guard lock(slot->watch);
+      MutexLock lock(slot->watch);
       if (slot->socket >= 0 && !slot->fired && now >= slot->deadline) {
         ::shutdown(slot->socket, SHUT_RDWR);
         slot->fired = true;
@@ -397,8 +398,10 @@ auto PostgresStore::With(Slot& slot, F&& f) {
                             std::chrono::duration<double>(limit));
   const std::string late = fmt::format("the database did not answer within {:g} s", limit);
   {
-    std::unique_lock lock(slot.mutex);
-    if (!slot.free.wait_until(lock, deadline, [&] { return !slot.busy; }))
+    MutexLock lock(slot.mutex);
+    while (slot.busy && lock.WaitUntil(slot.free, deadline)) {
+    }
+    if (slot.busy)
       throw StoreUnavailable(late + " (its connection is held by a call that has not returned)");
     slot.busy = true;
   }
@@ -406,7 +409,7 @@ auto PostgresStore::With(Slot& slot, F&& f) {
     Slot& slot;
     ~Release() {
       {
-        std::lock_guard lock(slot.mutex);
+        MutexLock lock(slot.mutex);
         slot.busy = false;
       }
       slot.free.notify_one();
@@ -415,13 +418,13 @@ auto PostgresStore::With(Slot& slot, F&& f) {
   // The watchdog's view of this call: armed once the connection has a socket, disarmed
   // before the connection is dropped (its descriptor may then be reused).
   const auto arm = [&] {
-    std::lock_guard watch(slot.watch);
+    MutexLock watch(slot.watch);
     slot.socket = slot.connection->sock();
     slot.deadline = deadline;
     slot.fired = false;
   };
   const auto disarm = [&] {
-    std::lock_guard watch(slot.watch);
+    MutexLock watch(slot.watch);
     slot.socket = -1;
     return slot.fired;
   };
@@ -501,7 +504,7 @@ int PostgresStore::schema_version() {
 }
 
 void PostgresStore::SetChangeListener(std::function<void()> listener) {
-  std::lock_guard lock(listener_mutex_);
+  MutexLock lock(listener_mutex_);
   on_change_ = std::move(listener);
 }
 
@@ -511,14 +514,14 @@ void PostgresStore::ListenLoop() {
     try {
       pqxx::connection c(conninfo_);
       Wakeup wakeup(c, [this] {
-        std::lock_guard lock(listener_mutex_);
+        MutexLock lock(listener_mutex_);
         if (on_change_) on_change_();
       });
       backoff = 0.1;
       // Notifications sent while this connection was down are lost: the callers' polls
       // cover them. A wake-up now makes them look at once.
       {
-        std::lock_guard lock(listener_mutex_);
+        MutexLock lock(listener_mutex_);
         if (on_change_) on_change_();
       }
       while (!stopping_.load()) c.await_notification(0, 200000);

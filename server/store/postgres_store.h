@@ -21,11 +21,11 @@
 #include <atomic>
 #include <functional>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "server/mutex.h"
 #include "server/store/job_store.h"
 
 namespace springfit::server {
@@ -98,8 +98,8 @@ class PostgresStore final : public JobStore {
   std::vector<std::unique_ptr<Slot>> readers_;
   std::atomic<std::size_t> next_reader_{0};
 
-  std::mutex listener_mutex_;
-  std::function<void()> on_change_;
+  Mutex listener_mutex_;
+  std::function<void()> on_change_ SF_GUARDED_BY(listener_mutex_);
   std::atomic<bool> stopping_{false};
   std::thread listener_;
   std::thread watchdog_;

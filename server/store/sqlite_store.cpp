@@ -205,6 +205,7 @@ SqliteStore::SqliteStore(const std::string& path) : path_(path) {
             : "cannot lock the database " + path + ": " + std::strerror(err));
   }
   try {
+    MutexLock lock(mutex_);  // (no other thread yet: for the analysis, server/mutex.h)
     db_ = Open(/*read_only=*/false);
     // A damaged file is refused at the start, not found job by job later (quick_check reads
     // every page once: linear in the file's size, without the index cross-checks).
@@ -249,7 +250,7 @@ std::unique_ptr<SQLite::Database> SqliteStore::Open(bool read_only) const {
 // answers 'database is locked' at once rather than risk a deadlock.
 template <typename F>
 auto SqliteStore::Run(F&& f) -> decltype(f(std::declval<SQLite::Database&>())) {
-  std::lock_guard lock(mutex_);
+  MutexLock lock(mutex_);
   return OnConnection(db_, writer_state_, /*read_only=*/false, f);
 }
 
@@ -257,11 +258,13 @@ template <typename F>
 auto SqliteStore::Read(F&& f) -> decltype(f(std::declval<SQLite::Database&>())) {
   // A free reader if there is one, else the next in turn (reads of one job are short).
   for (const std::unique_ptr<Reader>& r : readers_) {
-    std::unique_lock lock(r->mutex, std::try_to_lock);
-    if (lock.owns_lock()) return OnConnection(r->db, r->state, /*read_only=*/true, f);
+    if (r->mutex.try_lock()) {
+      MutexLock lock(r->mutex, std::adopt_lock);
+      return OnConnection(r->db, r->state, /*read_only=*/true, f);
+    }
   }
   Reader& r = *readers_[next_reader_.fetch_add(1) % readers_.size()];
-  std::lock_guard lock(r.mutex);
+  MutexLock lock(r.mutex);
   return OnConnection(r.db, r.state, /*read_only=*/true, f);
 }
 
@@ -335,7 +338,7 @@ std::string SqliteStore::Describe() const {
 }
 
 int SqliteStore::schema_version() {
-  std::lock_guard lock(mutex_);
+  MutexLock lock(mutex_);
   return db_->execAndGet("PRAGMA user_version").getInt();
 }
 

@@ -14,11 +14,11 @@
 #pragma once
 #include <atomic>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "server/mutex.h"
 #include "server/store/job_store.h"
 
 namespace SQLite {
@@ -74,14 +74,14 @@ class SqliteStore final : public JobStore {
     bool io_error = false;  // an I/O error since the last operation that succeeded
   };
   struct Reader {
-    std::mutex mutex;
-    std::unique_ptr<SQLite::Database> db;  // opened on first use
-    ConnectionState state;
+    Mutex mutex;
+    std::unique_ptr<SQLite::Database> db SF_GUARDED_BY(mutex);  // opened on first use
+    ConnectionState state SF_GUARDED_BY(mutex);
   };
 
   // A connection on path_ with this store's settings (WAL, synchronous, busy timeout).
   std::unique_ptr<SQLite::Database> Open(bool read_only) const;
-  void Migrate();
+  void Migrate() SF_REQUIRES(mutex_);
   // Runs f(connection) on the writer, under its mutex.
   template <typename F>
   auto Run(F&& f) -> decltype(f(std::declval<SQLite::Database&>()));
@@ -99,9 +99,9 @@ class SqliteStore final : public JobStore {
 
   std::string path_;
   int lock_fd_ = -1;
-  std::mutex mutex_;  // the writer's
-  std::unique_ptr<SQLite::Database> db_;
-  ConnectionState writer_state_;
+  Mutex mutex_;  // the writer's
+  std::unique_ptr<SQLite::Database> db_ SF_GUARDED_BY(mutex_);
+  ConnectionState writer_state_ SF_GUARDED_BY(mutex_);
   std::vector<std::unique_ptr<Reader>> readers_;
   std::atomic<unsigned> next_reader_{0};
 };

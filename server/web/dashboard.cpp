@@ -478,7 +478,7 @@ HttpResponse Dashboard::ListView(const std::map<std::string, std::string>& query
 
 std::shared_ptr<const Problem> Dashboard::ProblemOf(const JobRecord& job) {
   {
-    std::lock_guard lock(problems_mutex_);
+    MutexLock lock(problems_mutex_);
     for (const auto& [id, problem] : problems_) {
       if (id == job.id) return problem;
     }
@@ -486,7 +486,7 @@ std::shared_ptr<const Problem> Dashboard::ProblemOf(const JobRecord& job) {
   const std::optional<std::string> scene = store_.GetScene(job.id);
   if (!scene) throw std::runtime_error("the job's scene is missing from the store");
   auto problem = std::make_shared<const Problem>(proto::SceneFromText(*scene));
-  std::lock_guard lock(problems_mutex_);
+  MutexLock lock(problems_mutex_);
   problems_.emplace_back(job.id, problem);
   while (static_cast<int>(problems_.size()) > std::max(1, options_.cached_problems))
     problems_.erase(problems_.begin());

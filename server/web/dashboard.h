@@ -12,13 +12,13 @@
 #include <cstdint>
 #include <map>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "engine/problem.h"
 #include "server/jobs/scheduler.h"
+#include "server/mutex.h"
 #include "server/store/job_store.h"
 #include "server/web/metrics.h"
 
@@ -85,8 +85,10 @@ class Dashboard {
   Scheduler& scheduler_;
   Metrics& metrics_;
   DashboardOptions options_;
-  std::mutex problems_mutex_;
-  std::vector<std::pair<std::int64_t, std::shared_ptr<const Problem>>> problems_;  // newest last
+  Mutex problems_mutex_;
+  // Newest last.
+  std::vector<std::pair<std::int64_t, std::shared_ptr<const Problem>>> problems_
+      SF_GUARDED_BY(problems_mutex_);
 };
 
 }  // namespace springfit::server

@@ -14,7 +14,7 @@ std::string Number(double v) {
 }  // namespace
 
 void Metrics::CountRequest(std::string_view method, bool error) {
-  std::lock_guard lock(mutex_);
+  MutexLock lock(mutex_);
   auto it = requests_.find(method);
   if (it == requests_.end()) it = requests_.emplace(std::string(method), Requests{}).first;
   ++it->second.total;
@@ -22,7 +22,7 @@ void Metrics::CountRequest(std::string_view method, bool error) {
 }
 
 void Metrics::ObserveStoreWrite(std::string_view operation, double seconds, bool failed) {
-  std::lock_guard lock(mutex_);
+  MutexLock lock(mutex_);
   auto it = store_writes_.find(operation);
   if (it == store_writes_.end())
     it = store_writes_.emplace(std::string(operation), Latency{}).first;
@@ -37,7 +37,7 @@ void Metrics::ObserveStoreWrite(std::string_view operation, double seconds, bool
 
 void Metrics::AddEvaluations(std::int64_t evaluations) {
   if (evaluations <= 0) return;
-  std::lock_guard lock(mutex_);
+  MutexLock lock(mutex_);
   evaluations_ += static_cast<std::uint64_t>(evaluations);
   const auto now = std::chrono::steady_clock::now();
   recent_.emplace_back(now, evaluations_);
@@ -45,12 +45,12 @@ void Metrics::AddEvaluations(std::int64_t evaluations) {
 }
 
 void Metrics::CountHttpRequest(int status) {
-  std::lock_guard lock(mutex_);
+  MutexLock lock(mutex_);
   ++http_[status];
 }
 
 void Metrics::CountFinished(proto::JobState state, const std::optional<Outcome>& outcome) {
-  std::lock_guard lock(mutex_);
+  MutexLock lock(mutex_);
   ++finished_[{std::string(proto::JobStateName(state)),
                outcome ? std::string(VerdictName(outcome->verdict)) : std::string("none")}];
 }
@@ -81,7 +81,7 @@ std::string Metrics::Render(const Gauges& g) {
     }
   }
   {
-    std::lock_guard lock(mutex_);
+    MutexLock lock(mutex_);
     header("springfit_jobs_finished_total", "counter",
            "Jobs run on this daemon that ended, by state and by their result's verdict (usable, "
            "unmet_request, unusable; none without a result).");
@@ -95,7 +95,7 @@ std::string Metrics::Render(const Gauges& g) {
     header("springfit_queue_length", "gauge", "Jobs waiting in the store's queue.");
     out += fmt::format("springfit_queue_length {}\n", *g.queued);
   }
-  std::lock_guard lock(mutex_);
+  MutexLock lock(mutex_);
   header("springfit_evaluations_total", "counter",
          "Fitness evaluations of the jobs run on this daemon.");
   out += fmt::format("springfit_evaluations_total {}\n", evaluations_);

@@ -9,13 +9,13 @@
 #include <cstdint>
 #include <deque>
 #include <map>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
 #include <utility>
 
 #include "proto/job.h"
+#include "server/mutex.h"
 
 namespace springfit::server {
 
@@ -53,17 +53,18 @@ class Metrics {
     std::uint64_t failures = 0;
     double sum = 0.0;
   };
-  double EvaluationsPerSecondLocked();
+  double EvaluationsPerSecondLocked() SF_REQUIRES(mutex_);
 
-  std::mutex mutex_;
-  std::map<std::string, Requests, std::less<>> requests_;
-  std::map<std::string, Latency, std::less<>> store_writes_;
-  std::map<int, std::uint64_t> http_;
+  Mutex mutex_;
+  std::map<std::string, Requests, std::less<>> requests_ SF_GUARDED_BY(mutex_);
+  std::map<std::string, Latency, std::less<>> store_writes_ SF_GUARDED_BY(mutex_);
+  std::map<int, std::uint64_t> http_ SF_GUARDED_BY(mutex_);
   // (state, verdict or "none"): jobs finished here.
-  std::map<std::pair<std::string, std::string>, std::uint64_t> finished_;
-  std::uint64_t evaluations_ = 0;
+  std::map<std::pair<std::string, std::string>, std::uint64_t> finished_ SF_GUARDED_BY(mutex_);
+  std::uint64_t evaluations_ SF_GUARDED_BY(mutex_) = 0;
   // (time, evaluations so far): the last ten seconds, for a rate that needs no PromQL.
-  std::deque<std::pair<std::chrono::steady_clock::time_point, std::uint64_t>> recent_;
+  std::deque<std::pair<std::chrono::steady_clock::time_point, std::uint64_t>> recent_
+      SF_GUARDED_BY(mutex_);
 };
 
 }  // namespace springfit::server
