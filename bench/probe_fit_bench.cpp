@@ -51,6 +51,10 @@ int Main(int argc, char** argv) {
   app.add_option("--threads", threads, "threads of the fit")->check(CLI::Range(1, 256));
   response::ResponseFitOptions defaults;
   app.add_option("--min-lambda", defaults.min_lambda, "ResponseFitOptions::min_lambda");
+  app.add_option("--soft-mode-rounds", defaults.soft_mode_rounds,
+                 "ResponseFitOptions::soft_mode_rounds");
+  app.add_option("--soft-modes-per-round", defaults.soft_modes_per_round,
+                 "ResponseFitOptions::soft_modes_per_round");
   app.add_option("--regularizations", defaults.regularizations,
                  "ResponseFitOptions::regularizations");
   app.add_option("--gauss-newton-steps", defaults.gauss_newton_steps,
@@ -96,6 +100,10 @@ int Main(int argc, char** argv) {
     for (std::size_t i = 0; i < fit.regularizations.size(); ++i)
       std::printf(" %g:%.3g (lambda %.3g)", fit.regularizations[i],
                   fit.regularization_select_errors[i], fit.regularization_lambda_min[i]);
+    std::printf("\n    soft modes (probes: springs, choosing error, lambda):");
+    for (const auto& m : fit.soft_mode_rounds)
+      std::printf(" %d: %d %.3g %.3g", m.probes, m.springs, m.select_error, m.lambda_min);
+    std::printf(" (chosen %d)", fit.soft_mode_chosen);
     std::printf("\n    path:");
     for (const auto& p : fit.path) std::printf(" %d:%.3g", p.springs, p.select_error);
     std::printf("  (chosen %d)\n", fit.chosen);

@@ -208,6 +208,8 @@ const char* ProbeFamilyName(response::ProbeFamily family) {
       return "body";
     case response::ProbeFamily::kNamed:
       return "named";
+    case response::ProbeFamily::kMode:
+      return "mode";
   }
   return "?";
 }

@@ -266,6 +266,14 @@ Json GeneralizationToJson(const response::Generalization& g) {
     fit["path"] = std::move(path);
     fit["chosen"] = g.fit.chosen;
     fit["gauss_newton_steps"] = g.fit.gauss_newton_accepted;
+    Json modes = Json::array();
+    for (const auto& m : g.fit.soft_mode_rounds)
+      modes.push_back({{"probes", m.probes},
+                       {"springs", m.springs},
+                       {"choosing_rms_error", NumberOrNull(m.select_error)},
+                       {"lambda_min", m.lambda_min}});
+    fit["soft_modes"] = std::move(modes);
+    fit["soft_modes_chosen"] = g.fit.soft_mode_chosen;
     j["fit"] = std::move(fit);
   }
   return j;

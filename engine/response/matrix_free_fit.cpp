@@ -129,13 +129,12 @@ ResponseFitResult FitResponseMatrixFree(const Problem& problem, const ProbeBank&
     std::vector<double> strengths = options.regularizations;
     std::sort(strengths.begin(), strengths.end(), std::greater<>());
     for (double strength : strengths) {
-      const std::size_t before = iterates.size();
       descend(weights, at, strength, options.steps_per_strength, none);
+      // The model at this strength: its last accepted step's, or the one it started from when
+      // none was accepted.
       r.regularizations.push_back(strength);
-      const Iterate& last = iterates.back();
-      r.regularization_select_errors.push_back(iterates.size() > before ? last.select_error
-                                                                        : kNoModel);
-      r.regularization_lambda_min.push_back(iterates.size() > before ? last.lambda_min : 0.0);
+      r.regularization_select_errors.push_back(iterates.back().select_error);
+      r.regularization_lambda_min.push_back(iterates.back().lambda_min);
     }
   }
   r.seconds_first_order = seconds();

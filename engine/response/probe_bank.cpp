@@ -183,6 +183,8 @@ void ProbeOptions::Validate(const std::string& owner) const {
                 held_out_fraction, "0 < value <= 0.5");
   check.Require(named_weight >= 0.0 && named_weight < 1.0, "named_weight", named_weight,
                 "0 <= value < 1");
+  check.Require(soft_mode_weight >= 0.0 && named_weight + soft_mode_weight < 1.0,
+                "soft_mode_weight", soft_mode_weight, "value >= 0 and named_weight + value < 1");
 }
 
 ProbeBank MakeProbeBank(const Problem& problem, const SparseMatrix& reference_stiffness,
@@ -341,6 +343,27 @@ ProbeBank MakeProbeBank(const Problem& problem, const SparseMatrix& reference_st
     probe.reference_norm2 = free.squaredNorm();
   }
   return bank;
+}
+
+void AddSoftModeProbe(ProbeBank& bank, int support, const Vector& shape,
+                      const SparseMatrix& reference_stiffness, int dimension) {
+  const double largest = LargestNodal(dimension, shape);
+  if (!(largest > 0.0)) return;
+  Probe probe;
+  probe.family = ProbeFamily::kMode;
+  probe.role = ProbeRole::kFit;
+  probe.support = support;
+  probe.reference = shape * (bank.amplitude / largest);
+  probe.force = reference_stiffness * probe.reference;
+  // The reactions on the held nodes are the support's, not the load's.
+  const std::vector<bool>& held = bank.supports[static_cast<std::size_t>(support)].constrained;
+  for (std::size_t node = 0; node < held.size(); ++node) {
+    if (held[node])
+      probe.force.segment(dimension * static_cast<Eigen::Index>(node), dimension).setZero();
+  }
+  probe.prescribed = Vector::Zero(probe.force.size());
+  probe.reference_norm2 = probe.reference.squaredNorm();
+  bank.probes.push_back(std::move(probe));
 }
 
 }  // namespace springfit::response

@@ -24,29 +24,35 @@ double Quantile(std::vector<double> sorted, double q) {
   return sorted[below] + (position - static_cast<double>(below)) * (sorted[above] - sorted[below]);
 }
 
-// The largest eigenvalue of B^-1 A by Lanczos in the B inner product; `b` holds B's factor.
-double LargestPencilEigenvalue(const SupportSystem& a, const SupportSystem& b, int iterations,
+// Lanczos on B^-1 A in the B inner product (`b` holds B's factor), full reorthogonalisation:
+// the basis (free degrees of freedom, B-orthonormal) and the tridiagonal matrix.
+struct PencilLanczos {
+  std::vector<Vector> basis;
+  Matrix t;
+};
+PencilLanczos RunPencilLanczos(const SupportSystem& a, const SupportSystem& b, int iterations,
                                std::uint64_t seed) {
   const int n = a.free_dofs();
   RandomStream random(seed);
   Vector q(n);
   for (int i = 0; i < n; ++i) q[i] = random.Uniform() - 0.5;
   const int steps = std::min(iterations, n);
-  std::vector<Vector> basis, b_basis;  // q_j and B q_j
+  PencilLanczos l;
+  std::vector<Vector> b_basis;  // B q_j
   std::vector<double> alpha, beta;
   Vector bq = b.Multiply(q);
   double norm = std::sqrt(q.dot(bq));
   q /= norm;
   bq /= norm;
   for (int j = 0; j < steps; ++j) {
-    basis.push_back(q);
+    l.basis.push_back(q);
     b_basis.push_back(bq);
     const Vector aq = a.Multiply(q);
     alpha.push_back(q.dot(aq));
     Vector w = aq;
     b.Solve(w);                           // B^-1 A q
     for (int pass = 0; pass < 2; ++pass)  // full reorthogonalisation, twice
-      for (std::size_t i = 0; i < basis.size(); ++i) w -= b_basis[i].dot(w) * basis[i];
+      for (std::size_t i = 0; i < l.basis.size(); ++i) w -= b_basis[i].dot(w) * l.basis[i];
     const Vector bw = b.Multiply(w);
     const double next = std::sqrt(std::max(w.dot(bw), 0.0));
     if (!(next > 1e-12 * std::abs(alpha.back()))) break;
@@ -55,12 +61,19 @@ double LargestPencilEigenvalue(const SupportSystem& a, const SupportSystem& b, i
     bq = bw / next;
   }
   const int k = static_cast<int>(alpha.size());
-  Matrix t = Matrix::Zero(k, k);
+  l.t = Matrix::Zero(k, k);
   for (int i = 0; i < k; ++i) {
-    t(i, i) = alpha[static_cast<std::size_t>(i)];
-    if (i + 1 < k) t(i, i + 1) = t(i + 1, i) = beta[static_cast<std::size_t>(i)];
+    l.t(i, i) = alpha[static_cast<std::size_t>(i)];
+    if (i + 1 < k) l.t(i, i + 1) = l.t(i + 1, i) = beta[static_cast<std::size_t>(i)];
   }
-  Eigen::SelfAdjointEigenSolver<Matrix> eig(t, Eigen::EigenvaluesOnly);
+  return l;
+}
+
+// The largest eigenvalue of B^-1 A.
+double LargestPencilEigenvalue(const SupportSystem& a, const SupportSystem& b, int iterations,
+                               std::uint64_t seed) {
+  const PencilLanczos l = RunPencilLanczos(a, b, iterations, seed);
+  Eigen::SelfAdjointEigenSolver<Matrix> eig(l.t, Eigen::EigenvaluesOnly);
   return eig.eigenvalues().maxCoeff();
 }
 
@@ -141,6 +154,28 @@ double SmallestGeneralizedEigenvalue(const SparseMatrix& model, const SupportSys
   SupportSystem m(reference.dimension(), reference.constrained());
   if (!m.Factorize(model)) return 0.0;
   return 1.0 / LargestPencilEigenvalue(reference, m, iterations, 2);
+}
+
+std::vector<SoftMode> SoftModes(const SparseMatrix& model, const SupportSystem& reference,
+                                double below, int count, int iterations) {
+  SupportSystem m(reference.dimension(), reference.constrained());
+  if (!m.Factorize(model)) return {};
+  // The largest eigenvalues of K_model^-1 K_ref are the smallest of the pencil, inverted; the
+  // same Lanczos run as SmallestGeneralizedEigenvalue's (seed 2), so the first is its value.
+  const PencilLanczos l = RunPencilLanczos(reference, m, iterations, 2);
+  const Eigen::SelfAdjointEigenSolver<Matrix> eig(l.t);
+  const Vector none = Vector::Zero(static_cast<Eigen::Index>(
+      reference.constrained().size() * static_cast<std::size_t>(reference.dimension())));
+  std::vector<SoftMode> modes;
+  for (Eigen::Index j = l.t.rows() - 1; j >= 0 && static_cast<int>(modes.size()) < count; --j) {
+    const double lambda = 1.0 / eig.eigenvalues()[j];
+    if (!(lambda < below)) break;
+    Vector free = Vector::Zero(reference.free_dofs());
+    for (std::size_t i = 0; i < l.basis.size(); ++i)
+      free += eig.eigenvectors()(static_cast<Eigen::Index>(i), j) * l.basis[i];
+    modes.push_back({lambda, reference.Scatter(free, none)});
+  }
+  return modes;
 }
 
 PencilExtremes GeneralizedEigenvalueExtremes(const SparseMatrix& model,

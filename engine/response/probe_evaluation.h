@@ -53,6 +53,16 @@ struct PencilExtremes {
 // factorisation it uses: 0 when the model is not held there.
 double SmallestGeneralizedEigenvalue(const SparseMatrix& model, const SupportSystem& reference,
                                      int iterations = 80);
+// The displacements the model resists least against the reference on `reference`'s support:
+// generalised eigenvectors of (model, reference), as Lanczos' Ritz vectors, smallest eigenvalue
+// first, at most `count`, those with eigenvalue below `below`. Under the load K_ref v the
+// reference moves by v and the model by v / lambda. None when the model is not held there.
+struct SoftMode {
+  double lambda = 0.0;
+  Vector shape;  // flat d*n, 0 on the support's nodes
+};
+std::vector<SoftMode> SoftModes(const SparseMatrix& model, const SupportSystem& reference,
+                                double below, int count, int iterations = 80);
 // By Lanczos iterations (full reorthogonalisation, at most `iterations`, seeded) in the
 // reference's energy inner product, on the free degrees of freedom of `constrained`.
 PencilExtremes GeneralizedEigenvalueExtremes(const SparseMatrix& model,

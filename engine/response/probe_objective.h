@@ -14,7 +14,8 @@ namespace springfit::response {
 struct ResponseFitOptions;
 
 // Per probe, its weight in the fitted objective: the named cases share `named_weight`, the
-// generated families present in the fit share the rest equally, and within a family every
+// soft-mode probes `soft_mode_weight` (when there are any), the generated families present in
+// the fit share the rest equally, and within a family every
 // probe counts alike as a relative error (1 / |u_ref|^2). Probes not fitted weigh 0.
 std::vector<double> FitWeights(const ProbeBank& bank, const ProbeOptions& options);
 

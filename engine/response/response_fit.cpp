@@ -150,17 +150,19 @@ void ResponseFitOptions::Validate(const std::string& owner) const {
   check.Require(cg_iterations >= 1, "cg_iterations", cg_iterations, "value >= 1");
   check.Require(InOpenUnit(cg_tolerance), "cg_tolerance", cg_tolerance, "0 < value < 1");
   check.Require(diagonal_samples >= 1, "diagonal_samples", diagonal_samples, "value >= 1");
+  check.Require(soft_mode_rounds >= 0, "soft_mode_rounds", soft_mode_rounds, "value >= 0");
+  check.Require(soft_modes_per_round >= 1, "soft_modes_per_round", soft_modes_per_round,
+                "value >= 1");
 }
 
-ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
-                              const SparseMatrix& reference_stiffness,
-                              const std::vector<double>& prior, const ResponseFitOptions& options,
-                              Interruption* interruption, const ResponseProgress& progress,
-                              WorkerPool* pool) {
-  options.Validate();
-  if (problem.gene_count() > options.dense_max_genes)
-    return FitResponseMatrixFree(problem, bank, reference_stiffness, prior, options, interruption,
-                                 progress, pool);
+namespace {
+
+// Steps 2 to 4 with a Gram matrix (the genes up to dense_max_genes).
+ResponseFitResult FitDense(const Problem& problem, const ProbeBank& bank,
+                           const SparseMatrix& reference_stiffness,
+                           const std::vector<double>& prior, const ResponseFitOptions& options,
+                           Interruption* interruption, const ResponseProgress& progress,
+                           WorkerPool* pool) {
   const auto tell = [&](const char* phase, double error) {
     if (progress) progress(phase, error);
   };
@@ -374,6 +376,75 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
   r.lambda_min = iterate_lambdas[returned];
   r.seconds_refine = seconds();
   r.weights = iterates[returned];
+  return r;
+}
+
+ResponseFitResult FitOnBank(const Problem& problem, const ProbeBank& bank,
+                            const SparseMatrix& reference_stiffness,
+                            const std::vector<double>& prior, const ResponseFitOptions& options,
+                            Interruption* interruption, const ResponseProgress& progress,
+                            WorkerPool* pool) {
+  if (problem.gene_count() > options.dense_max_genes)
+    return FitResponseMatrixFree(problem, bank, reference_stiffness, prior, options, interruption,
+                                 progress, pool);
+  return FitDense(problem, bank, reference_stiffness, prior, options, interruption, progress, pool);
+}
+
+}  // namespace
+
+ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
+                              const SparseMatrix& reference_stiffness,
+                              const std::vector<double>& prior, const ResponseFitOptions& options,
+                              Interruption* interruption, const ResponseProgress& progress,
+                              WorkerPool* pool) {
+  options.Validate();
+  std::vector<ResponseFitResult> rounds{
+      FitOnBank(problem, bank, reference_stiffness, prior, options, interruption, progress, pool)};
+  // 5. Soft modes: while the model leaves a mode of a user support below min_lambda, the load
+  // along that mode joins the fitted probes and the fit runs again. The choosing probes are the
+  // same in every round, so the rounds' models compare as the points of one path.
+  std::vector<int> mode_probes;  // per refit, in its fit
+  if (rounds.back().lambda_min < options.min_lambda && options.soft_mode_rounds > 0) {
+    const int d = problem.dimension();
+    ProbeBank augmented = bank;
+    std::vector<std::pair<int, SupportSystem>> user;
+    for (std::size_t s = 0; s < bank.supports.size(); ++s) {
+      if (!bank.supports[s].user) continue;
+      user.emplace_back(static_cast<int>(s), SupportSystem(d, bank.supports[s].constrained));
+      user.back().second.Factorize(reference_stiffness);
+    }
+    for (int round = 0; round < options.soft_mode_rounds; ++round) {
+      if (interruption && interruption->Check()) throw Interrupted();
+      const SparseMatrix model = SpringRestStiffness(problem, rounds.back().weights);
+      int added = 0;
+      for (const auto& [s, reference] : user) {
+        for (const SoftMode& mode :
+             SoftModes(model, reference, options.min_lambda, options.soft_modes_per_round)) {
+          AddSoftModeProbe(augmented, s, mode.shape, reference_stiffness, d);
+          ++added;
+        }
+      }
+      if (added == 0) break;
+      mode_probes.push_back((mode_probes.empty() ? 0 : mode_probes.back()) + added);
+      rounds.push_back(FitOnBank(problem, augmented, reference_stiffness, prior, options,
+                                 interruption, progress, pool));
+      if (rounds.back().lambda_min >= options.min_lambda) break;
+    }
+  }
+  std::vector<ResponseFitResult::SoftModeRound> path;
+  std::vector<double> errors, lambdas;
+  for (const ResponseFitResult& r : rounds) {
+    path.push_back({0, PresentSprings(r.weights), r.select_error, r.lambda_min});
+    errors.push_back(r.select_error);
+    lambdas.push_back(r.lambda_min);
+  }
+  for (std::size_t i = 1; i < path.size(); ++i) path[i].probes = mode_probes[i - 1];
+  const std::vector<double> score = PreferSupported(errors, lambdas, options);
+  const auto chosen =
+      static_cast<std::size_t>(std::min_element(score.begin(), score.end()) - score.begin());
+  ResponseFitResult r = std::move(rounds[chosen]);
+  r.soft_mode_rounds = std::move(path);
+  r.soft_mode_chosen = static_cast<int>(chosen);
   return r;
 }
 

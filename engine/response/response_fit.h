@@ -19,6 +19,12 @@
 //     springs; the iterate that does best on the choosing probes is returned (early stopping).
 // At every choice a model that supports every mode (min_lambda) is preferred when nearly as
 // good (lambda_slack).
+//  5. Soft modes: a model that still leaves a mode of a user support below min_lambda is fitted
+//     again with the load along that mode (K_ref v, v the generalised eigenvector of the
+//     smallest eigenvalue: the reference moves by v, the model by v / lambda_min) among the
+//     fitted probes, family "mode" (up to `soft_modes_per_round` modes per support), at most
+//     `soft_mode_rounds` times; the rounds' models are
+//     chosen among as the points of the path are.
 // The model is the rest-linear one; a nonlinear reference's model describes its small-load
 // limit.
 #pragma once
@@ -65,6 +71,10 @@ struct ResponseFitOptions {
   // point within it is one, the point chosen as without a budget (the verdict then says the
   // budget is not met). 0: none.
   int max_springs = 0;
+  // Refits that add the loads along soft modes (step 5), at most (>= 0; 0: none); and the modes
+  // below min_lambda added per user support and refit, at most (>= 1).
+  int soft_mode_rounds = 2;
+  int soft_modes_per_round = 4;
   QuadraticNnlsOptions nnls;
   // Above this many genes the fit runs without a Gram matrix (matrix_free_fit.h): the dense
   // fit's memory is m^2 doubles and each of its Newton steps m^3 / 3 (>= 1). On the fine
@@ -102,6 +112,17 @@ struct ResponseFitResult {
   double lambda_min = 0.0;    // of `weights`
   double select_error = 0.0;  // of `weights`
   int gauss_newton_accepted = 0;
+  // Step 5: per fit (the first without soft-mode probes, then one per refit), the soft-mode
+  // probes in it and its model's springs, choosing error and smallest eigenvalue; and which
+  // fit's model was returned.
+  struct SoftModeRound {
+    int probes = 0;
+    int springs = 0;
+    double select_error = 0.0;
+    double lambda_min = 0.0;
+  };
+  std::vector<SoftModeRound> soft_mode_rounds;
+  int soft_mode_chosen = 0;
   // Wall seconds: building the first-order fit's Gram matrix, its solves (one per strength),
   // the sparsity path, the Gauss-Newton steps.
   double seconds_gram = 0.0;

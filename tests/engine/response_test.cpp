@@ -188,6 +188,31 @@ TEST(PencilExtremes, MatchADenseGeneralisedEigensolver) {
   EXPECT_NEAR(x.Bound(), std::max(1.0 / x.lambda_min - 1.0, 1.0 - 1.0 / x.lambda_max), 1e-12);
 }
 
+// The soft modes are generalised eigenvectors: K_model v = lambda K_ref v on the free degrees of
+// freedom, the smallest eigenvalue first and equal to SmallestGeneralizedEigenvalue's, nothing
+// on the support's nodes.
+TEST(PencilExtremes, SoftModesAreTheSmallestGeneralisedEigenpairs) {
+  const Problem problem(examples::Make("fem-kidney-2d"));
+  const SparseMatrix kref = ReferenceRestStiffness(problem);
+  const SparseMatrix kb = SpringRestStiffness(problem, *fem::BaselineGeneWeights(problem));
+  const ProbeBank bank = MakeProbeBank(problem, kref, ProbeOptions{});
+  const Support& support = bank.supports[0];
+  SupportSystem reference(2, support.constrained), model(2, support.constrained);
+  ASSERT_TRUE(reference.Factorize(kref));
+  ASSERT_TRUE(model.Factorize(kb));
+  const std::vector<SoftMode> modes = SoftModes(kb, reference, 1.0, 3);
+  ASSERT_EQ(modes.size(), 3u);
+  EXPECT_EQ(modes[0].lambda, SmallestGeneralizedEigenvalue(kb, reference));
+  for (std::size_t i = 0; i < modes.size(); ++i) {
+    if (i > 0) EXPECT_GE(modes[i].lambda, modes[i - 1].lambda);
+    const Vector v = reference.Gather(modes[i].shape);
+    const Vector residual = model.Multiply(v) - modes[i].lambda * reference.Multiply(v);
+    EXPECT_LT(residual.norm(), 1e-6 * model.Multiply(v).norm()) << i;
+    EXPECT_NEAR(modes[i].shape.squaredNorm(), v.squaredNorm(), 1e-12 * v.squaredNorm());
+  }
+  EXPECT_TRUE(SoftModes(kb, reference, modes[0].lambda * 0.999, 3).empty());
+}
+
 Scene PlateWithOneCase() {
   Scene s = examples::Make("fem-plate-5x5");
   s.load_cases.resize(1);  // stretch +y only: shear and the other support are never loaded
@@ -392,6 +417,26 @@ struct KidneyFits {
     two = FitResponse(problem, bank, k, prior, options, nullptr, {}, &pool);
   }
 };
+
+// The kidney's fit to the probes alone leaves a mode at lambda 0.068; the loads along its soft
+// modes, fitted too, hold every mode above min_lambda, and the model still generalises.
+TEST(ResponseFit, SoftModeProbesHoldEveryModeOfTheKidney) {
+  const KidneyFits fits;
+  const ResponseFitResult& r = fits.one;
+  ResponseFitOptions without = fits.options;
+  without.soft_mode_rounds = 0;
+  const ResponseFitResult plain = FitResponse(fits.problem, fits.bank, fits.k, fits.prior, without);
+  ASSERT_LT(plain.lambda_min, fits.options.min_lambda);  // (what this test is about)
+  ASSERT_GE(r.soft_mode_rounds.size(), 2u);
+  EXPECT_EQ(r.soft_mode_rounds[0].lambda_min, plain.lambda_min);
+  EXPECT_GT(r.soft_mode_rounds[1].probes, 0);
+  EXPECT_GE(r.lambda_min, fits.options.min_lambda);
+  EXPECT_LE(r.select_error, (1.0 + fits.options.lambda_slack) * plain.select_error);
+  const Generalization g = Certify(fits.problem, fits.bank, fits.k, r.weights,
+                                   SpringRestStiffness(fits.problem, fits.prior));
+  EXPECT_GE(g.lambda_min, fits.options.min_lambda);
+  EXPECT_LT(g.model_held_out.median, 0.5 * g.baseline_held_out.median);
+}
 
 TEST(ResponseFit, SameModelWithOneOrTwoThreads) {
   const KidneyFits fits;
