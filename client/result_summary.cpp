@@ -216,6 +216,19 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
       first = false;
     }
     out << " (median E; named: the user's cases, fitted)\n";
+    // A nonlinear response: the same loads at fractions of the named loads' size, every model
+    // nonlinear.
+    for (const auto& a : g.value("amplitudes", proto::Json::array())) {
+      const proto::Json model = a.value("model", proto::Json::object());
+      const proto::Json baseline = a.value("baseline", proto::Json::object());
+      out << "  nonlinear at " << Format("%3.0f", 100.0 * a.value("amplitude", 0.0))
+          << "%: " << model.value("probes", 0) << " probes solved to equilibrium: median E "
+          << number(model, "median") << ", 95% " << number(model, "p95") << "; baseline "
+          << number(baseline, "median") << ", 95% " << number(baseline, "p95");
+      if (a.value("reference_failed", 0) > 0)
+        out << " (" << a.value("reference_failed", 0) << " left out: no reference equilibrium)";
+      out << "\n";
+    }
     out << "  every load:      generalised eigenvalues of (K_model, K_ref) on the user's supports "
            "in ["
         << number(g, "lambda_min") << ", " << number(g, "lambda_max")

@@ -240,6 +240,13 @@ Json GeneralizationToJson(const response::Generalization& g) {
   j["lambda_min"] = g.lambda_min;
   j["lambda_max"] = g.lambda_max;
   j["bound"] = NumberOrNull(g.bound);
+  Json amplitudes = Json::array();
+  for (const response::AmplitudeErrors& a : g.amplitudes)
+    amplitudes.push_back({{"amplitude", a.amplitude},
+                          {"model", ErrorSummaryToJson(a.model)},
+                          {"baseline", ErrorSummaryToJson(a.baseline)},
+                          {"reference_failed", a.reference_failed}});
+  j["amplitudes"] = std::move(amplitudes);
   Json pencils = Json::array();
   for (const auto& p : g.pencils)
     pencils.push_back({{"support", p.support},

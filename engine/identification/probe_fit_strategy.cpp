@@ -35,6 +35,33 @@ response::SparseMatrix BaselineStiffness(const Problem& problem,
   return response::SpringRestStiffness(problem, start);
 }
 
+// The same baseline as springs, for the nonlinear judgement (amplitude_judgement.h).
+response::SpringModel BaselineSprings(const Problem& problem,
+                                      const std::optional<std::vector<double>>& on_genes,
+                                      const std::vector<double>& start) {
+  if (on_genes) return response::ModelOfWeights(problem, *on_genes);
+  if (problem.scene().reference.kind == Reference::Kind::kFem) {
+    const fem::ClosedFormModel closed = fem::VanGelderModel(problem.scene());
+    return {closed.springs, closed.stiffness};
+  }
+  return response::ModelOfWeights(problem, start);
+}
+
+// The certificate's judgement at the named loads' size and below, when the response is
+// nonlinear; left empty when stopped (the run is ending).
+void JudgeAtAmplitudes(const Problem& problem, const response::ProbeBank& bank,
+                       const std::vector<double>& weights, const response::SpringModel& baseline,
+                       response::Generalization& certificate, Interruption* interruption,
+                       WorkerPool* pool) {
+  try {
+    certificate.amplitudes =
+        response::JudgeAtAmplitudes(problem, bank, response::ModelOfWeights(problem, weights),
+                                    baseline, {}, interruption, pool);
+  } catch (const Interrupted&) {
+    certificate.amplitudes.clear();
+  }
+}
+
 response::ProbeOptions ProbeOptionsOf(const SearchOptions& options) {
   response::ProbeOptions o;
   o.seed = options.seed;
@@ -65,6 +92,8 @@ std::optional<response::Generalization> CertifyOnProbes(const Problem& problem,
       response::Certify(problem, bank, reference_stiffness, weights,
                         BaselineStiffness(problem, baseline_weights, start));
   g.named_weight = probe_options.named_weight;
+  JudgeAtAmplitudes(problem, bank, weights, BaselineSprings(problem, baseline_weights, start), g,
+                    nullptr, nullptr);
   return g;
 }
 
@@ -155,6 +184,10 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
     judged.named_weight = certificate.named_weight;
     judged.returned_baseline = true;
     certificate = std::move(judged);
+  }
+  if (!stopped) {
+    JudgeAtAmplitudes(problem, bank, weights, BaselineSprings(problem, baseline_weights, start),
+                      certificate, &monitor.interruption(), pool);
   }
   details.model_seconds = since();
 

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/response/amplitude_judgement.h"
 #include "engine/response/probe_evaluation.h"
 #include "engine/response/response_fit.h"
 
@@ -35,6 +36,10 @@ struct Generalization {
   double lambda_min = 0.0;
   double lambda_max = 0.0;
   double bound = 0.0;  // PencilExtremes::Bound of the extremes
+  // A nonlinear response: the model and the baseline as nonlinear spring models against the
+  // nonlinear reference, per fraction of the named loads' size (amplitude_judgement.h); empty
+  // for a linear one.
+  std::vector<AmplitudeErrors> amplitudes;
   // The fit (absent when the model was not fitted to probes: only judged on them).
   bool fitted_to_probes = false;
   ResponseFitResult fit;

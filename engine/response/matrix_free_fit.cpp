@@ -13,7 +13,6 @@
 namespace springfit::response {
 namespace {
 
-constexpr double kNoModel = std::numeric_limits<double>::infinity();
 // Jacobi-preconditioned conjugate gradients for A d = b on the entries where `free` holds (d is
 // 0 elsewhere); at most `iterations`, or until the residual falls below `tolerance` |b|.
 // (Eigen's ConjugateGradient takes a matrix-free operator only as a sparse-matrix-like

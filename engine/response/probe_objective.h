@@ -4,6 +4,7 @@
 // both choose by the same numbers.
 #pragma once
 
+#include <limits>
 #include <vector>
 
 #include "engine/response/probe_bank.h"
@@ -12,6 +13,9 @@
 namespace springfit::response {
 
 struct ResponseFitOptions;
+
+// The choosing error of no model (a mechanism, no springs).
+inline constexpr double kNoModel = std::numeric_limits<double>::infinity();
 
 // Per probe, its weight in the fitted objective: the named cases share `named_weight`, the
 // soft-mode probes `soft_mode_weight` (when there are any), the generated families present in

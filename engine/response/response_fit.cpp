@@ -16,8 +16,6 @@
 namespace springfit::response {
 namespace {
 
-constexpr double kNoModel = std::numeric_limits<double>::infinity();  // no model: no error
-
 // The fit in scaled variables x = k / scale: q(x) = 1/2 x^T A x - b^T x.
 struct ScaledQuadratic {
   Matrix A;
@@ -426,6 +424,9 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
       }
       if (added == 0) break;
       mode_probes.push_back((mode_probes.empty() ? 0 : mode_probes.back()) + added);
+      // (A whole fit again: started from the last model at its strength, the matrix-free fit's
+      // steps lowered the fitted error and raised the choosing one on fem-block-3d, and the
+      // soft modes stayed; its continuation from the prior is what lifts them.)
       rounds.push_back(FitOnBank(problem, augmented, reference_stiffness, prior, options,
                                  interruption, progress, pool));
       if (rounds.back().lambda_min >= options.min_lambda) break;

@@ -207,6 +207,21 @@ std::string ResultCard(const Outcome& o, const Json& result, const Json& search)
       body += Row("generalised eigenvalues",
                   fmt::format("[{}, {}]", ErrorText((*g)["lambda_min"].get<double>()),
                               ErrorText((*g)["lambda_max"].get<double>())));
+    // A nonlinear response: the held-out probes and named cases at fractions of the named
+    // loads' size, every model nonlinear (proto/RUN.md, generalization.amplitudes).
+    for (const auto& a : g->value("amplitudes", proto::Json::array())) {
+      const proto::Json model = a.value("model", proto::Json::object());
+      const proto::Json baseline = a.value("baseline", proto::Json::object());
+      if (!model["median"].is_number()) continue;
+      std::string text = "median " + ErrorText(model["median"].get<double>());
+      if (model["p95"].is_number())
+        text += ", worst 5% above " + ErrorText(model["p95"].get<double>());
+      if (baseline["median"].is_number())
+        text += " (baseline median " + ErrorText(baseline["median"].get<double>()) + ")";
+      body +=
+          Row(fmt::format("E nonlinear at {:.0f}% of the loads", 100.0 * a.value("amplitude", 0.0)),
+              text);
+    }
     if (g->contains("fit") && (*g)["fit"]["regularization"].is_number())
       body += Row("regularisation", ErrorText((*g)["fit"]["regularization"].get<double>()));
   } else if (const auto c = result.find("continuous"); c != result.end() && c->is_object()) {

@@ -9,6 +9,7 @@
 #include "engine/fem/closed_form_baseline.h"
 #include "engine/fit/stiffness_fit.h"
 #include "engine/identification/identify.h"
+#include "engine/response/amplitude_judgement.h"
 #include "engine/response/compliance_gram.h"
 #include "engine/response/generalization.h"
 #include "engine/response/linearized_response.h"
@@ -204,7 +205,9 @@ TEST(PencilExtremes, SoftModesAreTheSmallestGeneralisedEigenpairs) {
   ASSERT_EQ(modes.size(), 3u);
   EXPECT_EQ(modes[0].lambda, SmallestGeneralizedEigenvalue(kb, reference));
   for (std::size_t i = 0; i < modes.size(); ++i) {
-    if (i > 0) EXPECT_GE(modes[i].lambda, modes[i - 1].lambda);
+    if (i > 0) {
+      EXPECT_GE(modes[i].lambda, modes[i - 1].lambda);
+    }
     const Vector v = reference.Gather(modes[i].shape);
     const Vector residual = model.Multiply(v) - modes[i].lambda * reference.Multiply(v);
     EXPECT_LT(residual.norm(), 1e-6 * model.Multiply(v).norm()) << i;
@@ -546,6 +549,67 @@ TEST(ProbeFitStrategy, A3DMeshAboveTheDenseBoundIsFittedToProbes) {
       << g.model_held_out.median << " vs " << g.baseline_held_out.median;
   EXPECT_TRUE(std::isfinite(g.model_held_out.p95));
   EXPECT_LT(std::sqrt(r.evaluation.normalized_error), 0.5 * r.baseline->rms_error);
+}
+
+}  // namespace
+}  // namespace springfit::response
+
+namespace springfit::response {
+namespace {
+
+// The nonlinear judgement (amplitude_judgement.h) on the nonlinear kidney: at a thousandth of
+// the named loads' size every response is its rest-linear one, so the errors are the
+// certificate's rest-linear errors on the same probes; at their full size the springs and the
+// neo-Hookean reference leave that limit; the same numbers on one thread or two.
+TEST(AmplitudeJudgement, SmallLoadsGiveTheRestLinearErrorsAndFullOnesDiffer) {
+  const Problem problem(examples::Make("fem-kidney-2d-nl"));
+  ASSERT_EQ(problem.response(), Response::kNonlinear);
+  const SparseMatrix k = ReferenceRestStiffness(problem);
+  const ProbeBank bank = MakeProbeBank(problem, k, ProbeOptions{});
+  const std::vector<double> baseline = *fem::BaselineGeneWeights(problem);
+  std::vector<double> model = baseline;  // another model: every other spring twice as stiff
+  for (std::size_t g = 0; g < model.size(); g += 2) model[g] *= 2.0;
+  AmplitudeOptions options;
+  options.amplitudes = {1e-3, 1.0};
+  options.max_probes = 1000;  // every held-out probe and named case
+  const std::vector<AmplitudeErrors> judged = JudgeAtAmplitudes(
+      problem, bank, ModelOfWeights(problem, model), ModelOfWeights(problem, baseline), options);
+  ASSERT_EQ(judged.size(), 2u);
+
+  std::vector<bool> include(bank.probes.size());
+  for (std::size_t p = 0; p < bank.probes.size(); ++p)
+    include[p] =
+        bank.probes[p].role == ProbeRole::kHeldOut || bank.probes[p].family == ProbeFamily::kNamed;
+  const ErrorSummary linear_model =
+      Summarize(ProbeErrorsFor(bank, SpringRestStiffness(problem, model), include));
+  const ErrorSummary linear_baseline =
+      Summarize(ProbeErrorsFor(bank, SpringRestStiffness(problem, baseline), include));
+  const AmplitudeErrors& small = judged[0];
+  EXPECT_EQ(small.reference_failed, 0);
+  EXPECT_EQ(small.model.probes, linear_model.probes);
+  EXPECT_NEAR(small.model.median, linear_model.median, 1e-2 * linear_model.median);
+  EXPECT_NEAR(small.model.p95, linear_model.p95, 1e-2 * linear_model.p95);
+  EXPECT_NEAR(small.baseline.rms, linear_baseline.rms, 1e-2 * linear_baseline.rms);
+  const AmplitudeErrors& full = judged[1];
+  EXPECT_GT(std::abs(full.baseline.rms - small.baseline.rms), 1e-3 * small.baseline.rms);
+  EXPECT_EQ(full.model.probes + full.reference_failed, linear_model.probes);
+
+  WorkerPool pool(2);
+  const std::vector<AmplitudeErrors> threaded =
+      JudgeAtAmplitudes(problem, bank, ModelOfWeights(problem, model),
+                        ModelOfWeights(problem, baseline), options, nullptr, &pool);
+  EXPECT_EQ(threaded[1].model.rms, full.model.rms);
+  EXPECT_EQ(threaded[1].baseline.median, full.baseline.median);
+}
+
+// A linear response has nothing to add to the rest-linear certificate.
+TEST(AmplitudeJudgement, ALinearResponseIsNotJudgedAgain) {
+  const Problem problem(examples::Make("fem-kidney-2d"));
+  ASSERT_EQ(problem.response(), Response::kLinear);
+  const SparseMatrix k = ReferenceRestStiffness(problem);
+  const ProbeBank bank = MakeProbeBank(problem, k, ProbeOptions{});
+  const SpringModel baseline = ModelOfWeights(problem, *fem::BaselineGeneWeights(problem));
+  EXPECT_TRUE(JudgeAtAmplitudes(problem, bank, baseline, baseline).empty());
 }
 
 }  // namespace
