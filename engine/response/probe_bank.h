@@ -59,11 +59,11 @@ struct ProbeOptions {
   // The named cases' share of the fitted objective (the generated families share the rest
   // equally), in [0, 1).
   double named_weight = 0.25;
-  // The share of the soft-mode probes (family kMode), when the fit adds any. On the kidney, 0.1
-  // raised lambda_min from 0.068 to 0.19 and lowered the choosing error from 0.145 to 0.087;
-  // 0.2 and above raised the held-out errors by half (bench/RESULTS.md). In [0, 1), with
-  // named_weight + soft_mode_weight < 1.
-  double soft_mode_weight = 0.1;
+  // The share of the soft-mode probes (family kMode), when the fit adds any. On the kidney 0.01
+  // raised lambda_min from 0.068 to 0.128 with the held-out errors unchanged; 0.03 and above
+  // lifted it further (0.19) but raised the independent evaluator's pushed-node tail past half
+  // the baseline's (bench/RESULTS.md). In [0, 1), with named_weight + soft_mode_weight < 1.
+  double soft_mode_weight = 0.01;
   std::uint64_t seed = 1;
 
   // Throws std::invalid_argument naming the field, its value and the rule.

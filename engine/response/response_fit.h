@@ -72,8 +72,10 @@ struct ResponseFitOptions {
   // budget is not met). 0: none.
   int max_springs = 0;
   // Refits that add the loads along soft modes (step 5), at most (>= 0; 0: none); and the modes
-  // below min_lambda added per user support and refit, at most (>= 1).
-  int soft_mode_rounds = 2;
+  // below min_lambda added per user support and refit, at most (>= 1). Each refit is a whole
+  // fit: fem-block-3d's whole run takes 38 s with one instead of 20 (bench/RESULTS.md); with a
+  // larger mode share a second refit lowered the fine kidney's lambda_min again.
+  int soft_mode_rounds = 1;
   int soft_modes_per_round = 4;
   QuadraticNnlsOptions nnls;
   // Above this many genes the fit runs without a Gram matrix (matrix_free_fit.h): the dense
