@@ -440,6 +440,18 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
     lambdas.push_back(r.lambda_min);
   }
   for (std::size_t i = 1; i < path.size(); ++i) path[i].probes = mode_probes[i - 1];
+  // With a spring budget, the fits whose model is within it (and is a model) come first, as on
+  // the path.
+  if (options.max_springs > 0) {
+    bool any_within = false;
+    for (const auto& round : path)
+      any_within |= round.springs <= options.max_springs && round.select_error < kNoModel &&
+                    round.lambda_min > 0.0;
+    for (std::size_t i = 0; i < path.size() && any_within; ++i) {
+      if (path[i].springs > options.max_springs || !(path[i].lambda_min > 0.0))
+        errors[i] = kNoModel;
+    }
+  }
   const std::vector<double> score = PreferSupported(errors, lambdas, options);
   const auto chosen =
       static_cast<std::size_t>(std::min_element(score.begin(), score.end()) - score.begin());
