@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numeric>
+#include <optional>
 
 #include "engine/fit/stiffness_fit.h"
 #include "engine/options_check.h"
@@ -155,31 +157,42 @@ void ResponseFitOptions::Validate(const std::string& owner) const {
 
 namespace {
 
-// Steps 2 to 4 with a Gram matrix (the genes up to dense_max_genes).
-ResponseFitResult FitDense(const Problem& problem, const ProbeBank& bank,
-                           const SparseMatrix& reference_stiffness,
-                           const std::vector<double>& prior, const ResponseFitOptions& options,
-                           Interruption* interruption, const ResponseProgress& progress,
-                           WorkerPool* pool) {
-  const auto tell = [&](const char* phase, double error) {
-    if (progress) progress(phase, error);
-  };
-  Fit fit(problem, bank, reference_stiffness, prior, options, interruption, pool);
-  ResponseFitResult r;
+using Tell = std::function<void(const char* phase, double error)>;
 
-  // 2. The first-order fit, one per regularisation strength.
-  auto lap = std::chrono::steady_clock::now();
-  const auto seconds = [&lap] {
-    const auto now = std::chrono::steady_clock::now();
-    const double s = std::chrono::duration<double>(now - lap).count();
-    lap = now;
-    return s;
-  };
-  const Gram gram = fit.FirstOrderGram();
-  r.seconds_gram = seconds();
-  // Strongest first, each solve started from the previous one's solution (continuation: the
-  // strongly regularised problem is well conditioned, and each weaker one starts near its
-  // answer).
+// Among models (finite error, every support holding them) within the spring budget, the best,
+// preferring one that holds every mode when nearly as good; nothing without a budget or when
+// no model is within it.
+std::optional<std::size_t> BestWithinBudget(const std::vector<int>& springs,
+                                            const std::vector<double>& errors,
+                                            const std::vector<double>& lambdas,
+                                            const ResponseFitOptions& options) {
+  if (options.max_springs == 0) return std::nullopt;
+  std::vector<std::size_t> models;
+  std::vector<double> model_errors, model_lambdas;
+  for (std::size_t i = 0; i < springs.size(); ++i) {
+    if (springs[i] <= options.max_springs && lambdas[i] > 0.0 && errors[i] < kNoModel) {
+      models.push_back(i);
+      model_errors.push_back(errors[i]);
+      model_lambdas.push_back(lambdas[i]);
+    }
+  }
+  if (models.empty()) return std::nullopt;
+  const std::vector<double> score = PreferSupported(model_errors, model_lambdas, options);
+  return models[static_cast<std::size_t>(std::min_element(score.begin(), score.end()) -
+                                         score.begin())];
+}
+
+// Step 2: the first-order fit at every strength, strongest first, each solve started from the
+// previous one's solution (continuation: the strongly regularised problem is well conditioned,
+// and each weaker one starts near its answer). Records each strength's model in `r` and sets
+// r.regularization to the chosen one; returns its solution (scaled variables) and choosing
+// error.
+struct PathStart {
+  Vector x;
+  double error = kNoModel;
+};
+PathStart FirstOrderFits(const Fit& fit, const Gram& gram, const ResponseFitOptions& options,
+                         Interruption* interruption, const Tell& tell, ResponseFitResult& r) {
   std::vector<std::size_t> order(options.regularizations.size());
   std::iota(order.begin(), order.end(), 0);
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
@@ -190,7 +203,7 @@ ResponseFitResult FitDense(const Problem& problem, const ProbeBank& bank,
   r.regularization_lambda_min.assign(r.regularizations.size(), 0.0);
   Vector previous = fit.prior_scaled();
   std::vector<Vector> solutions(r.regularizations.size());
-  const auto solve = [&](std::size_t i) {
+  for (std::size_t i : order) {
     const ScaledQuadratic q =
         Scaled(gram, fit.scale(), r.regularizations[i], fit.prior_scaled(), fit.scale().size());
     const QuadraticNnlsResult solved =
@@ -201,34 +214,95 @@ ResponseFitResult FitDense(const Problem& problem, const ProbeBank& bank,
     r.regularization_lambda_min[i] = fit.LambdaMin(weights);
     tell("probe_fit", *std::min_element(r.regularization_select_errors.begin(),
                                         r.regularization_select_errors.end()));
-  };
-  for (std::size_t i : order) solve(i);
+  }
   // The lowest choosing error, preferring models that support every mode (the weaker strength
   // on a tie within 0.1%).
-  const std::vector<double> strength_score =
+  const std::vector<double> score =
       PreferSupported(r.regularization_select_errors, r.regularization_lambda_min, options);
   double best = kNoModel;
   Vector best_x;
   for (std::size_t i : order) {
-    const double error = strength_score[i];
-    if (error <= best * (1.0 + 1e-3)) {
-      best = std::min(best, error);
+    if (score[i] <= best * (1.0 + 1e-3)) {
+      best = std::min(best, score[i]);
       r.regularization = r.regularizations[i];
       best_x = solutions[i];
     }
   }
   if (best_x.size() == 0) best_x = fit.prior_scaled();  // (every model a mechanism)
-  r.seconds_first_order = seconds();
+  return {best_x, best};
+}
 
-  // 3. The sparsity path.
-  const ScaledQuadratic q =
-      Scaled(gram, fit.scale(), r.regularization, fit.prior_scaled(), fit.scale().size());
+// One point of the sparsity path removed: the least salient springs of `x` out (saliency
+// 1/2 x_e^2 A_ee), the rest refitted; a removal that raises the choosing error by more than
+// max_error_growth is retried with half as many springs (the saliencies ignore how springs
+// stand in for each other). Returns the next point's weights and sets `error` to its choosing
+// error; nothing when no spring is left to remove.
+std::optional<std::vector<double>> PrunePoint(const Fit& fit, const ScaledQuadratic& q,
+                                              const Vector& x, const ResponseFitOptions& options,
+                                              Interruption* interruption, double& error) {
+  std::vector<std::pair<double, int>> saliency;
+  for (int e = 0; e < x.size(); ++e)
+    if (x[e] > 0.0) saliency.emplace_back(0.5 * x[e] * x[e] * q.A(e, e), e);
+  const auto remove = static_cast<std::size_t>(
+      std::ceil(options.prune_fraction * static_cast<double>(saliency.size())));
+  if (saliency.size() <= 1 || remove == 0) return std::nullopt;
+  std::sort(saliency.begin(), saliency.end());
+  const double before = error;
+  std::size_t count = remove;
+  for (int attempt = 0;; ++attempt) {
+    std::vector<bool> fixed(static_cast<std::size_t>(x.size()));
+    for (int e = 0; e < x.size(); ++e) fixed[static_cast<std::size_t>(e)] = !(x[e] > 0.0);
+    for (std::size_t i = 0; i < count; ++i)
+      fixed[static_cast<std::size_t>(saliency[i].second)] = true;
+    const QuadraticNnlsResult solved =
+        SolveQuadraticNnls(q.A, q.b, x, fixed, options.nnls, interruption);
+    std::vector<double> trial = fit.Weights(solved.x);
+    error = fit.SelectError(trial);
+    if (error <= options.max_error_growth * before || attempt >= options.max_retries || count == 1)
+      return trial;
+    count = std::max<std::size_t>(1, count / 2);
+  }
+}
+
+// The path's returned point: within a spring budget the best model within it; else (or when
+// none is) the fewest springs within the tolerance of the best choosing error. Points that
+// leave a mode soft are passed over for one that does not, nearly as good.
+int ChoosePathPoint(const std::vector<ResponseFitResult::Point>& path,
+                    const ResponseFitOptions& options) {
+  std::vector<int> springs;
+  std::vector<double> errors, lambdas;
+  for (const auto& p : path) {
+    springs.push_back(p.springs);
+    errors.push_back(p.select_error);
+    lambdas.push_back(p.lambda_min);
+  }
+  // (Within a budget when no point is a model that meets it: the choice without a budget, and
+  // the verdict says the budget was not met, engine/identification/verdict.h, rather than
+  // returning a mechanism that meets it.)
+  if (const auto within = BestWithinBudget(springs, errors, lambdas, options))
+    return static_cast<int>(*within);
+  const std::vector<double> score = PreferSupported(errors, lambdas, options);
+  const double best = *std::min_element(score.begin(), score.end());
+  int chosen = 0;
+  for (std::size_t i = 0; i < path.size(); ++i) {
+    if (score[i] <= (1.0 + options.tolerance) * best &&
+        path[i].springs <= path[static_cast<std::size_t>(chosen)].springs)
+      chosen = static_cast<int>(i);
+  }
+  return chosen;
+}
+
+// Step 3: the sparsity path from `x` (choosing error `error`) down, until the choosing error
+// passes stop_error_factor times its best (below the budget, when there is one); fills r.path,
+// r.chosen and the chosen point's errors, and returns its weights.
+std::vector<double> SparsityPath(const Fit& fit, const ScaledQuadratic& q, const Vector& x,
+                                 double error, const ResponseFitOptions& options,
+                                 Interruption* interruption, const Tell& tell,
+                                 ResponseFitResult& r) {
   std::vector<std::vector<double>> point_weights;
-  std::vector<double> weights = fit.Weights(best_x);
+  std::vector<double> weights = fit.Weights(x);
   double best_on_path = kNoModel;
-  double trial_error = best;
   for (int point = 0; point < options.max_path_points; ++point) {
-    const double error = point == 0 ? best : trial_error;
     r.path.push_back({PresentSprings(weights), error, fit.LambdaMin(weights)});
     point_weights.push_back(weights);
     best_on_path = std::min(best_on_path, error);
@@ -236,83 +310,26 @@ ResponseFitResult FitDense(const Problem& problem, const ProbeBank& bank,
     const bool within_budget =
         options.max_springs == 0 || r.path.back().springs <= options.max_springs;
     if (within_budget && error > options.stop_error_factor * best_on_path) break;
-    const Vector x = fit.Scaled(weights);
-    std::vector<std::pair<double, int>> saliency;
-    for (int e = 0; e < x.size(); ++e)
-      if (x[e] > 0.0) saliency.emplace_back(0.5 * x[e] * x[e] * q.A(e, e), e);
-    const auto remove = static_cast<std::size_t>(
-        std::ceil(options.prune_fraction * static_cast<double>(saliency.size())));
-    if (saliency.size() <= 1 || remove == 0) break;
-    std::sort(saliency.begin(), saliency.end());
-    // A removal that raises the choosing error by more than max_error_growth is retried with
-    // half as many springs (the saliencies ignore how springs stand in for each other).
-    std::size_t count = remove;
-    for (int attempt = 0;; ++attempt) {
-      std::vector<bool> fixed(static_cast<std::size_t>(x.size()));
-      for (int e = 0; e < x.size(); ++e) fixed[static_cast<std::size_t>(e)] = !(x[e] > 0.0);
-      for (std::size_t i = 0; i < count; ++i)
-        fixed[static_cast<std::size_t>(saliency[i].second)] = true;
-      const QuadraticNnlsResult solved =
-          SolveQuadraticNnls(q.A, q.b, x, fixed, options.nnls, interruption);
-      std::vector<double> trial = fit.Weights(solved.x);
-      trial_error = fit.SelectError(trial);
-      if (trial_error <= options.max_error_growth * error || attempt >= options.max_retries ||
-          count == 1) {
-        weights = std::move(trial);
-        break;
-      }
-      count = std::max<std::size_t>(1, count / 2);
-    }
+    std::optional<std::vector<double>> next =
+        PrunePoint(fit, q, fit.Scaled(weights), options, interruption, error);
+    if (!next) break;
+    weights = std::move(*next);
   }
-  // The fewest springs within the tolerance of the best; with a budget, the best within it.
-  // Points that leave a mode soft are passed over for one that does not, nearly as good.
-  std::vector<double> path_errors, path_lambdas;
-  for (const auto& p : r.path) {
-    path_errors.push_back(p.select_error);
-    path_lambdas.push_back(p.lambda_min);
-  }
-  const std::vector<double> score = PreferSupported(path_errors, path_lambdas, options);
-  best_on_path = *std::min_element(score.begin(), score.end());
-  r.chosen = 0;
-  // Within a budget: the best point that is a model (a finite choosing error, every mode held);
-  // when none is, the choice without a budget, and the verdict says the budget was not met
-  // (engine/identification/verdict.h) rather than returning a mechanism that meets it.
-  // (Among those points alone a supported one is preferred when nearly as good.)
-  int within = -1;
-  if (options.max_springs > 0) {
-    std::vector<int> models;
-    std::vector<double> errors, lambdas;
-    for (std::size_t i = 0; i < r.path.size(); ++i) {
-      if (r.path[i].springs <= options.max_springs && r.path[i].lambda_min > 0.0 &&
-          r.path[i].select_error < kNoModel) {
-        models.push_back(static_cast<int>(i));
-        errors.push_back(r.path[i].select_error);
-        lambdas.push_back(r.path[i].lambda_min);
-      }
-    }
-    if (!models.empty()) {
-      const std::vector<double> within_score = PreferSupported(errors, lambdas, options);
-      within = models[static_cast<std::size_t>(
-          std::min_element(within_score.begin(), within_score.end()) - within_score.begin())];
-    }
-  }
-  if (within >= 0) {
-    r.chosen = within;
-  } else {
-    for (std::size_t i = 0; i < r.path.size(); ++i) {
-      if (score[i] <= (1.0 + options.tolerance) * best_on_path &&
-          r.path[i].springs <= r.path[static_cast<std::size_t>(r.chosen)].springs)
-        r.chosen = static_cast<int>(i);
-    }
-  }
-  weights = point_weights[static_cast<std::size_t>(r.chosen)];
-  r.select_error = r.path[static_cast<std::size_t>(r.chosen)].select_error;
-  r.lambda_min = r.path[static_cast<std::size_t>(r.chosen)].lambda_min;
+  r.chosen = ChoosePathPoint(r.path, options);
+  const ResponseFitResult::Point& chosen = r.path[static_cast<std::size_t>(r.chosen)];
+  r.select_error = chosen.select_error;
+  r.lambda_min = chosen.lambda_min;
+  return point_weights[static_cast<std::size_t>(r.chosen)];
+}
 
-  r.seconds_path = seconds();
-
-  // 4. Gauss-Newton on the exact error, over the chosen springs only (its Gram matrix on them
-  // alone: a fraction of the first-order one).
+// Step 4: Gauss-Newton on the exact error over the springs of `weights` only (its Gram matrix
+// on them alone: a fraction of the first-order one). Each step is kept when it lowers the
+// fitted objective; the iterate returned is the one that does best on the choosing probes
+// (early stopping), among those that support every mode when the start does. The steps end
+// after three without a better choosing error. Sets r.weights and the returned iterate's
+// errors.
+void GaussNewton(Fit& fit, std::vector<double> weights, const ResponseFitOptions& options,
+                 Interruption* interruption, const Tell& tell, ResponseFitResult& r) {
   std::vector<int> present;
   for (std::size_t g = 0; g < weights.size(); ++g)
     if (weights[g] > 0.0) present.push_back(static_cast<int>(g));
@@ -325,9 +342,6 @@ ResponseFitResult FitDense(const Problem& problem, const ProbeBank& bank,
   };
   const Vector kept_scale = on_kept(fit.scale());
   const Vector kept_prior = on_kept(fit.prior_scaled());
-  // Each step is kept when it lowers the fitted objective; the iterate returned is the one that
-  // does best on the choosing probes (early stopping), among those that support every mode
-  // when the start does. The steps end after three without a better choosing error.
   double objective = fit.Objective(weights, r.regularization);
   std::vector<std::vector<double>> iterates{weights};
   std::vector<double> iterate_errors{r.select_error}, iterate_lambdas{r.lambda_min};
@@ -365,15 +379,44 @@ ResponseFitResult FitDense(const Problem& problem, const ProbeBank& bank,
     tell("probe_refine", *std::min_element(iterate_errors.begin(), iterate_errors.end()));
     if (!accepted) break;
   }
-  const std::vector<double> iterate_score =
-      PreferSupported(iterate_errors, iterate_lambdas, options);
-  const auto returned = static_cast<std::size_t>(
-      std::min_element(iterate_score.begin(), iterate_score.end()) - iterate_score.begin());
+  const std::vector<double> score = PreferSupported(iterate_errors, iterate_lambdas, options);
+  const auto returned =
+      static_cast<std::size_t>(std::min_element(score.begin(), score.end()) - score.begin());
   r.gauss_newton_accepted = static_cast<int>(returned);
   r.select_error = iterate_errors[returned];
   r.lambda_min = iterate_lambdas[returned];
-  r.seconds_refine = seconds();
   r.weights = iterates[returned];
+}
+
+// Steps 2 to 4 with a Gram matrix (the genes up to dense_max_genes).
+ResponseFitResult FitDense(const Problem& problem, const ProbeBank& bank,
+                           const SparseMatrix& reference_stiffness,
+                           const std::vector<double>& prior, const ResponseFitOptions& options,
+                           Interruption* interruption, const ResponseProgress& progress,
+                           WorkerPool* pool) {
+  const Tell tell = [&](const char* phase, double error) {
+    if (progress) progress(phase, error);
+  };
+  Fit fit(problem, bank, reference_stiffness, prior, options, interruption, pool);
+  ResponseFitResult r;
+  auto lap = std::chrono::steady_clock::now();
+  const auto seconds = [&lap] {
+    const auto now = std::chrono::steady_clock::now();
+    const double s = std::chrono::duration<double>(now - lap).count();
+    lap = now;
+    return s;
+  };
+  const Gram gram = fit.FirstOrderGram();
+  r.seconds_gram = seconds();
+  const PathStart start = FirstOrderFits(fit, gram, options, interruption, tell, r);
+  r.seconds_first_order = seconds();
+  const ScaledQuadratic q =
+      Scaled(gram, fit.scale(), r.regularization, fit.prior_scaled(), fit.scale().size());
+  const std::vector<double> chosen =
+      SparsityPath(fit, q, start.x, start.error, options, interruption, tell, r);
+  r.seconds_path = seconds();
+  GaussNewton(fit, chosen, options, interruption, tell, r);
+  r.seconds_refine = seconds();
   return r;
 }
 
@@ -440,21 +483,16 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
     lambdas.push_back(r.lambda_min);
   }
   for (std::size_t i = 1; i < path.size(); ++i) path[i].probes = mode_probes[i - 1];
-  // With a spring budget, the fits whose model is within it (and is a model) come first, as on
-  // the path.
-  if (options.max_springs > 0) {
-    bool any_within = false;
-    for (const auto& round : path)
-      any_within |= round.springs <= options.max_springs && round.select_error < kNoModel &&
-                    round.lambda_min > 0.0;
-    for (std::size_t i = 0; i < path.size() && any_within; ++i) {
-      if (path[i].springs > options.max_springs || !(path[i].lambda_min > 0.0))
-        errors[i] = kNoModel;
-    }
+  // With a spring budget, the best fit whose model is within it, as on the path.
+  std::vector<int> springs;
+  for (const auto& round : path) springs.push_back(round.springs);
+  std::size_t chosen = 0;
+  if (const auto within = BestWithinBudget(springs, errors, lambdas, options)) {
+    chosen = *within;
+  } else {
+    const std::vector<double> score = PreferSupported(errors, lambdas, options);
+    chosen = static_cast<std::size_t>(std::min_element(score.begin(), score.end()) - score.begin());
   }
-  const std::vector<double> score = PreferSupported(errors, lambdas, options);
-  const auto chosen =
-      static_cast<std::size_t>(std::min_element(score.begin(), score.end()) - score.begin());
   ResponseFitResult r = std::move(rounds[chosen]);
   r.soft_mode_rounds = std::move(path);
   r.soft_mode_chosen = static_cast<int>(chosen);
