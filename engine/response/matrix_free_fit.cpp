@@ -56,7 +56,7 @@ ResponseFitResult FitResponseMatrixFree(const Problem& problem, const ProbeBank&
   const auto seconds = [&started] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   };
-  const ProbeObjective objective(problem, bank, reference_stiffness, prior, options);
+  const ProbeObjective objective(problem, bank, reference_stiffness, prior, options, interruption);
   const GeneSprings springs = GeneSpringsOf(problem);
   const double genes = static_cast<double>(problem.gene_count());
   ResponseFitResult r;

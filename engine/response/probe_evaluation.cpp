@@ -31,7 +31,7 @@ struct PencilLanczos {
   Matrix t;
 };
 PencilLanczos RunPencilLanczos(const SupportSystem& a, const SupportSystem& b, int iterations,
-                               std::uint64_t seed) {
+                               std::uint64_t seed, Interruption* interruption = nullptr) {
   const int n = a.free_dofs();
   RandomStream random(seed);
   Vector q(n);
@@ -45,6 +45,7 @@ PencilLanczos RunPencilLanczos(const SupportSystem& a, const SupportSystem& b, i
   q /= norm;
   bq /= norm;
   for (int j = 0; j < steps; ++j) {
+    if (interruption && interruption->Check()) throw Interrupted();
     l.basis.push_back(q);
     b_basis.push_back(bq);
     const Vector aq = a.Multiply(q);
@@ -71,8 +72,8 @@ PencilLanczos RunPencilLanczos(const SupportSystem& a, const SupportSystem& b, i
 
 // The largest eigenvalue of B^-1 A.
 double LargestPencilEigenvalue(const SupportSystem& a, const SupportSystem& b, int iterations,
-                               std::uint64_t seed) {
-  const PencilLanczos l = RunPencilLanczos(a, b, iterations, seed);
+                               std::uint64_t seed, Interruption* interruption = nullptr) {
+  const PencilLanczos l = RunPencilLanczos(a, b, iterations, seed, interruption);
   Eigen::SelfAdjointEigenSolver<Matrix> eig(l.t, Eigen::EigenvaluesOnly);
   return eig.eigenvalues().maxCoeff();
 }
@@ -80,7 +81,10 @@ double LargestPencilEigenvalue(const SupportSystem& a, const SupportSystem& b, i
 }  // namespace
 
 std::vector<double> ProbeErrorsFor(const ProbeBank& bank, const SparseMatrix& model,
-                                   const std::vector<bool>& include) {
+                                   const std::vector<bool>& include, Interruption* interruption) {
+  const auto check = [interruption] {
+    if (interruption && interruption->Check()) throw Interrupted();
+  };
   std::vector<double> errors(bank.probes.size(), kNaN);
   const int d = bank.probes.empty() ? 2
                                     : static_cast<int>(bank.probes[0].force.size()) /
@@ -90,11 +94,14 @@ std::vector<double> ProbeErrorsFor(const ProbeBank& bank, const SparseMatrix& mo
     for (std::size_t p = 0; p < bank.probes.size(); ++p)
       any |= include[p] && bank.probes[p].support == static_cast<int>(s);
     if (!any) continue;
+    check();
     SupportSystem system(d, bank.supports[s].constrained);
     const bool held = system.Factorize(model);
+    int solved = 0;
     for (std::size_t p = 0; p < bank.probes.size(); ++p) {
       const Probe& probe = bank.probes[p];
       if (!include[p] || probe.support != static_cast<int>(s)) continue;
+      if (++solved % 16 == 0) check();
       if (!held) {
         errors[p] = kInf;
         continue;
@@ -150,19 +157,20 @@ double PencilExtremes::Bound() const {
 }
 
 double SmallestGeneralizedEigenvalue(const SparseMatrix& model, const SupportSystem& reference,
-                                     int iterations) {
+                                     int iterations, Interruption* interruption) {
   SupportSystem m(reference.dimension(), reference.constrained());
   if (!m.Factorize(model)) return 0.0;
-  return 1.0 / LargestPencilEigenvalue(reference, m, iterations, 2);
+  return 1.0 / LargestPencilEigenvalue(reference, m, iterations, 2, interruption);
 }
 
 std::vector<SoftMode> SoftModes(const SparseMatrix& model, const SupportSystem& reference,
-                                double below, int count, int iterations) {
+                                double below, int count, int iterations,
+                                Interruption* interruption) {
   SupportSystem m(reference.dimension(), reference.constrained());
   if (!m.Factorize(model)) return {};
   // The largest eigenvalues of K_model^-1 K_ref are the smallest of the pencil, inverted; the
   // same Lanczos run as SmallestGeneralizedEigenvalue's (seed 2), so the first is its value.
-  const PencilLanczos l = RunPencilLanczos(reference, m, iterations, 2);
+  const PencilLanczos l = RunPencilLanczos(reference, m, iterations, 2, interruption);
   const Eigen::SelfAdjointEigenSolver<Matrix> eig(l.t);
   const Vector none = Vector::Zero(static_cast<Eigen::Index>(
       reference.constrained().size() * static_cast<std::size_t>(reference.dimension())));

@@ -15,14 +15,18 @@
 #include <limits>
 #include <vector>
 
+#include "engine/interruption.h"
 #include "engine/response/probe_bank.h"
 #include "engine/response/support_system.h"
 
 namespace springfit::response {
 
-// Per probe of the bank, E_p where `include[p]` (NaN for the others).
+// Per probe of the bank, E_p where `include[p]` (NaN for the others). `interruption`, when set,
+// is checked before each support's factorisation and every 16 probes' solves; it throws
+// Interrupted when a stop is requested.
 std::vector<double> ProbeErrorsFor(const ProbeBank& bank, const SparseMatrix& model,
-                                   const std::vector<bool>& include);
+                                   const std::vector<bool>& include,
+                                   Interruption* interruption = nullptr);
 
 struct ErrorSummary {
   int probes = 0;
@@ -51,8 +55,9 @@ struct PencilExtremes {
 };
 // The smallest generalised eigenvalue of (model, reference) on `reference`'s support, whose
 // factorisation it uses: 0 when the model is not held there.
+// `interruption`, when set, is checked at every Lanczos iteration (one solve).
 double SmallestGeneralizedEigenvalue(const SparseMatrix& model, const SupportSystem& reference,
-                                     int iterations = 80);
+                                     int iterations = 80, Interruption* interruption = nullptr);
 // The displacements the model resists least against the reference on `reference`'s support:
 // generalised eigenvectors of (model, reference), as Lanczos' Ritz vectors, smallest eigenvalue
 // first, at most `count`, those with eigenvalue below `below`. Under the load K_ref v the
@@ -62,7 +67,8 @@ struct SoftMode {
   Vector shape;  // flat d*n, 0 on the support's nodes
 };
 std::vector<SoftMode> SoftModes(const SparseMatrix& model, const SupportSystem& reference,
-                                double below, int count, int iterations = 80);
+                                double below, int count, int iterations = 80,
+                                Interruption* interruption = nullptr);
 // By Lanczos iterations (full reorthogonalisation, at most `iterations`, seeded) in the
 // reference's energy inner product, on the free degrees of freedom of `constrained`.
 PencilExtremes GeneralizedEigenvalueExtremes(const SparseMatrix& model,

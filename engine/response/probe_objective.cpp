@@ -61,10 +61,12 @@ std::vector<double> PreferSupported(const std::vector<double>& errors,
 
 ProbeObjective::ProbeObjective(const Problem& problem, const ProbeBank& bank,
                                const SparseMatrix& reference_stiffness,
-                               const std::vector<double>& prior, const ResponseFitOptions& options)
+                               const std::vector<double>& prior, const ResponseFitOptions& options,
+                               Interruption* interruption)
     : problem_(problem),
       bank_(bank),
       options_(options),
+      interruption_(interruption),
       weight_(FitWeights(bank, options.probes)),
       fit_(RoleMask(bank, ProbeRole::kFit)),
       select_(RoleMask(bank, ProbeRole::kSelect)) {
@@ -103,7 +105,8 @@ double ProbeObjective::Regularization(const std::vector<double>& weights,
 }
 
 double ProbeObjective::Objective(const std::vector<double>& weights, double regularization) const {
-  const std::vector<double> e = ProbeErrorsFor(bank_, SpringRestStiffness(problem_, weights), fit_);
+  const std::vector<double> e =
+      ProbeErrorsFor(bank_, SpringRestStiffness(problem_, weights), fit_, interruption_);
   double f = 0.0;
   for (std::size_t p = 0; p < e.size(); ++p)
     if (weight_[p] > 0.0) f += weight_[p] * bank_.probes[p].reference_norm2 * e[p] * e[p];
@@ -116,15 +119,16 @@ double ProbeObjective::LambdaMin(const std::vector<double>& weights) const {
   double smallest = std::numeric_limits<double>::infinity();
   for (std::size_t s = 0; s < bank_.supports.size(); ++s) {
     if (!bank_.supports[s].user) continue;
-    smallest = std::min(smallest, SmallestGeneralizedEigenvalue(k, reference_[s]));
+    smallest =
+        std::min(smallest, SmallestGeneralizedEigenvalue(k, reference_[s], 80, interruption_));
   }
   return std::isfinite(smallest) ? smallest : 0.0;
 }
 
 double ProbeObjective::SelectError(const std::vector<double>& weights) const {
   if (PresentSprings(weights) == 0) return std::numeric_limits<double>::infinity();
-  return FamilyBalancedRms(bank_,
-                           ProbeErrorsFor(bank_, SpringRestStiffness(problem_, weights), select_));
+  return FamilyBalancedRms(
+      bank_, ProbeErrorsFor(bank_, SpringRestStiffness(problem_, weights), select_, interruption_));
 }
 
 std::vector<double> ProbeObjective::Weights(const Vector& x) const {

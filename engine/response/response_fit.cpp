@@ -43,7 +43,7 @@ class Fit : public ProbeObjective {
   Fit(const Problem& problem, const ProbeBank& bank, const SparseMatrix& reference_stiffness,
       const std::vector<double>& prior, const ResponseFitOptions& options,
       Interruption* interruption, WorkerPool* pool)
-      : ProbeObjective(problem, bank, reference_stiffness, prior, options),
+      : ProbeObjective(problem, bank, reference_stiffness, prior, options, interruption),
         pool_(pool),
         interruption_(interruption),
         springs_(GeneSpringsOf(problem)) {}
@@ -459,8 +459,8 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
       const SparseMatrix model = SpringRestStiffness(problem, rounds.back().weights);
       int added = 0;
       for (const auto& [s, reference] : user) {
-        for (const SoftMode& mode :
-             SoftModes(model, reference, options.min_lambda, options.soft_modes_per_round)) {
+        for (const SoftMode& mode : SoftModes(model, reference, options.min_lambda,
+                                              options.soft_modes_per_round, 80, interruption)) {
           AddSoftModeProbe(augmented, s, mode.shape, reference_stiffness, d);
           ++added;
         }
