@@ -90,12 +90,21 @@ int Main(int argc, char** argv) {
     const auto t2 = Clock::now();
     const response::ResponseFitResult fit =
         response::FitResponse(problem, bank, k_ref, prior, options, nullptr, {}, pool.get());
-    std::printf(
-        "  fit: %.2f s (gram %.2f s, first-order fits %.2f s, path %.2f s, Gauss-Newton %.2f s), "
-        "%d springs, regularisation %g, %d GN steps\n",
-        Seconds(t2), fit.seconds_gram, fit.seconds_first_order, fit.seconds_path,
-        fit.seconds_refine, PresentSprings(fit.weights), fit.regularization,
-        fit.gauss_newton_accepted);
+    // (The returned fit's phases: after a soft-mode refit, the refit's.)
+    if (fit.method == "matrix-free") {
+      std::printf(
+          "  fit: %.2f s (Gauss-Newton continuation %.2f s, spring budget %.2f s), %d springs, "
+          "regularisation %g, %d GN steps\n",
+          Seconds(t2), fit.seconds_first_order, fit.seconds_path, PresentSprings(fit.weights),
+          fit.regularization, fit.gauss_newton_accepted);
+    } else {
+      std::printf(
+          "  fit: %.2f s (gram %.2f s, first-order fits %.2f s, path %.2f s, Gauss-Newton %.2f "
+          "s), %d springs, regularisation %g, %d GN steps\n",
+          Seconds(t2), fit.seconds_gram, fit.seconds_first_order, fit.seconds_path,
+          fit.seconds_refine, PresentSprings(fit.weights), fit.regularization,
+          fit.gauss_newton_accepted);
+    }
     std::printf("    %s fit, strengths:", fit.method.c_str());
     for (std::size_t i = 0; i < fit.regularizations.size(); ++i)
       std::printf(" %g:%.3g (lambda %.3g)", fit.regularizations[i],

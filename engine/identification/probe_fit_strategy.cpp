@@ -97,6 +97,155 @@ std::optional<response::Generalization> CertifyOnProbes(const Problem& problem,
   return g;
 }
 
+namespace {
+
+// The start and prior of a probe fit, and the baseline its model is judged beside: the
+// closed-form baseline where it is a model of the candidates (an FEM reference), else the
+// training stiffness on every candidate.
+struct ProbeFitBaseline {
+  std::optional<std::vector<double>> on_genes;
+  std::vector<double> start;
+  response::SparseMatrix stiffness;
+  response::SpringModel springs;
+};
+
+ProbeFitBaseline BaselineOf(const Problem& problem) {
+  ProbeFitBaseline b;
+  if (problem.scene().reference.kind == Reference::Kind::kFem)
+    b.on_genes = fem::BaselineGeneWeights(problem);
+  b.start = b.on_genes ? *b.on_genes
+                       : std::vector<double>(static_cast<std::size_t>(problem.gene_count()),
+                                             problem.training_stiffness());
+  b.stiffness = BaselineStiffness(problem, b.on_genes, b.start);
+  b.springs = BaselineSprings(problem, b.on_genes, b.start);
+  return b;
+}
+
+response::ResponseFitOptions FitOptionsOf(const SearchOptions& options) {
+  response::ResponseFitOptions o;
+  o.probes = ProbeOptionsOf(options);
+  o.max_springs = options.max_springs;
+  // A strength set by the user is the one used; none (0) or auto: chosen on the choosing probes.
+  if (!options.choose_regularization && options.regularization > 0.0)
+    o.regularizations = {options.regularization};
+  return o;
+}
+
+// The model a probe fit returns, and its certificate.
+struct ProbeFitModel {
+  std::vector<double> weights;
+  response::Generalization certificate;
+  bool stopped = false;  // during the fit: the start, judged
+  // When the baseline is returned: the fitted model's held-out errors it was refused on.
+  response::ErrorSummary fitted_held_out;
+};
+
+// The fit, certified on the held-out probes; stopped, the start certified instead.
+ProbeFitModel FitAndCertify(const Problem& problem, const response::ProbeBank& bank,
+                            const response::SparseMatrix& reference_stiffness,
+                            const ProbeFitBaseline& baseline,
+                            const response::ResponseFitOptions& fit_options, RunMonitor& monitor,
+                            const response::ResponseProgress& progress, WorkerPool* pool) {
+  ProbeFitModel m;
+  m.weights = baseline.start;
+  try {
+    response::ResponseFitResult fit =
+        response::FitResponse(problem, bank, reference_stiffness, baseline.start, fit_options,
+                              &monitor.interruption(), progress, pool);
+    m.weights = fit.weights;
+    m.certificate =
+        response::Certify(problem, bank, reference_stiffness, m.weights, baseline.stiffness);
+    m.certificate.fitted_to_probes = true;
+    m.certificate.fit = std::move(fit);
+  } catch (const Interrupted&) {
+    m.stopped = true;
+    m.certificate =
+        response::Certify(problem, bank, reference_stiffness, m.weights, baseline.stiffness);
+  }
+  m.certificate.named_weight = fit_options.probes.named_weight;
+  return m;
+}
+
+// The baseline guarantee on unseen loads: a model whose held-out E is not below the
+// baseline's gives way to it (within the spring budget, when there is one).
+void KeepBaselineGuarantee(const Problem& problem, const SearchOptions& options,
+                           const response::ProbeBank& bank,
+                           const response::SparseMatrix& reference_stiffness,
+                           const ProbeFitBaseline& baseline, ProbeFitModel& m) {
+  const bool within_budget =
+      baseline.on_genes &&
+      (options.max_springs == 0 || PresentSprings(*baseline.on_genes) <= options.max_springs);
+  if (m.stopped || !within_budget ||
+      m.certificate.model_held_out.rms < m.certificate.baseline_held_out.rms)
+    return;
+  m.weights = *baseline.on_genes;
+  m.fitted_held_out = m.certificate.model_held_out;
+  response::Generalization judged =
+      response::Certify(problem, bank, reference_stiffness, m.weights, baseline.stiffness);
+  judged.fitted_to_probes = m.certificate.fitted_to_probes;
+  judged.fit = std::move(m.certificate.fit);
+  judged.named_weight = m.certificate.named_weight;
+  judged.returned_baseline = true;
+  m.certificate = std::move(judged);
+}
+
+// The stop message: the model's springs, probes and errors, or why the baseline was returned.
+std::string ProbeFitMessage(const IdentificationResult& r, const ProbeFitModel& m) {
+  const response::Generalization& c = m.certificate;
+  char message[512];
+  if (c.returned_baseline) {
+    std::snprintf(message, sizeof message,
+                  "the closed-form baseline (%d springs): the fitted model's held-out E (RMS over "
+                  "%d probes) %.3g was not below the baseline's %.3g",
+                  PresentSprings(m.weights), c.held_out, m.fitted_held_out.rms,
+                  c.baseline_held_out.rms);
+  } else {
+    const char* stopped = r.stop == StopReason::kTimeLimit ? "time limit reached; the best so far: "
+                          : r.stop == StopReason::kCancelled
+                              ? "stopped on request; the best so far: "
+                              : "";
+    std::snprintf(message, sizeof message,
+                  "%s%d springs fitted to %d probe loads on %d supports; held-out probes: "
+                  "median E %.3g (baseline %.3g); named cases E %.3g",
+                  stopped, PresentSprings(m.weights), c.fitted, c.supports, c.model_held_out.median,
+                  c.baseline_held_out.median, std::sqrt(r.evaluation.normalized_error));
+  }
+  return message;
+}
+
+}  // namespace
+
+namespace {
+
+// The model as the run's genome and stiffness, and its one trace row; false when the caller's
+// on_iteration asks to stop.
+bool RecordModel(const Problem& problem, const std::vector<double>& weights, double wall_seconds,
+                 const RunContext& context, RunMonitor& monitor, IdentificationResult& r) {
+  const int genes = problem.gene_count();
+  r.best.assign(static_cast<std::size_t>(genes), 0);
+  for (int g = 0; g < genes; ++g) {
+    if (weights[static_cast<std::size_t>(g)] > 0.0) {
+      r.best[static_cast<std::size_t>(g)] = 1;
+      r.stiffness.push_back(weights[static_cast<std::size_t>(g)]);
+    }
+  }
+  TraceRow row;
+  row.generation = static_cast<int>(r.trace.size());
+  row.wall_seconds = wall_seconds;
+  row.best_normalized_error = r.evaluation.normalized_error;
+  row.best_cost = r.evaluation.cost;
+  row.mean_cost = row.best_cost;
+  r.trace.push_back(row);
+  monitor.Reported();
+  if (!context.on_iteration) return true;
+  IterationState state;
+  state.finished = true;
+  state.best = &r.best;
+  return context.on_iteration(row, state);
+}
+
+}  // namespace
+
 IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& options,
                                  const RunContext& context, RunMonitor& monitor) {
   using Clock = std::chrono::steady_clock;
@@ -107,87 +256,40 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   IdentificationResult r;
   r.options = options;
   r.trace = context.trace;
-  const int genes = problem.gene_count();
-
-  // The start and prior: the closed-form baseline where it is a model of the candidates.
+  const ProbeFitBaseline baseline = BaselineOf(problem);
   IdentificationResult::Continuous details;
-  std::optional<std::vector<double>> baseline_weights;
-  if (problem.scene().reference.kind == Reference::Kind::kFem)
-    baseline_weights = fem::BaselineGeneWeights(problem);
-  details.started_from_baseline = baseline_weights.has_value();
-  const std::vector<double> start =
-      baseline_weights
-          ? *baseline_weights
-          : std::vector<double>(static_cast<std::size_t>(genes), problem.training_stiffness());
-  const response::SparseMatrix baseline_stiffness =
-      BaselineStiffness(problem, baseline_weights, start);
+  details.started_from_baseline = baseline.on_genes.has_value();
 
+  // Progress: the fit's phase and its best choosing error so far.
   double current = std::numeric_limits<double>::quiet_NaN();
-  std::string phase = "probes";
-  monitor.SetPhase(phase, [&](ProgressBeat& beat) {
-    beat.wall_seconds = since();
-    beat.best_normalized_error = current * current;
-  });
-  response::ResponseFitOptions fit_options;
-  fit_options.probes = ProbeOptionsOf(options);
-  fit_options.max_springs = options.max_springs;
-  // A strength set by the user is the one used; none (0) or auto: chosen on the choosing probes.
-  if (!options.choose_regularization && options.regularization > 0.0)
-    fit_options.regularizations = {options.regularization};
-  bool stopped = false;
-  std::vector<double> weights = start;
-  response::Generalization certificate;
+  std::string phase;
+  const auto enter = [&](const std::string& name) {
+    phase = name;
+    monitor.SetPhase(phase, [&](ProgressBeat& beat) {
+      beat.wall_seconds = since();
+      beat.best_normalized_error = current * current;
+    });
+  };
+  enter("probes");
+  const response::ResponseProgress progress = [&](const char* name, double error) {
+    current = error;
+    if (phase != name) enter(name);
+    if (monitor.TimeLimitPassed()) throw Interrupted();
+  };
+
+  // The bank, the fit and its certificate, the baseline guarantee, the nonlinear judgement.
+  const response::ResponseFitOptions fit_options = FitOptionsOf(options);
   const response::SparseMatrix reference_stiffness = response::ReferenceRestStiffness(problem);
   const response::ProbeBank bank =
       response::MakeProbeBank(problem, reference_stiffness, fit_options.probes);
   std::unique_ptr<WorkerPool> own_pool;
   WorkerPool* pool = PoolOf(context, own_pool);
-  const response::ResponseProgress progress = [&](const char* name, double error) {
-    current = error;
-    if (phase != name) {
-      phase = name;
-      monitor.SetPhase(phase, [&](ProgressBeat& beat) {
-        beat.wall_seconds = since();
-        beat.best_normalized_error = current * current;
-      });
-    }
-    if (monitor.TimeLimitPassed()) throw Interrupted();
-  };
-  try {
-    response::ResponseFitResult fit =
-        response::FitResponse(problem, bank, reference_stiffness, start, fit_options,
-                              &monitor.interruption(), progress, pool);
-    weights = fit.weights;
-    certificate =
-        response::Certify(problem, bank, reference_stiffness, weights, baseline_stiffness);
-    certificate.fitted_to_probes = true;
-    certificate.fit = std::move(fit);
-  } catch (const Interrupted&) {
-    stopped = true;
-    certificate =
-        response::Certify(problem, bank, reference_stiffness, weights, baseline_stiffness);
-  }
-  certificate.named_weight = fit_options.probes.named_weight;
-  // The baseline guarantee on unseen loads (within the spring budget, when there is one).
-  response::ErrorSummary fitted_held_out;
-  const bool baseline_within_budget =
-      baseline_weights &&
-      (options.max_springs == 0 || PresentSprings(*baseline_weights) <= options.max_springs);
-  if (!stopped && baseline_within_budget &&
-      !(certificate.model_held_out.rms < certificate.baseline_held_out.rms)) {
-    weights = *baseline_weights;
-    fitted_held_out = certificate.model_held_out;
-    response::Generalization judged =
-        response::Certify(problem, bank, reference_stiffness, weights, baseline_stiffness);
-    judged.fitted_to_probes = certificate.fitted_to_probes;
-    judged.fit = std::move(certificate.fit);
-    judged.named_weight = certificate.named_weight;
-    judged.returned_baseline = true;
-    certificate = std::move(judged);
-  }
-  if (!stopped) {
-    JudgeAtAmplitudes(problem, bank, weights, BaselineSprings(problem, baseline_weights, start),
-                      certificate, &monitor.interruption(), pool);
+  ProbeFitModel m = FitAndCertify(problem, bank, reference_stiffness, baseline, fit_options,
+                                  monitor, progress, pool);
+  KeepBaselineGuarantee(problem, options, bank, reference_stiffness, baseline, m);
+  if (!m.stopped) {
+    JudgeAtAmplitudes(problem, bank, m.weights, baseline.springs, m.certificate,
+                      &monitor.interruption(), pool);
   }
   details.model_seconds = since();
 
@@ -195,61 +297,22 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   CostOptions cost_options;
   cost_options.solve_cases_of_mechanisms = true;
   CostFunction cost(problem, cost_options);
-  r.evaluation = cost.Evaluate(problem.SpringsOfWeights(weights));
-  const Evaluation start_evaluation = cost.Evaluate(problem.SpringsOfWeights(start));
-  details.start_normalized_error = start_evaluation.normalized_error;
+  r.evaluation = cost.Evaluate(problem.SpringsOfWeights(m.weights));
+  details.start_normalized_error =
+      cost.Evaluate(problem.SpringsOfWeights(baseline.start)).normalized_error;
   details.fit_normalized_error = r.evaluation.normalized_error;
-  details.chosen = certificate.returned_baseline ? -1 : certificate.fit.chosen;
-  details.regularization = certificate.fit.regularization;
-  details.steps = certificate.fit.gauss_newton_accepted;
-  r.best.assign(static_cast<std::size_t>(genes), 0);
-  for (int g = 0; g < genes; ++g) {
-    if (weights[static_cast<std::size_t>(g)] > 0.0) {
-      r.best[static_cast<std::size_t>(g)] = 1;
-      r.stiffness.push_back(weights[static_cast<std::size_t>(g)]);
-    }
-  }
-  TraceRow row;
-  row.generation = static_cast<int>(r.trace.size());
-  row.wall_seconds = since();
-  row.best_normalized_error = r.evaluation.normalized_error;
-  row.best_cost = r.evaluation.cost;
-  row.mean_cost = row.best_cost;
-  r.trace.push_back(row);
-  monitor.Reported();
-  if (context.on_iteration) {
-    IterationState state;
-    state.finished = true;
-    state.best = &r.best;
-    if (!context.on_iteration(row, state)) stopped = true;
-  }
+  details.chosen = m.certificate.returned_baseline ? -1 : m.certificate.fit.chosen;
+  details.regularization = m.certificate.fit.regularization;
+  details.steps = m.certificate.fit.gauss_newton_accepted;
+
+  const bool stopped = !RecordModel(problem, m.weights, since(), context, monitor, r) || m.stopped;
   r.wall_seconds = since();
   r.stop = stopped
                ? (monitor.time_limit_reached() ? StopReason::kTimeLimit : StopReason::kCancelled)
                : StopReason::kCompleted;
-  char message[512];
-  const double e = std::sqrt(r.evaluation.normalized_error);
-  if (certificate.returned_baseline) {
-    std::snprintf(message, sizeof message,
-                  "the closed-form baseline (%d springs): the fitted model's held-out E (RMS over "
-                  "%d probes) %.3g was not below the baseline's %.3g",
-                  PresentSprings(weights), certificate.held_out, fitted_held_out.rms,
-                  certificate.baseline_held_out.rms);
-  } else {
-    std::snprintf(message, sizeof message,
-                  "%s%d springs fitted to %d probe loads on %d supports; held-out probes: "
-                  "median E %.3g (baseline %.3g); named cases E %.3g",
-                  stopped ? (r.stop == StopReason::kTimeLimit ? "time limit reached; the best so "
-                                                                "far: "
-                                                              : "stopped on request; the best so "
-                                                                "far: ")
-                          : "",
-                  PresentSprings(weights), certificate.fitted, certificate.supports,
-                  certificate.model_held_out.median, certificate.baseline_held_out.median, e);
-  }
-  r.stop_message = message;
+  r.stop_message = ProbeFitMessage(r, m);
   r.continuous = std::move(details);
-  r.generalization = std::move(certificate);
+  r.generalization = std::move(m.certificate);
   return r;
 }
 
