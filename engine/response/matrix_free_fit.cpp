@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numeric>
+#include <optional>
 
 #include "engine/fit/stiffness_fit.h"
 #include "engine/response/linearized_response.h"
@@ -44,6 +46,161 @@ Vector ConjugateGradients(const std::function<Vector(const Vector&)>& multiply, 
   return d;
 }
 
+// The fit's state: the objective, and every accepted iterate with its strength, choosing error
+// and smallest eigenvalue.
+class MatrixFreeFit {
+ public:
+  MatrixFreeFit(const Problem& problem, const ProbeBank& bank,
+                const SparseMatrix& reference_stiffness, const std::vector<double>& prior,
+                const ResponseFitOptions& options, Interruption* interruption,
+                const ResponseProgress& progress, WorkerPool* pool)
+      : objective_(problem, bank, reference_stiffness, prior, options, interruption),
+        springs_(GeneSpringsOf(problem)),
+        genes_(static_cast<double>(problem.gene_count())),
+        options_(options),
+        interruption_(interruption),
+        progress_(progress),
+        pool_(pool) {}
+
+  struct Iterate {
+    std::vector<double> weights;
+    double regularization = 0.0;
+    double select_error = kNoModel;
+    double lambda_min = 0.0;
+    int step = 0;
+  };
+  const std::vector<Iterate>& iterates() const { return iterates_; }
+
+  // The continuation from the prior: `steps_per_strength` steps at every strength, strongest
+  // first; records each strength's model in `r`.
+  void Continuation(ResponseFitResult& r) {
+    std::vector<double> weights = objective_.Weights(objective_.prior_scaled());
+    LinearizedResponse at = Linearisation();
+    Judge(weights, options_.regularizations.front(), 0);
+    if (!at.At(weights)) return;
+    std::vector<double> strengths = options_.regularizations;
+    std::sort(strengths.begin(), strengths.end(), std::greater<>());
+    const std::vector<bool> none(weights.size(), false);
+    for (double strength : strengths) {
+      Descend(weights, at, strength, none);
+      // The model at this strength: its last accepted step's, or the one it started from when
+      // none was accepted.
+      r.regularizations.push_back(strength);
+      r.regularization_select_errors.push_back(iterates_.back().select_error);
+      r.regularization_lambda_min.push_back(iterates_.back().lambda_min);
+    }
+  }
+
+  // A spring budget: the least salient springs of iterate `chosen` (1/2 x_e^2 (J^T J)_ee) out
+  // down to the budget, the rest refitted at its strength. Returns the best iterate of that
+  // refit, or nothing when the model is not held.
+  std::optional<std::size_t> WithinBudget(std::size_t chosen) {
+    std::vector<double> weights = iterates_[chosen].weights;
+    const double regularization = iterates_[chosen].regularization;
+    LinearizedResponse budget = Linearisation();
+    if (!budget.At(weights)) return std::nullopt;
+    const Vector x = objective_.Scaled(weights);
+    const Vector diagonal = budget.NormalDiagonal(options_.diagonal_samples, options_.probes.seed);
+    std::vector<std::pair<double, int>> saliency;
+    for (int e = 0; e < x.size(); ++e)
+      if (x[e] > 0.0) saliency.emplace_back(0.5 * x[e] * x[e] * diagonal[e], e);
+    std::sort(saliency.begin(), saliency.end());
+    std::vector<bool> removed(weights.size(), false);
+    const std::size_t cut = saliency.size() - static_cast<std::size_t>(options_.max_springs);
+    for (std::size_t i = 0; i < cut; ++i) {
+      removed[static_cast<std::size_t>(saliency[i].second)] = true;
+      weights[static_cast<std::size_t>(saliency[i].second)] = 0.0;
+    }
+    const std::size_t first = iterates_.size();
+    Judge(weights, regularization, step_count_);
+    if (budget.At(weights)) {
+      if (progress_) progress_("probe_path", iterates_.back().select_error);
+      Descend(weights, budget, regularization, removed);
+    }
+    return BestOf(first);
+  }
+
+  // The best iterate from `from` on, on the choosing probes, preferring one that holds every
+  // mode.
+  std::size_t BestOf(std::size_t from) const {
+    std::vector<double> errors, lambdas;
+    for (std::size_t i = from; i < iterates_.size(); ++i) {
+      errors.push_back(iterates_[i].select_error);
+      lambdas.push_back(iterates_[i].lambda_min);
+    }
+    const std::vector<double> score = PreferSupported(errors, lambdas, options_);
+    return from +
+           static_cast<std::size_t>(std::min_element(score.begin(), score.end()) - score.begin());
+  }
+
+ private:
+  LinearizedResponse Linearisation() const {
+    return LinearizedResponse(objective_, springs_, interruption_, pool_);
+  }
+
+  void Judge(const std::vector<double>& weights, double regularization, int step) {
+    iterates_.push_back({weights, regularization, objective_.SelectError(weights),
+                         objective_.LambdaMin(weights), step});
+    double best = kNoModel;
+    for (const Iterate& i : iterates_) best = std::min(best, i.select_error);
+    if (progress_) progress_("probe_fit", best);
+  }
+
+  // Gauss-Newton steps at one strength from `weights`, `at` its linearisation (springs with
+  // `removed` set stay out); each accepted step is judged, and `weights` and `at` follow it.
+  void Descend(std::vector<double>& weights, LinearizedResponse& at, double regularization,
+               const std::vector<bool>& removed) {
+    const double rho = regularization / genes_;
+    Vector x = objective_.Scaled(weights);
+    double phi = at.ResidualNorm2() + objective_.Regularization(weights, regularization);
+    for (int step = 0; step < options_.steps_per_strength; ++step) {
+      const Vector gradient = at.Gradient() + rho * (x - objective_.prior_scaled());
+      std::vector<bool> free(static_cast<std::size_t>(x.size()));
+      for (Eigen::Index e = 0; e < x.size(); ++e)
+        free[static_cast<std::size_t>(e)] =
+            !removed[static_cast<std::size_t>(e)] && !(x[e] <= 0.0 && gradient[e] > 0.0);
+      Vector diagonal = at.NormalDiagonal(options_.diagonal_samples, options_.probes.seed);
+      diagonal.array() += rho;
+      const Vector d = ConjugateGradients(
+          [&](const Vector& v) { return Vector(at.NormalProduct(v) + rho * v); }, -gradient,
+          diagonal, free, options_.cg_iterations, options_.cg_tolerance);
+      if (!ProjectedStep(weights, x, phi, at, d, regularization)) break;
+      Judge(weights, regularization, ++step_count_);
+    }
+  }
+
+  // The projected step max(x + t d, 0), t halved until the objective falls (at most three
+  // times); false when it never does. On success `weights`, `x`, `phi` and `at` follow it.
+  bool ProjectedStep(std::vector<double>& weights, Vector& x, double& phi, LinearizedResponse& at,
+                     const Vector& d, double regularization) const {
+    for (int halving = 0; halving < 4; ++halving) {
+      const double t = std::ldexp(1.0, -halving);
+      const std::vector<double> trial = objective_.Weights((x + t * d).cwiseMax(0.0));
+      if (PresentSprings(trial) == 0) continue;
+      LinearizedResponse next = Linearisation();
+      if (!next.At(trial)) continue;
+      const double value = next.ResidualNorm2() + objective_.Regularization(trial, regularization);
+      if (!(value < phi)) continue;
+      weights = trial;
+      x = objective_.Scaled(trial);
+      phi = value;
+      at = std::move(next);
+      return true;
+    }
+    return false;
+  }
+
+  const ProbeObjective objective_;
+  const GeneSprings springs_;
+  const double genes_;
+  const ResponseFitOptions& options_;
+  Interruption* interruption_;
+  const ResponseProgress& progress_;
+  WorkerPool* pool_;
+  std::vector<Iterate> iterates_;
+  int step_count_ = 0;
+};
+
 }  // namespace
 
 ResponseFitResult FitResponseMatrixFree(const Problem& problem, const ProbeBank& bank,
@@ -56,137 +213,29 @@ ResponseFitResult FitResponseMatrixFree(const Problem& problem, const ProbeBank&
   const auto seconds = [&started] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   };
-  const ProbeObjective objective(problem, bank, reference_stiffness, prior, options, interruption);
-  const GeneSprings springs = GeneSpringsOf(problem);
-  const double genes = static_cast<double>(problem.gene_count());
+  MatrixFreeFit fit(problem, bank, reference_stiffness, prior, options, interruption, progress,
+                    pool);
   ResponseFitResult r;
   r.method = "matrix-free";
-
-  // Every accepted iterate with its strength, choosing error and smallest eigenvalue.
-  struct Iterate {
-    std::vector<double> weights;
-    double regularization = 0.0;
-    double select_error = kNoModel;
-    double lambda_min = 0.0;
-    int step = 0;
-  };
-  std::vector<Iterate> iterates;
-  const auto judge = [&](const std::vector<double>& weights, double regularization, int step) {
-    Iterate it{weights, regularization, objective.SelectError(weights),
-               objective.LambdaMin(weights), step};
-    iterates.push_back(std::move(it));
-    double best = kNoModel;
-    for (const Iterate& i : iterates) best = std::min(best, i.select_error);
-    if (progress) progress("probe_fit", best);
-  };
-
-  // Gauss-Newton steps at one strength from `weights`, `at` its linearisation (springs with
-  // `removed` set stay out); each accepted step is judged, and `weights` and `at` follow it.
-  int step_count = 0;
-  const auto descend = [&](std::vector<double>& weights, LinearizedResponse& at,
-                           double regularization, int steps, const std::vector<bool>& removed) {
-    const double rho = regularization / genes;
-    Vector x = objective.Scaled(weights);
-    double phi = at.ResidualNorm2() + objective.Regularization(weights, regularization);
-    for (int step = 0; step < steps; ++step) {
-      const Vector gradient = at.Gradient() + rho * (x - objective.prior_scaled());
-      std::vector<bool> free(static_cast<std::size_t>(x.size()));
-      for (Eigen::Index e = 0; e < x.size(); ++e)
-        free[static_cast<std::size_t>(e)] =
-            !removed[static_cast<std::size_t>(e)] && !(x[e] <= 0.0 && gradient[e] > 0.0);
-      Vector diagonal = at.NormalDiagonal(options.diagonal_samples, options.probes.seed);
-      diagonal.array() += rho;
-      const Vector d = ConjugateGradients(
-          [&](const Vector& v) { return Vector(at.NormalProduct(v) + rho * v); }, -gradient,
-          diagonal, free, options.cg_iterations, options.cg_tolerance);
-      bool accepted = false;
-      for (int halving = 0; halving < 4 && !accepted; ++halving) {
-        const double t = std::ldexp(1.0, -halving);
-        const Vector trial_x = (x + t * d).cwiseMax(0.0);
-        const std::vector<double> trial = objective.Weights(trial_x);
-        if (PresentSprings(trial) == 0) continue;
-        LinearizedResponse next(objective, springs, interruption, pool);
-        if (!next.At(trial)) continue;
-        const double value = next.ResidualNorm2() + objective.Regularization(trial, regularization);
-        if (!(value < phi)) continue;
-        weights = trial;
-        x = objective.Scaled(trial);
-        phi = value;
-        at = std::move(next);
-        accepted = true;
-      }
-      if (!accepted) break;
-      judge(weights, regularization, ++step_count);
-    }
-  };
-
-  std::vector<double> weights = objective.Weights(objective.prior_scaled());
-  LinearizedResponse at(objective, springs, interruption, pool);
-  const std::vector<bool> none(prior.size(), false);
-  judge(weights, options.regularizations.front(), 0);
-  if (at.At(weights)) {
-    std::vector<double> strengths = options.regularizations;
-    std::sort(strengths.begin(), strengths.end(), std::greater<>());
-    for (double strength : strengths) {
-      descend(weights, at, strength, options.steps_per_strength, none);
-      // The model at this strength: its last accepted step's, or the one it started from when
-      // none was accepted.
-      r.regularizations.push_back(strength);
-      r.regularization_select_errors.push_back(iterates.back().select_error);
-      r.regularization_lambda_min.push_back(iterates.back().lambda_min);
-    }
-  }
+  fit.Continuation(r);
   r.seconds_first_order = seconds();
 
-  // The best iterate on the choosing probes, preferring one that holds every mode.
-  const auto best_of = [&](std::size_t from) {
-    std::vector<double> errors, lambdas;
-    for (std::size_t i = from; i < iterates.size(); ++i) {
-      errors.push_back(iterates[i].select_error);
-      lambdas.push_back(iterates[i].lambda_min);
-    }
-    const std::vector<double> score = PreferSupported(errors, lambdas, options);
-    return from +
-           static_cast<std::size_t>(std::min_element(score.begin(), score.end()) - score.begin());
+  std::size_t chosen = fit.BestOf(0);
+  const auto point = [&](std::size_t i) {
+    const MatrixFreeFit::Iterate& it = fit.iterates()[i];
+    return ResponseFitResult::Point{PresentSprings(it.weights), it.select_error, it.lambda_min};
   };
-  std::size_t chosen = best_of(0);
-  r.path.push_back({PresentSprings(iterates[chosen].weights), iterates[chosen].select_error,
-                    iterates[chosen].lambda_min});
-
-  // A spring budget: the least salient springs of the chosen model out, the rest refitted.
+  r.path.push_back(point(chosen));
   if (options.max_springs > 0 && r.path.back().springs > options.max_springs) {
-    weights = iterates[chosen].weights;
-    const double regularization = iterates[chosen].regularization;
-    LinearizedResponse budget(objective, springs, interruption, pool);
-    if (budget.At(weights)) {
-      const Vector x = objective.Scaled(weights);
-      const Vector diagonal = budget.NormalDiagonal(options.diagonal_samples, options.probes.seed);
-      std::vector<std::pair<double, int>> saliency;
-      for (int e = 0; e < x.size(); ++e)
-        if (x[e] > 0.0) saliency.emplace_back(0.5 * x[e] * x[e] * diagonal[e], e);
-      std::sort(saliency.begin(), saliency.end());
-      std::vector<bool> removed(prior.size(), false);
-      const std::size_t cut = saliency.size() - static_cast<std::size_t>(options.max_springs);
-      for (std::size_t i = 0; i < cut; ++i) {
-        removed[static_cast<std::size_t>(saliency[i].second)] = true;
-        weights[static_cast<std::size_t>(saliency[i].second)] = 0.0;
-      }
-      const std::size_t first = iterates.size();
-      judge(weights, regularization, step_count);
-      if (budget.At(weights)) {
-        if (progress) progress("probe_path", iterates.back().select_error);
-        descend(weights, budget, regularization, options.steps_per_strength, removed);
-      }
-      const std::size_t within = best_of(first);
-      r.path.push_back({PresentSprings(iterates[within].weights), iterates[within].select_error,
-                        iterates[within].lambda_min});
-      if (iterates[within].select_error < kNoModel && iterates[within].lambda_min > 0.0) {
-        chosen = within;
+    if (const std::optional<std::size_t> within = fit.WithinBudget(chosen)) {
+      r.path.push_back(point(*within));
+      if (r.path.back().select_error < kNoModel && r.path.back().lambda_min > 0.0) {
+        chosen = *within;
         r.chosen = 1;
       }
     }
   }
-  const Iterate& returned = iterates[chosen];
+  const MatrixFreeFit::Iterate& returned = fit.iterates()[chosen];
   r.weights = returned.weights;
   r.regularization = returned.regularization;
   r.select_error = returned.select_error;
