@@ -187,162 +187,232 @@ void ProbeOptions::Validate(const std::string& owner) const {
                 "soft_mode_weight", soft_mode_weight, "value >= 0 and named_weight + value < 1");
 }
 
+namespace {
+
+// MakeProbeBank's steps, in the order they draw from the random stream (the same seed gives the
+// same bank).
+class BankBuilder {
+ public:
+  BankBuilder(const Problem& problem, const SparseMatrix& reference_stiffness,
+              const ProbeOptions& options)
+      : problem_(problem),
+        scene_(problem.scene()),
+        reference_stiffness_(reference_stiffness),
+        options_(options),
+        d_(scene_.dimension),
+        n_(scene_.node_count()),
+        random_(options.seed),
+        surface_(AnySurface(scene_)) {
+    bank_.boundary = surface_.nodes;
+  }
+
+  // The user's supports, one per distinct free set, and their systems.
+  void AddUserSupports() {
+    support_of_free_set_.assign(problem_.free_sets().size(), -1);
+    for (std::size_t k = 0; k < problem_.load_cases().size(); ++k) {
+      const int set = problem_.load_cases()[k].free_set;
+      if (support_of_free_set_[static_cast<std::size_t>(set)] >= 0) continue;
+      Support support;
+      support.user = true;
+      support.description = "load case '" + scene_.load_cases[k].name + "'";
+      support.constrained.resize(static_cast<std::size_t>(n_));
+      for (int node = 0; node < n_; ++node)
+        support.constrained[static_cast<std::size_t>(node)] =
+            problem_.free_sets()[static_cast<std::size_t>(set)]
+                .free_index[static_cast<std::size_t>(node)] < 0;
+      SupportSystem system(d_, support.constrained);
+      if (!system.Factorize(reference_stiffness_))
+        throw InputError("load_cases[" + std::to_string(k) + "].fixed",
+                         "the reference is not held by this load case's supports (a rigid motion "
+                         "or a mechanism is left free): no probe can be solved on it");
+      support_of_free_set_[static_cast<std::size_t>(set)] = static_cast<int>(bank_.supports.size());
+      bank_.supports.push_back(std::move(support));
+      systems_.push_back(std::move(system));
+    }
+  }
+
+  // The named cases, all fitted; their median largest displacement sets the probes' amplitude.
+  void AddNamedCases() {
+    std::vector<double> named_largest;
+    for (std::size_t k = 0; k < problem_.load_cases().size(); ++k) {
+      const PreparedLoadCase& lc = problem_.load_cases()[k];
+      Probe probe;
+      probe.family = ProbeFamily::kNamed;
+      probe.support = support_of_free_set_[static_cast<std::size_t>(lc.free_set)];
+      probe.named_case = static_cast<int>(k);
+      probe.force = lc.force;
+      probe.prescribed = lc.prescribed;
+      probe.reference =
+          systems_[static_cast<std::size_t>(probe.support)].Displacement(lc.force, lc.prescribed);
+      named_largest.push_back(LargestNodal(d_, probe.reference));
+      bank_.probes.push_back(std::move(probe));
+    }
+    std::sort(named_largest.begin(), named_largest.end());
+    bank_.amplitude = named_largest.empty() ? 0.0 : named_largest[named_largest.size() / 2];
+    if (!(bank_.amplitude > 0.0)) bank_.amplitude = 0.05 * scene_.Bounds().Diagonal();
+  }
+
+  // Supports drawn from the boundary: patches around random boundary nodes that hold the
+  // reference, each distinct.
+  void DrawSupports() {
+    const int patch_size =
+        std::max(d_, static_cast<int>(std::lround(options_.support_fraction *
+                                                  static_cast<double>(surface_.nodes.size()))));
+    for (int s = 0, tries = 0;
+         s < options_.extra_supports && tries < 4 * options_.extra_supports + 4; ++tries) {
+      if (surface_.nodes.size() < static_cast<std::size_t>(patch_size) + 2) break;
+      const int centre = surface_.nodes[static_cast<std::size_t>(
+          random_.Below(static_cast<int>(surface_.nodes.size())))];
+      Support support;
+      support.constrained.assign(static_cast<std::size_t>(n_), false);
+      const std::vector<int> patch = Nearest(scene_, surface_.nodes, centre, patch_size);
+      // A patch along one line leaves the rotation about it free for every model, the reference
+      // included (whose factorisation may still pass on round-off): such loads test nothing.
+      if (!HoldsRigidMotion(scene_, patch)) continue;
+      for (int node : patch) support.constrained[static_cast<std::size_t>(node)] = true;
+      support.description = "boundary patch around node " + std::to_string(centre);
+      bool duplicate = false;
+      for (const Support& other : bank_.supports)
+        duplicate |= other.constrained == support.constrained;
+      if (duplicate) continue;
+      SupportSystem system(d_, support.constrained);
+      if (!system.Factorize(reference_stiffness_)) continue;  // too small a patch to hold it
+      bank_.supports.push_back(std::move(support));
+      systems_.push_back(std::move(system));
+      ++s;
+    }
+  }
+
+  // Generated probes on every support, family by family, each family's roles assigned.
+  void AddGeneratedProbes() {
+    const int supports = static_cast<int>(bank_.supports.size());
+    int points = std::min<int>(static_cast<int>(surface_.nodes.size()), 24);
+    int patches = 12;
+    int bodies = d_ + 2;
+    if (options_.count > 0) {
+      const double per_support = static_cast<double>(options_.count) / supports;
+      points = std::max(1, static_cast<int>(std::lround(0.6 * per_support)));
+      patches = std::max(1, static_cast<int>(std::lround(0.3 * per_support)));
+      bodies = std::max(1, static_cast<int>(std::lround(0.1 * per_support)));
+    }
+    const Vector volumes = NodalVolumes(scene_);
+    for (int s = 0; s < supports; ++s) {
+      const Support& support = bank_.supports[static_cast<std::size_t>(s)];
+      std::vector<int> loadable;
+      for (int node : surface_.nodes)
+        if (!support.constrained[static_cast<std::size_t>(node)]) loadable.push_back(node);
+      for (ProbeFamily family : {ProbeFamily::kPoint, ProbeFamily::kPatch, ProbeFamily::kBody}) {
+        const std::size_t begin = bank_.probes.size();
+        std::vector<Vector> forces;
+        if (family == ProbeFamily::kPoint && !loadable.empty())
+          forces = PointLoads(loadable, points);
+        else if (family == ProbeFamily::kPatch && !loadable.empty())
+          forces = PatchLoads(loadable, patches);
+        else if (family == ProbeFamily::kBody)
+          forces = BodyForces(support, volumes, bodies);
+        for (const Vector& force : forces) Add(family, s, force);
+        AssignRoles(bank_.probes, begin, options_, random_);
+      }
+    }
+  }
+
+  // Every probe's |u_ref|^2 over its support's free nodes.
+  ProbeBank Finish() {
+    for (Probe& probe : bank_.probes) {
+      const Vector free = systems_[static_cast<std::size_t>(probe.support)].Gather(probe.reference);
+      probe.reference_norm2 = free.squaredNorm();
+    }
+    return std::move(bank_);
+  }
+
+ private:
+  // Forces on one boundary node: half along the inward normal (where there is one), half in a
+  // random direction.
+  std::vector<Vector> PointLoads(const std::vector<int>& loadable, int count) {
+    std::vector<Vector> forces;
+    for (int i = 0; i < count; ++i) {
+      const int node =
+          loadable[static_cast<std::size_t>(random_.Below(static_cast<int>(loadable.size())))];
+      const Vector normal = surface_.normal.segment(d_ * node, d_);
+      Vector force = Vector::Zero(d_ * n_);
+      force.segment(d_ * node, d_) =
+          i % 2 == 0 && normal.norm() > 0.5 ? Vector(-normal) : RandomDirection(d_, random_);
+      forces.push_back(std::move(force));
+    }
+    return forces;
+  }
+
+  // One force spread on a boundary node and its nearest boundary neighbours (3 to 8 nodes).
+  std::vector<Vector> PatchLoads(const std::vector<int>& loadable, int count) {
+    std::vector<Vector> forces;
+    for (int i = 0; i < count; ++i) {
+      const int centre =
+          loadable[static_cast<std::size_t>(random_.Below(static_cast<int>(loadable.size())))];
+      const int size = 3 + random_.Below(6);
+      const Vector direction = RandomDirection(d_, random_);
+      Vector force = Vector::Zero(d_ * n_);
+      for (int node : Nearest(scene_, loadable, centre, size))
+        force.segment(d_ * node, d_) = direction;
+      forces.push_back(std::move(force));
+    }
+    return forces;
+  }
+
+  // Uniform body forces (lumped by volume) along each axis, then in random directions.
+  std::vector<Vector> BodyForces(const Support& support, const Vector& volumes, int count) {
+    std::vector<Vector> forces;
+    for (int i = 0; i < count; ++i) {
+      const Vector direction = i < d_ ? Vector(Vector::Unit(d_, i)) : RandomDirection(d_, random_);
+      Vector force = Vector::Zero(d_ * n_);
+      for (int node = 0; node < n_; ++node) {
+        if (support.constrained[static_cast<std::size_t>(node)]) continue;
+        force.segment(d_ * node, d_) = volumes[node] * direction;
+      }
+      forces.push_back(std::move(force));
+    }
+    return forces;
+  }
+
+  // A generated probe on support `s`, scaled to the bank's amplitude (dropped when the
+  // reference does not move under it).
+  void Add(ProbeFamily family, int s, const Vector& force) {
+    Probe probe;
+    probe.family = family;
+    probe.support = s;
+    probe.prescribed = Vector::Zero(d_ * n_);
+    probe.reference = systems_[static_cast<std::size_t>(s)].Displacement(force, probe.prescribed);
+    const double largest = LargestNodal(d_, probe.reference);
+    if (!(largest > 0.0)) return;
+    const double scale = bank_.amplitude / largest;
+    probe.force = force * scale;
+    probe.reference *= scale;
+    bank_.probes.push_back(std::move(probe));
+  }
+
+  const Problem& problem_;
+  const Scene& scene_;
+  const SparseMatrix& reference_stiffness_;
+  const ProbeOptions& options_;
+  const int d_;
+  const int n_;
+  RandomStream random_;
+  const Surface surface_;
+  ProbeBank bank_;
+  std::vector<SupportSystem> systems_;  // per support of the bank
+  std::vector<int> support_of_free_set_;
+};
+
+}  // namespace
+
 ProbeBank MakeProbeBank(const Problem& problem, const SparseMatrix& reference_stiffness,
                         const ProbeOptions& options) {
   options.Validate();
-  const Scene& scene = problem.scene();
-  const int d = scene.dimension;
-  const int n = scene.node_count();
-  RandomStream random(options.seed);
-  ProbeBank bank;
-  const Surface surface = AnySurface(scene);
-  bank.boundary = surface.nodes;
-
-  // The user's supports, one per distinct free set, and their systems.
-  std::vector<SupportSystem> systems;
-  std::vector<int> support_of_free_set(problem.free_sets().size(), -1);
-  for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
-    const int set = problem.load_cases()[k].free_set;
-    if (support_of_free_set[static_cast<std::size_t>(set)] >= 0) continue;
-    Support support;
-    support.user = true;
-    support.description = "load case '" + scene.load_cases[k].name + "'";
-    support.constrained.resize(static_cast<std::size_t>(n));
-    for (int node = 0; node < n; ++node)
-      support.constrained[static_cast<std::size_t>(node)] =
-          problem.free_sets()[static_cast<std::size_t>(set)]
-              .free_index[static_cast<std::size_t>(node)] < 0;
-    SupportSystem system(d, support.constrained);
-    if (!system.Factorize(reference_stiffness))
-      throw InputError("load_cases[" + std::to_string(k) + "].fixed",
-                       "the reference is not held by this load case's supports (a rigid motion "
-                       "or a mechanism is left free): no probe can be solved on it");
-    support_of_free_set[static_cast<std::size_t>(set)] = static_cast<int>(bank.supports.size());
-    bank.supports.push_back(std::move(support));
-    systems.push_back(std::move(system));
-  }
-
-  // The named cases, all fitted; their largest displacement sets the probes' amplitude.
-  std::vector<double> named_largest;
-  for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
-    const PreparedLoadCase& lc = problem.load_cases()[k];
-    Probe probe;
-    probe.family = ProbeFamily::kNamed;
-    probe.support = support_of_free_set[static_cast<std::size_t>(lc.free_set)];
-    probe.named_case = static_cast<int>(k);
-    probe.force = lc.force;
-    probe.prescribed = lc.prescribed;
-    probe.reference =
-        systems[static_cast<std::size_t>(probe.support)].Displacement(lc.force, lc.prescribed);
-    named_largest.push_back(LargestNodal(d, probe.reference));
-    bank.probes.push_back(std::move(probe));
-  }
-  std::sort(named_largest.begin(), named_largest.end());
-  bank.amplitude = named_largest.empty() ? 0.0 : named_largest[named_largest.size() / 2];
-  if (!(bank.amplitude > 0.0)) bank.amplitude = 0.05 * scene.Bounds().Diagonal();
-
-  // Supports drawn from the boundary.
-  const int patch_size =
-      std::max(d, static_cast<int>(std::lround(options.support_fraction *
-                                               static_cast<double>(surface.nodes.size()))));
-  for (int s = 0, tries = 0; s < options.extra_supports && tries < 4 * options.extra_supports + 4;
-       ++tries) {
-    if (surface.nodes.size() < static_cast<std::size_t>(patch_size) + 2) break;
-    const int centre =
-        surface
-            .nodes[static_cast<std::size_t>(random.Below(static_cast<int>(surface.nodes.size())))];
-    Support support;
-    support.constrained.assign(static_cast<std::size_t>(n), false);
-    const std::vector<int> patch = Nearest(scene, surface.nodes, centre, patch_size);
-    // A patch along one line leaves the rotation about it free for every model, the reference
-    // included (whose factorisation may still pass on round-off): such loads test nothing.
-    if (!HoldsRigidMotion(scene, patch)) continue;
-    for (int node : patch) support.constrained[static_cast<std::size_t>(node)] = true;
-    support.description = "boundary patch around node " + std::to_string(centre);
-    bool duplicate = false;
-    for (const Support& other : bank.supports)
-      duplicate |= other.constrained == support.constrained;
-    if (duplicate) continue;
-    SupportSystem system(d, support.constrained);
-    if (!system.Factorize(reference_stiffness)) continue;  // too small a patch to hold it
-    bank.supports.push_back(std::move(support));
-    systems.push_back(std::move(system));
-    ++s;
-  }
-
-  // Generated probes per support.
-  const int supports = static_cast<int>(bank.supports.size());
-  int points = std::min<int>(static_cast<int>(surface.nodes.size()), 24);
-  int patches = 12;
-  int bodies = d + 2;
-  if (options.count > 0) {
-    const double per_support = static_cast<double>(options.count) / supports;
-    points = std::max(1, static_cast<int>(std::lround(0.6 * per_support)));
-    patches = std::max(1, static_cast<int>(std::lround(0.3 * per_support)));
-    bodies = std::max(1, static_cast<int>(std::lround(0.1 * per_support)));
-  }
-  const Vector volumes = NodalVolumes(scene);
-  for (int s = 0; s < supports; ++s) {
-    const Support& support = bank.supports[static_cast<std::size_t>(s)];
-    const SupportSystem& system = systems[static_cast<std::size_t>(s)];
-    std::vector<int> loadable;
-    for (int node : surface.nodes)
-      if (!support.constrained[static_cast<std::size_t>(node)]) loadable.push_back(node);
-    const auto add = [&](ProbeFamily family, Vector force) {
-      Probe probe;
-      probe.family = family;
-      probe.support = s;
-      probe.prescribed = Vector::Zero(d * n);
-      probe.reference = system.Displacement(force, probe.prescribed);
-      const double largest = LargestNodal(d, probe.reference);
-      if (!(largest > 0.0)) return;
-      const double scale = bank.amplitude / largest;
-      probe.force = force * scale;
-      probe.reference *= scale;
-      bank.probes.push_back(std::move(probe));
-    };
-    for (ProbeFamily family : {ProbeFamily::kPoint, ProbeFamily::kPatch, ProbeFamily::kBody}) {
-      const std::size_t begin = bank.probes.size();
-      if (family == ProbeFamily::kPoint && !loadable.empty()) {
-        for (int i = 0; i < points; ++i) {
-          const int node =
-              loadable[static_cast<std::size_t>(random.Below(static_cast<int>(loadable.size())))];
-          const Vector normal = surface.normal.segment(d * node, d);
-          Vector force = Vector::Zero(d * n);
-          force.segment(d * node, d) =
-              i % 2 == 0 && normal.norm() > 0.5 ? Vector(-normal) : RandomDirection(d, random);
-          add(family, force);
-        }
-      } else if (family == ProbeFamily::kPatch && !loadable.empty()) {
-        for (int i = 0; i < patches; ++i) {
-          const int centre =
-              loadable[static_cast<std::size_t>(random.Below(static_cast<int>(loadable.size())))];
-          const int size = 3 + random.Below(6);
-          const Vector direction = RandomDirection(d, random);
-          Vector force = Vector::Zero(d * n);
-          for (int node : Nearest(scene, loadable, centre, size))
-            force.segment(d * node, d) = direction;
-          add(family, force);
-        }
-      } else if (family == ProbeFamily::kBody) {
-        for (int i = 0; i < bodies; ++i) {
-          const Vector direction = i < d ? Vector(Vector::Unit(d, i)) : RandomDirection(d, random);
-          Vector force = Vector::Zero(d * n);
-          for (int node = 0; node < n; ++node) {
-            if (support.constrained[static_cast<std::size_t>(node)]) continue;
-            force.segment(d * node, d) = volumes[node] * direction;
-          }
-          add(family, force);
-        }
-      }
-      AssignRoles(bank.probes, begin, options, random);
-    }
-  }
-  for (Probe& probe : bank.probes) {
-    const Vector free = systems[static_cast<std::size_t>(probe.support)].Gather(probe.reference);
-    probe.reference_norm2 = free.squaredNorm();
-  }
-  return bank;
+  BankBuilder builder(problem, reference_stiffness, options);
+  builder.AddUserSupports();
+  builder.AddNamedCases();
+  builder.DrawSupports();
+  builder.AddGeneratedProbes();
+  return builder.Finish();
 }
 
 void AddSoftModeProbe(ProbeBank& bank, int support, const Vector& shape,
