@@ -1,4 +1,4 @@
-// The long run of the numerical stress test (engine/examples/numerics_stress.h): N seeded
+// The long run of the numerical stress test (testing/numerics_stress.h): N seeded
 // extreme scenes, each checked independently and run by strategy direct with a time limit,
 // and the counts bench/RESULTS.md records.
 //   numerics_stress --scenes 10000 [--first 1] [--max-seconds 5] [--verbose]
@@ -10,7 +10,7 @@
 #include <map>
 #include <string>
 
-#include "engine/examples/numerics_stress.h"
+#include "testing/numerics_stress.h"
 #include "proto/scene_codec.h"
 
 int main(int argc, char** argv) {

@@ -1,4 +1,4 @@
-// The seeded stress test of numerical verdicts (engine/examples/numerics_stress.h): a bounded
+// The seeded stress test of numerical verdicts (testing/numerics_stress.h): a bounded
 // number of extreme scenes in CI, each with its own time bound; bench/numerics_stress runs
 // 10,000 and more.
 #include <cstdlib>
@@ -6,7 +6,7 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/examples/numerics_stress.h"
+#include "testing/numerics_stress.h"
 
 namespace springfit {
 namespace {

@@ -1,4 +1,4 @@
-#include "engine/examples/numerics_stress.h"
+#include "testing/numerics_stress.h"
 
 #include <Eigen/SVD>
 #include <algorithm>
