@@ -10,8 +10,8 @@
 #include <map>
 #include <string>
 
-#include "testing/numerics_stress.h"
 #include "proto/scene_codec.h"
+#include "testing/numerics_stress.h"
 
 int main(int argc, char** argv) {
   CLI::App app("numerics stress: seeded extreme scenes, independent checks, counts");
