@@ -54,8 +54,9 @@ SpringModel ReferenceSprings(const Scene& scene) {
 class SpringResponse {
  public:
   SpringResponse(const SpringSolverInput& input, const FreeNodes& free,
-                 const EquilibriumOptions& options)
+                 const EquilibriumOptions& options, Interruption* interruption)
       : input_(input), solver_(input.geometry, free, options) {
+    solver_.set_interruption(interruption);
     held_ = solver_.RestMechanismModes(input.springs) == 0;
   }
   // The displacement under (force, prescribed), or nothing (a mechanism, no convergence).
@@ -63,7 +64,9 @@ class SpringResponse {
     if (!held_) return std::nullopt;
     if (last_.size() != force.size()) last_ = Vector::Zero(force.size());
     Vector u = last_;
-    if (!solver_.Solve(input_.springs, force, prescribed, u).converged()) {
+    const EquilibriumSummary summary = solver_.Solve(input_.springs, force, prescribed, u);
+    if (summary.termination == Termination::kInterrupted) throw Interrupted();
+    if (!summary.converged()) {
       last_ = Vector::Zero(force.size());
       return std::nullopt;
     }
@@ -150,12 +153,15 @@ std::vector<AmplitudeErrors> JudgeAtAmplitudes(const Problem& problem, const Pro
         bank.supports[static_cast<std::size_t>(probe.support)].constrained);
     std::optional<fem::FemEquilibriumSolver> fem_solver;
     std::optional<SpringResponse> reference_solver;
-    if (fem)
+    // (Checked at every Newton iteration too: a probe of a large nonlinear mesh is nine solves.)
+    if (fem) {
       fem_solver.emplace(*fem, free);
-    else
-      reference_solver.emplace(*reference_input, free, problem.solver_options());
-    SpringResponse model_solver(model_input, free, problem.solver_options());
-    SpringResponse baseline_solver(baseline_input, free, problem.solver_options());
+      fem_solver->set_interruption(interruption);
+    } else {
+      reference_solver.emplace(*reference_input, free, problem.solver_options(), interruption);
+    }
+    SpringResponse model_solver(model_input, free, problem.solver_options(), interruption);
+    SpringResponse baseline_solver(baseline_input, free, problem.solver_options(), interruption);
     for (std::size_t a = 0; a < amplitudes; ++a) {
       const Vector force = options.amplitudes[a] * probe.force;
       const Vector prescribed = options.amplitudes[a] * probe.prescribed;
@@ -180,7 +186,10 @@ std::vector<AmplitudeErrors> JudgeAtAmplitudes(const Problem& problem, const Pro
   };
   const int slots = static_cast<int>(judged.size());
   if (pool != nullptr && pool->threads() > 1) {
-    pool->Run(slots, judge);
+    // (While the pool works, the owner keeps polling: progress beats and stop requests go on.)
+    pool->Run(slots, judge, [interruption] {
+      if (interruption) interruption->Check();
+    });
   } else {
     for (int slot = 0; slot < slots; ++slot) judge(slot);
   }
