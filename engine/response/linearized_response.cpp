@@ -9,7 +9,7 @@ namespace springfit::response {
 namespace {
 
 // Right-hand sides solved in one call between stop checks.
-constexpr Eigen::Index kSolveChunk = 16;
+constexpr Eigen::Index kSolveChunk = 64;
 
 }  // namespace
 

@@ -97,18 +97,30 @@ std::vector<double> ProbeErrorsFor(const ProbeBank& bank, const SparseMatrix& mo
     check();
     SupportSystem system(d, bank.supports[s].constrained);
     const bool held = system.Factorize(model);
-    int solved = 0;
-    for (std::size_t p = 0; p < bank.probes.size(); ++p) {
-      const Probe& probe = bank.probes[p];
-      if (!include[p] || probe.support != static_cast<int>(s)) continue;
-      if (++solved % 16 == 0) check();
-      if (!held) {
-        errors[p] = kInf;
-        continue;
+    std::vector<std::size_t> mine;
+    for (std::size_t p = 0; p < bank.probes.size(); ++p)
+      if (include[p] && bank.probes[p].support == static_cast<int>(s)) mine.push_back(p);
+    if (!held) {
+      for (std::size_t p : mine) errors[p] = kInf;
+      continue;
+    }
+    // The probes' solves in batches of 16 (one pass over the factor each), a stop check
+    // before every batch.
+    for (std::size_t first = 0; first < mine.size(); first += 16) {
+      check();
+      const std::size_t count = std::min<std::size_t>(16, mine.size() - first);
+      Matrix u(system.free_dofs(), static_cast<Eigen::Index>(count));
+      for (std::size_t j = 0; j < count; ++j) {
+        const Probe& probe = bank.probes[mine[first + j]];
+        u.col(static_cast<Eigen::Index>(j)) = system.RightHandSide(probe.force, probe.prescribed);
       }
-      const Vector u = system.Displacement(probe.force, probe.prescribed);
-      const double e2 = system.Gather(u - probe.reference).squaredNorm();
-      errors[p] = std::sqrt(e2 / probe.reference_norm2);
+      system.SolveColumns(u);
+      for (std::size_t j = 0; j < count; ++j) {
+        const Probe& probe = bank.probes[mine[first + j]];
+        const double e2 =
+            (u.col(static_cast<Eigen::Index>(j)) - system.Gather(probe.reference)).squaredNorm();
+        errors[mine[first + j]] = std::sqrt(e2 / probe.reference_norm2);
+      }
     }
   }
   return errors;

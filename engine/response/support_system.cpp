@@ -2,6 +2,8 @@
 
 #include <Eigen/Cholesky>
 
+#include "engine/blocked_triangular_solve.h"
+
 namespace springfit::response {
 
 SupportSystem::SupportSystem(int dimension, const std::vector<bool>& constrained)
@@ -81,10 +83,13 @@ void SupportSystem::Solve(Vector& b) const {
 }
 
 void SupportSystem::SolveColumns(Matrix& b) const {
-  if (supernodal_)
+  if (supernodal_) {
     supernodal_->Solve(b);
-  else
-    b = llt_->solve(b);
+    return;
+  }
+  RowBlock y = llt_->permutationP() * b;
+  SolveWithCholeskyFactor(llt_->matrixL().nestedExpression(), y);
+  b = llt_->permutationPinv() * y;
 }
 
 Vector SupportSystem::Displacement(const Vector& force, const Vector& prescribed) const {
