@@ -1,5 +1,7 @@
 #include "engine/supernodal_cholesky.h"
 
+#include "engine/blocked_triangular_solve.h"
+
 #include <cholmod.h>
 
 #include <dlfcn.h>
@@ -7,6 +9,7 @@
 #include <cstring>
 #include <mutex>
 #include <stdexcept>
+#include <vector>
 
 namespace springfit {
 
@@ -128,6 +131,36 @@ void SupernodalCholesky::Solve(Vector& b) const {
 
 void SupernodalCholesky::Solve(Matrix& b) const {
   SolveInPlace(state_->factor, state_->common, state_->n, b.cols(), b.data());
+}
+
+void SupernodalCholesky::SolveColumns(Matrix& b) const {
+  const cholmod_factor* f = state_->factor;
+  const auto* super = static_cast<const int*>(f->super);
+  const auto* pi = static_cast<const int*>(f->pi);
+  const auto* px = static_cast<const int*>(f->px);
+  const auto* rows = static_cast<const int*>(f->s);
+  const auto* x = static_cast<const double*>(f->x);
+  const auto* perm = static_cast<const int*>(f->Perm);
+  // Per column, its supernode: the block's rows start with the supernode's own columns, so
+  // column j's entries from its diagonal down are the block's rows from j's place on.
+  std::vector<int> supernode_of(static_cast<std::size_t>(state_->n));
+  for (std::size_t s = 0; s < f->nsuper; ++s)
+    for (int j = super[s]; j < super[s + 1]; ++j)
+      supernode_of[static_cast<std::size_t>(j)] = static_cast<int>(s);
+  const auto column = [&](Eigen::Index j) {
+    const int s = supernode_of[static_cast<std::size_t>(j)];
+    const int local = static_cast<int>(j) - super[s];
+    const int height = pi[s + 1] - pi[s];
+    return FactorColumn{rows + pi[s] + local,
+                        x + px[s] + static_cast<std::ptrdiff_t>(local) * height + local,
+                        height - local};
+  };
+  // L L^T = P A P^T, row k of the permuted system being row perm[k] of A.
+  RowBlock y(b.rows(), b.cols());
+  const auto at = [perm](Eigen::Index k) { return perm ? perm[k] : k; };  // (null: natural)
+  for (Eigen::Index k = 0; k < b.rows(); ++k) y.row(k) = b.row(at(k));
+  SolveWithCholeskyFactor(state_->n, column, y);
+  for (Eigen::Index k = 0; k < b.rows(); ++k) b.row(at(k)) = y.row(k);
 }
 
 }  // namespace springfit

@@ -57,6 +57,14 @@ bool LinearizedResponse::At(const std::vector<double>& weights) {
   return std::find(held.begin(), held.end(), 0) == held.end();
 }
 
+FactorizedOn LinearizedResponse::Factorized() const {
+  return [this](std::size_t support) -> const SupportSystem* {
+    for (const Part& part : parts_)
+      if (part.support == support) return &part.system;
+    return nullptr;
+  };
+}
+
 double LinearizedResponse::ResidualNorm2() const {
   double sum = 0.0;
   for (const Part& part : parts_) sum += part.residual.squaredNorm();

@@ -32,6 +32,10 @@ class LinearizedResponse {
   // Throws Interrupted between batches of solves when `interruption` stops it.
   bool At(const std::vector<double>& weights);
 
+  // The model of the last successful At() factorised on every fitted support (null on
+  // others), for the judgements of that model (ProbeObjective::SelectError, LambdaMin).
+  FactorizedOn Factorized() const;
+
   // sum_p |r_p|^2 = sum_p w_p |u_p - u_ref,p|^2.
   double ResidualNorm2() const;
   // The residuals r_p stacked in support order, then in the bank's order of the probes.

@@ -76,8 +76,9 @@ class MatrixFreeFit {
   void Continuation(ResponseFitResult& r) {
     std::vector<double> weights = objective_.Weights(objective_.prior_scaled());
     LinearizedResponse at = Linearisation();
-    Judge(weights, options_.regularizations.front(), 0);
-    if (!at.At(weights)) return;
+    const bool held = at.At(weights);
+    Judge(weights, options_.regularizations.front(), 0, held ? &at : nullptr);
+    if (!held) return;
     std::vector<double> strengths = options_.regularizations;
     std::sort(strengths.begin(), strengths.end(), std::greater<>());
     const std::vector<bool> none(weights.size(), false);
@@ -112,8 +113,9 @@ class MatrixFreeFit {
       weights[static_cast<std::size_t>(saliency[i].second)] = 0.0;
     }
     const std::size_t first = iterates_.size();
-    Judge(weights, regularization, step_count_);
-    if (budget.At(weights)) {
+    const bool held = budget.At(weights);
+    Judge(weights, regularization, step_count_, held ? &budget : nullptr);
+    if (held) {
       if (progress_) progress_("probe_path", iterates_.back().select_error);
       Descend(weights, budget, regularization, removed);
     }
@@ -138,9 +140,13 @@ class MatrixFreeFit {
     return LinearizedResponse(objective_, springs_, interruption_, pool_);
   }
 
-  void Judge(const std::vector<double>& weights, double regularization, int step) {
-    iterates_.push_back({weights, regularization, objective_.SelectError(weights),
-                         objective_.LambdaMin(weights), step});
+  // Records `weights` as an iterate; `at`, when given, is its linearisation, whose
+  // factorisations the judgements reuse.
+  void Judge(const std::vector<double>& weights, double regularization, int step,
+             const LinearizedResponse* at) {
+    const FactorizedOn factorized = at ? at->Factorized() : FactorizedOn{};
+    iterates_.push_back({weights, regularization, objective_.SelectError(weights, factorized),
+                         objective_.LambdaMin(weights, factorized), step});
     double best = kNoModel;
     for (const Iterate& i : iterates_) best = std::min(best, i.select_error);
     if (progress_) progress_("probe_fit", best);
@@ -165,7 +171,7 @@ class MatrixFreeFit {
           [&](const Vector& v) { return Vector(at.NormalProduct(v) + rho * v); }, -gradient,
           diagonal, free, options_.cg_iterations, options_.cg_tolerance);
       if (!ProjectedStep(weights, x, phi, at, d, regularization)) break;
-      Judge(weights, regularization, ++step_count_);
+      Judge(weights, regularization, ++step_count_, &at);
     }
   }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <optional>
 
 #include <Eigen/Eigenvalues>
 
@@ -81,7 +82,8 @@ double LargestPencilEigenvalue(const SupportSystem& a, const SupportSystem& b, i
 }  // namespace
 
 std::vector<double> ProbeErrorsFor(const ProbeBank& bank, const SparseMatrix& model,
-                                   const std::vector<bool>& include, Interruption* interruption) {
+                                   const std::vector<bool>& include, Interruption* interruption,
+                                   const FactorizedOn& factorized) {
   const auto check = [interruption] {
     if (interruption && interruption->Check()) throw Interrupted();
   };
@@ -95,8 +97,11 @@ std::vector<double> ProbeErrorsFor(const ProbeBank& bank, const SparseMatrix& mo
       any |= include[p] && bank.probes[p].support == static_cast<int>(s);
     if (!any) continue;
     check();
-    SupportSystem system(d, bank.supports[s].constrained);
-    const bool held = system.Factorize(model);
+    const SupportSystem* given = factorized ? factorized(s) : nullptr;
+    std::optional<SupportSystem> own;
+    if (!given) own.emplace(d, bank.supports[s].constrained);
+    const bool held = given || own->Factorize(model);
+    const SupportSystem& system = given ? *given : *own;
     std::vector<std::size_t> mine;
     for (std::size_t p = 0; p < bank.probes.size(); ++p)
       if (include[p] && bank.probes[p].support == static_cast<int>(s)) mine.push_back(p);
@@ -172,7 +177,12 @@ double SmallestGeneralizedEigenvalue(const SparseMatrix& model, const SupportSys
                                      int iterations, Interruption* interruption) {
   SupportSystem m(reference.dimension(), reference.constrained());
   if (!m.Factorize(model)) return 0.0;
-  return 1.0 / LargestPencilEigenvalue(reference, m, iterations, 2, interruption);
+  return SmallestGeneralizedEigenvalue(m, reference, iterations, interruption);
+}
+
+double SmallestGeneralizedEigenvalue(const SupportSystem& model, const SupportSystem& reference,
+                                     int iterations, Interruption* interruption) {
+  return 1.0 / LargestPencilEigenvalue(reference, model, iterations, 2, interruption);
 }
 
 std::vector<SoftMode> SoftModes(const SparseMatrix& model, const SupportSystem& reference,

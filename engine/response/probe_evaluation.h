@@ -12,6 +12,7 @@
 // mode the model leaves soft.
 #pragma once
 
+#include <functional>
 #include <limits>
 #include <vector>
 
@@ -21,12 +22,18 @@
 
 namespace springfit::response {
 
+// The model already factorised on a support by the caller (LinearizedResponse holds one per
+// fitted support), or null: the judgements below then factorise it themselves. Either way the
+// same matrix on the same support, so the same bits.
+using FactorizedOn = std::function<const SupportSystem*(std::size_t support)>;
+
 // Per probe of the bank, E_p where `include[p]` (NaN for the others). `interruption`, when set,
 // is checked before each support's factorisation and every 16 probes' solves; it throws
 // Interrupted when a stop is requested.
 std::vector<double> ProbeErrorsFor(const ProbeBank& bank, const SparseMatrix& model,
                                    const std::vector<bool>& include,
-                                   Interruption* interruption = nullptr);
+                                   Interruption* interruption = nullptr,
+                                   const FactorizedOn& factorized = {});
 
 struct ErrorSummary {
   int probes = 0;
@@ -57,6 +64,9 @@ struct PencilExtremes {
 // factorisation it uses: 0 when the model is not held there.
 // `interruption`, when set, is checked at every Lanczos iteration (one solve).
 double SmallestGeneralizedEigenvalue(const SparseMatrix& model, const SupportSystem& reference,
+                                     int iterations = 80, Interruption* interruption = nullptr);
+// The same with the model factorised on that support by the caller.
+double SmallestGeneralizedEigenvalue(const SupportSystem& model, const SupportSystem& reference,
                                      int iterations = 80, Interruption* interruption = nullptr);
 // The displacements the model resists least against the reference on `reference`'s support:
 // generalised eigenvectors of (model, reference), as Lanczos' Ritz vectors, smallest eigenvalue

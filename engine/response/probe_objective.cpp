@@ -113,22 +113,26 @@ double ProbeObjective::Objective(const std::vector<double>& weights, double regu
   return f + Regularization(weights, regularization);
 }
 
-double ProbeObjective::LambdaMin(const std::vector<double>& weights) const {
+double ProbeObjective::LambdaMin(const std::vector<double>& weights,
+                                 const FactorizedOn& factorized) const {
   if (PresentSprings(weights) == 0) return 0.0;
   const SparseMatrix k = SpringRestStiffness(problem_, weights);
   double smallest = std::numeric_limits<double>::infinity();
   for (std::size_t s = 0; s < bank_.supports.size(); ++s) {
     if (!bank_.supports[s].user) continue;
-    smallest =
-        std::min(smallest, SmallestGeneralizedEigenvalue(k, reference_[s], 80, interruption_));
+    const SupportSystem* model = factorized ? factorized(s) : nullptr;
+    smallest = std::min(
+        smallest, model ? SmallestGeneralizedEigenvalue(*model, reference_[s], 80, interruption_)
+                        : SmallestGeneralizedEigenvalue(k, reference_[s], 80, interruption_));
   }
   return std::isfinite(smallest) ? smallest : 0.0;
 }
 
-double ProbeObjective::SelectError(const std::vector<double>& weights) const {
+double ProbeObjective::SelectError(const std::vector<double>& weights,
+                                   const FactorizedOn& factorized) const {
   if (PresentSprings(weights) == 0) return std::numeric_limits<double>::infinity();
-  return FamilyBalancedRms(
-      bank_, ProbeErrorsFor(bank_, SpringRestStiffness(problem_, weights), select_, interruption_));
+  return FamilyBalancedRms(bank_, ProbeErrorsFor(bank_, SpringRestStiffness(problem_, weights),
+                                                 select_, interruption_, factorized));
 }
 
 std::vector<double> ProbeObjective::Weights(const Vector& x) const {

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "engine/response/probe_bank.h"
+#include "engine/response/probe_evaluation.h"
 #include "engine/response/support_system.h"
 
 namespace springfit::response {
@@ -48,9 +49,10 @@ class ProbeObjective {
   // The regularisation term alone.
   double Regularization(const std::vector<double>& weights, double regularization) const;
   // The smallest generalised eigenvalue of (K_model, K_ref) over the user supports.
-  double LambdaMin(const std::vector<double>& weights) const;
+  // `factorized`: the model's factorisations the caller already holds (probe_evaluation.h).
+  double LambdaMin(const std::vector<double>& weights, const FactorizedOn& factorized = {}) const;
   // FamilyBalancedRms on the choosing probes; infinity for no model.
-  double SelectError(const std::vector<double>& weights) const;
+  double SelectError(const std::vector<double>& weights, const FactorizedOn& factorized = {}) const;
 
   // Per-gene weights of scaled variables, with the dust (below options.dust of the median)
   // removed; and back.

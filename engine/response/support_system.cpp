@@ -84,11 +84,18 @@ void SupportSystem::Solve(Vector& b) const {
 
 void SupportSystem::SolveColumns(Matrix& b) const {
   if (supernodal_) {
-    supernodal_->Solve(b);
+    supernodal_->SolveColumns(b);
     return;
   }
+  // Eigen's factor: compressed columns, rows ascending, the diagonal first in each.
+  const SparseMatrix& l = llt_->matrixL().nestedExpression();
+  const int* outer = l.outerIndexPtr();
+  const auto column = [&](Eigen::Index j) {
+    const int first = outer[j];
+    return FactorColumn{l.innerIndexPtr() + first, l.valuePtr() + first, outer[j + 1] - first};
+  };
   RowBlock y = llt_->permutationP() * b;
-  SolveWithCholeskyFactor(llt_->matrixL().nestedExpression(), y);
+  SolveWithCholeskyFactor(l.cols(), column, y);
   b = llt_->permutationPinv() * y;
 }
 

@@ -523,6 +523,27 @@ TEST(LinearizedResponse, GradientAndNormalProductMatchFiniteDifferences) {
   }
 }
 
+// The judgements of a linearised model reuse its factorisations, supports matched by index:
+// the same choosing error and eigenvalue bound, bit for bit, as factorising anew; on a model
+// the linearisation does not hold, its factorisations would give other numbers.
+TEST(LinearizedResponse, ItsFactorisationsJudgeItsModelAsFactorisingAnew) {
+  const Problem problem(examples::Make("fem-kidney-2d"));
+  const SparseMatrix k = ReferenceRestStiffness(problem);
+  const ResponseFitOptions options;
+  const ProbeBank bank = MakeProbeBank(problem, k, options.probes);
+  const std::vector<double> prior = *fem::BaselineGeneWeights(problem);
+  const ProbeObjective objective(problem, bank, k, prior, options);
+  const GeneSprings springs = GeneSpringsOf(problem);
+  LinearizedResponse at(objective, springs);
+  ASSERT_TRUE(at.At(prior));
+  ASSERT_GE(objective.fitted_supports().size(), 2u);
+  EXPECT_EQ(objective.SelectError(prior, at.Factorized()), objective.SelectError(prior));
+  EXPECT_EQ(objective.LambdaMin(prior, at.Factorized()), objective.LambdaMin(prior));
+  std::vector<double> other = prior;
+  for (std::size_t e = 0; e < other.size(); e += 3) other[e] *= 2.0;
+  EXPECT_NE(objective.SelectError(other, at.Factorized()), objective.SelectError(other));
+}
+
 // Above dense_max_genes the fit runs without a Gram matrix: a model far better than the
 // closed-form baseline on held-out probes, the same with one or two threads.
 TEST(ResponseFit, TheMatrixFreeFitBeatsTheBaselineOnHeldOutProbesWhateverTheThreads) {
