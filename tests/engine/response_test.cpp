@@ -24,6 +24,16 @@
 namespace springfit::response {
 namespace {
 
+// The kidney, its reference stiffness at rest, the default probe bank, and the closed-form
+// baseline as the prior.
+struct KidneyAtRest {
+  Problem problem{examples::Make("fem-kidney-2d")};
+  SparseMatrix k = ReferenceRestStiffness(problem);
+  ResponseFitOptions options;
+  ProbeBank bank = MakeProbeBank(problem, k, options.probes);
+  std::vector<double> prior = *fem::BaselineGeneWeights(problem);
+};
+
 TEST(ProbeBank, EverySupportHasEveryFamilyInEveryDirectionAndAHeldOutPart) {
   const Problem problem(examples::Make("fem-plate-5x5"));
   const SparseMatrix k = ReferenceRestStiffness(problem);
@@ -428,12 +438,7 @@ namespace {
 
 // The supports' work runs on the pool: the same model whatever the threads.
 // The kidney's probe bank and baseline, fitted with one thread and with a pool of two.
-struct KidneyFits {
-  Problem problem{examples::Make("fem-kidney-2d")};
-  SparseMatrix k = ReferenceRestStiffness(problem);
-  ResponseFitOptions options;
-  ProbeBank bank = MakeProbeBank(problem, k, options.probes);
-  std::vector<double> prior = *fem::BaselineGeneWeights(problem);
+struct KidneyFits : KidneyAtRest {
   ResponseFitResult one, two;
   // `matrix_free`: the kidney's genes above dense_max_genes.
   explicit KidneyFits(bool matrix_free = false) {
@@ -527,13 +532,10 @@ TEST(LinearizedResponse, GradientAndNormalProductMatchFiniteDifferences) {
 // the same choosing error and eigenvalue bound, bit for bit, as factorising anew; on a model
 // the linearisation does not hold, its factorisations would give other numbers.
 TEST(LinearizedResponse, ItsFactorisationsJudgeItsModelAsFactorisingAnew) {
-  const Problem problem(examples::Make("fem-kidney-2d"));
-  const SparseMatrix k = ReferenceRestStiffness(problem);
-  const ResponseFitOptions options;
-  const ProbeBank bank = MakeProbeBank(problem, k, options.probes);
-  const std::vector<double> prior = *fem::BaselineGeneWeights(problem);
-  const ProbeObjective objective(problem, bank, k, prior, options);
-  const GeneSprings springs = GeneSpringsOf(problem);
+  const KidneyAtRest kidney;
+  const std::vector<double>& prior = kidney.prior;
+  const ProbeObjective objective(kidney.problem, kidney.bank, kidney.k, prior, kidney.options);
+  const GeneSprings springs = GeneSpringsOf(kidney.problem);
   LinearizedResponse at(objective, springs);
   ASSERT_TRUE(at.At(prior));
   ASSERT_GE(objective.fitted_supports().size(), 2u);
@@ -665,11 +667,8 @@ namespace {
 // What the fits judge every iterate by stops between solves when asked: at 10,000 nodes one
 // judgement takes seconds, and a job must stop (and beat) within one.
 TEST(ProbeObjective, ItsJudgementsStopBetweenSolvesWhenAsked) {
-  const Problem problem(examples::Make("fem-kidney-2d"));
-  const SparseMatrix k = ReferenceRestStiffness(problem);
-  const ResponseFitOptions options;
-  const ProbeBank bank = MakeProbeBank(problem, k, options.probes);
-  const std::vector<double> prior = *fem::BaselineGeneWeights(problem);
+  const KidneyAtRest kidney;
+  const auto& [problem, k, options, bank, prior] = kidney;
   // A poll that asks for the stop at its n-th call (checked every time: period 0).
   const auto judged_until = [&](int n, const std::function<void(const ProbeObjective&)>& judge) {
     int polls = 0;
