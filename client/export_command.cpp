@@ -56,6 +56,23 @@ std::string FactsLine(const io::SpringModel& model) {
   return text;
 }
 
+// What the result says of the model, in the words `run` and `result` use: its verdict line,
+// and the generalised eigenvalues that bound its error under every load on the user's supports.
+// Empty for a result written before it had a verdict.
+std::string JudgementLine(const proto::StoredResult& result) {
+  if (!result.outcome) return "";
+  std::string text = "verdict " + result.outcome->Headline();
+  if (result.lambda_min && result.lambda_max) {
+    char line[160];
+    std::snprintf(line, sizeof line,
+                  "; generalised eigenvalues of (K_model, K_ref) on the user's supports in "
+                  "[%.3g, %.3g]",
+                  *result.lambda_min, *result.lambda_max);
+    text += line;
+  }
+  return text;
+}
+
 int Export(const ExportArgs& a) {
   // The format first: an unknown extension is refused before anything is read or fetched.
   const io::ModelFormat format = io::ModelFormatOfPath(a.output);
@@ -74,6 +91,8 @@ int Export(const ExportArgs& a) {
             << " nodes, " << model.springs.size() << " springs";
   if (undetermined > 0) std::cout << " (" << undetermined << " not determined by the data)";
   std::cout << ", from " << loaded.where << "\n" << a.output << ": " << FactsLine(model) << "\n";
+  if (const std::string judged = JudgementLine(loaded.result); !judged.empty())
+    std::cout << a.output << ": " << judged << "\n";
   return kExitOk;
 }
 

@@ -74,7 +74,11 @@ SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& res
   model.rest.assign(scene.rest.data(), scene.rest.data() + scene.rest.size());
   model.description = "springfit, strategy " + result.strategy;
   if (result.seed) model.description += ", seed " + std::to_string(*result.seed);
-  if (result.rms_error) {
+  // The result's verdict line, as run, result and the dashboard show it; E alone for a result
+  // written before it had one.
+  if (result.outcome) {
+    model.description += "; " + result.outcome->Headline();
+  } else if (result.rms_error) {
     char e[32];
     std::snprintf(e, sizeof e, ", E %.4g", *result.rms_error);
     model.description += e;

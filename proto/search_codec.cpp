@@ -468,6 +468,14 @@ StoredResult StoredResultFromJson(const Json& json) {
       r.baseline_rms_error = ReadNumber(b["rms_error"], "baseline.rms_error");
     if (b.contains("springs")) r.baseline_springs = ReadInt(b["springs"], "baseline.springs");
   }
+  if (json.contains("outcome")) r.outcome = OutcomeFromJson(json["outcome"], "outcome");
+  if (json.contains("generalization") && json["generalization"].is_object()) {
+    const Json& g = json["generalization"];
+    for (const auto& [key, value] :
+         {std::pair{"lambda_min", &r.lambda_min}, std::pair{"lambda_max", &r.lambda_max}})
+      if (g.contains(key) && g[key].is_number())
+        *value = ReadNumber(g[key], std::string("generalization.") + key);
+  }
   return r;
 }
 

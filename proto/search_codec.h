@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "engine/identification/identification_result.h"
+#include "engine/identification/verdict.h"
 #include "engine/problem.h"
 #include "proto/json_reader.h"
 
@@ -52,6 +53,11 @@ struct StoredResult {
   // do not determine: `identifiability.unseen` and the springs of its groups.
   std::vector<NodePair> unidentifiable;
   std::vector<NodePair> undetermined;
+  // The verdict and its headline numbers (`outcome`: results written since it exists), and the
+  // certificate's generalised eigenvalues (`generalization.lambda_min`, `lambda_max`), for an
+  // export to say what the result says.
+  std::optional<Outcome> outcome;
+  std::optional<double> lambda_min, lambda_max;
 };
 // Throws InputError naming the JSON path of the first problem.
 StoredResult StoredResultFromJson(const Json& json);

@@ -266,6 +266,17 @@ with tempfile.TemporaryDirectory() as work:
     check(s["root"].get("gravity") == "0 -9.81 0", f"gravity {s['root'].get('gravity')}")
     check("total mass" in p.stdout and "stable explicit time step at most" in p.stdout,
           f"the export's facts: {p.stdout}")
+    # What the result says of the model, in the run's words: its verdict line, the certificate's
+    # eigenvalues, and the verdict at the end of the description every format carries.
+    verdict = next((l for l in summary.splitlines() if l.startswith("verdict:")), "")
+    headline = verdict[len("verdict:"):].strip()
+    result = json.load(open(plate))
+    g = result["generalization"]
+    check(headline and f"verdict {headline}; generalised eigenvalues of (K_model, K_ref) on the "
+          f"user's supports in [{g['lambda_min']:.3g}, {g['lambda_max']:.3g}]" in p.stdout,
+          f"the export's verdict line: {p.stdout!r} vs the run's {verdict!r}")
+    check(plate_model["description"].endswith("; " + headline),
+          f"the model's description {plate_model['description']!r} ends with {headline!r}")
     # The material's density in the scene: the same masses without --density.
     with_density = dict(scene_json)
     with_density["reference"] = dict(scene_json["reference"], material=dict(scene_json["reference"]["material"], density=2))
