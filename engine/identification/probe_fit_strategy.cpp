@@ -21,35 +21,30 @@ bool Probeable(const Problem& problem, const SearchOptions& options) {
   return options.probes != 0 && problem.scene().reference.kind != Reference::Kind::kPositions;
 }
 
-// The closed-form baseline's rest stiffness (on the mesh edges, whether or not they are all
-// candidates); `start` for an MSS reference, which has no closed-form model.
-response::SparseMatrix BaselineStiffness(const Problem& problem,
-                                         const std::optional<std::vector<double>>& on_genes,
-                                         const std::vector<double>& start) {
-  if (on_genes) return response::SpringRestStiffness(problem, *on_genes);
-  if (problem.scene().reference.kind == Reference::Kind::kFem) {
-    const fem::ClosedFormModel closed = fem::VanGelderModel(problem.scene());
-    return response::SpringRestStiffness(problem.dimension(), problem.scene().rest, closed.springs,
-                                         closed.stiffness);
+// The closed-form baseline (on the mesh edges, whether or not they are all candidates), or
+// `start` for an MSS reference, which has no closed-form model: its rest stiffness for the
+// certificate, its springs for the nonlinear judgement (amplitude_judgement.h).
+struct BaselineModel {
+  response::SparseMatrix stiffness;
+  response::SpringModel springs;
+};
+BaselineModel BaselineModelOf(const Problem& problem,
+                              const std::optional<std::vector<double>>& on_genes,
+                              const std::vector<double>& start) {
+  const std::vector<double>* weights = on_genes ? &*on_genes : &start;
+  if (!on_genes && problem.scene().reference.kind == Reference::Kind::kFem) {
+    fem::ClosedFormModel closed = fem::VanGelderModel(problem.scene());
+    return {response::SpringRestStiffness(problem.dimension(), problem.scene().rest, closed.springs,
+                                          closed.stiffness),
+            {std::move(closed.springs), std::move(closed.stiffness)}};
   }
-  return response::SpringRestStiffness(problem, start);
-}
-
-// The same baseline as springs, for the nonlinear judgement (amplitude_judgement.h).
-response::SpringModel BaselineSprings(const Problem& problem,
-                                      const std::optional<std::vector<double>>& on_genes,
-                                      const std::vector<double>& start) {
-  if (on_genes) return response::ModelOfWeights(problem, *on_genes);
-  if (problem.scene().reference.kind == Reference::Kind::kFem) {
-    const fem::ClosedFormModel closed = fem::VanGelderModel(problem.scene());
-    return {closed.springs, closed.stiffness};
-  }
-  return response::ModelOfWeights(problem, start);
+  return {response::SpringRestStiffness(problem, *weights),
+          response::ModelOfWeights(problem, *weights)};
 }
 
 // The certificate's judgement at the named loads' size and below, when the response is
-// nonlinear; left empty when stopped (the run is ending).
-void JudgeAtAmplitudes(const Problem& problem, const response::ProbeBank& bank,
+// nonlinear. False when stopped: the amplitudes are then left empty (the run is ending).
+bool JudgeAtAmplitudes(const Problem& problem, const response::ProbeBank& bank,
                        const std::vector<double>& weights, const response::SpringModel& baseline,
                        response::Generalization& certificate, Interruption* interruption,
                        WorkerPool* pool) {
@@ -57,8 +52,10 @@ void JudgeAtAmplitudes(const Problem& problem, const response::ProbeBank& bank,
     certificate.amplitudes =
         response::JudgeAtAmplitudes(problem, bank, response::ModelOfWeights(problem, weights),
                                     baseline, {}, interruption, pool);
+    return true;
   } catch (const Interrupted&) {
     certificate.amplitudes.clear();
+    return false;
   }
 }
 
@@ -76,10 +73,9 @@ bool FitsToProbes(const Problem& problem, const SearchOptions& options) {
   return Probeable(problem, options) && options.target_error == 0.0;
 }
 
-std::optional<response::Generalization> CertifyOnProbes(const Problem& problem,
-                                                        const SearchOptions& options,
-                                                        const std::vector<double>& weights,
-                                                        const std::vector<double>& start) {
+std::optional<response::Generalization> CertifyOnProbes(
+    const Problem& problem, const SearchOptions& options, const std::vector<double>& weights,
+    const std::vector<double>& start, Interruption* interruption, WorkerPool* pool) {
   if (!Probeable(problem, options)) return std::nullopt;
   std::optional<std::vector<double>> baseline_weights;
   if (problem.scene().reference.kind == Reference::Kind::kFem)
@@ -88,12 +84,11 @@ std::optional<response::Generalization> CertifyOnProbes(const Problem& problem,
   const response::ProbeOptions probe_options = ProbeOptionsOf(options);
   const response::ProbeBank bank =
       response::MakeProbeBank(problem, reference_stiffness, probe_options);
+  const BaselineModel baseline = BaselineModelOf(problem, baseline_weights, start);
   response::Generalization g =
-      response::Certify(problem, bank, reference_stiffness, weights,
-                        BaselineStiffness(problem, baseline_weights, start));
+      response::Certify(problem, bank, reference_stiffness, weights, baseline.stiffness);
   g.named_weight = probe_options.named_weight;
-  JudgeAtAmplitudes(problem, bank, weights, BaselineSprings(problem, baseline_weights, start), g,
-                    nullptr, nullptr);
+  JudgeAtAmplitudes(problem, bank, weights, baseline.springs, g, interruption, pool);
   return g;
 }
 
@@ -105,8 +100,7 @@ namespace {
 struct ProbeFitBaseline {
   std::optional<std::vector<double>> on_genes;
   std::vector<double> start;
-  response::SparseMatrix stiffness;
-  response::SpringModel springs;
+  BaselineModel model;
 };
 
 ProbeFitBaseline BaselineOf(const Problem& problem) {
@@ -116,8 +110,7 @@ ProbeFitBaseline BaselineOf(const Problem& problem) {
   b.start = b.on_genes ? *b.on_genes
                        : std::vector<double>(static_cast<std::size_t>(problem.gene_count()),
                                              problem.training_stiffness());
-  b.stiffness = BaselineStiffness(problem, b.on_genes, b.start);
-  b.springs = BaselineSprings(problem, b.on_genes, b.start);
+  b.model = BaselineModelOf(problem, b.on_genes, b.start);
   return b;
 }
 
@@ -136,6 +129,8 @@ struct ProbeFitModel {
   std::vector<double> weights;
   response::Generalization certificate;
   bool stopped = false;  // during the fit: the start, judged
+  // After the fit, during its nonlinear judgement: the fitted model, not judged at amplitudes.
+  bool judgement_stopped = false;
   // When the baseline is returned: the fitted model's held-out errors it was refused on.
   response::ErrorSummary fitted_held_out;
 };
@@ -154,13 +149,13 @@ ProbeFitModel FitAndCertify(const Problem& problem, const response::ProbeBank& b
                               &monitor.interruption(), progress, pool);
     m.weights = fit.weights;
     m.certificate =
-        response::Certify(problem, bank, reference_stiffness, m.weights, baseline.stiffness);
+        response::Certify(problem, bank, reference_stiffness, m.weights, baseline.model.stiffness);
     m.certificate.fitted_to_probes = true;
     m.certificate.fit = std::move(fit);
   } catch (const Interrupted&) {
     m.stopped = true;
     m.certificate =
-        response::Certify(problem, bank, reference_stiffness, m.weights, baseline.stiffness);
+        response::Certify(problem, bank, reference_stiffness, m.weights, baseline.model.stiffness);
   }
   m.certificate.named_weight = fit_options.probes.named_weight;
   return m;
@@ -181,7 +176,7 @@ void KeepBaselineGuarantee(const Problem& problem, const SearchOptions& options,
   m.weights = *baseline.on_genes;
   m.fitted_held_out = m.certificate.model_held_out;
   response::Generalization judged =
-      response::Certify(problem, bank, reference_stiffness, m.weights, baseline.stiffness);
+      response::Certify(problem, bank, reference_stiffness, m.weights, baseline.model.stiffness);
   judged.fitted_to_probes = m.certificate.fitted_to_probes;
   judged.fit = std::move(m.certificate.fit);
   judged.named_weight = m.certificate.named_weight;
@@ -200,10 +195,16 @@ std::string ProbeFitMessage(const IdentificationResult& r, const ProbeFitModel& 
                   PresentSprings(m.weights), c.held_out, m.fitted_held_out.rms,
                   c.baseline_held_out.rms);
   } else {
-    const char* stopped = r.stop == StopReason::kTimeLimit ? "time limit reached; the best so far: "
-                          : r.stop == StopReason::kCancelled
-                              ? "stopped on request; the best so far: "
-                              : "";
+    const char* stopped =
+        r.stop == StopReason::kCompleted ? ""
+        : m.judgement_stopped
+            ? (r.stop == StopReason::kTimeLimit
+                   ? "time limit reached during the nonlinear judgement (not judged at "
+                     "amplitudes): "
+                   : "stopped on request during the nonlinear judgement (not judged at "
+                     "amplitudes): ")
+        : r.stop == StopReason::kTimeLimit ? "time limit reached; the best so far: "
+                                           : "stopped on request; the best so far: ";
     std::snprintf(message, sizeof message,
                   "%s%d springs fitted to %d probe loads on %d supports; held-out probes: "
                   "median E %.3g (baseline %.3g); named cases E %.3g",
@@ -287,9 +288,10 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   ProbeFitModel m = FitAndCertify(problem, bank, reference_stiffness, baseline, fit_options,
                                   monitor, progress, pool);
   KeepBaselineGuarantee(problem, options, bank, reference_stiffness, baseline, m);
-  if (!m.stopped) {
-    JudgeAtAmplitudes(problem, bank, m.weights, baseline.springs, m.certificate,
-                      &monitor.interruption(), pool);
+  if (!m.stopped && problem.response() == Response::kNonlinear) {
+    enter("nonlinear");
+    m.judgement_stopped = !JudgeAtAmplitudes(problem, bank, m.weights, baseline.model.springs,
+                                             m.certificate, &monitor.interruption(), pool);
   }
   details.model_seconds = since();
 
@@ -305,7 +307,8 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   details.regularization = m.certificate.fit.regularization;
   details.steps = m.certificate.fit.gauss_newton_accepted;
 
-  const bool stopped = !RecordModel(problem, m.weights, since(), context, monitor, r) || m.stopped;
+  const bool stopped = !RecordModel(problem, m.weights, since(), context, monitor, r) ||
+                       m.stopped || m.judgement_stopped;
   r.wall_seconds = since();
   r.stop = stopped
                ? (monitor.time_limit_reached() ? StopReason::kTimeLimit : StopReason::kCancelled)

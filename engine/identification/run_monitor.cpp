@@ -1,5 +1,7 @@
 #include "engine/identification/run_monitor.h"
 
+#include <limits>
+
 #include <utility>
 
 namespace springfit {
@@ -36,6 +38,18 @@ bool RunMonitor::Poll() {
   // user who asked for it waits (the trace's clock starts after the analysis).
   if (TimeLimitPassed()) return true;
   return context_.on_beat && !context_.on_beat(beat);
+}
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+void ClockPhase(RunMonitor& monitor, std::string_view phase,
+                std::chrono::steady_clock::time_point start) {
+  monitor.SetPhase(phase, [start](ProgressBeat& beat) {
+    beat.wall_seconds = SecondsSince(start);
+    beat.best_normalized_error = std::numeric_limits<double>::quiet_NaN();
+  });
 }
 
 }  // namespace springfit

@@ -49,4 +49,10 @@ class RunMonitor {
   Interruption interruption_;  // last: its poll uses the members above
 };
 
+// Seconds of wall time since `start`.
+double SecondsSince(std::chrono::steady_clock::time_point start);
+// From now on beats describe `phase` with its own clock alone (seconds since `start`, no error).
+void ClockPhase(RunMonitor& monitor, std::string_view phase,
+                std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now());
+
 }  // namespace springfit

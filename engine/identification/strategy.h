@@ -72,13 +72,19 @@ WorkerPool* PoolOf(const RunContext& context, std::unique_ptr<WorkerPool>& own);
 bool FitsToProbes(const Problem& problem, const SearchOptions& options);
 // The certificate of a model (per-gene weights) on the probe bank, when the reference can be
 // probed and the probes are not switched off; `start` is the baseline's stand-in for an MSS
-// reference.
+// reference. A stop during its nonlinear judgement leaves the amplitudes empty.
 std::optional<response::Generalization> CertifyOnProbes(const Problem& problem,
                                                         const SearchOptions& options,
                                                         const std::vector<double>& weights,
-                                                        const std::vector<double>& start);
+                                                        const std::vector<double>& start,
+                                                        Interruption* interruption = nullptr,
+                                                        WorkerPool* pool = nullptr);
 IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& options,
                                  const RunContext& context, RunMonitor& monitor);
+// Strategy continuous fitted to the named cases' sparsity path (named_case_fit.cpp), where it
+// does not fit to probes.
+IdentificationResult RunNamedCaseFit(const Problem& problem, const SearchOptions& options,
+                                     const RunContext& context, RunMonitor& monitor);
 
 Strategy ResolvedStrategy(Strategy strategy, const Problem& problem);
 std::unique_ptr<IdentificationStrategy> MakeStrategy(Strategy strategy, const Problem& problem);

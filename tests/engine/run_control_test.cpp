@@ -176,6 +176,29 @@ TEST(RunControl, TheFemBaselineIsStoppableBeforeTheRun) {
   EXPECT_TRUE(r.trace.empty());
 }
 
+// A stop during the nonlinear judgement (after the fit) returns the fitted model, says it was
+// stopped and not judged at amplitudes, and leaves the amplitudes empty rather than partial.
+TEST(RunControl, AStopDuringTheNonlinearJudgementIsAStopNotACompletion) {
+  const Problem p = Problem::Build(examples::Make("fem-kidney-2d-nl"));
+  const IdentificationResult whole =
+      RunIdentification(p, Resolved(p, Strategy::kContinuous), RunContext{});
+  ASSERT_EQ(whole.stop, StopReason::kCompleted);
+  ASSERT_TRUE(whole.generalization);
+  ASSERT_FALSE(whole.generalization->amplitudes.empty());
+  StopAtPhase stop{"nonlinear", {}};
+  const IdentificationResult r =
+      RunIdentification(p, Resolved(p, Strategy::kContinuous), stop.Context());
+  ASSERT_FALSE(stop.seen.empty());
+  EXPECT_EQ(stop.seen.back(), "nonlinear");
+  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  EXPECT_NE(r.stop_message.find("during the nonlinear judgement"), std::string::npos)
+      << r.stop_message;
+  ASSERT_TRUE(r.generalization);
+  EXPECT_TRUE(r.generalization->amplitudes.empty());
+  EXPECT_EQ(r.best, whole.best);  // the fitted model, whole
+  EXPECT_EQ(r.stiffness, whole.stiffness);
+}
+
 TEST(RunControl, AResumedRunStoppedBeforeItsFirstStepKeepsTheCheckpointsBest) {
   const Problem p = Problem::Build(examples::Make("fem-plate-5x5"));
   SearchOptions o = Resolved(p, Strategy::kPaper);
