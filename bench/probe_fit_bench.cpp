@@ -64,6 +64,8 @@ int Main(int argc, char** argv) {
   app.add_option("--steps-per-strength", defaults.steps_per_strength,
                  "ResponseFitOptions::steps_per_strength");
   app.add_option("--cg-iterations", defaults.cg_iterations, "ResponseFitOptions::cg_iterations");
+  app.add_option("--continuation-patience", defaults.continuation_patience,
+                 "ResponseFitOptions::continuation_patience");
   app.add_option("--named-weight", defaults.probes.named_weight, "ProbeOptions::named_weight");
   app.add_option("--extra-supports", defaults.probes.extra_supports,
                  "ProbeOptions::extra_supports");

@@ -72,7 +72,8 @@ class MatrixFreeFit {
   const std::vector<Iterate>& iterates() const { return iterates_; }
 
   // The continuation from the prior: `steps_per_strength` steps at every strength, strongest
-  // first; records each strength's model in `r`.
+  // first, until `continuation_patience` successive strengths each end worse on the choosing
+  // probes than the best before them; records each strength's model in `r`.
   void Continuation(ResponseFitResult& r) {
     std::vector<double> weights = objective_.Weights(objective_.prior_scaled());
     LinearizedResponse at = Linearisation();
@@ -82,13 +83,18 @@ class MatrixFreeFit {
     std::vector<double> strengths = options_.regularizations;
     std::sort(strengths.begin(), strengths.end(), std::greater<>());
     const std::vector<bool> none(weights.size(), false);
+    int worse = 0;
     for (double strength : strengths) {
+      double best = kNoModel;
+      for (const Iterate& i : iterates_) best = std::min(best, i.select_error);
       Descend(weights, at, strength, none);
       // The model at this strength: its last accepted step's, or the one it started from when
       // none was accepted.
       r.regularizations.push_back(strength);
       r.regularization_select_errors.push_back(iterates_.back().select_error);
       r.regularization_lambda_min.push_back(iterates_.back().lambda_min);
+      worse = iterates_.back().select_error < best ? 0 : worse + 1;
+      if (options_.continuation_patience > 0 && worse >= options_.continuation_patience) break;
     }
   }
 

@@ -150,6 +150,8 @@ void ResponseFitOptions::Validate(const std::string& owner) const {
   check.Require(cg_iterations >= 1, "cg_iterations", cg_iterations, "value >= 1");
   check.Require(InOpenUnit(cg_tolerance), "cg_tolerance", cg_tolerance, "0 < value < 1");
   check.Require(diagonal_samples >= 1, "diagonal_samples", diagonal_samples, "value >= 1");
+  check.Require(continuation_patience >= 0, "continuation_patience", continuation_patience,
+                "value >= 0 (0: every strength)");
   check.Require(soft_mode_rounds >= 0, "soft_mode_rounds", soft_mode_rounds, "value >= 0");
   check.Require(soft_modes_per_round >= 1, "soft_modes_per_round", soft_modes_per_round,
                 "value >= 1");
