@@ -113,7 +113,8 @@ int Main(int argc, char** argv) {
                   fit.regularization_select_errors[i], fit.regularization_lambda_min[i]);
     std::printf("\n    soft modes (probes: springs, choosing error, lambda):");
     for (const auto& m : fit.soft_mode_rounds)
-      std::printf(" %d: %d %.3g %.3g", m.probes, m.springs, m.select_error, m.lambda_min);
+      std::printf(" %s%d: %d %.3g %.3g", m.lifted ? "lift " : "", m.probes, m.springs,
+                  m.select_error, m.lambda_min);
     std::printf(" (chosen %d)", fit.soft_mode_chosen);
     std::printf("\n    path:");
     for (const auto& p : fit.path) std::printf(" %d:%.3g", p.springs, p.select_error);

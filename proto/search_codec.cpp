@@ -278,7 +278,8 @@ Json GeneralizationToJson(const response::Generalization& g) {
       modes.push_back({{"probes", m.probes},
                        {"springs", m.springs},
                        {"choosing_rms_error", NumberOrNull(m.select_error)},
-                       {"lambda_min", m.lambda_min}});
+                       {"lambda_min", m.lambda_min},
+                       {"lifted", m.lifted}});
     fit["soft_modes"] = std::move(modes);
     fit["soft_modes_chosen"] = g.fit.soft_mode_chosen;
     j["fit"] = std::move(fit);

@@ -59,6 +59,20 @@ std::vector<double> PreferSupported(const std::vector<double>& errors,
   return score;
 }
 
+Vector PriorScale(const std::vector<double>& prior) {
+  const double median = MedianPositive(prior);
+  Vector scale(static_cast<Eigen::Index>(prior.size()));
+  for (std::size_t e = 0; e < prior.size(); ++e)
+    scale[static_cast<Eigen::Index>(e)] = std::max(prior[e], 0.1 * median);
+  return scale;
+}
+
+double ChoosingError(const ProbeBank& bank, const SparseMatrix& model, Interruption* interruption,
+                     const FactorizedOn& factorized) {
+  return FamilyBalancedRms(bank, ProbeErrorsFor(bank, model, RoleMask(bank, ProbeRole::kSelect),
+                                                interruption, factorized));
+}
+
 ProbeObjective::ProbeObjective(const Problem& problem, const ProbeBank& bank,
                                const SparseMatrix& reference_stiffness,
                                const std::vector<double>& prior, const ResponseFitOptions& options,
@@ -68,16 +82,11 @@ ProbeObjective::ProbeObjective(const Problem& problem, const ProbeBank& bank,
       options_(options),
       interruption_(interruption),
       weight_(FitWeights(bank, options.probes)),
-      fit_(RoleMask(bank, ProbeRole::kFit)),
-      select_(RoleMask(bank, ProbeRole::kSelect)) {
+      fit_(RoleMask(bank, ProbeRole::kFit)) {
   const int m = problem.gene_count();
-  const double median = MedianPositive(prior);
-  scale_.resize(m);
+  scale_ = PriorScale(prior);
   prior_scaled_.resize(m);
-  for (int e = 0; e < m; ++e) {
-    scale_[e] = std::max(prior[static_cast<std::size_t>(e)], 0.1 * median);
-    prior_scaled_[e] = prior[static_cast<std::size_t>(e)] / scale_[e];
-  }
+  for (int e = 0; e < m; ++e) prior_scaled_[e] = prior[static_cast<std::size_t>(e)] / scale_[e];
   const int d = problem.dimension();
   for (const Support& support : bank.supports) {
     reference_.emplace_back(d, support.constrained);
@@ -131,8 +140,7 @@ double ProbeObjective::LambdaMin(const std::vector<double>& weights,
 double ProbeObjective::SelectError(const std::vector<double>& weights,
                                    const FactorizedOn& factorized) const {
   if (PresentSprings(weights) == 0) return std::numeric_limits<double>::infinity();
-  return FamilyBalancedRms(bank_, ProbeErrorsFor(bank_, SpringRestStiffness(problem_, weights),
-                                                 select_, interruption_, factorized));
+  return ChoosingError(bank_, SpringRestStiffness(problem_, weights), interruption_, factorized);
 }
 
 std::vector<double> ProbeObjective::Weights(const Vector& x) const {

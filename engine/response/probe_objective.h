@@ -34,6 +34,13 @@ std::vector<double> PreferSupported(const std::vector<double>& errors,
 // The fits work in scaled variables x = k / scale, scale = the prior stiffness (at least a tenth
 // of its median), so that a fit does not depend on units and the Tikhonov pull moves every
 // spring by its own prior alike.
+Vector PriorScale(const std::vector<double>& prior);
+
+// FamilyBalancedRms on the bank's choosing probes: what every choice between models goes by.
+// `factorized` as for ProbeErrorsFor.
+double ChoosingError(const ProbeBank& bank, const SparseMatrix& model,
+                     Interruption* interruption = nullptr, const FactorizedOn& factorized = {});
+
 class ProbeObjective {
  public:
   // Factorises the reference on every support of the bank. `interruption`, when set, stops the
@@ -74,7 +81,7 @@ class ProbeObjective {
   const ResponseFitOptions& options_;
   Interruption* interruption_;
   std::vector<double> weight_;
-  std::vector<bool> fit_, select_;
+  std::vector<bool> fit_;
   std::vector<SupportSystem> reference_;
   std::vector<std::size_t> fitted_supports_;
   Vector scale_, prior_scaled_;

@@ -150,6 +150,7 @@ void ResponseFitOptions::Validate(const std::string& owner) const {
   check.Require(cg_iterations >= 1, "cg_iterations", cg_iterations, "value >= 1");
   check.Require(InOpenUnit(cg_tolerance), "cg_tolerance", cg_tolerance, "0 < value < 1");
   check.Require(diagonal_samples >= 1, "diagonal_samples", diagonal_samples, "value >= 1");
+  lift.Validate(check.Nested("lift"));
   check.Require(continuation_patience >= 0, "continuation_patience", continuation_patience,
                 "value >= 0 (0: every strength)");
   check.Require(soft_mode_rounds >= 0, "soft_mode_rounds", soft_mode_rounds, "value >= 0");
@@ -266,18 +267,28 @@ std::optional<std::vector<double>> PrunePoint(const Fit& fit, const ScaledQuadra
   }
 }
 
+// The springs, choosing errors and smallest eigenvalues of candidate models (path points, fits).
+struct Candidates {
+  std::vector<int> springs;
+  std::vector<double> errors, lambdas;
+};
+template <typename Model>
+Candidates CandidatesOf(const std::vector<Model>& models) {
+  Candidates c;
+  for (const Model& m : models) {
+    c.springs.push_back(m.springs);
+    c.errors.push_back(m.select_error);
+    c.lambdas.push_back(m.lambda_min);
+  }
+  return c;
+}
+
 // The path's returned point: within a spring budget the best model within it; else (or when
 // none is) the fewest springs within the tolerance of the best choosing error. Points that
 // leave a mode soft are passed over for one that does not, nearly as good.
 int ChoosePathPoint(const std::vector<ResponseFitResult::Point>& path,
                     const ResponseFitOptions& options) {
-  std::vector<int> springs;
-  std::vector<double> errors, lambdas;
-  for (const auto& p : path) {
-    springs.push_back(p.springs);
-    errors.push_back(p.select_error);
-    lambdas.push_back(p.lambda_min);
-  }
+  const auto [springs, errors, lambdas] = CandidatesOf(path);
   // (Within a budget when no point is a model that meets it: the choice without a budget, and
   // the verdict says the budget was not met, engine/identification/verdict.h, rather than
   // returning a mechanism that meets it.)
@@ -433,6 +444,16 @@ ResponseFitResult FitOnBank(const Problem& problem, const ProbeBank& bank,
   return FitDense(problem, bank, reference_stiffness, prior, options, interruption, progress, pool);
 }
 
+// The fit (a soft-mode round, or the lift) returned: with a spring budget the best within it,
+// as on the path; else the best on the choosing probes, a model that holds every mode preferred.
+std::size_t ChooseRound(const std::vector<ResponseFitResult::SoftModeRound>& path,
+                        const ResponseFitOptions& options) {
+  const auto [springs, errors, lambdas] = CandidatesOf(path);
+  if (const auto within = BestWithinBudget(springs, errors, lambdas, options)) return *within;
+  const std::vector<double> score = PreferSupported(errors, lambdas, options);
+  return static_cast<std::size_t>(std::min_element(score.begin(), score.end()) - score.begin());
+}
+
 }  // namespace
 
 ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
@@ -447,20 +468,26 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
   // along that mode joins the fitted probes and the fit runs again. The choosing probes are the
   // same in every round, so the rounds' models compare as the points of one path.
   std::vector<int> mode_probes;  // per refit, in its fit
-  if (rounds.back().lambda_min < options.min_lambda && options.soft_mode_rounds > 0) {
-    const int d = problem.dimension();
-    ProbeBank augmented = bank;
-    std::vector<std::pair<int, SupportSystem>> user;
-    for (std::size_t s = 0; s < bank.supports.size(); ++s) {
-      if (!bank.supports[s].user) continue;
-      user.emplace_back(static_cast<int>(s), SupportSystem(d, bank.supports[s].constrained));
-      user.back().second.Factorize(reference_stiffness);
+  const int d = problem.dimension();
+  // The reference factorised on each user support: the soft modes' and the lift's pencils.
+  std::vector<std::pair<int, SupportSystem>> user;
+  const auto user_supports = [&]() -> const std::vector<std::pair<int, SupportSystem>>& {
+    if (user.empty()) {
+      for (std::size_t s = 0; s < bank.supports.size(); ++s) {
+        if (!bank.supports[s].user) continue;
+        user.emplace_back(static_cast<int>(s), SupportSystem(d, bank.supports[s].constrained));
+        user.back().second.Factorize(reference_stiffness);
+      }
     }
+    return user;
+  };
+  if (rounds.back().lambda_min < options.min_lambda && options.soft_mode_rounds > 0) {
+    ProbeBank augmented = bank;
     for (int round = 0; round < options.soft_mode_rounds; ++round) {
       if (interruption && interruption->Check()) throw Interrupted();
       const SparseMatrix model = SpringRestStiffness(problem, rounds.back().weights);
       int added = 0;
-      for (const auto& [s, reference] : user) {
+      for (const auto& [s, reference] : user_supports()) {
         for (const SoftMode& mode : SoftModes(model, reference, options.min_lambda,
                                               options.soft_modes_per_round, 80, interruption)) {
           AddSoftModeProbe(augmented, s, mode.shape, reference_stiffness, d);
@@ -478,22 +505,30 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
     }
   }
   std::vector<ResponseFitResult::SoftModeRound> path;
-  std::vector<double> errors, lambdas;
-  for (const ResponseFitResult& r : rounds) {
-    path.push_back({0, PresentSprings(r.weights), r.select_error, r.lambda_min});
-    errors.push_back(r.select_error);
-    lambdas.push_back(r.lambda_min);
+  for (std::size_t i = 0; i < rounds.size(); ++i) {
+    const ResponseFitResult& r = rounds[i];
+    path.push_back({i == 0 ? 0 : mode_probes[i - 1], PresentSprings(r.weights), r.select_error,
+                    r.lambda_min, false});
   }
-  for (std::size_t i = 1; i < path.size(); ++i) path[i].probes = mode_probes[i - 1];
-  // With a spring budget, the best fit whose model is within it, as on the path.
-  std::vector<int> springs;
-  for (const auto& round : path) springs.push_back(round.springs);
-  std::size_t chosen = 0;
-  if (const auto within = BestWithinBudget(springs, errors, lambdas, options)) {
-    chosen = *within;
-  } else {
-    const std::vector<double> score = PreferSupported(errors, lambdas, options);
-    chosen = static_cast<std::size_t>(std::min_element(score.begin(), score.end()) - score.begin());
+  std::size_t chosen = ChooseRound(path, options);
+  // 6. The mode lift of the model chosen, when it leaves a mode soft: one more candidate.
+  if (options.lift_soft_modes && path[chosen].lambda_min < options.min_lambda &&
+      path[chosen].select_error < kNoModel) {
+    if (progress) progress("probe_lift", path[chosen].select_error);
+    ResponseFitResult lifted = rounds[chosen];
+    lifted.weights = LiftSoftModes(problem, lifted.weights, PriorScale(prior), user_supports(),
+                                   options.lift, interruption)
+                         .weights;
+    const SparseMatrix model = SpringRestStiffness(problem, lifted.weights);
+    lifted.select_error = ChoosingError(bank, model, interruption);
+    lifted.lambda_min = kNoModel;
+    for (const auto& [s, reference] : user_supports())
+      lifted.lambda_min = std::min(
+          lifted.lambda_min, SmallestGeneralizedEigenvalue(model, reference, 80, interruption));
+    path.push_back(
+        {0, PresentSprings(lifted.weights), lifted.select_error, lifted.lambda_min, true});
+    rounds.push_back(std::move(lifted));
+    chosen = ChooseRound(path, options);
   }
   ResponseFitResult r = std::move(rounds[chosen]);
   r.soft_mode_rounds = std::move(path);

@@ -25,6 +25,9 @@
 //     fitted probes, family "mode" (up to `soft_modes_per_round` modes per support), at most
 //     `soft_mode_rounds` times; the rounds' models are
 //     chosen among as the points of the path are.
+//  6. Mode lift (mode_lift.h): when the chosen model still leaves a mode below min_lambda, the
+//     smallest stiffening of its present springs that lifts the soft modes is one more
+//     candidate, chosen among with the others (its springs are the same).
 // The model is the rest-linear one; a nonlinear reference's model describes its small-load
 // limit.
 #pragma once
@@ -33,6 +36,7 @@
 #include <vector>
 
 #include "engine/interruption.h"
+#include "engine/response/mode_lift.h"
 #include "engine/response/probe_bank.h"
 #include "engine/response/quadratic_nnls.h"
 #include "engine/worker_pool.h"
@@ -77,6 +81,9 @@ struct ResponseFitOptions {
   // larger mode share a second refit lowered the fine kidney's lambda_min again.
   int soft_mode_rounds = 1;
   int soft_modes_per_round = 4;
+  // Step 6: whether to lift the modes a chosen model leaves below min_lambda, and how.
+  bool lift_soft_modes = true;
+  ModeLiftOptions lift;
   QuadraticNnlsOptions nnls;
   // Above this many genes the fit runs without a Gram matrix (matrix_free_fit.h): the dense
   // fit's memory is m^2 doubles and each of its Newton steps m^3 / 3 (>= 1). On the fine
@@ -124,11 +131,13 @@ struct ResponseFitResult {
   // Step 5: per fit (the first without soft-mode probes, then one per refit), the soft-mode
   // probes in it and its model's springs, choosing error and smallest eigenvalue; and which
   // fit's model was returned.
+  // The last may be step 6's lift of the model then chosen (`lifted`; no probes).
   struct SoftModeRound {
     int probes = 0;
     int springs = 0;
     double select_error = 0.0;
     double lambda_min = 0.0;
+    bool lifted = false;
   };
   std::vector<SoftModeRound> soft_mode_rounds;
   int soft_mode_chosen = 0;
