@@ -42,6 +42,12 @@ void AddSearchFlags(CLI::App* command, SearchFlags& flags) {
                    "Strategy continuous (default on an FEM reference): the fewest springs with "
                    "a relative RMS nodal error E at most this")
       ->check(CLI::PositiveNumber);
+  command
+      ->add_option("--max-spread", flags.max_spread,
+                   "Strategy continuous fitted to probes: the model's largest stiffness over its "
+                   "smallest, at most this (> 1; springs below the largest / this leave the "
+                   "model)")
+      ->check(CLI::Range(1.0, 1e300));
   command->add_option("--regularization", flags.regularization,
                       "Strategy continuous (default on an FEM reference): pull the stiffness "
                       "toward the closed-form baseline by this strength (>= 0; 0.01: moving "
@@ -66,6 +72,7 @@ void ApplySearchFlags(const SearchFlags& flags, SearchSettings& st) {
   if (flags.response) st.response = proto::ResponseFromName(*flags.response, "--response");
   if (flags.max_springs) st.max_springs = *flags.max_springs;
   if (flags.target_error) st.target_error = *flags.target_error;
+  if (flags.max_spread) st.max_spread = *flags.max_spread;
   if (flags.regularization)
     st.regularization = proto::RegularizationFromText(*flags.regularization, "--regularization");
   if (flags.probes) st.probes = proto::ProbesFromText(*flags.probes, "--probes");
@@ -74,7 +81,7 @@ void ApplySearchFlags(const SearchFlags& flags, SearchSettings& st) {
 void ApplySearchFlags(const SearchFlags& flags, proto::Json& scene) {
   if (!(flags.strategy || flags.identify || flags.generations || flags.time_limit || flags.stall ||
         flags.response || flags.max_springs || flags.target_error || flags.regularization ||
-        flags.probes))
+        flags.probes || flags.max_spread))
     return;
   proto::Json& search = scene["search"];
   if (search.is_null()) search = proto::Json::object();
@@ -92,6 +99,7 @@ void ApplySearchFlags(const SearchFlags& flags, proto::Json& scene) {
         proto::ResponseName(proto::ResponseFromName(*flags.response, "--response"));
   if (flags.max_springs) search["max_springs"] = *flags.max_springs;
   if (flags.target_error) search["target_error"] = *flags.target_error;
+  if (flags.max_spread) search["max_spread"] = *flags.max_spread;
   if (flags.regularization) {
     const auto r = proto::RegularizationFromText(*flags.regularization, "--regularization");
     search["regularization"] = r.automatic ? proto::Json("auto") : proto::Json(r.strength);

@@ -25,6 +25,7 @@ struct SearchFlags {
   std::optional<std::string> regularization;
   std::optional<std::string> probes;
   std::optional<double> target_error;
+  std::optional<double> max_spread;
 };
 
 void AddSearchFlags(CLI::App* command, SearchFlags& flags);

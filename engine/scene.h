@@ -193,6 +193,10 @@ struct SearchSettings {
   std::optional<int> max_springs;
   // ... or the fewest springs whose relative RMS nodal error E is at most this (> 0).
   std::optional<double> target_error;
+  // Strategy continuous fitted to probes: the returned model's largest stiffness over its
+  // smallest, at most this (> 1): springs below the largest / this leave every model the fit
+  // considers. nullopt: no bound.
+  std::optional<double> max_spread;
   // Strategy continuous: the stiffness fits' pull toward the closed-form baseline
   // (StiffnessFitOptions::regularization, >= 0), or `automatic`: chosen among
   // kRegularizationChoices by the held-out error. nullopt: 0, none.

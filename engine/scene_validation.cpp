@@ -413,6 +413,17 @@ void CheckSearch(const Scene& scene) {
   if (s.target_error && !(*s.target_error > 0.0 && std::isfinite(*s.target_error))) {
     throw InputError("search.target_error", "must be a finite number > 0");
   }
+  if (s.max_spread && !(*s.max_spread > 1.0 && std::isfinite(*s.max_spread))) {
+    throw InputError("search.max_spread",
+                     "must be a finite number > 1 (the largest stiffness over the smallest)");
+  }
+  if (s.max_spread && (!continuous || scene.reference.kind == Reference::Kind::kPositions ||
+                       (s.probes && *s.probes == 0) || s.target_error)) {
+    throw InputError("search.max_spread",
+                     "bounds the stiffness of the fit to probes: it needs strategy continuous (or "
+                     "default on an FEM reference) on an FEM or MSS reference, with probes (not "
+                     "\"none\") and no target error");
+  }
   if (s.population && *s.population < 2) {
     throw InputError("search.population", "must be >= 2, got " + std::to_string(*s.population));
   }

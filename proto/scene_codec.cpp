@@ -284,7 +284,8 @@ void ReadSearch(const Json& v, SearchSettings& st) {
   ExpectKeys(v, path,
              {"strategy", "identify", "response", "seed", "population", "crossover_probability",
               "mutation_probability", "max_generations", "target_normalized_error", "max_seconds",
-              "stall_generations", "max_springs", "target_error", "regularization", "probes"});
+              "stall_generations", "max_springs", "target_error", "regularization", "probes",
+              "max_spread"});
   if (v.contains("strategy")) {
     st.strategy = StrategyFromName(ReadString(v["strategy"], JoinPath(path, "strategy")),
                                    JoinPath(path, "strategy"));
@@ -319,6 +320,8 @@ void ReadSearch(const Json& v, SearchSettings& st) {
     st.max_springs = ReadInt(v["max_springs"], JoinPath(path, "max_springs"));
   if (v.contains("target_error"))
     st.target_error = ReadNumber(v["target_error"], JoinPath(path, "target_error"));
+  if (v.contains("max_spread"))
+    st.max_spread = ReadNumber(v["max_spread"], JoinPath(path, "max_spread"));
   if (v.contains("regularization")) {
     const Json& r = v["regularization"];
     const std::string where = JoinPath(path, "regularization");
@@ -575,6 +578,7 @@ Json SceneToJson(const Scene& s) {
   if (st.stall_generations) sj["stall_generations"] = *st.stall_generations;
   if (st.max_springs) sj["max_springs"] = *st.max_springs;
   if (st.target_error) sj["target_error"] = *st.target_error;
+  if (st.max_spread) sj["max_spread"] = *st.max_spread;
   if (st.regularization) {
     sj["regularization"] =
         st.regularization->automatic ? Json("auto") : Json(st.regularization->strength);

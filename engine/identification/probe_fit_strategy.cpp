@@ -118,6 +118,7 @@ response::ResponseFitOptions FitOptionsOf(const SearchOptions& options) {
   response::ResponseFitOptions o;
   o.probes = ProbeOptionsOf(options);
   o.max_springs = options.max_springs;
+  o.max_spread = options.max_spread;
   // A strength set by the user is the one used; none (0) or auto: chosen on the choosing probes.
   if (!options.choose_regularization && options.regularization > 0.0)
     o.regularizations = {options.regularization};

@@ -149,7 +149,15 @@ std::vector<double> ProbeObjective::Weights(const Vector& x) const {
   const double floor = options_.dust * MedianPositive(k);
   for (double& w : k)
     if (w < floor) w = 0.0;
-  return k;
+  return BoundSpread(std::move(k), options_.max_spread);
+}
+
+std::vector<double> BoundSpread(std::vector<double> weights, double max_spread) {
+  if (max_spread <= 0.0 || weights.empty()) return weights;
+  const double floor = *std::max_element(weights.begin(), weights.end()) / max_spread;
+  for (double& w : weights)
+    if (w < floor) w = 0.0;
+  return weights;
 }
 
 Vector ProbeObjective::Scaled(const std::vector<double>& weights) const {

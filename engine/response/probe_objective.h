@@ -36,6 +36,10 @@ std::vector<double> PreferSupported(const std::vector<double>& errors,
 // spring by its own prior alike.
 Vector PriorScale(const std::vector<double>& prior);
 
+// `weights` with the springs below the largest / max_spread removed (ResponseFitOptions::
+// max_spread; 0: unchanged).
+std::vector<double> BoundSpread(std::vector<double> weights, double max_spread);
+
 // FamilyBalancedRms on the bank's choosing probes: what every choice between models goes by.
 // `factorized` as for ProbeErrorsFor.
 double ChoosingError(const ProbeBank& bank, const SparseMatrix& model,

@@ -141,6 +141,8 @@ void ResponseFitOptions::Validate(const std::string& owner) const {
   check.Require(stop_error_factor > 1.0, "stop_error_factor", stop_error_factor, "value > 1");
   check.Require(tolerance >= 0.0, "tolerance", tolerance, "value >= 0");
   check.Require(dust >= 0.0 && dust < 1.0, "dust", dust, "0 <= value < 1");
+  check.Require(max_spread == 0.0 || (max_spread > 1.0 && std::isfinite(max_spread)), "max_spread",
+                max_spread, "value > 1 (0: none)");
   check.Require(max_springs >= 0, "max_springs", max_springs, "value >= 0 (0: none)");
   check.Require(min_lambda >= 0.0 && min_lambda < 1.0, "min_lambda", min_lambda, "0 <= value < 1");
   check.Require(lambda_slack >= 0.0, "lambda_slack", lambda_slack, "value >= 0");
@@ -516,9 +518,10 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
       path[chosen].select_error < kNoModel) {
     if (progress) progress("probe_lift", path[chosen].select_error);
     ResponseFitResult lifted = rounds[chosen];
-    lifted.weights = LiftSoftModes(problem, lifted.weights, PriorScale(prior), user_supports(),
-                                   options.lift, interruption)
-                         .weights;
+    lifted.weights = BoundSpread(LiftSoftModes(problem, lifted.weights, PriorScale(prior),
+                                               user_supports(), options.lift, interruption)
+                                     .weights,
+                                 options.max_spread);
     const SparseMatrix model = SpringRestStiffness(problem, lifted.weights);
     lifted.select_error = ChoosingError(bank, model, interruption);
     lifted.lambda_min = kNoModel;

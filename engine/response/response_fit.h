@@ -60,6 +60,11 @@ struct ResponseFitOptions {
   double tolerance = 0.02;
   // Weights below this fraction of the median weight are removed (0 <= value < 1).
   double dust = 1e-6;
+  // A bound on the model's stiffness spread, largest over smallest (> 1), asked by the user
+  // (search.max_spread): in every model the fit considers, springs below the largest / this
+  // leave it, as dust does. 0: none. A simulator's stiffest spring sets its stable time step,
+  // and springs far below it carry nothing it would notice.
+  double max_spread = 0.0;
   // Gauss-Newton steps at most (>= 0); they end earlier after three without a better choosing
   // error.
   int gauss_newton_steps = 20;

@@ -100,6 +100,9 @@ struct SearchOptions {
   // within 5% of the lowest E.
   int max_springs = 0;
   double target_error = 0.0;
+  // Strategy continuous fitted to probes: the bound on the model's stiffness spread
+  // (ResponseFitOptions::max_spread; 0: none).
+  double max_spread = 0.0;
   // Strategy continuous: the stiffness fits' regularisation toward the start
   // (StiffnessFitOptions::regularization), or with `choose_regularization` the one of
   // kRegularizationChoices whose held-out error is lowest.

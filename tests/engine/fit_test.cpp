@@ -464,6 +464,26 @@ TEST(ContinuousStrategy, SettingsThatDoNotFitTheStrategyAreRefused) {
   EXPECT_THROW(Problem::Build(s), InputError);
 }
 
+// A bound on the stiffness spread is a ratio above 1, for the fit to probes alone.
+TEST(ContinuousStrategy, AStiffnessSpreadBoundNeedsTheFitToProbes) {
+  Scene s = examples::Make("fem-plate-5x5");
+  s.search.max_spread = 100.0;
+  EXPECT_NO_THROW(Problem::Build(s));
+  for (double bad : {1.0, 0.5, std::numeric_limits<double>::infinity()}) {
+    s.search.max_spread = bad;
+    EXPECT_THROW(Problem::Build(s), InputError) << bad;
+  }
+  s.search.max_spread = 100.0;
+  s.search.probes = 0;  // none: the named cases' fit
+  EXPECT_THROW(Problem::Build(s), InputError);
+  s.search.probes.reset();
+  s.search.target_error = 0.05;
+  EXPECT_THROW(Problem::Build(s), InputError);
+  s.search.target_error.reset();
+  s.search.strategy = Strategy::kHybrid;
+  EXPECT_THROW(Problem::Build(s), InputError);
+}
+
 // The genetic search's settings where no genetic search runs (issue 33 item 5): refused, naming
 // the setting that acts; accepted where one runs.
 TEST(ContinuousStrategy, GeneticSettingsAreRefusedWhereNoGeneticSearchRuns) {

@@ -519,6 +519,31 @@ TEST(ModeLift, LiftsTheKidneysSoftModesByStiffeningPresentSpringsOnly) {
   EXPECT_LE(r.select_error, (1.0 + options.lambda_slack) * plain.select_error);
 }
 
+// A bound on the stiffness spread holds for the model returned, by the dense and the
+// matrix-free fit, with every mode still held; without it the kidney's model spans more.
+TEST(ResponseFit, AStiffnessSpreadBoundHoldsInTheModelReturned) {
+  const KidneyAtRest kidney;
+  const auto spread = [](const std::vector<double>& w) {
+    double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
+    for (double k : w)
+      if (k > 0.0) lo = std::min(lo, k), hi = std::max(hi, k);
+    return hi / lo;
+  };
+  ResponseFitOptions options = kidney.options;
+  const ResponseFitResult free =
+      FitResponse(kidney.problem, kidney.bank, kidney.k, kidney.prior, options);
+  ASSERT_GT(spread(free.weights), 50.0);
+  options.max_spread = 50.0;
+  for (const int dense_max : {options.dense_max_genes, kidney.problem.gene_count() - 1}) {
+    options.dense_max_genes = dense_max;
+    const ResponseFitResult r =
+        FitResponse(kidney.problem, kidney.bank, kidney.k, kidney.prior, options);
+    EXPECT_LE(spread(r.weights), 50.0) << r.method;
+    EXPECT_GT(r.lambda_min, 0.0) << r.method;
+    EXPECT_LT(r.select_error, kNoModel) << r.method;
+  }
+}
+
 TEST(ResponseFit, SameModelWithOneOrTwoThreads) {
   const KidneyFits fits;
   EXPECT_EQ(fits.one.weights, fits.two.weights);
