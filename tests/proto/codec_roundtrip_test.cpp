@@ -129,6 +129,18 @@ TEST(SceneCodecRoundTrip, EveryCatalogueExampleReadsBackFieldByFieldAndWritesThe
       << "the FEM examples (plate, kidney, kidney-nl, block) are in the catalogue";
 }
 
+// The continuous fit's settings survive a write and a read.
+TEST(SceneCodecRoundTrip, TheContinuousFitsSettingsSurvive) {
+  Scene scene = examples::Make("fem-plate-5x5");
+  scene.search.max_springs = 40;
+  scene.search.max_spread = 123.5;
+  scene.search.probes = 60;
+  const Scene back = ExpectTextRoundTrip(scene);
+  EXPECT_EQ(back.search.max_springs, std::optional<int>(40));
+  EXPECT_EQ(back.search.max_spread, std::optional<double>(123.5));
+  EXPECT_EQ(back.search.probes, std::optional<int>(60));
+}
+
 // An FEM reference of two materials by region, plane strain, a thickness, node sets, a
 // traction per length, a single-node force, a one-node "nodes" list, a load case without a
 // name, a training stiffness and every search setting.
