@@ -260,7 +260,10 @@ constexpr const char* kLiveScript = R"(<script>
           if (updates % 5 === 0) {
             fetch('/jobs/' + id + '/error.svg', {cache: 'no-store', credentials: 'same-origin'})
               .then(function (r) { return r.ok ? r.text() : null; })
-              .then(function (svg) { if (svg) document.getElementById('error-plot').innerHTML = svg; });
+              .then(function (svg) {
+                // (Without the file's XML declaration, which HTML would keep as a comment.)
+                if (svg) document.getElementById('error-plot').innerHTML = svg.replace(/^<\?xml[^>]*>\s*/, '');
+              });
           }
           if (p.final) { location.reload(); return; }
         }
