@@ -41,6 +41,29 @@ void PrintFamilies(const char* what, const response::ProbeBank& bank,
   std::printf("\n");
 }
 
+// The cost per right-hand side of a support's solves against how many are solved together
+// (SupportSystem::SolveColumns: one pass over the factor for all of them), on the bank's first
+// support with the reference's factor; each count timed for about a second.
+void PrintSolveTiming(const Problem& problem, const response::SparseMatrix& k_ref,
+                      const response::ProbeBank& bank) {
+  response::SupportSystem system(problem.dimension(), bank.supports[0].constrained);
+  if (!system.Factorize(k_ref)) return;
+  std::printf("  solves on support 0 (%d free degrees of freedom), ms per right-hand side:",
+              system.free_dofs());
+  for (const int columns : {1, 8, 32, 128}) {
+    const Matrix b = Matrix::Random(system.free_dofs(), columns);
+    const auto start = Clock::now();
+    int repeats = 0;
+    while (Seconds(start) < 1.0) {
+      Matrix x = b;
+      system.SolveColumns(x);
+      ++repeats;
+    }
+    std::printf(" %d: %.3g", columns, 1e3 * Seconds(start) / repeats / columns);
+  }
+  std::printf("\n");
+}
+
 int Main(int argc, char** argv) {
   CLI::App app{"The probe fit on FEM and MSS references"};
   std::vector<std::string> files;
@@ -69,6 +92,9 @@ int Main(int argc, char** argv) {
   app.add_option("--named-weight", defaults.probes.named_weight, "ProbeOptions::named_weight");
   app.add_option("--extra-supports", defaults.probes.extra_supports,
                  "ProbeOptions::extra_supports");
+  bool solve_timing = false;
+  app.add_flag("--solve-timing", solve_timing,
+               "time the solves per right-hand side against how many run together, no fit");
   CLI11_PARSE(app, argc, argv);
   std::unique_ptr<WorkerPool> pool;
   if (threads > 1) pool = std::make_unique<WorkerPool>(threads);
@@ -84,6 +110,10 @@ int Main(int argc, char** argv) {
     const response::ProbeBank bank = response::MakeProbeBank(problem, k_ref, options.probes);
     std::printf("  probe bank: %zu probes on %zu supports, %.2f s\n", bank.probes.size(),
                 bank.supports.size(), Seconds(t1));
+    if (solve_timing) {
+      PrintSolveTiming(problem, k_ref, bank);
+      continue;
+    }
     std::vector<double> prior;
     if (const auto baseline = fem::BaselineGeneWeights(problem))
       prior = *baseline;

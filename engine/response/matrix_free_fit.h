@@ -17,7 +17,8 @@
 //      diagonal (estimated from `diagonal_samples` random vectors per support: |C g_e|^2 by
 //      Hutchinson's estimator); each product J^T J v is two solves per probe;
 //   4. the projected step max(x + t d, 0), t halved until Phi falls (Bertsekas' projected arc).
-// The Tikhonov strengths are a continuation (strongest first, `steps_per_strength` steps each):
+// The Tikhonov strengths are a continuation (strongest first, `steps_per_strength` steps each,
+// ended after `continuation_patience` strengths in a row that do no better):
 // every accepted iterate is judged on the choosing probes and the best is returned, preferring
 // one that holds every mode (min_lambda), as the dense fit chooses. Springs the fit drives to 0,
 // or to dust, leave the model. With a spring budget, the least salient springs of the chosen
