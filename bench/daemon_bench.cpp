@@ -14,7 +14,7 @@
 
 #include "client/rpc_client.h"
 #include "engine/identification/identify.h"
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
 

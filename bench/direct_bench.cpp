@@ -14,7 +14,7 @@
 
 #include "engine/direct/direct_identification.h"
 #include "engine/identification/identify.h"
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "io/example_catalog.h"
 
 using namespace springfit;

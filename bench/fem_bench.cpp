@@ -22,7 +22,7 @@
 
 #include "engine/examples/simplex_mesh.h"
 #include "engine/fem/fem_equilibrium.h"
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "io/example_catalog.h"
 
 namespace springfit {

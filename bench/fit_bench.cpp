@@ -19,10 +19,10 @@
 #include <string>
 #include <vector>
 
-#include "engine/fem/closed_form_baseline.h"
 #include "engine/fit/sparsity_path.h"
 #include "engine/fit/stiffness_fit.h"
-#include "engine/problem.h"
+#include "engine/problem/baseline_evaluation.h"
+#include "engine/problem/problem.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
 
@@ -73,8 +73,8 @@ int Main(int argc, char** argv) {
                 file.c_str(), problem.scene().node_count(), problem.gene_count(),
                 problem.load_cases().size(),
                 std::string(proto::ResponseName(problem.response())).c_str(), prepare);
-    const auto baseline = fem::EvaluateClosedFormBaseline(problem);
-    const auto start = fem::BaselineGeneWeights(problem);
+    const auto baseline = EvaluateClosedFormBaseline(problem);
+    const auto start = BaselineGeneWeights(problem);
     if (!baseline || !start) {
       std::printf("  not an FEM reference whose mesh edges are all candidates: skipped\n");
       continue;

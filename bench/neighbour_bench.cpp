@@ -11,7 +11,7 @@
 
 #include "engine/candidates.h"
 #include "engine/point_index.h"
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "engine/search/genetic_search.h"
 #include "io/example_catalog.h"
 

@@ -15,9 +15,9 @@
 #include <string>
 #include <vector>
 
-#include "engine/fem/closed_form_baseline.h"
 #include "engine/fit/stiffness_fit.h"
-#include "engine/problem.h"
+#include "engine/problem/baseline_evaluation.h"
+#include "engine/problem/problem.h"
 #include "engine/response/probe_evaluation.h"
 #include "engine/response/response_fit.h"
 #include "engine/response/rest_stiffness.h"
@@ -44,7 +44,7 @@ void PrintFamilies(const char* what, const response::ProbeBank& bank,
 // The cost per right-hand side of a support's solves against how many are solved together
 // (SupportSystem::SolveColumns: one pass over the factor for all of them), on the bank's first
 // support with the reference's factor; each count timed for about a second.
-void PrintSolveTiming(const Problem& problem, const response::SparseMatrix& k_ref,
+void PrintSolveTiming(const Problem& problem, const SparseMatrix& k_ref,
                       const response::ProbeBank& bank) {
   response::SupportSystem system(problem.dimension(), bank.supports[0].constrained);
   if (!system.Factorize(k_ref)) return;
@@ -104,7 +104,7 @@ int Main(int argc, char** argv) {
     std::printf("%s: %d genes, prepared in %.2f s\n", file.c_str(), problem.gene_count(),
                 Seconds(t0));
     const auto t1 = Clock::now();
-    const response::SparseMatrix k_ref = response::ReferenceRestStiffness(problem);
+    const SparseMatrix k_ref = response::ReferenceRestStiffness(problem);
     response::ResponseFitOptions options = defaults;
     options.probes.seed = seed;
     const response::ProbeBank bank = response::MakeProbeBank(problem, k_ref, options.probes);
@@ -115,7 +115,7 @@ int Main(int argc, char** argv) {
       continue;
     }
     std::vector<double> prior;
-    if (const auto baseline = fem::BaselineGeneWeights(problem))
+    if (const auto baseline = BaselineGeneWeights(problem))
       prior = *baseline;
     else
       prior.assign(static_cast<std::size_t>(problem.gene_count()), problem.training_stiffness());

@@ -22,8 +22,8 @@
 
 #include <CLI/CLI.hpp>
 
-#include "engine/cost.h"
 #include "engine/identification/strategy.h"
+#include "engine/problem/cost.h"
 #include "io/example_catalog.h"
 #include "proto/names.h"
 

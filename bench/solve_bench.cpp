@@ -10,8 +10,8 @@
 #include <map>
 #include <memory>
 
-#include "engine/cost.h"
-#include "engine/problem.h"
+#include "engine/problem/cost.h"
+#include "engine/problem/problem.h"
 #include "io/example_catalog.h"
 
 namespace springfit {

@@ -11,7 +11,7 @@
 #include "engine/fem/fem_model.h"
 #include "engine/identification/strategy.h"
 #include "engine/number_text.h"
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "engine/search/search_options.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"

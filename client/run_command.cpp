@@ -21,7 +21,7 @@
 #include "engine/identification/identify.h"
 #include "engine/identification/strategy.h"
 #include "engine/input_error.h"
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"

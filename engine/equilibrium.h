@@ -45,7 +45,8 @@ enum class Termination {
   kConverged,     // |gradient|_inf <= tolerance (see EquilibriumOptions)
   kNotConverged,  // iteration limit reached or the line search found no decrease
   kMechanism,     // the rest stiffness is singular on the free nodes; no solve was attempted
-  kNotSolved,     // not attempted: another load case's mechanism already decided (cost.h)
+  kNotSolved,     // not attempted: another load case's mechanism already decided
+                  // (engine/problem/cost.h)
   kInterrupted,   // stopped between iterations by the solver's Interruption
 };
 
@@ -110,8 +111,8 @@ struct EquilibriumSummary {
   double initial_residual = 0.0;  // |gradient|_inf / force_scale at the start
   double final_residual = 0.0;    // |gradient|_inf / force_scale at the end
   int mechanism_modes = 0;        // kMechanism: the rest stiffness's null-space dimension
-  // Set by the cost function (cost.h) from the rest verdict: directions along which the model
-  // is rigid but too soft for double precision to be sure of (RestStability::near_modes).
+  // Set by the cost function (engine/problem/cost.h) from the rest verdict: directions along which
+  // the model is rigid but too soft for double precision to be sure of (RestStability::near_modes).
   int near_mechanism_modes = 0;
   // The loosest free node's tolerance on its force imbalance, relative to force_scale (see
   // EquilibriumOptions::relative_force_tolerance): how far round-off lets the solve resolve

@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "engine/problem.h"
+#include "engine/genome.h"
 
 namespace springfit {
 

@@ -7,11 +7,13 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <Eigen/SparseCore>
 
 namespace springfit {
 
 using Vector = Eigen::VectorXd;
 using Matrix = Eigen::MatrixXd;
+using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor>;
 
 template <int D>
 using VecD = Eigen::Matrix<double, D, 1>;

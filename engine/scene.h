@@ -5,7 +5,7 @@
 // the load cases, the training model's stiffness and the search settings. A Scene is what the
 // JSON scene format (proto/SCENE.md) describes; proto/scene_codec.h reads and validates it.
 // Derived quantities (candidate list, reference equilibria, scales) live in Problem
-// (problem.h), which is built from a Scene.
+// (engine/problem/problem.h), which is built from a Scene.
 #pragma once
 
 #include <cstdint>

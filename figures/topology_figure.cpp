@@ -6,8 +6,8 @@
 #include <limits>
 #include <numbers>
 
-#include "engine/cost.h"
 #include "engine/input_error.h"
+#include "engine/problem/cost.h"
 #include "figures/svg_document.h"
 
 namespace springfit::figures {

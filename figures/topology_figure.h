@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 
 namespace springfit::figures {
 

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "engine/units.h"
 #include "proto/search_codec.h"
 

@@ -5,8 +5,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "engine/cost.h"
-#include "engine/problem.h"
+#include "engine/problem/cost.h"
+#include "engine/problem/problem.h"
 #include "proto/json_reader.h"
 
 namespace springfit::proto {

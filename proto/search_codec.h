@@ -9,7 +9,7 @@
 
 #include "engine/identification/identification_result.h"
 #include "engine/identification/verdict.h"
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "proto/json_reader.h"
 
 namespace springfit::proto {

@@ -8,10 +8,10 @@
 #include <memory>
 #include <random>
 
-#include "engine/cost.h"
 #include "engine/identification/identify.h"
 #include "engine/input_error.h"
-#include "engine/problem.h"
+#include "engine/problem/cost.h"
+#include "engine/problem/problem.h"
 
 namespace springfit::examples {
 namespace {

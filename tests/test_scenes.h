@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "engine/scene.h"
 
 namespace springfit::testing {

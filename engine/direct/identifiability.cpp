@@ -6,8 +6,8 @@
 #include <cmath>
 #include <numeric>
 
-#include "engine/direct/force_balance.h"
 #include "engine/equilibrium.h"
+#include "engine/problem/force_balance.h"
 
 #include "engine/options_check.h"
 

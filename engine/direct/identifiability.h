@@ -1,6 +1,6 @@
 // Which spring weights the scene's load cases can tell apart, before any search.
 //
-// From the force balance at the reference's equilibria (force_balance.h):
+// From the force balance at the reference's equilibria (engine/problem/force_balance.h):
 //  - unseen springs: no load case changes their length, so their column of A is zero and no
 //    data says anything about them;
 //  - dependent groups: springs whose columns are linearly dependent, so that different
@@ -18,8 +18,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/direct/force_balance.h"
-#include "engine/problem.h"
+#include "engine/problem/force_balance.h"
+#include "engine/problem/problem.h"
 
 namespace springfit {
 

@@ -13,8 +13,8 @@
 #include <optional>
 #include <vector>
 
-#include "engine/direct/force_balance.h"
-#include "engine/direct/nnls.h"
+#include "engine/nnls.h"
+#include "engine/problem/force_balance.h"
 
 namespace springfit {
 

@@ -3,10 +3,11 @@
 #include <algorithm>
 #include <cmath>
 
-#include "engine/direct/force_balance.h"
-#include "engine/direct/nnls.h"
+#include "engine/nnls.h"
+#include "engine/problem/force_balance.h"
 
 #include "engine/options_check.h"
+#include "engine/sparse_columns.h"
 
 namespace springfit {
 namespace {

@@ -1,7 +1,7 @@
 // Refines spring weights (stiffness; 0 = absent) by minimising the displacement cost itself,
 //   f(w) = sum_k sum_i |X^R_ik - X^M_ik(w)|^2,   w >= 0,
 // the maximum-likelihood fit for Gaussian noise on measured positions. The force-balance
-// NNLS (nnls.h) puts that noise into its matrix and so shrinks every weight (at 1% noise on
+// NNLS (engine/nnls.h) puts that noise into its matrix and so shrinks every weight (at 1% noise on
 // paper-iso-5x5 the weights come out near 0.6 instead of 1); this fit does not.
 //
 // Bounded Gauss-Newton with Levenberg-Marquardt damping: the equilibrium's sensitivity to
@@ -15,9 +15,9 @@
 #include <string>
 #include <vector>
 
-#include "engine/cost.h"
 #include "engine/interruption.h"
-#include "engine/problem.h"
+#include "engine/problem/cost.h"
+#include "engine/problem/problem.h"
 
 namespace springfit {
 

@@ -6,8 +6,8 @@
 #include <optional>
 #include <vector>
 
-#include "engine/direct/force_balance.h"
 #include "engine/interruption.h"
+#include "engine/problem/force_balance.h"
 
 namespace springfit {
 

@@ -6,7 +6,7 @@
 #include <numbers>
 #include <stdexcept>
 
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "engine/search/random_stream.h"
 
 namespace springfit::examples {

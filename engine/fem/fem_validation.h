@@ -1,5 +1,5 @@
 // The semantic rules of a finite-element reference (proto/SCENE.md, "fem"), checked once at
-// the boundary with the rest of the scene (scene_validation.h).
+// the boundary with the rest of the scene (engine/problem/scene_validation.h).
 #pragma once
 
 #include "engine/scene.h"

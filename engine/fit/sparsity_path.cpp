@@ -5,8 +5,8 @@
 #include <limits>
 #include <numeric>
 
-#include "engine/cost.h"
 #include "engine/options_check.h"
+#include "engine/problem/cost.h"
 
 namespace springfit {
 namespace {
@@ -178,8 +178,9 @@ std::optional<HeldOutError> HeldOutErrors(const Problem& problem,
     const Evaluation e = cost.Evaluate(problem.SpringsOfWeights(fit.weights));
     if (e.interrupted) throw Interrupted();
     const PreparedLoadCase& lc = problem.load_cases()[k];
-    // (A case that moves no free node is normalised by the whole reference, as in cost.h, and
-    // adds nothing to the total's denominator: its error counts in the numerator only.)
+    // (A case that moves no free node is normalised by the whole reference, as in
+    // engine/problem/cost.h, and adds nothing to the total's denominator: its error counts in the
+    // numerator only.)
     const double norm2 = lc.reference_norm2 > 0.0 ? lc.reference_norm2 : problem.reference_norm2();
     const LoadCaseEvaluation& judged = e.load_cases[k];
     const double case_cost =

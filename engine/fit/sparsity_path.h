@@ -25,7 +25,7 @@
 
 #include "engine/fit/stiffness_fit.h"
 #include "engine/interruption.h"
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 
 namespace springfit {
 

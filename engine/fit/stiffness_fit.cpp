@@ -6,8 +6,8 @@
 #include <limits>
 #include <random>
 
-#include "engine/direct/force_balance.h"
 #include "engine/options_check.h"
+#include "engine/problem/force_balance.h"
 
 namespace springfit {
 namespace {
@@ -84,9 +84,9 @@ class ResponseState {
       if (!cases_[k] || checked[set]) continue;
       checked[set] = true;
       EquilibriumSolver& solver = solvers_[solver_of_case_[k]];
-      // The mechanism verdict of every evaluation (cost.h). Linear: the factorisation of the
-      // rest stiffness is the one every case of the set solves with, refined to round-off
-      // (SolveLinear).
+      // The mechanism verdict of every evaluation (engine/problem/cost.h). Linear: the
+      // factorisation of the rest stiffness is the one every case of the set solves with, refined
+      // to round-off (SolveLinear).
       if (solver.RestMechanismModes(springs) > 0) return false;
       if (linear_ && !solver.FactorizeTangent(springs, rest_)) return false;
     }

@@ -7,7 +7,7 @@
 // Sparse throughout, with no dense Jacobian and no cap on the genes. The Jacobian
 // J = du/dw is only ever applied: per load case, the equilibrium's tangent H gives
 // du/dw_j = H^-1 a_j, a_j the force spring j exerts per unit stiffness (the force balance's
-// column, force_balance.h), so
+// column, engine/problem/force_balance.h), so
 //   J v   = H^-1 (A v)       one solve per load case,
 //   J^T y = A^T (H^-1 y)     one solve per load case (H symmetric): the adjoint; J^T r is the
 //                            gradient for every spring at the price of one solve per case.
@@ -25,7 +25,7 @@
 #include <vector>
 
 #include "engine/interruption.h"
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "engine/worker_pool.h"
 
 namespace springfit {

@@ -8,12 +8,12 @@
 #include <string>
 #include <vector>
 
-#include "engine/cost.h"
 #include "engine/direct/direct_identification.h"
 #include "engine/direct/identifiability.h"
-#include "engine/fem/closed_form_baseline.h"
 #include "engine/identification/verdict.h"
-#include "engine/problem.h"
+#include "engine/problem/baseline_evaluation.h"
+#include "engine/problem/cost.h"
+#include "engine/problem/problem.h"
 #include "engine/response/generalization.h"
 #include "engine/search/fitness_evaluator.h"
 #include "engine/search/search_options.h"
@@ -90,7 +90,7 @@ struct IdentificationResult {
   IdentifiabilityReport identifiability;
   // An FEM reference: the closed-form MSS of its mesh, evaluated before the run (the model an
   // identification must beat, engine/fem/closed_form_baseline.h).
-  std::optional<fem::BaselineReport> baseline;
+  std::optional<BaselineReport> baseline;
   // An FEM or MSS reference under strategy continuous with probes: the model judged on loads
   // it was not fitted to, beside the baseline (engine/response/generalization.h).
   std::optional<response::Generalization> generalization;

@@ -157,12 +157,12 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
     options.identify = Identify::kTopologyAndStiffness;
   RunMonitor monitor(context, options.max_seconds);
   IdentifiabilityReport identifiability;
-  std::optional<fem::BaselineReport> baseline;
+  std::optional<BaselineReport> baseline;
   IdentificationResult r;
   try {
     // Before the run's clock starts (it starts inside the strategy): not part of its time.
     identifiability = Identifiability(problem);
-    baseline = fem::EvaluateClosedFormBaseline(problem, &monitor.interruption());
+    baseline = EvaluateClosedFormBaseline(problem, &monitor.interruption());
     r = strategy.Run(problem, options, context, monitor);
   } catch (const Interrupted&) {
     r = StoppedBeforeAModel(problem, options, context, monitor);

@@ -11,10 +11,10 @@
 #include <optional>
 #include <string>
 
-#include "engine/cost.h"
-#include "engine/fem/closed_form_baseline.h"
 #include "engine/fit/sparsity_path.h"
 #include "engine/identification/strategy.h"
+#include "engine/problem/baseline_evaluation.h"
+#include "engine/problem/cost.h"
 
 namespace springfit {
 namespace {
@@ -57,7 +57,7 @@ class NamedCaseFit {
   // training stiffness on every candidate.
   void ChooseStart() {
     if (problem_.scene().reference.kind == Reference::Kind::kFem)
-      start_ = fem::BaselineGeneWeights(problem_);
+      start_ = BaselineGeneWeights(problem_);
     details_.started_from_baseline = start_.has_value();
     if (!start_) start_ = TrainingStart();
   }
@@ -202,8 +202,8 @@ class NamedCaseFit {
   }
 
   // The returned model is judged by the evaluation every strategy's is (each case solved from
-  // the reference's equilibrium, cost.h). The fit's solves start from the last step's
-  // equilibria, and a nonlinear model near a mechanism can have an equilibrium there that
+  // the reference's equilibrium, engine/problem/cost.h). The fit's solves start from the last
+  // step's equilibria, and a nonlinear model near a mechanism can have an equilibrium there that
   // Newton from the reference does not reach: a model without equilibrium in that evaluation,
   // or worse than the start, is not returned. The next in line are the chosen point as the
   // path left it, the other points by error, and the start (the baseline).

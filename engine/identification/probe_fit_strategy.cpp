@@ -7,10 +7,11 @@
 #include <limits>
 #include <memory>
 
-#include "engine/cost.h"
 #include "engine/fem/closed_form_baseline.h"
 #include "engine/fit/stiffness_fit.h"
 #include "engine/identification/strategy.h"
+#include "engine/problem/baseline_evaluation.h"
+#include "engine/problem/cost.h"
 #include "engine/response/generalization.h"
 
 namespace springfit {
@@ -25,7 +26,7 @@ bool Probeable(const Problem& problem, const SearchOptions& options) {
 // `start` for an MSS reference, which has no closed-form model: its rest stiffness for the
 // certificate, its springs for the nonlinear judgement (amplitude_judgement.h).
 struct BaselineModel {
-  response::SparseMatrix stiffness;
+  SparseMatrix stiffness;
   response::SpringModel springs;
 };
 BaselineModel BaselineModelOf(const Problem& problem,
@@ -79,8 +80,8 @@ std::optional<response::Generalization> CertifyOnProbes(
   if (!Probeable(problem, options)) return std::nullopt;
   std::optional<std::vector<double>> baseline_weights;
   if (problem.scene().reference.kind == Reference::Kind::kFem)
-    baseline_weights = fem::BaselineGeneWeights(problem);
-  const response::SparseMatrix reference_stiffness = response::ReferenceRestStiffness(problem);
+    baseline_weights = BaselineGeneWeights(problem);
+  const SparseMatrix reference_stiffness = response::ReferenceRestStiffness(problem);
   const response::ProbeOptions probe_options = ProbeOptionsOf(options);
   const response::ProbeBank bank =
       response::MakeProbeBank(problem, reference_stiffness, probe_options);
@@ -106,7 +107,7 @@ struct ProbeFitBaseline {
 ProbeFitBaseline BaselineOf(const Problem& problem) {
   ProbeFitBaseline b;
   if (problem.scene().reference.kind == Reference::Kind::kFem)
-    b.on_genes = fem::BaselineGeneWeights(problem);
+    b.on_genes = BaselineGeneWeights(problem);
   b.start = b.on_genes ? *b.on_genes
                        : std::vector<double>(static_cast<std::size_t>(problem.gene_count()),
                                              problem.training_stiffness());
@@ -138,7 +139,7 @@ struct ProbeFitModel {
 
 // The fit, certified on the held-out probes; stopped, the start certified instead.
 ProbeFitModel FitAndCertify(const Problem& problem, const response::ProbeBank& bank,
-                            const response::SparseMatrix& reference_stiffness,
+                            const SparseMatrix& reference_stiffness,
                             const ProbeFitBaseline& baseline,
                             const response::ResponseFitOptions& fit_options, RunMonitor& monitor,
                             const response::ResponseProgress& progress, WorkerPool* pool) {
@@ -165,8 +166,7 @@ ProbeFitModel FitAndCertify(const Problem& problem, const response::ProbeBank& b
 // The baseline guarantee on unseen loads: a model whose held-out E is not below the
 // baseline's gives way to it (within the spring budget, when there is one).
 void KeepBaselineGuarantee(const Problem& problem, const SearchOptions& options,
-                           const response::ProbeBank& bank,
-                           const response::SparseMatrix& reference_stiffness,
+                           const response::ProbeBank& bank, const SparseMatrix& reference_stiffness,
                            const ProbeFitBaseline& baseline, ProbeFitModel& m) {
   const bool within_budget =
       baseline.on_genes &&
@@ -281,7 +281,7 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
 
   // The bank, the fit and its certificate, the baseline guarantee, the nonlinear judgement.
   const response::ResponseFitOptions fit_options = FitOptionsOf(options);
-  const response::SparseMatrix reference_stiffness = response::ReferenceRestStiffness(problem);
+  const SparseMatrix reference_stiffness = response::ReferenceRestStiffness(problem);
   const response::ProbeBank bank =
       response::MakeProbeBank(problem, reference_stiffness, fit_options.probes);
   std::unique_ptr<WorkerPool> own_pool;
@@ -296,7 +296,8 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   }
   details.model_seconds = since();
 
-  // The named cases, judged as every strategy's model is (cost.h), in the problem's response.
+  // The named cases, judged as every strategy's model is (engine/problem/cost.h), in the problem's
+  // response.
   CostOptions cost_options;
   cost_options.solve_cases_of_mechanisms = true;
   CostFunction cost(problem, cost_options);

@@ -20,7 +20,7 @@
 
 #include <vector>
 
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "engine/response/support_system.h"
 #include "engine/worker_pool.h"
 

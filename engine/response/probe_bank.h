@@ -33,7 +33,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "engine/response/rest_stiffness.h"
 
 namespace springfit::response {

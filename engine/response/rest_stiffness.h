@@ -15,11 +15,9 @@
 
 #include <Eigen/SparseCore>
 
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 
 namespace springfit::response {
-
-using SparseMatrix = Eigen::SparseMatrix<double>;
 
 // The reference's rest stiffness: the FEM model's, or the reference springs' with their
 // stiffness. Precondition: the reference is FEM or MSS (not positions).

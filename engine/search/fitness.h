@@ -4,12 +4,12 @@
 #include <cmath>
 #include <limits>
 
-#include "engine/cost.h"
+#include "engine/problem/cost.h"
 
 namespace springfit {
 
 struct Fitness {
-  double cost = 0.0;              // f (cost.h), in the scene's squared length unit
+  double cost = 0.0;              // f (engine/problem/cost.h), in the scene's squared length unit
   double normalized_error = 0.0;  // e = f / sum |u^R|^2, unit-free; what selection uses
   int mechanism_modes = 0;
   bool mechanism = false;

@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "engine/genome_packing.h"
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "engine/search/fitness.h"
 
 namespace springfit {

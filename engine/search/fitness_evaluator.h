@@ -12,9 +12,9 @@
 #include <memory>
 #include <vector>
 
-#include "engine/cost.h"
 #include "engine/interruption.h"
-#include "engine/problem.h"
+#include "engine/problem/cost.h"
+#include "engine/problem/problem.h"
 #include "engine/search/fitness.h"
 #include "engine/search/fitness_cache.h"
 #include "engine/worker_pool.h"

@@ -4,7 +4,7 @@
 
 #include <span>
 
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "engine/search/random_stream.h"
 
 namespace springfit {

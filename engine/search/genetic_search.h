@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "engine/search/fitness_evaluator.h"
 #include "engine/search/random_stream.h"
 #include "engine/search/search_options.h"

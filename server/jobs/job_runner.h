@@ -7,7 +7,7 @@
 #include <memory>
 
 #include "engine/identification/identify.h"
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "engine/worker_pool.h"
 #include "server/store/job_store.h"
 

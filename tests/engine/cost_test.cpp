@@ -1,5 +1,5 @@
 // The identification cost: exact zero for the reference, positive elsewhere, graded penalties.
-#include "engine/cost.h"
+#include "engine/problem/cost.h"
 
 #include <cmath>
 

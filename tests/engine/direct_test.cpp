@@ -5,11 +5,11 @@
 #include <cmath>
 
 #include "engine/direct/direct_identification.h"
-#include "engine/direct/force_balance.h"
-#include "engine/direct/nnls.h"
 #include "engine/identification/identify.h"
 #include "engine/identification/strategy.h"
 #include "engine/input_error.h"
+#include "engine/nnls.h"
+#include "engine/problem/force_balance.h"
 #include "io/example_catalog.h"
 #include "tests/test_scenes.h"
 

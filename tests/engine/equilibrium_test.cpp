@@ -6,7 +6,7 @@
 #include <gtest/gtest.h>
 #include <Eigen/Eigenvalues>
 
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "tests/test_scenes.h"
 
 namespace springfit {

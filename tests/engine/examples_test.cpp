@@ -3,7 +3,7 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 
 namespace springfit {
 namespace {

@@ -4,7 +4,7 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/cost.h"
+#include "engine/problem/cost.h"
 #include "io/example_catalog.h"
 #include "tests/test_scenes.h"
 

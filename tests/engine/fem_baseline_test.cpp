@@ -1,5 +1,6 @@
 // The closed-form baseline of an FEM reference (van Gelder 1998).
 #include "engine/fem/closed_form_baseline.h"
+#include "engine/problem/baseline_evaluation.h"
 
 #include <gtest/gtest.h>
 
@@ -49,13 +50,13 @@ TEST(ClosedFormBaseline, VanGelderStiffnessSumsOverTheElementsOfAnEdge) {
 
 TEST(ClosedFormBaseline, EvaluatedOnFemReferencesOnly) {
   const Problem plate = Problem::Build(examples::Make("fem-plate-5x5"));
-  const auto report = fem::EvaluateClosedFormBaseline(plate);
+  const auto report = EvaluateClosedFormBaseline(plate);
   ASSERT_TRUE(report);
   EXPECT_TRUE(report->converged);
   EXPECT_EQ(report->springs, 56);  // the plate's mesh edges: 40 sides, 16 diagonals
   EXPECT_GT(report->rms_error, 0.0);
   EXPECT_DOUBLE_EQ(report->rms_error * report->rms_error, report->normalized_error);
-  EXPECT_FALSE(fem::EvaluateClosedFormBaseline(Problem::Build(examples::Make("paper-iso-5x5"))));
+  EXPECT_FALSE(EvaluateClosedFormBaseline(Problem::Build(examples::Make("paper-iso-5x5"))));
 }
 
 }  // namespace

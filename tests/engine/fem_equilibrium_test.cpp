@@ -11,7 +11,7 @@
 #include "engine/examples/simplex_mesh.h"
 #include "engine/fem/traction.h"
 #include "engine/input_error.h"
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "tests/test_scenes.h"
 
 namespace springfit {

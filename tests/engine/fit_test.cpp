@@ -4,14 +4,14 @@
 
 #include <cmath>
 
-#include "engine/cost.h"
-#include "engine/direct/force_balance.h"
-#include "engine/fem/closed_form_baseline.h"
 #include "engine/fit/sparsity_path.h"
 #include "engine/fit/stiffness_fit.h"
 #include "engine/identification/identify.h"
 #include "engine/identification/strategy.h"
 #include "engine/input_error.h"
+#include "engine/problem/baseline_evaluation.h"
+#include "engine/problem/cost.h"
+#include "engine/problem/force_balance.h"
 #include "io/example_catalog.h"
 #include "tests/test_scenes.h"
 
@@ -152,7 +152,7 @@ TEST(StiffnessFit, RecoversPerSpringStiffnessNonlinear) {
 
 TEST(StiffnessFit, NeverRaisesTheErrorAndKeepsTheBounds) {
   const Problem problem = Problem::Build(examples::Make("fem-plate-5x5"));
-  const std::optional<std::vector<double>> start = fem::BaselineGeneWeights(problem);
+  const std::optional<std::vector<double>> start = BaselineGeneWeights(problem);
   ASSERT_TRUE(start);
   std::vector<bool> usable(start->size(), true);
   // A candidate off the mesh edges is held at 0 whatever its gradient says.
@@ -162,7 +162,7 @@ TEST(StiffnessFit, NeverRaisesTheErrorAndKeepsTheBounds) {
   StiffnessFitOptions options;
   options.max_iterations = 25;
   const StiffnessFitResult fit = FitStiffness(problem, *start, FitScope{usable, {}, {}}, options);
-  const fem::BaselineReport baseline = *fem::EvaluateClosedFormBaseline(problem);
+  const BaselineReport baseline = *EvaluateClosedFormBaseline(problem);
   EXPECT_NEAR(fit.initial_normalized_error, baseline.normalized_error,
               1e-9 * baseline.normalized_error);
   EXPECT_LT(fit.normalized_error, 0.1 * fit.initial_normalized_error);
@@ -181,7 +181,7 @@ TEST(StiffnessFit, NeverRaisesTheErrorAndKeepsTheBounds) {
 
 TEST(StiffnessFit, ALeftOutLoadCaseIsNotFitted) {
   const Problem problem = Problem::Build(examples::Make("fem-plate-5x5"));
-  const std::vector<double> start = *fem::BaselineGeneWeights(problem);
+  const std::vector<double> start = *BaselineGeneWeights(problem);
   std::vector<bool> usable(start.size(), true);
   std::vector<bool> cases(problem.load_cases().size(), true);
   cases[0] = false;
@@ -201,7 +201,7 @@ TEST(StiffnessFit, ALeftOutLoadCaseIsNotFitted) {
 
 TEST(StiffnessFit, RegularizationPullsTowardThePriorAndReportsTheDataError) {
   const Problem problem = Problem::Build(examples::Make("fem-plate-5x5"));
-  const std::vector<double> start = *fem::BaselineGeneWeights(problem);
+  const std::vector<double> start = *BaselineGeneWeights(problem);
   const std::vector<bool> usable(start.size(), true);
   StiffnessFitOptions options;
   options.max_iterations = 40;
@@ -240,7 +240,7 @@ TEST(StiffnessFit, RegularizationPullsTowardThePriorAndReportsTheDataError) {
 
 TEST(SparsityPath, HeldOutErrorsDependOnTheModelsSpringsNotTheirFittedStiffness) {
   const Problem problem = Problem::Build(examples::Make("fem-plate-5x5"));
-  const std::vector<double> start = *fem::BaselineGeneWeights(problem);
+  const std::vector<double> start = *BaselineGeneWeights(problem);
   const std::vector<bool> usable(start.size(), true);
   StiffnessFitOptions fit_options;
   fit_options.max_iterations = 60;
@@ -288,12 +288,12 @@ TEST(SparsityPath, SelectsBySizeErrorOrTolerance) {
 
 TEST(SparsityPath, EveryPointCarriesTheLoadsAndTheSizeFalls) {
   const Problem problem = Problem::Build(examples::Make("fem-plate-5x5"));
-  const std::vector<double> start = *fem::BaselineGeneWeights(problem);
+  const std::vector<double> start = *BaselineGeneWeights(problem);
   const std::vector<bool> usable(start.size(), true);
   SparsityPathOptions options;
   options.fit.max_iterations = 60;
   // Asked to go as far as the baseline's error.
-  const double baseline = fem::EvaluateClosedFormBaseline(problem)->normalized_error;
+  const double baseline = EvaluateClosedFormBaseline(problem)->normalized_error;
   const SparsityPath path = TraceSparsityPath(problem, start, usable, options, baseline, 0);
   ASSERT_GE(path.points.size(), 5u);
   EXPECT_FALSE(path.interrupted);

@@ -11,8 +11,8 @@
 
 #include "engine/candidates.h"
 #include "engine/input_error.h"
-#include "engine/problem.h"
-#include "engine/scene_validation.h"
+#include "engine/problem/problem.h"
+#include "engine/problem/scene_validation.h"
 #include "engine/search/genetic_search.h"
 #include "io/example_catalog.h"
 #include "tests/test_scenes.h"

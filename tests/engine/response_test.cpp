@@ -6,9 +6,9 @@
 
 #include <Eigen/Eigenvalues>
 
-#include "engine/fem/closed_form_baseline.h"
 #include "engine/fit/stiffness_fit.h"
 #include "engine/identification/identify.h"
+#include "engine/problem/baseline_evaluation.h"
 #include "engine/response/amplitude_judgement.h"
 #include "engine/response/compliance_gram.h"
 #include "engine/response/generalization.h"
@@ -32,7 +32,7 @@ struct KidneyAtRest {
   SparseMatrix k = ReferenceRestStiffness(problem);
   ResponseFitOptions options;
   ProbeBank bank = MakeProbeBank(problem, k, options.probes);
-  std::vector<double> prior = *fem::BaselineGeneWeights(problem);
+  std::vector<double> prior = *BaselineGeneWeights(problem);
 };
 
 TEST(ProbeBank, EverySupportHasEveryFamilyInEveryDirectionAndAHeldOutPart) {
@@ -84,7 +84,7 @@ TEST(ResponseFit, HeldOutProbesNeverEnterTheFit) {
   const SparseMatrix k = ReferenceRestStiffness(problem);
   ResponseFitOptions options;
   const ProbeBank bank = MakeProbeBank(problem, k, options.probes);
-  const std::vector<double> prior = *fem::BaselineGeneWeights(problem);
+  const std::vector<double> prior = *BaselineGeneWeights(problem);
   const ResponseFitResult fit = FitResponse(problem, bank, k, prior, options);
   // Held-out probes made nonsense: the fit cannot tell.
   ProbeBank corrupted = bank;
@@ -181,7 +181,7 @@ TEST(ComplianceGram, IsTheExactErrorToFirstOrder) {
 TEST(PencilExtremes, MatchADenseGeneralisedEigensolver) {
   const Problem problem(examples::Make("fem-plate-5x5"));
   const SparseMatrix kref = ReferenceRestStiffness(problem);
-  const SparseMatrix kb = SpringRestStiffness(problem, *fem::BaselineGeneWeights(problem));
+  const SparseMatrix kb = SpringRestStiffness(problem, *BaselineGeneWeights(problem));
   const ProbeBank bank = MakeProbeBank(problem, kref, ProbeOptions{});
   const Support& support = bank.supports[0];
   const PencilExtremes x = GeneralizedEigenvalueExtremes(kb, kref, support.constrained, 2);
@@ -206,7 +206,7 @@ TEST(PencilExtremes, MatchADenseGeneralisedEigensolver) {
 TEST(PencilExtremes, SoftModesAreTheSmallestGeneralisedEigenpairs) {
   const Problem problem(examples::Make("fem-kidney-2d"));
   const SparseMatrix kref = ReferenceRestStiffness(problem);
-  const SparseMatrix kb = SpringRestStiffness(problem, *fem::BaselineGeneWeights(problem));
+  const SparseMatrix kb = SpringRestStiffness(problem, *BaselineGeneWeights(problem));
   const ProbeBank bank = MakeProbeBank(problem, kref, ProbeOptions{});
   const Support& support = bank.supports[0];
   SupportSystem reference(2, support.constrained), model(2, support.constrained);
@@ -342,7 +342,7 @@ TEST(ProbeBank, DrawnSupportsOnA3DBoundaryHoldEveryRigidMotion) {
     EXPECT_GT(area, 0.05 * longest * longest) << s.description;
   }
   EXPECT_GE(drawn, 1);
-  const std::optional<std::vector<double>> baseline = fem::BaselineGeneWeights(problem);
+  const std::optional<std::vector<double>> baseline = BaselineGeneWeights(problem);
   ASSERT_TRUE(baseline);
   const SparseMatrix baseline_k = SpringRestStiffness(problem, *baseline);
   const Generalization g = Certify(problem, bank, k, *baseline, baseline_k);
@@ -362,7 +362,7 @@ TEST(ProbeFitStrategy, TheNamedCaseFitGivesWayToTheBaselineWhenWorseOnUnseenLoad
   ASSERT_TRUE(r.generalization);
   EXPECT_FALSE(r.generalization->fitted_to_probes);
   EXPECT_TRUE(r.generalization->returned_baseline);
-  const std::optional<std::vector<double>> baseline = fem::BaselineGeneWeights(problem);
+  const std::optional<std::vector<double>> baseline = BaselineGeneWeights(problem);
   ASSERT_TRUE(baseline);
   int baseline_springs = 0;
   for (double w : *baseline) baseline_springs += w > 0.0;
@@ -565,7 +565,7 @@ TEST(LinearizedResponse, GradientAndNormalProductMatchFiniteDifferences) {
   ResponseFitOptions options;
   options.dust = 0.0;
   const ProbeBank bank = MakeProbeBank(problem, k, options.probes);
-  const std::vector<double> prior = *fem::BaselineGeneWeights(problem);
+  const std::vector<double> prior = *BaselineGeneWeights(problem);
   const ProbeObjective objective(problem, bank, k, prior, options);
   const GeneSprings springs = GeneSpringsOf(problem);
   const Vector x = objective.Scaled(prior);
@@ -645,7 +645,7 @@ TEST(ResponseFit, TheMatrixFreeFitKeepsASpringBudget) {
   options.dense_max_genes = problem.gene_count() - 1;
   options.max_springs = 300;
   const ProbeBank bank = MakeProbeBank(problem, k, options.probes);
-  const std::vector<double> prior = *fem::BaselineGeneWeights(problem);
+  const std::vector<double> prior = *BaselineGeneWeights(problem);
   const ResponseFitResult r = FitResponse(problem, bank, k, prior, options);
   ASSERT_EQ(r.path.size(), 2u);
   EXPECT_GT(r.path[0].springs, 300);
@@ -712,7 +712,7 @@ TEST(AmplitudeJudgement, SmallLoadsGiveTheRestLinearErrorsAndFullOnesDiffer) {
   ASSERT_EQ(problem.response(), Response::kNonlinear);
   const SparseMatrix k = ReferenceRestStiffness(problem);
   const ProbeBank bank = MakeProbeBank(problem, k, ProbeOptions{});
-  const std::vector<double> baseline = *fem::BaselineGeneWeights(problem);
+  const std::vector<double> baseline = *BaselineGeneWeights(problem);
   std::vector<double> model = baseline;  // another model: every other spring twice as stiff
   for (std::size_t g = 0; g < model.size(); g += 2) model[g] *= 2.0;
   AmplitudeOptions options;
@@ -754,7 +754,7 @@ TEST(AmplitudeJudgement, ALinearResponseIsNotJudgedAgain) {
   ASSERT_EQ(problem.response(), Response::kLinear);
   const SparseMatrix k = ReferenceRestStiffness(problem);
   const ProbeBank bank = MakeProbeBank(problem, k, ProbeOptions{});
-  const SpringModel baseline = ModelOfWeights(problem, *fem::BaselineGeneWeights(problem));
+  const SpringModel baseline = ModelOfWeights(problem, *BaselineGeneWeights(problem));
   EXPECT_TRUE(JudgeAtAmplitudes(problem, bank, baseline, baseline).empty());
 }
 

@@ -12,7 +12,7 @@
 #include <string_view>
 
 #include "engine/input_error.h"
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "proto/scene_codec.h"
 
 namespace {

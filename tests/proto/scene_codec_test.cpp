@@ -7,7 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "engine/input_error.h"
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "io/example_catalog.h"
 
 namespace springfit::proto {

@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/direct/force_balance.h"
 #include "engine/interruption.h"
+#include "engine/linalg.h"
 
 namespace springfit {
 

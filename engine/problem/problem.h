@@ -20,16 +20,17 @@
 #include <vector>
 
 #include "engine/equilibrium.h"
+#include "engine/genome.h"
 #include "engine/scene.h"
 #include "engine/springs.h"
 
 namespace springfit {
 
 struct IdentifiabilityReport;  // engine/direct/identifiability.h
+namespace fem {
+struct ClosedFormModel;  // engine/fem/closed_form_baseline.h
+}
 class Problem;
-
-// One bit per gene; 1 = the candidate spring is present.
-using Genome = std::vector<std::uint8_t>;
 
 // How the reference's equilibrium of a load case was solved (MSS and FEM references; absent
 // for positions).
@@ -85,7 +86,7 @@ std::vector<std::string> SceneNotices(const Problem& problem);
 
 // The training stiffness of a positions reference given without one: the median of the
 // springs the force balance at the reference's positions keeps (its non-negative
-// least-squares weights above 1e-3 of the largest, engine/direct/nnls.h): the stiffness the
+// least-squares weights above 1e-3 of the largest, engine/nnls.h): the stiffness the
 // data give the springs they need, in the data's units. 1 when the loads only prescribe
 // displacements (the data fix no scale).
 double PositionsTrainingStiffness(const Problem& problem);
@@ -173,6 +174,20 @@ class Problem {
 
  private:
   friend const IdentifiabilityReport& Identifiability(const Problem& problem);
+
+  // The steps of preparing, in the constructor's order (the reference's equilibria:
+  // reference_equilibria.h).
+  // Flattens each load case's loads and finds the distinct sets of free nodes.
+  void PrepareLoadCases();
+  // A gene per candidate that some load case can see; the rest are unidentifiable, with the
+  // closed-form model's stiffness on a mesh edge (when given), the training stiffness else.
+  void ChooseGenes(const fem::ClosedFormModel* closed_form);
+  // The reference's displacements under every load case, by the reference's kind.
+  void SolveReference(Interruption* interruption);
+  // An MSS reference's topology as a candidate mask, or its springs outside the candidates.
+  void TakeReferenceTopology();
+  // The reference's squared norms over the free nodes, which normalise the cost.
+  void NormaliseByReference();
 
   Scene scene_;
   EquilibriumOptions solver_options_;

@@ -1,4 +1,4 @@
-#include "engine/direct/nnls.h"
+#include "engine/nnls.h"
 
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCholesky>
@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "engine/options_check.h"
+#include "engine/sparse_columns.h"
 
 namespace springfit {
 namespace {

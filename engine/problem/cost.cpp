@@ -1,4 +1,4 @@
-#include "engine/cost.h"
+#include "engine/problem/cost.h"
 
 #include <algorithm>
 

@@ -20,7 +20,7 @@
 #include <vector>
 
 #include "engine/equilibrium.h"
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 
 namespace springfit {
 

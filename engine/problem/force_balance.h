@@ -14,11 +14,9 @@
 #include <optional>
 #include <vector>
 
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 
 namespace springfit {
-
-using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor>;
 
 struct ForceBalance {
   SparseMatrix a;  // rows: (load case, free node, coordinate); columns: genes
@@ -41,22 +39,6 @@ ForceBalance AssembleForceBalance(const Problem& problem,
 // where one of its nodes is free, so that its column of A is not zero. The one rule for
 // strategy direct and the identifiability report.
 std::vector<bool> SeenGenes(const ForceBalance& fb, double unseen_strain);
-// The columns of `a` listed in `columns`, in that order, as a new matrix.
-SparseMatrix SelectColumns(const SparseMatrix& a, const std::vector<int>& columns);
-
-// The normal matrix of the usable columns scaled to unit norm: its diagonal is 1, so that the
-// factorisations of the standard errors and of the scale pinning judge pivots unit-free.
-struct UnitColumnNormal {
-  std::vector<int> columns;  // the usable columns, in order
-  Vector scale;              // 1 / |a_j| per listed column
-  SparseMatrix normal;       // (A S)^T (A S) over them
-};
-// nullopt when a usable column is zero.
-std::optional<UnitColumnNormal> UnitNormalOf(const SparseMatrix& a,
-                                             const std::vector<bool>& usable);
-// A pivot of a unit-diagonal normal matrix at or below this marks dependent columns.
-inline constexpr double kSingularUnitPivot = 1e-13;
-
 // The default `unseen_strain`: a relative length change at round-off.
 inline constexpr double kUnseenStrain = 1e-12;
 

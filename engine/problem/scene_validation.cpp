@@ -1,4 +1,4 @@
-#include "engine/scene_validation.h"
+#include "engine/problem/scene_validation.h"
 #include "engine/units.h"
 
 #include <Eigen/Eigenvalues>
