@@ -22,7 +22,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/problem.h"
+#include "engine/problem/problem.h"
 #include "proto/job.h"
 
 namespace springfit::server {

@@ -16,6 +16,7 @@
 
 #include "engine/genome_packing.h"
 #include "proto/search_codec.h"
+#include "server/store/store_rows.h"
 
 namespace springfit::server {
 namespace {
@@ -105,12 +106,6 @@ ALTER TABLE jobs ADD COLUMN outcome TEXT;
 constexpr int kMigrationCount = static_cast<int>(std::size(kMigrations));
 static_assert(kMigrationCount == PostgresStore::kSchemaVersion);
 
-#define SF_JOB_COLUMNS                                                                      \
-  "id, label, priority, seed, idempotency_key, state, error, scene_name, genes, strategy, " \
-  "max_generations, created_at, started_at, finished_at, progress, checkpoint_generation, " \
-  "exact, outcome"
-constexpr int kJobColumnCount = 18;
-
 // The fence of every write of a running job: locks its row, so that no claim takes it
 // before the write's transaction ends, and fails unless the lease is still the job's.
 constexpr const char* kFence =
@@ -191,53 +186,36 @@ const std::pair<const char*, const char*> kStatements[] = {
      "cancel_requested = cancel_requested OR state <> 'queued' WHERE id = $1 AND state IN "
      "('queued', 'running', 'preparing') RETURNING state"},
     {"get_result", "SELECT result FROM jobs WHERE id = $1"},
-    {"get_trace",
-     "SELECT generation, wall_seconds, evaluations, cache_hits, best_cost, "
-     "best_normalized_error, mean_cost, missing, extra FROM trace WHERE job_id = $1 AND "
-     "generation > $2 ORDER BY generation LIMIT $3"},
+    {"get_trace", "SELECT " SF_TRACE_COLUMNS
+                  " FROM trace WHERE job_id = $1 AND generation > $2 ORDER BY generation LIMIT $3"},
     {"get_improvements",
-     "SELECT i.generation, i.wall_seconds, i.cost, i.normalized_error, i.missing, i.extra, "
-     "i.genome, j.genes FROM improvements i JOIN jobs j ON j.id = i.job_id WHERE i.job_id = $1 "
-     "AND i.generation > $2 ORDER BY i.generation LIMIT $3"},
+     "SELECT " SF_IMPROVEMENT_COLUMNS
+     " FROM improvements i JOIN jobs j ON j.id = i.job_id WHERE i.job_id = $1 AND i.generation > "
+     "$2 ORDER BY i.generation LIMIT $3"},
     {"get_last_improvement",
-     "SELECT i.generation, i.wall_seconds, i.cost, i.normalized_error, i.missing, i.extra, "
-     "i.genome, j.genes FROM improvements i JOIN jobs j ON j.id = i.job_id WHERE i.job_id = $1 "
-     "ORDER BY i.generation DESC LIMIT 1"},
+     "SELECT " SF_IMPROVEMENT_COLUMNS
+     " FROM improvements i JOIN jobs j ON j.id = i.job_id WHERE i.job_id = $1 ORDER BY "
+     "i.generation DESC LIMIT 1"},
     {"get_checkpoint", "SELECT state FROM checkpoints WHERE job_id = $1"},
     {"delete_job",
      "DELETE FROM jobs WHERE id = $1 AND state IN ('succeeded', 'failed', 'cancelled')"},
     {"notify", "SELECT pg_notify($1, $2)"},
 };
 
+// A result row, as the row layer reads it (server/store/store_rows.h).
+struct PgRow {
+  const pqxx::row& q;
+  bool Null(int i) const { return q[i].is_null(); }
+  std::int64_t Int64(int i) const { return q[i].as<std::int64_t>(); }
+  int Int(int i) const { return q[i].as<int>(); }
+  double Double(int i) const { return q[i].as<double>(); }
+  bool Bool(int i) const { return q[i].as<bool>(); }
+  std::string Text(int i) const { return q[i].as<std::string>(); }
+  std::string Blob(int i) const { return pqxx::binarystring(q[i]).str(); }
+};
+
 JobRecord ReadJob(const pqxx::row& q) {
-  JobRecord j;
-  j.id = q[0].as<std::int64_t>();
-  j.label = q[1].as<std::string>();
-  j.priority = q[2].as<int>();
-  j.seed = std::bit_cast<std::uint64_t>(q[3].as<std::int64_t>());
-  if (!q[4].is_null()) j.idempotency_key = q[4].as<std::string>();
-  j.state = StoredJobState(j.id, q[5].as<std::string>());
-  j.error = q[6].as<std::string>();
-  j.scene_name = q[7].as<std::string>();
-  j.genes = q[8].as<int>();
-  j.strategy = q[9].as<std::string>();
-  j.max_generations = q[10].as<int>();
-  j.created_at = q[11].as<double>();
-  j.started_at = q[12].as<double>();
-  j.finished_at = q[13].as<double>();
-  if (!q[14].is_null()) j.progress = StoredProgress(j.id, q[14].as<std::string>());
-  j.checkpoint_generation = q[15].as<int>();
-  if (!q[16].is_null()) j.exact = q[16].as<bool>();
-  if (!q[17].is_null()) j.outcome = StoredOutcome(j.id, q[17].as<std::string>());
-  return j;
-}
-
-int CountOrMinusOne(const pqxx::field& f) {
-  return f.is_null() ? -1 : f.as<int>();
-}
-
-std::string Bytes(const pqxx::field& f) {
-  return pqxx::binarystring(f).str();
+  return rows::JobOf(PgRow{q});
 }
 
 // A PostgreSQL array literal ({1,2,NULL}) of the values `format` writes.
@@ -681,8 +659,8 @@ std::optional<Claim> PostgresStore::ClaimNext(const std::string& owner, double l
     if (r.empty()) return std::nullopt;
     Claim claim;
     claim.job = ReadJob(r[0]);
-    claim.lease = {claim.job.id, owner, r[0][kJobColumnCount].as<std::int64_t>()};
-    claim.cancel_requested = r[0][kJobColumnCount + 1].as<bool>();
+    claim.lease = {claim.job.id, owner, r[0][rows::kJobColumnCount].as<std::int64_t>()};
+    claim.cancel_requested = r[0][rows::kJobColumnCount + 1].as<bool>();
     return claim;
   });
 }
@@ -796,21 +774,10 @@ std::optional<std::string> PostgresStore::GetResult(std::int64_t id) {
 std::vector<TraceRow> PostgresStore::GetTrace(std::int64_t id, int after, int limit) {
   return Read([&](pqxx::connection_base& c) {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
-    std::vector<TraceRow> rows;
-    for (const auto& q : w.exec_prepared("get_trace", id, after, limit)) {
-      TraceRow r;
-      r.generation = q[0].as<int>();
-      r.wall_seconds = q[1].as<double>();
-      r.evaluations = q[2].as<std::int64_t>();
-      r.cache_hits = q[3].as<std::int64_t>();
-      r.best_cost = q[4].as<double>();
-      r.best_normalized_error = q[5].as<double>();
-      r.mean_cost = q[6].as<double>();
-      r.missing = CountOrMinusOne(q[7]);
-      r.extra = CountOrMinusOne(q[8]);
-      rows.push_back(r);
-    }
-    return rows;
+    std::vector<TraceRow> trace;
+    for (const auto& q : w.exec_prepared("get_trace", id, after, limit))
+      trace.push_back(rows::TraceRowOf(PgRow{q}));
+    return trace;
   });
 }
 
@@ -820,22 +787,12 @@ std::vector<Improvement> PostgresStore::GetImprovements(std::int64_t id,
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     std::vector<Improvement> out;
     // (LIMIT NULL: no limit.)
-    const pqxx::result rows =
+    const pqxx::result found =
         page.last ? w.exec_prepared("get_last_improvement", id)
                   : w.exec_prepared("get_improvements", id, page.after,
                                     page.limit > 0 ? std::optional<long long>(page.limit)
                                                    : std::optional<long long>());
-    for (const auto& q : rows) {
-      Improvement m;
-      m.generation = q[0].as<int>();
-      m.wall_seconds = q[1].as<double>();
-      m.cost = q[2].as<double>();
-      m.normalized_error = q[3].as<double>();
-      m.missing = CountOrMinusOne(q[4]);
-      m.extra = CountOrMinusOne(q[5]);
-      m.genome = UnpackGenome(Bytes(q[6]), q[7].as<int>());
-      out.push_back(std::move(m));
-    }
+    for (const auto& q : found) out.push_back(rows::ImprovementOf(PgRow{q}));
     return out;
   });
 }
@@ -845,7 +802,7 @@ std::optional<std::string> PostgresStore::GetCheckpoint(std::int64_t id) {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     const pqxx::result r = w.exec_prepared("get_checkpoint", id);
     if (r.empty()) return std::nullopt;
-    return Bytes(r[0][0]);
+    return pqxx::binarystring(r[0][0]).str();
   });
 }
 

@@ -17,6 +17,7 @@
 
 #include "engine/genome_packing.h"
 #include "proto/search_codec.h"
+#include "server/store/store_rows.h"
 #include "server/store/unix_time.h"
 
 namespace springfit::server {
@@ -100,33 +101,20 @@ ALTER TABLE jobs ADD COLUMN outcome TEXT;
 constexpr int kMigrationCount = static_cast<int>(std::size(kMigrations));
 static_assert(kMigrationCount == SqliteStore::kSchemaVersion);
 
-constexpr const char* kJobColumns =
-    "id, label, priority, seed, idempotency_key, state, error, scene_name, genes, strategy, "
-    "max_generations, "
-    "created_at, started_at, finished_at, progress, checkpoint_generation, exact, outcome";
-constexpr int kJobColumnCount = 18;
+// A row of a stepped statement, as the row layer reads it (server/store/store_rows.h).
+struct SqliteRow {
+  SQLite::Statement& q;
+  bool Null(int i) const { return q.getColumn(i).isNull(); }
+  std::int64_t Int64(int i) const { return q.getColumn(i).getInt64(); }
+  int Int(int i) const { return q.getColumn(i).getInt(); }
+  double Double(int i) const { return q.getColumn(i).getDouble(); }
+  bool Bool(int i) const { return q.getColumn(i).getInt() != 0; }
+  std::string Text(int i) const { return q.getColumn(i).getString(); }
+  std::string Blob(int i) const { return q.getColumn(i).getString(); }
+};
 
 JobRecord ReadJob(SQLite::Statement& q) {
-  JobRecord j;
-  j.id = q.getColumn(0).getInt64();
-  j.label = q.getColumn(1).getString();
-  j.priority = q.getColumn(2).getInt();
-  j.seed = std::bit_cast<std::uint64_t>(q.getColumn(3).getInt64());
-  if (!q.getColumn(4).isNull()) j.idempotency_key = q.getColumn(4).getString();
-  j.state = StoredJobState(j.id, q.getColumn(5).getString());
-  j.error = q.getColumn(6).getString();
-  j.scene_name = q.getColumn(7).getString();
-  j.genes = q.getColumn(8).getInt();
-  j.strategy = q.getColumn(9).getString();
-  j.max_generations = q.getColumn(10).getInt();
-  j.created_at = q.getColumn(11).getDouble();
-  j.started_at = q.getColumn(12).getDouble();
-  j.finished_at = q.getColumn(13).getDouble();
-  if (!q.getColumn(14).isNull()) j.progress = StoredProgress(j.id, q.getColumn(14).getString());
-  j.checkpoint_generation = q.getColumn(15).getInt();
-  if (!q.getColumn(16).isNull()) j.exact = q.getColumn(16).getInt() != 0;
-  if (!q.getColumn(17).isNull()) j.outcome = StoredOutcome(j.id, q.getColumn(17).getString());
-  return j;
+  return rows::JobOf(SqliteRow{q});
 }
 
 void BindCount(SQLite::Statement& q, int index, int count) {
@@ -136,10 +124,6 @@ void BindCount(SQLite::Statement& q, int index, int count) {
     q.bind(index, count);
   }
 }
-std::optional<int> CountOrNull(const SQLite::Column& c) {
-  return c.isNull() ? std::nullopt : std::optional<int>(c.getInt());
-}
-
 void BindBlob(SQLite::Statement& q, int index, const std::string& bytes) {
   if (bytes.size() > static_cast<std::size_t>(std::numeric_limits<int>::max())) {
     throw std::runtime_error("store: a blob over 2 GiB");
@@ -359,8 +343,7 @@ JobStore::Created SqliteStore::CreateJob(const NewJob& job, int max_queued) {
     SQLite::Transaction tx(db, SQLite::TransactionBehavior::IMMEDIATE);
     const JobRecord& r = job.record;
     if (!r.idempotency_key.empty()) {
-      SQLite::Statement q(
-          db, std::string("SELECT ") + kJobColumns + " FROM jobs WHERE idempotency_key = ?");
+      SQLite::Statement q(db, "SELECT " SF_JOB_COLUMNS " FROM jobs WHERE idempotency_key = ?");
       q.bind(1, r.idempotency_key);
       if (q.executeStep()) return {ReadJob(q), false, false, {}};
     }
@@ -444,7 +427,7 @@ void SqliteStore::DropPreparing(const Lease& lease) {
 
 std::optional<JobRecord> SqliteStore::GetJob(std::int64_t id) {
   return Read([&](SQLite::Database& db) -> std::optional<JobRecord> {
-    SQLite::Statement q(db, std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id = ?");
+    SQLite::Statement q(db, "SELECT " SF_JOB_COLUMNS " FROM jobs WHERE id = ?");
     q.bind(1, id);
     if (!q.executeStep()) return std::nullopt;
     return ReadJob(q);
@@ -462,10 +445,10 @@ std::optional<std::string> SqliteStore::GetScene(std::int64_t id) {
 
 JobPage SqliteStore::ListJobs(const JobFilter& f) {
   return Read([&](SQLite::Database& db) {
-    std::string sql = std::string("SELECT ") + kJobColumns + " FROM jobs WHERE " +
-                      (!f.newest_first  ? "id > ?"
-                       : f.after_id > 0 ? "id < ?"
-                                        : "? = 0");
+    std::string sql =
+        std::string("SELECT " SF_JOB_COLUMNS " FROM jobs WHERE ") + (!f.newest_first  ? "id > ?"
+                                                                     : f.after_id > 0 ? "id < ?"
+                                                                                      : "? = 0");
     if (f.state) sql += " AND state = ?";
     if (f.label) sql += " AND label = ?";
     sql += f.newest_first ? " ORDER BY id DESC LIMIT ?" : " ORDER BY id LIMIT ?";
@@ -488,8 +471,8 @@ JobPage SqliteStore::ListJobs(const JobFilter& f) {
 std::vector<JobRecord> SqliteStore::UnfinishedJobs() {
   return Read([&](SQLite::Database& db) {
     SQLite::Statement q(
-        db, std::string("SELECT ") + kJobColumns +
-                " FROM jobs WHERE state IN ('queued', 'running') ORDER BY priority DESC, id");
+        db, "SELECT " SF_JOB_COLUMNS
+            " FROM jobs WHERE state IN ('queued', 'running') ORDER BY priority DESC, id");
     std::vector<JobRecord> jobs;
     while (q.executeStep()) jobs.push_back(ReadJob(q));
     return jobs;
@@ -546,14 +529,14 @@ std::optional<Claim> SqliteStore::ClaimNext(const std::string& owner, double lea
     take.bind(3, now);
     take.bind(4, id);
     take.exec();
-    SQLite::Statement q(db, std::string("SELECT ") + kJobColumns +
-                                ", lease_epoch, cancel_requested FROM jobs WHERE id = ?");
+    SQLite::Statement q(
+        db, "SELECT " SF_JOB_COLUMNS ", lease_epoch, cancel_requested FROM jobs WHERE id = ?");
     q.bind(1, id);
     q.executeStep();
     Claim claim;
     claim.job = ReadJob(q);
-    claim.lease = {id, owner, q.getColumn(kJobColumnCount).getInt64()};
-    claim.cancel_requested = q.getColumn(kJobColumnCount + 1).getInt() != 0;
+    claim.lease = {id, owner, q.getColumn(rows::kJobColumnCount).getInt64()};
+    claim.cancel_requested = q.getColumn(rows::kJobColumnCount + 1).getInt() != 0;
     q.reset();
     tx.commit();
     return claim;
@@ -737,55 +720,31 @@ std::optional<std::string> SqliteStore::GetResult(std::int64_t id) {
 
 std::vector<TraceRow> SqliteStore::GetTrace(std::int64_t id, int after, int limit) {
   return Read([&](SQLite::Database& db) {
-    SQLite::Statement q(db,
-                        "SELECT generation, wall_seconds, evaluations, cache_hits, best_cost, "
-                        "best_normalized_error, mean_cost, missing, extra FROM trace WHERE job_id "
-                        "= ? AND generation > ? ORDER BY generation LIMIT ?");
+    SQLite::Statement q(db, "SELECT " SF_TRACE_COLUMNS
+                            " FROM trace WHERE job_id = ? AND generation > ? ORDER BY generation "
+                            "LIMIT ?");
     q.bind(1, id);
     q.bind(2, after);
     q.bind(3, limit);
-    std::vector<TraceRow> rows;
-    while (q.executeStep()) {
-      TraceRow r;
-      r.generation = q.getColumn(0).getInt();
-      r.wall_seconds = q.getColumn(1).getDouble();
-      r.evaluations = q.getColumn(2).getInt64();
-      r.cache_hits = q.getColumn(3).getInt64();
-      r.best_cost = q.getColumn(4).getDouble();
-      r.best_normalized_error = q.getColumn(5).getDouble();
-      r.mean_cost = q.getColumn(6).getDouble();
-      r.missing = CountOrNull(q.getColumn(7)).value_or(-1);
-      r.extra = CountOrNull(q.getColumn(8)).value_or(-1);
-      rows.push_back(r);
-    }
-    return rows;
+    std::vector<TraceRow> trace;
+    while (q.executeStep()) trace.push_back(rows::TraceRowOf(SqliteRow{q}));
+    return trace;
   });
 }
 
 std::vector<Improvement> SqliteStore::GetImprovements(std::int64_t id,
                                                       const ImprovementPage& page) {
   return Read([&](SQLite::Database& db) {
-    SQLite::Statement q(db, std::string("SELECT i.generation, i.wall_seconds, i.cost, "
-                                        "i.normalized_error, i.missing, i.extra, i.genome, "
-                                        "j.genes FROM improvements i JOIN jobs j ON j.id = "
-                                        "i.job_id WHERE i.job_id = ? AND i.generation > ? ") +
+    SQLite::Statement q(db, std::string("SELECT " SF_IMPROVEMENT_COLUMNS
+                                        " FROM improvements i JOIN jobs j ON j.id = i.job_id "
+                                        "WHERE i.job_id = ? AND i.generation > ? ") +
                                 (page.last ? "ORDER BY i.generation DESC LIMIT 1"
                                            : "ORDER BY i.generation LIMIT ?"));
     q.bind(1, id);
     q.bind(2, page.last ? -1 : page.after);
     if (!page.last) q.bind(3, page.limit > 0 ? page.limit : -1);  // (-1: no limit)
     std::vector<Improvement> out;
-    while (q.executeStep()) {
-      Improvement m;
-      m.generation = q.getColumn(0).getInt();
-      m.wall_seconds = q.getColumn(1).getDouble();
-      m.cost = q.getColumn(2).getDouble();
-      m.normalized_error = q.getColumn(3).getDouble();
-      m.missing = CountOrNull(q.getColumn(4)).value_or(-1);
-      m.extra = CountOrNull(q.getColumn(5)).value_or(-1);
-      m.genome = UnpackGenome(q.getColumn(6).getString(), q.getColumn(7).getInt());
-      out.push_back(std::move(m));
-    }
+    while (q.executeStep()) out.push_back(rows::ImprovementOf(SqliteRow{q}));
     return out;
   });
 }
