@@ -283,6 +283,148 @@ EquilibriumSummary EquilibriumSolver::Solve(const ActiveSprings& springs, const 
 }
 
 template <int D>
+double EquilibriumSolver::ForceScale(const ActiveSprings& springs, const Vector& force,
+                                     const Vector& prescribed) const {
+  // The external forces, and the force each spring to a node with a prescribed displacement
+  // exerts when its free end has not moved (its own stiffness, not the stiffest spring's: a
+  // node displaced on soft springs is loaded softly).
+  double scale = MaxAbsOnFree(force, free_, D, false);
+  for (int a = 0; a < springs.size(); ++a) {
+    const int s = springs.index[a];
+    for (const int node : {geometry_->pairs[s].first, geometry_->pairs[s].second}) {
+      if (free_.free_index[node] < 0)
+        scale =
+            std::max(scale, springs.stiffness[a] * prescribed.template segment<D>(D * node).norm());
+    }
+  }
+  return scale;
+}
+
+double EquilibriumSolver::SetRoundoffFloors(const ActiveSprings& springs) {
+  // Each spring's force carries about eps k l (L - l is computed to about eps l), so a node's
+  // floor is the largest k l among its springs, times roundoff_force_tolerance (eps times a few
+  // hundred: the springs at a node add their errors). Per node, so that the scene's stiffest
+  // spring does not hide a soft region.
+  floor_.assign(free_.count, 0.0);
+  for (int a = 0; a < springs.size(); ++a) {
+    const int s = springs.index[a];
+    const double kl = springs.stiffness[a] * geometry_->rest_length[s];
+    for (const int node : {geometry_->pairs[s].first, geometry_->pairs[s].second}) {
+      const int f = free_.free_index[node];
+      if (f >= 0) floor_[f] = std::max(floor_[f], options_.roundoff_force_tolerance * kl);
+    }
+  }
+  double floor_max = 0.0;
+  for (const double f : floor_) floor_max = std::max(floor_max, f);
+  return floor_max;
+}
+
+template <int D>
+double EquilibriumSolver::Excess(const Vector& gradient) const {
+  double worst = 0.0;
+  for (int f = 0; f < free_.count; ++f) {
+    const double tol = std::max(relative_, floor_[f]);
+    worst = std::max(worst,
+                     gradient.template segment<D>(D * f).template lpNorm<Eigen::Infinity>() / tol);
+  }
+  return worst;
+}
+
+const char* EquilibriumSolver::StopBeforeStep(EquilibriumSummary& summary) {
+  if (summary.excess <= 1.0) {
+    summary.termination = Termination::kConverged;
+    return "";
+  }
+  if (summary.iterations >= options_.max_iterations)
+    return "the Newton iteration limit was reached";
+  if (interruption_ && interruption_->Check()) {
+    summary.termination = Termination::kInterrupted;
+    return "";
+  }
+  return nullptr;
+}
+
+template <int D>
+const char* EquilibriumSolver::NewtonStep(const ActiveSprings& springs, const Vector& force,
+                                          const Vector& u, EquilibriumSummary& summary,
+                                          double& slope) {
+  // The exact Hessian when positive definite, else the projected one, else the projected one
+  // regularised.
+  SymmetricSystem::Factorization f = system_.Factorize(0.0, options_.pivot_tolerance, false);
+  if (!f.positive_definite) {
+    ++summary.projected_steps;
+    Assemble<D>(springs, force, u, nullptr, true, true, nullptr);
+    f = system_.Factorize(0.0, options_.pivot_tolerance, false);
+    for (double shift : kRegularisationShifts) {
+      if (f.positive_definite) break;
+      f = system_.Factorize(shift, options_.pivot_tolerance, false);
+    }
+    if (!f.positive_definite) return "the Hessian stayed singular after regularisation";
+  }
+  step_ = -gradient_;
+  system_.Solve(step_);
+  // A step that changes some spring's separation by more than a fraction of its length leaves
+  // the region where the quadratic model means anything: it can jump a node onto another
+  // (L = 0, where E has a cone) or across a fixed node. Shorten it; the line search does the
+  // rest. Large but smooth displacements (a long grid under stretch) are not limited.
+  double largest = 0.0;
+  for (int a = 0; a < springs.size(); ++a) {
+    const int s = springs.index[a];
+    const int fi = free_.free_index[geometry_->pairs[s].first];
+    const int fj = free_.free_index[geometry_->pairs[s].second];
+    VecD<D> change = VecD<D>::Zero();
+    if (fi >= 0) change += step_.template segment<D>(D * fi);
+    if (fj >= 0) change -= step_.template segment<D>(D * fj);
+    largest = std::max(largest, change.norm() / geometry_->rest_length[s]);
+  }
+  // (The linearised model has no cone: its Newton step is the answer, whatever its size.)
+  if (largest > options_.max_step && options_.response == Response::kNonlinear)
+    step_ *= options_.max_step / largest;
+  slope = gradient_.dot(step_);
+  if (!(slope < 0.0))  // not a descent direction (also catches NaN)
+    return "the Newton step is not a descent direction (round-off in the Hessian)";
+  return nullptr;
+}
+
+template <int D>
+bool EquilibriumSolver::LineSearch(const ActiveSprings& springs, const Vector& force, double slope,
+                                   Vector& u, NewtonPoint& at, EquilibriumSummary& summary) {
+  // Each trial also assembles the gradient and the exact Hessian: the full step is accepted
+  // almost always, and then the next iteration needs them.
+  const int nodes = static_cast<int>(free_.free_index.size());
+  double alpha = 1.0;
+  for (int ls = 0; ls <= options_.max_line_search_steps; ++ls) {
+    trial_u_ = u;
+    for (int node = 0; node < nodes; ++node) {
+      const int fi = free_.free_index[node];
+      if (fi >= 0)
+        trial_u_.template segment<D>(D * node) += alpha * step_.template segment<D>(D * fi);
+    }
+    double trial_magnitude = 0.0;
+    const double trial_energy =
+        Assemble<D>(springs, force, trial_u_, &trial_gradient_, true, false, &trial_magnitude);
+    const double roundoff =
+        kEnergyRoundoffUlps * kEpsilon * std::max(at.magnitude, trial_magnitude);
+    const double trial_residual = trial_gradient_.template lpNorm<Eigen::Infinity>();
+    const bool sufficient_decrease = trial_energy <= at.energy + options_.armijo * alpha * slope;
+    // Within round-off of E, the gradient is the better judge of progress.
+    const bool roundoff_progress =
+        std::abs(trial_energy - at.energy) <= roundoff && trial_residual < at.residual;
+    if (std::isfinite(trial_energy) && (sufficient_decrease || roundoff_progress)) {
+      u.swap(trial_u_);
+      gradient_.swap(trial_gradient_);
+      at = {trial_energy, trial_magnitude, trial_residual};
+      return true;
+    }
+    ++summary.line_search_steps;
+    alpha *= 0.5;
+  }
+  // Restore the Hessian of the current point for a caller that inspects it.
+  Assemble<D>(springs, force, u, &gradient_, true, false, nullptr);
+  return false;
+}
+
+template <int D>
 EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, const Vector& force,
                                                 const Vector& prescribed, Vector& u) {
   EquilibriumSummary summary;
@@ -295,163 +437,41 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, co
     summary.termination = Termination::kConverged;
     return summary;
   }
-  // The load's force scale: the external forces, and the force each spring to a node with a
-  // prescribed displacement exerts when its free end has not moved (its own stiffness, not
-  // the stiffest spring's: a node displaced on soft springs is loaded softly).
-  double force_scale = MaxAbsOnFree(force, free_, D, false);
-  for (int a = 0; a < springs.size(); ++a) {
-    const int s = springs.index[a];
-    for (const int node : {geometry_->pairs[s].first, geometry_->pairs[s].second}) {
-      if (free_.free_index[node] < 0)
-        force_scale = std::max(
-            force_scale, springs.stiffness[a] * prescribed.template segment<D>(D * node).norm());
-    }
-  }
-  // Round-off per free node: each spring's force carries about eps k l (L - l is computed to
-  // about eps l), so a node's floor is the largest k l among its springs, times
-  // roundoff_force_tolerance (eps times a few hundred: the springs at a node add their
-  // errors). Per node, so that the scene's stiffest spring does not hide a soft region.
-  floor_.assign(free_.count, 0.0);
-  double floor_max = 0.0;
-  for (int a = 0; a < springs.size(); ++a) {
-    const int s = springs.index[a];
-    const double kl = springs.stiffness[a] * geometry_->rest_length[s];
-    for (const int node : {geometry_->pairs[s].first, geometry_->pairs[s].second}) {
-      const int f = free_.free_index[node];
-      if (f >= 0) floor_[f] = std::max(floor_[f], options_.roundoff_force_tolerance * kl);
-    }
-  }
-  for (const double f : floor_) floor_max = std::max(floor_max, f);
+  // Converged when every free node's imbalance is within its tolerance: the relative one
+  // (of the load's force scale), or its round-off floor if larger.
+  double force_scale = ForceScale<D>(springs, force, prescribed);
+  const double floor_max = SetRoundoffFloors(springs);
   if (force_scale == 0.0) force_scale = floor_max / options_.roundoff_force_tolerance;
-  const double relative = options_.relative_force_tolerance * force_scale;
-  relative_ = relative;
-  // Converged when every free node's imbalance is within its tolerance; returns the largest
-  // imbalance / tolerance, and that node's tolerance in `worst_tolerance`.
-  const auto excess = [&](const Vector& gradient, double& worst_tolerance) {
-    double worst = 0.0;
-    worst_tolerance = std::max(relative, floor_max);
-    for (int f = 0; f < free_.count; ++f) {
-      const double tol = std::max(relative, floor_[f]);
-      const double ratio =
-          gradient.template segment<D>(D * f).template lpNorm<Eigen::Infinity>() / tol;
-      if (ratio > worst) {
-        worst = ratio;
-        worst_tolerance = tol;
-      }
-    }
-    return worst;
-  };
+  relative_ = options_.relative_force_tolerance * force_scale;
 
-  double magnitude = 0.0;
-  double energy = Assemble<D>(springs, force, u, &gradient_, true, false, &magnitude);
-  double residual = gradient_.template lpNorm<Eigen::Infinity>();
-  summary.initial_residual = residual / force_scale;
+  NewtonPoint at;
+  at.energy = Assemble<D>(springs, force, u, &gradient_, true, false, &at.magnitude);
+  at.residual = gradient_.template lpNorm<Eigen::Infinity>();
+  summary.initial_residual = at.residual / force_scale;
   // The loosest node's tolerance: a property of the scene and the load, whatever the unit.
-  summary.tolerance = std::max(relative, floor_max) / force_scale;
+  summary.tolerance = std::max(relative_, floor_max) / force_scale;
   trial_u_.resize(u.size());
 
   for (;;) {
-    double tolerance = 0.0;
-    summary.excess = excess(gradient_, tolerance);
-    if (summary.excess <= 1.0) {
-      summary.termination = Termination::kConverged;
+    summary.excess = Excess<D>(gradient_);
+    if (const char* why = StopBeforeStep(summary)) {
+      summary.why = why;
       break;
     }
-    if (summary.iterations >= options_.max_iterations) {
-      summary.why = "the Newton iteration limit was reached";
+    double slope = 0.0;
+    if (const char* why = NewtonStep<D>(springs, force, u, summary, slope)) {
+      summary.why = why;
       break;
     }
-    if (interruption_ && interruption_->Check()) {
-      summary.termination = Termination::kInterrupted;
-      break;
-    }
-
-    // Newton direction: exact Hessian when positive definite, else the projected one, else
-    // the projected one regularised.
-    SymmetricSystem::Factorization f = system_.Factorize(0.0, options_.pivot_tolerance, false);
-    if (!f.positive_definite) {
-      ++summary.projected_steps;
-      Assemble<D>(springs, force, u, nullptr, true, true, nullptr);
-      f = system_.Factorize(0.0, options_.pivot_tolerance, false);
-      for (double shift : kRegularisationShifts) {
-        if (f.positive_definite) break;
-        f = system_.Factorize(shift, options_.pivot_tolerance, false);
-      }
-      if (!f.positive_definite) {
-        summary.why = "the Hessian stayed singular after regularisation";
-        break;
-      }
-    }
-    step_ = -gradient_;
-    system_.Solve(step_);
-    // A step that changes some spring's separation by more than a fraction of its length leaves
-    // the region where the quadratic model means anything: it can jump a node onto another
-    // (L = 0, where E has a cone) or across a fixed node. Shorten it; the line search does the
-    // rest. Large but smooth displacements (a long grid under stretch) are not limited.
-    double largest = 0.0;
-    for (int a = 0; a < springs.size(); ++a) {
-      const int s = springs.index[a];
-      const int fi = free_.free_index[geometry_->pairs[s].first];
-      const int fj = free_.free_index[geometry_->pairs[s].second];
-      VecD<D> change = VecD<D>::Zero();
-      if (fi >= 0) change += step_.template segment<D>(D * fi);
-      if (fj >= 0) change -= step_.template segment<D>(D * fj);
-      largest = std::max(largest, change.norm() / geometry_->rest_length[s]);
-    }
-    // (The linearised model has no cone: its Newton step is the answer, whatever its size.)
-    if (largest > options_.max_step && options_.response == Response::kNonlinear)
-      step_ *= options_.max_step / largest;
-    const double slope = gradient_.dot(step_);
-    if (!(slope < 0.0)) {  // not a descent direction (also catches NaN)
-      summary.why = "the Newton step is not a descent direction (round-off in the Hessian)";
-      break;
-    }
-
-    // Backtracking line search on E. Each trial also assembles the gradient and the exact
-    // Hessian: the full step is accepted almost always, and then the next iteration needs them.
-    double alpha = 1.0;
-    bool accepted = false;
-    for (int ls = 0; ls <= options_.max_line_search_steps; ++ls) {
-      trial_u_ = u;
-      for (int node = 0; node < nodes; ++node) {
-        const int fi = free_.free_index[node];
-        if (fi >= 0)
-          trial_u_.template segment<D>(D * node) += alpha * step_.template segment<D>(D * fi);
-      }
-      double trial_magnitude = 0.0;
-      const double trial_energy =
-          Assemble<D>(springs, force, trial_u_, &trial_gradient_, true, false, &trial_magnitude);
-      const double roundoff = kEnergyRoundoffUlps * kEpsilon * std::max(magnitude, trial_magnitude);
-      const double trial_residual = trial_gradient_.template lpNorm<Eigen::Infinity>();
-      const bool sufficient_decrease = trial_energy <= energy + options_.armijo * alpha * slope;
-      // Within round-off of E, the gradient is the better judge of progress.
-      const bool roundoff_progress =
-          std::abs(trial_energy - energy) <= roundoff && trial_residual < residual;
-      if (std::isfinite(trial_energy) && (sufficient_decrease || roundoff_progress)) {
-        u.swap(trial_u_);
-        gradient_.swap(trial_gradient_);
-        energy = trial_energy;
-        magnitude = trial_magnitude;
-        residual = trial_residual;
-        accepted = true;
-        break;
-      }
-      ++summary.line_search_steps;
-      alpha *= 0.5;
-    }
+    const bool accepted = LineSearch<D>(springs, force, slope, u, at, summary);
     ++summary.iterations;
     if (!accepted) {
-      // Restore the Hessian of the current point for a caller that inspects it.
-      Assemble<D>(springs, force, u, &gradient_, true, false, nullptr);
       summary.why = "the line search found no decrease of the energy (round-off)";
       break;
     }
   }
-  summary.final_residual = residual / force_scale;
-  if (!summary.converged()) {
-    double tolerance = 0.0;
-    summary.excess = excess(gradient_, tolerance);
-  }
+  summary.final_residual = at.residual / force_scale;
+  if (!summary.converged()) summary.excess = Excess<D>(gradient_);
   return summary;
 }
 

@@ -226,6 +226,33 @@ class EquilibriumSolver {
   template <int D>
   EquilibriumSummary SolveImpl(const ActiveSprings& springs, const Vector& force,
                                const Vector& prescribed, Vector& u);
+  // SolveImpl's steps.
+  // The load's force scale, which the relative tolerance multiplies.
+  template <int D>
+  double ForceScale(const ActiveSprings& springs, const Vector& force,
+                    const Vector& prescribed) const;
+  // Each free node's round-off force floor into floor_; returns the largest.
+  double SetRoundoffFloors(const ActiveSprings& springs);
+  // The largest imbalance of a free node over its tolerance (converged at <= 1).
+  template <int D>
+  double Excess(const Vector& gradient) const;
+  // The stop tests before a step (converged, the iteration limit, an interruption), setting
+  // the termination: nullptr to go on, else why it stopped ("" when it needs no words).
+  const char* StopBeforeStep(EquilibriumSummary& summary);
+  // The Newton step into step_ and its slope along the gradient: nullptr, or why there is none.
+  template <int D>
+  const char* NewtonStep(const ActiveSprings& springs, const Vector& force, const Vector& u,
+                         EquilibriumSummary& summary, double& slope);
+  // Where the iteration stands.
+  struct NewtonPoint {
+    double energy = 0.0;
+    double magnitude = 0.0;  // of the energy's terms: its round-off scale
+    double residual = 0.0;   // |gradient|_inf
+  };
+  // Backtracking along step_ from u, round-off tolerant; false when no step length is taken.
+  template <int D>
+  bool LineSearch(const ActiveSprings& springs, const Vector& force, double slope, Vector& u,
+                  NewtonPoint& at, EquilibriumSummary& summary);
 
   const SpringGeometry* geometry_ = nullptr;
   FreeNodes free_;
