@@ -250,266 +250,355 @@ void StiffnessFitOptions::Validate(const std::string& owner) const {
                 regularization, "0 <= value < infinity");
 }
 
-StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double>& start,
-                                const FitScope& scope, const StiffnessFitOptions& options,
-                                const FitContext& context) {
-  Interruption* interruption = context.interruption;
-  options.Validate();
-  const int genes = problem.gene_count();
-  const std::vector<bool>& usable = scope.usable;
-  StiffnessFitResult result;
-  std::vector<double> w(start);
-  w.resize(static_cast<std::size_t>(genes), 0.0);
-  for (int g = 0; g < genes; ++g) {
-    if (!usable[g] || !(w[g] > 0.0)) w[g] = 0.0;
-  }
-  result.weights = w;
+namespace {
 
-  // The upper bound: a spring this much stiffer than the stiffest at the start is rigid for
-  // the data (a rigid limit, where the displacements no longer respond to it).
-  const double upper = options.upper_bound > 0.0
-                           ? options.upper_bound
-                           : options.max_stiffness_ratio * *std::max_element(w.begin(), w.end());
-  ResponseState state(problem, scope.cases, context);
-  const double norm2 = state.ReferenceNorm2();
-  if (!state.Evaluate(w)) {
-    result.feasible = false;
-    result.normalized_error = result.initial_normalized_error =
-        std::numeric_limits<double>::infinity();
-    return result;
-  }
-  // The regularisation: 1/2 mu sum_j ((w_j - p_j) / s_j)^2 over the usable genes (those held
-  // at 0 add a constant), mu scaled so that its E^2 is `regularization` x the mean square.
-  std::vector<double> prior = scope.prior.empty() ? w : scope.prior;
-  prior.resize(static_cast<std::size_t>(genes), 0.0);
-  const double mu = options.regularization * norm2 / std::max(genes, 1);
-  Vector curvature = Vector::Zero(genes);  // mu / s_j^2 on the usable genes
-  if (mu > 0.0) {
-    const double floor = options.scale_floor * MedianPositive(prior);
-    for (int g = 0; g < genes; ++g) {
-      if (usable[g]) curvature[g] = mu / std::pow(std::max(prior[g], floor), 2);
+// The projected trust-region Gauss-Newton fit of FitStiffness, as named steps: start, then per
+// iteration linearise, a Steihaug step, try it (projected onto the bounds, else stopped short
+// of them), accept or reject; then the saliency at the result. Each step that ends the fit
+// sets its termination in the result.
+class TrustRegionFit {
+ public:
+  TrustRegionFit(const Problem& problem, const std::vector<double>& start, const FitScope& scope,
+                 const StiffnessFitOptions& options, const FitContext& context)
+      : problem_(problem),
+        scope_(scope),
+        options_(options),
+        context_(context),
+        genes_(problem.gene_count()),
+        state_(problem, scope.cases, context),
+        norm2_(state_.ReferenceNorm2()) {
+    w_ = start;
+    w_.resize(static_cast<std::size_t>(genes_), 0.0);
+    for (int g = 0; g < genes_; ++g) {
+      if (!scope.usable[g] || !(w_[g] > 0.0)) w_[g] = 0.0;
     }
+    result_.weights = w_;
+    // The upper bound: a spring this much stiffer than the stiffest at the start is rigid for
+    // the data (a rigid limit, where the displacements no longer respond to it).
+    upper_ = options.upper_bound > 0.0
+                 ? options.upper_bound
+                 : options.max_stiffness_ratio * *std::max_element(w_.begin(), w_.end());
+    scale_.resize(genes_);
+    gradient_.resize(genes_);
+    free_.resize(static_cast<std::size_t>(genes_));
+    trial_.resize(static_cast<std::size_t>(genes_));
   }
-  const auto penalty = [&](const std::vector<double>& x) {
+
+  StiffnessFitResult Run() {
+    if (!Start()) return result_;
+    try {
+      while (result_.iterations < options_.max_iterations && Error(data_phi_) > kExactError) {
+        if (Interrupted()) throw springfit::Interrupted();
+        ++result_.iterations;
+        if (!Linearize()) {
+          result_.converged = true;
+          break;
+        }
+        if (!Iterate()) break;
+      }
+    } catch (const springfit::Interrupted&) {
+      result_.interrupted = true;  // w and phi are the last accepted step's
+    }
+    if (Error(data_phi_) <= kExactError) result_.converged = true;
+    result_.weights = w_;
+    result_.normalized_error = Error(data_phi_);
+    result_.solves = state_.solves();
+    if (result_.interrupted || options_.saliency_probes == 0) return result_;
+    Saliency();
+    return result_;
+  }
+
+ private:
+  double Error(double data_phi) const { return 2.0 * data_phi / norm2_; }
+  bool Interrupted() const { return context_.interruption && context_.interruption->Check(); }
+
+  // The start's equilibria (false: it has none, and the fit ends infeasible) and the
+  // regularisation: 1/2 mu sum_j ((w_j - p_j) / s_j)^2 over the usable genes (those held at 0
+  // add a constant), mu scaled so that its E^2 is `regularization` x the mean square.
+  bool Start() {
+    if (!state_.Evaluate(w_)) {
+      result_.feasible = false;
+      result_.normalized_error = result_.initial_normalized_error =
+          std::numeric_limits<double>::infinity();
+      return false;
+    }
+    prior_ = scope_.prior.empty() ? w_ : scope_.prior;
+    prior_.resize(static_cast<std::size_t>(genes_), 0.0);
+    mu_ = options_.regularization * norm2_ / std::max(genes_, 1);
+    curvature_ = Vector::Zero(genes_);  // mu / s_j^2 on the usable genes
+    if (mu_ > 0.0) {
+      const double floor = options_.scale_floor * MedianPositive(prior_);
+      for (int g = 0; g < genes_; ++g) {
+        if (scope_.usable[g]) curvature_[g] = mu_ / std::pow(std::max(prior_[g], floor), 2);
+      }
+    }
+    // data_phi = 1/2 |r|^2 is what E reports; phi = data_phi + the penalty is what is minimised.
+    data_phi_ = 0.5 * state_.residual().squaredNorm();
+    phi_ = data_phi_ + Penalty(w_);
+    result_.initial_normalized_error = Error(data_phi_);
+    radius_ = options_.initial_radius;
+    return true;
+  }
+
+  double Penalty(const std::vector<double>& x) const {
     double sum = 0.0;
-    if (mu > 0.0) {
-      for (int g = 0; g < genes; ++g) sum += curvature[g] * (x[g] - prior[g]) * (x[g] - prior[g]);
+    if (mu_ > 0.0) {
+      for (int g = 0; g < genes_; ++g)
+        sum += curvature_[g] * (x[g] - prior_[g]) * (x[g] - prior_[g]);
     }
     return 0.5 * sum;
-  };
-  // data_phi = 1/2 |r|^2 is what E reports; phi = data_phi + the penalty is what is minimised.
-  double data_phi = 0.5 * state.residual().squaredNorm();
-  double phi = data_phi + penalty(w);
-  result.initial_normalized_error = 2.0 * data_phi / norm2;
+  }
 
-  double radius = options.initial_radius;
-  int small_decreases = 0;
-  ForceBalance fb;
-  Vector scale(genes), gradient(genes), z, cg_r, p, mp, t;
-  std::vector<bool> free(static_cast<std::size_t>(genes));
-  std::vector<double> trial(static_cast<std::size_t>(genes));
-  const auto apply_normal = [&](const Vector& v, Vector& out) {
-    // out = S J^T J S v on the free genes.
-    Vector sv = v.cwiseProduct(scale);
-    t = fb.a * sv;
-    state.ApplyInverseTangent(t);  // J S v = H^-1 A S v
-    state.ApplyInverseTangent(t);  // the adjoint: J^T y = A^T H^-1 y
-    out = scale.cwiseProduct(fb.a.transpose() * t);
-    if (mu > 0.0) out += scale.cwiseProduct(curvature).cwiseProduct(sv);
-    for (int g = 0; g < genes; ++g) {
-      if (!free[g]) out[g] = 0.0;
+  // out = S J^T J S v on the free genes (plus the regularisation's curvature).
+  void ApplyNormal(const Vector& v, Vector& out) {
+    Vector sv = v.cwiseProduct(scale_);
+    t_ = fb_.a * sv;
+    state_.ApplyInverseTangent(t_);  // J S v = H^-1 A S v
+    state_.ApplyInverseTangent(t_);  // the adjoint: J^T y = A^T H^-1 y
+    out = scale_.cwiseProduct(fb_.a.transpose() * t_);
+    if (mu_ > 0.0) out += scale_.cwiseProduct(curvature_).cwiseProduct(sv);
+    for (int g = 0; g < genes_; ++g) {
+      if (!free_[g]) out[g] = 0.0;
     }
-  };
+  }
 
-  try {
-    while (result.iterations < options.max_iterations && 2.0 * data_phi / norm2 > kExactError) {
-      if (interruption && interruption->Check()) throw Interrupted();
-      ++result.iterations;
-      fb = AssembleForceBalance(problem, &state.displacements());
-      // The gradient J^T r by the adjoint: one solve per load case.
-      t = state.residual();
-      state.ApplyInverseTangent(t);
-      gradient = fb.a.transpose() * t;
-      if (mu > 0.0) {
-        for (int g = 0; g < genes; ++g) gradient[g] += curvature[g] * (w[g] - prior[g]);
-      }
-      // Weight g moves in units of s_g = max(w_g, scale_floor x the median weight): the trust
-      // region bounds each weight's relative change, so a step cannot take a spring to 0 in one
-      // stride unless the model asks for it, and an absent spring enters at a typical stiffness.
-      const double typical = MedianPositive(w);
-      for (int g = 0; g < genes; ++g) {
-        free[g] = usable[g] && !(w[g] == 0.0 && gradient[g] >= 0.0) &&
-                  !(w[g] == upper && gradient[g] <= 0.0);
-        scale[g] = free[g] ? std::max(w[g], options.scale_floor * typical) : 0.0;
-      }
-      const Vector gs = scale.cwiseProduct(gradient);  // zero off the free genes
-      const double gs_norm = gs.norm();
-      if (!(gs_norm > 0.0)) {
-        result.converged = true;
+  // The gradient at w by the adjoint, the free genes and their scales; false when the scaled
+  // gradient vanishes (a stationary point: converged).
+  bool Linearize() {
+    fb_ = AssembleForceBalance(problem_, &state_.displacements());
+    // The gradient J^T r by the adjoint: one solve per load case.
+    t_ = state_.residual();
+    state_.ApplyInverseTangent(t_);
+    gradient_ = fb_.a.transpose() * t_;
+    if (mu_ > 0.0) {
+      for (int g = 0; g < genes_; ++g) gradient_[g] += curvature_[g] * (w_[g] - prior_[g]);
+    }
+    // Weight g moves in units of s_g = max(w_g, scale_floor x the median weight): the trust
+    // region bounds each weight's relative change, so a step cannot take a spring to 0 in one
+    // stride unless the model asks for it, and an absent spring enters at a typical stiffness.
+    const double typical = MedianPositive(w_);
+    for (int g = 0; g < genes_; ++g) {
+      free_[g] = scope_.usable[g] && !(w_[g] == 0.0 && gradient_[g] >= 0.0) &&
+                 !(w_[g] == upper_ && gradient_[g] <= 0.0);
+      scale_[g] = free_[g] ? std::max(w_[g], options_.scale_floor * typical) : 0.0;
+    }
+    gs_ = scale_.cwiseProduct(gradient_);  // zero off the free genes
+    gs_norm_ = gs_.norm();
+    return gs_norm_ > 0.0;
+  }
+
+  // Steihaug's truncated CG on min gs.z + 1/2 z.M z, |z| <= radius: the step z_ and the model's
+  // decrease along it. (A Jacobi preconditioner, exact or estimated, was tried: on FEM
+  // references it steers the steps into springs the data barely see, which then run to their
+  // bounds, and the fit stalls at E 0.05-0.12 where plain CG reaches 0.043 on fem-kidney-2d.)
+  double SteihaugStep() {
+    z_ = Vector::Zero(genes_);
+    cg_r_ = -gs_;
+    p_ = cg_r_;
+    double rr = cg_r_.squaredNorm();
+    for (int it = 0; it < options_.max_cg_iterations; ++it) {
+      if (Interrupted()) throw springfit::Interrupted();
+      ApplyNormal(p_, mp_);
+      const double pmp = p_.dot(mp_);
+      // The step to the boundary along p: the largest tau with |z + tau p| = radius.
+      const auto to_boundary = [&]() {
+        const double a = p_.squaredNorm(), b = 2.0 * z_.dot(p_),
+                     c = z_.squaredNorm() - radius_ * radius_;
+        return (-b + std::sqrt(std::max(b * b - 4.0 * a * c, 0.0))) / (2.0 * a);
+      };
+      if (!(pmp > 0.0)) {
+        const double tau = to_boundary();
+        z_ += tau * p_;
+        cg_r_ -= tau * mp_;
         break;
       }
-      // Steihaug's truncated CG on min gs.z + 1/2 z.M z, |z| <= radius. (A Jacobi preconditioner,
-      // exact or estimated, was tried: on FEM references it steers the steps into springs the
-      // data barely see, which then run to their bounds, and the fit stalls at E 0.05-0.12
-      // where plain CG reaches 0.043 on fem-kidney-2d.)
-      z = Vector::Zero(genes);
-      cg_r = -gs;
-      p = cg_r;
-      double rr = cg_r.squaredNorm();
-      for (int it = 0; it < options.max_cg_iterations; ++it) {
-        if (interruption && interruption->Check()) throw Interrupted();
-        apply_normal(p, mp);
-        const double pmp = p.dot(mp);
-        // The step to the boundary along p: the largest tau with |z + tau p| = radius.
-        const auto to_boundary = [&]() {
-          const double a = p.squaredNorm(), b = 2.0 * z.dot(p),
-                       c = z.squaredNorm() - radius * radius;
-          return (-b + std::sqrt(std::max(b * b - 4.0 * a * c, 0.0))) / (2.0 * a);
-        };
-        if (!(pmp > 0.0)) {
-          const double tau = to_boundary();
-          z += tau * p;
-          cg_r -= tau * mp;
-          break;
-        }
-        const double alpha = rr / pmp;
-        if ((z + alpha * p).norm() >= radius) {
-          const double tau = to_boundary();
-          z += tau * p;
-          cg_r -= tau * mp;
-          break;
-        }
-        z += alpha * p;
-        cg_r -= alpha * mp;
-        const double rr_new = cg_r.squaredNorm();
-        if (std::sqrt(rr_new) <= options.cg_tolerance * gs_norm) break;
-        p = cg_r + (rr_new / rr) * p;
-        rr = rr_new;
+      const double alpha = rr / pmp;
+      if ((z_ + alpha * p_).norm() >= radius_) {
+        const double tau = to_boundary();
+        z_ += tau * p_;
+        cg_r_ -= tau * mp_;
+        break;
       }
-      // The model's decrease: -(gs.z + 1/2 z.M z), with M z = -gs - cg_r.
-      double predicted = 0.5 * (cg_r.dot(z) - gs.dot(z));
-      const double step = z.norm();
+      z_ += alpha * p_;
+      cg_r_ -= alpha * mp_;
+      const double rr_new = cg_r_.squaredNorm();
+      if (std::sqrt(rr_new) <= options_.cg_tolerance * gs_norm_) break;
+      p_ = cg_r_ + (rr_new / rr) * p_;
+      rr = rr_new;
+    }
+    // The model's decrease: -(gs.z + 1/2 z.M z), with M z = -gs - cg_r.
+    return 0.5 * (cg_r_.dot(z_) - gs_.dot(z_));
+  }
 
-      // The model's decrease for the scaled step zs: -(gs.zs + 1/2 zs.M zs) (one more product).
-      const auto model_decrease = [&](const Vector& zs) {
-        apply_normal(zs, mp);
-        return -(gs.dot(zs) + 0.5 * zs.dot(mp));
-      };
-      const std::vector<Vector> accepted_u = state.displacements();
-      // Tries w + S zs: its f, and whether it has an equilibrium. The state is then the trial's.
-      double trial_phi = std::numeric_limits<double>::infinity(), trial_data = trial_phi;
-      // Set exactly to a bound (rounding must not leave a spring at 1e-17 of itself).
-      std::vector<bool> leaves(static_cast<std::size_t>(genes), false);
-      std::vector<bool> caps(static_cast<std::size_t>(genes), false);
-      const auto attempt = [&](const Vector& zs) {
-        for (int g = 0; g < genes; ++g) {
-          trial[g] = !free[g]    ? w[g]
-                     : leaves[g] ? 0.0
-                     : caps[g]   ? upper
-                                 : std::clamp(w[g] + scale[g] * zs[g], 0.0, upper);
-        }
-        const bool feasible = state.Evaluate(trial);
-        trial_data = feasible ? 0.5 * state.residual().squaredNorm()
-                              : std::numeric_limits<double>::infinity();
-        trial_phi = trial_data + penalty(trial);
-        return feasible;
-      };
-      // First the step projected onto the bounds (springs whose weight it takes below 0 leave).
-      Vector zp = z;
-      bool projected = false;
-      for (int g = 0; g < genes; ++g) {
-        if (free[g] && w[g] + scale[g] * z[g] < 0.0) {
-          zp[g] = -w[g] / scale[g];
-          leaves[g] = projected = true;
-        } else if (free[g] && w[g] + scale[g] * z[g] > upper) {
-          zp[g] = (upper - w[g]) / scale[g];
-          caps[g] = projected = true;
-        }
-      }
-      // Should removing those springs fail (near a mechanism the displacements grow like 1 / k,
-      // which the Gauss-Newton model cannot see), the same step with each weight it would take
-      // out divided by ten instead (its own fraction-to-the-bound: one small spring does not
-      // shorten the whole step). Both model decreases are computed here, while the
-      // factorisations are the accepted weights'.
-      Vector zt;
-      double predicted_short = 0.0;
-      if (projected) {
-        predicted = model_decrease(zp);
-        zt = z;
-        for (int g = 0; g < genes; ++g) {
-          if (free[g] && w[g] + scale[g] * z[g] < kShortFraction * w[g])
-            zt[g] = (kShortFraction - 1.0) * w[g] / scale[g];
-        }
-        predicted_short = model_decrease(zt);
-      }
-      bool feasible = attempt(zp);
-      double actual = phi - trial_phi;
-      double rho = predicted > 0.0 ? actual / predicted : -1.0;
-      if (projected && !(feasible && actual > 0.0 && (rho > 1e-4 || !(predicted > 0.0)))) {
-        predicted = predicted_short;
-        leaves.assign(leaves.size(), false);
-        caps.assign(caps.size(), false);
-        state.displacements() = accepted_u;
-        feasible = attempt(zt);
-        actual = phi - trial_phi;
-        rho = predicted > 0.0 ? actual / predicted : -1.0;
-      }
-      // (A projected step can have a model decrease <= 0 and still lower f: it is taken, and
-      // the trust region kept.)
-      if (feasible && actual > 0.0 && !(predicted > 0.0)) rho = 0.5;
-      if (feasible && actual > 0.0 && rho > 1e-4) {
-        ++result.accepted;
-        small_decreases = actual < options.relative_tolerance * phi ? small_decreases + 1 : 0;
-        w = trial;
-        phi = trial_phi;
-        data_phi = trial_data;
-        if (rho > 0.75 && step >= 0.99 * radius)
-          radius = std::min(2.0 * radius, options.max_radius);
-        if (rho < 0.25) radius = 0.25 * step;
-        if (context.on_step) context.on_step(w, 2.0 * data_phi / norm2, result.accepted);
-        if (small_decreases >= 2) {
-          result.converged = true;
-          break;
-        }
-      } else {
-        // Back to the accepted weights (their equilibria solve at once from where they were).
-        state.displacements() = accepted_u;
-        if (!state.Evaluate(w)) break;  // cannot happen: w had an equilibrium
-        radius = 0.25 * step;
-        if (radius < kSmallestRadius) {
-          result.converged = true;
-          break;
-        }
+  // The model's decrease for the scaled step zs: -(gs.zs + 1/2 zs.M zs) (one more product).
+  double ModelDecrease(const Vector& zs) {
+    ApplyNormal(zs, mp_);
+    return -(gs_.dot(zs) + 0.5 * zs.dot(mp_));
+  }
+
+  // Tries w + S zs: its f, and whether it has an equilibrium. The state is then the trial's.
+  // Genes in `leaves_` or `caps_` are set exactly to their bound (rounding must not leave a
+  // spring at 1e-17 of itself).
+  bool Attempt(const Vector& zs) {
+    for (int g = 0; g < genes_; ++g) {
+      trial_[g] = !free_[g]    ? w_[g]
+                  : leaves_[g] ? 0.0
+                  : caps_[g]   ? upper_
+                               : std::clamp(w_[g] + scale_[g] * zs[g], 0.0, upper_);
+    }
+    const bool feasible = state_.Evaluate(trial_);
+    trial_data_ =
+        feasible ? 0.5 * state_.residual().squaredNorm() : std::numeric_limits<double>::infinity();
+    trial_phi_ = trial_data_ + Penalty(trial_);
+    return feasible;
+  }
+
+  // One iteration after the linearisation: a step, tried, accepted or rejected; false ends
+  // the fit (converged set where it has).
+  bool Iterate() {
+    double predicted = SteihaugStep();
+    const double step = z_.norm();
+    const std::vector<Vector> accepted_u = state_.displacements();
+    leaves_.assign(static_cast<std::size_t>(genes_), false);
+    caps_.assign(static_cast<std::size_t>(genes_), false);
+    // First the step projected onto the bounds (springs whose weight it takes below 0 leave).
+    Vector zp = z_;
+    bool projected = false;
+    for (int g = 0; g < genes_; ++g) {
+      if (free_[g] && w_[g] + scale_[g] * z_[g] < 0.0) {
+        zp[g] = -w_[g] / scale_[g];
+        leaves_[g] = projected = true;
+      } else if (free_[g] && w_[g] + scale_[g] * z_[g] > upper_) {
+        zp[g] = (upper_ - w_[g]) / scale_[g];
+        caps_[g] = projected = true;
       }
     }
-  } catch (const Interrupted&) {
-    result.interrupted = true;  // w and phi are the last accepted step's
+    // Should removing those springs fail (near a mechanism the displacements grow like 1 / k,
+    // which the Gauss-Newton model cannot see), the same step with each weight it would take
+    // out divided by ten instead (its own fraction-to-the-bound: one small spring does not
+    // shorten the whole step). Both model decreases are computed here, while the
+    // factorisations are the accepted weights'.
+    Vector zt;
+    double predicted_short = 0.0;
+    if (projected) {
+      predicted = ModelDecrease(zp);
+      zt = z_;
+      for (int g = 0; g < genes_; ++g) {
+        if (free_[g] && w_[g] + scale_[g] * z_[g] < kShortFraction * w_[g])
+          zt[g] = (kShortFraction - 1.0) * w_[g] / scale_[g];
+      }
+      predicted_short = ModelDecrease(zt);
+    }
+    bool feasible = Attempt(zp);
+    double actual = phi_ - trial_phi_;
+    double rho = predicted > 0.0 ? actual / predicted : -1.0;
+    if (projected && !(feasible && actual > 0.0 && (rho > 1e-4 || !(predicted > 0.0)))) {
+      predicted = predicted_short;
+      leaves_.assign(leaves_.size(), false);
+      caps_.assign(caps_.size(), false);
+      state_.displacements() = accepted_u;
+      feasible = Attempt(zt);
+      actual = phi_ - trial_phi_;
+      rho = predicted > 0.0 ? actual / predicted : -1.0;
+    }
+    // (A projected step can have a model decrease <= 0 and still lower f: it is taken, and
+    // the trust region kept.)
+    if (feasible && actual > 0.0 && !(predicted > 0.0)) rho = 0.5;
+    if (feasible && actual > 0.0 && rho > 1e-4) return Accept(actual, rho, step);
+    return Reject(accepted_u, step);
   }
-  if (2.0 * data_phi / norm2 <= kExactError) result.converged = true;
 
-  result.weights = w;
-  result.normalized_error = 2.0 * data_phi / norm2;
-  result.solves = state.solves();
-  if (result.interrupted || options.saliency_probes == 0) return result;
+  // The trial becomes the weights; the trust region grows or shrinks with the model's
+  // agreement. False after two decreases in a row below the relative tolerance (converged).
+  bool Accept(double actual, double rho, double step) {
+    ++result_.accepted;
+    small_decreases_ = actual < options_.relative_tolerance * phi_ ? small_decreases_ + 1 : 0;
+    w_ = trial_;
+    phi_ = trial_phi_;
+    data_phi_ = trial_data_;
+    if (rho > 0.75 && step >= 0.99 * radius_)
+      radius_ = std::min(2.0 * radius_, options_.max_radius);
+    if (rho < 0.25) radius_ = 0.25 * step;
+    if (context_.on_step) context_.on_step(w_, Error(data_phi_), result_.accepted);
+    if (small_decreases_ >= 2) {
+      result_.converged = true;
+      return false;
+    }
+    return true;
+  }
+
+  // Back to the accepted weights (their equilibria solve at once from where they were), with
+  // a smaller trust region. False when it has shrunk to nothing (converged).
+  bool Reject(const std::vector<Vector>& accepted_u, double step) {
+    state_.displacements() = accepted_u;
+    if (!state_.Evaluate(w_)) return false;  // cannot happen: w had an equilibrium
+    radius_ = 0.25 * step;
+    if (radius_ < kSmallestRadius) {
+      result_.converged = true;
+      return false;
+    }
+    return true;
+  }
+
   // Saliency (optimal brain damage, LeCun, Denker and Solla 1990): at an optimum the gradient
   // of a positive weight vanishes, so removing spring j raises f by about 1/2 w_j^2 |J e_j|^2.
   // The column norms are estimated from random-sign products J^T z (E[(J^T z)_j^2] =
   // |J e_j|^2): one solve per load case each, where the exact ones would cost one per gene.
   // The signs come from a fixed seed: deterministic.
-  fb = AssembleForceBalance(problem, &state.displacements());
-  Vector column2 = Vector::Zero(genes);
-  t.resize(state.residual().size());  // (the loop above may not have run)
-  std::mt19937_64 signs(kSaliencySeed);
-  for (int probe = 0; probe < options.saliency_probes; ++probe) {
-    for (Eigen::Index row = 0; row < t.size(); ++row) t[row] = (signs() >> 63) ? 1.0 : -1.0;
-    state.ApplyInverseTangent(t);
-    column2 += (fb.a.transpose() * t).cwiseAbs2();
+  void Saliency() {
+    fb_ = AssembleForceBalance(problem_, &state_.displacements());
+    Vector column2 = Vector::Zero(genes_);
+    t_.resize(state_.residual().size());  // (the loop above may not have run)
+    std::mt19937_64 signs(kSaliencySeed);
+    for (int probe = 0; probe < options_.saliency_probes; ++probe) {
+      for (Eigen::Index row = 0; row < t_.size(); ++row) t_[row] = (signs() >> 63) ? 1.0 : -1.0;
+      state_.ApplyInverseTangent(t_);
+      column2 += (fb_.a.transpose() * t_).cwiseAbs2();
+    }
+    result_.solves = state_.solves();
+    result_.importance.assign(static_cast<std::size_t>(genes_), 0.0);
+    for (int g = 0; g < genes_; ++g)
+      result_.importance[g] = 0.5 * w_[g] * w_[g] * column2[g] / options_.saliency_probes;
   }
-  result.solves = state.solves();
-  result.importance.assign(static_cast<std::size_t>(genes), 0.0);
-  for (int g = 0; g < genes; ++g)
-    result.importance[g] = 0.5 * w[g] * w[g] * column2[g] / options.saliency_probes;
-  return result;
+
+  const Problem& problem_;
+  const FitScope& scope_;
+  const StiffnessFitOptions& options_;
+  const FitContext& context_;
+  const int genes_;
+  ResponseState state_;
+  const double norm2_;
+  StiffnessFitResult result_;
+  std::vector<double> w_;
+  double upper_ = 0.0;
+  // The regularisation.
+  std::vector<double> prior_;
+  double mu_ = 0.0;
+  Vector curvature_;
+  double data_phi_ = 0.0;
+  double phi_ = 0.0;
+  double radius_ = 0.0;
+  int small_decreases_ = 0;
+  // The linearisation at w.
+  ForceBalance fb_;
+  Vector scale_, gradient_, gs_;
+  double gs_norm_ = 0.0;
+  std::vector<bool> free_;
+  // The step and its trial.
+  Vector z_, cg_r_, p_, mp_, t_;
+  std::vector<double> trial_;
+  std::vector<bool> leaves_, caps_;
+  double trial_phi_ = 0.0;
+  double trial_data_ = 0.0;
+};
+
+}  // namespace
+
+StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double>& start,
+                                const FitScope& scope, const StiffnessFitOptions& options,
+                                const FitContext& context) {
+  options.Validate();
+  return TrustRegionFit(problem, start, scope, options, context).Run();
 }
 
 }  // namespace springfit
