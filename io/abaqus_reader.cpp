@@ -244,11 +244,36 @@ void ExpectFields(const Line& line, const std::vector<std::string>& f, std::size
       Fail(line, std::string(what) + " takes " + std::to_string(count) + " fields at most");
 }
 
-void ReadDeck(const std::string& path, Deck& deck) {
-  const std::vector<Card> cards = Cards(path);
-  for (const Card& card : cards) {
+// Reads one deck's cards into a Deck: one member per keyword, found through kKeywords.
+class DeckReader {
+ public:
+  DeckReader(const std::string& path, Deck& deck) : path_(path), deck_(deck) {}
+
+  void Read() {
+    const std::vector<Card> cards = Cards(path_);
+    for (const Card& card : cards) CheckParameters(card);
+    for (const Card& card : cards) {
+      const auto it = kKeywords.find(card.keyword);
+      if (it != kKeywords.end()) {
+        (this->*(it->second))(card);
+      } else if (!kIgnored.count(card.keyword)) {
+        Fail(card.line, "*" + card.keyword +
+                            " is not read by springfit and may change the mechanics "
+                            "(proto/IMPORT.md lists what is read)");
+      }
+    }
+    if (step_) Fail(step_->line, "*STEP without *END STEP");
+    CheckStepsStartFromRest();
+  }
+
+ private:
+  using Handler = void (DeckReader::*)(const Card&);
+  static const std::map<std::string, Handler> kKeywords;
+
+  // Only the parameters springfit reads, each with a value it reads.
+  static void CheckParameters(const Card& card) {
     const auto allowed = kParameters.find(card.keyword);
-    if (allowed == kParameters.end()) continue;
+    if (allowed == kParameters.end()) return;
     for (const auto& [key, value] : card.parameters) {
       if (!allowed->second.count(key))
         Fail(card.line, "*" + card.keyword + ": parameter " + key + " is not read by springfit");
@@ -256,229 +281,272 @@ void ReadDeck(const std::string& path, Deck& deck) {
         Fail(card.line, "OP=" + value + ": expected NEW or MOD");
     }
   }
-  Deck::Step* step = nullptr;
-  std::string material;
-  for (const Card& card : cards) {
-    const std::string& k = card.keyword;
-    const Line& at = card.line;
-    if (k == "NODE") {
-      if (step) Fail(at, "*NODE inside a step");
-      const std::string set = card.Get("NSET");
-      for (const Line& l : card.data) {
-        const std::vector<std::string> f = SplitFields(l.text);
-        if (f.size() < 3) Fail(l, "a node needs an id and 2 or 3 coordinates");
-        const long id = Integer(l, f[0], "a node id");
-        std::vector<double> x(3, 0.0);
-        for (std::size_t c = 1; c < f.size() && c <= 3; ++c)
-          if (!f[c].empty()) x[c - 1] = Number(l, f[c], "a coordinate");
-        if (!deck.nodes.emplace(id, x).second)
-          Fail(l, "node " + std::to_string(id) + " defined twice");
-        if (!set.empty()) deck.nsets[Upper(set)].push_back(id);
-      }
-      if (!set.empty()) deck.set_names.emplace(Upper(set), set);
-    } else if (k == "ELEMENT") {
-      if (step) Fail(at, "*ELEMENT inside a step");
-      const std::string type = Upper(card.Get("TYPE"));
-      int d = 0, count = 0;
-      if (type == "CPS3" || type == "CPE3") {
-        d = 2, count = 3;
-        const std::string plane = type == "CPS3" ? "stress" : "strain";
-        if (!deck.plane.empty() && deck.plane != plane)
-          Fail(at, "CPS3 (plane stress) and CPE3 (plane strain) in one model");
-        deck.plane = plane;
-      } else if (type == "C3D4") {
-        d = 3, count = 4;
-      } else if (type == "T2D2" || type == "T3D2") {
-        d = type == "T2D2" ? 2 : 3, count = 2;
+
+  // *NODE: the nodes, each in its set when NSET= is given.
+  void Node(const Card& card) {
+    if (step_) Fail(card.line, "*NODE inside a step");
+    const std::string set = card.Get("NSET");
+    for (const Line& l : card.data) {
+      const std::vector<std::string> f = SplitFields(l.text);
+      if (f.size() < 3) Fail(l, "a node needs an id and 2 or 3 coordinates");
+      const long id = Integer(l, f[0], "a node id");
+      std::vector<double> x(3, 0.0);
+      for (std::size_t c = 1; c < f.size() && c <= 3; ++c)
+        if (!f[c].empty()) x[c - 1] = Number(l, f[c], "a coordinate");
+      if (!deck_.nodes.emplace(id, x).second)
+        Fail(l, "node " + std::to_string(id) + " defined twice");
+      if (!set.empty()) deck_.nsets[Upper(set)].push_back(id);
+    }
+    if (!set.empty()) deck_.set_names.emplace(Upper(set), set);
+  }
+
+  // *ELEMENT: elements of the types springfit reads, each in its set when ELSET= is given.
+  void Element(const Card& card) {
+    if (step_) Fail(card.line, "*ELEMENT inside a step");
+    const std::string type = Upper(card.Get("TYPE"));
+    int d = 0, count = 0;
+    if (type == "CPS3" || type == "CPE3") {
+      d = 2, count = 3;
+      const std::string plane = type == "CPS3" ? "stress" : "strain";
+      if (!deck_.plane.empty() && deck_.plane != plane)
+        Fail(card.line, "CPS3 (plane stress) and CPE3 (plane strain) in one model");
+      deck_.plane = plane;
+    } else if (type == "C3D4") {
+      d = 3, count = 4;
+    } else if (type == "T2D2" || type == "T3D2") {
+      d = type == "T2D2" ? 2 : 3, count = 2;
+    } else {
+      Fail(card.line,
+           "element type '" + card.Get("TYPE") +
+               "': springfit reads CPS3, CPE3 (2D triangles), C3D4 (tetrahedra) and T2D2, "
+               "T3D2 (2-node trusses: an MSS reference)");
+    }
+    // Lower-dimensional elements beside the mesh's (Gmsh writes physical curves as T3D2
+    // and a 3D mesh's boundary as CPS3) are left out later (SelectMeshElements).
+    if (count > 2) deck_.dimension = std::max(deck_.dimension, d);
+    const std::string set = card.Get("ELSET");
+    for (const Line& l : card.data) {
+      const std::vector<std::string> f = SplitFields(l.text);
+      std::vector<std::string> ids;
+      for (const std::string& s : f)
+        if (!s.empty()) ids.push_back(s);
+      if (static_cast<int>(ids.size()) != count + 1)
+        Fail(l, type + " needs an id and " + std::to_string(count) + " nodes");
+      Deck::Element e;
+      e.id = Integer(l, ids[0], "an element id");
+      e.type = type;
+      for (int c = 1; c <= count; ++c) e.nodes.push_back(Integer(l, ids[c], "a node"));
+      if (!set.empty()) deck_.elsets[Upper(set)].push_back(e.id);
+      deck_.elements.push_back(std::move(e));
+      ++deck_.element_counts[type];
+    }
+    if (!set.empty()) deck_.set_names.emplace(Upper(set), set);
+  }
+
+  // *NSET and *ELSET: a node or element set: ids, set names, or GENERATE ranges.
+  void Set(const Card& card) {
+    const bool nodes = card.keyword == "NSET";
+    const std::string name = card.Get(nodes ? "NSET" : "ELSET");
+    if (name.empty()) Fail(card.line, "*" + card.keyword + " needs " + card.keyword + "=name");
+    std::vector<long>& ids = (nodes ? deck_.nsets : deck_.elsets)[Upper(name)];
+    deck_.set_names.emplace(Upper(name), name);
+    if (!nodes && std::find(deck_.group_elsets.begin(), deck_.group_elsets.end(), Upper(name)) ==
+                      deck_.group_elsets.end())
+      deck_.group_elsets.push_back(Upper(name));
+    for (const Line& l : card.data) {
+      const std::vector<std::string> f = SplitFields(l.text);
+      if (card.Has("GENERATE")) {
+        if (f.size() < 2) Fail(l, "GENERATE needs first, last[, step]");
+        const long first = Integer(l, f[0], "first"), last = Integer(l, f[1], "last");
+        const long inc = f.size() > 2 && !f[2].empty() ? Integer(l, f[2], "step") : 1;
+        if (inc <= 0 || last < first || (last - first) / inc > 10000000)
+          Fail(l, "GENERATE needs first <= last and a step >= 1");
+        for (long id = first; id <= last; id += inc) ids.push_back(id);
       } else {
-        Fail(at, "element type '" + card.Get("TYPE") +
-                     "': springfit reads CPS3, CPE3 (2D triangles), C3D4 (tetrahedra) and T2D2, "
-                     "T3D2 (2-node trusses: an MSS reference)");
-      }
-      // Lower-dimensional elements beside the mesh's (Gmsh writes physical curves as T3D2
-      // and a 3D mesh's boundary as CPS3) are left out later (SelectMeshElements).
-      if (count > 2) deck.dimension = std::max(deck.dimension, d);
-      const std::string set = card.Get("ELSET");
-      for (const Line& l : card.data) {
-        const std::vector<std::string> f = SplitFields(l.text);
-        std::vector<std::string> ids;
         for (const std::string& s : f)
-          if (!s.empty()) ids.push_back(s);
-        if (static_cast<int>(ids.size()) != count + 1)
-          Fail(l, type + " needs an id and " + std::to_string(count) + " nodes");
-        Deck::Element e;
-        e.id = Integer(l, ids[0], "an element id");
-        e.type = type;
-        for (int c = 1; c <= count; ++c) e.nodes.push_back(Integer(l, ids[c], "a node"));
-        if (!set.empty()) deck.elsets[Upper(set)].push_back(e.id);
-        deck.elements.push_back(std::move(e));
-        ++deck.element_counts[type];
+          if (!s.empty())
+            for (long id : Ids(deck_, l, s, nodes)) ids.push_back(id);
       }
-      if (!set.empty()) deck.set_names.emplace(Upper(set), set);
-    } else if (k == "NSET" || k == "ELSET") {
-      const bool nodes = k == "NSET";
-      const std::string name = card.Get(nodes ? "NSET" : "ELSET");
-      if (name.empty()) Fail(at, "*" + k + " needs " + k + "=name");
-      std::vector<long>& ids = (nodes ? deck.nsets : deck.elsets)[Upper(name)];
-      deck.set_names.emplace(Upper(name), name);
-      if (!nodes && std::find(deck.group_elsets.begin(), deck.group_elsets.end(), Upper(name)) ==
-                        deck.group_elsets.end())
-        deck.group_elsets.push_back(Upper(name));
-      for (const Line& l : card.data) {
-        const std::vector<std::string> f = SplitFields(l.text);
-        if (card.Has("GENERATE")) {
-          if (f.size() < 2) Fail(l, "GENERATE needs first, last[, step]");
-          const long first = Integer(l, f[0], "first"), last = Integer(l, f[1], "last");
-          const long inc = f.size() > 2 && !f[2].empty() ? Integer(l, f[2], "step") : 1;
-          if (inc <= 0 || last < first || (last - first) / inc > 10000000)
-            Fail(l, "GENERATE needs first <= last and a step >= 1");
-          for (long id = first; id <= last; id += inc) ids.push_back(id);
-        } else {
-          for (const std::string& s : f)
-            if (!s.empty())
-              for (long id : Ids(deck, l, s, nodes)) ids.push_back(id);
-        }
-      }
-    } else if (k == "MATERIAL") {
-      material = Upper(card.Get("NAME"));
-      if (material.empty()) Fail(at, "*MATERIAL needs NAME=");
-      deck.materials[material];
-    } else if (k == "ELASTIC") {
-      if (material.empty()) Fail(at, "*ELASTIC outside a *MATERIAL");
-      const std::string type = Upper(card.Get("TYPE"));
-      if (!type.empty() && type != "ISO")
-        Fail(at, "*ELASTIC, TYPE=" + card.Get("TYPE") + ": springfit reads isotropic elasticity");
-      if (card.data.empty()) Fail(at, "*ELASTIC needs a line: E, nu");
-      const std::vector<std::string> f = SplitFields(card.data[0].text);
-      if (f.size() < 2) Fail(card.data[0], "*ELASTIC needs E, nu");
-      if (card.data.size() > 1 || (f.size() > 2 && !f[2].empty()))
-        Fail(card.data[0], "temperature-dependent elasticity is not read");
-      deck.materials[material].young = Number(card.data[0], f[0], "E");
-      deck.materials[material].poisson = Number(card.data[0], f[1], "nu");
-    } else if (k == "SOLID SECTION") {
-      Deck::Section s;
-      s.elset = Upper(card.Get("ELSET"));
-      s.material = Upper(card.Get("MATERIAL"));
-      s.line = at;
-      if (s.elset.empty() || s.material.empty())
-        Fail(at, "*SOLID SECTION needs ELSET= and MATERIAL=");
-      if (!card.data.empty()) {
-        const std::vector<std::string> f = SplitFields(card.data[0].text);
-        if (!f.empty() && !f[0].empty()) {
-          s.thickness_or_area = Number(card.data[0], f[0], "the thickness or area");
-          s.area_given = true;
-          if (!(s.thickness_or_area > 0.0)) Fail(card.data[0], "a thickness or area must be > 0");
-        }
-      }
-      deck.sections.push_back(s);
-    } else if (k == "STEP") {
-      if (step) Fail(at, "*STEP inside a step (no *END STEP)");
-      deck.steps.emplace_back();
-      step = &deck.steps.back();
-      step->line = at;
-      // NLGEOM, once on, stays on in the deck's later steps (as in CalculiX).
-      const bool earlier = deck.steps.size() > 1 && deck.steps[deck.steps.size() - 2].nlgeom;
-      step->nlgeom = card.Has("NLGEOM") ? Upper(card.Get("NLGEOM")) != "NO" : earlier;
-      step->name =
-          card.Has("NAME")
-              ? card.Get("NAME")
-              : std::filesystem::path(path).stem().string() +
-                    (deck.steps.size() > 1 ? " step " + std::to_string(deck.steps.size()) : "");
-    } else if (k == "END STEP") {
-      if (!step) Fail(at, "*END STEP without *STEP");
-      step = nullptr;
-    } else if (k == "BOUNDARY") {
-      Deck::Step& s = step ? *step : deck.model;
-      s.has_boundary = true;
-      s.boundary_new = s.boundary_new || Upper(card.Get("OP")) == "NEW";
-      for (const Line& l : card.data) {
-        const std::vector<std::string> f = SplitFields(l.text);
-        if (f.size() < 2) Fail(l, "*BOUNDARY needs node or set, first dof[, last dof[, value]]");
-        ExpectFields(l, f, 4, "*BOUNDARY");
-        const long first = Integer(l, f[1], "a dof");
-        const long last = f.size() > 2 && !f[2].empty() ? Integer(l, f[2], "a dof") : first;
-        const double value = f.size() > 3 && !f[3].empty() ? Number(l, f[3], "a value") : 0.0;
-        if (first < 1 || last < first || last > 3) Fail(l, "dofs must be within 1 to 3");
-        for (long node : Ids(deck, l, f[0], true)) {
-          s.held_line[node] = l;
-          for (long dof = first; dof <= last; ++dof)
-            s.held[node][static_cast<int>(dof - 1)] = value;
-        }
-      }
-    } else if (k == "CLOAD") {
-      if (!step) Fail(at, "*CLOAD outside a step");
-      step->has_loads = true;
-      step->loads_new = step->loads_new || Upper(card.Get("OP")) == "NEW";
-      for (const Line& l : card.data) {
-        const std::vector<std::string> f = SplitFields(l.text);
-        if (f.size() < 3) Fail(l, "*CLOAD needs node or set, dof, magnitude");
-        ExpectFields(l, f, 3, "*CLOAD");
-        const long dof = Integer(l, f[1], "a dof");
-        if (dof < 1 || dof > 3) Fail(l, "*CLOAD acts on dofs 1 to 3 (a force)");
-        const double value = Number(l, f[2], "a magnitude");
-        for (long node : Ids(deck, l, f[0], true)) {
-          step->force_line[node] = l;
-          std::vector<double>& force = step->forces[node];
-          force.resize(3, 0.0);
-          force[static_cast<std::size_t>(dof - 1)] += value;
-        }
-      }
-    } else if (k == "DLOAD") {
-      // Uniform pressure on tetrahedron faces (P1 to P4, the same labels in CalculiX and
-      // Abaqus). Plane elements' edge labels differ between the two (CalculiX P3-P5 for
-      // Abaqus's P1-P3), and other load types are not pressures: refused.
-      if (!step) Fail(at, "*DLOAD outside a step");
-      step->has_loads = true;
-      step->loads_new = step->loads_new || Upper(card.Get("OP")) == "NEW";
-      for (const Line& l : card.data) {
-        const std::vector<std::string> f = SplitFields(l.text);
-        if (f.size() < 3) Fail(l, "*DLOAD needs element or set, load label, magnitude");
-        ExpectFields(l, f, 3, "*DLOAD");
-        const std::string label = Upper(f[1]);
-        if (deck.dimension != 3 || label.size() != 2 || label[0] != 'P' || label[1] < '1' ||
-            label[1] > '4') {
-          Fail(l, "*DLOAD " + f[1] +
-                      ": springfit reads uniform pressures P1 to P4 on C3D4 faces only; give "
-                      "other distributed loads as a traction on a node set in --loads, or as "
-                      "*CLOAD nodal forces");
-        }
-        const double value = Number(l, f[2], "a pressure");
-        for (long e : Ids(deck, l, f[0], false))
-          step->pressures.push_back({e, label[1] - '1', value, l});
-      }
-    } else if (!kIgnored.count(k)) {
-      Fail(at, "*" + k +
-                   " is not read by springfit and may change the mechanics (proto/IMPORT.md lists "
-                   "what is read)");
     }
   }
-  if (step) Fail(step->line, "*STEP without *END STEP");
+
+  // *MATERIAL: a material, which the *ELASTIC after it describes.
+  void Material(const Card& card) {
+    material_ = Upper(card.Get("NAME"));
+    if (material_.empty()) Fail(card.line, "*MATERIAL needs NAME=");
+    deck_.materials[material_];
+  }
+
+  // *ELASTIC: the current material's isotropic E and nu.
+  void Elastic(const Card& card) {
+    if (material_.empty()) Fail(card.line, "*ELASTIC outside a *MATERIAL");
+    const std::string type = Upper(card.Get("TYPE"));
+    if (!type.empty() && type != "ISO")
+      Fail(card.line,
+           "*ELASTIC, TYPE=" + card.Get("TYPE") + ": springfit reads isotropic elasticity");
+    if (card.data.empty()) Fail(card.line, "*ELASTIC needs a line: E, nu");
+    const std::vector<std::string> f = SplitFields(card.data[0].text);
+    if (f.size() < 2) Fail(card.data[0], "*ELASTIC needs E, nu");
+    if (card.data.size() > 1 || (f.size() > 2 && !f[2].empty()))
+      Fail(card.data[0], "temperature-dependent elasticity is not read");
+    deck_.materials[material_].young = Number(card.data[0], f[0], "E");
+    deck_.materials[material_].poisson = Number(card.data[0], f[1], "nu");
+  }
+
+  // *SOLID SECTION: an element set's material, and its thickness (2D) or area (trusses).
+  void SolidSection(const Card& card) {
+    Deck::Section s;
+    s.elset = Upper(card.Get("ELSET"));
+    s.material = Upper(card.Get("MATERIAL"));
+    s.line = card.line;
+    if (s.elset.empty() || s.material.empty())
+      Fail(card.line, "*SOLID SECTION needs ELSET= and MATERIAL=");
+    if (!card.data.empty()) {
+      const std::vector<std::string> f = SplitFields(card.data[0].text);
+      if (!f.empty() && !f[0].empty()) {
+        s.thickness_or_area = Number(card.data[0], f[0], "the thickness or area");
+        s.area_given = true;
+        if (!(s.thickness_or_area > 0.0)) Fail(card.data[0], "a thickness or area must be > 0");
+      }
+    }
+    deck_.sections.push_back(s);
+  }
+
+  // *STEP: a step opens: a load case.
+  void Step(const Card& card) {
+    if (step_) Fail(card.line, "*STEP inside a step (no *END STEP)");
+    deck_.steps.emplace_back();
+    step_ = &deck_.steps.back();
+    step_->line = card.line;
+    // NLGEOM, once on, stays on in the deck's later steps (as in CalculiX).
+    const bool earlier = deck_.steps.size() > 1 && deck_.steps[deck_.steps.size() - 2].nlgeom;
+    step_->nlgeom = card.Has("NLGEOM") ? Upper(card.Get("NLGEOM")) != "NO" : earlier;
+    step_->name =
+        card.Has("NAME")
+            ? card.Get("NAME")
+            : std::filesystem::path(path_).stem().string() +
+                  (deck_.steps.size() > 1 ? " step " + std::to_string(deck_.steps.size()) : "");
+  }
+
+  // *END STEP: the step closes.
+  void EndStep(const Card& card) {
+    if (!step_) Fail(card.line, "*END STEP without *STEP");
+    step_ = nullptr;
+  }
+
+  // *BOUNDARY: held dofs, in the open step or (before any) in every step.
+  void Boundary(const Card& card) {
+    Deck::Step& s = step_ ? *step_ : deck_.model;
+    s.has_boundary = true;
+    s.boundary_new = s.boundary_new || Upper(card.Get("OP")) == "NEW";
+    for (const Line& l : card.data) {
+      const std::vector<std::string> f = SplitFields(l.text);
+      if (f.size() < 2) Fail(l, "*BOUNDARY needs node or set, first dof[, last dof[, value]]");
+      ExpectFields(l, f, 4, "*BOUNDARY");
+      const long first = Integer(l, f[1], "a dof");
+      const long last = f.size() > 2 && !f[2].empty() ? Integer(l, f[2], "a dof") : first;
+      const double value = f.size() > 3 && !f[3].empty() ? Number(l, f[3], "a value") : 0.0;
+      if (first < 1 || last < first || last > 3) Fail(l, "dofs must be within 1 to 3");
+      for (long node : Ids(deck_, l, f[0], true)) {
+        s.held_line[node] = l;
+        for (long dof = first; dof <= last; ++dof) s.held[node][static_cast<int>(dof - 1)] = value;
+      }
+    }
+  }
+
+  // *CLOAD: nodal forces of the open step.
+  void Cload(const Card& card) {
+    if (!step_) Fail(card.line, "*CLOAD outside a step");
+    step_->has_loads = true;
+    step_->loads_new = step_->loads_new || Upper(card.Get("OP")) == "NEW";
+    for (const Line& l : card.data) {
+      const std::vector<std::string> f = SplitFields(l.text);
+      if (f.size() < 3) Fail(l, "*CLOAD needs node or set, dof, magnitude");
+      ExpectFields(l, f, 3, "*CLOAD");
+      const long dof = Integer(l, f[1], "a dof");
+      if (dof < 1 || dof > 3) Fail(l, "*CLOAD acts on dofs 1 to 3 (a force)");
+      const double value = Number(l, f[2], "a magnitude");
+      for (long node : Ids(deck_, l, f[0], true)) {
+        step_->force_line[node] = l;
+        std::vector<double>& force = step_->forces[node];
+        force.resize(3, 0.0);
+        force[static_cast<std::size_t>(dof - 1)] += value;
+      }
+    }
+  }
+
+  // *DLOAD: pressures on tetrahedron faces in the open step.
+  void Dload(const Card& card) {
+    // Uniform pressure on tetrahedron faces (P1 to P4, the same labels in CalculiX and
+    // Abaqus). Plane elements' edge labels differ between the two (CalculiX P3-P5 for
+    // Abaqus's P1-P3), and other load types are not pressures: refused.
+    if (!step_) Fail(card.line, "*DLOAD outside a step");
+    step_->has_loads = true;
+    step_->loads_new = step_->loads_new || Upper(card.Get("OP")) == "NEW";
+    for (const Line& l : card.data) {
+      const std::vector<std::string> f = SplitFields(l.text);
+      if (f.size() < 3) Fail(l, "*DLOAD needs element or set, load label, magnitude");
+      ExpectFields(l, f, 3, "*DLOAD");
+      const std::string label = Upper(f[1]);
+      if (deck_.dimension != 3 || label.size() != 2 || label[0] != 'P' || label[1] < '1' ||
+          label[1] > '4') {
+        Fail(l, "*DLOAD " + f[1] +
+                    ": springfit reads uniform pressures P1 to P4 on C3D4 faces only; give "
+                    "other distributed loads as a traction on a node set in --loads, or as "
+                    "*CLOAD nodal forces");
+      }
+      const double value = Number(l, f[2], "a pressure");
+      for (long e : Ids(deck_, l, f[0], false))
+        step_->pressures.push_back({e, label[1] - '1', value, l});
+    }
+  }
+
   // CalculiX carries a step's loads and boundary conditions into the next unless OP=NEW
   // drops them; springfit's load cases each start from rest. A later step that would inherit
   // is refused rather than read differently.
-  bool loads_before = false, holds_before = false;
-  for (std::size_t k = 0; k < deck.steps.size(); ++k) {
-    Deck::Step& s = deck.steps[k];
-    const std::string which = "step " + std::to_string(k + 1) + " ('" + s.name + "')";
-    if (loads_before && !s.loads_new)
-      Fail(s.line, which +
-                       " inherits the earlier steps' loads in CalculiX; springfit's load "
-                       "cases start from rest: give it *CLOAD, OP=NEW (with no lines, to "
-                       "drop them), or write one deck per load case");
-    if (holds_before && !s.boundary_new)
-      Fail(s.line, which +
-                       " inherits the earlier steps' boundary conditions in CalculiX: give "
-                       "it *BOUNDARY, OP=NEW, or write one deck per load case");
-    loads_before = loads_before || s.has_loads;
-    holds_before = holds_before || s.has_boundary;
-    // The model's boundary conditions hold in every step but one that drops them (OP=NEW).
-    if (!s.boundary_new) {
-      for (const auto& [node, held] : deck.model.held) {
-        for (const auto& [dof, v] : held) s.held[node].emplace(dof, v);
-        s.held_line.emplace(node, deck.model.held_line.at(node));
+  void CheckStepsStartFromRest() {
+    bool loads_before = false, holds_before = false;
+    for (std::size_t k = 0; k < deck_.steps.size(); ++k) {
+      Deck::Step& s = deck_.steps[k];
+      const std::string which = "step " + std::to_string(k + 1) + " ('" + s.name + "')";
+      if (loads_before && !s.loads_new)
+        Fail(s.line, which +
+                         " inherits the earlier steps' loads in CalculiX; springfit's load "
+                         "cases start from rest: give it *CLOAD, OP=NEW (with no lines, to "
+                         "drop them), or write one deck per load case");
+      if (holds_before && !s.boundary_new)
+        Fail(s.line, which +
+                         " inherits the earlier steps' boundary conditions in CalculiX: give "
+                         "it *BOUNDARY, OP=NEW, or write one deck per load case");
+      loads_before = loads_before || s.has_loads;
+      holds_before = holds_before || s.has_boundary;
+      // The model's boundary conditions hold in every step but one that drops them (OP=NEW).
+      if (!s.boundary_new) {
+        for (const auto& [node, held] : deck_.model.held) {
+          for (const auto& [dof, v] : held) s.held[node].emplace(dof, v);
+          s.held_line.emplace(node, deck_.model.held_line.at(node));
+        }
       }
     }
   }
+
+  const std::string& path_;
+  Deck& deck_;
+  Deck::Step* step_ = nullptr;  // the open step
+  std::string material_;        // the current *MATERIAL's upper-case name
+};
+
+const std::map<std::string, DeckReader::Handler> DeckReader::kKeywords = {
+    {"NODE", &DeckReader::Node},         {"ELEMENT", &DeckReader::Element},
+    {"NSET", &DeckReader::Set},          {"MATERIAL", &DeckReader::Material},
+    {"ELASTIC", &DeckReader::Elastic},   {"SOLID SECTION", &DeckReader::SolidSection},
+    {"STEP", &DeckReader::Step},         {"END STEP", &DeckReader::EndStep},
+    {"BOUNDARY", &DeckReader::Boundary}, {"CLOAD", &DeckReader::Cload},
+    {"DLOAD", &DeckReader::Dload},       {"ELSET", &DeckReader::Set},
+};
+
+void ReadDeck(const std::string& path, Deck& deck) {
+  DeckReader(path, deck).Read();
 }
 
 // The materials and sections of a deck, as text: decks of one model must agree on them.
