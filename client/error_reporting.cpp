@@ -4,7 +4,7 @@
 
 #include "client/exit_codes.h"
 #include "client/rpc_client.h"
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "proto/rpc.h"
 
 namespace springfit::cli {

@@ -5,7 +5,7 @@
 #include "client/commands.h"
 #include "client/error_reporting.h"
 #include "client/exit_codes.h"
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "io/example_catalog.h"
 #include "proto/scene_codec.h"
 

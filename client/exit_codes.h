@@ -1,7 +1,7 @@
 // Exit codes of the springfit program (documented in README.md, "Exit codes").
 #pragma once
 
-#include "engine/identification/verdict.h"
+#include "engine/api/result.h"
 
 namespace springfit::cli {
 

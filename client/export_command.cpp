@@ -9,7 +9,7 @@
 #include "client/exit_codes.h"
 #include "client/remote_job.h"
 #include "client/result_source.h"
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "io/model_writers.h"
 #include "io/spring_model.h"
 

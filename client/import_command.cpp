@@ -8,8 +8,8 @@
 #include "client/error_reporting.h"
 #include "client/exit_codes.h"
 #include "client/scene_input.h"
-#include "engine/input_error.h"
-#include "engine/scene.h"
+#include "engine/api/input_error.h"
+#include "engine/api/scene.h"
 #include "io/mesh_import.h"
 
 namespace springfit::cli {

@@ -4,7 +4,7 @@
 #pragma once
 #include <string>
 
-#include "engine/identification/identify.h"
+#include "engine/api/identify.h"
 
 namespace springfit::cli {
 

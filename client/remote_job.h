@@ -8,7 +8,7 @@
 #include <CLI/CLI.hpp>
 
 #include "client/rpc_client.h"
-#include "engine/search/genetic_search.h"
+#include "engine/api/checkpoint.h"
 
 namespace springfit::cli {
 

@@ -5,7 +5,7 @@
 #include <filesystem>
 
 #include "client/remote_job.h"
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "proto/scene_codec.h"
 
 namespace springfit::cli {

@@ -8,7 +8,7 @@
 #include <string>
 
 #include "client/rpc_client.h"
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
 #include "proto/json_reader.h"
 #include "proto/search_codec.h"
 

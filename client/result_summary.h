@@ -4,7 +4,7 @@
 #include <ostream>
 #include <string>
 
-#include "engine/identification/verdict.h"
+#include "engine/api/result.h"
 #include "proto/json_reader.h"
 
 namespace springfit::cli {

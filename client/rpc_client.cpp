@@ -9,8 +9,7 @@
 #include <boost/asio/streambuf.hpp>
 #include <boost/asio/write.hpp>
 
-#include "engine/input_error.h"
-#include "engine/number_text.h"
+#include "engine/api/input_error.h"
 #include "proto/rpc.h"
 #include "proto/scene_codec.h"
 

@@ -2,7 +2,7 @@
 
 #include <cstdio>
 
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "io/mesh_import.h"
 #include "proto/scene_codec.h"
 

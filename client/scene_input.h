@@ -7,7 +7,7 @@
 
 #include <string>
 
-#include "engine/scene.h"
+#include "engine/api/scene.h"
 #include "proto/json_reader.h"
 
 namespace springfit::cli {

@@ -8,7 +8,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include "engine/scene.h"
+#include "engine/api/scene.h"
 #include "proto/json_reader.h"
 
 namespace springfit::cli {

@@ -9,7 +9,7 @@
 #include "client/result_summary.h"
 #include "client/scene_input.h"
 #include "client/search_flags.h"
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
 

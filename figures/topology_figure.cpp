@@ -6,8 +6,8 @@
 #include <limits>
 #include <numbers>
 
-#include "engine/input_error.h"
-#include "engine/problem/cost.h"
+#include "engine/api/input_error.h"
+#include "engine/api/problem.h"
 #include "figures/svg_document.h"
 
 namespace springfit::figures {

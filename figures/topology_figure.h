@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
 
 namespace springfit::figures {
 

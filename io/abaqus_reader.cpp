@@ -13,8 +13,8 @@
 #include <set>
 #include <sstream>
 
-#include "engine/input_error.h"
-#include "engine/linalg.h"
+#include "engine/api/input_error.h"
+#include "engine/api/scene.h"
 #include "io/mesh_import.h"
 #include "io/text_output.h"
 

@@ -7,7 +7,7 @@
 #include <map>
 #include <sstream>
 
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "io/mesh_import.h"
 #include "io/text_output.h"
 

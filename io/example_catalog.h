@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/examples/catalog.h"
+#include "engine/api/examples.h"
 
 namespace springfit::examples {
 

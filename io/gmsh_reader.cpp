@@ -9,7 +9,7 @@
 #include <set>
 #include <unordered_map>
 
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "io/gmsh_session.h"
 #include "io/mesh_import.h"
 

@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 
 namespace springfit::io {
 

@@ -5,8 +5,8 @@
 #include <cstdio>
 #include <string>
 
-#include "engine/fem/fem_model.h"
-#include "engine/input_error.h"
+#include "engine/api/analysis.h"
+#include "engine/api/input_error.h"
 
 namespace springfit::io {
 

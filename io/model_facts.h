@@ -6,7 +6,7 @@
 #include <optional>
 #include <vector>
 
-#include "engine/scene.h"
+#include "engine/api/scene.h"
 #include "io/spring_model.h"
 
 namespace springfit::io {

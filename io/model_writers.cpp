@@ -4,7 +4,7 @@
 #include <fstream>
 #include <stdexcept>
 
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "io/text_output.h"
 
 namespace springfit::io {

@@ -3,7 +3,7 @@
 #include <filesystem>
 #include <set>
 
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "io/mesh_import.h"
 #include "io/text_output.h"
 #include "proto/scene_codec.h"

@@ -8,7 +8,7 @@
 #include <cstdio>
 #include <sstream>
 
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "io/text_output.h"
 #include "io/xml_text.h"
 

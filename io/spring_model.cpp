@@ -7,8 +7,8 @@
 #include <set>
 #include <utility>
 
-#include "engine/input_error.h"
-#include "engine/problem/cost.h"
+#include "engine/api/input_error.h"
+#include "engine/api/problem.h"
 #include "io/model_facts.h"
 
 namespace springfit::io {

@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/problem/problem.h"
-#include "engine/units.h"
+#include "engine/api/problem.h"
+#include "engine/api/scene.h"
 #include "proto/search_codec.h"
 
 namespace springfit::io {

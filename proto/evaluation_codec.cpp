@@ -1,6 +1,6 @@
 #include "proto/evaluation_codec.h"
 
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "proto/names.h"
 
 namespace springfit::proto {

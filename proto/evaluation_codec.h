@@ -5,8 +5,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "engine/problem/cost.h"
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
 #include "proto/json_reader.h"
 
 namespace springfit::proto {

@@ -2,7 +2,7 @@
 // from Reference::fem. Used by scene_codec.cpp.
 #pragma once
 
-#include "engine/scene.h"
+#include "engine/api/scene.h"
 #include "proto/json_reader.h"
 
 namespace springfit::proto {

@@ -7,7 +7,7 @@
 #include <array>
 #include <utility>
 
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "proto/names.h"
 #include "proto/outcome_codec.h"
 #include "proto/search_codec.h"

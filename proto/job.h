@@ -6,8 +6,7 @@
 #include <string_view>
 #include <vector>
 
-#include "engine/identification/verdict.h"
-#include "engine/trace.h"
+#include "engine/api/result.h"
 #include "proto/json_reader.h"
 
 namespace springfit::proto {

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <limits>
 
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 
 namespace springfit::proto {
 namespace {

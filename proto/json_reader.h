@@ -13,7 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "engine/linalg.h"
+#include "engine/api/scene.h"
 
 namespace springfit::proto {
 

@@ -1,6 +1,6 @@
 #include "proto/names.h"
 
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 
 #include <cmath>
 #include <stdexcept>

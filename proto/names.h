@@ -6,11 +6,10 @@
 #include <string_view>
 #include <vector>
 
-#include "engine/equilibrium.h"
-#include "engine/response/probe_bank.h"
-#include "engine/scene.h"
-#include "engine/search/search_options.h"
-#include "engine/trace.h"
+#include "engine/api/analysis.h"
+#include "engine/api/identify.h"
+#include "engine/api/result.h"
+#include "engine/api/scene.h"
 #include "proto/json_reader.h"
 
 namespace springfit::proto {

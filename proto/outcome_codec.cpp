@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 
 namespace springfit::proto {
 namespace {

@@ -4,7 +4,7 @@
 
 #include <string>
 
-#include "engine/identification/verdict.h"
+#include "engine/api/result.h"
 #include "proto/json_reader.h"
 
 namespace springfit::proto {

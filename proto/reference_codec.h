@@ -3,7 +3,7 @@
 // into a scene, and how each was solved.
 #pragma once
 
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
 #include "proto/json_reader.h"
 
 namespace springfit::proto {

@@ -6,7 +6,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "proto/fem_codec.h"
 #include "proto/names.h"
 

@@ -4,8 +4,8 @@
 #include <cstdio>
 #include <limits>
 
-#include "engine/input_error.h"
-#include "engine/units.h"
+#include "engine/api/input_error.h"
+#include "engine/api/scene.h"
 #include "proto/evaluation_codec.h"
 #include "proto/names.h"
 #include "proto/outcome_codec.h"

@@ -7,9 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/identification/identification_result.h"
-#include "engine/identification/verdict.h"
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
+#include "engine/api/result.h"
 #include "proto/json_reader.h"
 
 namespace springfit::proto {

@@ -5,7 +5,7 @@
 #include <stdexcept>
 #include <type_traits>
 
-#include "engine/genome_packing.h"
+#include "engine/api/checkpoint.h"
 #include "proto/search_codec.h"
 #include "server/version.h"
 

@@ -17,7 +17,7 @@
 #include <cstdint>
 #include <string>
 
-#include "engine/search/genetic_search.h"
+#include "engine/api/checkpoint.h"
 
 namespace springfit::server {
 

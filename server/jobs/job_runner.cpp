@@ -5,7 +5,7 @@
 
 #include <spdlog/spdlog.h>
 
-#include "engine/identification/identify.h"
+#include "engine/api/identify.h"
 #include "proto/names.h"
 #include "proto/outcome_codec.h"
 #include "proto/scene_codec.h"

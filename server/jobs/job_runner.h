@@ -6,9 +6,8 @@
 #include <functional>
 #include <memory>
 
-#include "engine/identification/identify.h"
-#include "engine/problem/problem.h"
-#include "engine/worker_pool.h"
+#include "engine/api/identify.h"
+#include "engine/api/problem.h"
 #include "server/store/job_store.h"
 
 namespace springfit::server {

@@ -26,7 +26,7 @@
 #include <utility>
 #include <vector>
 
-#include "engine/worker_pool.h"
+#include "engine/api/identify.h"
 #include "proto/json_reader.h"
 #include "server/jobs/job_runner.h"
 #include "server/mutex.h"

@@ -11,12 +11,10 @@
 
 #include <spdlog/spdlog.h>
 
-#include "engine/candidates.h"
-#include "engine/input_error.h"
-#include "engine/interruption.h"
-#include "engine/problem/problem.h"
-#include "engine/problem/scene_validation.h"
-#include "engine/search/search_options.h"
+#include "engine/api/identify.h"
+#include "engine/api/input_error.h"
+#include "engine/api/problem.h"
+#include "engine/api/scene.h"
 #include "proto/names.h"
 #include "proto/rpc.h"
 #include "proto/scene_codec.h"

@@ -1,6 +1,6 @@
 #include "server/rpc/params.h"
 
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "proto/rpc.h"
 
 namespace springfit::server {

@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "proto/json_reader.h"
 #include "proto/outcome_codec.h"
 #include "proto/search_codec.h"

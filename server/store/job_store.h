@@ -22,7 +22,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
 #include "proto/job.h"
 
 namespace springfit::server {

@@ -14,7 +14,7 @@
 #include <spdlog/spdlog.h>
 #include <pqxx/pqxx>
 
-#include "engine/genome_packing.h"
+#include "engine/api/checkpoint.h"
 #include "proto/search_codec.h"
 #include "server/store/store_rows.h"
 

@@ -15,7 +15,7 @@
 #include <spdlog/spdlog.h>
 #include <sqlite3.h>
 
-#include "engine/genome_packing.h"
+#include "engine/api/checkpoint.h"
 #include "proto/search_codec.h"
 #include "server/store/store_rows.h"
 #include "server/store/unix_time.h"

@@ -12,8 +12,8 @@
 #include <cstdint>
 #include <string>
 
-#include "engine/genome_packing.h"
-#include "engine/trace.h"
+#include "engine/api/checkpoint.h"
+#include "engine/api/result.h"
 #include "proto/job.h"
 #include "server/store/job_store.h"
 

@@ -8,7 +8,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include "engine/input_error.h"
+#include "engine/api/input_error.h"
 #include "figures/error_plot.h"
 #include "figures/topology_figure.h"
 #include "io/model_writers.h"

@@ -16,7 +16,7 @@
 #include <utility>
 #include <vector>
 
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
 #include "server/jobs/scheduler.h"
 #include "server/mutex.h"
 #include "server/store/job_store.h"

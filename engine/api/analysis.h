@@ -1,0 +1,7 @@
+// The engine's public surface (engine/api/): analyses shown beside a scene or a model: which
+// springs the load cases identify, the FEM mesh's model and quality, the probe families.
+#pragma once
+
+#include "engine/direct/identifiability.h"
+#include "engine/fem/fem_model.h"
+#include "engine/response/probe_bank.h"

@@ -1,0 +1,9 @@
+// The engine's public surface (engine/api/: what proto/, io/, figures/, server/ and client/ may
+// include; tests/include_graph_check.py enforces it): a scene (nodes, candidates, reference,
+// load cases, search settings), the candidate rules, the units and the Eigen types.
+#pragma once
+
+#include "engine/candidates.h"
+#include "engine/linalg.h"
+#include "engine/scene.h"
+#include "engine/units.h"
