@@ -23,14 +23,14 @@ struct ReferenceArgs {
 };
 
 int Reference(const ReferenceArgs& args) {
-  Scene scene = SceneOf(args.scene);
-  ValidateScene(scene);  // before the probe: a bad scene leaves no output file behind
+  // Validated before the probe: a bad scene leaves no output file behind.
+  ValidScene scene(SceneOf(args.scene));
   if (!args.output.empty()) {
     // Before the solve: a reference of 100,000 DOFs takes seconds.
     std::ofstream probe(args.output, std::ios::binary | std::ios::app);
     if (!probe) throw std::runtime_error("cannot write '" + args.output + "'");
   }
-  const Problem problem = Problem::Build(std::move(scene));
+  const Problem problem(std::move(scene));
   const proto::Json out = proto::ReferenceSolutionToJson(problem);
   const std::string text = proto::DumpCompact(out);
   if (!args.output.empty()) {

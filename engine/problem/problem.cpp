@@ -122,10 +122,12 @@ std::vector<std::string> SceneNotices(const Problem& problem) {
 }
 
 // Preparing a scene, step by step: each step reads what the ones before it set.
-Problem::Problem(Scene scene, EquilibriumOptions solver_options, Interruption* interruption) {
-  ValidateScene(scene);
+Problem::Problem(Scene scene, EquilibriumOptions solver_options, Interruption* interruption)
+    : Problem(ValidScene(std::move(scene)), solver_options, interruption) {}
+
+Problem::Problem(ValidScene scene, EquilibriumOptions solver_options, Interruption* interruption) {
   ThrowIfInterrupted(interruption);
-  scene_ = std::move(scene);
+  scene_ = std::move(scene).Release();
   response_ = ResolveResponse(scene_);
   solver_options.response = response_;
   solver_options_ = solver_options;

@@ -21,6 +21,7 @@
 
 #include "engine/equilibrium.h"
 #include "engine/genome.h"
+#include "engine/problem/scene_validation.h"
 #include "engine/scene.h"
 #include "engine/springs.h"
 
@@ -104,6 +105,9 @@ class Problem {
   // iterations, each a sparse factorisation): `interruption`, when set, is checked between
   // them and stops the preparation by throwing Interrupted.
   explicit Problem(Scene scene, EquilibriumOptions solver_options = {},
+                   Interruption* interruption = nullptr);
+  // The same for a scene already validated (scene_validation.h): it is not checked again.
+  explicit Problem(ValidScene scene, EquilibriumOptions solver_options = {},
                    Interruption* interruption = nullptr);
   // The same, for `const Problem p = Problem::Build(scene);` (no copy or move is made).
   static Problem Build(Scene scene, EquilibriumOptions solver_options = {},

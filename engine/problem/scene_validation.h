@@ -1,6 +1,8 @@
 // The semantic rules of a scene, checked once at the boundary.
 #pragma once
 
+#include <utility>
+
 #include "engine/scene.h"
 
 namespace springfit {
@@ -19,5 +21,18 @@ namespace springfit {
 //   remove rigid motion (two nodes in 2D, three not on one line in 3D);
 // - training stiffness finite and > 0; search settings within their documented ranges.
 void ValidateScene(const Scene& scene);
+
+// A scene that passed ValidateScene: what prepares it (Problem) does not check it again. A
+// submission is validated at the door, in time linear in its size, and prepared after.
+class ValidScene {
+ public:
+  // Validates `scene` (ValidateScene); throws InputError.
+  explicit ValidScene(Scene scene) : scene_(std::move(scene)) { ValidateScene(scene_); }
+  const Scene& scene() const { return scene_; }
+  Scene Release() && { return std::move(scene_); }
+
+ private:
+  Scene scene_;
+};
 
 }  // namespace springfit

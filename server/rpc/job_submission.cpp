@@ -77,11 +77,9 @@ rpc::RpcError RecordLost() {
                        "prepared (its lease could not be renewed); nothing was queued");
 }
 
-}  // namespace
-
-Json RpcService::JobSubmit(const Json& params, SessionContext& session) {
-  proto::ExpectKeys(params, "params", {"scene", "label", "priority", "seed", "idempotency_key"});
-  if (stopping()) throw rpc::RpcError(rpc::kBusy, "busy: the server is shutting down");
+// The submission's own fields: label, priority, idempotency key (into the record), and the seed
+// when given.
+NewJob ReadSubmission(const Json& params, std::optional<std::uint64_t>& seed) {
   NewJob job;
   JobRecord& r = job.record;
   if (const Json* v = OptionalParam(params, "label"))
@@ -96,9 +94,16 @@ Json RpcService::JobSubmit(const Json& params, SessionContext& session) {
     if (r.idempotency_key.empty())
       throw InputError(ParamPath("idempotency_key"), "must not be empty");
   }
-  std::optional<std::uint64_t> seed;
   if (const Json* v = OptionalParam(params, "seed"))
     seed = proto::ReadUint64(*v, ParamPath("seed"));
+  return job;
+}
+
+// The scene at the door, with the submission's seed, in time linear in its size: its structure
+// (ValidScene, the one validation of a submission) and every bound known before it is
+// prepared. A scene refused here leaves no job.
+ValidScene SceneAtTheDoor(const Json& params, std::optional<std::uint64_t> seed,
+                          const ServiceLimits& limits) {
   const Json& scene_json = proto::RequiredMember(params, "params", "scene");
   if (!scene_json.is_object())
     throw InputError(ParamPath("scene"), "expected a scene object (proto/SCENE.md)");
@@ -113,38 +118,99 @@ Json RpcService::JobSubmit(const Json& params, SessionContext& session) {
         "invalid scene: scene.name: longer than " + std::to_string(kMaxLabelBytes) + " bytes",
         data);
   }
-
-  // At the door, in time linear in the scene's size: its structure (ValidateScene) and every
-  // bound known before it is prepared. A scene refused here leaves no job.
-  Scene scene;
   try {
-    scene = proto::SceneFromJson(scene_json);
-    if (scene.node_count() > options_.limits.max_nodes) {
-      LimitExceeded("max_nodes", scene.node_count(), options_.limits.max_nodes);
-    }
-    if (scene.search.max_generations > options_.limits.max_generations) {
-      LimitExceeded("max_generations", scene.search.max_generations,
-                    options_.limits.max_generations);
-    }
-    if (scene.search.population && *scene.search.population > options_.limits.max_population) {
-      LimitExceeded("max_population", *scene.search.population, options_.limits.max_population);
-    }
+    Scene scene = proto::SceneFromJson(scene_json);
+    if (scene.node_count() > limits.max_nodes)
+      LimitExceeded("max_nodes", scene.node_count(), limits.max_nodes);
+    if (scene.search.max_generations > limits.max_generations)
+      LimitExceeded("max_generations", scene.search.max_generations, limits.max_generations);
+    if (scene.search.population && *scene.search.population > limits.max_population)
+      LimitExceeded("max_population", *scene.search.population, limits.max_population);
     // Before any candidate is generated: a spec asking for billions of pairs is refused here.
-    const std::int64_t candidates = EstimateCandidateCount(scene, options_.limits.max_candidates);
-    if (candidates > options_.limits.max_candidates) {
-      LimitExceeded("max_candidates", candidates, options_.limits.max_candidates);
-    }
-    ValidateScene(scene);
+    const std::int64_t candidates = EstimateCandidateCount(scene, limits.max_candidates);
+    if (candidates > limits.max_candidates)
+      LimitExceeded("max_candidates", candidates, limits.max_candidates);
+    if (seed) scene.search.seed = *seed;
+    return ValidScene(std::move(scene));
   } catch (const InputError& e) {
     throw InvalidScene(e);
   }
-  if (seed) scene.search.seed = *seed;
+}
+
+// The answer to a submission whose idempotency key names an earlier job. The key names one
+// submission: a retry must ask for the same computation (the scene with its search settings,
+// and the seed), or a pipeline that changed its scene would silently get the old job's
+// result. Label and priority stay the first submission's.
+Json AnswerRetry(JobStore& store, const NewJob& job, const JobRecord& old) {
+  std::string differs;
+  if (old.seed != job.record.seed) differs = "seed";
+  const std::optional<std::string> old_scene = store.GetScene(old.id);
+  if (old_scene && *old_scene != job.scene_json)
+    differs += std::string(differs.empty() ? "" : ", ") + "scene";
+  if (!differs.empty()) {
+    Json data;
+    data["path"] = "params.idempotency_key";
+    data["job_id"] = old.id;
+    throw rpc::RpcError(rpc::kInvalidParams,
+                        "params.idempotency_key: already used by job " + std::to_string(old.id) +
+                            " with a different " + differs +
+                            " (a key names one submission; use a new key for a new one)",
+                        data);
+  }
+  if (old.state == JobState::kPreparing) {
+    Json data;
+    data["job_id"] = old.id;
+    throw rpc::RpcError(rpc::kBusy,
+                        "busy: job " + std::to_string(old.id) +
+                            " of this idempotency key is still being prepared (its first "
+                            "submission is not answered yet); retry",
+                        data);
+  }
+  Json j;
+  j["created"] = false;
+  j["job"] = proto::JobToJson(old);
+  return j;
+}
+
+// The bounds known once a scene is prepared: its genes, and the bytes a genetic search would
+// hold per generation (population x genes). Returns the search options resolved.
+SearchOptions CheckPreparedBounds(const Problem& problem, const ServiceLimits& limits) {
+  if (problem.gene_count() > limits.max_genes)
+    LimitExceeded("max_genes", problem.gene_count(), limits.max_genes);
+  SearchOptions options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
+  const std::int64_t population_genes =
+      static_cast<std::int64_t>(options.population) * problem.gene_count();
+  if (population_genes > limits.max_population_genes)
+    LimitExceeded("max_population_genes", population_genes, limits.max_population_genes);
+  return options;
+}
+
+}  // namespace
+
+Json RpcService::JobSubmit(const Json& params, SessionContext& session) {
+  proto::ExpectKeys(params, "params", {"scene", "label", "priority", "seed", "idempotency_key"});
+  if (stopping()) throw rpc::RpcError(rpc::kBusy, "busy: the server is shutting down");
+  std::optional<std::uint64_t> seed;
+  NewJob job = ReadSubmission(params, seed);
+  ValidScene valid = SceneAtTheDoor(params, seed, options_.limits);
+  const Scene& scene = valid.scene();
+  JobRecord& r = job.record;
   r.seed = scene.search.seed;
   r.scene_name = scene.name;
   r.strategy = proto::StrategyName(scene.search.strategy);
   r.max_generations = scene.search.max_generations;
   r.created_at = UnixNow();
   job.scene_json = proto::SceneToJson(scene).dump();
+  const JobStore::Created created = CreateJob(job, session);
+  if (!created.created) return AnswerRetry(store_, job, created.job);
+  const JobRecord prepared = Prepare(created, std::move(valid), session);
+  Json j;
+  j["created"] = true;
+  j["job"] = proto::JobToJson(prepared);
+  return j;
+}
+
+JobStore::Created RpcService::CreateJob(NewJob& job, const SessionContext& session) {
   // The job exists from here, `preparing`: listed, and cancellable through any daemon, while
   // its reference is solved (seconds to minutes for a large scene).
   job.preparing_owner = scheduler_.owner();
@@ -166,45 +232,7 @@ Json RpcService::JobSubmit(const Json& params, SessionContext& session) {
     throw rpc::RpcError(rpc::kBusy, "busy: " + std::to_string(options_.limits.max_queued) +
                                         " jobs are queued already");
   }
-  if (!created.created) {
-    // The key names one submission: a retry must ask for the same computation (the scene with
-    // its search settings, and the seed), or a pipeline that changed its scene would silently
-    // get the old job's result. Label and priority stay the first submission's.
-    const JobRecord& old = created.job;
-    std::string differs;
-    if (old.seed != r.seed) differs = "seed";
-    const std::optional<std::string> old_scene = store_.GetScene(old.id);
-    if (old_scene && *old_scene != job.scene_json)
-      differs += std::string(differs.empty() ? "" : ", ") + "scene";
-    if (!differs.empty()) {
-      Json data;
-      data["path"] = "params.idempotency_key";
-      data["job_id"] = old.id;
-      throw rpc::RpcError(rpc::kInvalidParams,
-                          "params.idempotency_key: already used by job " + std::to_string(old.id) +
-                              " with a different " + differs +
-                              " (a key names one submission; use a new key for a new one)",
-                          data);
-    }
-    if (old.state == JobState::kPreparing) {
-      Json data;
-      data["job_id"] = old.id;
-      throw rpc::RpcError(rpc::kBusy,
-                          "busy: job " + std::to_string(old.id) +
-                              " of this idempotency key is still being prepared (its first "
-                              "submission is not answered yet); retry",
-                          data);
-    }
-    Json j;
-    j["created"] = false;
-    j["job"] = proto::JobToJson(created.job);
-    return j;
-  }
-  const JobRecord prepared = Prepare(created, std::move(scene), session);
-  Json j;
-  j["created"] = true;
-  j["job"] = proto::JobToJson(prepared);
-  return j;
+  return created;
 }
 
 std::optional<JobRecord> RpcService::WaitWhilePreparing(std::int64_t id,
@@ -223,7 +251,7 @@ std::optional<JobRecord> RpcService::WaitWhilePreparing(std::int64_t id,
   return store_.GetJob(id);
 }
 
-JobRecord RpcService::Prepare(const JobStore::Created& created, Scene scene,
+JobRecord RpcService::Prepare(const JobStore::Created& created, ValidScene scene,
                               const SessionContext& session) {
   const Lease& lease = created.lease;
   const std::int64_t id = lease.job_id;
@@ -269,26 +297,6 @@ JobRecord RpcService::Prepare(const JobStore::Created& created, Scene scene,
         return stop_requested();
       },
       0.1);
-  // The preparation stopped, or a stop came after its last check (then too, the job is not
-  // queued for a submitter that has gone or a server that stops).
-  const auto stopped = [&]() -> JobRecord {
-    if (control->cancel.load() && !control->lease_lost.load()) {
-      r.state = JobState::kCancelled;
-      r.finished_at = UnixNow();
-      try {
-        store_.MarkFinished(lease, {r.state, "", "", std::nullopt, r.finished_at, ""});
-      } catch (const LeaseLost&) {
-        throw RecordLost();
-      }
-      spdlog::info("job {} cancelled while being prepared ({})", id, r.scene_name);
-      outcome = r;
-      return r;
-    }
-    if (control->lease_lost.load()) throw RecordLost();
-    if (stopping()) throw rpc::RpcError(rpc::kBusy, "busy: the server is shutting down");
-    spdlog::info("job {}: its submitter went away while it was prepared; dropped", id);
-    throw rpc::RpcError(rpc::kBusy, "busy: the connection closed");
-  };
   std::shared_ptr<const Problem> problem;
   try {
     problem =
@@ -296,20 +304,10 @@ JobRecord RpcService::Prepare(const JobStore::Created& created, Scene scene,
   } catch (const InputError& e) {
     throw InvalidScene(e);
   } catch (const Interrupted&) {
-    return stopped();
+    return PreparationStopped(lease, *control, r, outcome);
   }
-  if (stop_requested()) return stopped();
-  if (problem->gene_count() > options_.limits.max_genes) {
-    LimitExceeded("max_genes", problem->gene_count(), options_.limits.max_genes);
-  }
-  const SearchOptions options =
-      ResolveSearchOptions(problem->scene().search, problem->gene_count());
-  // Before the job is queued: the search would hold population x genes bytes per generation.
-  const std::int64_t population_genes =
-      static_cast<std::int64_t>(options.population) * problem->gene_count();
-  if (population_genes > options_.limits.max_population_genes) {
-    LimitExceeded("max_population_genes", population_genes, options_.limits.max_population_genes);
-  }
+  if (stop_requested()) return PreparationStopped(lease, *control, r, outcome);
+  const SearchOptions options = CheckPreparedBounds(*problem, options_.limits);
   r.genes = problem->gene_count();
   r.max_generations = options.max_generations;
   // The strategy that runs, `default` resolved (the stored scene keeps what was asked).
@@ -330,6 +328,29 @@ JobRecord RpcService::Prepare(const JobStore::Created& created, Scene scene,
                r.priority, r.seed);
   scheduler_.JobSubmitted(id, std::move(problem));
   return r;
+}
+
+// The preparation stopped, or a stop came after its last check (then too, the job is not
+// queued for a submitter that has gone or a server that stops): cancelled, or dropped with the
+// error its submitter gets.
+JobRecord RpcService::PreparationStopped(const Lease& lease, const Scheduler::Preparation& control,
+                                         JobRecord& r, std::optional<JobRecord>& outcome) {
+  if (control.cancel.load() && !control.lease_lost.load()) {
+    r.state = JobState::kCancelled;
+    r.finished_at = UnixNow();
+    try {
+      store_.MarkFinished(lease, {r.state, "", "", std::nullopt, r.finished_at, ""});
+    } catch (const LeaseLost&) {
+      throw RecordLost();
+    }
+    spdlog::info("job {} cancelled while being prepared ({})", lease.job_id, r.scene_name);
+    outcome = r;
+    return r;
+  }
+  if (control.lease_lost.load()) throw RecordLost();
+  if (stopping()) throw rpc::RpcError(rpc::kBusy, "busy: the server is shutting down");
+  spdlog::info("job {}: its submitter went away while it was prepared; dropped", lease.job_id);
+  throw rpc::RpcError(rpc::kBusy, "busy: the connection closed");
 }
 
 }  // namespace springfit::server

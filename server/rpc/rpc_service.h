@@ -112,13 +112,22 @@ class RpcService {
   proto::Json ServerInfo();
   proto::Json SessionAuth(const proto::Json& params, SessionContext& session);
   proto::Json JobSubmit(const proto::Json& params, SessionContext& session);
+  // Records the submission as a job being prepared, under the server's queue bound; a retry
+  // (an idempotency key already used) finds the earlier job, after waiting for its preparation
+  // to end.
+  JobStore::Created CreateJob(NewJob& job, const SessionContext& session);
   // Prepares a job just created `preparing` (its reference solved, its candidates laid out):
   // queues it, or returns it cancelled (a cancel came meanwhile), or drops it and throws the
   // error its submitter gets (an invalid scene, a bound, a shutdown, a lost connection).
-  JobRecord Prepare(const JobStore::Created& created, Scene scene, const SessionContext& session);
+  JobRecord Prepare(const JobStore::Created& created, ValidScene scene,
+                    const SessionContext& session);
   // A retry of a submission being prepared (its idempotency key) waits, bounded, for that
   // preparation's end: the job as it then is, or nothing when it was dropped.
   std::optional<JobRecord> WaitWhilePreparing(std::int64_t id, const SessionContext& session);
+  // A preparation stopped (cancelled, the lease lost, a shutdown, the submitter gone): the job
+  // cancelled, or an error thrown for its submitter. Sets `outcome` when the job stays.
+  JobRecord PreparationStopped(const Lease& lease, const Scheduler::Preparation& control,
+                               JobRecord& r, std::optional<JobRecord>& outcome);
   proto::Json JobGet(const proto::Json& params);
   proto::Json JobResult(const proto::Json& params);
   proto::Json JobTrace(const proto::Json& params);
