@@ -85,11 +85,17 @@ int Export(const ExportArgs& a) {
   const ResultWithScene loaded = LoadResultWithScene(a.source, a.server, a.scene_path);
   const io::SpringModel model = io::ModelOfResult(*loaded.problem, loaded.result, a.model);
   io::WriteModelFile(model, a.output, a.sofa);
-  int undetermined = 0;
-  for (const auto& s : model.springs) undetermined += s.identified ? 0 : 1;
+  int undetermined = 0, not_analysed = 0;
+  for (const auto& s : model.springs) {
+    undetermined += s.identified == io::SpringModel::Identified::kNo;
+    not_analysed += s.identified == io::SpringModel::Identified::kNotAnalysed;
+  }
   std::cout << a.output << ": " << io::ModelFormatName(format) << ", " << model.node_count()
             << " nodes, " << model.springs.size() << " springs";
   if (undetermined > 0) std::cout << " (" << undetermined << " not determined by the data)";
+  if (not_analysed > 0)
+    std::cout << " (whether the data determine " << not_analysed
+              << " of them was not analysed: too many springs for the dependent groups)";
   std::cout << ", from " << loaded.where << "\n" << a.output << ": " << FactsLine(model) << "\n";
   if (const std::string judged = JudgementLine(loaded.result); !judged.empty())
     std::cout << a.output << ": " << judged << "\n";

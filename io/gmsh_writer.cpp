@@ -38,7 +38,7 @@ void WriteGmshFile(const SpringModel& model, const std::string& path) {
       element_nodes.push_back(static_cast<std::size_t>(s.b) + 1);
       stiffness.push_back({s.stiffness});
       rest_length.push_back({s.rest_length});
-      identified.push_back({s.identified ? 1.0 : 0.0});
+      identified.push_back({static_cast<double>(s.identified)});
       dead.push_back({s.dead ? 1.0 : 0.0});
       cell_kind.push_back({0.0});
     }

@@ -35,7 +35,9 @@ std::string ModelJsonText(const SpringModel& model) {
     springs.push_back({{"nodes", {s.a, s.b}},
                        {"stiffness", s.stiffness},
                        {"rest_length", s.rest_length},
-                       {"identified", s.identified},
+                       {"identified", s.identified == SpringModel::Identified::kNotAnalysed
+                                          ? Json(nullptr)
+                                          : Json(s.identified == SpringModel::Identified::kYes)},
                        {"dead", s.dead}});
   }
   j["springs"] = std::move(springs);

@@ -214,12 +214,21 @@ std::string SofaSceneText(const SpringModel& model, const SofaOptions& options) 
   }
   out << "\"/>\n";
   std::string flagged;
-  for (std::size_t i = 0; i < model.springs.size(); ++i)
-    if (!model.springs[i].identified) flagged += " " + std::to_string(i);
+  bool not_analysed = false;
+  for (std::size_t i = 0; i < model.springs.size(); ++i) {
+    if (model.springs[i].identified == SpringModel::Identified::kNo)
+      flagged += " " + std::to_string(i);
+    not_analysed =
+        not_analysed || model.springs[i].identified == SpringModel::Identified::kNotAnalysed;
+  }
   if (!flagged.empty()) {
     out << "    <!-- springs (0-based, in the order above) whose stiffness the load cases do not "
            "determine:"
         << flagged << " -->\n";
+  }
+  if (not_analysed) {
+    out << "    <!-- whether the load cases determine the other springs' stiffness was not "
+           "analysed (too many springs for the analysis of dependent groups) -->\n";
   }
 
   // Supports and loads of the case.

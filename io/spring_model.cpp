@@ -94,7 +94,11 @@ SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& res
   for (const NodePair& p : problem.candidates().pairs) candidates.insert(Ordered(p));
   std::set<NodePair> undetermined;
   for (const NodePair& p : result.undetermined) undetermined.insert(Ordered(p));
-  const auto add = [&](NodePair p, double stiffness, bool identified) {
+  // Not in a group or unseen: determined, when the groups were analysed.
+  const SpringModel::Identified otherwise = result.groups_analysed
+                                                ? SpringModel::Identified::kYes
+                                                : SpringModel::Identified::kNotAnalysed;
+  const auto add = [&](NodePair p, double stiffness, SpringModel::Identified identified) {
     SpringModel::Spring s;
     s.a = p.first;
     s.b = p.second;
@@ -114,7 +118,8 @@ SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& res
                        "(" + std::to_string(p.first) + ", " + std::to_string(p.second) + ") is " +
                            (candidates.count(p) ? "listed twice" : "not a candidate of the scene"));
     }
-    add(p, result.stiffness.empty() ? training : result.stiffness[i], !undetermined.count(p));
+    add(p, result.stiffness.empty() ? training : result.stiffness[i],
+        undetermined.count(p) ? SpringModel::Identified::kNo : otherwise);
   }
   // The candidates no load case sees, with the problem's stiffness for them (Problem::
   // unidentifiable_stiffness: the closed-form model's on an FEM mesh edge): the model as the
@@ -128,7 +133,7 @@ SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& res
     const NodePair p = Ordered(u);
     const auto k = unseen_stiffness.find(p);
     if (candidates.count(p) && present.insert(p).second)
-      add(p, k == unseen_stiffness.end() ? training : k->second, false);
+      add(p, k == unseen_stiffness.end() ? training : k->second, SpringModel::Identified::kNo);
   }
   model.response = problem.response() == Response::kLinear ? "linear" : "nonlinear";
   model.node_sets = scene.node_sets;

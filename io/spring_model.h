@@ -43,14 +43,19 @@ struct SpringModel {
   // response at rest) or "nonlinear" (springs that turn and stretch).
   std::string response;
 
+  // Whether the load cases determine a spring's stiffness. Numeric fields write it as its
+  // value (1, 0, -1), the JSON model as true, false or null.
+  enum class Identified { kNo = 0, kYes = 1, kNotAnalysed = -1 };
   struct Spring {
     int a = 0, b = 0;  // nodes, a < b
     double stiffness = 0.0;
     double rest_length = 0.0;  // the nodes' distance at rest: the springs are unloaded there
-    // False where the load cases do not determine the stiffness (no load case loads the
+    // kNo where the load cases do not determine the stiffness (no load case loads the
     // spring, or it is in a group of springs they cannot tell apart, or both its nodes are
     // held in every case): the value is then the fit's or the training stiffness, not data.
-    bool identified = true;
+    // kNotAnalysed where that was not analysed (the scene's dependent groups are analysed up
+    // to IdentifiabilityOptions::max_genes seen genes): it may or may not be determined.
+    Identified identified = Identified::kYes;
     // Below ModelOptions::dead_fraction of the median stiffness (kept: drop_dead was false).
     bool dead = false;
   };

@@ -31,7 +31,8 @@ struct CellArray {
 constexpr CellArray kCellArrays[] = {
     {"stiffness", false, [](const SpringModel::Spring& s) { return s.stiffness; }},
     {"rest_length", false, [](const SpringModel::Spring& s) { return s.rest_length; }},
-    {"identified", true, [](const SpringModel::Spring& s) { return s.identified ? 1.0 : 0.0; }},
+    {"identified", true,
+     [](const SpringModel::Spring& s) { return static_cast<double>(s.identified); }},
     {"dead", true, [](const SpringModel::Spring& s) { return s.dead ? 1.0 : 0.0; }},
     {"cell_kind", true, [](const SpringModel::Spring&) { return 0.0; }},
 };
@@ -127,7 +128,7 @@ std::string VtuText(const SpringModel& model) {
     out << "          " << VtkElementType(model.dimension) << "\n";
   out << "        </DataArray>\n      </Cells>\n      <CellData Scalars=\"stiffness\">\n";
   for (const CellArray& a : kCellArrays) {
-    out << "        <DataArray type=\"" << (a.integer ? "UInt8" : "Float64") << "\" Name=\""
+    out << "        <DataArray type=\"" << (a.integer ? "Int8" : "Float64") << "\" Name=\""
         << a.name << "\" format=\"ascii\">\n";
     for (const auto& s : model.springs)
       out << "          " << ValueText(a.of(s), a.integer) << "\n";

@@ -452,6 +452,11 @@ StoredResult StoredResultFromJson(const Json& json) {
     const Json& id = json["identifiability"];
     if (id.contains("unseen"))
       r.undetermined = ReadNodePairs(id["unseen"], "identifiability.unseen");
+    if (id.contains("analysed")) {
+      if (!id["analysed"].is_boolean())
+        throw InputError("identifiability.analysed", "expected a boolean");
+      r.groups_analysed = id["analysed"].get<bool>();
+    }
     if (id.contains("groups")) {
       ExpectArray(id["groups"], "identifiability.groups");
       for (std::size_t i = 0; i < id["groups"].size(); ++i) {

@@ -52,6 +52,10 @@ struct StoredResult {
   // do not determine: `identifiability.unseen` and the springs of its groups.
   std::vector<NodePair> unidentifiable;
   std::vector<NodePair> undetermined;
+  // False when the scene's dependent groups were not analysed (`identifiability.analysed`:
+  // too many seen genes): `undetermined` then holds the unseen springs alone, and whether the
+  // others are determined is not known.
+  bool groups_analysed = true;
   // The verdict and its headline numbers (`outcome`: results written since it exists), and the
   // certificate's generalised eigenvalues (`generalization.lambda_min`, `lambda_max`), for an
   // export to say what the result says.

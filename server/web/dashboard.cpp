@@ -640,7 +640,11 @@ HttpResponse Dashboard::JobView(const JobRecord& job) {
       if (rep.contains("rank") && rep["rank"].is_number())
         body += Row("rank of the analysed groups", std::to_string(rep["rank"].get<int>()));
       const Json groups = rep.value("groups", Json::array());
-      body += Row("groups of springs the loads do not tell apart", std::to_string(groups.size()));
+      // (Not analysed beyond IdentifiabilityOptions::max_genes seen genes: no count is claimed.)
+      const bool analysed = !rep.contains("analysed") || rep["analysed"] != false;
+      body += Row("groups of springs the loads do not tell apart",
+                  analysed ? std::to_string(groups.size())
+                           : std::string("not analysed (too many springs for the analysis)"));
       int shown = 0;
       for (const Json& g : groups) {
         if (++shown > 10) break;

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # springfit export: every format written and read back by an independent reader (meshio for
 # .vtk, .vtu and .msh; gmsh itself for .msh; an XML parser for .scn and .vtu; json for .json),
-# for a continuous (per-spring stiffness), a topology-only and a 3D result, and the errors.
+# for a continuous (per-spring stiffness), a topology-only and a 3D result, one whose dependent
+# groups were not analysed, and the errors.
 # Usage: export_test.sh SPRINGFIT SOURCE_DIR
 set -u
 sf=$1
@@ -34,7 +35,9 @@ k = list(r["stiffness"]) + [None] * len(r["unidentifiable"])
 undetermined = {tuple(sorted(p)) for p in r["identifiability"]["unseen"]}
 for g in r["identifiability"]["groups"]:
     undetermined |= {tuple(sorted(p)) for p in g["springs"]}
-identified = [p not in undetermined for p in pairs[:len(r["springs"])]] + [False] * len(r["unidentifiable"])
+# 1 determined, 0 not, -1 not analysed (the dependent groups of a scene with too many genes)
+otherwise = 1 if r["identifiability"]["analysed"] else -1
+identified = [0 if p in undetermined else otherwise for p in pairs[:len(r["springs"])]] + [0] * len(r["unidentifiable"])
 length = [math.dist(nodes[a], nodes[b]) for a, b in pairs]
 
 def close(a, b):
@@ -46,7 +49,8 @@ def check_values(stiffness, rest, flags, where):
         if k[i] is not None:
             assert close(stiffness[i], k[i]), (where, i, stiffness[i], k[i])
         assert close(rest[i], length[i]), (where, i, rest[i], length[i])
-        assert bool(flags[i]) == identified[i], (where, i, flags[i])
+        flag = -1 if flags[i] is None else int(flags[i])  # (JSON: true, false, null)
+        assert flag == identified[i], (where, i, flags[i], identified[i])
 
 j = json.load(open(base + ".json"))
 fem = scene["reference"]["type"] == "fem"
@@ -136,6 +140,13 @@ python3 -c "import json,sys; assert json.load(open(sys.argv[1]))['unidentifiable
   || fail "grid3d-4x4x4 no longer has unidentifiable candidates: pick another example"
 check_all grid "$tmp/grid-result.json"
 grep -q "not determined by the data" "$tmp/out" || fail "export counts the springs not determined: $(cat "$tmp/out")"
+# A scene whose dependent groups are not analysed (2,853 genes): no spring is claimed determined.
+"$sf" run "$src/examples/fem-kidney-2d-fine.json" -q -o "$tmp/fine-result.json" >/dev/null || fail "run fine kidney"
+python3 -c "import json,sys; assert json.load(open(sys.argv[1]))['identifiability']['analysed'] is False" "$tmp/fine-result.json" \
+  || fail "fem-kidney-2d-fine's groups are analysed now: pick a larger example"
+check_all fine "$tmp/fine-result.json"
+grep -q "was not analysed" "$tmp/out" || fail "export says the groups were not analysed: $(cat "$tmp/out")"
+grep -q "was not analysed" "$tmp/fine.scn" || fail "the SOFA scene says the groups were not analysed"
 
 # Errors: exit 2, what is wrong named, nothing written.
 "$sf" export "$tmp/plate-result.json" -o "$tmp/model.obj" >/dev/null 2>"$tmp/err"

@@ -10,6 +10,7 @@
 #include <atomic>
 #include <chrono>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <thread>
 
@@ -116,6 +117,30 @@ TEST(HttpServer, HealthAndMetricsAnswerWhilePagesKeepEveryThreadBusy) {
 
 // The job page opens with the result card and links a large figure instead of inlining it
 // (issue 33 item 4).
+// A finished job of paper-iso-5x5 in `store`, its result JSON passed through `edit` first;
+// returns the job's page path.
+std::string FinishedPaperJob(SqliteStore& store,
+                             const std::function<void(proto::Json&)>& edit = {}) {
+  const Scene scene = examples::Make("paper-iso-5x5");
+  const Problem problem(scene);
+  const IdentificationResult r = RunIdentification(
+      problem, ResolveSearchOptions(scene.search, problem.gene_count()), RunContext{});
+  NewJob job;
+  job.record.label = "figure";
+  job.record.scene_name = scene.name;
+  job.record.genes = problem.gene_count();
+  job.record.strategy = "direct";
+  job.scene_json = proto::SceneToJson(scene).dump();
+  const std::int64_t id = store.CreateJob(job, 100).job.id;
+  const std::optional<Claim> claim = store.ClaimNext("test", 30.0);
+  EXPECT_TRUE(claim);
+  proto::Json result = proto::ResultToJson(problem, r, false);
+  if (edit) edit(result);
+  store.MarkFinished(claim->lease, {JobState::kSucceeded, "", result.dump(), r.exact(), 1.7e9,
+                                    proto::OutcomeToJson(r.outcome).dump()});
+  return "/jobs/" + std::to_string(id);
+}
+
 TEST(Dashboard, TheJobPageLinksALargeFigureInsteadOfInliningIt) {
   const auto dir = std::filesystem::temp_directory_path() / "springfit-dashboard-figure";
   std::filesystem::remove_all(dir);
@@ -124,23 +149,7 @@ TEST(Dashboard, TheJobPageLinksALargeFigureInsteadOfInliningIt) {
     SqliteStore store((dir / "jobs.db").string());
     Metrics metrics;
     Scheduler scheduler(store, SchedulerOptions{});
-    const Scene scene = examples::Make("paper-iso-5x5");
-    const Problem problem(scene);
-    const IdentificationResult r = RunIdentification(
-        problem, ResolveSearchOptions(scene.search, problem.gene_count()), RunContext{});
-    NewJob job;
-    job.record.label = "figure";
-    job.record.scene_name = scene.name;
-    job.record.genes = problem.gene_count();
-    job.record.strategy = "direct";
-    job.scene_json = proto::SceneToJson(scene).dump();
-    const std::int64_t id = store.CreateJob(job, 100).job.id;
-    const std::optional<Claim> claim = store.ClaimNext("test", 30.0);
-    ASSERT_TRUE(claim);
-    store.MarkFinished(claim->lease,
-                       {JobState::kSucceeded, "", proto::ResultToJson(problem, r, false).dump(),
-                        r.exact(), 1.7e9, proto::OutcomeToJson(r.outcome).dump()});
-    const std::string target = "/jobs/" + std::to_string(id);
+    const std::string target = FinishedPaperJob(store);
     const std::string img = "<img src=\"" + target + "/topology.svg?of=result\"";
     for (const std::size_t limit : {std::size_t{1} << 30, std::size_t{1000}}) {
       DashboardOptions options;
@@ -153,6 +162,36 @@ TEST(Dashboard, TheJobPageLinksALargeFigureInsteadOfInliningIt) {
       EXPECT_EQ(page.body.find(img) != std::string::npos, linked);
       EXPECT_LT(page.body.find("id=\"result-card\""), page.body.find("id=\"topology\""));
     }
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// Issue 31: a result whose dependent groups were not analysed (too many seen genes) shows no
+// count of groups, where an analysed one shows its count.
+TEST(Dashboard, GroupsNotAnalysedAreNotCountedOnTheJobPage) {
+  const auto dir = std::filesystem::temp_directory_path() / "springfit-dashboard-groups";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  {
+    SqliteStore store((dir / "jobs.db").string());
+    Metrics metrics;
+    Scheduler scheduler(store, SchedulerOptions{});
+    const std::string analysed = FinishedPaperJob(store);
+    const std::string not_analysed = FinishedPaperJob(store, [](proto::Json& result) {
+      result["identifiability"]["analysed"] = false;
+      result["identifiability"]["rank"] = nullptr;
+      result["identifiability"]["groups"] = proto::Json::array();
+    });
+    Dashboard dashboard(store, scheduler, metrics, DashboardOptions{});
+    const std::string row = "<tr><th>groups of springs the loads do not tell apart</th><td>";
+    const HttpResponse counted = dashboard.Handle({"GET", analysed, {}, ""});
+    ASSERT_EQ(counted.status, 200) << counted.body;
+    EXPECT_NE(counted.body.find(row + "0</td>"), std::string::npos) << counted.body;
+    const HttpResponse page = dashboard.Handle({"GET", not_analysed, {}, ""});
+    ASSERT_EQ(page.status, 200) << page.body;
+    EXPECT_EQ(page.body.find(row + "0</td>"), std::string::npos);
+    EXPECT_NE(page.body.find(row + "not analysed"), std::string::npos) << page.body;
+    EXPECT_EQ(page.body.find("rank of the analysed groups"), std::string::npos);
   }
   std::filesystem::remove_all(dir);
 }
