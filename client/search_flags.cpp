@@ -78,39 +78,4 @@ void ApplySearchFlags(const SearchFlags& flags, SearchSettings& st) {
   if (flags.probes) st.probes = proto::ProbesFromText(*flags.probes, "--probes");
 }
 
-void ApplySearchFlags(const SearchFlags& flags, proto::Json& scene) {
-  if (!(flags.strategy || flags.identify || flags.generations || flags.time_limit || flags.stall ||
-        flags.response || flags.max_springs || flags.target_error || flags.regularization ||
-        flags.probes || flags.max_spread))
-    return;
-  proto::Json& search = scene["search"];
-  if (search.is_null()) search = proto::Json::object();
-  if (flags.strategy)
-    search["strategy"] =
-        proto::StrategyName(proto::StrategyFromName(*flags.strategy, "--strategy"));
-  if (flags.identify)
-    search["identify"] =
-        proto::IdentifyName(proto::IdentifyFromName(*flags.identify, "--identify"));
-  if (flags.generations) search["max_generations"] = *flags.generations;
-  if (flags.time_limit) search["max_seconds"] = *flags.time_limit;
-  if (flags.stall) search["stall_generations"] = *flags.stall;
-  if (flags.response)
-    search["response"] =
-        proto::ResponseName(proto::ResponseFromName(*flags.response, "--response"));
-  if (flags.max_springs) search["max_springs"] = *flags.max_springs;
-  if (flags.target_error) search["target_error"] = *flags.target_error;
-  if (flags.max_spread) search["max_spread"] = *flags.max_spread;
-  if (flags.regularization) {
-    const auto r = proto::RegularizationFromText(*flags.regularization, "--regularization");
-    search["regularization"] = r.automatic ? proto::Json("auto") : proto::Json(r.strength);
-  }
-  if (flags.probes) {
-    const auto probes = proto::ProbesFromText(*flags.probes, "--probes");
-    if (probes)
-      search["probes"] = proto::ProbesToJson(*probes);
-    else
-      search.erase("probes");  // auto: the default
-  }
-}
-
 }  // namespace springfit::cli

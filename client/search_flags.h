@@ -29,9 +29,8 @@ struct SearchFlags {
 };
 
 void AddSearchFlags(CLI::App* command, SearchFlags& flags);
-// Over a scene read in this process (`run`).
+// Over a scene's search settings: `run`'s scene, and `submit`'s before it is encoded (the seed
+// travels as job.submit's own parameter).
 void ApplySearchFlags(const SearchFlags& flags, SearchSettings& settings);
-// Over a scene sent as JSON (`submit`; the seed travels as job.submit's own parameter).
-void ApplySearchFlags(const SearchFlags& flags, proto::Json& scene);
 
 }  // namespace springfit::cli

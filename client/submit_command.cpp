@@ -31,7 +31,15 @@ struct SubmitArgs {
 
 int Submit(const SubmitArgs& args) {
   Json scene = SceneJsonOf(args.scene);
-  ApplySearchFlags(args.search, scene);
+  // The flags over the scene's search settings, read and written by the scene's own codec.
+  SearchSettings settings =
+      scene.contains("search") ? proto::SearchSettingsFromJson(scene["search"]) : SearchSettings{};
+  ApplySearchFlags(args.search, settings);
+  if (Json search = proto::SearchSettingsToJson(settings); search.empty()) {
+    scene.erase("search");
+  } else {
+    scene["search"] = std::move(search);
+  }
   Json params;
   params["scene"] = std::move(scene);
   if (!args.label.empty()) params["label"] = args.label;

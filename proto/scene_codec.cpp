@@ -491,9 +491,40 @@ Scene LoadSceneFile(const std::string& path) {
   return SceneFromText(ReadFile(path));
 }
 
+Json SearchSettingsToJson(const SearchSettings& st) {
+  const SearchSettings d;
+  Json sj = Json::object();
+  if (st.strategy != d.strategy) sj["strategy"] = StrategyName(st.strategy);
+  if (st.identify) sj["identify"] = IdentifyName(*st.identify);
+  if (st.response) sj["response"] = ResponseName(*st.response);
+  if (st.seed != d.seed) sj["seed"] = st.seed;
+  if (st.population) sj["population"] = *st.population;
+  if (st.crossover_probability) sj["crossover_probability"] = *st.crossover_probability;
+  if (st.mutation_probability) sj["mutation_probability"] = *st.mutation_probability;
+  if (st.max_generations != d.max_generations) sj["max_generations"] = st.max_generations;
+  if (st.max_seconds) sj["max_seconds"] = *st.max_seconds;
+  if (st.stall_generations) sj["stall_generations"] = *st.stall_generations;
+  if (st.max_springs) sj["max_springs"] = *st.max_springs;
+  if (st.target_error) sj["target_error"] = *st.target_error;
+  if (st.max_spread) sj["max_spread"] = *st.max_spread;
+  if (st.regularization) {
+    sj["regularization"] =
+        st.regularization->automatic ? Json("auto") : Json(st.regularization->strength);
+  }
+  if (st.probes) sj["probes"] = ProbesToJson(*st.probes);
+  if (st.target_normalized_error != d.target_normalized_error)
+    sj["target_normalized_error"] = st.target_normalized_error;
+  return sj;
+}
+
+SearchSettings SearchSettingsFromJson(const Json& json) {
+  SearchSettings settings;
+  ReadSearch(json, settings);
+  return settings;
+}
+
 Json SceneToJson(const Scene& s) {
   Json j;
-  const Scene defaults;
   if (!s.name.empty()) j["name"] = s.name;
   if (!s.description.empty()) j["description"] = s.description;
   j["nodes"] = PointsToJson(s.rest, s.dimension);
@@ -563,29 +594,7 @@ Json SceneToJson(const Scene& s) {
   j["load_cases"] = std::move(cases);
   if (s.training_stiffness) j["stiffness"] = *s.training_stiffness;
 
-  const SearchSettings& st = s.search;
-  const SearchSettings& d = defaults.search;
-  Json sj = Json::object();
-  if (st.strategy != d.strategy) sj["strategy"] = StrategyName(st.strategy);
-  if (st.identify) sj["identify"] = IdentifyName(*st.identify);
-  if (st.response) sj["response"] = ResponseName(*st.response);
-  if (st.seed != d.seed) sj["seed"] = st.seed;
-  if (st.population) sj["population"] = *st.population;
-  if (st.crossover_probability) sj["crossover_probability"] = *st.crossover_probability;
-  if (st.mutation_probability) sj["mutation_probability"] = *st.mutation_probability;
-  if (st.max_generations != d.max_generations) sj["max_generations"] = st.max_generations;
-  if (st.max_seconds) sj["max_seconds"] = *st.max_seconds;
-  if (st.stall_generations) sj["stall_generations"] = *st.stall_generations;
-  if (st.max_springs) sj["max_springs"] = *st.max_springs;
-  if (st.target_error) sj["target_error"] = *st.target_error;
-  if (st.max_spread) sj["max_spread"] = *st.max_spread;
-  if (st.regularization) {
-    sj["regularization"] =
-        st.regularization->automatic ? Json("auto") : Json(st.regularization->strength);
-  }
-  if (st.probes) sj["probes"] = ProbesToJson(*st.probes);
-  if (st.target_normalized_error != d.target_normalized_error)
-    sj["target_normalized_error"] = st.target_normalized_error;
+  Json sj = SearchSettingsToJson(s.search);
   if (!sj.empty()) j["search"] = std::move(sj);
   if (s.units) {
     Json u;

@@ -21,6 +21,10 @@ Scene LoadSceneFile(const std::string& path);
 
 // The scene as JSON: fields equal to their defaults are left out.
 Json SceneToJson(const Scene& scene);
+// A scene's `search` member alone, both ways (the same rules and paths as in a scene): what
+// `submit` reads, applies its flags to and writes back.
+SearchSettings SearchSettingsFromJson(const Json& json);
+Json SearchSettingsToJson(const SearchSettings& settings);
 
 // An array of node pairs [[i, j], ...] as written (not reordered or range-checked), and back.
 std::vector<NodePair> ReadNodePairs(const Json& json, const std::string& path);
