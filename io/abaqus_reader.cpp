@@ -664,21 +664,31 @@ void NoteInvertedElements(const Deck& deck, const std::string& path,
                   (deck.dimension == 2 ? "surface" : "volume") + ")");
 }
 
-}  // namespace
-
-bool IsAbaqusDeck(const std::string& path) {
-  return LowerExtension(path) == ".inp";
-}
-
-Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, DeckImport* found) {
-  DeckImport ignored;
-  DeckImport& out = found ? *found : ignored;
-  std::vector<long>* node_ids = &out.node_ids;
-  // The model from the first deck; every other deck must describe the same one.
+// The model SceneOfAbaqusDecks builds a scene from: the first deck (the mesh, materials and
+// sections every deck shares), every deck's steps in order, and the nodes the elements use,
+// numbered from 0 in id order.
+struct DeckModel {
   Deck first;
-  ReadDeck(paths[0], first);
-  SelectMeshElements(first, paths[0], out.notes);
-  std::vector<Deck::Step> steps = first.steps;
+  std::string name;  // the first deck's path
+  std::vector<Deck::Step> steps;
+  std::map<long, int> index;  // deck node id -> scene node
+
+  int NodeOf(long id, const Line& where) const {
+    const auto it = index.find(id);
+    if (it == index.end()) Fail(where, "node " + std::to_string(id) + ", which no element uses");
+    return it->second;
+  }
+};
+
+// Reads every deck: the model from the first, and the steps of all, each later deck checked to
+// describe the same mesh, materials and sections.
+DeckModel ReadDecks(const std::vector<std::string>& paths, DeckImport& out) {
+  DeckModel model;
+  model.name = paths[0];
+  ReadDeck(paths[0], model.first);
+  SelectMeshElements(model.first, paths[0], out.notes);
+  const Deck& first = model.first;
+  model.steps = first.steps;
   for (std::size_t i = 1; i < paths.size(); ++i) {
     Deck other;
     ReadDeck(paths[i], other);
@@ -695,247 +705,299 @@ Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, DeckImport* found
     if (SectionsText(other) != SectionsText(first))
       throw InputError("", paths[i] + ": its materials or sections differ from " + paths[0] +
                                "'s (decks of one model share them)");
-    steps.insert(steps.end(), other.steps.begin(), other.steps.end());
+    model.steps.insert(model.steps.end(), other.steps.begin(), other.steps.end());
   }
-  const std::string& deck_name = paths[0];
-  if (first.elements.empty()) throw InputError("", deck_name + ": no *ELEMENT");
-  // A deck without steps (as Gmsh writes one) takes its load cases from --loads; one without
-  // sections its material (ImportSceneFiles checks that the loads give them).
-  out.has_steps = !steps.empty();
-  out.has_sections = !first.sections.empty();
-  const int d = first.dimension;
-  NoteInvertedElements(first, deck_name, out.notes);
-  if (d == 2 && first.element_counts.count("CPS3")) {
-    out.notes.push_back(
-        deck_name +
-        ": CPS3 read as springfit's plane-stress triangle (the exact 2D law); ccx expands CPS3 "
-        "into wedges, whose answers differ by about 1e-2 (5x5 plate sheared at nu 0.45); ccx's "
-        "CPE3 with the plane-stress constants E(1+2nu)/(1+nu)^2 and nu/(1+nu) matches "
-        "springfit's answer exactly");
-  }
+  if (first.elements.empty()) throw InputError("", model.name + ": no *ELEMENT");
+  return model;
+}
 
-  // Nodes the elements use, in id order, numbered from 0.
-  std::map<long, int> index;
-  for (const auto& e : first.elements) {
+// The nodes the elements use, in id order, numbered from 0 (their ids into out.node_ids).
+void NumberNodes(DeckModel& model, DeckImport& out) {
+  for (const auto& e : model.first.elements) {
     for (long n : e.nodes) {
-      if (!first.nodes.count(n))
-        throw InputError("", deck_name + ": element " + std::to_string(e.id) + " uses node " +
+      if (!model.first.nodes.count(n))
+        throw InputError("", model.name + ": element " + std::to_string(e.id) + " uses node " +
                                  std::to_string(n) + ", which no *NODE defines");
-      index.emplace(n, 0);
+      model.index.emplace(n, 0);
     }
   }
   int next = 0;
-  for (auto& [id, i] : index) {
+  for (auto& [id, i] : model.index) {
     i = next++;
-    if (node_ids) node_ids->push_back(id);
+    out.node_ids.push_back(id);
   }
-  Json scene;
-  scene["name"] = std::filesystem::path(deck_name).stem().string();
-  scene["description"] =
-      "imported from " + std::filesystem::path(deck_name).filename().string() +
-      (paths.size() > 1 ? " and " + std::to_string(paths.size() - 1) + " more decks" : "");
+}
+
+Json NodesJson(const DeckModel& model) {
+  const int d = model.first.dimension;
   Json nodes = Json::array();
-  for (const auto& [id, i] : index) {
-    const std::vector<double>& x = first.nodes.at(id);
+  for (const auto& [id, i] : model.index) {
+    const std::vector<double>& x = model.first.nodes.at(id);
     if (d == 2 && x[2] != 0.0)
-      throw InputError("", deck_name + ": node " + std::to_string(id) +
+      throw InputError("", model.name + ": node " + std::to_string(id) +
                                " has z = " + std::to_string(x[2]) +
                                " in a 2D model (CPS3, CPE3, T2D2 lie in z = 0)");
     nodes.push_back(d == 2 ? Json{x[0], x[1]} : Json{x[0], x[1], x[2]});
   }
-  scene["nodes"] = std::move(nodes);
-  scene["node_tags"] = out.node_ids;  // the deck's ids, which exports carry
-  const auto node_of = [&](long id, const Line& where) {
-    const auto it = index.find(id);
-    if (it == index.end()) Fail(where, "node " + std::to_string(id) + ", which no element uses");
-    return it->second;
-  };
-  // Node sets by name (those whose nodes are all in the model).
+  return nodes;
+}
+
+// Node sets by name (those whose nodes are all in the model).
+Json NodeSetsJson(const DeckModel& model) {
   Json sets = Json::object();
-  for (const auto& [upper, ids] : first.nsets) {
+  for (const auto& [upper, ids] : model.first.nsets) {
     std::set<int> members;
     bool whole = true;
     for (long id : ids) {
-      const auto it = index.find(id);
-      if (it == index.end())
+      const auto it = model.index.find(id);
+      if (it == model.index.end())
         whole = false;
       else
         members.insert(it->second);
     }
     if (whole && !members.empty())
-      sets[first.set_names.at(upper)] = std::vector<int>(members.begin(), members.end());
+      sets[model.first.set_names.at(upper)] = std::vector<int>(members.begin(), members.end());
   }
-  if (!sets.empty()) scene["node_sets"] = std::move(sets);
+  return sets;
+}
 
-  // Sections: each element's material, and the thickness (2D) or area (trusses).
-  std::map<long, std::size_t> section_of;  // element id -> section
-  for (std::size_t s = 0; s < first.sections.size(); ++s) {
-    const auto& sec = first.sections[s];
-    const auto set = first.elsets.find(sec.elset);
-    if (set == first.elsets.end()) Fail(sec.line, "unknown element set '" + sec.elset + "'");
-    const auto m = first.materials.find(sec.material);
-    if (m == first.materials.end()) Fail(sec.line, "unknown material '" + sec.material + "'");
+// Each element's section (its material, and the thickness (2D) or area (trusses)), by id.
+std::map<long, std::size_t> SectionOfElements(const Deck& deck) {
+  std::map<long, std::size_t> section_of;
+  for (std::size_t s = 0; s < deck.sections.size(); ++s) {
+    const auto& sec = deck.sections[s];
+    const auto set = deck.elsets.find(sec.elset);
+    if (set == deck.elsets.end()) Fail(sec.line, "unknown element set '" + sec.elset + "'");
+    const auto m = deck.materials.find(sec.material);
+    if (m == deck.materials.end()) Fail(sec.line, "unknown material '" + sec.material + "'");
     if (!m->second.young) Fail(sec.line, "material '" + sec.material + "' has no *ELASTIC");
     for (long e : set->second) section_of[e] = s;
   }
-  const bool nlgeom = !steps.empty() && steps.front().nlgeom;
-  for (const auto& s : steps)
+  return section_of;
+}
+
+// 2-node trusses: an MSS reference, k = E A / L at rest.
+Json TrussReference(const DeckModel& model, const std::map<long, std::size_t>& section_of) {
+  const Deck& first = model.first;
+  Json reference;
+  reference["type"] = "mss";
+  Json springs = Json::array(), stiffness = Json::array();
+  for (const auto& e : first.elements) {
+    if (e.type != "T2D2" && e.type != "T3D2")
+      throw InputError("", model.name + ": trusses and continuum elements in one model");
+    const auto s = section_of.find(e.id);
+    if (s == section_of.end())
+      throw InputError("", model.name + ": truss element " + std::to_string(e.id) +
+                               " has no *SOLID SECTION (its area and material)");
+    const auto& sec = first.sections[s->second];
+    const int a = model.index.at(e.nodes[0]), b = model.index.at(e.nodes[1]);
+    double l2 = 0.0;
+    for (int c = 0; c < 3; ++c)
+      l2 += std::pow(first.nodes.at(e.nodes[0])[c] - first.nodes.at(e.nodes[1])[c], 2);
+    if (!sec.area_given)
+      Fail(sec.line, "a truss section needs its cross-section area on the line after it");
+    if (!(l2 > 0.0))
+      throw InputError("",
+                       model.name + ": truss element " + std::to_string(e.id) + " has zero length");
+    springs.push_back({a, b});
+    stiffness.push_back(*first.materials.at(sec.material).young * sec.thickness_or_area /
+                        std::sqrt(l2));
+  }
+  reference["springs"] = std::move(springs);
+  reference["stiffness"] = std::move(stiffness);
+  return reference;
+}
+
+// Triangles or tetrahedra: an FEM reference, its materials from the sections (St. Venant-
+// Kirchhoff under NLGEOM), or from --loads when the deck has no sections.
+Json FemReference(const DeckModel& model, const std::map<long, std::size_t>& section_of,
+                  bool nlgeom, DeckImport& out) {
+  const Deck& first = model.first;
+  const int d = first.dimension;
+  Json reference;
+  reference["type"] = "fem";
+  Json elements = Json::array(), element_materials = Json::array(), materials = Json::array();
+  std::map<std::string, int> material_index;
+  std::optional<double> thickness;
+  for (const auto& e : first.elements) {
+    Json nodes_of = Json::array();
+    for (long n : e.nodes) nodes_of.push_back(model.index.at(n));
+    elements.push_back(std::move(nodes_of));
+    if (!out.has_sections) continue;  // the material comes from --loads
+    const auto s = section_of.find(e.id);
+    if (s == section_of.end())
+      throw InputError("", model.name + ": element " + std::to_string(e.id) +
+                               " has no *SOLID SECTION (its material)");
+    const auto& sec = first.sections[s->second];
+    if (d == 2) {
+      if (thickness && *thickness != sec.thickness_or_area)
+        Fail(sec.line, "sections of different thickness: springfit has one thickness per model");
+      thickness = sec.thickness_or_area;
+    }
+    auto [it, added] = material_index.emplace(sec.material, static_cast<int>(materials.size()));
+    if (added) {
+      const auto& m = first.materials.at(sec.material);
+      materials.push_back({{"model", nlgeom ? "st_venant_kirchhoff" : "linear"},
+                           {"young", *m.young},
+                           {"poisson", *m.poisson}});
+    }
+    element_materials.push_back(it->second);
+  }
+  reference["elements"] = std::move(elements);
+  if (!out.has_sections) {
+    ElementRegions(first, out);
+  } else if (materials.size() == 1) {
+    reference["material"] = materials[0];
+  } else {
+    reference["materials"] = std::move(materials);
+    reference["element_materials"] = std::move(element_materials);
+  }
+  if (d == 2) {
+    reference["plane"] = first.plane;
+    reference["thickness"] = thickness.value_or(1.0);
+  }
+  return reference;
+}
+
+// A step's held nodes (every dof of the dimension, or none) into the load case's `fixed` and
+// `displacements`.
+void HeldNodes(const DeckModel& model, const Deck::Step& s, Json& lc) {
+  const int d = model.first.dimension;
+  Json fixed = Json::array(), displacements = Json::array();
+  for (const auto& [node, held] : s.held) {
+    const Line& where = s.held_line.at(node);
+    std::vector<double> u(static_cast<std::size_t>(d), 0.0);
+    int count = 0;
+    for (const auto& [dof, v] : held) {
+      if (dof >= d) {  // a 2D model's dof 3: holding it at 0 changes nothing
+        if (v != 0.0)
+          Fail(where, "node " + std::to_string(node) + ": a displacement along dof " +
+                          std::to_string(dof + 1) + " in a 2D model");
+        continue;
+      }
+      u[static_cast<std::size_t>(dof)] = v;
+      ++count;
+    }
+    if (count == 0) continue;
+    if (count != d)
+      Fail(where, "node " + std::to_string(node) + " is held in " + std::to_string(count) +
+                      " of its " + std::to_string(d) +
+                      " directions: springfit holds a node in every direction or none");
+    const int i = model.NodeOf(node, where);
+    if (std::all_of(u.begin(), u.end(), [](double x) { return x == 0.0; })) {
+      fixed.push_back(i);
+    } else {
+      displacements.push_back({{"node", i}, {"displacement", u}});
+    }
+  }
+  lc["fixed"] = std::move(fixed);
+  if (!displacements.empty()) lc["displacements"] = std::move(displacements);
+}
+
+// A step's nodal forces, its pressures added as consistent nodal forces at rest (dead loads:
+// under NLGEOM CalculiX's pressure follows the face, which a dead load does not, so they are
+// refused there): -p A n / 3 on each node of the face, n its outward normal; shares on held
+// nodes go to the support.
+void StepForces(const DeckModel& model, const Deck::Step& s, Json& lc) {
+  const Deck& first = model.first;
+  const int d = first.dimension;
+  if (!s.pressures.empty() && s.nlgeom)
+    Fail(s.pressures[0].line, "*DLOAD under NLGEOM is a follower load: not read");
+  std::map<long, std::vector<double>> forces_of_step = s.forces;
+  std::map<long, Line> line_of_force = s.force_line;
+  std::map<long, const Deck::Element*> element_of;
+  if (!s.pressures.empty())
+    for (const auto& e : first.elements) element_of[e.id] = &e;
+  for (const auto& p : s.pressures) {
+    const auto it = element_of.find(p.element);
+    if (it == element_of.end()) Fail(p.line, "unknown element " + std::to_string(p.element));
+    if (it->second->type != "C3D4")
+      Fail(p.line, "*DLOAD on element " + std::to_string(p.element) + " (" + it->second->type +
+                       "): pressures are read on C3D4 faces only");
+    // C3D4 faces: 1-2-3, 1-4-2, 2-4-3, 3-4-1 (1-based), the fourth node opposite.
+    static constexpr int kFace[4][4] = {{0, 1, 2, 3}, {0, 3, 1, 2}, {1, 3, 2, 0}, {2, 3, 0, 1}};
+    const auto corner = [&](int k) {
+      const std::vector<double>& x = first.nodes.at(it->second->nodes[kFace[p.face][k]]);
+      return Eigen::Vector3d(x[0], x[1], x[2]);
+    };
+    Eigen::Vector3d area = 0.5 * (corner(1) - corner(0)).cross(corner(2) - corner(0));
+    if (area.dot(corner(3) - corner(0)) > 0.0) area = -area;  // outward
+    for (int k = 0; k < 3; ++k) {
+      const long node = it->second->nodes[kFace[p.face][k]];
+      if (s.held.count(node)) continue;
+      forces_of_step[node].resize(3, 0.0);
+      line_of_force.emplace(node, p.line);
+      std::vector<double>& force = forces_of_step[node];
+      force.resize(3, 0.0);
+      for (int c = 0; c < 3; ++c) force[c] -= p.value * area[c] / 3.0;
+    }
+  }
+  Json forces = Json::array();
+  for (const auto& [node, f] : forces_of_step) {
+    // A force on a held node goes to the support (CalculiX counts it in the reaction).
+    if (s.held.count(node)) continue;
+    const int i = model.NodeOf(node, line_of_force.at(node));
+    if (d == 2 && f[2] != 0.0)
+      Fail(line_of_force.at(node),
+           "node " + std::to_string(node) + ": a force along dof 3 in a 2D model");
+    forces.push_back({{"node", i}, {"force", std::vector<double>(f.begin(), f.begin() + d)}});
+  }
+  if (!forces.empty()) lc["forces"] = std::move(forces);
+}
+
+}  // namespace
+
+bool IsAbaqusDeck(const std::string& path) {
+  return LowerExtension(path) == ".inp";
+}
+
+Json SceneOfAbaqusDecks(const std::vector<std::string>& paths, DeckImport* found) {
+  DeckImport ignored;
+  DeckImport& out = found ? *found : ignored;
+  DeckModel model = ReadDecks(paths, out);
+  const Deck& first = model.first;
+  // A deck without steps (as Gmsh writes one) takes its load cases from --loads; one without
+  // sections its material (ImportSceneFiles checks that the loads give them).
+  out.has_steps = !model.steps.empty();
+  out.has_sections = !first.sections.empty();
+  NoteInvertedElements(first, model.name, out.notes);
+  if (first.dimension == 2 && first.element_counts.count("CPS3")) {
+    out.notes.push_back(
+        model.name +
+        ": CPS3 read as springfit's plane-stress triangle (the exact 2D law); ccx expands CPS3 "
+        "into wedges, whose answers differ by about 1e-2 (5x5 plate sheared at nu 0.45); ccx's "
+        "CPE3 with the plane-stress constants E(1+2nu)/(1+nu)^2 and nu/(1+nu) matches "
+        "springfit's answer exactly");
+  }
+  NumberNodes(model, out);
+
+  Json scene;
+  scene["name"] = std::filesystem::path(model.name).stem().string();
+  scene["description"] =
+      "imported from " + std::filesystem::path(model.name).filename().string() +
+      (paths.size() > 1 ? " and " + std::to_string(paths.size() - 1) + " more decks" : "");
+  scene["nodes"] = NodesJson(model);
+  scene["node_tags"] = out.node_ids;  // the deck's ids, which exports carry
+  if (Json sets = NodeSetsJson(model); !sets.empty()) scene["node_sets"] = std::move(sets);
+
+  const std::map<long, std::size_t> section_of = SectionOfElements(first);
+  const bool nlgeom = !model.steps.empty() && model.steps.front().nlgeom;
+  for (const auto& s : model.steps)
     if (s.nlgeom != nlgeom)
       Fail(s.line, "NLGEOM in some steps and not in others: one material law per model");
-  Json reference;
-  if (first.truss) {
-    // 2-node trusses: an MSS reference, k = E A / L at rest.
-    reference["type"] = "mss";
-    Json springs = Json::array(), stiffness = Json::array();
-    for (const auto& e : first.elements) {
-      if (e.type != "T2D2" && e.type != "T3D2")
-        throw InputError("", deck_name + ": trusses and continuum elements in one model");
-      const auto s = section_of.find(e.id);
-      if (s == section_of.end())
-        throw InputError("", deck_name + ": truss element " + std::to_string(e.id) +
-                                 " has no *SOLID SECTION (its area and material)");
-      const auto& sec = first.sections[s->second];
-      const int a = index.at(e.nodes[0]), b = index.at(e.nodes[1]);
-      double l2 = 0.0;
-      for (int c = 0; c < 3; ++c)
-        l2 += std::pow(first.nodes.at(e.nodes[0])[c] - first.nodes.at(e.nodes[1])[c], 2);
-      if (!sec.area_given)
-        Fail(sec.line, "a truss section needs its cross-section area on the line after it");
-      if (!(l2 > 0.0))
-        throw InputError(
-            "", deck_name + ": truss element " + std::to_string(e.id) + " has zero length");
-      springs.push_back({a, b});
-      stiffness.push_back(*first.materials.at(sec.material).young * sec.thickness_or_area /
-                          std::sqrt(l2));
-    }
-    reference["springs"] = std::move(springs);
-    reference["stiffness"] = std::move(stiffness);
-  } else {
-    reference["type"] = "fem";
-    Json elements = Json::array(), element_materials = Json::array(), materials = Json::array();
-    std::map<std::string, int> material_index;
-    std::optional<double> thickness;
-    for (const auto& e : first.elements) {
-      Json nodes_of = Json::array();
-      for (long n : e.nodes) nodes_of.push_back(index.at(n));
-      elements.push_back(std::move(nodes_of));
-      if (!out.has_sections) continue;  // the material comes from --loads
-      const auto s = section_of.find(e.id);
-      if (s == section_of.end())
-        throw InputError("", deck_name + ": element " + std::to_string(e.id) +
-                                 " has no *SOLID SECTION (its material)");
-      const auto& sec = first.sections[s->second];
-      if (d == 2) {
-        if (thickness && *thickness != sec.thickness_or_area)
-          Fail(sec.line, "sections of different thickness: springfit has one thickness per model");
-        thickness = sec.thickness_or_area;
-      }
-      auto [it, added] = material_index.emplace(sec.material, static_cast<int>(materials.size()));
-      if (added) {
-        const auto& m = first.materials.at(sec.material);
-        materials.push_back({{"model", nlgeom ? "st_venant_kirchhoff" : "linear"},
-                             {"young", *m.young},
-                             {"poisson", *m.poisson}});
-      }
-      element_materials.push_back(it->second);
-    }
-    reference["elements"] = std::move(elements);
-    if (!out.has_sections) {
-      ElementRegions(first, out);
-    } else if (materials.size() == 1) {
-      reference["material"] = materials[0];
-    } else {
-      reference["materials"] = std::move(materials);
-      reference["element_materials"] = std::move(element_materials);
-    }
-    if (d == 2) {
-      reference["plane"] = first.plane;
-      reference["thickness"] = thickness.value_or(1.0);
-    }
-  }
-  scene["reference"] = std::move(reference);
+  scene["reference"] = first.truss ? TrussReference(model, section_of)
+                                   : FemReference(model, section_of, nlgeom, out);
 
-  // One load case per step: held nodes (every dof of the dimension, or none), forces.
+  // One load case per step.
   Json cases = Json::array();
-  for (const Deck::Step& s : steps) {
+  for (const Deck::Step& s : model.steps) {
     Json lc;
     lc["name"] = s.name;
-    Json fixed = Json::array(), displacements = Json::array(), forces = Json::array();
-    for (const auto& [node, held] : s.held) {
-      const Line& where = s.held_line.at(node);
-      std::vector<double> u(static_cast<std::size_t>(d), 0.0);
-      int count = 0;
-      for (const auto& [dof, v] : held) {
-        if (dof >= d) {  // a 2D model's dof 3: holding it at 0 changes nothing
-          if (v != 0.0)
-            Fail(where, "node " + std::to_string(node) + ": a displacement along dof " +
-                            std::to_string(dof + 1) + " in a 2D model");
-          continue;
-        }
-        u[static_cast<std::size_t>(dof)] = v;
-        ++count;
-      }
-      if (count == 0) continue;
-      if (count != d)
-        Fail(where, "node " + std::to_string(node) + " is held in " + std::to_string(count) +
-                        " of its " + std::to_string(d) +
-                        " directions: springfit holds a node in every direction or none");
-      const int i = node_of(node, where);
-      if (std::all_of(u.begin(), u.end(), [](double x) { return x == 0.0; })) {
-        fixed.push_back(i);
-      } else {
-        displacements.push_back({{"node", i}, {"displacement", u}});
-      }
-    }
-    // Pressures as consistent nodal forces at rest (dead loads: under NLGEOM CalculiX's
-    // pressure follows the face, which a dead load does not, so they are refused there): -p A n
-    // / 3 on each node of the face, n its outward normal; shares on held nodes go to the support.
-    if (!s.pressures.empty() && s.nlgeom)
-      Fail(s.pressures[0].line, "*DLOAD under NLGEOM is a follower load: not read");
-    std::map<long, std::vector<double>> forces_of_step = s.forces;
-    std::map<long, Line> line_of_force = s.force_line;
-    std::map<long, const Deck::Element*> element_of;
-    if (!s.pressures.empty())
-      for (const auto& e : first.elements) element_of[e.id] = &e;
-    for (const auto& p : s.pressures) {
-      const auto it = element_of.find(p.element);
-      if (it == element_of.end()) Fail(p.line, "unknown element " + std::to_string(p.element));
-      if (it->second->type != "C3D4")
-        Fail(p.line, "*DLOAD on element " + std::to_string(p.element) + " (" + it->second->type +
-                         "): pressures are read on C3D4 faces only");
-      // C3D4 faces: 1-2-3, 1-4-2, 2-4-3, 3-4-1 (1-based), the fourth node opposite.
-      static constexpr int kFace[4][4] = {{0, 1, 2, 3}, {0, 3, 1, 2}, {1, 3, 2, 0}, {2, 3, 0, 1}};
-      const auto corner = [&](int k) {
-        const std::vector<double>& x = first.nodes.at(it->second->nodes[kFace[p.face][k]]);
-        return Eigen::Vector3d(x[0], x[1], x[2]);
-      };
-      Eigen::Vector3d area = 0.5 * (corner(1) - corner(0)).cross(corner(2) - corner(0));
-      if (area.dot(corner(3) - corner(0)) > 0.0) area = -area;  // outward
-      for (int k = 0; k < 3; ++k) {
-        const long node = it->second->nodes[kFace[p.face][k]];
-        if (s.held.count(node)) continue;
-        forces_of_step[node].resize(3, 0.0);
-        line_of_force.emplace(node, p.line);
-        std::vector<double>& force = forces_of_step[node];
-        force.resize(3, 0.0);
-        for (int c = 0; c < 3; ++c) force[c] -= p.value * area[c] / 3.0;
-      }
-    }
-    for (const auto& [node, f] : forces_of_step) {
-      // A force on a held node goes to the support (CalculiX counts it in the reaction).
-      if (s.held.count(node)) continue;
-      const int i = node_of(node, line_of_force.at(node));
-      if (d == 2 && f[2] != 0.0)
-        Fail(line_of_force.at(node),
-             "node " + std::to_string(node) + ": a force along dof 3 in a 2D model");
-      forces.push_back({{"node", i}, {"force", std::vector<double>(f.begin(), f.begin() + d)}});
-    }
-    lc["fixed"] = std::move(fixed);
-    if (!displacements.empty()) lc["displacements"] = std::move(displacements);
-    if (!forces.empty()) lc["forces"] = std::move(forces);
+    HeldNodes(model, s, lc);
+    StepForces(model, s, lc);
     cases.push_back(std::move(lc));
   }
-  if (!steps.empty()) scene["load_cases"] = std::move(cases);
+  if (!model.steps.empty()) scene["load_cases"] = std::move(cases);
   return scene;
 }
 
