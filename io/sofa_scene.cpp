@@ -62,195 +62,231 @@ SofaComponents SofaComponentsOf(const std::string& release) {
           i >= ReleaseIndex("v25.06")};
 }
 
-std::string SofaSceneText(const SpringModel& model, const SofaOptions& options) {
-  options.Validate();
-  const SofaComponents parts = SofaComponentsOf(options.release);
+namespace {
+
+std::string Number(double x) {
+  return ExactNumber(x);
+}
+
+// The load case the scene applies: --case, else the first.
+const SpringModel::LoadCase& ChosenLoadCase(const SpringModel& model, const SofaOptions& options) {
   if (model.load_cases.empty()) throw InputError("--case", "the scene has no load case");
-  const SpringModel::LoadCase* lc = &model.load_cases.front();
-  if (!options.load_case.empty()) {
-    const auto it = std::find_if(model.load_cases.begin(), model.load_cases.end(),
-                                 [&](const auto& c) { return c.name == options.load_case; });
-    if (it == model.load_cases.end()) {
-      std::string names;
-      for (const auto& c : model.load_cases) names += (names.empty() ? "'" : ", '") + c.name + "'";
-      throw InputError("--case",
-                       "no load case '" + options.load_case + "' (the scene's: " + names + ")");
-    }
-    lc = &*it;
+  if (options.load_case.empty()) return model.load_cases.front();
+  const auto it = std::find_if(model.load_cases.begin(), model.load_cases.end(),
+                               [&](const auto& c) { return c.name == options.load_case; });
+  if (it == model.load_cases.end()) {
+    std::string names;
+    for (const auto& c : model.load_cases) names += (names.empty() ? "'" : ", '") + c.name + "'";
+    throw InputError("--case",
+                     "no load case '" + options.load_case + "' (the scene's: " + names + ")");
   }
-  const bool masses = !model.mass.empty();
-  const bool gravity = std::any_of(options.gravity.begin(), options.gravity.end(),
-                                   [](double g) { return g != 0.0; });
-  if ((options.dynamic || gravity) && !masses) {
-    throw InputError(options.dynamic ? "--dynamic" : "--gravity",
-                     "needs the nodes' masses: give the material's density in the scene, "
-                     "--density (lumped on the mesh) or --node-mass");
-  }
-  const int d = model.dimension;
-  const int n = model.node_count();
+  return *it;
+}
 
-  // Scales for the solver's stopping tests: the body's size and the load's size.
-  double size = 0.0, force_scale = 0.0;
-  for (int c = 0; c < d; ++c) {
-    double lo = model.rest[static_cast<std::size_t>(c)], hi = lo;
+// What one SOFA scene is written from: the model, the options, the load case, and the scales of
+// the solver's stopping tests (the body's size and the load's size).
+struct SofaScene {
+  const SpringModel& model;
+  const SofaOptions& options;
+  const SofaComponents parts;
+  const SpringModel::LoadCase& lc;
+  bool masses = false;
+  double size = 0.0;
+  double force_scale = 0.0;
+  std::vector<int> loaded;  // the nodes the case puts a force on
+
+  SofaScene(const SpringModel& m, const SofaOptions& o)
+      : model(m), options(o), parts(SofaComponentsOf(o.release)), lc(ChosenLoadCase(m, o)) {
+    masses = !model.mass.empty();
+    const bool gravity = std::any_of(options.gravity.begin(), options.gravity.end(),
+                                     [](double g) { return g != 0.0; });
+    if ((options.dynamic || gravity) && !masses) {
+      throw InputError(options.dynamic ? "--dynamic" : "--gravity",
+                       "needs the nodes' masses: give the material's density in the scene, "
+                       "--density (lumped on the mesh) or --node-mass");
+    }
+    const int d = model.dimension;
+    const int n = model.node_count();
+    for (int c = 0; c < d; ++c) {
+      double lo = model.rest[static_cast<std::size_t>(c)], hi = lo;
+      for (int p = 0; p < n; ++p) {
+        lo = std::min(lo, model.rest[static_cast<std::size_t>(d * p + c)]);
+        hi = std::max(hi, model.rest[static_cast<std::size_t>(d * p + c)]);
+      }
+      size = std::max(size, hi - lo);
+    }
     for (int p = 0; p < n; ++p) {
-      lo = std::min(lo, model.rest[static_cast<std::size_t>(d * p + c)]);
-      hi = std::max(hi, model.rest[static_cast<std::size_t>(d * p + c)]);
+      double f2 = 0.0;
+      for (int c = 0; c < d; ++c) f2 += std::pow(lc.force[static_cast<std::size_t>(d * p + c)], 2);
+      if (f2 > 0.0) loaded.push_back(p);
+      force_scale = std::max(force_scale, std::sqrt(f2));
     }
-    size = std::max(size, hi - lo);
+    if (force_scale == 0.0) force_scale = 1.0;  // a case of prescribed displacements alone
   }
-  std::vector<int> loaded;
-  for (int p = 0; p < n; ++p) {
-    double f2 = 0.0;
-    for (int c = 0; c < d; ++c) f2 += std::pow(lc->force[static_cast<std::size_t>(d * p + c)], 2);
-    if (f2 > 0.0) loaded.push_back(p);
-    force_scale = std::max(force_scale, std::sqrt(f2));
+
+  // The comment that says what the scene is, and the root node with its plugins.
+  void WriteHeader(std::ostream& out) const {
+    out << "<?xml version=\"1.0\"?>\n<!-- springfit model " << XmlCommentText(model.name) << ": "
+        << XmlCommentText(model.description) << ".\n     SOFA " << options.release
+        << " (the release chosen at export; components as that release names them, "
+           "proto/MODEL.md).\n     Load case '"
+        << XmlCommentText(lc.name) << "': " << lc.held.size() << " held nodes, " << loaded.size()
+        << " loaded nodes. "
+        << (options.dynamic ? "Dynamic: implicit Euler, Rayleigh damping " +
+                                  Number(options.rayleigh_stiffness) + " K + " +
+                                  Number(options.rayleigh_mass) + " M."
+                            : "Static: Newton iterations to the equilibrium.")
+        << "\n     Masses: "
+        << (masses ? XmlCommentText(model.mass_source)
+                   : std::string("none (a static solve needs none)"))
+        << ".";
+    if (model.facts.stable_time_step)
+      out << " Stable explicit time step at most " << Number(*model.facts.stable_time_step)
+          << " (undamped).";
+    if (model.dimension == 2) out << "\n     2D model: Vec3d at z = 0, every node held along z.";
+    out << " -->\n";
+    out << "<Node name=\"root\" gravity=\"" << Number(options.gravity[0]) << " "
+        << Number(options.gravity[1]) << " " << Number(options.gravity[2]) << "\" dt=\""
+        << Number(options.time_step) << "\">\n";
+    std::vector<std::string> plugins = {
+        "Sofa.Component.StateContainer",        "Sofa.Component.Topology.Container.Dynamic",
+        "Sofa.Component.SolidMechanics.Spring", "Sofa.Component.Constraint.Projective",
+        "Sofa.Component.ODESolver.Backward",    "Sofa.Component.LinearSolver.Direct"};
+    if (!loaded.empty()) plugins.push_back("Sofa.Component.MechanicalLoad");
+    if (masses) plugins.push_back("Sofa.Component.Mass");
+    for (const auto& p : plugins) out << "  <RequiredPlugin name=\"" << p << "\"/>\n";
+    out << "  <DefaultAnimationLoop/>\n";
   }
-  if (force_scale == 0.0) force_scale = 1.0;  // a case of prescribed displacements alone
 
-  std::ostringstream out;
-  const auto number = [](double x) { return ExactNumber(x); };
-  out << "<?xml version=\"1.0\"?>\n<!-- springfit model " << XmlCommentText(model.name) << ": "
-      << XmlCommentText(model.description) << ".\n     SOFA " << options.release
-      << " (the release chosen at export; components as that release names them, "
-         "proto/MODEL.md).\n     Load case '"
-      << XmlCommentText(lc->name) << "': " << lc->held.size() << " held nodes, " << loaded.size()
-      << " loaded nodes. "
-      << (options.dynamic
-              ? "Dynamic: implicit Euler, Rayleigh damping " + number(options.rayleigh_stiffness) +
-                    " K + " + number(options.rayleigh_mass) + " M."
-              : "Static: Newton iterations to the equilibrium.")
-      << "\n     Masses: "
-      << (masses ? XmlCommentText(model.mass_source)
-                 : std::string("none (a static solve needs none)"))
-      << ".";
-  if (model.facts.stable_time_step)
-    out << " Stable explicit time step at most " << number(*model.facts.stable_time_step)
-        << " (undamped).";
-  if (d == 2) out << "\n     2D model: Vec3d at z = 0, every node held along z.";
-  out << " -->\n";
-
-  out << "<Node name=\"root\" gravity=\"" << number(options.gravity[0]) << " "
-      << number(options.gravity[1]) << " " << number(options.gravity[2]) << "\" dt=\""
-      << number(options.time_step) << "\">\n";
-  std::vector<std::string> plugins = {
-      "Sofa.Component.StateContainer",        "Sofa.Component.Topology.Container.Dynamic",
-      "Sofa.Component.SolidMechanics.Spring", "Sofa.Component.Constraint.Projective",
-      "Sofa.Component.ODESolver.Backward",    "Sofa.Component.LinearSolver.Direct"};
-  if (!loaded.empty()) plugins.push_back("Sofa.Component.MechanicalLoad");
-  if (masses) plugins.push_back("Sofa.Component.Mass");
-  for (const auto& p : plugins) out << "  <RequiredPlugin name=\"" << p << "\"/>\n";
-  out << "  <DefaultAnimationLoop/>\n";
-  out << "  <Node name=\"" << XmlEscape(model.name) << "\">\n";
-
-  // Solver.
-  const auto short_number = [](double x) {
-    char text[32];
-    std::snprintf(text, sizeof text, "%.3g", x);
-    return std::string(text);
-  };
-  const std::string residual = short_number(1e-12 * force_scale);
-  const std::string correction = short_number(1e-12 * (size > 0.0 ? size : 1.0));
-  if (options.dynamic) {
-    out << "    <EulerImplicitSolver name=\"odesolver\" rayleighStiffness=\""
-        << number(options.rayleigh_stiffness) << "\" rayleighMass=\""
-        << number(options.rayleigh_mass) << "\"/>\n";
-  } else if (parts.newton_raphson_component) {
-    out << "    <NewtonRaphsonSolver name=\"newton\" maxNbIterationsNewton=\""
-        << options.newton_iterations << "\" absoluteResidualStoppingThreshold=\"" << residual
-        << "\" relativeInitialStoppingThreshold=\"1e-12\" absoluteEstimateDifferenceThreshold=\""
-        << correction << "\" relativeEstimateDifferenceThreshold=\"1e-12\"/>\n"
-        << "    <StaticSolver name=\"odesolver\" newtonSolver=\"@newton\"/>\n";
-  } else {
-    out << "    <StaticSolver name=\"odesolver\" newton_iterations=\"" << options.newton_iterations
-        << "\" absolute_residual_tolerance_threshold=\"" << residual
-        << "\" relative_residual_tolerance_threshold=\"1e-12\" "
-           "absolute_correction_tolerance_threshold=\""
-        << correction << "\" relative_correction_tolerance_threshold=\"1e-12\"/>\n";
+  // The time integration (implicit Euler) or the static Newton solve, and the linear solver.
+  void WriteSolver(std::ostream& out) const {
+    const auto short_number = [](double x) {
+      char text[32];
+      std::snprintf(text, sizeof text, "%.3g", x);
+      return std::string(text);
+    };
+    const std::string residual = short_number(1e-12 * force_scale);
+    const std::string correction = short_number(1e-12 * (size > 0.0 ? size : 1.0));
+    if (options.dynamic) {
+      out << "    <EulerImplicitSolver name=\"odesolver\" rayleighStiffness=\""
+          << Number(options.rayleigh_stiffness) << "\" rayleighMass=\""
+          << Number(options.rayleigh_mass) << "\"/>\n";
+    } else if (parts.newton_raphson_component) {
+      out << "    <NewtonRaphsonSolver name=\"newton\" maxNbIterationsNewton=\""
+          << options.newton_iterations << "\" absoluteResidualStoppingThreshold=\"" << residual
+          << "\" relativeInitialStoppingThreshold=\"1e-12\" absoluteEstimateDifferenceThreshold=\""
+          << correction << "\" relativeEstimateDifferenceThreshold=\"1e-12\"/>\n"
+          << "    <StaticSolver name=\"odesolver\" newtonSolver=\"@newton\"/>\n";
+    } else {
+      out << "    <StaticSolver name=\"odesolver\" newton_iterations=\""
+          << options.newton_iterations << "\" absolute_residual_tolerance_threshold=\"" << residual
+          << "\" relative_residual_tolerance_threshold=\"1e-12\" "
+             "absolute_correction_tolerance_threshold=\""
+          << correction << "\" relative_correction_tolerance_threshold=\"1e-12\"/>\n";
+    }
+    out << "    <SparseLDLSolver name=\"linearsolver\" "
+           "template=\"CompressedRowSparseMatrixMat3x3d\"/>\n";
   }
-  out << "    <SparseLDLSolver name=\"linearsolver\" "
-         "template=\"CompressedRowSparseMatrixMat3x3d\"/>\n";
 
   // Topology (its points: every node, also those no spring holds), state, mass.
-  out << "    <EdgeSetTopologyContainer name=\"topology\" position=\"";
-  for (int p = 0; p < n; ++p) {
-    if (p > 0) out << "  ";
-    Point(out, model.rest, d, p);
-  }
-  out << "\" edges=\"";
-  for (std::size_t i = 0; i < model.springs.size(); ++i)
-    out << (i > 0 ? "  " : "") << model.springs[i].a << " " << model.springs[i].b;
-  out << "\"/>\n    <MechanicalObject name=\"dofs\" template=\"Vec3d\" position=\"";
-  for (int p = 0; p < n; ++p) {
-    if (p > 0) out << "  ";
-    Point(out, lc->start, d, p);
-  }
-  out << "\" rest_position=\"";
-  for (int p = 0; p < n; ++p) {
-    if (p > 0) out << "  ";
-    Point(out, model.rest, d, p);
-  }
-  out << "\"/>\n";
-  if (masses) {
+  void WriteBody(std::ostream& out) const {
+    const int d = model.dimension;
+    const int n = model.node_count();
+    const auto points = [&](const std::vector<double>& flat) {
+      for (int p = 0; p < n; ++p) {
+        if (p > 0) out << "  ";
+        Point(out, flat, d, p);
+      }
+    };
+    out << "    <EdgeSetTopologyContainer name=\"topology\" position=\"";
+    points(model.rest);
+    out << "\" edges=\"";
+    for (std::size_t i = 0; i < model.springs.size(); ++i)
+      out << (i > 0 ? "  " : "") << model.springs[i].a << " " << model.springs[i].b;
+    out << "\"/>\n    <MechanicalObject name=\"dofs\" template=\"Vec3d\" position=\"";
+    points(lc.start);
+    out << "\" rest_position=\"";
+    points(model.rest);
+    out << "\"/>\n";
+    if (!masses) return;
     const bool uniform = std::all_of(model.mass.begin(), model.mass.end(),
                                      [&](double m) { return m == model.mass.front(); });
     if (uniform) {
-      out << "    <UniformMass name=\"mass\" vertexMass=\"" << number(model.mass.front())
+      out << "    <UniformMass name=\"mass\" vertexMass=\"" << Number(model.mass.front())
           << "\"/>\n";
     } else {
       out << "    <DiagonalMass name=\"mass\" vertexMass=\"";
       for (int p = 0; p < n; ++p)
-        out << (p > 0 ? " " : "") << number(model.mass[static_cast<std::size_t>(p)]);
+        out << (p > 0 ? " " : "") << Number(model.mass[static_cast<std::size_t>(p)]);
       out << "\"/>\n";
     }
   }
 
-  // Springs: "index1 index2 stiffness damping rest_length" each (SOFA's LinearSpring).
-  out << "    <" << parts.springs << " name=\"springs\" template=\"Vec3d\" spring=\"";
-  for (std::size_t i = 0; i < model.springs.size(); ++i) {
-    const auto& s = model.springs[i];
-    out << (i > 0 ? "  " : "") << s.a << " " << s.b << " " << number(s.stiffness) << " 0 "
-        << number(s.rest_length);
-  }
-  out << "\"/>\n";
-  std::string flagged;
-  bool not_analysed = false;
-  for (std::size_t i = 0; i < model.springs.size(); ++i) {
-    if (model.springs[i].identified == SpringModel::Identified::kNo)
-      flagged += " " + std::to_string(i);
-    not_analysed =
-        not_analysed || model.springs[i].identified == SpringModel::Identified::kNotAnalysed;
-  }
-  if (!flagged.empty()) {
-    out << "    <!-- springs (0-based, in the order above) whose stiffness the load cases do not "
-           "determine:"
-        << flagged << " -->\n";
-  }
-  if (not_analysed) {
-    out << "    <!-- whether the load cases determine the other springs' stiffness was not "
-           "analysed (too many springs for the analysis of dependent groups) -->\n";
+  // Springs: "index1 index2 stiffness damping rest_length" each (SOFA's LinearSpring), and
+  // which of them the load cases do not determine (SOFA has no per-spring flag: a comment).
+  void WriteSprings(std::ostream& out) const {
+    out << "    <" << parts.springs << " name=\"springs\" template=\"Vec3d\" spring=\"";
+    for (std::size_t i = 0; i < model.springs.size(); ++i) {
+      const auto& s = model.springs[i];
+      out << (i > 0 ? "  " : "") << s.a << " " << s.b << " " << Number(s.stiffness) << " 0 "
+          << Number(s.rest_length);
+    }
+    out << "\"/>\n";
+    std::string flagged;
+    bool not_analysed = false;
+    for (std::size_t i = 0; i < model.springs.size(); ++i) {
+      if (model.springs[i].identified == SpringModel::Identified::kNo)
+        flagged += " " + std::to_string(i);
+      not_analysed =
+          not_analysed || model.springs[i].identified == SpringModel::Identified::kNotAnalysed;
+    }
+    if (!flagged.empty()) {
+      out << "    <!-- springs (0-based, in the order above) whose stiffness the load cases do "
+             "not determine:"
+          << flagged << " -->\n";
+    }
+    if (not_analysed) {
+      out << "    <!-- whether the load cases determine the other springs' stiffness was not "
+             "analysed (too many springs for the analysis of dependent groups) -->\n";
+    }
   }
 
   // Supports and loads of the case.
-  if (!lc->held.empty()) {
-    out << "    <" << parts.fixed << " name=\"supports\" indices=\"";
-    for (std::size_t i = 0; i < lc->held.size(); ++i) out << (i > 0 ? " " : "") << lc->held[i];
-    out << "\"/>\n";
-  }
-  if (d == 2) {
-    out << "    <" << parts.partial_fixed
-        << " name=\"plane\" fixAll=\"1\" fixedDirections=\"0 0 1\"/>\n";
-  }
-  if (!loaded.empty()) {
-    out << "    <ConstantForceField name=\"loads\" indices=\"";
-    for (std::size_t i = 0; i < loaded.size(); ++i) out << (i > 0 ? " " : "") << loaded[i];
-    out << "\" forces=\"";
-    for (std::size_t i = 0; i < loaded.size(); ++i) {
-      if (i > 0) out << "  ";
-      Point(out, lc->force, d, loaded[i]);
+  void WriteSupportsAndLoads(std::ostream& out) const {
+    if (!lc.held.empty()) {
+      out << "    <" << parts.fixed << " name=\"supports\" indices=\"";
+      for (std::size_t i = 0; i < lc.held.size(); ++i) out << (i > 0 ? " " : "") << lc.held[i];
+      out << "\"/>\n";
     }
-    out << "\"/>\n";
+    if (model.dimension == 2) {
+      out << "    <" << parts.partial_fixed
+          << " name=\"plane\" fixAll=\"1\" fixedDirections=\"0 0 1\"/>\n";
+    }
+    if (!loaded.empty()) {
+      out << "    <ConstantForceField name=\"loads\" indices=\"";
+      for (std::size_t i = 0; i < loaded.size(); ++i) out << (i > 0 ? " " : "") << loaded[i];
+      out << "\" forces=\"";
+      for (std::size_t i = 0; i < loaded.size(); ++i) {
+        if (i > 0) out << "  ";
+        Point(out, lc.force, model.dimension, loaded[i]);
+      }
+      out << "\"/>\n";
+    }
   }
+};
+
+}  // namespace
+
+std::string SofaSceneText(const SpringModel& model, const SofaOptions& options) {
+  options.Validate();
+  const SofaScene scene(model, options);
+  std::ostringstream out;
+  scene.WriteHeader(out);
+  out << "  <Node name=\"" << XmlEscape(model.name) << "\">\n";
+  scene.WriteSolver(out);
+  scene.WriteBody(out);
+  scene.WriteSprings(out);
+  scene.WriteSupportsAndLoads(out);
   out << "  </Node>\n</Node>\n";
   return out.str();
 }
