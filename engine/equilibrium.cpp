@@ -12,11 +12,6 @@
 namespace springfit {
 namespace {
 
-constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
-// An energy comparison is decided only beyond this many ulps of the energy's magnitude (the
-// scale of its rounding error, see Assemble): near the solution the true decrease falls below
-// the rounding of E (DESIGN.md).
-constexpr double kEnergyRoundoffUlps = 64.0;
 // Shifts tried, in turn, when even the projected Hessian is singular at the current
 // configuration (a folded state): a Levenberg-like regularisation of the scaled matrix.
 constexpr double kRegularisationShifts[] = {1e-10, 1e-7, 1e-4, 1e-1};
@@ -388,36 +383,33 @@ const char* EquilibriumSolver::NewtonStep(const ActiveSprings& springs, const Ve
 
 template <int D>
 bool EquilibriumSolver::LineSearch(const ActiveSprings& springs, const Vector& force, double slope,
-                                   Vector& u, NewtonPoint& at, EquilibriumSummary& summary) {
+                                   Vector& u, EnergyPoint& at, EquilibriumSummary& summary) {
   // Each trial also assembles the gradient and the exact Hessian: the full step is accepted
   // almost always, and then the next iteration needs them.
   const int nodes = static_cast<int>(free_.free_index.size());
-  double alpha = 1.0;
-  for (int ls = 0; ls <= options_.max_line_search_steps; ++ls) {
-    trial_u_ = u;
-    for (int node = 0; node < nodes; ++node) {
-      const int fi = free_.free_index[node];
-      if (fi >= 0)
-        trial_u_.template segment<D>(D * node) += alpha * step_.template segment<D>(D * fi);
-    }
-    double trial_magnitude = 0.0;
-    const double trial_energy =
-        Assemble<D>(springs, force, trial_u_, &trial_gradient_, true, false, &trial_magnitude);
-    const double roundoff =
-        kEnergyRoundoffUlps * kEpsilon * std::max(at.magnitude, trial_magnitude);
-    const double trial_residual = trial_gradient_.template lpNorm<Eigen::Infinity>();
-    const bool sufficient_decrease = trial_energy <= at.energy + options_.armijo * alpha * slope;
-    // Within round-off of E, the gradient is the better judge of progress.
-    const bool roundoff_progress =
-        std::abs(trial_energy - at.energy) <= roundoff && trial_residual < at.residual;
-    if (std::isfinite(trial_energy) && (sufficient_decrease || roundoff_progress)) {
-      u.swap(trial_u_);
-      gradient_.swap(trial_gradient_);
-      at = {trial_energy, trial_magnitude, trial_residual};
-      return true;
-    }
-    ++summary.line_search_steps;
-    alpha *= 0.5;
+  const LineSearchOptions search{options_.armijo, options_.max_line_search_steps + 1,
+                                 RoundoffRule::kGradientDecides};
+  const std::optional<EnergyPoint> accepted = BacktrackingLineSearch(
+      at, slope, search,
+      [&](double alpha) {
+        trial_u_ = u;
+        for (int node = 0; node < nodes; ++node) {
+          const int fi = free_.free_index[node];
+          if (fi >= 0)
+            trial_u_.template segment<D>(D * node) += alpha * step_.template segment<D>(D * fi);
+        }
+        EnergyPoint trial;
+        trial.energy =
+            Assemble<D>(springs, force, trial_u_, &trial_gradient_, true, false, &trial.magnitude);
+        trial.residual = trial_gradient_.template lpNorm<Eigen::Infinity>();
+        return trial;
+      },
+      &summary.line_search_steps);
+  if (accepted) {
+    u.swap(trial_u_);
+    gradient_.swap(trial_gradient_);
+    at = *accepted;
+    return true;
   }
   // Restore the Hessian of the current point for a caller that inspects it.
   Assemble<D>(springs, force, u, &gradient_, true, false, nullptr);
@@ -444,7 +436,7 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, co
   if (force_scale == 0.0) force_scale = floor_max / options_.roundoff_force_tolerance;
   relative_ = options_.relative_force_tolerance * force_scale;
 
-  NewtonPoint at;
+  EnergyPoint at;
   at.energy = Assemble<D>(springs, force, u, &gradient_, true, false, &at.magnitude);
   at.residual = gradient_.template lpNorm<Eigen::Infinity>();
   summary.initial_residual = at.residual / force_scale;

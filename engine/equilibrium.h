@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/backtracking_line_search.h"
 #include "engine/interruption.h"
 #include "engine/linalg.h"
 #include "engine/springs.h"
@@ -243,16 +244,11 @@ class EquilibriumSolver {
   template <int D>
   const char* NewtonStep(const ActiveSprings& springs, const Vector& force, const Vector& u,
                          EquilibriumSummary& summary, double& slope);
-  // Where the iteration stands.
-  struct NewtonPoint {
-    double energy = 0.0;
-    double magnitude = 0.0;  // of the energy's terms: its round-off scale
-    double residual = 0.0;   // |gradient|_inf
-  };
-  // Backtracking along step_ from u, round-off tolerant; false when no step length is taken.
+  // Backtracking along step_ from u (backtracking_line_search.h), from `at` (the iteration's
+  // energy, its magnitude and |gradient|_inf); false when no step length is taken.
   template <int D>
   bool LineSearch(const ActiveSprings& springs, const Vector& force, double slope, Vector& u,
-                  NewtonPoint& at, EquilibriumSummary& summary);
+                  EnergyPoint& at, EquilibriumSummary& summary);
 
   const SpringGeometry* geometry_ = nullptr;
   FreeNodes free_;

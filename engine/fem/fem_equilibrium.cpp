@@ -5,16 +5,12 @@
 #include <limits>
 #include <stdexcept>
 
+#include "engine/backtracking_line_search.h"
 #include "engine/options_check.h"
 
 namespace springfit::fem {
 namespace {
 
-constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
-// An energy comparison is decided only beyond this many ulps of the energy's magnitude (the
-// sum of the absolute element energies and work): near the solution the true decrease falls
-// below the rounding of E (DESIGN.md).
-constexpr double kEnergyRoundoffUlps = 64.0;
 // Shifts of the Jacobi-scaled tangent tried in turn where it is not positive definite: a
 // Levenberg-like regularisation that keeps the Newton direction a descent direction.
 constexpr double kShifts[] = {0.0, 1e-10, 1e-7, 1e-4, 1e-2, 1e-1, 1.0, 10.0};
@@ -217,24 +213,20 @@ bool FemEquilibriumSolver::Newton(const Vector& force, double load, double toler
     const double slope = gradient_.dot(step_);
     if (!(slope < 0.0)) return false;
     ++summary.iterations;
-    double alpha = 1.0;
-    bool accepted = false;
-    for (int ls = 0; ls < options_.max_line_search_steps; ++ls) {
-      trial_ = u;
-      for (int node = 0; node < static_cast<int>(free_.free_index.size()); ++node) {
-        const int f = free_.free_index[node];
-        if (f >= 0) trial_.segment(dim_ * node, dim_) += alpha * step_.segment(dim_ * f, dim_);
-      }
-      double trial_magnitude = 0.0;
-      const double trial_energy = Energy(force, load, trial_, nullptr, false, &trial_magnitude);
-      const double roundoff = kEnergyRoundoffUlps * kEpsilon * std::max(magnitude, trial_magnitude);
-      if (std::isfinite(trial_energy) &&
-          trial_energy <= energy + options_.armijo * alpha * slope + roundoff) {
-        accepted = true;
-        break;
-      }
-      alpha *= 0.5;
-    }
+    const LineSearchOptions search{options_.armijo, options_.max_line_search_steps,
+                                   RoundoffRule::kSlack};
+    const EnergyPoint at{energy, magnitude, residual};
+    const bool accepted =
+        BacktrackingLineSearch(at, slope, search, [&](double alpha) {
+          trial_ = u;
+          for (int node = 0; node < static_cast<int>(free_.free_index.size()); ++node) {
+            const int f = free_.free_index[node];
+            if (f >= 0) trial_.segment(dim_ * node, dim_) += alpha * step_.segment(dim_ * f, dim_);
+          }
+          EnergyPoint trial;
+          trial.energy = Energy(force, load, trial_, nullptr, false, &trial.magnitude);
+          return trial;
+        }).has_value();
     if (!accepted) return false;
     u.swap(trial_);
     energy = Energy(force, load, u, &gradient_, need_tangent(), &magnitude);

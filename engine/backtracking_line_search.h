@@ -1,0 +1,74 @@
+// The backtracking line search of both Newton solvers (the MSS's, engine/equilibrium.h, and the
+// FEM reference's, engine/fem/fem_equilibrium.h), in one place: the step is halved from its
+// full length until the energy decreases enough (Armijo's condition), where the energy's
+// round-off is judged the same way in both.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+
+namespace springfit {
+
+// A point of the search: the energy, the magnitude of its terms (its round-off scale) and the
+// gradient's largest entry (read by RoundoffRule::kGradientDecides only).
+struct EnergyPoint {
+  double energy = 0.0;
+  double magnitude = 0.0;
+  double residual = 0.0;
+};
+
+// An energy is known to 64 ulps of the larger magnitude of its terms (a sum of many terms
+// cancels): a difference below it is round-off.
+inline double EnergyRoundoff(double magnitude, double trial_magnitude) {
+  constexpr double kEnergyRoundoffUlps = 64.0;
+  return kEnergyRoundoffUlps * std::numeric_limits<double>::epsilon() *
+         std::max(magnitude, trial_magnitude);
+}
+
+// What counts as progress when the energy's change is within its round-off.
+enum class RoundoffRule {
+  // A trial whose gradient is smaller (the MSS solver: it assembles the gradient with every
+  // trial, and near equilibrium E is flat to round-off while the gradient still tells).
+  kGradientDecides,
+  // Any trial: the decrease is asked for up to the round-off (the FEM solver, which assembles
+  // the energy alone per trial).
+  kSlack,
+};
+
+struct LineSearchOptions {
+  double armijo = 1e-4;  // the sufficient decrease's fraction of the slope
+  int trials = 1;        // step lengths tried: 1, 1/2, 1/4, ...
+  RoundoffRule rule = RoundoffRule::kSlack;
+};
+
+// `trial(alpha)` evaluates the point at step length alpha and returns it. Returns the accepted
+// point (the last one `trial` evaluated), or nothing when no step length was accepted;
+// `rejected` counts the step lengths refused.
+template <typename Trial>
+std::optional<EnergyPoint> BacktrackingLineSearch(const EnergyPoint& at, double slope,
+                                                  const LineSearchOptions& options, Trial&& trial,
+                                                  int* rejected = nullptr) {
+  double alpha = 1.0;
+  for (int t = 0; t < options.trials; ++t) {
+    const EnergyPoint next = trial(alpha);
+    const double roundoff = EnergyRoundoff(at.magnitude, next.magnitude);
+    bool accepted = false;
+    if (options.rule == RoundoffRule::kGradientDecides) {
+      const bool sufficient_decrease = next.energy <= at.energy + options.armijo * alpha * slope;
+      const bool roundoff_progress =
+          std::abs(next.energy - at.energy) <= roundoff && next.residual < at.residual;
+      accepted = std::isfinite(next.energy) && (sufficient_decrease || roundoff_progress);
+    } else {
+      accepted = std::isfinite(next.energy) &&
+                 next.energy <= at.energy + options.armijo * alpha * slope + roundoff;
+    }
+    if (accepted) return next;
+    if (rejected) ++*rejected;
+    alpha *= 0.5;
+  }
+  return std::nullopt;
+}
+
+}  // namespace springfit
