@@ -46,7 +46,10 @@ void PrintOutcome(const Outcome& o, std::ostream& out) {
   if (!o.reason.empty()) out << "NO USABLE MODEL:   " << o.reason << "\n";
 }
 
-void PrintResultSummary(const proto::Json& r, std::ostream& out) {
+namespace {
+
+// How the run went: the scene and job, the verdict, the strategy and its stop, its work.
+void PrintRun(const proto::Json& r, bool continuous, std::ostream& out) {
   out << "scene:             " << r.value("scene", std::string()) << "\n";
   if (r.contains("job_id"))
     out << "job:               " << r["job_id"].get<long long>() << " ("
@@ -60,7 +63,6 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
     out << "identified:        " << r.value("identify", std::string()) << "\n";
   if (r.contains("response"))
     out << "response:          " << r.value("response", std::string()) << "\n";
-  const bool continuous = r.contains("continuous") && r["continuous"].is_object();
   const std::string stop = r.value("stop", std::string());
   // A run without an answer says why and what to try, whatever the strategy.
   const bool no_answer =
@@ -95,6 +97,10 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
     }
     out << "\n";
   }
+}
+
+// The model: its springs, the stiffness a simulator gets, E on the named cases.
+void PrintModel(const proto::Json& r, std::ostream& out) {
   out << "springs:           " << r.value("springs", proto::Json::array()).size() << " of "
       << r.value("genes", 0) << " genes";
   const int unseen = r.contains("outcome") ? r["outcome"].value("unseen_springs", 0) : 0;
@@ -121,122 +127,130 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
                                   : std::string("- (no equilibrium)"))
       << " on the named load cases (relative RMS nodal error against the reference)"
       << (r.value("mechanism", false) ? "; a mechanism" : "") << "\n";
-  if (continuous) {
-    const proto::Json& c = r["continuous"];
-    const proto::Json& path = c["path"];
-    if (!path.empty()) {
-      const auto error = [](const proto::Json& point) {
-        return point.contains("rms_error") && point["rms_error"].is_number()
-                   ? Format("%.4g", point["rms_error"].get<double>())
-                   : std::string("-");
-      };
-      out << "sparsity path:     " << path.size() << " points, from "
-          << path.front().value("springs", 0) << " springs (E " << error(path.front()) << ") to "
-          << path.back().value("springs", 0) << " (E " << error(path.back())
-          << "); springfit plot --tradeoff draws it\n";
-    }
-    const proto::Json reg = c.value("regularization", proto::Json::object());
-    const proto::Json tried = reg.value("tried", proto::Json::array());
-    if (reg.value("strength", 0.0) > 0.0 || !tried.empty()) {
-      out << "regularization:    " << Format("%.3g", reg.value("strength", 0.0));
-      if (!tried.empty()) {
-        out << ", the lowest held-out E of those tried (";
-        for (std::size_t i = 0; i < tried.size(); ++i) {
-          const proto::Json& t = tried[i];
-          out << (i > 0 ? ", " : "") << Format("%.3g", t.value("strength", 0.0)) << ": "
-              << (t["held_out_rms_error"].is_number()
-                      ? Format("%.4g", t["held_out_rms_error"].get<double>())
-                      : std::string("-"));
-        }
-        out << ")";
-      }
-      out << "\n";
-    }
-    if (c.contains("held_out_rms_error") && c["held_out_rms_error"].is_number()) {
-      out << "held-out E:        " << Format("%.6g", c["held_out_rms_error"].get<double>())
-          << " (each load case predicted by the springs fitted to the others)\n";
-      // The case predicted worst (unpredictable: no equilibrium), beside its E when fitted:
-      // the kind of deformation the other cases tell least about.
-      const proto::Json per_case = c.value("held_out_rms_error_per_case", proto::Json::array());
-      const proto::Json cases = r.value("load_cases", proto::Json::array());
-      std::size_t worst = per_case.size();
-      for (std::size_t k = 0; k < per_case.size() && k < cases.size(); ++k) {
-        if (worst < per_case.size() && !per_case[worst].is_number()) break;
-        if (!per_case[k].is_number() ||
-            (worst == per_case.size() || per_case[k].get<double>() > per_case[worst].get<double>()))
-          worst = k;
-      }
-      if (worst < per_case.size() && per_case.size() > 1) {
-        const proto::Json& lc = cases[worst];
-        out << "  worst predicted: '" << lc.value("name", std::string()) << "', E "
-            << (per_case[worst].is_number() ? Format("%.4g", per_case[worst].get<double>())
-                                            : std::string("- (no equilibrium)"))
-            << " (" << Format("%.4g", std::sqrt(lc.value("normalized_error", 0.0)))
-            << " fitted with it): the other cases tell least about its deformation\n";
-      }
-    }
-  }
-  if (r.contains("baseline") && r["baseline"].is_object()) {
-    const proto::Json& b = r["baseline"];
-    out << "baseline:          " << b.value("recipe", std::string()) << " on the "
-        << b.value("springs", 0) << " mesh edges: ";
-    if (b.value("converged", false)) {
-      out << "E " << Format("%.6g", b.value("rms_error", 0.0)) << "\n";
-    } else {
-      out << "no equilibrium\n";
-    }
-    if (b.value("worse_than_baseline", false)) {
-      out << "WARNING:           THIS MODEL IS WORSE THAN THE CLOSED-FORM BASELINE ("
-          << b.value("recipe", std::string())
-          << "): its stiffness on the mesh edges reproduces the reference better\n";
-    }
-  }
-  if (r.contains("generalization") && r["generalization"].is_object()) {
-    const proto::Json& g = r["generalization"];
-    // ("inf": some probe finds a mode the model leaves free; "-": not measured.)
-    const auto number = [](const proto::Json& j, const char* key) {
-      if (j.contains(key) && j[key].is_string()) return j[key].get<std::string>();
-      return j.contains(key) && j[key].is_number() ? Format("%.3g", j[key].get<double>())
-                                                   : std::string("-");
+}
+
+// Strategy continuous: the sparsity path, the regularisation, the held-out error.
+void PrintContinuous(const proto::Json& r, std::ostream& out) {
+  const proto::Json& c = r["continuous"];
+  const proto::Json& path = c["path"];
+  if (!path.empty()) {
+    const auto error = [](const proto::Json& point) {
+      return point.contains("rms_error") && point["rms_error"].is_number()
+                 ? Format("%.4g", point["rms_error"].get<double>())
+                 : std::string("-");
     };
-    const proto::Json held = g.value("held_out", proto::Json::object());
-    const proto::Json base = g.value("baseline_held_out", proto::Json::object());
-    const proto::Json probes = g.value("probes", proto::Json::object());
-    out << "unseen loads:      " << held.value("probes", 0) << " held-out probes on "
-        << probes.value("supports", 0) << " supports, never fitted: median E "
-        << number(held, "median") << ", 95% " << number(held, "p95") << "; baseline "
-        << number(base, "median") << ", 95% " << number(base, "p95") << "\n";
-    const proto::Json families = g.value("by_family", proto::Json::object());
-    const proto::Json base_families = g.value("baseline_by_family", proto::Json::object());
-    out << "  by family:       ";
-    bool first = true;
-    for (const auto& [name, f] : families.items()) {
-      out << (first ? "" : "; ") << name << " " << number(f, "median") << " (baseline "
-          << number(base_families.value(name, proto::Json::object()), "median") << ")";
-      first = false;
-    }
-    out << " (median E; named: the user's cases, fitted)\n";
-    // A nonlinear response: the same loads at fractions of the named loads' size, every model
-    // nonlinear.
-    for (const auto& a : g.value("amplitudes", proto::Json::array())) {
-      const proto::Json model = a.value("model", proto::Json::object());
-      const proto::Json baseline = a.value("baseline", proto::Json::object());
-      out << "  nonlinear at " << Format("%3.0f", 100.0 * a.value("amplitude", 0.0))
-          << "%: " << model.value("probes", 0) << " probes solved to equilibrium: median E "
-          << number(model, "median") << ", 95% " << number(model, "p95") << "; baseline "
-          << number(baseline, "median") << ", 95% " << number(baseline, "p95");
-      if (a.value("reference_failed", 0) > 0)
-        out << " (" << a.value("reference_failed", 0) << " left out: no reference equilibrium)";
-      out << "\n";
-    }
-    out << "  every load:      generalised eigenvalues of (K_model, K_ref) on the user's supports "
-           "in ["
-        << number(g, "lambda_min") << ", " << number(g, "lambda_max")
-        << "]: energy-norm error at most " << number(g, "bound") << " of the response\n";
-    if (g.value("returned_baseline", false))
-      out << "WARNING:           THE FITTED MODEL DID NO BETTER THAN THE CLOSED-FORM BASELINE ON "
-             "HELD-OUT LOADS: the baseline is returned\n";
+    out << "sparsity path:     " << path.size() << " points, from "
+        << path.front().value("springs", 0) << " springs (E " << error(path.front()) << ") to "
+        << path.back().value("springs", 0) << " (E " << error(path.back())
+        << "); springfit plot --tradeoff draws it\n";
   }
+  const proto::Json reg = c.value("regularization", proto::Json::object());
+  const proto::Json tried = reg.value("tried", proto::Json::array());
+  if (reg.value("strength", 0.0) > 0.0 || !tried.empty()) {
+    out << "regularization:    " << Format("%.3g", reg.value("strength", 0.0));
+    if (!tried.empty()) {
+      out << ", the lowest held-out E of those tried (";
+      for (std::size_t i = 0; i < tried.size(); ++i) {
+        const proto::Json& t = tried[i];
+        out << (i > 0 ? ", " : "") << Format("%.3g", t.value("strength", 0.0)) << ": "
+            << (t["held_out_rms_error"].is_number()
+                    ? Format("%.4g", t["held_out_rms_error"].get<double>())
+                    : std::string("-"));
+      }
+      out << ")";
+    }
+    out << "\n";
+  }
+  if (c.contains("held_out_rms_error") && c["held_out_rms_error"].is_number()) {
+    out << "held-out E:        " << Format("%.6g", c["held_out_rms_error"].get<double>())
+        << " (each load case predicted by the springs fitted to the others)\n";
+    // The case predicted worst (unpredictable: no equilibrium), beside its E when fitted:
+    // the kind of deformation the other cases tell least about.
+    const proto::Json per_case = c.value("held_out_rms_error_per_case", proto::Json::array());
+    const proto::Json cases = r.value("load_cases", proto::Json::array());
+    std::size_t worst = per_case.size();
+    for (std::size_t k = 0; k < per_case.size() && k < cases.size(); ++k) {
+      if (worst < per_case.size() && !per_case[worst].is_number()) break;
+      if (!per_case[k].is_number() ||
+          (worst == per_case.size() || per_case[k].get<double>() > per_case[worst].get<double>()))
+        worst = k;
+    }
+    if (worst < per_case.size() && per_case.size() > 1) {
+      const proto::Json& lc = cases[worst];
+      out << "  worst predicted: '" << lc.value("name", std::string()) << "', E "
+          << (per_case[worst].is_number() ? Format("%.4g", per_case[worst].get<double>())
+                                          : std::string("- (no equilibrium)"))
+          << " (" << Format("%.4g", std::sqrt(lc.value("normalized_error", 0.0)))
+          << " fitted with it): the other cases tell least about its deformation\n";
+    }
+  }
+}
+
+// The closed-form baseline of an FEM reference, and a warning when the model is worse.
+void PrintBaseline(const proto::Json& b, std::ostream& out) {
+  out << "baseline:          " << b.value("recipe", std::string()) << " on the "
+      << b.value("springs", 0) << " mesh edges: ";
+  if (b.value("converged", false)) {
+    out << "E " << Format("%.6g", b.value("rms_error", 0.0)) << "\n";
+  } else {
+    out << "no equilibrium\n";
+  }
+  if (b.value("worse_than_baseline", false)) {
+    out << "WARNING:           THIS MODEL IS WORSE THAN THE CLOSED-FORM BASELINE ("
+        << b.value("recipe", std::string())
+        << "): its stiffness on the mesh edges reproduces the reference better\n";
+  }
+}
+
+// The certificate: unseen loads, by family, at amplitudes, and the eigenvalue bound.
+void PrintGeneralization(const proto::Json& g, std::ostream& out) {
+  // ("inf": some probe finds a mode the model leaves free; "-": not measured.)
+  const auto number = [](const proto::Json& j, const char* key) {
+    if (j.contains(key) && j[key].is_string()) return j[key].get<std::string>();
+    return j.contains(key) && j[key].is_number() ? Format("%.3g", j[key].get<double>())
+                                                 : std::string("-");
+  };
+  const proto::Json held = g.value("held_out", proto::Json::object());
+  const proto::Json base = g.value("baseline_held_out", proto::Json::object());
+  const proto::Json probes = g.value("probes", proto::Json::object());
+  out << "unseen loads:      " << held.value("probes", 0) << " held-out probes on "
+      << probes.value("supports", 0) << " supports, never fitted: median E "
+      << number(held, "median") << ", 95% " << number(held, "p95") << "; baseline "
+      << number(base, "median") << ", 95% " << number(base, "p95") << "\n";
+  const proto::Json families = g.value("by_family", proto::Json::object());
+  const proto::Json base_families = g.value("baseline_by_family", proto::Json::object());
+  out << "  by family:       ";
+  bool first = true;
+  for (const auto& [name, f] : families.items()) {
+    out << (first ? "" : "; ") << name << " " << number(f, "median") << " (baseline "
+        << number(base_families.value(name, proto::Json::object()), "median") << ")";
+    first = false;
+  }
+  out << " (median E; named: the user's cases, fitted)\n";
+  // A nonlinear response: the same loads at fractions of the named loads' size, every model
+  // nonlinear.
+  for (const auto& a : g.value("amplitudes", proto::Json::array())) {
+    const proto::Json model = a.value("model", proto::Json::object());
+    const proto::Json baseline = a.value("baseline", proto::Json::object());
+    out << "  nonlinear at " << Format("%3.0f", 100.0 * a.value("amplitude", 0.0))
+        << "%: " << model.value("probes", 0) << " probes solved to equilibrium: median E "
+        << number(model, "median") << ", 95% " << number(model, "p95") << "; baseline "
+        << number(baseline, "median") << ", 95% " << number(baseline, "p95");
+    if (a.value("reference_failed", 0) > 0)
+      out << " (" << a.value("reference_failed", 0) << " left out: no reference equilibrium)";
+    out << "\n";
+  }
+  out << "  every load:      generalised eigenvalues of (K_model, K_ref) on the user's supports "
+         "in ["
+      << number(g, "lambda_min") << ", " << number(g, "lambda_max")
+      << "]: energy-norm error at most " << number(g, "bound") << " of the response\n";
+  if (g.value("returned_baseline", false))
+    out << "WARNING:           THE FITTED MODEL DID NO BETTER THAN THE CLOSED-FORM BASELINE ON "
+           "HELD-OUT LOADS: the baseline is returned\n";
+}
+
+// The reference topology, when it is known: recovered or not, and what differs.
+void PrintReferenceTopology(const proto::Json& r, std::ostream& out) {
   if (r.contains("exact") && r["exact"].is_boolean()) {
     out << "reference:         " << (r["exact"].get<bool>() ? "recovered exactly" : "not recovered")
         << " (" << r["missing"].size() << " missing, " << r["extra"].size() << " extra)\n";
@@ -250,6 +264,19 @@ void PrintResultSummary(const proto::Json& r, std::ostream& out) {
     PrintPairs(out, "below threshold, kept so the model carries the loads",
                r["direct"].value("added_to_carry", proto::Json::array()));
   }
+}
+
+}  // namespace
+
+void PrintResultSummary(const proto::Json& r, std::ostream& out) {
+  const bool continuous = r.contains("continuous") && r["continuous"].is_object();
+  PrintRun(r, continuous, out);
+  PrintModel(r, out);
+  if (continuous) PrintContinuous(r, out);
+  if (r.contains("baseline") && r["baseline"].is_object()) PrintBaseline(r["baseline"], out);
+  if (r.contains("generalization") && r["generalization"].is_object())
+    PrintGeneralization(r["generalization"], out);
+  PrintReferenceTopology(r, out);
 }
 
 void PrintResult(const proto::Json& result, bool as_json) {
