@@ -107,41 +107,117 @@ void WritePortFile(const std::string& path, unsigned short port) {
   std::rename(tmp.c_str(), path.c_str());  // readers never see a half-written file
 }
 
-int RunDaemon(const DaemonArgs& args) {
-  const auto level = spdlog::level::from_str(args.log_level);
-  spdlog::set_level(level);
-  sf::InstallLogFormat();  // every message escaped and bounded (server/log_format.h)
-
-  const springfit::proto::ServerAddress address =
-      springfit::proto::ParseServerAddress(args.listen, "--listen");
-  const std::string token = args.token_file.empty() ? std::string() : ReadToken(args.token_file);
+// An address to listen on (--listen, --http): other hosts only with a token.
+springfit::proto::ServerAddress ListenAddress(const std::string& text, const char* flag,
+                                              const std::string& token, const char* risk) {
+  const springfit::proto::ServerAddress address = springfit::proto::ParseServerAddress(text, flag);
   boost::system::error_code ec;
   const auto ip = boost::asio::ip::make_address(address.host, ec);
-  if (ec) throw std::runtime_error("--listen: '" + address.host + "' is not an IP address");
-  if (!ip.is_loopback() && token.empty()) {
+  if (ec)
+    throw std::runtime_error(std::string(flag) + ": '" + address.host + "' is not an IP address");
+  if (!ip.is_loopback() && token.empty())
     throw std::runtime_error(
-        "refusing to listen on " + args.listen +
-        " without a token: other hosts could submit and delete jobs (--token-file FILE)");
-  }
+        "refusing to " + std::string(risk) + " on " + text +
+        " without a token: other hosts could " +
+        (std::string(flag) == "--http" ? "read every job" : "submit and delete jobs") +
+        " (--token-file FILE)");
+  return address;
+}
 
+// Where the store is: --store (or --db, the SQLite default), with its password and call bound.
+sf::StoreLocation StoreLocationOf(const DaemonArgs& args) {
   sf::StoreLocation location = sf::ParseStoreUrl(
       args.store.empty() ? "sqlite:///" + (args.db.empty() ? std::string("springfit.db") : args.db)
                          : args.store);
   if (!args.store_password_file.empty())
     location.password = sf::ReadPasswordFile(args.store_password_file);
   location.timeout_seconds = args.store_timeout;
+  return location;
+}
+
+sf::SchedulerOptions SchedulerOptionsOf(const DaemonArgs& args, sf::Metrics& metrics) {
+  sf::SchedulerOptions options;
+  options.workers = args.workers;
+  options.max_running = args.max_running.value_or(args.workers);
+  options.runner.checkpoint_seconds = args.checkpoint_seconds;
+  options.owner = args.name;
+  options.lease_seconds = args.lease_seconds;
+  options.heartbeat_seconds = std::min(1.0, args.lease_seconds / 3);
+  options.metrics = &metrics;
+  return options;
+}
+
+sf::TcpServerOptions TcpOptionsOf(const DaemonArgs& args,
+                                  const springfit::proto::ServerAddress& address) {
+  sf::TcpServerOptions net;
+  net.host = address.host;
+  net.port = address.port;
+  net.max_connections = args.max_connections;
+  net.max_message_bytes = args.max_message_bytes;
+  net.max_unauthenticated_message_bytes = args.max_unauthenticated_bytes;
+  net.max_inbox_bytes = args.max_inbox_bytes;
+  net.idle_seconds = args.idle_seconds;
+  net.message_seconds = args.message_seconds;
+  return net;
+}
+
+// SIGINT and SIGTERM stop the daemon: no new connections, the running jobs checkpointed (off
+// the I/O thread, so that answers and job.finished notifications of the last moments still
+// reach their connections), then the servers and the I/O loop; a second signal exits at once.
+// The thread that waits for the jobs is returned through `stopper`.
+void StopOnSignals(boost::asio::io_context& io, boost::asio::signal_set& signals,
+                   sf::RpcService& service, sf::TcpServer& server, sf::Scheduler& scheduler,
+                   std::optional<sf::HttpServer>& http, double shutdown_seconds,
+                   std::thread& stopper) {
+  signals.async_wait([&, shutdown_seconds](const boost::system::error_code& error, int signal) {
+    if (error) return;
+    spdlog::info("signal {}: stopping (running jobs checkpoint and resume at the next start)",
+                 signal);
+    service.set_stopping();
+    server.StopAccepting();
+    // A second signal does not wait for the jobs.
+    signals.async_wait([](const boost::system::error_code& again, int) {
+      if (again) return;
+      spdlog::warn("second signal: exiting now; running jobs resume from their last checkpoint");
+      spdlog::shutdown();
+      std::_Exit(1);
+    });
+    stopper = std::thread([&, shutdown_seconds] {
+      const auto timeout =
+          std::chrono::milliseconds(static_cast<long long>(shutdown_seconds * 1000));
+      if (!scheduler.Stop(timeout)) {
+        // A job in a long generation: leave it as a crash would, to resume from its last
+        // checkpoint.
+        spdlog::warn(
+            "jobs still running after {:.1f} s; exiting, they resume from their last checkpoint",
+            shutdown_seconds);
+        spdlog::shutdown();
+        std::_Exit(1);
+      }
+      server.Stop();
+      if (http) http->Stop();
+      boost::asio::post(io, [&] {
+        signals.cancel();
+        io.stop();
+      });
+    });
+  });
+}
+
+int RunDaemon(const DaemonArgs& args) {
+  const auto level = spdlog::level::from_str(args.log_level);
+  spdlog::set_level(level);
+  sf::InstallLogFormat();  // every message escaped and bounded (server/log_format.h)
+
+  const std::string token = args.token_file.empty() ? std::string() : ReadToken(args.token_file);
+  const springfit::proto::ServerAddress address =
+      ListenAddress(args.listen, "--listen", token, "listen");
+  const sf::StoreLocation location = StoreLocationOf(args);
   CheckDescriptorLimit(args.max_connections + (args.http.empty() ? 0 : 64));
   const std::unique_ptr<sf::JobStore> store_owner = sf::OpenStore(location);
   sf::Metrics metrics;
   sf::MeteredStore store(*store_owner, metrics);  // store writes timed for /metrics
-  sf::SchedulerOptions scheduler_options;
-  scheduler_options.workers = args.workers;
-  scheduler_options.max_running = args.max_running.value_or(args.workers);
-  scheduler_options.runner.checkpoint_seconds = args.checkpoint_seconds;
-  scheduler_options.owner = args.name;
-  scheduler_options.lease_seconds = args.lease_seconds;
-  scheduler_options.heartbeat_seconds = std::min(1.0, args.lease_seconds / 3);
-  scheduler_options.metrics = &metrics;
+  const sf::SchedulerOptions scheduler_options = SchedulerOptionsOf(args, metrics);
   sf::Scheduler scheduler(store, scheduler_options);
 
   sf::ServiceOptions service_options;
@@ -153,16 +229,7 @@ int RunDaemon(const DaemonArgs& args) {
   sf::RpcService service(store, scheduler, service_options);
 
   boost::asio::io_context io;
-  sf::TcpServerOptions net;
-  net.host = address.host;
-  net.port = address.port;
-  net.max_connections = args.max_connections;
-  net.max_message_bytes = args.max_message_bytes;
-  net.max_unauthenticated_message_bytes = args.max_unauthenticated_bytes;
-  net.max_inbox_bytes = args.max_inbox_bytes;
-  net.idle_seconds = args.idle_seconds;
-  net.message_seconds = args.message_seconds;
-  sf::TcpServer server(io, service, net);
+  sf::TcpServer server(io, service, TcpOptionsOf(args, address));
   server.Start();
 
   // The dashboard, off by default; under the same rules as the JSON-RPC port.
@@ -170,14 +237,7 @@ int RunDaemon(const DaemonArgs& args) {
   std::optional<sf::HttpServer> http;
   if (!args.http.empty()) {
     const springfit::proto::ServerAddress http_address =
-        springfit::proto::ParseServerAddress(args.http, "--http");
-    const auto http_ip = boost::asio::ip::make_address(http_address.host, ec);
-    if (ec) throw std::runtime_error("--http: '" + http_address.host + "' is not an IP address");
-    if (!http_ip.is_loopback() && token.empty()) {
-      throw std::runtime_error("refusing to serve the dashboard on " + args.http +
-                               " without a token: other hosts could read every job "
-                               "(--token-file FILE)");
-    }
+        ListenAddress(args.http, "--http", token, "serve the dashboard");
     sf::DashboardOptions dashboard_options;
     dashboard_options.token = token;
     dashboard.emplace(store, scheduler, metrics, dashboard_options);
@@ -202,41 +262,7 @@ int RunDaemon(const DaemonArgs& args) {
 
   boost::asio::signal_set signals(io, SIGINT, SIGTERM);
   std::thread stopper;
-  signals.async_wait([&](const boost::system::error_code& error, int signal) {
-    if (error) return;
-    spdlog::info("signal {}: stopping (running jobs checkpoint and resume at the next start)",
-                 signal);
-    service.set_stopping();
-    server.StopAccepting();
-    // A second signal does not wait for the jobs.
-    signals.async_wait([](const boost::system::error_code& again, int) {
-      if (again) return;
-      spdlog::warn("second signal: exiting now; running jobs resume from their last checkpoint");
-      spdlog::shutdown();
-      std::_Exit(1);
-    });
-    // The jobs are waited for off the I/O thread, so that answers and job.finished
-    // notifications of the last moments still reach their connections.
-    stopper = std::thread([&] {
-      const auto timeout =
-          std::chrono::milliseconds(static_cast<long long>(args.shutdown_seconds * 1000));
-      if (!scheduler.Stop(timeout)) {
-        // A job in a long generation: leave it as a crash would, to resume from its last
-        // checkpoint.
-        spdlog::warn(
-            "jobs still running after {:.1f} s; exiting, they resume from their last checkpoint",
-            args.shutdown_seconds);
-        spdlog::shutdown();
-        std::_Exit(1);
-      }
-      server.Stop();
-      if (http) http->Stop();
-      boost::asio::post(io, [&] {
-        signals.cancel();
-        io.stop();
-      });
-    });
-  });
+  StopOnSignals(io, signals, service, server, scheduler, http, args.shutdown_seconds, stopper);
   std::signal(SIGPIPE, SIG_IGN);
   io.run();
   if (stopper.joinable()) stopper.join();
