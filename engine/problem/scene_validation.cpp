@@ -338,7 +338,9 @@ void CheckLoadCases(const Scene& s) {
   }
 }
 
-void CheckSearch(const Scene& scene) {
+// The search settings that apply to the strategy the scene runs: a setting that would do
+// nothing is refused, naming the one that acts.
+void CheckSearchApplies(const Scene& scene) {
   const SearchSettings& s = scene.search;
   // Strategy default is continuous on an FEM reference, direct where it identifies stiffness,
   // hybrid otherwise (ResolvedStrategy).
@@ -403,6 +405,13 @@ void CheckSearch(const Scene& scene) {
                      "fitted to its load cases and judged by cross-validation over them; use "
                      "\"none\" or leave it out");
   }
+}
+
+// The search settings' values within their documented ranges (and the spread bound where the
+// fit to probes runs).
+void CheckSearchRanges(const Scene& scene) {
+  const SearchSettings& s = scene.search;
+  const bool continuous = ResolvedStrategy(s.strategy, scene) == Strategy::kContinuous;
   if (s.regularization && !s.regularization->automatic &&
       !(s.regularization->strength >= 0.0 && std::isfinite(s.regularization->strength))) {
     throw InputError("search.regularization", "must be \"auto\" or a finite number >= 0");
@@ -449,6 +458,11 @@ void CheckSearch(const Scene& scene) {
   if (!(s.target_normalized_error >= 0.0) || !std::isfinite(s.target_normalized_error)) {
     throw InputError("search.target_normalized_error", "must be a finite number >= 0");
   }
+}
+
+void CheckSearch(const Scene& scene) {
+  CheckSearchApplies(scene);
+  CheckSearchRanges(scene);
 }
 
 void CheckNodeSets(const Scene& s) {
