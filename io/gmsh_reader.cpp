@@ -19,16 +19,15 @@ namespace {
 constexpr int kTriangle = 2;     // Gmsh's 3-node triangle
 constexpr int kTetrahedron = 4;  // Gmsh's 4-node tetrahedron
 
-}  // namespace
+// A physical group's name, or its tag when it has none.
+std::string GroupName(int dim, int tag) {
+  std::string name;
+  gmsh::model::getPhysicalName(dim, tag, name);
+  return name.empty() ? std::to_string(tag) : name;
+}
 
-ImportedMesh ReadGmshMesh(const std::string& path) {
-  if (!std::filesystem::is_regular_file(path)) throw InputError("", path + ": no such file");
-  GmshSession session;
-  ImportedMesh mesh;
-  mesh.source = path;
-  GmshCall(path, "cannot read the mesh", [&] { gmsh::open(path); });
-
-  // Which elements: the highest dimension's, which must be linear simplices.
+// The mesh's dimension: its highest elements', which must be linear simplices.
+int MeshDimension(const std::string& path) {
   std::vector<int> types;
   gmsh::model::mesh::getElementTypes(types);
   int top = 0;
@@ -59,23 +58,20 @@ ImportedMesh ReadGmshMesh(const std::string& path) {
                                "Mesh.ElementOrder 1)");
     }
   }
-  const int type = top == 2 ? kTriangle : kTetrahedron;
-  const int per = top == 2 ? 3 : 4;
+  return top;
+}
 
-  // The elements, entity by entity, so that each knows its region.
+// The elements, entity by entity, so that each knows its region: their Gmsh node tags, `per`
+// to an element, and their regions into `mesh`.
+std::vector<std::size_t> ReadElements(const std::string& path, int top,
+                                      const gmsh::vectorpair& groups, ImportedMesh& mesh) {
+  const int type = top == 2 ? kTriangle : kTetrahedron;
   std::unordered_map<int, std::string> region_of_entity;
-  gmsh::vectorpair groups;
-  gmsh::model::getPhysicalGroups(groups);
-  const auto group_name = [](int dim, int tag) {
-    std::string name;
-    gmsh::model::getPhysicalName(dim, tag, name);
-    return name.empty() ? std::to_string(tag) : name;
-  };
   for (const auto& [dim, tag] : groups) {
     if (dim != top) continue;
     std::vector<int> entities;
     gmsh::model::getEntitiesForPhysicalGroup(dim, tag, entities);
-    for (int e : entities) region_of_entity[e] = group_name(dim, tag);
+    for (int e : entities) region_of_entity[e] = GroupName(dim, tag);
   }
   gmsh::vectorpair entities;
   gmsh::model::getEntities(entities, top);
@@ -93,8 +89,14 @@ ImportedMesh ReadGmshMesh(const std::string& path) {
     throw InputError(
         "", path + ": no " + std::string(top == 2 ? "triangles" : "tetrahedra") + " in the mesh");
   }
+  return element_nodes;
+}
 
-  // The nodes the elements use, in the order of their Gmsh tags.
+// The nodes the elements use, in the order of their Gmsh tags, into `mesh`; returns each one's
+// index by tag. A plane mesh is 2D when every node has z = 0 (within round-off of its size).
+std::unordered_map<std::size_t, int> ReadNodes(const std::string& path, int top,
+                                               const std::vector<std::size_t>& element_nodes,
+                                               ImportedMesh& mesh) {
   std::vector<std::size_t> all_tags;
   std::vector<double> coords, parametric;
   gmsh::model::mesh::getNodes(all_tags, coords, parametric, -1, -1, true, false);
@@ -103,8 +105,6 @@ ImportedMesh ReadGmshMesh(const std::string& path) {
   std::vector<std::size_t> used(element_nodes.begin(), element_nodes.end());
   std::sort(used.begin(), used.end());
   used.erase(std::unique(used.begin(), used.end()), used.end());
-  std::unordered_map<std::size_t, int> index_of_tag;
-  // A plane mesh is 2D when every node has z = 0 (within round-off of the mesh's size).
   double extent = 0.0, largest_z = 0.0;
   for (std::size_t tag : used) {
     const auto at = position_of_tag.find(tag);
@@ -121,29 +121,25 @@ ImportedMesh ReadGmshMesh(const std::string& path) {
                              "meshed with `gmsh -2` gives its surface only: mesh it with "
                              "`gmsh -3` for tetrahedra");
   }
-  mesh.dimension = top;
+  std::unordered_map<std::size_t, int> index_of_tag;
   for (std::size_t tag : used) {
     index_of_tag.emplace(tag, static_cast<int>(index_of_tag.size()));
     mesh.node_tags.push_back(static_cast<long long>(tag));
     const std::size_t at = position_of_tag[tag];
     for (int c = 0; c < top; ++c) mesh.nodes.push_back(coords[3 * at + c]);
   }
-  for (std::size_t e = 0; e < element_nodes.size() / per; ++e) {
-    std::vector<int> element;
-    for (int k = 0; k < per; ++k) element.push_back(index_of_tag[element_nodes[per * e + k]]);
-    mesh.elements.push_back(std::move(element));
-  }
-  bool any_region = false;
-  for (const std::string& r : mesh.element_regions) any_region = any_region || !r.empty();
-  if (!any_region) mesh.element_regions.clear();
+  return index_of_tag;
+}
 
-  // Named groups as node sets (groups of one name, in several dimensions, are one set).
+// Named groups as node sets (groups of one name, in several dimensions, are one set).
+void ReadNodeSets(const gmsh::vectorpair& groups,
+                  const std::unordered_map<std::size_t, int>& index_of_tag, ImportedMesh& mesh) {
   std::map<std::string, std::set<int>> sets;
   for (const auto& [dim, tag] : groups) {
     std::vector<std::size_t> node_tags;
     std::vector<double> group_coords;
     gmsh::model::mesh::getNodesForPhysicalGroup(dim, tag, node_tags, group_coords);
-    std::set<int>& set = sets[group_name(dim, tag)];
+    std::set<int>& set = sets[GroupName(dim, tag)];
     for (std::size_t t : node_tags) {
       const auto it = index_of_tag.find(t);
       if (it != index_of_tag.end()) set.insert(it->second);
@@ -152,6 +148,33 @@ ImportedMesh ReadGmshMesh(const std::string& path) {
   for (auto& [name, set] : sets) {
     if (!set.empty()) mesh.node_sets[name] = std::vector<int>(set.begin(), set.end());
   }
+}
+
+}  // namespace
+
+ImportedMesh ReadGmshMesh(const std::string& path) {
+  if (!std::filesystem::is_regular_file(path)) throw InputError("", path + ": no such file");
+  GmshSession session;
+  ImportedMesh mesh;
+  mesh.source = path;
+  GmshCall(path, "cannot read the mesh", [&] { gmsh::open(path); });
+  const int top = MeshDimension(path);
+  gmsh::vectorpair groups;
+  gmsh::model::getPhysicalGroups(groups);
+  const std::vector<std::size_t> element_nodes = ReadElements(path, top, groups, mesh);
+  const std::unordered_map<std::size_t, int> index_of_tag =
+      ReadNodes(path, top, element_nodes, mesh);
+  mesh.dimension = top;
+  const int per = top == 2 ? 3 : 4;
+  for (std::size_t e = 0; e < element_nodes.size() / per; ++e) {
+    std::vector<int> element;
+    for (int k = 0; k < per; ++k) element.push_back(index_of_tag.at(element_nodes[per * e + k]));
+    mesh.elements.push_back(std::move(element));
+  }
+  bool any_region = false;
+  for (const std::string& r : mesh.element_regions) any_region = any_region || !r.empty();
+  if (!any_region) mesh.element_regions.clear();
+  ReadNodeSets(groups, index_of_tag, mesh);
   return mesh;
 }
 
