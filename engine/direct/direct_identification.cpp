@@ -192,74 +192,83 @@ void DirectOptions::Validate() const {
   nnls.Validate(check.Nested("nnls"));
 }
 
-DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options,
-                            Interruption* interruption) {
-  options.Validate();
-  DirectResult r;
-  auto start = std::chrono::steady_clock::now();
-  const ForceBalance fb = AssembleForceBalance(problem);
-  const int genes = problem.gene_count();
-  const std::vector<bool> usable = SeenGenes(fb, options.unseen_strain);
-  for (int g = 0; g < genes; ++g) {
-    if (!usable[g]) r.unseen.push_back(g);
-  }
-  r.assemble_seconds = SecondsSince(start);
+namespace {
 
-  start = std::chrono::steady_clock::now();
-  // The NNLS solves A x = rhs over `columns`: the force balance itself, or, when the loads
-  // only prescribe displacements (b = 0), its pinned form (scale_pinning.h).
-  Vector rhs = fb.b;
-  std::vector<bool> columns = usable;
+// The weights the force balance gives (NNLS), and what reading them needs.
+struct SolvedWeights {
+  std::vector<double> weights;  // per gene; the pinned gene at 1
+  Vector rhs;                   // of the system solved: the force balance's, or its pinned form
+  std::vector<bool> columns;    // the columns it was solved over
+  double variance = 0.0;        // of the residual, over the degrees of freedom left
+  bool exact_data = false;      // the force balance holds to round-off (an MSS reference)
+  std::optional<RefinementResult> refinement;
+};
+
+// NNLS on the force balance (its pinned form when the loads only prescribe displacements,
+// scale_pinning.h), then, on data that are not exact, the weights refined against the
+// displacements.
+SolvedWeights SolveWeights(const Problem& problem, const ForceBalance& fb,
+                           const std::vector<bool>& usable, const DirectOptions& options,
+                           Interruption* interruption, DirectResult& r) {
+  SolvedWeights solved;
+  solved.rhs = fb.b;
+  solved.columns = usable;
   r.displacement_only = problem.DisplacementOnly();
   std::optional<PinnedSolution> pinned;
   if (r.displacement_only) pinned = SolvePinnedNnls(fb.a, usable, {}, options.nnls, interruption);
   if (pinned) {
     r.pinned_gene = pinned->pinned_gene;
     r.nnls = std::move(pinned->nnls);
-    rhs = std::move(pinned->rhs);
-    columns = std::move(pinned->columns);
+    solved.rhs = std::move(pinned->rhs);
+    solved.columns = std::move(pinned->columns);
   } else {
     r.nnls = SolveNnls(fb.a, fb.b, usable, options.nnls, interruption);
   }
-  std::vector<double> nnls_weights(r.nnls.x.data(), r.nnls.x.data() + r.nnls.x.size());
-  if (r.pinned_gene >= 0) nnls_weights[r.pinned_gene] = 1.0;
+  solved.weights.assign(r.nnls.x.data(), r.nnls.x.data() + r.nnls.x.size());
+  if (r.pinned_gene >= 0) solved.weights[r.pinned_gene] = 1.0;
   // The residual variance over the degrees of freedom left by the positive weights.
   int positive = 0;
-  for (int g = 0; g < genes; ++g) positive += nnls_weights[g] > 0.0;
+  for (const double w : solved.weights) positive += w > 0.0;
   const double dof = std::max<double>(static_cast<double>(fb.a.rows()) - positive, 1.0);
-  const double variance = (fb.a * r.nnls.x - rhs).squaredNorm() / dof;
+  solved.variance = (fb.a * r.nnls.x - solved.rhs).squaredNorm() / dof;
   // Exact data (an MSS reference: the force balance holds to round-off) needs no standard
   // errors: its absent springs sit at round-off, below the relative floor. They would cost
   // one solve per gene, several times the identification itself.
-  const double rhs_norm = std::max(rhs.norm(), 1e-300);
-  const bool exact_data = (fb.a * r.nnls.x - rhs).norm() <= options.exact_data_residual * rhs_norm;
-  r.nnls_residual = (fb.a * r.nnls.x - rhs).norm() / rhs_norm;
-  std::optional<RefinementResult> refinement;
-  if (!exact_data && options.refine) {
-    refinement = RefineWeights(problem, nnls_weights, usable, options.refinement, interruption);
-    if (!refinement->refined) refinement.reset();
+  const double rhs_norm = std::max(solved.rhs.norm(), 1e-300);
+  solved.exact_data =
+      (fb.a * r.nnls.x - solved.rhs).norm() <= options.exact_data_residual * rhs_norm;
+  r.nnls_residual = (fb.a * r.nnls.x - solved.rhs).norm() / rhs_norm;
+  if (!solved.exact_data && options.refine) {
+    solved.refinement =
+        RefineWeights(problem, solved.weights, usable, options.refinement, interruption);
+    if (!solved.refinement->refined) solved.refinement.reset();
   }
-  if (refinement) r.refinement_iterations = refinement->iterations;
-  r.solve_seconds = SecondsSince(start);
+  if (solved.refinement) r.refinement_iterations = solved.refinement->iterations;
+  return solved;
+}
 
-  start = std::chrono::steady_clock::now();
-  WeightReader reader(problem, usable, options, exact_data, interruption);
+// The topology read off the weights (WeightReader: the threshold, the springs kept to carry
+// the loads, the evaluation), the refined weights' reading kept where it fits better.
+void ReadWeights(const Problem& problem, const ForceBalance& fb, const std::vector<bool>& usable,
+                 const DirectOptions& options, Interruption* interruption, SolvedWeights solved,
+                 DirectResult& r) {
+  WeightReader reader(problem, usable, options, solved.exact_data, interruption);
   // Noisy data never go without standard errors when they can be had: the relative floor
   // alone lets every spurious weight in.
   std::optional<Vector> nnls_sigma;
-  if (!exact_data)
-    nnls_sigma =
-        WeightStandardErrors(fb.a, columns, variance, options.uncertainty_max_genes, interruption);
+  if (!solved.exact_data)
+    nnls_sigma = WeightStandardErrors(fb.a, solved.columns, solved.variance,
+                                      options.uncertainty_max_genes, interruption);
   if (nnls_sigma && r.pinned_gene >= 0) (*nnls_sigma)[r.pinned_gene] = 0.0;  // fixed, not estimated
-  Reading reading = reader.Read(std::move(nnls_weights), std::move(nnls_sigma));
-  if (refinement) {
+  Reading reading = reader.Read(std::move(solved.weights), std::move(nnls_sigma));
+  if (solved.refinement) {
     // The refined weights fit the displacements, but from a poor start the fit can drift to
     // a worse topology than the force balance's: the lower displacement cost decides.
     std::optional<Vector> sigma;
-    if (!refinement->sigma.empty())
-      sigma = Eigen::Map<const Vector>(refinement->sigma.data(), genes);
+    if (!solved.refinement->sigma.empty())
+      sigma = Eigen::Map<const Vector>(solved.refinement->sigma.data(), problem.gene_count());
     if (!sigma) sigma = reading.sigma;
-    Reading refined = reader.Read(refinement->weights, std::move(sigma));
+    Reading refined = reader.Read(solved.refinement->weights, std::move(sigma));
     if (!(reading.evaluation.cost < refined.evaluation.cost)) {
       reading = std::move(refined);
       r.refined = true;
@@ -275,32 +284,64 @@ DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options
   r.springs = std::move(reading.springs);
   r.evaluation = std::move(reading.evaluation);
   r.evaluations = reader.evaluations();
+}
+
+// Only ratios of stiffness are in the data when the loads only prescribe displacements: the
+// weights are scaled so that the median kept spring has the training stiffness (the known one
+// for topology only, which the springs have anyway). The equilibria, hence the evaluation, do
+// not change.
+void FixDisplacementOnlyScale(const Problem& problem, const DirectOptions& options,
+                              DirectResult& r) {
   std::vector<double> kept_weights;
-  for (int g = 0; g < genes; ++g) {
+  for (int g = 0; g < problem.gene_count(); ++g) {
     if (r.genome[g] && r.weights[g] > 0.0) kept_weights.push_back(r.weights[g]);
   }
-  if (r.displacement_only && !kept_weights.empty()) {
-    // Only ratios of stiffness are in the data: the weights are scaled so that the median
-    // kept spring has the training stiffness (the known one for topology only, which the
-    // springs have anyway). The equilibria, hence the evaluation, do not change.
-    const auto middle = kept_weights.begin() + static_cast<std::ptrdiff_t>(kept_weights.size() / 2);
-    std::nth_element(kept_weights.begin(), middle, kept_weights.end());
-    const double factor = options.known_stiffness.value_or(problem.training_stiffness()) / *middle;
-    for (double& w : r.weights) w *= factor;
-    for (double& s : r.sigma) s *= factor;
-    r.topology_threshold *= factor;
-    if (!options.known_stiffness) {
-      for (double& k : r.springs.stiffness) k *= factor;
-    }
+  if (!r.displacement_only || kept_weights.empty()) return;
+  const auto middle = kept_weights.begin() + static_cast<std::ptrdiff_t>(kept_weights.size() / 2);
+  std::nth_element(kept_weights.begin(), middle, kept_weights.end());
+  const double factor = options.known_stiffness.value_or(problem.training_stiffness()) / *middle;
+  for (double& w : r.weights) w *= factor;
+  for (double& s : r.sigma) s *= factor;
+  r.topology_threshold *= factor;
+  if (!options.known_stiffness) {
+    for (double& k : r.springs.stiffness) k *= factor;
   }
+}
+
+// The kept springs' force imbalance, relative to the external forces; with none, to the spring
+// forces themselves.
+double ForceResidual(const ForceBalance& fb, int genes, const DirectResult& r) {
   Vector kept = Vector::Zero(genes);
   for (std::size_t i = 0, g = 0; g < static_cast<std::size_t>(genes); ++g) {
     if (r.genome[g]) kept[static_cast<Eigen::Index>(g)] = r.springs.stiffness[i++];
   }
-  // Relative to the external forces; with none, to the spring forces themselves.
   const double force_scale =
       r.displacement_only ? SparseMatrix(fb.a * kept.asDiagonal()).norm() : fb.b.norm();
-  r.force_residual = (fb.a * kept - fb.b).norm() / std::max(force_scale, 1e-300);
+  return (fb.a * kept - fb.b).norm() / std::max(force_scale, 1e-300);
+}
+
+}  // namespace
+
+DirectResult IdentifyDirect(const Problem& problem, const DirectOptions& options,
+                            Interruption* interruption) {
+  options.Validate();
+  DirectResult r;
+  auto start = std::chrono::steady_clock::now();
+  const ForceBalance fb = AssembleForceBalance(problem);
+  const std::vector<bool> usable = SeenGenes(fb, options.unseen_strain);
+  for (int g = 0; g < problem.gene_count(); ++g) {
+    if (!usable[g]) r.unseen.push_back(g);
+  }
+  r.assemble_seconds = SecondsSince(start);
+
+  start = std::chrono::steady_clock::now();
+  SolvedWeights solved = SolveWeights(problem, fb, usable, options, interruption, r);
+  r.solve_seconds = SecondsSince(start);
+
+  start = std::chrono::steady_clock::now();
+  ReadWeights(problem, fb, usable, options, interruption, std::move(solved), r);
+  FixDisplacementOnlyScale(problem, options, r);
+  r.force_residual = ForceResidual(fb, problem.gene_count(), r);
   r.evaluate_seconds = SecondsSince(start);
   return r;
 }
