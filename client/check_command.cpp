@@ -33,8 +33,7 @@ void PrintIdentifiability(const IdentifiabilityReport& report) {
     std::cout << " (no load case changes their length):" << PairList(report.unseen);
   std::cout << "\n";
   if (!report.groups_analysed) {
-    std::cout << "dependent groups:       not analysed (more than "
-              << IdentifiabilityOptions{}.max_genes << " seen genes)\n";
+    std::cout << "dependent groups:       " << GroupsNotAnalysedText() << "\n";
     return;
   }
   std::cout << "dependent groups:       " << report.groups.size();

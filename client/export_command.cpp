@@ -9,6 +9,7 @@
 #include "client/exit_codes.h"
 #include "client/remote_job.h"
 #include "client/result_source.h"
+#include "engine/api/analysis.h"
 #include "engine/api/input_error.h"
 #include "io/model_writers.h"
 #include "io/spring_model.h"
@@ -95,7 +96,7 @@ int Export(const ExportArgs& a) {
   if (undetermined > 0) std::cout << " (" << undetermined << " not determined by the data)";
   if (not_analysed > 0)
     std::cout << " (whether the data determine " << not_analysed
-              << " of them was not analysed: too many springs for the dependent groups)";
+              << " of them was not analysed: dependent groups " << GroupsNotAnalysedText() << ")";
   std::cout << ", from " << loaded.where << "\n" << a.output << ": " << FactsLine(model) << "\n";
   if (const std::string judged = JudgementLine(loaded.result); !judged.empty())
     std::cout << a.output << ": " << judged << "\n";

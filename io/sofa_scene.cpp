@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <sstream>
 
+#include "engine/api/analysis.h"
 #include "engine/api/input_error.h"
 #include "io/text_output.h"
 #include "io/xml_text.h"
@@ -247,7 +248,8 @@ struct SofaScene {
     }
     if (not_analysed) {
       out << "    <!-- whether the load cases determine the other springs' stiffness was not "
-             "analysed (too many springs for the analysis of dependent groups) -->\n";
+             "analysed: dependent groups "
+          << GroupsNotAnalysedText() << " -->\n";
     }
   }
 

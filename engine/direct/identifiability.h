@@ -64,6 +64,13 @@ struct IdentifiabilityReport {
   std::vector<DependentGroup> groups;
 };
 
+// The words `check`, the dashboard and the exports use for groups that were not analysed:
+// "not analysed (more than 600 seen genes)".
+inline std::string GroupsNotAnalysedText() {
+  return "not analysed (more than " + std::to_string(IdentifiabilityOptions{}.max_genes) +
+         " seen genes)";
+}
+
 IdentifiabilityReport AnalyseIdentifiability(const Problem& problem,
                                              const IdentifiabilityOptions& options = {});
 // The default analysis of a prepared problem, computed once on first use (thread-safe) and kept

@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "engine/api/analysis.h"
 #include "engine/api/input_error.h"
 #include "figures/error_plot.h"
 #include "figures/topology_figure.h"
@@ -643,8 +644,7 @@ HttpResponse Dashboard::JobView(const JobRecord& job) {
       // (Not analysed beyond IdentifiabilityOptions::max_genes seen genes: no count is claimed.)
       const bool analysed = !rep.contains("analysed") || rep["analysed"] != false;
       body += Row("groups of springs the loads do not tell apart",
-                  analysed ? std::to_string(groups.size())
-                           : std::string("not analysed (too many springs for the analysis)"));
+                  analysed ? std::to_string(groups.size()) : GroupsNotAnalysedText());
       int shown = 0;
       for (const Json& g : groups) {
         if (++shown > 10) break;
