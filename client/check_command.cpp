@@ -33,7 +33,7 @@ void PrintIdentifiability(const IdentifiabilityReport& report) {
     std::cout << " (no load case changes their length):" << PairList(report.unseen);
   std::cout << "\n";
   if (!report.groups_analysed) {
-    std::cout << "dependent groups:       " << GroupsNotAnalysedText() << "\n";
+    std::cout << "dependent groups:       " << GroupsNotAnalysedText(report.not_analysed) << "\n";
     return;
   }
   std::cout << "dependent groups:       " << report.groups.size();

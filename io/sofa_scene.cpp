@@ -249,7 +249,7 @@ struct SofaScene {
     if (not_analysed) {
       out << "    <!-- whether the load cases determine the other springs' stiffness was not "
              "analysed: dependent groups "
-          << GroupsNotAnalysedText() << " -->\n";
+          << GroupsNotAnalysedText(model.groups_not_analysed) << " -->\n";
     }
   }
 

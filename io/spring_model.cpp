@@ -98,6 +98,7 @@ SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& res
   const SpringModel::Identified otherwise = result.groups_analysed
                                                 ? SpringModel::Identified::kYes
                                                 : SpringModel::Identified::kNotAnalysed;
+  if (!result.groups_analysed) model.groups_not_analysed = result.groups_not_analysed;
   const auto add = [&](NodePair p, double stiffness, SpringModel::Identified identified) {
     SpringModel::Spring s;
     s.a = p.first;

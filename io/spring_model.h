@@ -53,13 +53,16 @@ struct SpringModel {
     // kNo where the load cases do not determine the stiffness (no load case loads the
     // spring, or it is in a group of springs they cannot tell apart, or both its nodes are
     // held in every case): the value is then the fit's or the training stiffness, not data.
-    // kNotAnalysed where that was not analysed (the scene's dependent groups are analysed up
-    // to IdentifiabilityOptions::max_genes seen genes): it may or may not be determined.
+    // kNotAnalysed where that was not analysed (SpringModel::groups_not_analysed says why):
+    // it may or may not be determined.
     Identified identified = Identified::kYes;
     // Below ModelOptions::dead_fraction of the median stiffness (kept: drop_dead was false).
     bool dead = false;
   };
   std::vector<Spring> springs;
+  // Why the scene's dependent groups were not analysed (IdentifiabilityReport::not_analysed),
+  // where some spring is kNotAnalysed; empty otherwise or when the result did not say.
+  std::string groups_not_analysed;
 
   // Mass per node (empty: none known: no density and no node mass given), and how it was
   // found, in words ("density 1e-06 lumped on the 380 triangles").

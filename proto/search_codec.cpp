@@ -98,6 +98,7 @@ Json IdentifiabilityToJson(const IdentifiabilityReport& report) {
   Json j;
   j["unseen"] = PairsToJson(report.unseen);
   j["analysed"] = report.groups_analysed;
+  j["not_analysed"] = report.groups_analysed ? Json(nullptr) : Json(report.not_analysed);
   j["rank"] = report.groups_analysed ? Json(report.rank) : Json(nullptr);
   Json groups = Json::array();
   for (const DependentGroup& g : report.groups) {
@@ -456,6 +457,11 @@ StoredResult StoredResultFromJson(const Json& json) {
       if (!id["analysed"].is_boolean())
         throw InputError("identifiability.analysed", "expected a boolean");
       r.groups_analysed = id["analysed"].get<bool>();
+    }
+    if (id.contains("not_analysed") && !id["not_analysed"].is_null()) {
+      if (!id["not_analysed"].is_string())
+        throw InputError("identifiability.not_analysed", "expected a string or null");
+      r.groups_not_analysed = id["not_analysed"].get<std::string>();
     }
     if (id.contains("groups")) {
       ExpectArray(id["groups"], "identifiability.groups");

@@ -52,10 +52,12 @@ struct StoredResult {
   // do not determine: `identifiability.unseen` and the springs of its groups.
   std::vector<NodePair> unidentifiable;
   std::vector<NodePair> undetermined;
-  // False when the scene's dependent groups were not analysed (`identifiability.analysed`:
-  // too many seen genes): `undetermined` then holds the unseen springs alone, and whether the
-  // others are determined is not known.
+  // False when the scene's dependent groups were not analysed (`identifiability.analysed`):
+  // `undetermined` then holds the unseen springs alone, and whether the others are determined
+  // is not known; `groups_not_analysed` says why (`identifiability.not_analysed`; empty in
+  // results written before it was kept).
   bool groups_analysed = true;
+  std::string groups_not_analysed;
   // The verdict and its headline numbers (`outcome`: results written since it exists), and the
   // certificate's generalised eigenvalues (`generalization.lambda_min`, `lambda_max`), for an
   // export to say what the result says.

@@ -1,23 +1,19 @@
 #include "engine/direct/identifiability.h"
 
-#include <Eigen/LU>
 #include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
-#include <numeric>
+#include <map>
 
+#include "engine/column_dependencies.h"
 #include "engine/equilibrium.h"
 #include "engine/problem/force_balance.h"
+#include "engine/sparse_columns.h"
 
 #include "engine/options_check.h"
 
 namespace springfit {
 namespace {
-
-int Find(std::vector<int>& parent, int i) {
-  while (parent[i] != i) i = parent[i] = parent[parent[i]];
-  return i;
-}
 
 // Rank of `m` relative to its largest singular value.
 int NumericalRank(const Matrix& m, double tolerance) {
@@ -99,9 +95,10 @@ std::optional<LoadSuggestion> SuggestLoad(const Problem& problem,
       }
       const Matrix seen = block * group_null;
       const double scale = block.norm() * group_null.norm();
-      const int separated = scale > 0.0 && seen.norm() > options.circuit_tolerance * scale
-                                ? NumericalRank(seen / seen.norm(), options.circuit_tolerance)
-                                : 0;
+      const int separated =
+          scale > 0.0 && seen.norm() > options.dependencies.circuit_tolerance * scale
+              ? NumericalRank(seen / seen.norm(), options.dependencies.circuit_tolerance)
+              : 0;
       if (separated > 0 && (!best || separated > best->separated)) {
         LoadSuggestion s;
         s.node = trials[t].first;
@@ -123,6 +120,59 @@ std::optional<LoadSuggestion> SuggestLoad(const Problem& problem,
   return best;
 }
 
+// The columns `seen` of `a`, each scaled to unit norm (the QR's tolerance is then unit-free).
+SparseMatrix UnitColumns(const SparseMatrix& a, const std::vector<int>& seen) {
+  SparseMatrix out = SelectColumns(a, seen);
+  for (Eigen::Index j = 0; j < out.cols(); ++j) out.col(j) /= out.col(j).norm();
+  return out;
+}
+
+// The dependent groups: columns that share a fundamental circuit, joined (connected
+// components), each group's columns in order and the groups in order of their first column.
+std::vector<std::vector<int>> GroupsOfCircuits(const ColumnDependencies& dependencies) {
+  std::map<int, int> parent;  // only the columns of some circuit
+  auto find = [&](int i) {
+    while (parent.at(i) != i) i = parent[i] = parent.at(parent.at(i));
+    return i;
+  };
+  for (const ColumnDependencies::Circuit& circuit : dependencies.circuits) {
+    parent.emplace(circuit.column, circuit.column);
+    for (const auto& [column, coefficient] : circuit.basis) {
+      parent.emplace(column, column);
+      parent[find(column)] = find(circuit.column);
+    }
+  }
+  std::map<int, int> group_of_root;
+  std::vector<std::vector<int>> groups;
+  for (const auto& [column, unused] : parent) {
+    const auto [at, added] = group_of_root.emplace(find(column), static_cast<int>(groups.size()));
+    if (added) groups.emplace_back();
+    groups[at->second].push_back(column);
+  }
+  return groups;
+}
+
+// A basis of the weight combinations the group's columns cannot tell apart: its fundamental
+// circuits, one column each (rows: the group's columns in `members` order).
+Matrix NullBasisOfGroup(const ColumnDependencies& dependencies, const std::vector<int>& members) {
+  auto row = [&](int column) {
+    return static_cast<Eigen::Index>(std::lower_bound(members.begin(), members.end(), column) -
+                                     members.begin());
+  };
+  std::vector<const ColumnDependencies::Circuit*> own;
+  for (const ColumnDependencies::Circuit& circuit : dependencies.circuits) {
+    if (std::binary_search(members.begin(), members.end(), circuit.column)) own.push_back(&circuit);
+  }
+  Matrix null = Matrix::Zero(static_cast<Eigen::Index>(members.size()),
+                             static_cast<Eigen::Index>(own.size()));
+  for (std::size_t e = 0; e < own.size(); ++e) {
+    const auto col = static_cast<Eigen::Index>(e);
+    null(row(own[e]->column), col) = 1.0;
+    for (const auto& [column, coefficient] : own[e]->basis) null(row(column), col) = -coefficient;
+  }
+  return null;
+}
+
 }  // namespace
 
 const IdentifiabilityReport& Identifiability(const Problem& problem) {
@@ -135,9 +185,7 @@ const IdentifiabilityReport& Identifiability(const Problem& problem) {
 
 void IdentifiabilityOptions::Validate() const {
   const OptionsCheck check("IdentifiabilityOptions");
-  check.Require(InOpenUnit(rank_tolerance), "rank_tolerance", rank_tolerance, "0 < value < 1");
-  check.Require(InOpenUnit(circuit_tolerance), "circuit_tolerance", circuit_tolerance,
-                "0 < value < 1");
+  dependencies.Validate(check.Nested("dependencies"));
   check.Require(InOpenUnit(unseen_strain), "unseen_strain", unseen_strain, "0 < value < 1");
   check.Require(max_genes >= 0, "max_genes", max_genes, "value >= 0");
   check.Require(max_suggestion_size >= 0, "max_suggestion_size", max_suggestion_size, "value >= 0");
@@ -160,68 +208,31 @@ IdentifiabilityReport AnalyseIdentifiability(const Problem& problem,
       seen.push_back(g);
     }
   }
-  if (static_cast<int>(seen.size()) > options.max_genes) return report;
-  report.groups_analysed = true;
-  const auto n = static_cast<Eigen::Index>(seen.size());
-  if (n == 0) return report;
-
-  Matrix a(fb.a.rows(), n);
-  for (Eigen::Index j = 0; j < n; ++j) {
-    a.col(j) = Vector(fb.a.col(seen[static_cast<std::size_t>(j)]));
-    a.col(j) /= a.col(j).norm();
+  if (static_cast<int>(seen.size()) > options.max_genes) {
+    report.not_analysed = "more than " + std::to_string(options.max_genes) + " seen genes";
+    return report;
   }
-  Eigen::ColPivHouseholderQR<Matrix> qr(a);
-  qr.setThreshold(options.rank_tolerance);
-  const Eigen::Index rank = qr.rank();
-  report.rank = static_cast<int>(rank);
-  if (rank == n) return report;
-
-  // Fundamental circuits: each non-basis column in terms of the basis columns.
-  const auto& perm = qr.colsPermutation().indices();
-  const Matrix r = qr.matrixR().topRows(rank);
-  const Matrix coefficients =
-      r.leftCols(rank).triangularView<Eigen::Upper>().solve(r.rightCols(n - rank));
-  std::vector<int> parent(static_cast<std::size_t>(n));
-  std::iota(parent.begin(), parent.end(), 0);
-  std::vector<bool> dependent(static_cast<std::size_t>(n), false);
-  for (Eigen::Index e = 0; e < n - rank; ++e) {
-    const int column = perm[rank + e];
-    dependent[column] = true;
-    const double largest = std::max(coefficients.col(e).cwiseAbs().maxCoeff(), 1.0);
-    for (Eigen::Index b = 0; b < rank; ++b) {
-      if (std::abs(coefficients(b, e)) > options.circuit_tolerance * largest) {
-        dependent[perm[b]] = true;
-        parent[Find(parent, perm[b])] = Find(parent, column);
-      }
-    }
-  }
-  // Groups in order of their first gene.
-  std::vector<int> group_of(static_cast<std::size_t>(n), -1);
-  std::vector<std::vector<int>> members;
-  for (Eigen::Index j = 0; j < n; ++j) {
-    if (!dependent[j]) continue;
-    const int root = Find(parent, static_cast<int>(j));
-    if (group_of[root] < 0) {
-      group_of[root] = static_cast<int>(members.size());
-      members.emplace_back();
-    }
-    members[group_of[root]].push_back(seen[static_cast<std::size_t>(j)]);
-  }
-  for (const std::vector<int>& genes : members) {
+  const SparseMatrix a = UnitColumns(fb.a, seen);
+  const ColumnDependencies dependencies = FindColumnDependencies(a, options.dependencies);
+  report.rank = dependencies.rank;
+  report.groups_analysed = dependencies.analysed;
+  report.not_analysed = dependencies.not_analysed;
+  if (!dependencies.analysed) return report;
+  for (const std::vector<int>& members : GroupsOfCircuits(dependencies)) {
     DependentGroup group;
-    Matrix columns(a.rows(), static_cast<Eigen::Index>(genes.size()));
-    for (std::size_t k = 0; k < genes.size(); ++k) {
-      group.springs.push_back(problem.candidates().pairs[problem.gene_candidates()[genes[k]]]);
-      const auto at = std::lower_bound(seen.begin(), seen.end(), genes[k]) - seen.begin();
-      columns.col(static_cast<Eigen::Index>(k)) = a.col(at);
+    std::vector<int> genes;
+    for (const int column : members) {
+      genes.push_back(seen[static_cast<std::size_t>(column)]);
+      group.springs.push_back(problem.candidates().pairs[problem.gene_candidates()[genes.back()]]);
     }
-    Eigen::FullPivLU<Matrix> lu(columns);
-    lu.setThreshold(options.rank_tolerance);
-    const Matrix null = lu.kernel();
-    group.dependencies = lu.rank() == columns.cols() ? 0 : static_cast<int>(null.cols());
+    group.dependencies = static_cast<int>(std::count_if(
+        dependencies.circuits.begin(), dependencies.circuits.end(), [&](const auto& circuit) {
+          return std::binary_search(members.begin(), members.end(), circuit.column);
+        }));
     const auto size = static_cast<long long>(genes.size()) * group.dependencies;
-    if (group.dependencies > 0 && size <= options.max_suggestion_size) {
-      group.suggestion = SuggestLoad(problem, genes, null, options);
+    if (size <= options.max_suggestion_size) {
+      group.suggestion =
+          SuggestLoad(problem, genes, NullBasisOfGroup(dependencies, members), options);
     }
     report.groups.push_back(std::move(group));
   }

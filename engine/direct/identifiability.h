@@ -6,8 +6,10 @@
 //  - dependent groups: springs whose columns are linearly dependent, so that different
 //    weights (topologies) balance the same forces in every load case. The groups are the
 //    connected components of the fundamental circuits of A's columns (relative to the basis
-//    a column-pivoted QR chooses): two springs share a group when some dependency involves
-//    both, and the partition does not depend on the basis chosen.
+//    a sparse rank-revealing QR chooses, engine/column_dependencies.h): two springs share a
+//    group when some dependency involves both, and the partition does not depend on the
+//    basis chosen (two fill orderings, two bases, give the same groups on
+//    fem-kidney-2d-fine).
 //  - for each group, a suggested extra load case that separates it: among single nodal
 //    forces on the group's free nodes along each axis, applied with the constraints of an
 //    existing load case, the one whose small-load response gives the group's columns the
@@ -18,22 +20,22 @@
 #include <string>
 #include <vector>
 
+#include "engine/column_dependencies.h"
 #include "engine/problem/force_balance.h"
 #include "engine/problem/problem.h"
 
 namespace springfit {
 
 struct IdentifiabilityOptions {
-  // Columns count as dependent when the QR's diagonal falls below this fraction of its
-  // largest entry (unit-norm columns). Unit-free.
-  double rank_tolerance = 1e-9;
-  // A coefficient of a fundamental circuit below this (relative to its largest) is not part
-  // of it.
-  double circuit_tolerance = 1e-8;
+  // The QR's tolerances and bounds, on A's columns scaled to unit norm.
+  ColumnDependencyOptions dependencies;
   double unseen_strain = kUnseenStrain;
-  // Dense QR of A over the seen genes (A has genes columns and a row per free coordinate and
-  // load case): about 0.1 s at kidney-2d's 461 genes; larger scenes get no group analysis.
-  int max_genes = 600;
+  // A sparse QR of A over the seen genes (engine/column_dependencies.h; A has a column per
+  // gene and a row per free coordinate and load case), one call that cannot be interrupted:
+  // 0.03 s at fem-kidney-2d-fine's 2,853 genes, 0.3 s at fem-block-3d's 6,256, 2.8 s and
+  // 0.8 GB at the 4,346-node Gmsh block's 26,791, 16 s and 2.7 GB at the 10,582-node block's
+  // 67,809 (bench/RESULTS.md). Beyond the bound no group is analysed, and the report says so.
+  int max_genes = 30000;
   // A group gets a suggestion when its springs times its dependencies stay below this: each
   // trial load multiplies a block of that size (a one-load-case 30x30 grid would take minutes).
   int max_suggestion_size = 5000;
@@ -59,16 +61,20 @@ struct DependentGroup {
 struct IdentifiabilityReport {
   std::vector<NodePair> unidentifiable;  // both nodes constrained in every case (Problem)
   std::vector<NodePair> unseen;          // no length change in any case
-  bool groups_analysed = false;          // false beyond max_genes
-  int rank = 0;                          // of A over the seen genes
+  // False when the groups were not analysed (too many seen genes, a rank the QR could not
+  // confirm, too many dependencies to trace): then `not_analysed` says why and no group is
+  // claimed.
+  bool groups_analysed = false;
+  std::string not_analysed;
+  int rank = 0;  // of A over the seen genes
   std::vector<DependentGroup> groups;
 };
 
-// The words `check`, the dashboard and the exports use for groups that were not analysed:
-// "not analysed (more than 600 seen genes)".
-inline std::string GroupsNotAnalysedText() {
-  return "not analysed (more than " + std::to_string(IdentifiabilityOptions{}.max_genes) +
-         " seen genes)";
+// The words `check`, the dashboard and the exports use for groups that were not analysed,
+// with the report's reason (`not_analysed`; empty in results written before it was kept):
+// "not analysed (the sparse QR ran out of memory)".
+inline std::string GroupsNotAnalysedText(const std::string& why) {
+  return why.empty() ? "not analysed" : "not analysed (" + why + ")";
 }
 
 IdentifiabilityReport AnalyseIdentifiability(const Problem& problem,

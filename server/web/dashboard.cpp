@@ -641,10 +641,14 @@ HttpResponse Dashboard::JobView(const JobRecord& job) {
       if (rep.contains("rank") && rep["rank"].is_number())
         body += Row("rank of the analysed groups", std::to_string(rep["rank"].get<int>()));
       const Json groups = rep.value("groups", Json::array());
-      // (Not analysed beyond IdentifiabilityOptions::max_genes seen genes: no count is claimed.)
+      // (Where the groups were not analysed no count is claimed, and the reason is shown.)
       const bool analysed = !rep.contains("analysed") || rep["analysed"] != false;
+      const auto why = rep.find("not_analysed");
       body += Row("groups of springs the loads do not tell apart",
-                  analysed ? std::to_string(groups.size()) : GroupsNotAnalysedText());
+                  analysed ? std::to_string(groups.size())
+                           : XmlEscape(GroupsNotAnalysedText(why != rep.end() && why->is_string()
+                                                                 ? why->get<std::string>()
+                                                                 : std::string())));
       int shown = 0;
       for (const Json& g : groups) {
         if (++shown > 10) break;

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include "engine/column_dependencies.h"
 #include "engine/direct/direct_identification.h"
 #include "engine/direct/identifiability.h"
 #include "engine/equilibrium.h"
@@ -33,6 +34,7 @@ TEST(Options, DefaultsAreValid) {
   EXPECT_NO_THROW(RefinementOptions{}.Validate());
   EXPECT_NO_THROW(DirectOptions{}.Validate());
   EXPECT_NO_THROW(IdentifiabilityOptions{}.Validate());
+  EXPECT_NO_THROW(ColumnDependencyOptions{}.Validate());
   EXPECT_NO_THROW(fem::FemSolverOptions{}.Validate());
   for (Strategy s : {Strategy::kPaper, Strategy::kDefault, Strategy::kHybrid, Strategy::kDirect})
     EXPECT_NO_THROW(StrategyDefaults(s, 100).Validate());
@@ -57,9 +59,9 @@ TEST(Options, EachStructNamesTheFieldTheValueAndTheRule) {
                 {"RefinementOptions::max_iterations = -1", "value >= 0"});
 
   IdentifiabilityOptions identifiability;
-  identifiability.rank_tolerance = 2.0;
+  identifiability.dependencies.rank_tolerance = 2.0;
   ExpectRefused([&] { identifiability.Validate(); },
-                {"IdentifiabilityOptions::rank_tolerance = 2"});
+                {"IdentifiabilityOptions::dependencies::rank_tolerance = 2"});
 
   SearchOptions search = StrategyDefaults(Strategy::kDefault, 50);
   search.tournament_size = search.population + 1;

@@ -167,7 +167,7 @@ TEST(Dashboard, TheJobPageLinksALargeFigureInsteadOfInliningIt) {
 }
 
 // Issue 31: a result whose dependent groups were not analysed (too many seen genes) shows no
-// count of groups, where an analysed one shows its count.
+// count of groups but the reason, where an analysed one shows its count.
 TEST(Dashboard, GroupsNotAnalysedAreNotCountedOnTheJobPage) {
   const auto dir = std::filesystem::temp_directory_path() / "springfit-dashboard-groups";
   std::filesystem::remove_all(dir);
@@ -181,6 +181,7 @@ TEST(Dashboard, GroupsNotAnalysedAreNotCountedOnTheJobPage) {
       result["identifiability"]["analysed"] = false;
       result["identifiability"]["rank"] = nullptr;
       result["identifiability"]["groups"] = proto::Json::array();
+      result["identifiability"]["not_analysed"] = "more than 5 seen genes";
     });
     Dashboard dashboard(store, scheduler, metrics, DashboardOptions{});
     const std::string row = "<tr><th>groups of springs the loads do not tell apart</th><td>";
@@ -190,7 +191,8 @@ TEST(Dashboard, GroupsNotAnalysedAreNotCountedOnTheJobPage) {
     const HttpResponse page = dashboard.Handle({"GET", not_analysed, {}, ""});
     ASSERT_EQ(page.status, 200) << page.body;
     EXPECT_EQ(page.body.find(row + "0</td>"), std::string::npos);
-    EXPECT_NE(page.body.find(row + "not analysed"), std::string::npos) << page.body;
+    EXPECT_NE(page.body.find(row + "not analysed (more than 5 seen genes)</td>"), std::string::npos)
+        << page.body;
     EXPECT_EQ(page.body.find("rank of the analysed groups"), std::string::npos);
   }
   std::filesystem::remove_all(dir);
