@@ -62,6 +62,95 @@ bool Jacobian(const Problem& problem, const std::vector<double>& w,
   return true;
 }
 
+// The Levenberg-Marquardt iterate: weights, their equilibria, the residual, its Jacobian and
+// the cost |r|^2.
+struct GaussNewtonPoint {
+  std::vector<double> w;
+  std::vector<Vector> u;  // per load case (warm starts)
+  Vector r;
+  Matrix jacobian;
+  double cost = 0.0;
+
+  // Solves the equilibria at w and, when the cost is below `only_if_below`, the Jacobian. False
+  // when a load case has no equilibrium, the cost is not below, or a tangent is not positive
+  // definite.
+  bool Linearize(const Problem& problem, std::vector<EquilibriumSolver>& solvers,
+                 double only_if_below) {
+    if (!Equilibria(problem, w, solvers, u, r)) return false;
+    cost = r.squaredNorm();
+    return cost < only_if_below && Jacobian(problem, w, solvers, u, jacobian);
+  }
+};
+
+// Marquardt's scaling (the squared column norms of J), with a floor so that a gene no load case
+// moves still gets damped.
+Vector MarquardtScaling(const Matrix& jacobian) {
+  const auto genes = jacobian.cols();
+  Vector d2(genes);
+  double sum_d2 = 0.0;
+  for (Eigen::Index j = 0; j < genes; ++j) sum_d2 += d2[j] = jacobian.col(j).squaredNorm();
+  const double floor_d2 = 1e-12 * std::max(sum_d2 / static_cast<double>(genes), 1e-300);
+  for (Eigen::Index j = 0; j < genes; ++j) d2[j] = std::max(d2[j], floor_d2);
+  return d2;
+}
+
+// The damped Gauss-Newton step's new weights: [J; sqrt(lambda) D] w' = [J w - r; sqrt(lambda)
+// D w], w' >= 0 (unusable genes held at 0).
+std::vector<double> DampedStep(const GaussNewtonPoint& at, const Vector& d2, double lambda,
+                               const std::vector<bool>& usable) {
+  const Matrix& jacobian = at.jacobian;
+  const auto genes = jacobian.cols();
+  const Vector wv = Eigen::Map<const Vector>(at.w.data(), genes);
+  Matrix stacked(jacobian.rows() + genes, genes);
+  stacked.topRows(jacobian.rows()) = jacobian;
+  stacked.bottomRows(genes) = (lambda * d2).cwiseSqrt().asDiagonal();
+  Vector rhs(jacobian.rows() + genes);
+  rhs.head(jacobian.rows()) = jacobian * wv - at.r;
+  rhs.tail(genes) = (lambda * d2).cwiseSqrt().cwiseProduct(wv);
+  const NnlsResult step = SolveDenseNnls(stacked, rhs, usable);
+  return std::vector<double>(step.x.data(), step.x.data() + genes);
+}
+
+// Standard errors from the Gauss-Newton approximation of the covariance at the optimum
+// (RefinementResult::sigma); empty when J^T J over the usable genes is singular.
+std::vector<double> StandardErrors(const GaussNewtonPoint& at, const std::vector<bool>& usable) {
+  const Matrix& jacobian = at.jacobian;
+  const auto genes = static_cast<int>(jacobian.cols());
+  int positive = 0;
+  for (const double x : at.w) positive += x > 0.0;
+  const double variance =
+      at.cost / std::max<double>(static_cast<double>(at.r.size()) - positive, 1.0);
+  std::vector<int> columns;
+  for (int j = 0; j < genes; ++j) {
+    if (usable[j]) columns.push_back(j);
+  }
+  // Unit-norm columns, so that the regularity test does not depend on units (a stiff spring
+  // moves the nodes little per unit of weight: its column is short, not dependent).
+  const auto m = static_cast<Eigen::Index>(columns.size());
+  Matrix sub(jacobian.rows(), m);
+  Vector norms(m);
+  for (Eigen::Index c = 0; c < m; ++c) {
+    sub.col(c) = jacobian.col(columns[static_cast<std::size_t>(c)]);
+    norms[c] = sub.col(c).norm();
+    if (!(norms[c] > 0.0)) return {};
+    sub.col(c) /= norms[c];
+  }
+  if (m == 0) return {};
+  Eigen::LDLT<Matrix> ldlt(sub.transpose() * sub);
+  if (ldlt.info() != Eigen::Success) return {};
+  const Vector pivots = ldlt.vectorD();
+  for (Eigen::Index i = 0; i < m; ++i) {
+    if (!(pivots[i] > kSingularUnitPivot)) return {};
+  }
+  std::vector<double> sigma(genes, HUGE_VAL);
+  const Matrix inverse = ldlt.solve(Matrix::Identity(m, m));
+  for (Eigen::Index c = 0; c < m; ++c) {
+    sigma[columns[static_cast<std::size_t>(c)]] =
+        std::sqrt(std::max(inverse(c, c), 0.0) * variance) / norms[c];
+  }
+  return sigma;
+}
+
 }  // namespace
 
 void RefinementOptions::Validate(const std::string& owner) const {
@@ -91,51 +180,26 @@ RefinementResult RefineWeights(const Problem& problem, const std::vector<double>
   cost.set_interruption(interruption);
   // An interrupted solve reads as a failed one: every failure checks the interruption first.
 
-  std::vector<double> w = start;
-  std::vector<Vector> u(problem.load_cases().size());
-  Vector r;
-  Matrix jacobian;
-  const bool started =
-      Equilibria(problem, w, solvers, u, r) && Jacobian(problem, w, solvers, u, jacobian);
+  GaussNewtonPoint at;
+  at.w = start;
+  at.u.resize(problem.load_cases().size());
+  const bool started = at.Linearize(problem, solvers, /*only_if_below=*/HUGE_VAL);
   ThrowIfInterrupted(interruption);
   if (!started) return result;
-  double f = r.squaredNorm();
-  result.initial_cost = f;
+  result.initial_cost = at.cost;
   double lambda = options.initial_damping;
-
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
-    const Vector wv = Eigen::Map<const Vector>(w.data(), genes);
-    // Marquardt's scaling, with a floor so that a gene no load case moves still gets damped.
-    Vector d2(genes);
-    double sum_d2 = 0.0;
-    for (int j = 0; j < genes; ++j) sum_d2 += d2[j] = jacobian.col(j).squaredNorm();
-    const double floor_d2 = 1e-12 * std::max(sum_d2 / genes, 1e-300);
-    for (int j = 0; j < genes; ++j) d2[j] = std::max(d2[j], floor_d2);
-    const Vector target = jacobian * wv - r;
+    const Vector d2 = MarquardtScaling(at.jacobian);
     bool accepted = false;
     for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
       ThrowIfInterrupted(interruption);
-      // [J; sqrt(lambda) D] w' = [J w - r; sqrt(lambda) D w], w' >= 0.
-      Matrix stacked(jacobian.rows() + genes, genes);
-      stacked.topRows(jacobian.rows()) = jacobian;
-      stacked.bottomRows(genes) = (lambda * d2).cwiseSqrt().asDiagonal();
-      Vector rhs(jacobian.rows() + genes);
-      rhs.head(jacobian.rows()) = target;
-      rhs.tail(genes) = (lambda * d2).cwiseSqrt().cwiseProduct(wv);
-      const NnlsResult step = SolveDenseNnls(stacked, rhs, usable);
-      std::vector<double> trial(step.x.data(), step.x.data() + genes);
-      std::vector<Vector> trial_u = u;
-      Vector trial_r;
-      Matrix trial_jacobian;
+      GaussNewtonPoint trial;
+      trial.w = DampedStep(at, d2, lambda, usable);
+      trial.u = at.u;
       // The Jacobian (one solve per gene) only for a step that lowers the cost.
-      if (Equilibria(problem, trial, solvers, trial_u, trial_r) && trial_r.squaredNorm() < f &&
-          Jacobian(problem, trial, solvers, trial_u, trial_jacobian)) {
-        const double decrease = (f - trial_r.squaredNorm()) / f;
-        w = std::move(trial);
-        u = std::move(trial_u);
-        r = std::move(trial_r);
-        jacobian = std::move(trial_jacobian);
-        f = r.squaredNorm();
+      if (trial.Linearize(problem, solvers, /*only_if_below=*/at.cost)) {
+        const double decrease = (at.cost - trial.cost) / at.cost;
+        at = std::move(trial);
         lambda = std::max(lambda / 3.0, 1e-12);
         accepted = true;
         ++result.iterations;
@@ -152,43 +216,10 @@ RefinementResult RefineWeights(const Problem& problem, const std::vector<double>
   }
 
   result.refined = true;
-  result.weights = w;
-  result.evaluation = cost.Evaluate(problem.SpringsOfWeights(w));
+  result.weights = at.w;
+  result.evaluation = cost.Evaluate(problem.SpringsOfWeights(at.w));
   ThrowIfInterrupted(interruption);
-  // Standard errors from the Gauss-Newton approximation of the covariance at the optimum.
-  int positive = 0;
-  for (const double x : w) positive += x > 0.0;
-  const double variance = f / std::max<double>(static_cast<double>(r.size()) - positive, 1.0);
-  std::vector<int> columns;
-  for (int j = 0; j < genes; ++j) {
-    if (usable[j]) columns.push_back(j);
-  }
-  // Unit-norm columns, so that the regularity test does not depend on units (a stiff spring
-  // moves the nodes little per unit of weight: its column is short, not dependent).
-  const auto m = static_cast<Eigen::Index>(columns.size());
-  Matrix sub(jacobian.rows(), m);
-  Vector norms(m);
-  bool zero_column = false;
-  for (Eigen::Index c = 0; c < m; ++c) {
-    sub.col(c) = jacobian.col(columns[static_cast<std::size_t>(c)]);
-    norms[c] = sub.col(c).norm();
-    zero_column = zero_column || !(norms[c] > 0.0);
-    if (norms[c] > 0.0) sub.col(c) /= norms[c];
-  }
-  if (zero_column || m == 0) return result;
-  const Matrix normal = sub.transpose() * sub;
-  Eigen::LDLT<Matrix> ldlt(normal);
-  const Vector pivots = ldlt.vectorD();
-  bool regular = ldlt.info() == Eigen::Success;
-  for (Eigen::Index i = 0; i < m && regular; ++i) regular = pivots[i] > kSingularUnitPivot;
-  if (regular) {
-    result.sigma.assign(genes, HUGE_VAL);
-    const Matrix inverse = ldlt.solve(Matrix::Identity(m, m));
-    for (Eigen::Index c = 0; c < m; ++c) {
-      result.sigma[columns[static_cast<std::size_t>(c)]] =
-          std::sqrt(std::max(inverse(c, c), 0.0) * variance) / norms[c];
-    }
-  }
+  result.sigma = StandardErrors(at, usable);
   return result;
 }
 

@@ -15,6 +15,125 @@ PathPoint PointOf(const StiffnessFitResult& fit) {
   return PathPoint{PresentSprings(fit.weights), fit.normalized_error, fit.weights};
 }
 
+// The path after step 1: springs removed, least leaned on first, the rest refitted each time.
+class PathWalk {
+ public:
+  PathWalk(const Problem& problem, const std::vector<double>& start,
+           const std::vector<bool>& usable, const SparsityPathOptions& options,
+           const StiffnessFitOptions& first, int min_springs, const FitContext& context,
+           SparsityPath& path)
+      : problem_(problem),
+        start_(start),
+        options_(options),
+        min_springs_(min_springs),
+        path_(path),
+        current_(path.fit),
+        structural_(usable.size(), false) {
+    quiet_ = context;  // the refits report no steps
+    quiet_.on_step = nullptr;
+    refit_ = first;
+    refit_.max_iterations = options.refit_iterations;
+    // Along the path only the springs present may be refitted: the model shrinks at every
+    // point (absent candidates had their chance, by their gradient, in step 1).
+    allowed_.resize(usable.size());
+    for (std::size_t g = 0; g < usable.size(); ++g)
+      allowed_[g] = usable[g] && path.fit.weights[g] > 0.0;
+  }
+
+  // One step: removes springs and adds a point, or marks a spring structural, or resets the
+  // structural marks. False when the path ends (a whole round removed nothing). Throws
+  // Interrupted from a refit.
+  bool Step() {
+    points_before_ = static_cast<int>(path_.points.size());
+    const std::vector<int> removable = RemovableSprings();
+    if (removable.empty()) {
+      // A removal refused once can pass later (a nonlinear model's solves depend on the
+      // stiffness the refits changed): test them all again once, and end only when a whole
+      // round removes nothing.
+      if (!moved_since_reset_) return false;
+      structural_.assign(structural_.size(), false);
+      moved_since_reset_ = false;
+      return true;
+    }
+    const int last_springs = path_.points.back().springs;
+    int remove = std::max(1, static_cast<int>(options_.prune_fraction * last_springs));
+    remove = std::min(
+        {remove, std::max(1, last_springs - min_springs_), static_cast<int>(removable.size())});
+    const double last_error = path_.points.back().normalized_error;
+    for (int retries = 0;;) {
+      const Removal outcome = TryRemoval(removable, remove, last_error, retries);
+      if (outcome != Removal::kTooCostly && outcome != Removal::kInfeasible) return true;
+      if (remove == 1) {
+        structural_[removable[0]] = true;  // try the next one in the next round
+        return true;
+      }
+      remove /= 2;
+      if (outcome == Removal::kTooCostly) ++retries;
+    }
+  }
+
+  // The number of path points before the last Step (a step that added one reports progress).
+  int points_before_step() const { return points_before_; }
+
+ private:
+  enum class Removal { kAccepted, kTooCostly, kInfeasible };
+
+  // The removable springs, least leaned on first (ties by gene: deterministic).
+  std::vector<int> RemovableSprings() const {
+    std::vector<int> removable;
+    for (int g = 0; g < static_cast<int>(current_.weights.size()); ++g) {
+      if (current_.weights[g] > 0.0 && !structural_[g]) removable.push_back(g);
+    }
+    std::stable_sort(removable.begin(), removable.end(),
+                     [&](int a, int b) { return current_.importance[a] < current_.importance[b]; });
+    return removable;
+  }
+
+  // Refits without the first `remove` removable springs. A removal that multiplies the error by
+  // more than `max_error_growth` is too costly (the saliencies are first-order: many springs at
+  // once can matter together), `max_retries` times at most; then the last try stands.
+  Removal TryRemoval(const std::vector<int>& removable, int remove, double last_error,
+                     int retries) {
+    std::vector<bool> trial_allowed = allowed_;
+    std::vector<double> trial_start = current_.weights;
+    for (int i = 0; i < remove; ++i) {
+      trial_allowed[removable[i]] = false;
+      trial_start[removable[i]] = 0.0;
+    }
+    StiffnessFitResult fit =
+        FitStiffness(problem_, trial_start, FitScope{trial_allowed, {}, start_}, refit_, quiet_);
+    path_.solves += fit.solves;
+    path_.steps += fit.iterations;
+    if (fit.interrupted) throw Interrupted();  // a half-done refit is not a path point
+    if (!fit.feasible) return Removal::kInfeasible;
+    const double max_growth2 = options_.max_error_growth * options_.max_error_growth;
+    if (remove > 1 && retries < options_.max_retries &&
+        fit.normalized_error > max_growth2 * last_error)
+      return Removal::kTooCostly;
+    current_ = std::move(fit);
+    for (std::size_t g = 0; g < allowed_.size(); ++g)
+      allowed_[g] = trial_allowed[g] && current_.weights[g] > 0.0;
+    path_.points.push_back(PointOf(current_));
+    moved_since_reset_ = true;
+    return Removal::kAccepted;
+  }
+
+  const Problem& problem_;
+  const std::vector<double>& start_;
+  const SparsityPathOptions& options_;
+  const int min_springs_;
+  SparsityPath& path_;
+  FitContext quiet_;
+  StiffnessFitOptions refit_;
+  StiffnessFitResult current_;
+  std::vector<bool> allowed_;
+  // Springs whose removal alone leaves a mechanism: the model keeps them whatever they carry
+  // (a spring can hold a mode no load case loads).
+  std::vector<bool> structural_;
+  bool moved_since_reset_ = false;
+  int points_before_ = 0;
+};
+
 }  // namespace
 
 void SparsityPathOptions::Validate(const std::string& owner) const {
@@ -37,8 +156,6 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
                                const std::vector<bool>& usable, const SparsityPathOptions& options,
                                double stop_normalized_error, int min_springs,
                                const FitContext& context, const PathProgress& progress) {
-  FitContext quiet = context;  // the refits report no steps
-  quiet.on_step = nullptr;
   options.Validate();
   SparsityPath path;
   // One bound for every fit of the path (a refit's own start would raise it each time).
@@ -57,83 +174,18 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
     path.interrupted = true;
     return path;
   }
-
   const double stop =
       std::max(stop_normalized_error,
                options.stop_error_factor * options.stop_error_factor * path.fit.normalized_error);
-  const double max_growth2 = options.max_error_growth * options.max_error_growth;
-  StiffnessFitOptions refit = first;
-  refit.max_iterations = options.refit_iterations;
-  // Along the path only the springs present may be refitted: the model shrinks at every point
-  // (absent candidates had their chance, by their gradient, in step 1).
-  std::vector<bool> allowed(usable.size());
-  for (std::size_t g = 0; g < usable.size(); ++g)
-    allowed[g] = usable[g] && path.fit.weights[g] > 0.0;
-  StiffnessFitResult current = path.fit;
-  // Springs whose removal alone leaves a mechanism: the model keeps them whatever they carry
-  // (a spring can hold a mode no load case loads).
-  std::vector<bool> structural(usable.size(), false);
-  bool moved_since_reset = false;
+  PathWalk walk(problem, start, usable, options, first, min_springs, context, path);
   try {
     if (progress) progress(path);  // (its stop request stops the path: the fit's point stands)
     while (static_cast<int>(path.points.size()) < options.max_points) {
-      // (Copies: the path is appended to below.)
-      const int last_springs = path.points.back().springs;
-      const double last_error = path.points.back().normalized_error;
-      if (last_error > stop || last_springs <= min_springs) break;
-      // The removable springs, least leaned on first (ties by gene: deterministic).
-      std::vector<int> removable;
-      for (int g = 0; g < static_cast<int>(current.weights.size()); ++g) {
-        if (current.weights[g] > 0.0 && !structural[g]) removable.push_back(g);
-      }
-      if (removable.empty()) {
-        // A removal refused once can pass later (a nonlinear model's solves depend on the
-        // stiffness the refits changed): test them all again once, and end only when a whole
-        // round removes nothing.
-        if (!moved_since_reset) break;
-        structural.assign(structural.size(), false);
-        moved_since_reset = false;
-        continue;
-      }
-      std::stable_sort(removable.begin(), removable.end(),
-                       [&](int a, int b) { return current.importance[a] < current.importance[b]; });
-      int remove = std::max(1, static_cast<int>(options.prune_fraction * last_springs));
-      remove = std::min(
-          {remove, std::max(1, last_springs - min_springs), static_cast<int>(removable.size())});
-      int retries = 0;
-      for (;;) {
-        std::vector<bool> trial_allowed = allowed;
-        std::vector<double> trial_start = current.weights;
-        for (int i = 0; i < remove; ++i) {
-          trial_allowed[removable[i]] = false;
-          trial_start[removable[i]] = 0.0;
-        }
-        StiffnessFitResult fit =
-            FitStiffness(problem, trial_start, FitScope{trial_allowed, {}, start}, refit, quiet);
-        path.solves += fit.solves;
-        path.steps += fit.iterations;
-        if (fit.interrupted) throw Interrupted();  // a half-done refit is not a path point
-        // A removal that multiplies the error by more than `max_error_growth` is retried with
-        // half as many springs (the saliencies are first-order: many springs at once can
-        // matter together), `max_retries` times at most; then the last try stands.
-        const bool too_costly = fit.feasible && remove > 1 && retries < options.max_retries &&
-                                fit.normalized_error > max_growth2 * last_error;
-        if (fit.feasible && !too_costly) {
-          current = std::move(fit);
-          for (std::size_t g = 0; g < allowed.size(); ++g)
-            allowed[g] = trial_allowed[g] && current.weights[g] > 0.0;
-          path.points.push_back(PointOf(current));
-          moved_since_reset = true;
-          if (progress) progress(path);
-          break;
-        }
-        if (remove == 1) {
-          structural[removable[0]] = true;  // try the next one in the next round
-          break;
-        }
-        remove /= 2;
-        if (too_costly) ++retries;
-      }
+      const PathPoint last = path.points.back();
+      if (last.normalized_error > stop || last.springs <= min_springs) break;
+      if (!walk.Step()) break;
+      if (path.points.size() > static_cast<std::size_t>(walk.points_before_step()) && progress)
+        progress(path);
     }
   } catch (const Interrupted&) {
     path.interrupted = true;  // the path so far stands (it has the fit's point)

@@ -208,44 +208,99 @@ std::vector<std::vector<int>> GeneticSearch::SwapPartners(const Problem& problem
   return partners;
 }
 
-void GeneticSearch::LocalSearch() {
-  // Start from the best new individual (the first among equals): the elites are the
-  // results of earlier local searches, the children are where new optima come from.
+namespace {
+
+// The moves of a local-search phase, in a fresh random order so that repeated searches do not
+// favour low indices: single flips, or swaps of a present spring for an absent nearby one.
+std::vector<Move> ShuffledMoves(const Genome& genome, bool swaps,
+                                const std::vector<std::vector<int>>& swap_partners,
+                                RandomStream& random) {
+  std::vector<Move> moves;
+  for (int g = 0; g < static_cast<int>(genome.size()); ++g) {
+    if (!swaps) {
+      moves.push_back({g, -1});
+      continue;
+    }
+    if (!genome[g]) continue;
+    for (int h : swap_partners[g]) {
+      if (!genome[h]) moves.push_back({g, h});
+    }
+  }
+  for (int i = static_cast<int>(moves.size()) - 1; i > 0; --i)
+    std::swap(moves[i], moves[random.Below(i + 1)]);
+  return moves;
+}
+
+void Apply(const Move& m, Genome& genome) {
+  genome[m.a] ^= 1;
+  if (m.b >= 0) genome[m.b] ^= 1;
+}
+
+// The moves of a batch that improve on `error`, best first (ties: batch order).
+std::vector<int> ImprovingMoves(const std::vector<Fitness>& results, double error) {
+  std::vector<int> improving;
+  for (std::size_t j = 0; j < results.size(); ++j) {
+    if (results[j].normalized_error < error) improving.push_back(static_cast<int>(j));
+  }
+  std::stable_sort(improving.begin(), improving.end(), [&](int x, int y) {
+    return results[x].normalized_error < results[y].normalized_error;
+  });
+  return improving;
+}
+
+// Every improving move of a batch at once, skipping any that touches a gene an earlier one
+// changed: moves on distant springs act almost independently.
+Genome CombinedMoves(Genome genome, const std::vector<Move>& batch,
+                     const std::vector<int>& improving) {
+  std::vector<std::uint8_t> touched(genome.size(), 0);
+  for (int j : improving) {
+    const Move& m = batch[j];
+    if (touched[m.a] || (m.b >= 0 && touched[m.b])) continue;
+    Apply(m, genome);
+    touched[m.a] = 1;
+    if (m.b >= 0) touched[m.b] = 1;
+  }
+  return genome;
+}
+
+}  // namespace
+
+int GeneticSearch::LocalSearchStart() const {
+  // The best new individual (the first among equals): the elites are the results of earlier
+  // local searches, the children are where new optima come from.
   const int first = state_.generation == 0 ? 0 : options_.elites;
   int b = first;
   for (int i = first + 1; i < options_.population; ++i) {
     if (state_.fitness[i].normalized_error < state_.fitness[b].normalized_error) b = i;
   }
+  return b;
+}
+
+bool GeneticSearch::TryCombined(Genome combined, Genome& next, Fitness& next_fitness) {
+  Fitness combined_fitness = next_fitness;
+  try {
+    combined_fitness = evaluator_->Evaluate({combined}).front();
+  } catch (const springfit::Interrupted&) {
+    interrupted_ = true;  // the batch's best move stands
+    return false;
+  }
+  if (!(combined_fitness.normalized_error < next_fitness.normalized_error)) return false;
+  next = std::move(combined);
+  next_fitness = combined_fitness;
+  return true;
+}
+
+void GeneticSearch::LocalSearch() {
+  const int b = LocalSearchStart();
   Genome genome = state_.population[b];
   Fitness fitness = state_.fitness[b];
-  const int genes = problem_->gene_count();
-  if (genes == 0 || genome == state_.local_optimum) return;
-
-  // The moves of a phase, in a fresh random order so that repeated searches do not favour
-  // low indices: single flips, then swaps of a present spring for an absent nearby one.
-  auto moves_of = [&](bool swaps) {
-    std::vector<Move> moves;
-    for (int g = 0; g < genes; ++g) {
-      if (!swaps) {
-        moves.push_back({g, -1});
-        continue;
-      }
-      if (!genome[g]) continue;
-      for (int h : swap_partners_[g]) {
-        if (!genome[h]) moves.push_back({g, h});
-      }
-    }
-    for (int i = static_cast<int>(moves.size()) - 1; i > 0; --i)
-      std::swap(moves[i], moves[random_.Below(i + 1)]);
-    return moves;
-  };
+  if (problem_->gene_count() == 0 || genome == state_.local_optimum) return;
 
   bool swaps = false;
-  std::vector<Move> moves = moves_of(swaps);
+  std::vector<Move> moves = ShuffledMoves(genome, swaps, swap_partners_, random_);
   std::size_t position = 0;
   std::size_t unimproved = 0;  // moves tried in a row without an improvement
   bool optimum = false;
-  std::vector<Genome> neighbours;
   while (true) {
     if (unimproved >= moves.size()) {
       // A whole pass without improvement: single flips give way to swaps; after swaps too,
@@ -255,7 +310,7 @@ void GeneticSearch::LocalSearch() {
         break;
       }
       swaps = true;
-      moves = moves_of(swaps);
+      moves = ShuffledMoves(genome, swaps, swap_partners_, random_);
       position = 0;
       unimproved = 0;
       if (moves.empty()) {
@@ -264,13 +319,14 @@ void GeneticSearch::LocalSearch() {
       }
     }
     if (PollInterrupt()) break;  // mid-search: not a local optimum
-    const std::size_t batch = std::min<std::size_t>(options_.local_search_batch, moves.size());
-    neighbours.assign(batch, genome);
-    for (std::size_t j = 0; j < batch; ++j) {
-      const Move& m = moves[(position + j) % moves.size()];
-      neighbours[j][m.a] ^= 1;
-      if (m.b >= 0) neighbours[j][m.b] ^= 1;
+    const std::size_t size = std::min<std::size_t>(options_.local_search_batch, moves.size());
+    std::vector<Move> batch;
+    std::vector<Genome> neighbours(size, genome);
+    for (std::size_t j = 0; j < size; ++j) {
+      batch.push_back(moves[(position + j) % moves.size()]);
+      Apply(batch.back(), neighbours[j]);
     }
+    position = (position + size) % moves.size();
     std::vector<Fitness> results;
     try {
       results = evaluator_->Evaluate(neighbours);
@@ -278,56 +334,22 @@ void GeneticSearch::LocalSearch() {
       interrupted_ = true;  // keep the genome reached so far
       break;
     }
-    // The improving moves of the batch, best first (ties: batch order).
-    std::vector<int> improving;
-    for (std::size_t j = 0; j < batch; ++j) {
-      if (results[j].normalized_error < fitness.normalized_error)
-        improving.push_back(static_cast<int>(j));
-    }
-    std::stable_sort(improving.begin(), improving.end(), [&](int x, int y) {
-      return results[x].normalized_error < results[y].normalized_error;
-    });
-    position = (position + batch) % moves.size();
+    const std::vector<int> improving = ImprovingMoves(results, fitness.normalized_error);
     if (improving.empty()) {
-      unimproved += batch;
+      unimproved += size;
       continue;
     }
     Genome next = neighbours[improving.front()];
     Fitness next_fitness = results[improving.front()];
-    if (options_.local_search_combine && improving.size() > 1) {
-      // Moves on distant springs act almost independently: try them all at once (skipping
-      // any that touches a gene an earlier one changed), and keep that if it is better still.
-      Genome combined = genome;
-      std::vector<std::uint8_t> touched(genes, 0);
-      for (int j : improving) {
-        const Move& m = moves[(position + moves.size() - batch + j) % moves.size()];
-        if (touched[m.a] || (m.b >= 0 && touched[m.b])) continue;
-        combined[m.a] ^= 1;
-        touched[m.a] = 1;
-        if (m.b >= 0) {
-          combined[m.b] ^= 1;
-          touched[m.b] = 1;
-        }
-      }
-      Fitness combined_fitness = next_fitness;
-      try {
-        combined_fitness = evaluator_->Evaluate({combined}).front();
-      } catch (const springfit::Interrupted&) {
-        interrupted_ = true;  // the batch's best move stands
-      }
-      if (combined_fitness.normalized_error < next_fitness.normalized_error) {
-        next = std::move(combined);
-        next_fitness = combined_fitness;
-      }
-    }
+    if (options_.local_search_combine && improving.size() > 1)
+      TryCombined(CombinedMoves(genome, batch, improving), next, next_fitness);
     genome = std::move(next);
     fitness = next_fitness;
     if (interrupted_ || fitness.normalized_error <= TargetError()) break;
     // After any improvement, single flips again (a swap's moves also depend on the genome).
-    const bool was_swaps = swaps;
-    swaps = false;
-    if (was_swaps) {
-      moves = moves_of(swaps);
+    if (swaps) {
+      swaps = false;
+      moves = ShuffledMoves(genome, swaps, swap_partners_, random_);
       position = 0;
     }
     unimproved = 0;

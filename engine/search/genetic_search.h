@@ -101,6 +101,11 @@ class GeneticSearch {
   std::vector<Genome> Breed();
   int Select(const std::vector<double>& weights_or_errors);
   void LocalSearch();
+  // The individual a local search starts from.
+  int LocalSearchStart() const;
+  // Evaluates the batch's improving moves made at once, `combined`, and makes it `next` when
+  // better than `next_fitness` (false when not, or interrupted).
+  bool TryCombined(Genome combined, Genome& next, Fitness& next_fitness);
   void UpdateBest();
   TraceRow Row() const;
 
