@@ -53,8 +53,7 @@ int Eval(const EvalArgs& args) {
   CostFunction cost(problem, cost_options);
   const auto start = std::chrono::steady_clock::now();
   const Evaluation e = cost.EvaluateMask(mask);
-  const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double seconds = SecondsSince(start);
   int springs = 0;
   for (std::uint8_t bit : mask) springs += bit;
 

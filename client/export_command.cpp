@@ -96,7 +96,7 @@ int Export(const ExportArgs& a) {
   if (undetermined > 0) std::cout << " (" << undetermined << " not determined by the data)";
   if (not_analysed > 0)
     std::cout << " (whether the data determine " << not_analysed
-              << " of them was not analysed: dependent groups "
+              << " of them is not known: dependent groups "
               << GroupsNotAnalysedText(model.groups_not_analysed) << ")";
   std::cout << ", from " << loaded.where << "\n" << a.output << ": " << FactsLine(model) << "\n";
   if (const std::string judged = JudgementLine(loaded.result); !judged.empty())

@@ -1,10 +1,12 @@
 // The engine's public surface (engine/api/): running an identification: the one entry point
 // RunIdentification with its run context (progress, stops, resume), the search options and
-// their resolution, the strategies' names, the worker pool every run shares, interruptions.
+// their resolution, the strategies' names, the worker pool every run shares, interruptions, the
+// wall clock of progress and timings.
 #pragma once
 
 #include "engine/identification/identify.h"
 #include "engine/identification/strategy.h"
 #include "engine/interruption.h"
 #include "engine/search/search_options.h"
+#include "engine/wall_clock.h"
 #include "engine/worker_pool.h"

@@ -8,13 +8,10 @@
 #include "engine/direct/scale_pinning.h"
 #include "engine/direct/weight_uncertainty.h"
 #include "engine/options_check.h"
+#include "engine/wall_clock.h"
 
 namespace springfit {
 namespace {
-
-double SecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 // The threshold splitting `weights` into an absent group, scored by its squared distance
 // from 0, and a present group, scored by its squared deviation from its mean, with the least

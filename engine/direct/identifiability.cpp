@@ -25,6 +25,55 @@ int NumericalRank(const Matrix& m, double tolerance) {
 
 constexpr const char* kAxisNames[] = {"x", "y", "z"};
 
+// The nodes of a group's springs, in order.
+std::vector<int> NodesOfGenes(const Problem& problem, const std::vector<int>& genes) {
+  std::vector<int> nodes;
+  for (const int g : genes) {
+    const NodePair p = problem.candidates().pairs[problem.gene_candidates()[g]];
+    nodes.push_back(p.first);
+    nodes.push_back(p.second);
+  }
+  std::sort(nodes.begin(), nodes.end());
+  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+  return nodes;
+}
+
+// The force-balance block of the group's genes in a load case whose free displacements are
+// `u` (stacked by free node), to first order: each spring's force per unit stiffness.
+Matrix GroupBlock(const Problem& problem, const std::vector<int>& genes, const FreeNodes& free,
+                  const Eigen::Ref<const Vector>& u) {
+  const int d = problem.dimension();
+  const SpringGeometry& candidates = problem.candidates();
+  Matrix block = Matrix::Zero(static_cast<Eigen::Index>(d) * free.count,
+                              static_cast<Eigen::Index>(genes.size()));
+  auto displacement = [&](int node) {
+    Vector at = Vector::Zero(d);
+    if (free.free_index[node] >= 0) at = u.segment(d * free.free_index[node], d);
+    return at;
+  };
+  for (std::size_t j = 0; j < genes.size(); ++j) {
+    const int cand = problem.gene_candidates()[genes[j]];
+    const NodePair p = candidates.pairs[cand];
+    const Vector unit =
+        candidates.rest_separation.segment(d * cand, d) / candidates.rest_length[cand];
+    const double stretch = unit.dot(displacement(p.first) - displacement(p.second));
+    const auto col = static_cast<Eigen::Index>(j);
+    if (free.free_index[p.first] >= 0)
+      block.col(col).segment(d * free.free_index[p.first], d) -= stretch * unit;
+    if (free.free_index[p.second] >= 0)
+      block.col(col).segment(d * free.free_index[p.second], d) += stretch * unit;
+  }
+  return block;
+}
+
+// How many of the group's dependencies (`group_null`) a load case with this block removes.
+int Separated(const Matrix& block, const Matrix& group_null, double tolerance) {
+  const Matrix seen = block * group_null;
+  const double scale = block.norm() * group_null.norm();
+  if (!(scale > 0.0) || !(seen.norm() > tolerance * scale)) return 0;
+  return NumericalRank(seen / seen.norm(), tolerance);
+}
+
 // The suggestion for one group (MSS reference only): see identifiability.h.
 std::optional<LoadSuggestion> SuggestLoad(const Problem& problem,
                                           const std::vector<int>& group_genes,
@@ -41,17 +90,9 @@ std::optional<LoadSuggestion> SuggestLoad(const Problem& problem,
                                     ? scene.reference.stiffness[0]
                                     : scene.reference.stiffness[m]);
   }
-  std::vector<int> nodes;
-  for (const int g : group_genes) {
-    const NodePair p = problem.candidates().pairs[problem.gene_candidates()[g]];
-    nodes.push_back(p.first);
-    nodes.push_back(p.second);
-  }
-  std::sort(nodes.begin(), nodes.end());
-  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
-
+  const std::vector<int> nodes = NodesOfGenes(problem, group_genes);
   std::optional<LoadSuggestion> best;
-  const int n = scene.node_count();
+  const Vector zero = Vector::Zero(static_cast<Eigen::Index>(d) * scene.node_count());
   for (std::size_t c = 0; c < problem.load_cases().size(); ++c) {
     const FreeNodes& free = problem.free_sets()[problem.load_cases()[c].free_set];
     // One unit force per (group node free in this case, axis): their small-load responses
@@ -69,44 +110,14 @@ std::optional<LoadSuggestion> SuggestLoad(const Problem& problem,
                static_cast<Eigen::Index>(t)) = 1.0;
     }
     EquilibriumSolver solver(reference, free, problem.solver_options());
-    const Vector zero = Vector::Zero(static_cast<Eigen::Index>(d) * n);
     if (!solver.SolveWithTangent(springs, zero, zero, response)) continue;
     for (std::size_t t = 0; t < trials.size(); ++t) {
-      // The new load case's force-balance block for the group's genes, to first order.
-      Matrix block = Matrix::Zero(static_cast<Eigen::Index>(d) * free.count,
-                                  static_cast<Eigen::Index>(group_genes.size()));
-      auto displacement = [&](int node) {
-        Vector u = Vector::Zero(d);
-        if (free.free_index[node] >= 0)
-          u = response.col(static_cast<Eigen::Index>(t)).segment(d * free.free_index[node], d);
-        return u;
-      };
-      for (std::size_t j = 0; j < group_genes.size(); ++j) {
-        const int cand = problem.gene_candidates()[group_genes[j]];
-        const NodePair p = problem.candidates().pairs[cand];
-        const Vector unit = problem.candidates().rest_separation.segment(d * cand, d) /
-                            problem.candidates().rest_length[cand];
-        const double stretch = unit.dot(displacement(p.first) - displacement(p.second));
-        const auto col = static_cast<Eigen::Index>(j);
-        if (free.free_index[p.first] >= 0)
-          block.col(col).segment(d * free.free_index[p.first], d) -= stretch * unit;
-        if (free.free_index[p.second] >= 0)
-          block.col(col).segment(d * free.free_index[p.second], d) += stretch * unit;
-      }
-      const Matrix seen = block * group_null;
-      const double scale = block.norm() * group_null.norm();
-      const int separated =
-          scale > 0.0 && seen.norm() > options.dependencies.circuit_tolerance * scale
-              ? NumericalRank(seen / seen.norm(), options.dependencies.circuit_tolerance)
-              : 0;
-      if (separated > 0 && (!best || separated > best->separated)) {
-        LoadSuggestion s;
-        s.node = trials[t].first;
-        s.axis = trials[t].second;
-        s.constraints_of = static_cast<int>(c);
-        s.separated = separated;
-        best = s;
-      }
+      const Matrix block =
+          GroupBlock(problem, group_genes, free, response.col(static_cast<Eigen::Index>(t)));
+      const int separated = Separated(block, group_null, options.dependencies.circuit_tolerance);
+      if (separated > 0 && (!best || separated > best->separated))
+        best =
+            LoadSuggestion{trials[t].first, trials[t].second, static_cast<int>(c), separated, ""};
     }
   }
   if (best) {

@@ -212,22 +212,6 @@ class ResponseState {
 
 }  // namespace
 
-double MedianPositive(const std::vector<double>& w) {
-  std::vector<double> positive;
-  for (double x : w) {
-    if (x > 0.0) positive.push_back(x);
-  }
-  if (positive.empty()) return 1.0;
-  const auto mid = positive.begin() + static_cast<std::ptrdiff_t>(positive.size() / 2);
-  std::nth_element(positive.begin(), mid, positive.end());
-  return *mid;
-}
-
-int PresentSprings(const std::vector<double>& weights) {
-  return static_cast<int>(
-      std::count_if(weights.begin(), weights.end(), [](double w) { return w > 0.0; }));
-}
-
 void StiffnessFitOptions::Validate(const std::string& owner) const {
   const OptionsCheck check(owner);
   check.Require(max_iterations >= 0, "max_iterations", max_iterations, "value >= 0");

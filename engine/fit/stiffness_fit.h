@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/gene_weights.h"
 #include "engine/interruption.h"
 #include "engine/problem/problem.h"
 #include "engine/worker_pool.h"
@@ -100,11 +101,6 @@ struct FitScope {
   std::vector<bool> cases;
   std::vector<double> prior;
 };
-
-// The springs present (weight > 0) in per-gene weights.
-int PresentSprings(const std::vector<double>& weights);
-// The median of the positive weights (1 when there is none).
-double MedianPositive(const std::vector<double>& weights);
 
 // How a fit runs: where it checks for a stop, on which threads, whom it tells.
 struct FitContext {

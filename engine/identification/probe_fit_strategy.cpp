@@ -13,6 +13,7 @@
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/problem/cost.h"
 #include "engine/response/generalization.h"
+#include "engine/wall_clock.h"
 
 namespace springfit {
 
@@ -252,9 +253,7 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
                                  const RunContext& context, RunMonitor& monitor) {
   using Clock = std::chrono::steady_clock;
   const auto start_time = Clock::now();
-  const auto since = [&] {
-    return std::chrono::duration<double>(Clock::now() - start_time).count();
-  };
+  const auto since = [&] { return SecondsSince(start_time); };
   IdentificationResult r;
   r.options = options;
   r.trace = context.trace;

@@ -21,7 +21,7 @@ void RunMonitor::SetPhase(std::string_view phase, std::function<void(ProgressBea
 }
 
 double RunMonitor::SecondsSinceStart() const {
-  return before_ + std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  return before_ + SecondsSince(start_);
 }
 
 bool RunMonitor::TimeLimitPassed() {
@@ -38,10 +38,6 @@ bool RunMonitor::Poll() {
   // user who asked for it waits (the trace's clock starts after the analysis).
   if (TimeLimitPassed()) return true;
   return context_.on_beat && !context_.on_beat(beat);
-}
-
-double SecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 void ClockPhase(RunMonitor& monitor, std::string_view phase,

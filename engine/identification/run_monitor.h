@@ -14,6 +14,7 @@
 
 #include "engine/identification/identify.h"
 #include "engine/interruption.h"
+#include "engine/wall_clock.h"
 
 namespace springfit {
 
@@ -49,8 +50,6 @@ class RunMonitor {
   Interruption interruption_;  // last: its poll uses the members above
 };
 
-// Seconds of wall time since `start`.
-double SecondsSince(std::chrono::steady_clock::time_point start);
 // From now on beats describe `phase` with its own clock alone (seconds since `start`, no error).
 void ClockPhase(RunMonitor& monitor, std::string_view phase,
                 std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now());

@@ -3,16 +3,15 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <map>
 #include <optional>
 #include <string>
 
 #include "engine/candidates.h"
 #include "engine/fem/closed_form_baseline.h"
 #include "engine/fem/traction.h"
+#include "engine/gene_weights.h"
 #include "engine/input_error.h"
 #include "engine/nnls.h"
-#include "engine/number_text.h"
 #include "engine/problem/force_balance.h"
 #include "engine/problem/reference_equilibria.h"
 #include "engine/problem/scene_validation.h"
@@ -58,15 +57,6 @@ void Flatten(const Scene& scene, const LoadCase& lc, const std::string& path, Ve
   for (int i = 0; i < n; ++i) {
     if (constrained[i]) force.segment(d * i, d).setZero();
   }
-}
-
-// The median of the closed-form model's stiffness: an FEM reference has no spring stiffness, so
-// the training springs take it, which has the material's scale (a stiffness of 1 would be off
-// by the Young's modulus).
-double MedianStiffness(const fem::ClosedFormModel& model) {
-  std::vector<double> k = model.stiffness;
-  std::nth_element(k.begin(), k.begin() + static_cast<std::ptrdiff_t>(k.size() / 2), k.end());
-  return k[k.size() / 2];
 }
 
 // The closed-form model's stiffness of `pair` when it is a mesh edge, else `otherwise`.
@@ -136,8 +126,10 @@ Problem::Problem(ValidScene scene, EquilibriumOptions solver_options, Interrupti
   std::optional<fem::ClosedFormModel> closed_form;
   if (!scene_.training_stiffness && scene_.reference.kind == Reference::Kind::kFem)
     closed_form = fem::VanGelderModel(scene_);
+  // An FEM reference has no spring stiffness: the training springs take the median of the
+  // closed-form model's, which has the material's scale (1 would be off by Young's modulus).
   training_stiffness_ =
-      closed_form ? MedianStiffness(*closed_form) : scene_.EffectiveTrainingStiffness();
+      closed_form ? MedianPositive(closed_form->stiffness) : scene_.EffectiveTrainingStiffness();
   candidates_ = SpringGeometry(scene_.dimension, scene_.rest, GenerateCandidates(scene_));
   if (candidates_.size() == 0) throw InputError("candidates", "generates no candidate spring");
   ThrowIfInterrupted(interruption);

@@ -11,6 +11,7 @@
 #include "engine/fit/stiffness_fit.h"
 #include "engine/response/linearized_response.h"
 #include "engine/response/probe_objective.h"
+#include "engine/wall_clock.h"
 
 namespace springfit::response {
 namespace {
@@ -222,9 +223,7 @@ ResponseFitResult FitResponseMatrixFree(const Problem& problem, const ProbeBank&
                                         Interruption* interruption,
                                         const ResponseProgress& progress, WorkerPool* pool) {
   const auto started = std::chrono::steady_clock::now();
-  const auto seconds = [&started] {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-  };
+  const auto seconds = [&started] { return SecondsSince(started); };
   MatrixFreeFit fit(problem, bank, reference_stiffness, prior, options, interruption, progress,
                     pool);
   ResponseFitResult r;

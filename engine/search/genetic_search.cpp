@@ -8,6 +8,7 @@
 
 #include "engine/point_index.h"
 #include "engine/search/genetic_operators.h"
+#include "engine/wall_clock.h"
 
 namespace springfit {
 
@@ -379,8 +380,7 @@ TraceRow GeneticSearch::Row() const {
 }
 
 double GeneticSearch::ElapsedSeconds() const {
-  return elapsed_before_ +
-         std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+  return elapsed_before_ + SecondsSince(started_);
 }
 
 }  // namespace springfit

@@ -17,10 +17,6 @@
 namespace springfit::server {
 namespace {
 
-double SecondsSince(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
-
 // A finished run: the result, and its JSON as job.result answers it.
 struct FinishedRun {
   IdentificationResult result;

@@ -155,7 +155,7 @@ r["identifiability"].update(analysed=False, rank=None, groups=[], not_analysed="
 json.dump(r, open(sys.argv[2], "w"))
 PY
 check_all fine-na "$tmp/fine-na-result.json"
-grep -q "was not analysed: dependent groups not analysed (more than 5 seen genes)" "$tmp/out" || fail "export says the groups were not analysed, and why: $(cat "$tmp/out")"
+grep -q "whether the data determine [0-9]* of them is not known: dependent groups not analysed (more than 5 seen genes)" "$tmp/out" || fail "export says the groups were not analysed, and why: $(cat "$tmp/out")"
 grep -q "not analysed (more than 5 seen genes)" "$tmp/fine-na.scn" || fail "the SOFA scene says the groups were not analysed, and why"
 
 # Errors: exit 2, what is wrong named, nothing written.
