@@ -399,6 +399,58 @@ void ExpectResultOfScene(const StoredResult& result, const Problem& problem) {
   }
 }
 
+namespace {
+
+// `continuous.path` and `continuous.chosen` of a result (proto/RUN.md).
+void ReadContinuousPath(const Json& c, StoredResult& r) {
+  if (c.contains("path")) {
+    ExpectArray(c["path"], "continuous.path");
+    for (std::size_t i = 0; i < c["path"].size(); ++i) {
+      const std::string at = "continuous.path[" + std::to_string(i) + "]";
+      const Json& p = c["path"][i];
+      ExpectObject(p, at);
+      StoredResult::PathPoint point;
+      point.springs = ReadInt(p.value("springs", Json()), at + ".springs");
+      // (null where the point had no equilibrium: NaN, not drawn.)
+      point.rms_error = p.contains("rms_error") && !p["rms_error"].is_null()
+                            ? ReadNumber(p["rms_error"], at + ".rms_error")
+                            : std::numeric_limits<double>::quiet_NaN();
+      r.path.push_back(point);
+    }
+  }
+  if (c.contains("chosen") && !c["chosen"].is_null())
+    r.chosen = ReadInt(c["chosen"], "continuous.chosen");
+}
+
+// What the load cases do not determine (`identifiability`): the unseen springs and those of the
+// dependent groups, and whether (and why not) the groups were analysed.
+void ReadIdentifiability(const Json& id, StoredResult& r) {
+  if (id.contains("unseen")) r.undetermined = ReadNodePairs(id["unseen"], "identifiability.unseen");
+  if (id.contains("analysed")) {
+    if (!id["analysed"].is_boolean())
+      throw InputError("identifiability.analysed", "expected a boolean");
+    r.groups_analysed = id["analysed"].get<bool>();
+  }
+  if (id.contains("not_analysed") && !id["not_analysed"].is_null()) {
+    if (!id["not_analysed"].is_string())
+      throw InputError("identifiability.not_analysed", "expected a string or null");
+    r.groups_not_analysed = id["not_analysed"].get<std::string>();
+  }
+  if (id.contains("groups")) {
+    ExpectArray(id["groups"], "identifiability.groups");
+    for (std::size_t i = 0; i < id["groups"].size(); ++i) {
+      const std::string at = "identifiability.groups[" + std::to_string(i) + "]";
+      const Json& g = id["groups"][i];
+      ExpectObject(g, at);
+      if (!g.contains("springs")) continue;
+      for (const NodePair& p : ReadNodePairs(g["springs"], at + ".springs"))
+        r.undetermined.push_back(p);
+    }
+  }
+}
+
+}  // namespace
+
 StoredResult StoredResultFromJson(const Json& json) {
   if (!json.is_object()) throw InputError("", "a result is a JSON object (proto/RUN.md)");
   for (const char* key : {"scene", "strategy", "stop", "springs"}) {
@@ -426,55 +478,13 @@ StoredResult StoredResultFromJson(const Json& json) {
     for (std::size_t i = 0; i < t.size(); ++i)
       r.trace->push_back(TraceRowFromJson(t[i], "trace[" + std::to_string(i) + "]"));
   }
-  if (json.contains("continuous") && json["continuous"].is_object()) {
-    const Json& c = json["continuous"];
-    if (c.contains("path")) {
-      ExpectArray(c["path"], "continuous.path");
-      for (std::size_t i = 0; i < c["path"].size(); ++i) {
-        const std::string at = "continuous.path[" + std::to_string(i) + "]";
-        const Json& p = c["path"][i];
-        ExpectObject(p, at);
-        StoredResult::PathPoint point;
-        point.springs = ReadInt(p.value("springs", Json()), at + ".springs");
-        // (null where the point had no equilibrium: NaN, not drawn.)
-        point.rms_error = p.contains("rms_error") && !p["rms_error"].is_null()
-                              ? ReadNumber(p["rms_error"], at + ".rms_error")
-                              : std::numeric_limits<double>::quiet_NaN();
-        r.path.push_back(point);
-      }
-    }
-    if (c.contains("chosen") && !c["chosen"].is_null())
-      r.chosen = ReadInt(c["chosen"], "continuous.chosen");
-  }
+  if (json.contains("continuous") && json["continuous"].is_object())
+    ReadContinuousPath(json["continuous"], r);
   if (json.contains("rms_error")) r.rms_error = ReadNumber(json["rms_error"], "rms_error");
   if (json.contains("unidentifiable"))
     r.unidentifiable = ReadNodePairs(json["unidentifiable"], "unidentifiable");
-  if (json.contains("identifiability") && json["identifiability"].is_object()) {
-    const Json& id = json["identifiability"];
-    if (id.contains("unseen"))
-      r.undetermined = ReadNodePairs(id["unseen"], "identifiability.unseen");
-    if (id.contains("analysed")) {
-      if (!id["analysed"].is_boolean())
-        throw InputError("identifiability.analysed", "expected a boolean");
-      r.groups_analysed = id["analysed"].get<bool>();
-    }
-    if (id.contains("not_analysed") && !id["not_analysed"].is_null()) {
-      if (!id["not_analysed"].is_string())
-        throw InputError("identifiability.not_analysed", "expected a string or null");
-      r.groups_not_analysed = id["not_analysed"].get<std::string>();
-    }
-    if (id.contains("groups")) {
-      ExpectArray(id["groups"], "identifiability.groups");
-      for (std::size_t i = 0; i < id["groups"].size(); ++i) {
-        const std::string at = "identifiability.groups[" + std::to_string(i) + "]";
-        const Json& g = id["groups"][i];
-        ExpectObject(g, at);
-        if (!g.contains("springs")) continue;
-        for (const NodePair& p : ReadNodePairs(g["springs"], at + ".springs"))
-          r.undetermined.push_back(p);
-      }
-    }
-  }
+  if (json.contains("identifiability") && json["identifiability"].is_object())
+    ReadIdentifiability(json["identifiability"], r);
   if (json.contains("baseline") && json["baseline"].is_object()) {
     const Json& b = json["baseline"];
     if (b.contains("rms_error"))

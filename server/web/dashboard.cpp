@@ -282,6 +282,57 @@ std::string Inline(const std::string& svg) {
   return start == std::string::npos ? svg : svg.substr(start);
 }
 
+// The job's settings and times, as submitted and run.
+std::string SettingsTable(const JobRecord& job) {
+  std::string body = "<h2>Job</h2>\n<table id=\"settings\">\n";
+  body += Row("label", XmlEscape(job.label));
+  body += Row("strategy", XmlEscape(job.strategy));
+  body += Row("seed", std::to_string(job.seed));
+  body += Row("genes", std::to_string(job.genes));
+  body += Row("priority", std::to_string(job.priority));
+  body += Row("idempotency key", XmlEscape(job.idempotency_key));
+  body += Row("created", UtcTime(job.created_at));
+  body += Row("started", UtcTime(job.started_at));
+  body += Row("finished", UtcTime(job.finished_at));
+  if (job.state == JobState::kFailed) body += Row("error", XmlEscape(job.error));
+  if (job.exact) body += Row("exact", *job.exact ? "yes" : "no");
+  return body + "</table>\n";
+}
+
+// How the run stopped and what the load cases do not tell apart (`identifiability`). Where
+// the groups were not analysed no count is claimed, and the reason is shown.
+std::string IdentifiabilityTable(const Json& r) {
+  std::string body = "<h2>Identifiability</h2>\n<table id=\"identifiability\">\n";
+  if (r.contains("stop")) body += Row("stop", XmlEscape(r.value("stop", "")));
+  if (r.contains("stop_message") && r["stop_message"].is_string())
+    body += Row("why", XmlEscape(r["stop_message"].get<std::string>()));
+  if (const auto id = r.find("identifiability"); id != r.end() && id->is_object()) {
+    const Json& rep = *id;
+    body += Row("candidates no load case sees",
+                std::to_string(rep.value("unseen", Json::array()).size()));
+    if (rep.contains("rank") && rep["rank"].is_number())
+      body += Row("rank of the analysed groups", std::to_string(rep["rank"].get<int>()));
+    const Json groups = rep.value("groups", Json::array());
+    // (Where the groups were not analysed no count is claimed, and the reason is shown.)
+    const bool analysed = !rep.contains("analysed") || rep["analysed"] != false;
+    const auto why = rep.find("not_analysed");
+    body += Row("groups of springs the loads do not tell apart",
+                analysed ? std::to_string(groups.size())
+                         : XmlEscape(GroupsNotAnalysedText(why != rep.end() && why->is_string()
+                                                               ? why->get<std::string>()
+                                                               : std::string())));
+    int shown = 0;
+    for (const Json& g : groups) {
+      if (++shown > 10) break;
+      std::string text = std::to_string(g.value("springs", Json::array()).size()) + " springs";
+      if (g.contains("suggestion") && g["suggestion"].is_string())
+        text += ": " + g["suggestion"].get<std::string>();
+      body += Row("group " + std::to_string(shown), XmlEscape(text));
+    }
+  }
+  return body + "</table>\n";
+}
+
 }  // namespace
 
 Dashboard::Dashboard(JobStore& store, Scheduler& scheduler, Metrics& metrics,
@@ -552,6 +603,33 @@ std::string Dashboard::TopologySvg(const JobRecord& job, bool result) {
   return figures::RenderTopologyFigure(*problem, input);
 }
 
+std::string Dashboard::ModelSection(const JobRecord& job, bool result) {
+  std::string body;
+  try {
+    const std::string best = TopologySvg(job, result);
+    body += result ? "<h2>Model</h2>\n" : "<h2>Best topology so far</h2>\n";
+    // A large figure (a 3D mesh's springs: megabytes of SVG) is a file the browser fetches,
+    // not part of the page.
+    std::string figure;
+    if (best.empty()) {
+      figure = "<p>No model evaluated yet.</p>";
+    } else if (best.size() > options_.max_inline_figure_bytes) {
+      figure = fmt::format(
+          "<img src=\"/jobs/{}/topology.svg?of={}\" alt=\"the model's springs\" "
+          "style=\"max-width:100%\"><p><a href=\"/jobs/{}/topology.svg?of={}\">the figure</a> "
+          "({} KB)</p>",
+          job.id, result ? "result" : "best", job.id, result ? "result" : "best",
+          best.size() / 1024);
+    } else {
+      figure = Inline(best);
+    }
+    body += "<figure id=\"topology\">" + figure + "</figure>\n";
+  } catch (const std::exception& e) {
+    body += "<p>The topology figure cannot be drawn: " + XmlEscape(e.what()) + "</p>\n";
+  }
+  return body;
+}
+
 HttpResponse Dashboard::JobView(const JobRecord& job) {
   const bool final = proto::IsFinal(job.state);
   std::string body = fmt::format("<h1>Job {} · {} {}</h1>\n", job.id, XmlEscape(job.scene_name),
@@ -570,19 +648,8 @@ HttpResponse Dashboard::JobView(const JobRecord& job) {
     }
     body += "<h2>Result</h2>\n" + ResultCard(*job.outcome, result, search);
   }
-  body += "<h2>Job</h2>\n<table id=\"settings\">\n";
-  body += Row("label", XmlEscape(job.label));
-  body += Row("strategy", XmlEscape(job.strategy));
-  body += Row("seed", std::to_string(job.seed));
-  body += Row("genes", std::to_string(job.genes));
-  body += Row("priority", std::to_string(job.priority));
-  body += Row("idempotency key", XmlEscape(job.idempotency_key));
-  body += Row("created", UtcTime(job.created_at));
-  body += Row("started", UtcTime(job.started_at));
-  body += Row("finished", UtcTime(job.finished_at));
-  if (job.state == JobState::kFailed) body += Row("error", XmlEscape(job.error));
-  if (job.exact) body += Row("exact", *job.exact ? "yes" : "no");
-  body += "</table>\n<h2>Progress</h2>\n";
+  body += SettingsTable(job);
+  body += "<h2>Progress</h2>\n";
   body += fmt::format(
       "<table id=\"live\" data-job=\"{}\" data-generation=\"{}\" data-initial-generation=\"{}\" "
       "data-updates=\"0\" data-final=\"{}\">\n",
@@ -606,60 +673,8 @@ HttpResponse Dashboard::JobView(const JobRecord& job) {
   body += plot.empty() ? "<p>No generation stored yet.</p>" : Inline(plot);
   body += "</figure>\n";
 
-  try {
-    const std::string best = TopologySvg(job, !result_json.empty());
-    body += result_json.empty() ? "<h2>Best topology so far</h2>\n" : "<h2>Model</h2>\n";
-    // A large figure (a 3D mesh's springs: megabytes of SVG) is a file the browser fetches,
-    // not part of the page.
-    std::string figure;
-    if (best.empty()) {
-      figure = "<p>No model evaluated yet.</p>";
-    } else if (best.size() > options_.max_inline_figure_bytes) {
-      figure = fmt::format(
-          "<img src=\"/jobs/{}/topology.svg?of={}\" alt=\"the model's springs\" "
-          "style=\"max-width:100%\"><p><a href=\"/jobs/{}/topology.svg?of={}\">the figure</a> "
-          "({} KB)</p>",
-          job.id, result_json.empty() ? "best" : "result", job.id,
-          result_json.empty() ? "best" : "result", best.size() / 1024);
-    } else {
-      figure = Inline(best);
-    }
-    body += "<figure id=\"topology\">" + figure + "</figure>\n";
-  } catch (const std::exception& e) {
-    body += "<p>The topology figure cannot be drawn: " + XmlEscape(e.what()) + "</p>\n";
-  }
-  if (!result_json.empty()) {
-    const Json& r = result;
-    body += "<h2>Identifiability</h2>\n<table id=\"identifiability\">\n";
-    if (r.contains("stop")) body += Row("stop", XmlEscape(r.value("stop", "")));
-    if (r.contains("stop_message") && r["stop_message"].is_string())
-      body += Row("why", XmlEscape(r["stop_message"].get<std::string>()));
-    if (const auto id = r.find("identifiability"); id != r.end() && id->is_object()) {
-      const Json& rep = *id;
-      body += Row("candidates no load case sees",
-                  std::to_string(rep.value("unseen", Json::array()).size()));
-      if (rep.contains("rank") && rep["rank"].is_number())
-        body += Row("rank of the analysed groups", std::to_string(rep["rank"].get<int>()));
-      const Json groups = rep.value("groups", Json::array());
-      // (Where the groups were not analysed no count is claimed, and the reason is shown.)
-      const bool analysed = !rep.contains("analysed") || rep["analysed"] != false;
-      const auto why = rep.find("not_analysed");
-      body += Row("groups of springs the loads do not tell apart",
-                  analysed ? std::to_string(groups.size())
-                           : XmlEscape(GroupsNotAnalysedText(why != rep.end() && why->is_string()
-                                                                 ? why->get<std::string>()
-                                                                 : std::string())));
-      int shown = 0;
-      for (const Json& g : groups) {
-        if (++shown > 10) break;
-        std::string text = std::to_string(g.value("springs", Json::array()).size()) + " springs";
-        if (g.contains("suggestion") && g["suggestion"].is_string())
-          text += ": " + g["suggestion"].get<std::string>();
-        body += Row("group " + std::to_string(shown), XmlEscape(text));
-      }
-    }
-    body += "</table>\n";
-  }
+  body += ModelSection(job, !result_json.empty());
+  if (!result_json.empty()) body += IdentifiabilityTable(result);
   body += "<h2>Downloads</h2>\n<ul id=\"downloads\">";
   const std::string base = "/jobs/" + std::to_string(job.id);
   if (!result_json.empty())

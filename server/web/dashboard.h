@@ -65,6 +65,8 @@ class Dashboard {
   HttpResponse MetricsText();
   HttpResponse ListView(const std::map<std::string, std::string>& query);
   HttpResponse JobView(const JobRecord& job);
+  // The model's figure (the result's, or the best so far), inline or linked when large.
+  std::string ModelSection(const JobRecord& job, bool result);
   HttpResponse Progress(const JobRecord& job);
   HttpResponse ErrorPlot(const JobRecord& job);
   HttpResponse Topology(const JobRecord& job, const std::string& which);
