@@ -61,35 +61,33 @@ void AddLoadCases(SpringModel& model, const Problem& problem) {
   }
 }
 
-}  // namespace
-
-SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& result,
-                          const ModelOptions& options) {
-  options.Validate();
-  const Scene& scene = problem.scene();
-  proto::ExpectResultOfScene(result, problem);
-  SpringModel model;
-  model.name = scene.name;
-  model.dimension = scene.dimension;
-  model.rest.assign(scene.rest.data(), scene.rest.data() + scene.rest.size());
-  model.description = "springfit, strategy " + result.strategy;
-  if (result.seed) model.description += ", seed " + std::to_string(*result.seed);
-  // The result's verdict line, as run, result and the dashboard show it; E alone for a result
-  // written before it had one.
+// The line every format writes: the strategy and seed, the result's verdict line (as run,
+// result and the dashboard show it; E alone for a result written before it had one), and the
+// scene's units where it states them.
+std::string DescriptionOf(const proto::StoredResult& result, const Scene& scene) {
+  std::string description = "springfit, strategy " + result.strategy;
+  if (result.seed) description += ", seed " + std::to_string(*result.seed);
   if (result.outcome) {
-    model.description += "; " + result.outcome->Headline();
+    description += "; " + result.outcome->Headline();
   } else if (result.rms_error) {
     char e[32];
     std::snprintf(e, sizeof e, ", E %.4g", *result.rms_error);
-    model.description += e;
+    description += e;
   }
-  // Units, where the scene states them: in the description every format writes, and as data.
   if (scene.units) {
-    model.units = DeriveUnits(*scene.units);
-    model.description += "; units: length " + model.units->length + ", force " +
-                         model.units->force + ", stiffness " + model.units->stiffness;
+    const DerivedUnits units = DeriveUnits(*scene.units);
+    description += "; units: length " + units.length + ", force " + units.force + ", stiffness " +
+                   units.stiffness;
   }
+  return description;
+}
 
+// The result's springs, then the candidates no load case sees (with the problem's stiffness
+// for them, Problem::unidentifiable_stiffness: the closed-form model's on an FEM mesh edge: the
+// model as the certificate judged it), each with whether the load cases determine it. Throws
+// InputError on a spring that is not a candidate or is listed twice.
+void AddSprings(SpringModel& model, const Problem& problem, const proto::StoredResult& result) {
+  const Scene& scene = problem.scene();
   std::set<NodePair> candidates;
   for (const NodePair& p : problem.candidates().pairs) candidates.insert(Ordered(p));
   std::set<NodePair> undetermined;
@@ -122,9 +120,6 @@ SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& res
     add(p, result.stiffness.empty() ? training : result.stiffness[i],
         undetermined.count(p) ? SpringModel::Identified::kNo : otherwise);
   }
-  // The candidates no load case sees, with the problem's stiffness for them (Problem::
-  // unidentifiable_stiffness: the closed-form model's on an FEM mesh edge): the model as the
-  // certificate judged it.
   std::map<NodePair, double> unseen_stiffness;
   for (std::size_t u = 0; u < problem.unidentifiable().size(); ++u)
     unseen_stiffness[Ordered(
@@ -136,6 +131,22 @@ SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& res
     if (candidates.count(p) && present.insert(p).second)
       add(p, k == unseen_stiffness.end() ? training : k->second, SpringModel::Identified::kNo);
   }
+}
+
+}  // namespace
+
+SpringModel ModelOfResult(const Problem& problem, const proto::StoredResult& result,
+                          const ModelOptions& options) {
+  options.Validate();
+  const Scene& scene = problem.scene();
+  proto::ExpectResultOfScene(result, problem);
+  SpringModel model;
+  model.name = scene.name;
+  model.dimension = scene.dimension;
+  model.rest.assign(scene.rest.data(), scene.rest.data() + scene.rest.size());
+  model.description = DescriptionOf(result, scene);
+  if (scene.units) model.units = DeriveUnits(*scene.units);
+  AddSprings(model, problem, result);
   model.response = problem.response() == Response::kLinear ? "linear" : "nonlinear";
   model.node_sets = scene.node_sets;
   model.node_tags = scene.node_tags;
