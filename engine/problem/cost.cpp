@@ -7,6 +7,46 @@ namespace {
 
 constexpr double kNotConvergedPenalty = 1.5 * kPenaltyBase;
 
+// Sum over the free nodes of |u - reference|^2.
+double SquaredError(const FreeNodes& free, int d, const Vector& u, const Vector& reference) {
+  double cost = 0.0;
+  for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
+    if (free.free_index[i] >= 0)
+      cost += (u.segment(d * i, d) - reference.segment(d * i, d)).squaredNorm();
+  }
+  return cost;
+}
+
+// The penalties of the cases with a mechanism or without an equilibrium, per load case (so the
+// breakdown shows where the topology failed), and the evaluation's totals.
+void Penalize(const Problem& p, double stable_cost, Evaluation& e) {
+  for (std::size_t k = 0; k < p.load_cases().size(); ++k) {
+    LoadCaseEvaluation& out = e.load_cases[k];
+    const double norm2 = p.load_cases()[k].reference_norm2 > 0.0 ? p.load_cases()[k].reference_norm2
+                                                                 : p.reference_norm2();
+    if (out.solve.termination == Termination::kMechanism) {
+      out.normalized_error = kPenaltyBase * (1.0 + out.solve.mechanism_modes);
+      out.cost = out.normalized_error * norm2;
+    } else if (out.solve.termination == Termination::kNotSolved) {
+      out.normalized_error = 0.0;  // the verdict is another case's
+      out.cost = 0.0;
+    } else if (!out.solve.converged()) {
+      out.normalized_error = kNotConvergedPenalty;
+      out.cost = out.normalized_error * norm2;
+    }
+  }
+  if (e.mechanism) {
+    e.normalized_error = kPenaltyBase * (1.0 + e.mechanism_modes);
+  } else if (!e.converged) {
+    e.normalized_error = kNotConvergedPenalty;
+  } else {
+    e.normalized_error = std::min(stable_cost / p.reference_norm2(), kPenaltyBase);
+  }
+  e.cost = e.converged && e.normalized_error < kPenaltyBase
+               ? stable_cost
+               : e.normalized_error * p.reference_norm2();
+}
+
 }  // namespace
 
 CostFunction::CostFunction(const Problem& problem, CostOptions options)
@@ -29,6 +69,17 @@ Evaluation CostFunction::EvaluateMask(const std::vector<std::uint8_t>& candidate
   return Evaluate(problem_->SpringsFromMask(candidate_mask));
 }
 
+bool CostFunction::CheckStability(const ActiveSprings& springs) {
+  // One rest factorisation per distinct set of constrained nodes.
+  stability_.assign(solvers_.size(), RestStability{});
+  bool any_mechanism = false;
+  for (std::size_t f = 0; f < solvers_.size(); ++f) {
+    stability_[f] = solvers_[f].RestStabilityOf(springs);
+    any_mechanism = any_mechanism || stability_[f].modes > 0;
+  }
+  return any_mechanism;
+}
+
 Evaluation CostFunction::Evaluate(const ActiveSprings& springs,
                                   std::vector<Vector>* displacements) {
   const Problem& p = *problem_;
@@ -37,13 +88,7 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs,
   e.load_cases.resize(p.load_cases().size());
   if (displacements) displacements->assign(p.load_cases().size(), Vector());
 
-  // Stability first: one rest factorisation per distinct set of constrained nodes.
-  stability_.assign(solvers_.size(), RestStability{});
-  bool any_mechanism = false;
-  for (std::size_t f = 0; f < solvers_.size(); ++f) {
-    stability_[f] = solvers_[f].RestStabilityOf(springs);
-    any_mechanism = any_mechanism || stability_[f].modes > 0;
-  }
+  const bool any_mechanism = CheckStability(springs);
 
   double stable_cost = 0.0;
   for (std::size_t k = 0; k < p.load_cases().size(); ++k) {
@@ -80,13 +125,7 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs,
       e.converged = false;
       continue;
     }
-    const FreeNodes& free = p.free_sets()[lc.free_set];
-    double cost = 0.0;
-    for (int i = 0; i < static_cast<int>(free.free_index.size()); ++i) {
-      if (free.free_index[i] >= 0) {
-        cost += (u_.segment(d * i, d) - lc.reference.segment(d * i, d)).squaredNorm();
-      }
-    }
+    const double cost = SquaredError(p.free_sets()[lc.free_set], d, u_, lc.reference);
     out.cost = cost;
     // A case whose reference moves no free node is normalised by the whole reference instead.
     out.normalized_error =
@@ -95,32 +134,7 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs,
     if (displacements) (*displacements)[k] = u_;
   }
 
-  // Penalties per load case, so the breakdown shows where the topology failed.
-  for (std::size_t k = 0; k < p.load_cases().size(); ++k) {
-    LoadCaseEvaluation& out = e.load_cases[k];
-    const double norm2 = p.load_cases()[k].reference_norm2 > 0.0 ? p.load_cases()[k].reference_norm2
-                                                                 : p.reference_norm2();
-    if (out.solve.termination == Termination::kMechanism) {
-      out.normalized_error = kPenaltyBase * (1.0 + out.solve.mechanism_modes);
-      out.cost = out.normalized_error * norm2;
-    } else if (out.solve.termination == Termination::kNotSolved) {
-      out.normalized_error = 0.0;  // the verdict is another case's
-      out.cost = 0.0;
-    } else if (!out.solve.converged()) {
-      out.normalized_error = kNotConvergedPenalty;
-      out.cost = out.normalized_error * norm2;
-    }
-  }
-  if (e.mechanism) {
-    e.normalized_error = kPenaltyBase * (1.0 + e.mechanism_modes);
-  } else if (!e.converged) {
-    e.normalized_error = kNotConvergedPenalty;
-  } else {
-    e.normalized_error = std::min(stable_cost / p.reference_norm2(), kPenaltyBase);
-  }
-  e.cost = e.converged && e.normalized_error < kPenaltyBase
-               ? stable_cost
-               : e.normalized_error * p.reference_norm2();
+  Penalize(p, stable_cost, e);
   return e;
 }
 

@@ -78,6 +78,10 @@ class CostFunction {
   Evaluation Evaluate(const ActiveSprings& springs, std::vector<Vector>* displacements = nullptr);
 
  private:
+  // Stability first: fills stability_ (one rest factorisation per free set); true when some
+  // set has a mechanism.
+  bool CheckStability(const ActiveSprings& springs);
+
   const Problem* problem_;
   CostOptions options_;
   std::vector<EquilibriumSolver> solvers_;  // one per Problem::free_sets()
