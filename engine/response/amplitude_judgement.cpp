@@ -92,6 +92,50 @@ double RelativeError(const Vector& model, const Vector& reference, const FreeNod
   return norm > 0.0 ? std::sqrt(error / norm) : std::numeric_limits<double>::quiet_NaN();
 }
 
+// The reference's response to a probe's loads on one support: the FEM model's nonlinear solve,
+// or the reference MSS's. Checked for a stop at every Newton iteration too: a probe of a large
+// nonlinear mesh is nine solves.
+class ReferenceSolver {
+ public:
+  ReferenceSolver(const std::optional<fem::FemModel>& fem,
+                  const std::optional<SpringSolverInput>& springs, const FreeNodes& free,
+                  const Problem& problem, Interruption* interruption) {
+    if (fem) {
+      fem_.emplace(*fem, free);
+      fem_->set_interruption(interruption);
+    } else {
+      springs_.emplace(*springs, free, problem.solver_options(), interruption);
+    }
+  }
+  // nullopt where the reference has no equilibrium.
+  std::optional<Vector> Solve(const Vector& force, const Vector& prescribed) {
+    if (!fem_) return springs_->Solve(force, prescribed);
+    Vector u = Vector::Zero(force.size());
+    if (!fem_->Solve(force, prescribed, u).converged()) return std::nullopt;
+    return u;
+  }
+
+ private:
+  std::optional<fem::FemEquilibriumSolver> fem_;
+  std::optional<SpringResponse> springs_;
+};
+
+// Per amplitude, the model's and the baseline's errors summarised (NaN: the reference failed).
+std::vector<AmplitudeErrors> SummariesByAmplitude(
+    const std::vector<double>& amplitudes, const std::vector<std::vector<double>>& model_errors,
+    const std::vector<std::vector<double>>& baseline_errors) {
+  std::vector<AmplitudeErrors> out;
+  for (std::size_t a = 0; a < amplitudes.size(); ++a) {
+    AmplitudeErrors e;
+    e.amplitude = amplitudes[a];
+    e.model = Summarize(model_errors[a]);
+    e.baseline = Summarize(baseline_errors[a]);
+    for (double v : model_errors[a]) e.reference_failed += std::isnan(v) ? 1 : 0;
+    out.push_back(e);
+  }
+  return out;
+}
+
 }  // namespace
 
 SpringModel ModelOfWeights(const Problem& problem, const std::vector<double>& weights) {
@@ -151,27 +195,13 @@ std::vector<AmplitudeErrors> JudgeAtAmplitudes(const Problem& problem, const Pro
     const Probe& probe = bank.probes[static_cast<std::size_t>(judged[i])];
     const FreeNodes free = FreeNodes::FromConstrained(
         bank.supports[static_cast<std::size_t>(probe.support)].constrained);
-    std::optional<fem::FemEquilibriumSolver> fem_solver;
-    std::optional<SpringResponse> reference_solver;
-    // (Checked at every Newton iteration too: a probe of a large nonlinear mesh is nine solves.)
-    if (fem) {
-      fem_solver.emplace(*fem, free);
-      fem_solver->set_interruption(interruption);
-    } else {
-      reference_solver.emplace(*reference_input, free, problem.solver_options(), interruption);
-    }
+    ReferenceSolver reference_solver(fem, reference_input, free, problem, interruption);
     SpringResponse model_solver(model_input, free, problem.solver_options(), interruption);
     SpringResponse baseline_solver(baseline_input, free, problem.solver_options(), interruption);
     for (std::size_t a = 0; a < amplitudes; ++a) {
       const Vector force = options.amplitudes[a] * probe.force;
       const Vector prescribed = options.amplitudes[a] * probe.prescribed;
-      std::optional<Vector> reference;
-      if (fem_solver) {
-        Vector u = Vector::Zero(force.size());
-        if (fem_solver->Solve(force, prescribed, u).converged()) reference = std::move(u);
-      } else {
-        reference = reference_solver->Solve(force, prescribed);
-      }
+      const std::optional<Vector> reference = reference_solver.Solve(force, prescribed);
       if (!reference) {
         model_errors[a][i] = baseline_errors[a][i] = std::numeric_limits<double>::quiet_NaN();
         continue;
@@ -193,17 +223,7 @@ std::vector<AmplitudeErrors> JudgeAtAmplitudes(const Problem& problem, const Pro
   } else {
     for (int slot = 0; slot < slots; ++slot) judge(slot);
   }
-
-  std::vector<AmplitudeErrors> out;
-  for (std::size_t a = 0; a < amplitudes; ++a) {
-    AmplitudeErrors e;
-    e.amplitude = options.amplitudes[a];
-    e.model = Summarize(model_errors[a]);
-    e.baseline = Summarize(baseline_errors[a]);
-    for (double v : model_errors[a]) e.reference_failed += std::isnan(v) ? 1 : 0;
-    out.push_back(e);
-  }
-  return out;
+  return SummariesByAmplitude(options.amplitudes, model_errors, baseline_errors);
 }
 
 }  // namespace springfit::response
