@@ -39,6 +39,34 @@ bool IsValidId(const Json& id) {
   return id.is_null() || id.is_string() || id.is_number();
 }
 
+// The request's JSON-RPC 2.0 envelope checked: the error response to send, or nullopt when it is
+// well formed (then `method` is a string and `params`, if present, an object).
+std::optional<Json> EnvelopeError(const Json& request, const Json& id, bool is_notification) {
+  auto invalid = [&](const std::string& why) {
+    return rpc::Error(id, rpc::kInvalidRequest, "invalid request: " + why);
+  };
+  if (!is_notification && !IsValidId(request["id"]))
+    return invalid("id must be a string, a number or null");
+  const auto version = request.find("jsonrpc");
+  if (version == request.end() || *version != "2.0") return invalid("jsonrpc must be \"2.0\"");
+  const auto method = request.find("method");
+  if (method == request.end() || !method->is_string()) return invalid("method must be a string");
+  for (const auto& [key, value] : request.items()) {
+    if (key != "jsonrpc" && key != "id" && key != "method" && key != "params")
+      return invalid("unknown member '" + key + "'");
+  }
+  if (const auto p = request.find("params"); p != request.end()) {
+    if (p->is_array()) {
+      Json data;
+      data["path"] = "params";
+      return rpc::Error(id, rpc::kInvalidParams,
+                        "invalid params: springfit methods take named params (an object)", data);
+    }
+    if (!p->is_object()) return invalid("params must be an object");
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 RpcService::RpcService(JobStore& store, Scheduler& scheduler, ServiceOptions options)
@@ -112,81 +140,64 @@ Json RpcService::HandleRequest(const Json& request, SessionContext& session) {
   const auto id_it = request.find("id");
   const bool is_notification = id_it == request.end();
   const Json id = is_notification || !IsValidId(*id_it) ? Json(nullptr) : *id_it;
-  auto invalid = [&](const std::string& why) {
-    return rpc::Error(id, rpc::kInvalidRequest, "invalid request: " + why);
-  };
-  if (!is_notification && !IsValidId(*id_it))
-    return invalid("id must be a string, a number or null");
-  const auto version = request.find("jsonrpc");
-  if (version == request.end() || *version != "2.0") return invalid("jsonrpc must be \"2.0\"");
-  const auto method = request.find("method");
-  if (method == request.end() || !method->is_string()) return invalid("method must be a string");
-  for (const auto& [key, value] : request.items()) {
-    if (key != "jsonrpc" && key != "id" && key != "method" && key != "params")
-      return invalid("unknown member '" + key + "'");
-  }
-  Json params = Json::object();
-  if (const auto p = request.find("params"); p != request.end()) {
-    if (p->is_array()) {
-      Json data;
-      data["path"] = "params";
-      return rpc::Error(id, rpc::kInvalidParams,
-                        "invalid params: springfit methods take named params (an object)", data);
-    }
-    if (!p->is_object()) return invalid("params must be an object");
-    params = *p;
-  }
+  if (std::optional<Json> error = EnvelopeError(request, id, is_notification)) return *error;
+  const std::string method = request["method"].get<std::string>();
+  const Json params = request.value("params", Json::object());
   Json response;
   try {
-    response = rpc::Result(id, Dispatch(method->get<std::string>(), params, session));
-  } catch (const rpc::RpcError& e) {
-    response = rpc::Error(id, e.code(), e.what(), e.data());
-  } catch (const InputError& e) {
-    Json data;
-    data["path"] = e.path();
-    response =
-        rpc::Error(id, rpc::kInvalidParams, std::string("invalid params: ") + e.what(), data);
-  } catch (const StoreCorrupt& e) {
-    // Not the client's fault, and not to be retried: the database holds a damaged record.
-    const std::uint64_t incident = ++incidents_;
-    spdlog::error("{}: damaged record in the store (incident {}): {}", method->get<std::string>(),
-                  incident, e.what());
-    Json data;
-    data["incident"] = incident;
-    response = rpc::Error(id, rpc::kStoreCorrupt,
-                          std::string("the store holds a damaged record (incident ") +
-                              std::to_string(incident) + " in the server's log): " + e.what(),
-                          data);
-  } catch (const StoreUnavailable& e) {
-    // Nothing was stored or changed: the client may retry (with its idempotency key).
-    response = rpc::Error(id, rpc::kStoreUnavailable,
-                          std::string("store unavailable, try again: ") + e.what());
-  } catch (const std::bad_alloc&) {
-    spdlog::error("{}: out of memory", method->get<std::string>());
-    response = rpc::Error(id, rpc::kInternalError,
-                          "internal error: out of memory: the server could not get the memory "
-                          "this request needs");
-  } catch (const std::exception& e) {
-    // The exception's own text (a library's, quoting internals) goes to the log; the client
-    // gets the documented message and the incident's number to find it there.
-    const std::uint64_t incident = ++incidents_;
-    spdlog::error("{}: internal error (incident {}): {}", method->get<std::string>(), incident,
-                  e.what());
-    Json data;
-    data["incident"] = incident;
-    response = rpc::Error(id, rpc::kInternalError,
-                          "internal error: the request failed inside the server (incident " +
-                              std::to_string(incident) + " in its log)",
-                          data);
+    response = rpc::Result(id, Dispatch(method, params, session));
+  } catch (...) {
+    response = ErrorOfCurrentException(id, method);
   }
   if (options_.metrics) {
     // Unknown methods under one name: a client cannot grow the metrics without bound.
     const bool unknown =
         response.contains("error") && response["error"].value("code", 0) == rpc::kMethodNotFound;
-    options_.metrics->CountRequest(unknown ? "unknown" : method->get<std::string>(),
-                                   response.contains("error"));
+    options_.metrics->CountRequest(unknown ? "unknown" : method, response.contains("error"));
   }
   return is_notification ? Json(nullptr) : response;
+}
+
+Json RpcService::ErrorOfCurrentException(const Json& id, const std::string& method) {
+  try {
+    throw;
+  } catch (const rpc::RpcError& e) {
+    return rpc::Error(id, e.code(), e.what(), e.data());
+  } catch (const InputError& e) {
+    Json data;
+    data["path"] = e.path();
+    return rpc::Error(id, rpc::kInvalidParams, std::string("invalid params: ") + e.what(), data);
+  } catch (const StoreCorrupt& e) {
+    // Not the client's fault, and not to be retried: the database holds a damaged record.
+    const std::uint64_t incident = ++incidents_;
+    spdlog::error("{}: damaged record in the store (incident {}): {}", method, incident, e.what());
+    Json data;
+    data["incident"] = incident;
+    return rpc::Error(id, rpc::kStoreCorrupt,
+                      std::string("the store holds a damaged record (incident ") +
+                          std::to_string(incident) + " in the server's log): " + e.what(),
+                      data);
+  } catch (const StoreUnavailable& e) {
+    // Nothing was stored or changed: the client may retry (with its idempotency key).
+    return rpc::Error(id, rpc::kStoreUnavailable,
+                      std::string("store unavailable, try again: ") + e.what());
+  } catch (const std::bad_alloc&) {
+    spdlog::error("{}: out of memory", method);
+    return rpc::Error(id, rpc::kInternalError,
+                      "internal error: out of memory: the server could not get the memory "
+                      "this request needs");
+  } catch (const std::exception& e) {
+    // The exception's own text (a library's, quoting internals) goes to the log; the client
+    // gets the documented message and the incident's number to find it there.
+    const std::uint64_t incident = ++incidents_;
+    spdlog::error("{}: internal error (incident {}): {}", method, incident, e.what());
+    Json data;
+    data["incident"] = incident;
+    return rpc::Error(id, rpc::kInternalError,
+                      "internal error: the request failed inside the server (incident " +
+                          std::to_string(incident) + " in its log)",
+                      data);
+  }
 }
 
 Json RpcService::Dispatch(const std::string& method, const Json& params, SessionContext& session) {

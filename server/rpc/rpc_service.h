@@ -106,6 +106,9 @@ class RpcService {
 
  private:
   proto::Json HandleRequest(const proto::Json& request, SessionContext& session);
+  // The error response for the exception being handled (call inside a catch block): the
+  // client's errors named, the store's and the server's with an incident number in the log.
+  proto::Json ErrorOfCurrentException(const proto::Json& id, const std::string& method);
   proto::Json Dispatch(const std::string& method, const proto::Json& params,
                        SessionContext& session);
 
