@@ -82,27 +82,9 @@ void PrintFemReference(const Scene& s) {
   std::fflush(stdout);
 }
 
-int Check(const SceneInput& input) {
-  const std::string& file = input.path;
-  const Problem problem = Problem::Build(SceneOf(input));
+// The reference: its kind, and what it allows (exact recovery, the FEM mesh).
+void PrintReference(const Problem& problem) {
   const Scene& s = problem.scene();
-  std::cout << "scene:                  " << (s.name.empty() ? file : s.name) << "\n";
-  if (!s.description.empty()) std::cout << "description:            " << s.description << "\n";
-  std::cout << "dimension:              " << s.dimension << "\n"
-            << "nodes:                  " << s.node_count() << "\n"
-            << "candidate springs:      " << problem.candidates().size() << " ("
-            << proto::CandidateKindName(s.candidates.kind) << ")\n"
-            << "genes:                  " << problem.gene_count() << "\n"
-            << "unidentifiable springs: " << problem.unidentifiable().size();
-  if (!problem.unidentifiable().empty()) {
-    std::vector<NodePair> pairs;
-    for (int c : problem.unidentifiable()) pairs.push_back(problem.candidates().pairs[c]);
-    std::cout << " (both nodes constrained in every load case):" << PairList(pairs);
-  }
-  std::cout << "\n";
-  PrintIdentifiability(Identifiability(problem));
-  for (const std::string& notice : SceneNotices(problem))
-    std::cout << "notice:                 " << notice << "\n";
   if (s.reference.kind == Reference::Kind::kMss) {
     std::cout << "reference:              mss, " << s.reference.springs.size() << " springs";
     if (problem.reference_mask()) {
@@ -117,8 +99,11 @@ int Check(const SceneInput& input) {
   } else {
     std::cout << "reference:              positions given per load case\n";
   }
-  std::cout << "training stiffness:     " << problem.training_stiffness() << "\n"
-            << "load cases:             " << s.load_cases.size() << "\n";
+}
+
+// Each load case's supports and loads, and the warnings of the reference's solves under them.
+void PrintLoadCases(const Problem& problem) {
+  const Scene& s = problem.scene();
   for (std::size_t k = 0; k < s.load_cases.size(); ++k) {
     const LoadCase& lc = s.load_cases[k];
     int forced = 0, displaced = 0;
@@ -147,12 +132,13 @@ int Check(const SceneInput& input) {
                    "the reference MSS would leave it at the slightest disturbance, and a model "
                    "fitted to it may buckle instead\n";
   }
-  if (problem.DisplacementOnly()) {
-    std::cout
-        << "  no load case applies a force: the data fix the stiffness only up to one factor\n";
-  }
+}
+
+// The strategy that runs (`default` is chosen per scene, ResolvedStrategy): which, what it
+// finds and why.
+void PrintSearch(const Problem& problem) {
+  const Scene& s = problem.scene();
   const SearchOptions options = ResolveSearchOptions(s.search, problem.gene_count());
-  // `default` is chosen per scene (ResolvedStrategy): say which runs, what it finds and why.
   const Strategy runs = ResolvedStrategy(options.strategy, problem);
   const bool stiffness = runs == Strategy::kContinuous ||
                          options.identify == Identify::kTopologyAndStiffness ||
@@ -166,6 +152,38 @@ int Check(const SceneInput& input) {
   if (runs != options.strategy)
     std::cout << "  why " << proto::StrategyName(runs) << ": "
               << DefaultStrategyReason(options.strategy, s) << "\n";
+}
+
+int Check(const SceneInput& input) {
+  const std::string& file = input.path;
+  const Problem problem = Problem::Build(SceneOf(input));
+  const Scene& s = problem.scene();
+  std::cout << "scene:                  " << (s.name.empty() ? file : s.name) << "\n";
+  if (!s.description.empty()) std::cout << "description:            " << s.description << "\n";
+  std::cout << "dimension:              " << s.dimension << "\n"
+            << "nodes:                  " << s.node_count() << "\n"
+            << "candidate springs:      " << problem.candidates().size() << " ("
+            << proto::CandidateKindName(s.candidates.kind) << ")\n"
+            << "genes:                  " << problem.gene_count() << "\n"
+            << "unidentifiable springs: " << problem.unidentifiable().size();
+  if (!problem.unidentifiable().empty()) {
+    std::vector<NodePair> pairs;
+    for (int c : problem.unidentifiable()) pairs.push_back(problem.candidates().pairs[c]);
+    std::cout << " (both nodes constrained in every load case):" << PairList(pairs);
+  }
+  std::cout << "\n";
+  PrintIdentifiability(Identifiability(problem));
+  for (const std::string& notice : SceneNotices(problem))
+    std::cout << "notice:                 " << notice << "\n";
+  PrintReference(problem);
+  std::cout << "training stiffness:     " << problem.training_stiffness() << "\n"
+            << "load cases:             " << s.load_cases.size() << "\n";
+  PrintLoadCases(problem);
+  if (problem.DisplacementOnly()) {
+    std::cout
+        << "  no load case applies a force: the data fix the stiffness only up to one factor\n";
+  }
+  PrintSearch(problem);
   return kExitOk;
 }
 
