@@ -72,11 +72,12 @@ ConfirmedBasis ConfirmBasis(const SparseMatrix& a, const ColumnDependencyOptions
                            : SPQR_ORDERING_COLAMD);
     qr.compute(columns);
     if (qr.info() != Eigen::Success) {
-      out.failure = "the sparse QR ran out of memory";
+      out.failure = "the sparse QR failed (out of memory, or a SuiteSparse error)";
       return out;
     }
     const Eigen::Index rank = qr.rank();
-    const auto& perm = qr.colsPermutation().indices();
+    // (A copy: colsPermutation() returns a temporary view, its indices die with it.)
+    const Eigen::Matrix<SuiteSparse_long, Eigen::Dynamic, 1> perm = qr.colsPermutation().indices();
     out.columns.clear();
     for (Eigen::Index k = 0; k < static_cast<Eigen::Index>(live.size()); ++k) {
       const int column = live[static_cast<std::size_t>(perm[k])];
@@ -158,7 +159,7 @@ ColumnDependencies FindColumnDependencies(const SparseMatrix& a,
     c += solve(target - a_basis * c);
     ColumnDependencies::Circuit circuit;
     circuit.column = column;
-    const double largest = std::max(c.cwiseAbs().maxCoeff(), 1.0);
+    const double largest = c.size() > 0 ? std::max(c.cwiseAbs().maxCoeff(), 1.0) : 1.0;
     for (Eigen::Index b = 0; b < c.size(); ++b) {
       if (std::abs(c[b]) > options.circuit_tolerance * largest)
         circuit.basis.emplace_back(basis.columns[static_cast<std::size_t>(b)], c[b]);

@@ -42,8 +42,10 @@ struct ColumnDependencyOptions {
   // dependency stands out by orders of magnitude within one or two; fem-block-3d's estimate
   // after 10 is its smallest singular value to three digits (0.02095, SciPy's eigsh).
   int confirm_iterations = 10;
-  // Refactorisations without one dependent column before giving up (each costs one QR).
-  int max_repairs = 50;
+  // Refactorisations without one dependent column before giving up: each costs one more QR
+  // (4 s at 26,791 columns) that cannot be interrupted. fem-kidney-2d-fine under COLAMD needs
+  // 2, under METIS none.
+  int max_repairs = 5;
   // The circuits cost about 2 (nonzeros(R11) + nonzeros(A's basis columns)) per dependent
   // column; beyond this product (about 10 s on one core) they are not traced.
   double max_trace_work = 2e10;

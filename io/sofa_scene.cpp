@@ -65,6 +65,14 @@ SofaComponents SofaComponentsOf(const std::string& release) {
 
 namespace {
 
+// Text safe inside an XML comment, which may not hold "--" (a result's reason comes from its
+// JSON, which anyone can write).
+std::string XmlCommentText(std::string text) {
+  for (std::size_t at = text.find("--"); at != std::string::npos; at = text.find("--", at))
+    text.replace(at, 2, "- -");
+  return text;
+}
+
 std::string Number(double x) {
   return ExactNumber(x);
 }
@@ -249,7 +257,7 @@ struct SofaScene {
     if (not_analysed) {
       out << "    <!-- whether the load cases determine the other springs' stiffness was not "
              "analysed: dependent groups "
-          << GroupsNotAnalysedText(model.groups_not_analysed) << " -->\n";
+          << XmlCommentText(GroupsNotAnalysedText(model.groups_not_analysed)) << " -->\n";
     }
   }
 

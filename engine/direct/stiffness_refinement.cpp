@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "engine/nnls.h"
 #include "engine/problem/force_balance.h"
@@ -71,14 +72,15 @@ struct GaussNewtonPoint {
   Matrix jacobian;
   double cost = 0.0;
 
-  // Solves the equilibria at w and, when the cost is below `only_if_below`, the Jacobian. False
-  // when a load case has no equilibrium, the cost is not below, or a tangent is not positive
+  // Solves the equilibria at w and, unless the cost is not below `only_if_below`, the Jacobian.
+  // False when a load case has no equilibrium, the cost is not below, or a tangent is not positive
   // definite.
   bool Linearize(const Problem& problem, std::vector<EquilibriumSolver>& solvers,
-                 double only_if_below) {
+                 std::optional<double> only_if_below) {
     if (!Equilibria(problem, w, solvers, u, r)) return false;
     cost = r.squaredNorm();
-    return cost < only_if_below && Jacobian(problem, w, solvers, u, jacobian);
+    if (only_if_below && !(cost < *only_if_below)) return false;
+    return Jacobian(problem, w, solvers, u, jacobian);
   }
 };
 
@@ -183,7 +185,7 @@ RefinementResult RefineWeights(const Problem& problem, const std::vector<double>
   GaussNewtonPoint at;
   at.w = start;
   at.u.resize(problem.load_cases().size());
-  const bool started = at.Linearize(problem, solvers, /*only_if_below=*/HUGE_VAL);
+  const bool started = at.Linearize(problem, solvers, /*only_if_below=*/std::nullopt);
   ThrowIfInterrupted(interruption);
   if (!started) return result;
   result.initial_cost = at.cost;

@@ -181,7 +181,7 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
   try {
     if (progress) progress(path);  // (its stop request stops the path: the fit's point stands)
     while (static_cast<int>(path.points.size()) < options.max_points) {
-      const PathPoint last = path.points.back();
+      const PathPoint& last = path.points.back();  // (used before Step appends)
       if (last.normalized_error > stop || last.springs <= min_springs) break;
       if (!walk.Step()) break;
       if (path.points.size() > static_cast<std::size_t>(walk.points_before_step()) && progress)
