@@ -58,7 +58,8 @@ struct ConfirmedBasis {
 // whose residual stays above the tolerance. Such a column shows as a near-null vector of R11:
 // the basis column it weighs most is moved to the dependent ones and the rest factored again,
 // until R11 is confirmed or max_repairs are spent.
-ConfirmedBasis ConfirmBasis(const SparseMatrix& a, const ColumnDependencyOptions& options) {
+ConfirmedBasis ConfirmBasis(const SparseMatrix& a, const ColumnDependencyOptions& options,
+                            Interruption* interruption) {
   ConfirmedBasis out;
   std::vector<int> live(static_cast<std::size_t>(a.cols()));
   for (std::size_t j = 0; j < live.size(); ++j) live[j] = static_cast<int>(j);
@@ -71,6 +72,7 @@ ConfirmedBasis ConfirmBasis(const SparseMatrix& a, const ColumnDependencyOptions
                            ? SPQR_ORDERING_METIS
                            : SPQR_ORDERING_COLAMD);
     qr.compute(columns);
+    ThrowIfInterrupted(interruption);
     if (qr.info() != Eigen::Success) {
       out.failure = "the sparse QR failed (out of memory, or a SuiteSparse error)";
       return out;
@@ -118,7 +120,8 @@ void ColumnDependencyOptions::Validate(const std::string& owner) const {
 }
 
 ColumnDependencies FindColumnDependencies(const SparseMatrix& a,
-                                          const ColumnDependencyOptions& options) {
+                                          const ColumnDependencyOptions& options,
+                                          Interruption* interruption) {
   options.Validate();
   ColumnDependencies out;
   if (a.cols() == 0) {
@@ -129,7 +132,7 @@ ColumnDependencies FindColumnDependencies(const SparseMatrix& a,
     out.not_analysed = "no column has an entry";
     return out;
   }
-  const ConfirmedBasis basis = ConfirmBasis(a, options);
+  const ConfirmedBasis basis = ConfirmBasis(a, options, interruption);
   out.rank = static_cast<int>(basis.columns.size());
   if (!basis.failure.empty()) {
     out.not_analysed = basis.failure;
@@ -154,6 +157,7 @@ ColumnDependencies FindColumnDependencies(const SparseMatrix& a,
     return c;
   };
   for (const int column : basis.dependent) {
+    ThrowIfInterrupted(interruption);
     const Vector target = Vector(a.col(column));
     Vector c = solve(target);
     c += solve(target - a_basis * c);

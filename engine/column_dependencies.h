@@ -16,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include "engine/interruption.h"
 #include "engine/linalg.h"
 
 namespace springfit {
@@ -70,7 +71,10 @@ struct ColumnDependencies {
 };
 
 // `a`'s columns must have unit norm (zero columns are dependent on anything: leave them out).
+// Throws Interrupted when `interruption` stops it: checked after each QR (one QR call itself
+// cannot be stopped) and between circuits.
 ColumnDependencies FindColumnDependencies(const SparseMatrix& a,
-                                          const ColumnDependencyOptions& options = {});
+                                          const ColumnDependencyOptions& options = {},
+                                          Interruption* interruption = nullptr);
 
 }  // namespace springfit

@@ -78,7 +78,8 @@ int Separated(const Matrix& block, const Matrix& group_null, double tolerance) {
 std::optional<LoadSuggestion> SuggestLoad(const Problem& problem,
                                           const std::vector<int>& group_genes,
                                           const Matrix& group_null,
-                                          const IdentifiabilityOptions& options) {
+                                          const IdentifiabilityOptions& options,
+                                          Interruption* interruption) {
   const Scene& scene = problem.scene();
   if (scene.reference.kind != Reference::Kind::kMss) return std::nullopt;
   const int d = problem.dimension();
@@ -94,6 +95,7 @@ std::optional<LoadSuggestion> SuggestLoad(const Problem& problem,
   std::optional<LoadSuggestion> best;
   const Vector zero = Vector::Zero(static_cast<Eigen::Index>(d) * scene.node_count());
   for (std::size_t c = 0; c < problem.load_cases().size(); ++c) {
+    ThrowIfInterrupted(interruption);
     const FreeNodes& free = problem.free_sets()[problem.load_cases()[c].free_set];
     // One unit force per (group node free in this case, axis): their small-load responses
     // from one factorisation of the reference's rest stiffness.
@@ -186,10 +188,10 @@ Matrix NullBasisOfGroup(const ColumnDependencies& dependencies, const std::vecto
 
 }  // namespace
 
-const IdentifiabilityReport& Identifiability(const Problem& problem) {
+const IdentifiabilityReport& Identifiability(const Problem& problem, Interruption* interruption) {
   std::call_once(problem.identifiability_once_, [&] {
-    problem.identifiability_ =
-        std::make_shared<const IdentifiabilityReport>(AnalyseIdentifiability(problem));
+    problem.identifiability_ = std::make_shared<const IdentifiabilityReport>(
+        AnalyseIdentifiability(problem, {}, interruption));
   });
   return *problem.identifiability_;
 }
@@ -203,7 +205,8 @@ void IdentifiabilityOptions::Validate() const {
 }
 
 IdentifiabilityReport AnalyseIdentifiability(const Problem& problem,
-                                             const IdentifiabilityOptions& options) {
+                                             const IdentifiabilityOptions& options,
+                                             Interruption* interruption) {
   options.Validate();
   IdentifiabilityReport report;
   for (const int c : problem.unidentifiable())
@@ -224,7 +227,8 @@ IdentifiabilityReport AnalyseIdentifiability(const Problem& problem,
     return report;
   }
   const SparseMatrix a = UnitColumns(fb.a, seen);
-  const ColumnDependencies dependencies = FindColumnDependencies(a, options.dependencies);
+  const ColumnDependencies dependencies =
+      FindColumnDependencies(a, options.dependencies, interruption);
   report.rank = dependencies.rank;
   report.groups_analysed = dependencies.analysed;
   report.not_analysed = dependencies.not_analysed;
@@ -242,8 +246,8 @@ IdentifiabilityReport AnalyseIdentifiability(const Problem& problem,
         }));
     const auto size = static_cast<long long>(genes.size()) * group.dependencies;
     if (size <= options.max_suggestion_size) {
-      group.suggestion =
-          SuggestLoad(problem, genes, NullBasisOfGroup(dependencies, members), options);
+      group.suggestion = SuggestLoad(problem, genes, NullBasisOfGroup(dependencies, members),
+                                     options, interruption);
     }
     report.groups.push_back(std::move(group));
   }

@@ -78,10 +78,15 @@ inline std::string GroupsNotAnalysedText(const std::string& why) {
   return why.empty() ? "not analysed" : "not analysed (" + why + ")";
 }
 
+// Throws Interrupted when `interruption` stops it (between the QR's steps, and between the
+// suggestions' trial solves).
 IdentifiabilityReport AnalyseIdentifiability(const Problem& problem,
-                                             const IdentifiabilityOptions& options = {});
+                                             const IdentifiabilityOptions& options = {},
+                                             Interruption* interruption = nullptr);
 // The default analysis of a prepared problem, computed once on first use (thread-safe) and kept
 // with it: every run on the problem reports it without redoing the QR.
-const IdentifiabilityReport& Identifiability(const Problem& problem);
+// An interrupted analysis is not kept: the next call analyses again.
+const IdentifiabilityReport& Identifiability(const Problem& problem,
+                                             Interruption* interruption = nullptr);
 
 }  // namespace springfit

@@ -161,7 +161,7 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
   IdentificationResult r;
   try {
     // Before the run's clock starts (it starts inside the strategy): not part of its time.
-    identifiability = Identifiability(problem);
+    identifiability = Identifiability(problem, &monitor.interruption());
     baseline = EvaluateClosedFormBaseline(problem, &monitor.interruption());
     r = strategy.Run(problem, options, context, monitor);
   } catch (const Interrupted&) {

@@ -177,7 +177,8 @@ class Problem {
   bool DisplacementOnly() const;
 
  private:
-  friend const IdentifiabilityReport& Identifiability(const Problem& problem);
+  friend const IdentifiabilityReport& Identifiability(const Problem& problem,
+                                                      Interruption* interruption);
 
   // The steps of preparing, in the constructor's order (the reference's equilibria:
   // reference_equilibria.h).

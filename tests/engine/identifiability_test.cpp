@@ -158,6 +158,18 @@ TEST(Identifiability, AMeshOfThousandsOfGenesIsAnalysed) {
             "not analysed (more than 2000 seen genes)");
 }
 
+// A run's stop reaches the analysis (checked after its QR and between circuits), and an
+// interrupted analysis is not kept: the next call analyses again.
+TEST(Identifiability, AStopReachesTheAnalysisAndAnInterruptedOneIsNotKept) {
+  const Problem problem = Problem::Build(examples::Make("fem-kidney-2d-fine"));
+  Interruption stop;
+  stop.Request();
+  EXPECT_THROW(Identifiability(problem, &stop), Interrupted);
+  const IdentifiabilityReport& report = Identifiability(problem);
+  EXPECT_TRUE(report.groups_analysed) << report.not_analysed;
+  EXPECT_EQ(report.rank, 2841);
+}
+
 TEST(Identifiability, OneLoadCaseOnAGridLeavesGroupsWithSuggestions) {
   Scene scene = examples::Make("paper-iso-5x5");
   scene.load_cases.resize(1);  // only 'stretch +y'
