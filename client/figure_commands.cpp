@@ -34,13 +34,6 @@ std::string Describe(const proto::StoredResult& result) {
   return s;
 }
 
-std::vector<NodePair> Ordered(std::vector<NodePair> pairs) {
-  for (NodePair& p : pairs) {
-    if (p.first > p.second) std::swap(p.first, p.second);
-  }
-  return pairs;
-}
-
 void WriteSvg(const std::string& path, const std::string& svg) {
   std::ofstream out(path);
   out << svg;
@@ -79,7 +72,7 @@ int Render(const RenderArgs& a) {
 
   TopologyFigureInput input;
   input.title = Describe(typed) + " (" + where + ")";
-  input.springs = Ordered(typed.springs);
+  input.springs = typed.springs;
   input.stiffness = typed.stiffness;
   if (typed.stop == "cancelled") input.note = "cancelled: the best topology so far";
   TopologyFigureOptions options;

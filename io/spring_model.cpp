@@ -14,11 +14,6 @@
 namespace springfit::io {
 namespace {
 
-NodePair Ordered(NodePair p) {
-  if (p.first > p.second) std::swap(p.first, p.second);
-  return p;
-}
-
 // Each load case as a simulator applies it, the reference's equilibrium, and the model's own
 // (with the problem's response, as the certificate judged it).
 void AddLoadCases(SpringModel& model, const Problem& problem) {
@@ -88,10 +83,9 @@ std::string DescriptionOf(const proto::StoredResult& result, const Scene& scene)
 // InputError on a spring that is not a candidate or is listed twice.
 void AddSprings(SpringModel& model, const Problem& problem, const proto::StoredResult& result) {
   const Scene& scene = problem.scene();
-  std::set<NodePair> candidates;
-  for (const NodePair& p : problem.candidates().pairs) candidates.insert(Ordered(p));
-  std::set<NodePair> undetermined;
-  for (const NodePair& p : result.undetermined) undetermined.insert(Ordered(p));
+  // (A result's pairs are read ordered, as the problem's candidates are.)
+  const auto candidate = [&](NodePair p) { return problem.CandidateIndex(p) >= 0; };
+  const std::set<NodePair> undetermined(result.undetermined.begin(), result.undetermined.end());
   // Not in a group or unseen: determined, when the groups were analysed.
   const SpringModel::Identified otherwise = result.groups_analysed
                                                 ? SpringModel::Identified::kYes
@@ -111,24 +105,23 @@ void AddSprings(SpringModel& model, const Problem& problem, const proto::StoredR
   const double training = problem.training_stiffness();
   std::set<NodePair> present;
   for (std::size_t i = 0; i < result.springs.size(); ++i) {
-    const NodePair p = Ordered(result.springs[i]);
-    if (!candidates.count(p) || !present.insert(p).second) {
+    const NodePair p = result.springs[i];
+    if (!candidate(p) || !present.insert(p).second) {
       throw InputError("springs[" + std::to_string(i) + "]",
                        "(" + std::to_string(p.first) + ", " + std::to_string(p.second) + ") is " +
-                           (candidates.count(p) ? "listed twice" : "not a candidate of the scene"));
+                           (candidate(p) ? "listed twice" : "not a candidate of the scene"));
     }
     add(p, result.stiffness.empty() ? training : result.stiffness[i],
         undetermined.count(p) ? SpringModel::Identified::kNo : otherwise);
   }
   std::map<NodePair, double> unseen_stiffness;
   for (std::size_t u = 0; u < problem.unidentifiable().size(); ++u)
-    unseen_stiffness[Ordered(
-        problem.candidates().pairs[static_cast<std::size_t>(problem.unidentifiable()[u])])] =
+    unseen_stiffness[problem.candidates()
+                         .pairs[static_cast<std::size_t>(problem.unidentifiable()[u])]] =
         problem.unidentifiable_stiffness()[u];
-  for (const NodePair& u : result.unidentifiable) {
-    const NodePair p = Ordered(u);
+  for (const NodePair& p : result.unidentifiable) {
     const auto k = unseen_stiffness.find(p);
-    if (candidates.count(p) && present.insert(p).second)
+    if (candidate(p) && present.insert(p).second)
       add(p, k == unseen_stiffness.end() ? training : k->second, SpringModel::Identified::kNo);
   }
 }

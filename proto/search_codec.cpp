@@ -3,6 +3,9 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "engine/api/input_error.h"
 #include "engine/api/scene.h"
@@ -401,6 +404,16 @@ void ExpectResultOfScene(const StoredResult& result, const Problem& problem) {
 
 namespace {
 
+// A result's node pairs are springs, which have no direction: each is read as (smaller, larger)
+// node index, once here, so that every reader finds it among the engine's candidates as it is.
+std::vector<NodePair> ReadSpringPairs(const Json& json, const std::string& path) {
+  std::vector<NodePair> pairs = ReadNodePairs(json, path);
+  for (NodePair& p : pairs) {
+    if (p.first > p.second) std::swap(p.first, p.second);
+  }
+  return pairs;
+}
+
 // `continuous.path` and `continuous.chosen` of a result (proto/RUN.md).
 void ReadContinuousPath(const Json& c, StoredResult& r) {
   if (c.contains("path")) {
@@ -425,7 +438,8 @@ void ReadContinuousPath(const Json& c, StoredResult& r) {
 // What the load cases do not determine (`identifiability`): the unseen springs and those of the
 // dependent groups, and whether (and why not) the groups were analysed.
 void ReadIdentifiability(const Json& id, StoredResult& r) {
-  if (id.contains("unseen")) r.undetermined = ReadNodePairs(id["unseen"], "identifiability.unseen");
+  if (id.contains("unseen"))
+    r.undetermined = ReadSpringPairs(id["unseen"], "identifiability.unseen");
   if (id.contains("analysed")) {
     if (!id["analysed"].is_boolean())
       throw InputError("identifiability.analysed", "expected a boolean");
@@ -443,7 +457,7 @@ void ReadIdentifiability(const Json& id, StoredResult& r) {
       const Json& g = id["groups"][i];
       ExpectObject(g, at);
       if (!g.contains("springs")) continue;
-      for (const NodePair& p : ReadNodePairs(g["springs"], at + ".springs"))
+      for (const NodePair& p : ReadSpringPairs(g["springs"], at + ".springs"))
         r.undetermined.push_back(p);
     }
   }
@@ -462,7 +476,7 @@ StoredResult StoredResultFromJson(const Json& json) {
   r.stop = ReadString(json["stop"], "stop");
   if (json.contains("seed")) r.seed = ReadUint64(json["seed"], "seed");
   if (json.contains("genes")) r.genes = ReadInt(json["genes"], "genes");
-  r.springs = ReadNodePairs(json["springs"], "springs");
+  r.springs = ReadSpringPairs(json["springs"], "springs");
   if (json.contains("stiffness")) {
     const Json& k = json["stiffness"];
     ExpectArray(k, "stiffness");
@@ -482,7 +496,7 @@ StoredResult StoredResultFromJson(const Json& json) {
     ReadContinuousPath(json["continuous"], r);
   if (json.contains("rms_error")) r.rms_error = ReadNumber(json["rms_error"], "rms_error");
   if (json.contains("unidentifiable"))
-    r.unidentifiable = ReadNodePairs(json["unidentifiable"], "unidentifiable");
+    r.unidentifiable = ReadSpringPairs(json["unidentifiable"], "unidentifiable");
   if (json.contains("identifiability") && json["identifiability"].is_object())
     ReadIdentifiability(json["identifiability"], r);
   if (json.contains("baseline") && json["baseline"].is_object()) {

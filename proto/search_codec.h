@@ -34,7 +34,7 @@ struct StoredResult {
   std::optional<std::uint64_t> seed;
   std::optional<int> genes;
   std::string stop;                            // StopReasonName()
-  std::vector<NodePair> springs;               // as written
+  std::vector<NodePair> springs;               // each (smaller, larger)
   std::vector<double> stiffness;               // per spring; empty when absent
   std::optional<std::vector<TraceRow>> trace;  // results written with their trace only
   // Strategy continuous: the sparsity path (springs, E) and the point returned from; the
@@ -64,6 +64,7 @@ struct StoredResult {
   std::optional<Outcome> outcome;
   std::optional<double> lambda_min, lambda_max;
 };
+// Every node pair read (springs, unseen, groups, unidentifiable) is ordered (smaller, larger).
 // Throws InputError naming the JSON path of the first problem.
 StoredResult StoredResultFromJson(const Json& json);
 // Throws InputError when `result` is detectably not a result of `problem`'s scene (another

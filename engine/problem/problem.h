@@ -167,7 +167,7 @@ class Problem {
   ActiveSprings SpringsFromMask(const std::vector<std::uint8_t>& mask) const;
   // The springs of the genes with a positive weight, each with its weight as stiffness.
   ActiveSprings SpringsOfWeights(const std::vector<double>& weights) const;
-  // Index of candidate (i, j), or -1.
+  // Index of candidate (i, j), i < j (as candidates and a read result hold them), or -1.
   int CandidateIndex(NodePair pair) const;
   // Per gene, the reference's stiffness of that spring, 0 where the reference has none (what
   // strategy direct should find). Empty for a positions reference.

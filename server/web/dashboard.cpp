@@ -591,9 +591,6 @@ std::string Dashboard::TopologySvg(const JobRecord& job, bool result) {
     const proto::StoredResult typed = proto::StoredResultFromJson(proto::ParseJson(*text));
     proto::ExpectResultOfScene(typed, *problem);
     input.springs = typed.springs;
-    for (NodePair& p : input.springs) {
-      if (p.first > p.second) std::swap(p.first, p.second);
-    }
     input.stiffness = typed.stiffness;
     input.note = typed.stop == "cancelled" ? "cancelled: the best topology so far" : "result";
   } else {
