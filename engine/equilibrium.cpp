@@ -382,39 +382,50 @@ const char* EquilibriumSolver::NewtonStep(const ActiveSprings& springs, const Ve
 }
 
 template <int D>
-bool EquilibriumSolver::LineSearch(const ActiveSprings& springs, const Vector& force, double slope,
-                                   Vector& u, EnergyPoint& at, EquilibriumSummary& summary) {
+EnergyPoint EquilibriumSolver::TrialPoint(const ActiveSprings& springs, const Vector& force,
+                                          const Vector& u, double alpha) {
   // Each trial also assembles the gradient and the exact Hessian: the full step is accepted
   // almost always, and then the next iteration needs them.
   const int nodes = static_cast<int>(free_.free_index.size());
-  const LineSearchOptions search{options_.armijo, options_.max_line_search_steps + 1,
-                                 RoundoffRule::kGradientDecides};
-  const std::optional<EnergyPoint> accepted = BacktrackingLineSearch(
-      at, slope, search,
-      [&](double alpha) {
-        trial_u_ = u;
-        for (int node = 0; node < nodes; ++node) {
-          const int fi = free_.free_index[node];
-          if (fi >= 0)
-            trial_u_.template segment<D>(D * node) += alpha * step_.template segment<D>(D * fi);
-        }
-        EnergyPoint trial;
-        trial.energy =
-            Assemble<D>(springs, force, trial_u_, &trial_gradient_, true, false, &trial.magnitude);
-        trial.residual = trial_gradient_.template lpNorm<Eigen::Infinity>();
-        return trial;
-      },
-      &summary.line_search_steps);
-  if (accepted) {
-    u.swap(trial_u_);
-    gradient_.swap(trial_gradient_);
-    at = *accepted;
-    return true;
+  trial_u_ = u;
+  for (int node = 0; node < nodes; ++node) {
+    const int fi = free_.free_index[node];
+    if (fi >= 0)
+      trial_u_.template segment<D>(D * node) += alpha * step_.template segment<D>(D * fi);
   }
-  // Restore the Hessian of the current point for a caller that inspects it.
-  Assemble<D>(springs, force, u, &gradient_, true, false, nullptr);
-  return false;
+  EnergyPoint trial;
+  trial.energy =
+      Assemble<D>(springs, force, trial_u_, &trial_gradient_, true, false, &trial.magnitude);
+  trial.residual = trial_gradient_.template lpNorm<Eigen::Infinity>();
+  return trial;
 }
+
+// Newton's steps (newton_iteration.h) on the solver's state.
+template <int D>
+struct EquilibriumSolver::NewtonSteps {
+  EquilibriumSolver& solver;
+  const ActiveSprings& springs;
+  const Vector& force;
+  Vector& u;
+  EquilibriumSummary& summary;
+
+  const char* StopBeforeStep(int) {
+    summary.excess = solver.Excess<D>(solver.gradient_);
+    return solver.StopBeforeStep(summary);
+  }
+  const char* Direction(double& slope) {
+    return solver.NewtonStep<D>(springs, force, u, summary, slope);
+  }
+  EnergyPoint Trial(double alpha) { return solver.TrialPoint<D>(springs, force, u, alpha); }
+  // The trial's gradient and Hessian are the new point's.
+  const char* Accept(EnergyPoint&) {
+    u.swap(solver.trial_u_);
+    solver.gradient_.swap(solver.trial_gradient_);
+    return nullptr;
+  }
+  // Restores the Hessian of the current point for a caller that inspects it.
+  void Reject() { solver.Assemble<D>(springs, force, u, &solver.gradient_, true, false, nullptr); }
+};
 
 template <int D>
 EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, const Vector& force,
@@ -444,24 +455,10 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, co
   summary.tolerance = std::max(relative_, floor_max) / force_scale;
   trial_u_.resize(u.size());
 
-  for (;;) {
-    summary.excess = Excess<D>(gradient_);
-    if (const char* why = StopBeforeStep(summary)) {
-      summary.why = why;
-      break;
-    }
-    double slope = 0.0;
-    if (const char* why = NewtonStep<D>(springs, force, u, summary, slope)) {
-      summary.why = why;
-      break;
-    }
-    const bool accepted = LineSearch<D>(springs, force, slope, u, at, summary);
-    ++summary.iterations;
-    if (!accepted) {
-      summary.why = "the line search found no decrease of the energy (round-off)";
-      break;
-    }
-  }
+  NewtonSteps<D> steps{*this, springs, force, u, summary};
+  const LineSearchOptions search{options_.armijo, options_.max_line_search_steps + 1,
+                                 RoundoffRule::kGradientDecides};
+  summary.why = NewtonIterate(steps, at, search, summary.iterations, &summary.line_search_steps);
   summary.final_residual = at.residual / force_scale;
   if (!summary.converged()) summary.excess = Excess<D>(gradient_);
   return summary;

@@ -23,9 +23,9 @@
 #include <string>
 #include <vector>
 
-#include "engine/backtracking_line_search.h"
 #include "engine/interruption.h"
 #include "engine/linalg.h"
+#include "engine/newton_iteration.h"
 #include "engine/springs.h"
 #include "engine/symmetric_system.h"
 
@@ -244,11 +244,14 @@ class EquilibriumSolver {
   template <int D>
   const char* NewtonStep(const ActiveSprings& springs, const Vector& force, const Vector& u,
                          EquilibriumSummary& summary, double& slope);
-  // Backtracking along step_ from u (backtracking_line_search.h), from `at` (the iteration's
-  // energy, its magnitude and |gradient|_inf); false when no step length is taken.
+  // Newton's steps (newton_iteration.h), on this solver's state.
   template <int D>
-  bool LineSearch(const ActiveSprings& springs, const Vector& force, double slope, Vector& u,
-                  EnergyPoint& at, EquilibriumSummary& summary);
+  struct NewtonSteps;
+  // The point at step length alpha along step_ from u, into trial_u_ and trial_gradient_ (the
+  // line search's trial, newton_iteration.h).
+  template <int D>
+  EnergyPoint TrialPoint(const ActiveSprings& springs, const Vector& force, const Vector& u,
+                         double alpha);
 
   const SpringGeometry* geometry_ = nullptr;
   FreeNodes free_;

@@ -5,11 +5,16 @@
 #include <limits>
 #include <stdexcept>
 
-#include "engine/backtracking_line_search.h"
+#include "engine/newton_iteration.h"
 #include "engine/options_check.h"
 
 namespace springfit::fem {
 namespace {
+
+// A gradient's largest entry (the force residual), 0 for none.
+double LargestEntry(const Vector& v) {
+  return v.size() ? v.cwiseAbs().maxCoeff() : 0.0;
+}
 
 // Shifts of the Jacobi-scaled tangent tried in turn where it is not positive definite: a
 // Levenberg-like regularisation that keeps the Newton direction a descent direction.
@@ -184,56 +189,92 @@ int FemEquilibriumSolver::RestFreeModes() {
   return modes;
 }
 
-bool FemEquilibriumSolver::Newton(const Vector& force, double load, double tolerance, Vector& u,
-                                  FemSolveSummary& summary) {
-  double magnitude = 0.0;
-  // A linear material's tangent is the rest stiffness, already factorised: no need to assemble it.
-  const auto need_tangent = [&] { return !(model_->linear() && rest_factor_valid_); };
-  double energy = Energy(force, load, u, &gradient_, need_tangent(), &magnitude);
-  if (!std::isfinite(energy)) return false;
-  for (int it = 0; it < options_.max_iterations; ++it) {
-    const double residual = gradient_.size() ? gradient_.cwiseAbs().maxCoeff() : 0.0;
-    summary.final_residual = residual;
-    if (residual <= tolerance) return true;
-    ThrowIfInterrupted(interruption_);
+// Newton's steps (newton_iteration.h) on the solver's state, at one load level.
+struct FemEquilibriumSolver::NewtonSteps {
+  FemEquilibriumSolver& solver;
+  const Vector& force;
+  double load;
+  double tolerance;
+  Vector& u;
+  FemSolveSummary& summary;
+  const EnergyPoint& at;
+  bool converged = false;
+
+  // A linear material's tangent is the rest stiffness, already factorised: no need to assemble
+  // it.
+  bool NeedTangent() const { return !(solver.model_->linear() && solver.rest_factor_valid_); }
+
+  const char* StopBeforeStep(int iterations) {
+    summary.final_residual = at.residual;
+    if (at.residual <= tolerance) {
+      converged = true;
+      return "";
+    }
+    if (iterations >= solver.options_.max_iterations) return "the Newton iteration limit";
+    ThrowIfInterrupted(solver.interruption_);
+    return nullptr;
+  }
+
+  const char* Direction(double& slope) {
     // The rest stiffness's factor (RestFreeModes) serves the first step from rest, and every
     // step of a linear material, whose tangent is the same everywhere.
-    bool factorised = rest_factor_valid_ && (model_->linear() || u.isZero());
-    rest_factor_valid_ = rest_factor_valid_ && model_->linear();
+    bool factorised = solver.rest_factor_valid_ && (solver.model_->linear() || u.isZero());
+    solver.rest_factor_valid_ = solver.rest_factor_valid_ && solver.model_->linear();
     for (const double shift : kShifts) {
       if (factorised) break;
-      if (system_.Factorize(shift, options_.pivot_tolerance, false).positive_definite) {
+      if (solver.system_.Factorize(shift, solver.options_.pivot_tolerance, false)
+              .positive_definite) {
         factorised = true;
         break;
       }
     }
-    if (!factorised) return false;
-    step_ = -gradient_;
-    system_.Solve(step_);
-    const double slope = gradient_.dot(step_);
-    if (!(slope < 0.0)) return false;
-    ++summary.iterations;
-    const LineSearchOptions search{options_.armijo, options_.max_line_search_steps,
-                                   RoundoffRule::kSlack};
-    const EnergyPoint at{energy, magnitude, residual};
-    const bool accepted =
-        BacktrackingLineSearch(at, slope, search, [&](double alpha) {
-          trial_ = u;
-          for (int node = 0; node < static_cast<int>(free_.free_index.size()); ++node) {
-            const int f = free_.free_index[node];
-            if (f >= 0) trial_.segment(dim_ * node, dim_) += alpha * step_.segment(dim_ * f, dim_);
-          }
-          EnergyPoint trial;
-          trial.energy = Energy(force, load, trial_, nullptr, false, &trial.magnitude);
-          return trial;
-        }).has_value();
-    if (!accepted) return false;
-    u.swap(trial_);
-    energy = Energy(force, load, u, &gradient_, need_tangent(), &magnitude);
-    if (!std::isfinite(energy)) return false;
+    if (!factorised) return "the tangent stayed indefinite after regularisation";
+    solver.step_ = -solver.gradient_;
+    solver.system_.Solve(solver.step_);
+    slope = solver.gradient_.dot(solver.step_);
+    if (!(slope < 0.0)) return "the Newton step is not a descent direction";
+    return nullptr;
   }
-  summary.final_residual = gradient_.size() ? gradient_.cwiseAbs().maxCoeff() : 0.0;
-  return summary.final_residual <= tolerance;
+
+  // The energy alone at each trial (the FEM's assembly is the costly part).
+  EnergyPoint Trial(double alpha) {
+    const int d = solver.dim_;
+    solver.trial_ = u;
+    for (int node = 0; node < static_cast<int>(solver.free_.free_index.size()); ++node) {
+      const int f = solver.free_.free_index[node];
+      if (f >= 0) solver.trial_.segment(d * node, d) += alpha * solver.step_.segment(d * f, d);
+    }
+    EnergyPoint trial;
+    trial.energy = solver.Energy(force, load, solver.trial_, nullptr, false, &trial.magnitude);
+    return trial;
+  }
+
+  // The accepted point again, with its gradient (and the tangent the next step needs).
+  const char* Accept(EnergyPoint& point) {
+    u.swap(solver.trial_);
+    point.energy =
+        solver.Energy(force, load, u, &solver.gradient_, NeedTangent(), &point.magnitude);
+    if (!std::isfinite(point.energy)) return "the energy is not finite";
+    point.residual = LargestEntry(solver.gradient_);
+    return nullptr;
+  }
+
+  void Reject() {}
+};
+
+bool FemEquilibriumSolver::Newton(const Vector& force, double load, double tolerance, Vector& u,
+                                  FemSolveSummary& summary) {
+  EnergyPoint at;
+  NewtonSteps steps{*this, force, load, tolerance, u, summary, at};
+  at.energy = Energy(force, load, u, &gradient_, steps.NeedTangent(), &at.magnitude);
+  if (!std::isfinite(at.energy)) return false;
+  at.residual = LargestEntry(gradient_);
+  const LineSearchOptions search{options_.armijo, options_.max_line_search_steps,
+                                 RoundoffRule::kSlack};
+  int iterations = 0;
+  NewtonIterate(steps, at, search, iterations);
+  summary.iterations += iterations;
+  return steps.converged;
 }
 
 FemSolveSummary FemEquilibriumSolver::Solve(const Vector& force, const Vector& prescribed,

@@ -2,9 +2,10 @@
 //
 // The equilibrium minimises the potential energy over the free nodes' displacements u:
 //   E(u) = sum_elements V0 W(F(u)) - lambda f . u,   constrained nodes at lambda * prescribed,
-// at load fraction lambda = 1. Newton's method with an Armijo line search on E, as for the
-// springs (equilibrium.h): the exact tangent stiffness (fem_model.h), factorised on the
-// scene's sparsity pattern (symbolic analysis once per solver); where it is not positive
+// at load fraction lambda = 1. Newton's method with an Armijo line search on E, the iteration
+// the springs' solver runs too (newton_iteration.h): the exact tangent stiffness
+// (fem_model.h), factorised on the scene's sparsity pattern (symbolic analysis once per
+// solver); where it is not positive
 // definite (a compressed nonlinear state), the Jacobi-scaled matrix is shifted until it is,
 // so each step still descends. A configuration with an inverted element (J <= 0) has infinite
 // energy for the neo-Hookean law, so the line search never enters one.
@@ -105,6 +106,8 @@ class FemEquilibriumSolver {
                   double* magnitude);
   double Energy(const Vector& force, double load, const Vector& u, Vector* gradient, bool hessian,
                 double* magnitude);
+  // Newton's steps at one load level (newton_iteration.h), on this solver's state.
+  struct NewtonSteps;
   // Newton at one load level from u (in place); true when converged.
   bool Newton(const Vector& force, double load, double tolerance, Vector& u,
               FemSolveSummary& summary);

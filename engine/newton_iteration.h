@@ -1,7 +1,9 @@
-// The backtracking line search of both Newton solvers (the MSS's, engine/equilibrium.h, and the
-// FEM reference's, engine/fem/fem_equilibrium.h), in one place: the step is halved from its
-// full length until the energy decreases enough (Armijo's condition), where the energy's
-// round-off is judged the same way in both.
+// The damped Newton iteration of both equilibrium solvers (the MSS's, engine/equilibrium.h, and
+// the FEM reference's, engine/fem/fem_equilibrium.h), in one place: the loop of named steps
+// (NewtonIterate) and its backtracking line search, where the step is halved from its full
+// length until the energy decreases enough (Armijo's condition) and the energy's round-off is
+// judged the same way in both. What differs between the solvers (their stop tests, how they
+// factorise, what a point holds) is each one's `Steps`.
 #pragma once
 
 #include <algorithm>
@@ -69,6 +71,39 @@ std::optional<EnergyPoint> BacktrackingLineSearch(const EnergyPoint& at, double 
     alpha *= 0.5;
   }
   return std::nullopt;
+}
+
+// The Newton iteration from the point `at` (the solver holds its state and gradient), as named
+// steps that `steps` provides:
+//   const char* StopBeforeStep(int iterations): the stop tests before a step (converged, the
+//       iteration limit, an interruption): nullptr to go on, else why it stops ("" when the
+//       solver's own summary says it);
+//   const char* Direction(double& slope): the Newton direction and its slope along the
+//       gradient: nullptr, or why there is none;
+//   EnergyPoint Trial(double alpha): the point at step length alpha along the direction;
+//   const char* Accept(EnergyPoint& at): makes the last trial the current point (`at` holds
+//       the line search's point; the solver may evaluate it again): nullptr, or why the
+//       iteration cannot go on from it;
+//   void Reject(): after a line search that took no step.
+// `iterations` counts the steps tried, `rejected` the step lengths refused. Returns why it
+// stopped.
+template <typename Steps>
+const char* NewtonIterate(Steps& steps, EnergyPoint& at, const LineSearchOptions& search,
+                          int& iterations, int* rejected = nullptr) {
+  for (;;) {
+    if (const char* why = steps.StopBeforeStep(iterations)) return why;
+    double slope = 0.0;
+    if (const char* why = steps.Direction(slope)) return why;
+    ++iterations;
+    const std::optional<EnergyPoint> accepted = BacktrackingLineSearch(
+        at, slope, search, [&](double alpha) { return steps.Trial(alpha); }, rejected);
+    if (!accepted) {
+      steps.Reject();
+      return "the line search found no decrease of the energy (round-off)";
+    }
+    at = *accepted;
+    if (const char* why = steps.Accept(at)) return why;
+  }
 }
 
 }  // namespace springfit
