@@ -30,15 +30,6 @@ double MaxAbsOnFree(const Vector& v, const FreeNodes& free, int dim, bool constr
 
 }  // namespace
 
-FreeNodes FreeNodes::FromConstrained(const std::vector<bool>& constrained) {
-  FreeNodes f;
-  f.free_index.assign(constrained.size(), -1);
-  for (std::size_t node = 0; node < constrained.size(); ++node) {
-    if (!constrained[node]) f.free_index[node] = f.count++;
-  }
-  return f;
-}
-
 void EquilibriumOptions::Validate() const {
   const OptionsCheck check("EquilibriumOptions");
   CheckNewtonSettings(check, *this);

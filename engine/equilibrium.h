@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/free_nodes.h"
 #include "engine/interruption.h"
 #include "engine/linalg.h"
 #include "engine/newton_iteration.h"
@@ -30,17 +31,6 @@
 #include "engine/symmetric_system.h"
 
 namespace springfit {
-
-// Which nodes are unknowns in a load case: free_index[node] is the node's index among the free
-// nodes, or -1 when the node is constrained.
-struct FreeNodes {
-  std::vector<int> free_index;
-  int count = 0;
-
-  // `constrained[node]` true for fixed nodes and nodes with a prescribed displacement.
-  static FreeNodes FromConstrained(const std::vector<bool>& constrained);
-  friend bool operator==(const FreeNodes&, const FreeNodes&) = default;
-};
 
 enum class Termination {
   kConverged,     // |gradient|_inf <= tolerance (see EquilibriumOptions)

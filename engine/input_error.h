@@ -6,6 +6,7 @@
 // expected failures (a mechanism, no convergence) are data in their summaries.
 #pragma once
 
+#include <cstddef>
 #include <stdexcept>
 #include <string>
 
@@ -21,5 +22,10 @@ class InputError : public std::runtime_error {
  private:
   std::string path_;
 };
+
+// The path of the scene's load case k, as errors and messages name it.
+inline std::string LoadCasePath(std::size_t k) {
+  return "load_cases[" + std::to_string(k) + "]";
+}
 
 }  // namespace springfit

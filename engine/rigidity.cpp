@@ -7,8 +7,6 @@
 #include <Eigen/SVD>
 #include <Eigen/SparseCore>
 
-#include "engine/equilibrium.h"
-
 namespace springfit {
 
 namespace {

@@ -15,11 +15,10 @@
 // (EquilibriumSolver::RestStabilityOf).
 #pragma once
 
+#include "engine/free_nodes.h"
 #include "engine/springs.h"
 
 namespace springfit {
-
-struct FreeNodes;
 
 // The number of singular values of the column-scaled rigidity matrix of `springs` (their
 // stiffness ignored) on the free nodes' coordinates at or below `tolerance`, a coordinate with

@@ -5,6 +5,7 @@
 
 #include "engine/identification/run_monitor.h"
 #include "engine/identification/strategy.h"
+#include "engine/input_error.h"
 #include "engine/number_text.h"
 
 namespace springfit {
@@ -18,7 +19,7 @@ std::string NoEquilibriumCases(const Evaluation& e) {
     const EquilibriumSummary& s = e.load_cases[k].solve;
     if (s.termination != Termination::kNotConverged) continue;
     if (!text.empty()) text += "; ";
-    text += "load_cases[" + std::to_string(k) + "]: " + NotConvergedText(s);
+    text += LoadCasePath(k) + ": " + NotConvergedText(s);
   }
   return text;
 }

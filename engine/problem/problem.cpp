@@ -27,10 +27,6 @@ constexpr double kPresentWeight = 1e-3;
 // fraction of the scene's longest candidate (round-off in exported data), no more.
 constexpr double kPrescribedMismatchTolerance = 1e-9;
 
-std::string CasePath(std::size_t k) {
-  return "load_cases[" + std::to_string(k) + "]";
-}
-
 // Scatter a case's loads into flat vectors and mark the constrained nodes.
 void Flatten(const Scene& scene, const LoadCase& lc, const std::string& path, Vector& force,
              Vector& prescribed, std::vector<bool>& constrained) {
@@ -145,7 +141,7 @@ void Problem::PrepareLoadCases() {
   for (const LoadCase& lc : scene_.load_cases) {
     PreparedLoadCase prepared;
     std::vector<bool> constrained;
-    Flatten(scene_, lc, CasePath(load_cases_.size()), prepared.force, prepared.prescribed,
+    Flatten(scene_, lc, LoadCasePath(load_cases_.size()), prepared.force, prepared.prescribed,
             constrained);
     FreeNodes free = FreeNodes::FromConstrained(constrained);
     const auto it = std::find(free_sets_.begin(), free_sets_.end(), free);

@@ -24,10 +24,6 @@ constexpr double kReferenceUndetermined = 1.0;
 // a larger, still bounded, budget.
 constexpr int kReferenceMaxIterations = 1000;
 
-std::string CasePath(std::size_t k) {
-  return "load_cases[" + std::to_string(k) + "]";
-}
-
 // The reference's springs, each with its stiffness.
 ActiveSprings ReferenceSprings(const Reference& ref) {
   ActiveSprings springs;
@@ -73,7 +69,7 @@ struct MssReferenceSolvers {
 // Throws when the load of case k is too small for double precision next to the springs.
 void CheckLoadResolved(std::size_t k, const EquilibriumSummary& summary) {
   if (summary.tolerance <= kReferenceResolution) return;
-  throw InputError(CasePath(k),
+  throw InputError(LoadCasePath(k),
                    "the load is too small for double precision: round-off in the reference "
                    "springs' forces is " +
                        NumberText(summary.tolerance) +
@@ -96,14 +92,14 @@ void MeasureResolution(std::size_t k, const FreeNodes& free, EquilibriumSolver& 
   lc.reference_solve->resolution =
       norm2 > 0.0 ? resolution.spread / std::sqrt(norm2) : (resolution.spread > 0.0 ? 1.0 : 0.0);
   if (std::isinf(resolution.spread)) {
-    throw InputError(CasePath(k),
+    throw InputError(LoadCasePath(k),
                      "the reference's equilibrium is not determined: its tangent stiffness "
                      "there is singular" +
                          std::string(resolution.stable ? "" : " (an unstable equilibrium)") +
                          ", so any force imbalance, round-off's included, moves it freely");
   }
   if (lc.reference_solve->resolution > kReferenceUndetermined) {
-    throw InputError(CasePath(k),
+    throw InputError(LoadCasePath(k),
                      "the reference's equilibrium is not determined in double precision: "
                      "round-off in its springs' forces leaves its displacements uncertain by " +
                          NumberText(lc.reference_solve->resolution, 2) +
@@ -118,8 +114,8 @@ void SolveMssCase(std::size_t k, const FreeNodes& free, MssReferenceSolvers& sol
                   const ActiveSprings& springs, int d, PreparedLoadCase& lc) {
   const RestStability stability = solvers.solver.RestStabilityOf(springs);
   if (stability.modes > 0) {
-    throw InputError("reference", "the reference MSS is a mechanism under " + CasePath(k) + " (" +
-                                      std::to_string(stability.modes) +
+    throw InputError("reference", "the reference MSS is a mechanism under " + LoadCasePath(k) +
+                                      " (" + std::to_string(stability.modes) +
                                       " free modes): it cannot carry the load");
   }
   lc.reference = Vector::Zero(static_cast<Eigen::Index>(d * free.free_index.size()));
@@ -128,8 +124,8 @@ void SolveMssCase(std::size_t k, const FreeNodes& free, MssReferenceSolvers& sol
   StopIfInterrupted(summary);
   CheckLoadResolved(k, summary);
   if (!summary.converged()) {
-    throw InputError("reference", "no equilibrium of the reference MSS found under " + CasePath(k) +
-                                      ": " + NotConvergedText(summary) +
+    throw InputError("reference", "no equilibrium of the reference MSS found under " +
+                                      LoadCasePath(k) + ": " + NotConvergedText(summary) +
                                       PrecisionLimitText(stability, springs));
   }
   // The reference's equilibria are data: every identification compares against them, and
@@ -183,7 +179,7 @@ void SolveFemReference(const Scene& scene, const std::vector<FreeNodes>& free_se
         solvers[lc.free_set].Solve(lc.force, lc.prescribed, lc.reference);
     if (!summary.converged()) {
       throw InputError("reference",
-                       "the FEM reference under " + CasePath(k) + ": " + summary.message);
+                       "the FEM reference under " + LoadCasePath(k) + ": " + summary.message);
     }
     lc.reference_solve =
         ReferenceSolve{summary.iterations, summary.load_steps, summary.final_residual};
@@ -202,7 +198,7 @@ void TakePositionsReference(const Scene& scene, const std::vector<FreeNodes>& fr
       if ((lc.reference.segment(d * i, d) - lc.prescribed.segment(d * i, d)).norm() > tolerance) {
         throw InputError(
             "reference.positions[" + std::to_string(k) + "][" + std::to_string(i) + "]",
-            "node " + std::to_string(i) + " is constrained in " + CasePath(k) +
+            "node " + std::to_string(i) + " is constrained in " + LoadCasePath(k) +
                 " but its reference position differs from the prescribed one");
       }
       lc.reference.segment(d * i, d) = lc.prescribed.segment(d * i, d);

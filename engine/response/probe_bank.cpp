@@ -222,7 +222,7 @@ class BankBuilder {
                 .free_index[static_cast<std::size_t>(node)] < 0;
       SupportSystem system(d_, support.constrained);
       if (!system.Factorize(reference_stiffness_))
-        throw InputError("load_cases[" + std::to_string(k) + "].fixed",
+        throw InputError(LoadCasePath(k) + ".fixed",
                          "the reference is not held by this load case's supports (a rigid motion "
                          "or a mechanism is left free): no probe can be solved on it");
       support_of_free_set_[static_cast<std::size_t>(set)] = static_cast<int>(bank_.supports.size());

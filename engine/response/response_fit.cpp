@@ -14,6 +14,7 @@
 #include "engine/response/matrix_free_fit.h"
 #include "engine/response/probe_evaluation.h"
 #include "engine/response/probe_objective.h"
+#include "engine/wall_clock.h"
 
 namespace springfit::response {
 namespace {
@@ -416,9 +417,8 @@ ResponseFitResult FitDense(const Problem& problem, const ProbeBank& bank,
   ResponseFitResult r;
   auto lap = std::chrono::steady_clock::now();
   const auto seconds = [&lap] {
-    const auto now = std::chrono::steady_clock::now();
-    const double s = std::chrono::duration<double>(now - lap).count();
-    lap = now;
+    const double s = SecondsSince(lap);
+    lap = std::chrono::steady_clock::now();
     return s;
   };
   const Gram gram = fit.FirstOrderGram();
