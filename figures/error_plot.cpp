@@ -11,6 +11,46 @@
 
 namespace springfit::figures {
 
+namespace {
+
+// Curve i as steps (the best error holds until the next improvement), a dot where it ends
+// exact.
+template <typename X, typename Y>
+void DrawErrorCurve(SvgDocument& svg, const ErrorCurve& c, std::size_t i, X px, Y py) {
+  if (c.points.empty()) return;
+  std::vector<Point2> line;
+  for (const auto& [t, e] : c.points) {
+    const Point2 p{px(t), py(e)};
+    if (!line.empty()) line.push_back({p.x, line.back().y});
+    line.push_back(p);
+  }
+  const std::string cls = std::to_string(i);
+  svg.Polyline(line, "curve" + cls);
+  if (c.points.back().second <= 0.0) svg.Circle(line.back(), 4.5, "exact" + cls);
+}
+
+// One row per curve, from `top` down: its name and where it ended.
+void DrawErrorLegend(SvgDocument& svg, const std::vector<ErrorCurve>& curves, double top) {
+  for (std::size_t i = 0; i < curves.size(); ++i) {
+    const double y = top + kLegendRow * static_cast<double>(i);
+    svg.Line({kPlotLeft, y - 4}, {kPlotLeft + 26, y - 4}, "curve" + std::to_string(i));
+    std::string label = curves[i].label;
+    if (!curves[i].points.empty()) {
+      const auto& [t, e] = curves[i].points.back();
+      char tail[96];
+      if (e <= 0.0) {
+        std::snprintf(tail, sizeof tail, "  (exact at %.3g s)", t);
+      } else {
+        std::snprintf(tail, sizeof tail, "  (error %.3g at %.3g s)", e, t);
+      }
+      label += tail;
+    }
+    svg.Text({kPlotLeft + 32, y}, label, "");
+  }
+}
+
+}  // namespace
+
 std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::string& title,
                             const ErrorPlotOptions& options) {
   // The axes' ranges: every positive time and error. A time of 0 (a trace's very first row
@@ -60,43 +100,9 @@ std::string RenderErrorPlot(const std::vector<ErrorCurve>& curves, const std::st
     svg.Text({kPlotLeft - 8, y + 4}, d == y_axis.lo ? "exact" : DecadeLabel(d), "",
              SvgDocument::Anchor::kEnd);
   }
-  svg.Rect({kPlotLeft, kPlotTop}, plot_w, plot_h, "frame");
-  svg.Text({kPlotLeft + plot_w / 2, kPlotTop + plot_h + 40}, options.x_label, "",
-           SvgDocument::Anchor::kMiddle);
-  svg.VerticalText({22, kPlotTop + plot_h / 2}, "best E (relative RMS nodal error)", "");
-
-  for (std::size_t i = 0; i < curves.size(); ++i) {
-    const ErrorCurve& c = curves[i];
-    if (c.points.empty()) continue;
-    // Steps: the best error holds until the next improvement.
-    std::vector<Point2> line;
-    for (const auto& [t, e] : c.points) {
-      const Point2 p{px(t), py(e)};
-      if (!line.empty()) line.push_back({p.x, line.back().y});
-      line.push_back(p);
-    }
-    const std::string cls = std::to_string(i);
-    svg.Polyline(line, "curve" + cls);
-    if (c.points.back().second <= 0.0) svg.Circle(line.back(), 4.5, "exact" + cls);
-  }
-
-  const double legend_top = options.height;
-  for (std::size_t i = 0; i < curves.size(); ++i) {
-    const double y = legend_top + kLegendRow * static_cast<double>(i);
-    svg.Line({kPlotLeft, y - 4}, {kPlotLeft + 26, y - 4}, "curve" + std::to_string(i));
-    std::string label = curves[i].label;
-    if (!curves[i].points.empty()) {
-      const auto& [t, e] = curves[i].points.back();
-      char tail[96];
-      if (e <= 0.0) {
-        std::snprintf(tail, sizeof tail, "  (exact at %.3g s)", t);
-      } else {
-        std::snprintf(tail, sizeof tail, "  (error %.3g at %.3g s)", e, t);
-      }
-      label += tail;
-    }
-    svg.Text({kPlotLeft + 32, y}, label, "");
-  }
+  DrawPlotFrame(svg, plot_w, plot_h, options.x_label, "best E (relative RMS nodal error)");
+  for (std::size_t i = 0; i < curves.size(); ++i) DrawErrorCurve(svg, curves[i], i, px, py);
+  DrawErrorLegend(svg, curves, options.height);
   return svg.str();
 }
 

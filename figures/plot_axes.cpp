@@ -45,4 +45,12 @@ LogAxis LogAxis::Over(double lo, double hi) {
   return axis;
 }
 
+void DrawPlotFrame(SvgDocument& svg, double plot_w, double plot_h, const std::string& x_label,
+                   const std::string& y_label) {
+  svg.Rect({kPlotLeft, kPlotTop}, plot_w, plot_h, "frame");
+  svg.Text({kPlotLeft + plot_w / 2, kPlotTop + plot_h + 40}, x_label, "",
+           SvgDocument::Anchor::kMiddle);
+  svg.VerticalText({22, kPlotTop + plot_h / 2}, y_label, "");
+}
+
 }  // namespace springfit::figures

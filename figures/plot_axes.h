@@ -1,7 +1,10 @@
-// What the line plots share: the colours of their curves, decade labels and logarithmic axes.
+// What the line plots share: the colours of their curves, decade labels, logarithmic axes and
+// the plot area's frame.
 #pragma once
 #include <cstddef>
 #include <string>
+
+#include "figures/svg_document.h"
 
 namespace springfit::figures {
 
@@ -23,5 +26,10 @@ struct LogAxis {
   double Fraction(double v) const;  // 0 at 10^lo, 1 at 10^hi
   static LogAxis Over(double lo, double hi);
 };
+
+// The plot area's frame (plot_w x plot_h at the margins) and the axes' names: `x_label` below
+// it, `y_label` up its left side. After the grid, so that the frame is drawn over it.
+void DrawPlotFrame(SvgDocument& svg, double plot_w, double plot_h, const std::string& x_label,
+                   const std::string& y_label);
 
 }  // namespace springfit::figures

@@ -26,102 +26,108 @@ double NiceStep(double span, int ticks) {
   return 10.0 * power;
 }
 
-}  // namespace
-
-std::string RenderTradeoffPlot(const std::vector<TradeoffCurve>& curves, const std::string& title,
-                               const TradeoffPlotOptions& options) {
+// The springs and E that the curves span: their drawable points, returned models and baselines.
+struct TradeoffSpan {
   double s_lo = std::numeric_limits<double>::infinity(), s_hi = 0.0;
   double e_lo = std::numeric_limits<double>::infinity(), e_hi = 0.0;
-  for (const TradeoffCurve& c : curves) {
-    for (const auto& [springs, e] : c.points) {
-      if (!Drawable(e)) continue;
-      s_lo = std::min(s_lo, static_cast<double>(springs));
-      s_hi = std::max(s_hi, static_cast<double>(springs));
-      e_lo = std::min(e_lo, e);
-      e_hi = std::max(e_hi, e);
-    }
-    if (c.returned && Drawable(c.returned->second)) {
-      s_lo = std::min(s_lo, static_cast<double>(c.returned->first));
-      s_hi = std::max(s_hi, static_cast<double>(c.returned->first));
-      e_lo = std::min(e_lo, c.returned->second);
-      e_hi = std::max(e_hi, c.returned->second);
-    }
-    if (c.baseline_error && Drawable(*c.baseline_error)) {
-      e_lo = std::min(e_lo, *c.baseline_error);
-      e_hi = std::max(e_hi, *c.baseline_error);
-      if (c.baseline_springs) {
-        s_lo = std::min(s_lo, static_cast<double>(*c.baseline_springs));
-        s_hi = std::max(s_hi, static_cast<double>(*c.baseline_springs));
+
+  void AddSprings(double springs) {
+    s_lo = std::min(s_lo, springs);
+    s_hi = std::max(s_hi, springs);
+  }
+  void AddError(double e) {
+    e_lo = std::min(e_lo, e);
+    e_hi = std::max(e_hi, e);
+  }
+  static TradeoffSpan Of(const std::vector<TradeoffCurve>& curves) {
+    TradeoffSpan span;
+    for (const TradeoffCurve& c : curves) {
+      for (const auto& [springs, e] : c.points) {
+        if (!Drawable(e)) continue;
+        span.AddSprings(static_cast<double>(springs));
+        span.AddError(e);
+      }
+      if (c.returned && Drawable(c.returned->second)) {
+        span.AddSprings(static_cast<double>(c.returned->first));
+        span.AddError(c.returned->second);
+      }
+      if (c.baseline_error && Drawable(*c.baseline_error)) {
+        span.AddError(*c.baseline_error);
+        if (c.baseline_springs) span.AddSprings(static_cast<double>(*c.baseline_springs));
       }
     }
+    return span;
   }
-  if (!(e_hi > 0.0)) {
-    throw std::invalid_argument(
-        "nothing to plot: no sparsity path (strategy continuous writes one, proto/RUN.md)");
-  }
-  const double step = NiceStep(std::max(s_hi - s_lo, 1.0), 6);
-  const double x_lo = std::floor(s_lo / step) * step,
-               x_hi = std::ceil(s_hi / step) * step + (s_hi == s_lo ? step : 0.0);
-  const LogAxis y_axis = LogAxis::Over(e_lo, e_hi);
+};
 
-  // Two legend rows per curve (its name; the returned model), one for the baseline.
-  const double legend_height = kLegendRow * static_cast<double>(2 * curves.size() + 1) + 10;
-  const double plot_w = options.width - kPlotLeft - kPlotRight;
-  const double plot_h = options.height - kPlotTop - kPlotBottom;
-  auto px = [&](double springs) { return kPlotLeft + plot_w * (springs - x_lo) / (x_hi - x_lo); };
-  auto py = [&](double e) {
+// The plot's frame: its axes, and where a (springs, E) point is drawn.
+struct TradeoffFrame {
+  double step = 1.0, x_lo = 0.0, x_hi = 1.0;  // the springs axis, linear
+  LogAxis y_axis;                             // E, log
+  double plot_w = 0.0, plot_h = 0.0;
+
+  TradeoffFrame(const TradeoffSpan& span, const TradeoffPlotOptions& options)
+      : step(NiceStep(std::max(span.s_hi - span.s_lo, 1.0), 6)),
+        x_lo(std::floor(span.s_lo / step) * step),
+        x_hi(std::ceil(span.s_hi / step) * step + (span.s_hi == span.s_lo ? step : 0.0)),
+        y_axis(LogAxis::Over(span.e_lo, span.e_hi)),
+        plot_w(options.width - kPlotLeft - kPlotRight),
+        plot_h(options.height - kPlotTop - kPlotBottom) {}
+  double X(double springs) const { return kPlotLeft + plot_w * (springs - x_lo) / (x_hi - x_lo); }
+  double Y(double e) const {
     return kPlotTop + plot_h * (1.0 - std::clamp(y_axis.Fraction(e), 0.0, 1.0));
-  };
+  }
+};
 
-  SvgDocument svg(options.width, options.height + legend_height);
-  svg.Style(PlotCss(curves.size()));
+void DrawAxes(SvgDocument& svg, const TradeoffFrame& f, const std::string& title) {
   svg.Text({kPlotLeft, 26}, title, "title");
-  for (double s = x_lo; s <= x_hi + 0.5 * step; s += step) {
-    const double x = px(s);
-    svg.Line({x, kPlotTop}, {x, kPlotTop + plot_h}, "grid");
+  for (double s = f.x_lo; s <= f.x_hi + 0.5 * f.step; s += f.step) {
+    const double x = f.X(s);
+    svg.Line({x, kPlotTop}, {x, kPlotTop + f.plot_h}, "grid");
     char label[32];
     std::snprintf(label, sizeof label, "%.0f", s);
-    svg.Text({x, kPlotTop + plot_h + 18}, label, "", SvgDocument::Anchor::kMiddle);
+    svg.Text({x, kPlotTop + f.plot_h + 18}, label, "", SvgDocument::Anchor::kMiddle);
   }
-  for (int d = y_axis.lo; d <= y_axis.hi; ++d) {
-    const double y = py(std::pow(10.0, d));
-    svg.Line({kPlotLeft, y}, {kPlotLeft + plot_w, y}, "grid");
+  for (int d = f.y_axis.lo; d <= f.y_axis.hi; ++d) {
+    const double y = f.Y(std::pow(10.0, d));
+    svg.Line({kPlotLeft, y}, {kPlotLeft + f.plot_w, y}, "grid");
     svg.Text({kPlotLeft - 8, y + 4}, DecadeLabel(d), "", SvgDocument::Anchor::kEnd);
   }
-  svg.Rect({kPlotLeft, kPlotTop}, plot_w, plot_h, "frame");
-  svg.Text({kPlotLeft + plot_w / 2, kPlotTop + plot_h + 40}, "springs", "",
-           SvgDocument::Anchor::kMiddle);
-  svg.VerticalText({22, kPlotTop + plot_h / 2}, "E (relative RMS nodal error)", "");
+  DrawPlotFrame(svg, f.plot_w, f.plot_h, "springs", "E (relative RMS nodal error)");
+}
 
-  for (std::size_t i = 0; i < curves.size(); ++i) {
-    const TradeoffCurve& c = curves[i];
-    const std::string cls = std::to_string(i);
-    std::vector<Point2> line;
-    for (const auto& [springs, e] : c.points) {
-      if (Drawable(e)) line.push_back({px(springs), py(e)});
-    }
-    if (!line.empty()) svg.Polyline(line, "curve" + cls);
-    for (const Point2& p : line) svg.Circle(p, 2.5, "exact" + cls);
-    if (c.chosen && *c.chosen < c.points.size() && Drawable(c.points[*c.chosen].second)) {
-      const auto& [springs, e] = c.points[*c.chosen];
-      svg.Circle({px(springs), py(e)}, 6.0, "exact" + cls);
-    }
-    if (c.returned && Drawable(c.returned->second)) {
-      // A square: the model the result returns, where the user reads its springs and E.
-      const Point2 p{px(c.returned->first), py(c.returned->second)};
-      svg.Rect({p.x - 5.0, p.y - 5.0}, 10.0, 10.0, "curve" + cls);
-    }
-    if (c.baseline_error && Drawable(*c.baseline_error)) {
-      const double y = py(*c.baseline_error);
-      svg.Line({kPlotLeft, y}, {kPlotLeft + plot_w, y}, "reference");
-      if (c.baseline_springs) svg.Circle({px(*c.baseline_springs), y}, 4.0, "exact" + cls);
-    }
+// Curve i: its path, the point refitted from (a large dot), the returned model (a square) and
+// its baseline (a line across, and a dot at its springs).
+void DrawCurve(SvgDocument& svg, const TradeoffFrame& f, const TradeoffCurve& c, std::size_t i) {
+  const std::string cls = std::to_string(i);
+  std::vector<Point2> line;
+  for (const auto& [springs, e] : c.points) {
+    if (Drawable(e)) line.push_back({f.X(springs), f.Y(e)});
   }
+  if (!line.empty()) svg.Polyline(line, "curve" + cls);
+  for (const Point2& p : line) svg.Circle(p, 2.5, "exact" + cls);
+  if (c.chosen && *c.chosen < c.points.size() && Drawable(c.points[*c.chosen].second)) {
+    const auto& [springs, e] = c.points[*c.chosen];
+    svg.Circle({f.X(springs), f.Y(e)}, 6.0, "exact" + cls);
+  }
+  if (c.returned && Drawable(c.returned->second)) {
+    // A square: the model the result returns, where the user reads its springs and E.
+    const Point2 p{f.X(c.returned->first), f.Y(c.returned->second)};
+    svg.Rect({p.x - 5.0, p.y - 5.0}, 10.0, 10.0, "curve" + cls);
+  }
+  if (c.baseline_error && Drawable(*c.baseline_error)) {
+    const double y = f.Y(*c.baseline_error);
+    svg.Line({kPlotLeft, y}, {kPlotLeft + f.plot_w, y}, "reference");
+    if (c.baseline_springs) svg.Circle({f.X(*c.baseline_springs), y}, 4.0, "exact" + cls);
+  }
+}
 
-  const double legend_top = options.height;
+// Two rows per curve (its name; the returned model and the point it was refitted from), then
+// one for the baseline when some curve has one, from `top` down.
+void DrawLegend(SvgDocument& svg, const std::vector<TradeoffCurve>& curves, double top) {
   for (std::size_t i = 0; i < curves.size(); ++i) {
     const TradeoffCurve& c = curves[i];
-    const double y = legend_top + kLegendRow * static_cast<double>(2 * i);
+    const double y = top + kLegendRow * static_cast<double>(2 * i);
     svg.Line({kPlotLeft, y - 4}, {kPlotLeft + 26, y - 4}, "curve" + std::to_string(i));
     svg.Text({kPlotLeft + 32, y}, c.label, "");
     std::string text;
@@ -144,10 +150,29 @@ std::string RenderTradeoffPlot(const std::vector<TradeoffCurve>& curves, const s
     return c.baseline_error && Drawable(*c.baseline_error);
   });
   if (any_baseline) {
-    const double y = legend_top + kLegendRow * static_cast<double>(2 * curves.size());
+    const double y = top + kLegendRow * static_cast<double>(2 * curves.size());
     svg.Line({kPlotLeft, y - 4}, {kPlotLeft + 26, y - 4}, "reference");
     svg.Text({kPlotLeft + 32, y}, "closed-form baseline (van Gelder 1998) on the mesh edges", "");
   }
+}
+
+}  // namespace
+
+std::string RenderTradeoffPlot(const std::vector<TradeoffCurve>& curves, const std::string& title,
+                               const TradeoffPlotOptions& options) {
+  const TradeoffSpan span = TradeoffSpan::Of(curves);
+  if (!(span.e_hi > 0.0)) {
+    throw std::invalid_argument(
+        "nothing to plot: no sparsity path (strategy continuous writes one, proto/RUN.md)");
+  }
+  const TradeoffFrame frame(span, options);
+  // Two legend rows per curve (its name; the returned model), one for the baseline.
+  const double legend_height = kLegendRow * static_cast<double>(2 * curves.size() + 1) + 10;
+  SvgDocument svg(options.width, options.height + legend_height);
+  svg.Style(PlotCss(curves.size()));
+  DrawAxes(svg, frame, title);
+  for (std::size_t i = 0; i < curves.size(); ++i) DrawCurve(svg, frame, curves[i], i);
+  DrawLegend(svg, curves, options.height);
   return svg.str();
 }
 

@@ -270,12 +270,8 @@ int RunDaemon(const DaemonArgs& args) {
   return 0;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  CLI::App app{"springfitd: the springfit identification daemon (JSON-RPC over TCP, proto/RPC.md)"};
-  app.set_version_flag("--version", std::string("springfitd ") + springfit::server::kVersion);
-  DaemonArgs args;
+// Where the daemon listens, keeps its jobs, and how many it runs.
+void AddStoreAndWorkerOptions(CLI::App& app, DaemonArgs& args) {
   app.add_option("--listen", args.listen, "Address to listen on, HOST:PORT (port 0: any free port)")
       ->capture_default_str();
   auto* store_option = app.add_option(
@@ -308,6 +304,10 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--jobs", args.max_running, "Jobs run at once (default: --workers)")
       ->check(CLI::Range(1, 1024));
+}
+
+// Who may connect, what it serves beside the RPC, and its timings.
+void AddServiceOptions(CLI::App& app, DaemonArgs& args) {
   app.add_option("--token-file", args.token_file,
                  "File holding the token clients must present (session.auth)");
   app.add_option("--port-file", args.port_file,
@@ -336,6 +336,11 @@ int main(int argc, char** argv) {
                  "On SIGTERM, wait this long for running jobs to checkpoint")
       ->check(CLI::Range(0.0, 3600.0))
       ->capture_default_str();
+}
+
+// The bounds a submission is checked against before any work (ServiceLimits) and the
+// connections' bounds.
+void AddLimitOptions(CLI::App& app, DaemonArgs& args) {
   app.add_option("--max-queued", args.limits.max_queued, "Queued jobs, all clients together")
       ->check(CLI::Range(1, 100000000))
       ->capture_default_str();
@@ -377,6 +382,17 @@ int main(int argc, char** argv) {
                  "Generation limit of a submitted job")
       ->check(CLI::Range(1, 1000000000))
       ->capture_default_str();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"springfitd: the springfit identification daemon (JSON-RPC over TCP, proto/RPC.md)"};
+  app.set_version_flag("--version", std::string("springfitd ") + springfit::server::kVersion);
+  DaemonArgs args;
+  AddStoreAndWorkerOptions(app, args);
+  AddServiceOptions(app, args);
+  AddLimitOptions(app, args);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
