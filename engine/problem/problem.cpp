@@ -130,11 +130,12 @@ Problem::Problem(ValidScene scene, EquilibriumOptions solver_options, Interrupti
   if (candidates_.size() == 0) throw InputError("candidates", "generates no candidate spring");
   ThrowIfInterrupted(interruption);
   PrepareLoadCases();
-  ChooseGenes(closed_form ? &*closed_form : nullptr);
+  ChooseGenes();
   SolveReference(interruption);
   NormaliseByReference();
   if (!scene_.training_stiffness && scene_.reference.kind == Reference::Kind::kPositions)
     training_stiffness_ = PositionsTrainingStiffness(*this);
+  StiffenUnseenSprings(closed_form ? &*closed_form : nullptr);
 }
 
 void Problem::PrepareLoadCases() {
@@ -151,7 +152,7 @@ void Problem::PrepareLoadCases() {
   }
 }
 
-void Problem::ChooseGenes(const fem::ClosedFormModel* closed_form) {
+void Problem::ChooseGenes() {
   // A node constrained in every load case exerts no force on a free node.
   std::vector<bool> never_free(static_cast<std::size_t>(scene_.node_count()), true);
   for (const FreeNodes& free : free_sets_) {
@@ -166,6 +167,12 @@ void Problem::ChooseGenes(const fem::ClosedFormModel* closed_form) {
       continue;
     }
     unidentifiable_.push_back(c);
+  }
+}
+
+void Problem::StiffenUnseenSprings(const fem::ClosedFormModel* closed_form) {
+  for (const int c : unidentifiable_) {
+    const NodePair& pair = candidates_.pairs[static_cast<std::size_t>(c)];
     unidentifiable_stiffness_.push_back(
         closed_form ? EdgeStiffness(*closed_form, pair, training_stiffness_) : training_stiffness_);
   }

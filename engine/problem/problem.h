@@ -184,15 +184,18 @@ class Problem {
   // reference_equilibria.h).
   // Flattens each load case's loads and finds the distinct sets of free nodes.
   void PrepareLoadCases();
-  // A gene per candidate that some load case can see; the rest are unidentifiable, with the
-  // closed-form model's stiffness on a mesh edge (when given), the training stiffness else.
-  void ChooseGenes(const fem::ClosedFormModel* closed_form);
+  // A gene per candidate that some load case can see; the rest are unidentifiable.
+  void ChooseGenes();
   // The reference's displacements under every load case, by the reference's kind.
   void SolveReference(Interruption* interruption);
   // An MSS reference's topology as a candidate mask, or its springs outside the candidates.
   void TakeReferenceTopology();
   // The reference's squared norms over the free nodes, which normalise the cost.
   void NormaliseByReference();
+  // The unidentifiable springs' stiffness: the closed-form model's on a mesh edge (when
+  // given), else the training stiffness, once it is final (a positions reference's comes from
+  // its force balance, which needs the genes and the reference: it was 1 before it).
+  void StiffenUnseenSprings(const fem::ClosedFormModel* closed_form);
 
   Scene scene_;
   EquilibriumOptions solver_options_;

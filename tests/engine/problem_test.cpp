@@ -85,6 +85,15 @@ TEST(Problem, APositionsReferenceTakesItsStiffnessFromItsForceBalance) {
   const Scene mss = testing::GridScene(2, 5, 1.0, 7.0);
   const Problem positions = Problem::Build(AsPositions(mss));
   EXPECT_NEAR(positions.training_stiffness(), 7.0, 1e-6 * 7.0);
+  // The candidates no load case sees take it too: an export gives them to a simulator, whose
+  // supports may load them (they were left at 1). (The bottom-fixed cases alone leave two.)
+  Scene bottom_fixed = mss;
+  bottom_fixed.load_cases.resize(4);
+  const Problem unseen = Problem::Build(AsPositions(bottom_fixed));
+  ASSERT_FALSE(unseen.unidentifiable().empty());
+  EXPECT_NEAR(unseen.training_stiffness(), 7.0, 1e-6 * 7.0);
+  for (const double k : unseen.unidentifiable_stiffness())
+    EXPECT_EQ(k, unseen.training_stiffness());
   // Scaling the loads and the stiffness together leaves the positions: the scale is the data's.
   const Problem scaled = Problem::Build(AsPositions(testing::GridScene(2, 5, 1.0, 0.02)));
   EXPECT_NEAR(scaled.training_stiffness(), 0.02, 1e-6 * 0.02);
