@@ -523,54 +523,47 @@ SearchSettings SearchSettingsFromJson(const Json& json) {
   return settings;
 }
 
-Json SceneToJson(const Scene& s) {
-  Json j;
-  if (!s.name.empty()) j["name"] = s.name;
-  if (!s.description.empty()) j["description"] = s.description;
-  j["nodes"] = PointsToJson(s.rest, s.dimension);
+namespace {
 
+// The scene's candidate rule, or null when it is the default for its reference (left out).
+Json CandidatesToJson(const Scene& s) {
   const CandidateSpec& c = s.candidates;
   const bool default_candidates =
       s.reference.kind == Reference::Kind::kFem
           ? c.kind == FemDefaultCandidates().kind && c.k == FemDefaultCandidates().k
           : c.kind == CandidateSpec::Kind::kGrid && c.spacing.empty();
-  if (!default_candidates) {
-    Json cj;
-    cj["type"] = CandidateKindName(c.kind);
-    switch (c.kind) {
-      case CandidateSpec::Kind::kGrid:
-        if (c.spacing.empty())
-          break;  // inferred (written out because an FEM scene's default differs)
-        if (std::all_of(c.spacing.begin(), c.spacing.end(),
-                        [&](double h) { return h == c.spacing[0]; })) {
-          cj["spacing"] = c.spacing[0];
-        } else {
-          cj["spacing"] = c.spacing;
-        }
-        break;
-      case CandidateSpec::Kind::kNearest:
-        cj["k"] = c.k;
-        break;
-      case CandidateSpec::Kind::kRadius:
-        cj["radius"] = c.radius;
-        break;
-      case CandidateSpec::Kind::kPairs:
-        cj["pairs"] = PairsToJson(c.pairs);
-        break;
-      case CandidateSpec::Kind::kMesh:
-        if (c.k > 0) cj["k"] = c.k;
-        break;
-    }
-    j["candidates"] = std::move(cj);
+  if (default_candidates) return nullptr;
+  Json cj;
+  cj["type"] = CandidateKindName(c.kind);
+  switch (c.kind) {
+    case CandidateSpec::Kind::kGrid:
+      if (c.spacing.empty())
+        break;  // inferred (written out because an FEM scene's default differs)
+      if (std::all_of(c.spacing.begin(), c.spacing.end(),
+                      [&](double h) { return h == c.spacing[0]; })) {
+        cj["spacing"] = c.spacing[0];
+      } else {
+        cj["spacing"] = c.spacing;
+      }
+      break;
+    case CandidateSpec::Kind::kNearest:
+      cj["k"] = c.k;
+      break;
+    case CandidateSpec::Kind::kRadius:
+      cj["radius"] = c.radius;
+      break;
+    case CandidateSpec::Kind::kPairs:
+      cj["pairs"] = PairsToJson(c.pairs);
+      break;
+    case CandidateSpec::Kind::kMesh:
+      if (c.k > 0) cj["k"] = c.k;
+      break;
   }
+  return cj;
+}
 
-  if (!s.node_tags.empty()) j["node_tags"] = s.node_tags;
-  if (!s.node_sets.empty()) {
-    Json sets = Json::object();
-    for (const auto& [name, nodes] : s.node_sets) sets[name] = nodes;
-    j["node_sets"] = std::move(sets);
-  }
-
+// The reference: an MSS's springs and stiffness, an FEM's mesh and materials, or positions.
+Json ReferenceToJson(const Scene& s) {
   Json r;
   r["type"] = ReferenceKindName(s.reference.kind);
   if (s.reference.kind == Reference::Kind::kMss) {
@@ -587,7 +580,28 @@ Json SceneToJson(const Scene& s) {
     for (const Vector& p : s.reference.positions) positions.push_back(PointsToJson(p, s.dimension));
     r["positions"] = std::move(positions);
   }
-  j["reference"] = std::move(r);
+  return r;
+}
+
+}  // namespace
+
+Json SceneToJson(const Scene& s) {
+  Json j;
+  if (!s.name.empty()) j["name"] = s.name;
+  if (!s.description.empty()) j["description"] = s.description;
+  j["nodes"] = PointsToJson(s.rest, s.dimension);
+
+  Json candidates = CandidatesToJson(s);
+  if (!candidates.is_null()) j["candidates"] = std::move(candidates);
+
+  if (!s.node_tags.empty()) j["node_tags"] = s.node_tags;
+  if (!s.node_sets.empty()) {
+    Json sets = Json::object();
+    for (const auto& [name, nodes] : s.node_sets) sets[name] = nodes;
+    j["node_sets"] = std::move(sets);
+  }
+
+  j["reference"] = ReferenceToJson(s);
 
   Json cases = Json::array();
   for (const LoadCase& lc : s.load_cases) cases.push_back(LoadCaseToJson(lc, s.dimension));

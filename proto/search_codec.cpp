@@ -294,6 +294,46 @@ Json GeneralizationToJson(const response::Generalization& g) {
 
 }  // namespace
 
+namespace {
+
+// The units the numbers are in, as the scene states them (null: unstated).
+Json UnitsToJson(const Scene& scene) {
+  if (!scene.units) return nullptr;
+  const DerivedUnits u = DeriveUnits(*scene.units);
+  return {
+      {"length", u.length}, {"force", u.force}, {"stiffness", u.stiffness}, {"modulus", u.modulus}};
+}
+
+// The closed-form baseline on the same cases, and whether the model is worse: no equilibrium
+// where the baseline has one, or a larger error.
+Json BaselineToJson(const BaselineReport& baseline, const Evaluation& model) {
+  Json b;
+  b["recipe"] = baseline.recipe;
+  b["springs"] = baseline.springs;
+  b["converged"] = baseline.converged;
+  if (baseline.converged) {
+    b["normalized_error"] = baseline.normalized_error;
+    b["rms_error"] = baseline.rms_error;
+  }
+  const bool stable = model.converged && !model.mechanism;
+  b["worse_than_baseline"] =
+      baseline.converged && (!stable || model.normalized_error > baseline.normalized_error);
+  return b;
+}
+
+// Strategy hybrid's direct phase: its time, error and distance to the reference topology.
+Json DirectPhaseToJson(const IdentificationResult::DirectPhase& direct) {
+  Json phase;
+  phase["seconds"] = direct.seconds;
+  phase["normalized_error"] = direct.normalized_error;
+  const auto& difference = direct.difference;
+  phase["missing"] = difference ? Json(difference->missing.size()) : Json(nullptr);
+  phase["extra"] = difference ? Json(difference->extra.size()) : Json(nullptr);
+  return phase;
+}
+
+}  // namespace
+
 Json ResultToJson(const Problem& problem, const IdentificationResult& r, bool with_trace) {
   Json j;
   j["scene"] = problem.scene().name;
@@ -307,16 +347,7 @@ Json ResultToJson(const Problem& problem, const IdentificationResult& r, bool wi
   j["outcome"] = OutcomeToJson(r.outcome);
   // Notices about the scene (engine/problem/problem.h, SceneNotices): shown wherever the result is.
   j["notices"] = SceneNotices(problem);
-  // The units the numbers are in, as the scene states them (null: unstated).
-  if (problem.scene().units) {
-    const DerivedUnits u = DeriveUnits(*problem.scene().units);
-    j["units"] = {{"length", u.length},
-                  {"force", u.force},
-                  {"stiffness", u.stiffness},
-                  {"modulus", u.modulus}};
-  } else {
-    j["units"] = nullptr;
-  }
+  j["units"] = UnitsToJson(problem.scene());
   if (const auto exact = r.exact()) {
     j["exact"] = *exact;
     j["hamming"] = r.difference->hamming();
@@ -340,36 +371,14 @@ Json ResultToJson(const Problem& problem, const IdentificationResult& r, bool wi
   // E, the relative RMS nodal error, where the model has equilibria (penalties are not errors).
   const bool stable = r.evaluation.converged && !r.evaluation.mechanism;
   if (stable) j["rms_error"] = std::sqrt(r.evaluation.normalized_error);
-  if (r.baseline) {
-    Json b;
-    b["recipe"] = r.baseline->recipe;
-    b["springs"] = r.baseline->springs;
-    b["converged"] = r.baseline->converged;
-    if (r.baseline->converged) {
-      b["normalized_error"] = r.baseline->normalized_error;
-      b["rms_error"] = r.baseline->rms_error;
-    }
-    // Worse: no equilibrium where the baseline has one, or a larger error.
-    b["worse_than_baseline"] =
-        r.baseline->converged &&
-        (!stable || r.evaluation.normalized_error > r.baseline->normalized_error);
-    j["baseline"] = std::move(b);
-  }
+  if (r.baseline) j["baseline"] = BaselineToJson(*r.baseline, r.evaluation);
   j["generations"] = r.generations;
   j["best_generation"] = r.best_generation;
   j["evaluations"] = r.counters.evaluations;
   j["cache_hits"] = r.counters.cache_hits;
   j["wall_seconds"] = r.wall_seconds;
   j["options"] = SearchOptionsToJson(r.options);
-  if (r.direct_phase) {
-    Json phase;
-    phase["seconds"] = r.direct_phase->seconds;
-    phase["normalized_error"] = r.direct_phase->normalized_error;
-    const auto& difference = r.direct_phase->difference;
-    phase["missing"] = difference ? Json(difference->missing.size()) : Json(nullptr);
-    phase["extra"] = difference ? Json(difference->extra.size()) : Json(nullptr);
-    j["direct_phase"] = std::move(phase);
-  }
+  if (r.direct_phase) j["direct_phase"] = DirectPhaseToJson(*r.direct_phase);
   if (r.direct) DirectDetailsToJson(problem, *r.direct, j);
   if (r.continuous) j["continuous"] = ContinuousDetailsToJson(*r.continuous);
   if (r.generalization) j["generalization"] = GeneralizationToJson(*r.generalization);
