@@ -400,7 +400,9 @@ struct EquilibriumSolver::NewtonSteps {
   Vector& u;
   EquilibriumSummary& summary;
 
-  const char* StopBeforeStep(int) {
+  // (The iteration count is summary.iterations, which NewtonIterate counts; the excess is
+  // per node, from the gradient, not from |gradient|_inf alone.)
+  const char* StopBeforeStep(int, const EnergyPoint&) {
     summary.excess = solver.Excess<D>(solver.gradient_);
     return solver.StopBeforeStep(summary);
   }

@@ -14,7 +14,8 @@
 namespace springfit {
 
 // A point of the search: the energy, the magnitude of its terms (its round-off scale) and the
-// gradient's largest entry (read by RoundoffRule::kGradientDecides only).
+// gradient's largest entry (the line search reads it under RoundoffRule::kGradientDecides; the
+// solvers' stop tests read it too).
 struct EnergyPoint {
   double energy = 0.0;
   double magnitude = 0.0;
@@ -75,15 +76,15 @@ std::optional<EnergyPoint> BacktrackingLineSearch(const EnergyPoint& at, double 
 
 // The Newton iteration from the point `at` (the solver holds its state and gradient), as named
 // steps that `steps` provides:
-//   const char* StopBeforeStep(int iterations): the stop tests before a step (converged, the
-//       iteration limit, an interruption): nullptr to go on, else why it stops ("" when the
-//       solver's own summary says it);
+//   const char* StopBeforeStep(int iterations, const EnergyPoint& at): the stop tests before
+//       a step (converged, the iteration limit, an interruption) at the current point: nullptr
+//       to go on, else why it stops ("" when the solver's own summary says it);
 //   const char* Direction(double& slope): the Newton direction and its slope along the
 //       gradient: nullptr, or why there is none;
 //   EnergyPoint Trial(double alpha): the point at step length alpha along the direction;
 //   const char* Accept(EnergyPoint& at): makes the last trial the current point (`at` holds
-//       the line search's point; the solver may evaluate it again): nullptr, or why the
-//       iteration cannot go on from it;
+//       the line search's point already; the solver may evaluate it again): nullptr, or why
+//       the iteration cannot go on from it;
 //   void Reject(): after a line search that took no step.
 // `iterations` counts the steps tried, `rejected` the step lengths refused. Returns why it
 // stopped.
@@ -91,7 +92,7 @@ template <typename Steps>
 const char* NewtonIterate(Steps& steps, EnergyPoint& at, const LineSearchOptions& search,
                           int& iterations, int* rejected = nullptr) {
   for (;;) {
-    if (const char* why = steps.StopBeforeStep(iterations)) return why;
+    if (const char* why = steps.StopBeforeStep(iterations, at)) return why;
     double slope = 0.0;
     if (const char* why = steps.Direction(slope)) return why;
     ++iterations;

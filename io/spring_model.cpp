@@ -1,7 +1,5 @@
 #include "io/spring_model.h"
 
-#include <algorithm>
-#include <cmath>
 #include <cstdio>
 #include <map>
 #include <set>

@@ -292,10 +292,6 @@ Json GeneralizationToJson(const response::Generalization& g) {
   return j;
 }
 
-}  // namespace
-
-namespace {
-
 // The units the numbers are in, as the scene states them (null: unstated).
 Json UnitsToJson(const Scene& scene) {
   if (!scene.units) return nullptr;

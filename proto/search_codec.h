@@ -27,7 +27,8 @@ Json IdentifiabilityToJson(const IdentifiabilityReport& report);
 Json ResultToJson(const Problem& problem, const IdentificationResult& result, bool with_trace);
 
 // A result object read back (a file from `run -o` / `result -o`, or job.result): the parts a
-// figure draws, typed. The other fields are for people and other tools.
+// figure draws, typed. The other fields are for people and other tools. Read only through
+// StoredResultFromJson, which orders its node pairs: its readers look them up as they are.
 struct StoredResult {
   std::string scene;  // the scene's name
   std::string strategy;

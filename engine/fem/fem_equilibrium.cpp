@@ -197,14 +197,13 @@ struct FemEquilibriumSolver::NewtonSteps {
   double tolerance;
   Vector& u;
   FemSolveSummary& summary;
-  const EnergyPoint& at;
   bool converged = false;
 
   // A linear material's tangent is the rest stiffness, already factorised: no need to assemble
   // it.
   bool NeedTangent() const { return !(solver.model_->linear() && solver.rest_factor_valid_); }
 
-  const char* StopBeforeStep(int iterations) {
+  const char* StopBeforeStep(int iterations, const EnergyPoint& at) {
     summary.final_residual = at.residual;
     if (at.residual <= tolerance) {
       converged = true;
@@ -265,14 +264,16 @@ struct FemEquilibriumSolver::NewtonSteps {
 bool FemEquilibriumSolver::Newton(const Vector& force, double load, double tolerance, Vector& u,
                                   FemSolveSummary& summary) {
   EnergyPoint at;
-  NewtonSteps steps{*this, force, load, tolerance, u, summary, at};
+  NewtonSteps steps{*this, force, load, tolerance, u, summary};
   at.energy = Energy(force, load, u, &gradient_, steps.NeedTangent(), &at.magnitude);
   if (!std::isfinite(at.energy)) return false;
   at.residual = LargestEntry(gradient_);
   const LineSearchOptions search{options_.armijo, options_.max_line_search_steps,
                                  RoundoffRule::kSlack};
   int iterations = 0;
-  NewtonIterate(steps, at, search, iterations);
+  // (Why it stopped is not kept: a load level that fails is cut back, and Solve's message says
+  // how far the load got.)
+  static_cast<void>(NewtonIterate(steps, at, search, iterations));
   summary.iterations += iterations;
   return steps.converged;
 }

@@ -5,10 +5,10 @@
 // at load fraction lambda = 1. Newton's method with an Armijo line search on E, the iteration
 // the springs' solver runs too (newton_iteration.h): the exact tangent stiffness
 // (fem_model.h), factorised on the scene's sparsity pattern (symbolic analysis once per
-// solver); where it is not positive
-// definite (a compressed nonlinear state), the Jacobi-scaled matrix is shifted until it is,
-// so each step still descends. A configuration with an inverted element (J <= 0) has infinite
-// energy for the neo-Hookean law, so the line search never enters one.
+// solver); where it is not positive definite (a compressed nonlinear state), the
+// Jacobi-scaled matrix is shifted until it is, so each step still descends. A configuration with an
+// inverted element (J <= 0) has infinite energy for the neo-Hookean law, so the line search never
+// enters one.
 //
 // Load stepping (continuation): the full load is tried from rest first (a linear material
 // converges in one step); when Newton fails, the load increment is halved and the solve

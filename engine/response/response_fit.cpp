@@ -416,11 +416,7 @@ ResponseFitResult FitDense(const Problem& problem, const ProbeBank& bank,
   Fit fit(problem, bank, reference_stiffness, prior, options, interruption, pool);
   ResponseFitResult r;
   auto lap = std::chrono::steady_clock::now();
-  const auto seconds = [&lap] {
-    const double s = SecondsSince(lap);
-    lap = std::chrono::steady_clock::now();
-    return s;
-  };
+  const auto seconds = [&lap] { return NextLap(lap); };
   const Gram gram = fit.FirstOrderGram();
   r.seconds_gram = seconds();
   const PathStart start = FirstOrderFits(fit, gram, options, interruption, tell, r);

@@ -4,7 +4,6 @@
 #pragma once
 #include <chrono>
 
-#include "engine/api/identify.h"  // SecondsSince
 #include "server/store/forwarding_store.h"
 #include "server/web/metrics.h"
 
@@ -52,7 +51,9 @@ class MeteredStore final : public ForwardingStore {
   template <typename F>
   auto Timed(const char* operation, F&& f) -> decltype(f()) {
     const auto t0 = std::chrono::steady_clock::now();
-    const auto seconds = [&] { return SecondsSince(t0); };
+    const auto seconds = [&] {
+      return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    };
     try {
       if constexpr (std::is_void_v<decltype(f())>) {
         f();

@@ -11,7 +11,9 @@ namespace springfit {
 namespace {
 
 // E(x) = x^4 / 4 - f x (minimum at x = cbrt(f)), with a Newton direction from E'' that can be
-// replaced by an uphill one, and a stop once |E'| is below `tolerance` or after `limit` steps.
+// replaced by an uphill one, a stop once the current point's |E'| is below `tolerance` or after
+// `limit` steps, and an acceptance that can refuse the point (as the FEM's does a non-finite
+// energy).
 struct QuarticSteps {
   double f = 8.0;
   double x = 1.0;
@@ -20,6 +22,7 @@ struct QuarticSteps {
   double tolerance = 1e-12;
   int limit = 50;
   bool uphill = false;
+  bool refuse = false;
   int rejects = 0;
   bool converged = false;
 
@@ -28,8 +31,8 @@ struct QuarticSteps {
     return {at * at * at * at / 4.0 - f * at, std::abs(at * at * at * at / 4.0) + std::abs(f * at),
             std::abs(Gradient(at))};
   }
-  const char* StopBeforeStep(int iterations) {
-    if (std::abs(Gradient(x)) <= tolerance) {
+  const char* StopBeforeStep(int iterations, const EnergyPoint& at) {
+    if (at.residual <= tolerance) {
       converged = true;
       return "";
     }
@@ -47,6 +50,7 @@ struct QuarticSteps {
     return Point(trial_x);
   }
   const char* Accept(EnergyPoint&) {
+    if (refuse) return "refused";
     x = trial_x;
     return nullptr;
   }
@@ -86,6 +90,19 @@ TEST(NewtonIteration, StopTestsComeBeforeTheStep) {
             "");
   EXPECT_TRUE(there.converged);
   EXPECT_EQ(iterations, 0);
+}
+
+TEST(NewtonIteration, ARefusedPointEndsTheIterationWithItsReason) {
+  QuarticSteps steps;
+  steps.refuse = true;
+  EnergyPoint at = steps.Point(steps.x);
+  int iterations = 0;
+  EXPECT_EQ(std::string(NewtonIterate(steps, at, LineSearchOptions{1e-4, 30}, iterations)),
+            "refused");
+  EXPECT_EQ(iterations, 1);
+  // `at` already holds the line search's point when the solver is asked to accept it.
+  EXPECT_EQ(at.energy, steps.Point(steps.trial_x).energy);
+  EXPECT_NE(steps.trial_x, 1.0);
 }
 
 TEST(NewtonIteration, AnUphillDirectionFindsNoDecreaseAndIsRejected) {

@@ -86,7 +86,8 @@ TEST(Problem, APositionsReferenceTakesItsStiffnessFromItsForceBalance) {
   const Problem positions = Problem::Build(AsPositions(mss));
   EXPECT_NEAR(positions.training_stiffness(), 7.0, 1e-6 * 7.0);
   // The candidates no load case sees take it too: an export gives them to a simulator, whose
-  // supports may load them (they were left at 1). (The bottom-fixed cases alone leave two.)
+  // supports may load them (they were left at 1). (The bottom-fixed cases alone leave the bottom
+  // row's edges.)
   Scene bottom_fixed = mss;
   bottom_fixed.load_cases.resize(4);
   const Problem unseen = Problem::Build(AsPositions(bottom_fixed));

@@ -394,6 +394,20 @@ TEST(ResultCodecRoundTrip, TheTypedReadingOfAResultIsTheRunsResult) {
   } catch (const InputError& e) {
     EXPECT_EQ(e.path(), "springs");
   }
+  // Every pair is read (smaller, larger), whichever way it is written: a spring has no
+  // direction, and readers look pairs up among the candidates as they are.
+  Json reversed = ResultToJson(p, r, false);
+  for (Json& pair : reversed["springs"]) pair = Json::array({pair[1], pair[0]});
+  reversed["unidentifiable"] = Json::array({Json::array({3, 0})});
+  reversed["identifiability"] = {
+      {"analysed", true},
+      {"unseen", Json::array({Json::array({5, 2})})},
+      {"groups", Json::array({{{"springs", Json::array({Json::array({9, 1})})}}})}};
+  const StoredResult ordered = StoredResultFromJson(reversed);
+  EXPECT_EQ(ordered.springs, r.springs);
+  EXPECT_EQ(ordered.unidentifiable, (std::vector<NodePair>{{0, 3}}));
+  EXPECT_EQ(ordered.undetermined, (std::vector<NodePair>{{2, 5}, {1, 9}}));
+
   Json short_stiffness = ResultToJson(p, r, false);
   short_stiffness["stiffness"].erase(0);
   try {
