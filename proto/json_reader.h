@@ -10,6 +10,7 @@
 #include <initializer_list>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -45,6 +46,17 @@ std::uint64_t ReadUint64(const Json& value, const std::string& path);
 std::string ReadString(const Json& value, const std::string& path);
 // An array of `dimension` finite numbers; dimension 0 accepts any length >= 1.
 Vector ReadVector(const Json& value, const std::string& path, int dimension);
+
+// An array whose elements `read_one(element, element_path)` turns into T, in order.
+template <typename T, typename ReadOne>
+std::vector<T> ReadArray(const Json& value, const std::string& path, ReadOne read_one) {
+  ExpectArray(value, path);
+  std::vector<T> out;
+  out.reserve(value.size());
+  for (std::size_t m = 0; m < value.size(); ++m)
+    out.push_back(read_one(value[m], IndexPath(path, m)));
+  return out;
+}
 
 }  // namespace springfit::proto
 

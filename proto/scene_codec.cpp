@@ -20,16 +20,6 @@ NodePair ReadPair(const Json& v, const std::string& path) {
   return {ReadInt(v[0], IndexPath(path, 0)), ReadInt(v[1], IndexPath(path, 1))};
 }
 
-// An array whose elements `read_one(element, element_path)` turns into T.
-template <typename T, typename ReadOne>
-std::vector<T> ReadArray(const Json& v, const std::string& path, ReadOne read_one) {
-  ExpectArray(v, path);
-  std::vector<T> out;
-  out.reserve(v.size());
-  for (std::size_t m = 0; m < v.size(); ++m) out.push_back(read_one(v[m], IndexPath(path, m)));
-  return out;
-}
-
 std::vector<int> ReadIndices(const Json& v, const std::string& path) {
   return ReadArray<int>(v, path, ReadInt);
 }

@@ -422,19 +422,17 @@ std::vector<NodePair> ReadSpringPairs(const Json& json, const std::string& path)
 // `continuous.path` and `continuous.chosen` of a result (proto/RUN.md).
 void ReadContinuousPath(const Json& c, StoredResult& r) {
   if (c.contains("path")) {
-    ExpectArray(c["path"], "continuous.path");
-    for (std::size_t i = 0; i < c["path"].size(); ++i) {
-      const std::string at = "continuous.path[" + std::to_string(i) + "]";
-      const Json& p = c["path"][i];
-      ExpectObject(p, at);
-      StoredResult::PathPoint point;
-      point.springs = ReadInt(p.value("springs", Json()), at + ".springs");
-      // (null where the point had no equilibrium: NaN, not drawn.)
-      point.rms_error = p.contains("rms_error") && !p["rms_error"].is_null()
-                            ? ReadNumber(p["rms_error"], at + ".rms_error")
-                            : std::numeric_limits<double>::quiet_NaN();
-      r.path.push_back(point);
-    }
+    r.path = ReadArray<StoredResult::PathPoint>(
+        c["path"], "continuous.path", [](const Json& p, const std::string& at) {
+          ExpectObject(p, at);
+          StoredResult::PathPoint point;
+          point.springs = ReadInt(p.value("springs", Json()), at + ".springs");
+          // (null where the point had no equilibrium: NaN, not drawn.)
+          point.rms_error = p.contains("rms_error") && !p["rms_error"].is_null()
+                                ? ReadNumber(p["rms_error"], at + ".rms_error")
+                                : std::numeric_limits<double>::quiet_NaN();
+          return point;
+        });
   }
   if (c.contains("chosen") && !c["chosen"].is_null())
     r.chosen = ReadInt(c["chosen"], "continuous.chosen");
@@ -456,15 +454,14 @@ void ReadIdentifiability(const Json& id, StoredResult& r) {
     r.groups_not_analysed = id["not_analysed"].get<std::string>();
   }
   if (id.contains("groups")) {
-    ExpectArray(id["groups"], "identifiability.groups");
-    for (std::size_t i = 0; i < id["groups"].size(); ++i) {
-      const std::string at = "identifiability.groups[" + std::to_string(i) + "]";
-      const Json& g = id["groups"][i];
-      ExpectObject(g, at);
-      if (!g.contains("springs")) continue;
-      for (const NodePair& p : ReadSpringPairs(g["springs"], at + ".springs"))
-        r.undetermined.push_back(p);
-    }
+    const auto groups = ReadArray<std::vector<NodePair>>(
+        id["groups"], "identifiability.groups", [](const Json& g, const std::string& at) {
+          ExpectObject(g, at);
+          return g.contains("springs") ? ReadSpringPairs(g["springs"], at + ".springs")
+                                       : std::vector<NodePair>{};
+        });
+    for (const std::vector<NodePair>& springs : groups)
+      r.undetermined.insert(r.undetermined.end(), springs.begin(), springs.end());
   }
 }
 
