@@ -89,6 +89,9 @@ int Main(int argc, char** argv) {
   app.add_option("--cg-iterations", defaults.cg_iterations, "ResponseFitOptions::cg_iterations");
   app.add_option("--continuation-patience", defaults.continuation_patience,
                  "ResponseFitOptions::continuation_patience");
+  app.add_option("--hold-weight", defaults.hold.weight, "ModeHoldOptions::weight");
+  app.add_option("--hold-target", defaults.hold.target, "ModeHoldOptions::target");
+  app.add_option("--lift", defaults.lift_soft_modes, "ResponseFitOptions::lift_soft_modes");
   app.add_option("--named-weight", defaults.probes.named_weight, "ProbeOptions::named_weight");
   app.add_option("--extra-supports", defaults.probes.extra_supports,
                  "ProbeOptions::extra_supports");

@@ -10,7 +10,9 @@
 
 #include "engine/fit/stiffness_fit.h"
 #include "engine/response/linearized_response.h"
+#include "engine/response/mode_cuts.h"
 #include "engine/response/probe_objective.h"
+#include "engine/response/rest_stiffness.h"
 #include "engine/wall_clock.h"
 
 namespace springfit::response {
@@ -57,6 +59,7 @@ class MatrixFreeFit {
                 const ResponseProgress& progress, WorkerPool* pool)
       : objective_(problem, bank, reference_stiffness, prior, options, interruption),
         springs_(GeneSpringsOf(problem)),
+        cuts_(options.hold, objective_.scale()),
         genes_(static_cast<double>(problem.gene_count())),
         options_(options),
         interruption_(interruption),
@@ -99,34 +102,86 @@ class MatrixFreeFit {
     }
   }
 
-  // A spring budget: the least salient springs of iterate `chosen` (1/2 x_e^2 (J^T J)_ee) out
-  // down to the budget, the rest refitted at its strength. Returns the best iterate of that
-  // refit, or nothing when the model is not held.
+  // A spring budget: two sparsity paths down to it, at the strength of iterate `chosen`, one
+  // from that iterate and one from the closed-form baseline's springs (the mesh edges) refitted
+  // alone, as the fit's many springs stand in for each other in ways a path from them may not
+  // undo. Returns the best iterate within the budget, or nothing when none is a model.
   std::optional<std::size_t> WithinBudget(std::size_t chosen) {
-    std::vector<double> weights = iterates_[chosen].weights;
     const double regularization = iterates_[chosen].regularization;
-    LinearizedResponse budget = Linearisation();
-    if (!budget.At(weights)) return std::nullopt;
-    const Vector x = objective_.Scaled(weights);
-    const Vector diagonal = budget.NormalDiagonal(options_.diagonal_samples, options_.probes.seed);
-    std::vector<std::pair<double, int>> saliency;
-    for (int e = 0; e < x.size(); ++e)
-      if (x[e] > 0.0) saliency.emplace_back(0.5 * x[e] * x[e] * diagonal[e], e);
-    std::sort(saliency.begin(), saliency.end());
-    std::vector<bool> removed(weights.size(), false);
-    const std::size_t cut = saliency.size() - static_cast<std::size_t>(options_.max_springs);
-    for (std::size_t i = 0; i < cut; ++i) {
-      removed[static_cast<std::size_t>(saliency[i].second)] = true;
-      weights[static_cast<std::size_t>(saliency[i].second)] = 0.0;
+    BudgetPath(iterates_[chosen].weights, regularization, false);
+    BudgetPath(objective_.Weights(objective_.prior_scaled()), regularization, true);
+    return BestWithinBudget();
+  }
+
+  // One path from `weights` down to the spring budget (`refit`: its springs refitted first).
+  // The least salient springs (1/2 x_e^2 (J^T J)_ee at the current model) out, `prune_fraction`
+  // of the present ones at a time and at most down to the budget, each removal followed by the
+  // Gauss-Newton steps of the strength on the springs left; a spring once out stays out. A
+  // removal that leaves a mechanism is retried with half as many springs; a single spring whose
+  // removal leaves one is kept for good (the saliency does not see that a soft spring alone
+  // holds a node).
+  void BudgetPath(std::vector<double> weights, double regularization, bool refit) {
+    LinearizedResponse at = Linearisation();
+    if (!at.At(weights)) return;
+    std::vector<bool> removed(weights.size()), kept(weights.size(), false);
+    const auto descend = [&] {
+      for (std::size_t g = 0; g < weights.size(); ++g)
+        removed[g] = removed[g] || !(weights[g] > 0.0);
+      Descend(weights, at, regularization, removed);
+    };
+    if (refit) {
+      Judge(weights, regularization, step_count_, &at);
+      descend();
     }
-    const std::size_t first = iterates_.size();
-    const bool held = budget.At(weights);
-    Judge(weights, regularization, step_count_, held ? &budget : nullptr);
-    if (held) {
+    while (PresentSprings(weights) > options_.max_springs) {
+      ThrowIfInterrupted(interruption_);
+      const int present = PresentSprings(weights);
+      std::vector<int> order;
+      for (int e : BySaliency(weights, at))
+        if (!kept[static_cast<std::size_t>(e)]) order.push_back(e);
+      if (order.empty()) return;
+      int count =
+          std::min({present - options_.max_springs, static_cast<int>(order.size()),
+                    std::max(1, static_cast<int>(std::ceil(options_.prune_fraction * present)))});
+      std::vector<double> trial;
+      LinearizedResponse next = Linearisation();
+      bool held = false;
+      while (!held) {
+        trial = weights;
+        for (int i = 0; i < count; ++i) trial[static_cast<std::size_t>(order[i])] = 0.0;
+        held = next.At(trial);
+        if (!held && count == 1) break;
+        if (!held) count = std::max(1, count / 2);
+      }
+      if (!held) {
+        kept[static_cast<std::size_t>(order[0])] = true;
+        continue;
+      }
+      weights = std::move(trial);
+      at = std::move(next);
+      Judge(weights, regularization, step_count_, &at);
       if (progress_) progress_("probe_path", iterates_.back().select_error);
-      Descend(weights, budget, regularization, removed);
+      descend();
     }
-    return BestOf(first);
+  }
+
+  // The best iterate within the spring budget that is a model; nothing when none is.
+  std::optional<std::size_t> BestWithinBudget() const {
+    std::vector<std::size_t> within;
+    std::vector<double> errors, lambdas;
+    for (std::size_t i = 0; i < iterates_.size(); ++i) {
+      const Iterate& it = iterates_[i];
+      if (PresentSprings(it.weights) > options_.max_springs || !(it.lambda_min > 0.0) ||
+          !(it.select_error < kNoModel))
+        continue;
+      within.push_back(i);
+      errors.push_back(it.select_error);
+      lambdas.push_back(it.lambda_min);
+    }
+    if (within.empty()) return std::nullopt;
+    const std::vector<double> score = PreferSupported(errors, lambdas, options_);
+    return within[static_cast<std::size_t>(std::min_element(score.begin(), score.end()) -
+                                           score.begin())];
   }
 
   // The best iterate from `from` on, on the choosing probes, preferring one that holds every
@@ -143,6 +198,21 @@ class MatrixFreeFit {
   }
 
  private:
+  // The present springs of `weights`, least salient first (1/2 x_e^2 (J^T J)_ee, `at` its
+  // linearisation; ties by gene).
+  std::vector<int> BySaliency(const std::vector<double>& weights,
+                              const LinearizedResponse& at) const {
+    const Vector x = objective_.Scaled(weights);
+    const Vector diagonal = at.NormalDiagonal(options_.diagonal_samples, options_.probes.seed);
+    std::vector<std::pair<double, int>> saliency;
+    for (int e = 0; e < x.size(); ++e)
+      if (x[e] > 0.0) saliency.emplace_back(0.5 * x[e] * x[e] * diagonal[e], e);
+    std::sort(saliency.begin(), saliency.end());
+    std::vector<int> order;
+    for (const auto& [value, e] : saliency) order.push_back(e);
+    return order;
+  }
+
   LinearizedResponse Linearisation() const {
     return LinearizedResponse(objective_, springs_, interruption_, pool_);
   }
@@ -154,9 +224,32 @@ class MatrixFreeFit {
     const FactorizedOn factorized = at ? at->Factorized() : FactorizedOn{};
     iterates_.push_back({weights, regularization, objective_.SelectError(weights, factorized),
                          objective_.LambdaMin(weights, factorized), step});
+    CutSoftModes(weights, iterates_.back().lambda_min);
     double best = kNoModel;
     for (const Iterate& i : iterates_) best = std::min(best, i.select_error);
     if (progress_) progress_("probe_fit", best);
+  }
+
+  // A cut for each mode the model `weights` (smallest eigenvalue `lambda_min`) leaves below the
+  // held target on a user support: the steps after it keep away from those modes.
+  void CutSoftModes(const std::vector<double>& weights, double lambda_min) {
+    if (!cuts_.enabled() || !(lambda_min < cuts_.options().target) || lambda_min <= 0.0) return;
+    const SparseMatrix model = SpringRestStiffness(objective_.problem(), weights);
+    for (std::size_t s = 0; s < objective_.bank().supports.size(); ++s) {
+      if (!objective_.bank().supports[s].user) continue;
+      const SupportSystem& reference = objective_.reference()[s];
+      for (const SoftMode& mode : SoftModes(model, reference, cuts_.options().target,
+                                            cuts_.options().modes_per_support, 80, interruption_))
+        cuts_.Add(springs_, mode, reference);
+    }
+  }
+
+  // The fitted objective at `weights` (`at` its linearisation): the probes' error, the Tikhonov
+  // pull and the held modes' penalty.
+  double Phi(const std::vector<double>& weights, const LinearizedResponse& at,
+             double regularization) const {
+    return at.ResidualNorm2() + objective_.Regularization(weights, regularization) +
+           cuts_.Penalty(objective_.Scaled(weights));
   }
 
   // Gauss-Newton steps at one strength from `weights`, `at` its linearisation (springs with
@@ -165,18 +258,23 @@ class MatrixFreeFit {
                const std::vector<bool>& removed) {
     const double rho = regularization / genes_;
     Vector x = objective_.Scaled(weights);
-    double phi = at.ResidualNorm2() + objective_.Regularization(weights, regularization);
     for (int step = 0; step < options_.steps_per_strength; ++step) {
-      const Vector gradient = at.Gradient() + rho * (x - objective_.prior_scaled());
+      // (Again at every step: the judgement of the last one may have added cuts.)
+      double phi = Phi(weights, at, regularization);
+      const Vector gradient =
+          at.Gradient() + rho * (x - objective_.prior_scaled()) + cuts_.HalfGradient(x);
       std::vector<bool> free(static_cast<std::size_t>(x.size()));
       for (Eigen::Index e = 0; e < x.size(); ++e)
         free[static_cast<std::size_t>(e)] =
             !removed[static_cast<std::size_t>(e)] && !(x[e] <= 0.0 && gradient[e] > 0.0);
       Vector diagonal = at.NormalDiagonal(options_.diagonal_samples, options_.probes.seed);
       diagonal.array() += rho;
+      diagonal += cuts_.HalfHessianDiagonal(x);
       const Vector d = ConjugateGradients(
-          [&](const Vector& v) { return Vector(at.NormalProduct(v) + rho * v); }, -gradient,
-          diagonal, free, options_.cg_iterations, options_.cg_tolerance);
+          [&](const Vector& v) {
+            return Vector(at.NormalProduct(v) + rho * v + cuts_.HalfHessianProduct(x, v));
+          },
+          -gradient, diagonal, free, options_.cg_iterations, options_.cg_tolerance);
       if (!ProjectedStep(weights, x, phi, at, d, regularization)) break;
       Judge(weights, regularization, ++step_count_, &at);
     }
@@ -192,7 +290,7 @@ class MatrixFreeFit {
       if (PresentSprings(trial) == 0) continue;
       LinearizedResponse next = Linearisation();
       if (!next.At(trial)) continue;
-      const double value = next.ResidualNorm2() + objective_.Regularization(trial, regularization);
+      const double value = Phi(trial, next, regularization);
       if (!(value < phi)) continue;
       weights = trial;
       x = objective_.Scaled(trial);
@@ -205,6 +303,7 @@ class MatrixFreeFit {
 
   const ProbeObjective objective_;
   const GeneSprings springs_;
+  ModeCuts cuts_;
   const double genes_;
   const ResponseFitOptions& options_;
   Interruption* interruption_;

@@ -21,8 +21,10 @@
 // ended after `continuation_patience` strengths in a row that do no better):
 // every accepted iterate is judged on the choosing probes and the best is returned, preferring
 // one that holds every mode (min_lambda), as the dense fit chooses. Springs the fit drives to 0,
-// or to dust, leave the model. With a spring budget, the least salient springs of the chosen
-// model (1/2 x_e^2 (J^T J)_ee) are removed down to it and the rest refitted.
+// or to dust, leave the model. Every mode a judged model leaves below the held target gives a
+// cut whose penalty joins Phi (mode_cuts.h). With a spring budget, the least salient springs of
+// the chosen model (1/2 x_e^2 (J^T J)_ee) are removed, a tenth at a time down to it, each
+// removal followed by a strength's steps on the springs left.
 // The work per step is solves, in parallel over the supports on the pool; the sums run in
 // support order, so the result does not depend on the threads.
 #pragma once

@@ -2,6 +2,7 @@
 
 #include "engine/options_check.h"
 #include "engine/response/compliance_gram.h"
+#include "engine/response/mode_cuts.h"
 #include "engine/response/probe_evaluation.h"
 #include "engine/response/quadratic_nnls.h"
 #include "engine/response/rest_stiffness.h"
@@ -31,9 +32,7 @@ ModeLift LiftSoftModes(const Problem& problem, const std::vector<double>& weight
     for (const auto& [support, reference] : references) {
       for (const SoftMode& mode : SoftModes(model, reference, options.target,
                                             options.modes_per_support, 80, interruption)) {
-        const Vector v = reference.Gather(mode.shape);
-        const double energy = v.dot(reference.Multiply(v));  // v^T K_ref v
-        Vector slope = Elongations(springs, mode.shape).cwiseAbs2() / energy;
+        Vector slope = ModeSlope(springs, mode, reference);
         for (std::size_t g = 0; g < lift.weights.size(); ++g)
           if (!(lift.weights[g] > 0.0)) slope[static_cast<Eigen::Index>(g)] = 0.0;  // absent
         lambdas.push_back(mode.lambda);

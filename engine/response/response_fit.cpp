@@ -148,12 +148,14 @@ void ResponseFitOptions::Validate(const std::string& owner) const {
   check.Require(min_lambda >= 0.0 && min_lambda < 1.0, "min_lambda", min_lambda, "0 <= value < 1");
   check.Require(lambda_slack >= 0.0, "lambda_slack", lambda_slack, "value >= 0");
   check.Require(gauss_newton_steps >= 0, "gauss_newton_steps", gauss_newton_steps, "value >= 0");
-  check.Require(dense_max_genes >= 1, "dense_max_genes", dense_max_genes, "value >= 1");
+  check.Require(dense_max_genes >= 0, "dense_max_genes", dense_max_genes,
+                "value >= 0 (0: never dense)");
   check.Require(steps_per_strength >= 1, "steps_per_strength", steps_per_strength, "value >= 1");
   check.Require(cg_iterations >= 1, "cg_iterations", cg_iterations, "value >= 1");
   check.Require(InOpenUnit(cg_tolerance), "cg_tolerance", cg_tolerance, "0 < value < 1");
   check.Require(diagonal_samples >= 1, "diagonal_samples", diagonal_samples, "value >= 1");
   lift.Validate(check.Nested("lift"));
+  hold.Validate(check.Nested("hold"));
   check.Require(continuation_patience >= 0, "continuation_patience", continuation_patience,
                 "value >= 0 (0: every strength)");
   check.Require(soft_mode_rounds >= 0, "soft_mode_rounds", soft_mode_rounds, "value >= 0");

@@ -4,21 +4,27 @@
 // Steps, each judged on probes no fit sees:
 //  1. Probe bank (probe_bank.h): the named cases and generated loads on several supports,
 //     split into fitted, choosing and held-out parts.
-//  2. First-order fit (compliance_gram.h): the error of the model's displacement under the
-//     fitted probes, to first order in K(k) - K_ref, is a convex quadratic in k; minimised over
-//     k >= 0 (quadratic_nnls.h) with a Tikhonov pull toward the prior (the closed-form
-//     baseline) of each strength in `regularizations` (strongest first, each started from the
-//     last), in variables scaled by the prior so the result does not depend on units. The
-//     strength whose model does best on the choosing probes is kept.
-//  3. Sparsity path: the springs whose removal raises the quadratic least (saliency
-//     1/2 k_e^2 H_ee) are removed, `prune_fraction` at a time, and the rest refitted; each
-//     point is judged on the choosing probes, and the fewest springs within `tolerance` of
-//     the best is kept. Springs the fit leaves below `dust` of the median stiffness are never
-//     part of a model.
-//  4. Gauss-Newton refinement of the exact (linear) error on the fitted probes over the kept
-//     springs; the iterate that does best on the choosing probes is returned (early stopping).
-// At every choice a model that supports every mode (min_lambda) is preferred when nearly as
-// good (lambda_slack).
+//  2. The fit, one of two:
+//   - matrix-free (matrix_free_fit.h, the default): projected Gauss-Newton on the exact
+//     (linear) error of the fitted probes from the prior (the closed-form baseline), a few steps
+//     at each strength of the Tikhonov pull toward it in `regularizations` (strongest first),
+//     with every soft mode its models meet held by a penalty (mode_cuts.h); the iterate that
+//     does best on the choosing probes is returned (early stopping);
+//   - dense (up to `dense_max_genes` genes, 0 by default):
+//     a. first-order fit (compliance_gram.h): the error of the model's displacement under the
+//        fitted probes, to first order in K(k) - K_ref, is a convex quadratic in k; minimised
+//        over k >= 0 (quadratic_nnls.h) at each strength (strongest first, each started from
+//        the last), in variables scaled by the prior so the result does not depend on units.
+//        The strength whose model does best on the choosing probes is kept.
+//     b. sparsity path: the springs whose removal raises the quadratic least (saliency
+//        1/2 k_e^2 H_ee) are removed, `prune_fraction` at a time, and the rest refitted; each
+//        point is judged on the choosing probes, and the fewest springs within `tolerance` of
+//        the best is kept.
+//     c. Gauss-Newton refinement of the exact error over the kept springs, early stopped as
+//        above.
+//   Springs the fit leaves below `dust` of the median stiffness are never part of a model. At
+//   every choice a model that supports every mode (min_lambda) is preferred when nearly as
+//   good (lambda_slack).
 //  5. Soft modes: a model that still leaves a mode of a user support below min_lambda is fitted
 //     again with the load along that mode (K_ref v, v the generalised eigenvector of the
 //     smallest eigenvalue: the reference moves by v, the model by v / lambda_min) among the
@@ -36,6 +42,7 @@
 #include <vector>
 
 #include "engine/interruption.h"
+#include "engine/response/mode_cuts.h"
 #include "engine/response/mode_lift.h"
 #include "engine/response/probe_bank.h"
 #include "engine/response/quadratic_nnls.h"
@@ -46,8 +53,10 @@ namespace springfit::response {
 struct ResponseFitOptions {
   ProbeOptions probes;
   // The Tikhonov strengths tried: moving every spring by its own prior stiffness costs as much
-  // as a mean squared relative error of this. Each >= 0.
-  std::vector<double> regularizations = {1e-4, 1e-3, 1e-2, 1e-1, 1.0};
+  // as a mean squared relative error of this. Each >= 0. With the held modes the weak pulls
+  // no longer leave a mode soft, and the fine kidney's choosing error fell from 0.058 at 1e-4
+  // to 0.046 at 1e-6 (bench/RESULTS.md, "Held modes").
+  std::vector<double> regularizations = {1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0};
   double prune_fraction = 0.1;  // of the present springs per path point, in (0, 1)
   // A removal that multiplies the choosing error by more than this is retried with half as
   // many springs (> 1), at most `max_retries` times per point.
@@ -86,16 +95,21 @@ struct ResponseFitOptions {
   // larger mode share a second refit lowered the fine kidney's lambda_min again.
   int soft_mode_rounds = 1;
   int soft_modes_per_round = 4;
+  // Held modes (mode_cuts.h): the matrix-free fit's penalty on the modes its models left soft
+  // (weight 0: none; then steps 5 and 6 alone hold them).
+  ModeHoldOptions hold;
   // Step 6: whether to lift the modes a chosen model leaves below min_lambda, and how.
   bool lift_soft_modes = true;
   ModeLiftOptions lift;
   QuadraticNnlsOptions nnls;
-  // Above this many genes the fit runs without a Gram matrix (matrix_free_fit.h): the dense
-  // fit's memory is m^2 doubles and each of its Newton steps m^3 / 3 (>= 1). On the fine
-  // kidney's 2,853 genes the matrix-free fit took 2.6 s against the dense one's 25.6 s, with a
-  // lower held-out error; on the kidney's 700 both take a quarter of a second and the dense
-  // one's sparsity path gives a third fewer springs (bench/RESULTS.md).
-  int dense_max_genes = 2000;
+  // Up to this many genes the fit runs with a Gram matrix (steps 2 to 4 above; 0: never, the
+  // default): the matrix-free fit (matrix_free_fit.h) runs otherwise. The dense fit's memory is
+  // m^2 doubles and each of its Newton steps m^3 / 3 (>= 0). Since the held modes
+  // (mode_cuts.h) the matrix-free fit does better on the independent evaluator's every family
+  // on the kidney too (700 genes: pushed node 0.063 against 0.084, gravity 0.050 against
+  // 0.093), where the dense fit's sparsity path gives a third fewer springs; on the fine
+  // kidney's 2,853 genes it took 2.6 s against the dense one's 25.6 s (bench/RESULTS.md).
+  int dense_max_genes = 0;
   // The matrix-free fit: Gauss-Newton steps per strength (>= 1); conjugate-gradient iterations
   // per step (>= 1) and their relative residual (in (0, 1)); random vectors per support that
   // estimate the preconditioner (>= 1).
