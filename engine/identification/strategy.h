@@ -67,8 +67,8 @@ WorkerPool* PoolOf(const RunContext& context, std::unique_ptr<WorkerPool>& own);
 
 // Strategy continuous fits the reference's whole response (probe_fit_strategy.cpp) when the
 // reference can be probed (FEM or MSS), the probes are not switched off and no target error is
-// set (it chooses along the named cases' path). Large scenes (above
-// ResponseFitOptions::dense_max_genes) are fitted without a Gram matrix (matrix_free_fit.h).
+// set (it chooses along the named cases' path); by the matrix-free fit (matrix_free_fit.h) unless
+// ResponseFitOptions::dense_max_genes asks for the dense one.
 bool FitsToProbes(const Problem& problem, const SearchOptions& options);
 // The certificate of a model (per-gene weights) on the probe bank, when the reference can be
 // probed and the probes are not switched off; `start` is the baseline's stand-in for an MSS

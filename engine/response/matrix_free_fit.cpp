@@ -12,7 +12,6 @@
 #include "engine/response/linearized_response.h"
 #include "engine/response/mode_cuts.h"
 #include "engine/response/probe_objective.h"
-#include "engine/response/rest_stiffness.h"
 #include "engine/wall_clock.h"
 
 namespace springfit::response {
@@ -107,6 +106,10 @@ class MatrixFreeFit {
   // alone, as the fit's many springs stand in for each other in ways a path from them may not
   // undo. Returns the best iterate within the budget, or nothing when none is a model.
   std::optional<std::size_t> WithinBudget(std::size_t chosen) {
+    // (A model held on a support has at least a spring per free degree of freedom there: a
+    // budget below that is met by no model, and the paths would only try mechanisms.)
+    for (std::size_t s : objective_.fitted_supports())
+      if (options_.max_springs < objective_.reference()[s].free_dofs()) return std::nullopt;
     const double regularization = iterates_[chosen].regularization;
     BudgetPath(iterates_[chosen].weights, regularization, false);
     BudgetPath(objective_.Weights(objective_.prior_scaled()), regularization, true);
@@ -139,24 +142,27 @@ class MatrixFreeFit {
       std::vector<int> order;
       for (int e : BySaliency(weights, at))
         if (!kept[static_cast<std::size_t>(e)]) order.push_back(e);
-      if (order.empty()) return;
-      int count =
-          std::min({present - options_.max_springs, static_cast<int>(order.size()),
-                    std::max(1, static_cast<int>(std::ceil(options_.prune_fraction * present)))});
       std::vector<double> trial;
       LinearizedResponse next = Linearisation();
       bool held = false;
-      while (!held) {
-        trial = weights;
-        for (int i = 0; i < count; ++i) trial[static_cast<std::size_t>(order[i])] = 0.0;
-        held = next.At(trial);
-        if (!held && count == 1) break;
-        if (!held) count = std::max(1, count / 2);
+      while (!held && !order.empty()) {
+        int count =
+            std::min({present - options_.max_springs, static_cast<int>(order.size()),
+                      std::max(1, static_cast<int>(std::ceil(options_.prune_fraction * present)))});
+        while (!held) {
+          ThrowIfInterrupted(interruption_);  // (each attempt factorises every fitted support)
+          trial = weights;
+          for (int i = 0; i < count; ++i) trial[static_cast<std::size_t>(order[i])] = 0.0;
+          held = next.At(trial);
+          if (!held && count == 1) break;
+          if (!held) count = std::max(1, count / 2);
+        }
+        if (!held) {
+          kept[static_cast<std::size_t>(order.front())] = true;
+          order.erase(order.begin());
+        }
       }
-      if (!held) {
-        kept[static_cast<std::size_t>(order[0])] = true;
-        continue;
-      }
+      if (!held) return;
       weights = std::move(trial);
       at = std::move(next);
       Judge(weights, regularization, step_count_, &at);
@@ -222,26 +228,20 @@ class MatrixFreeFit {
   void Judge(const std::vector<double>& weights, double regularization, int step,
              const LinearizedResponse* at) {
     const FactorizedOn factorized = at ? at->Factorized() : FactorizedOn{};
-    iterates_.push_back({weights, regularization, objective_.SelectError(weights, factorized),
-                         objective_.LambdaMin(weights, factorized), step});
-    CutSoftModes(weights, iterates_.back().lambda_min);
+    std::vector<ProbeObjective::SupportMode> soft;
+    const double lambda_min = cuts_.enabled() ? objective_.LambdaMinAndSoftModes(
+                                                    weights, factorized, cuts_.options().target,
+                                                    cuts_.options().modes_per_support, soft)
+                                              : objective_.LambdaMin(weights, factorized);
+    iterates_.push_back(
+        {weights, regularization, objective_.SelectError(weights, factorized), lambda_min, step});
+    // A cut for each mode the model leaves below the held target on a user support: the steps
+    // after it keep away from those modes.
+    for (const ProbeObjective::SupportMode& soft_mode : soft)
+      cuts_.Add(springs_, soft_mode.mode, objective_.reference()[soft_mode.support]);
     double best = kNoModel;
     for (const Iterate& i : iterates_) best = std::min(best, i.select_error);
     if (progress_) progress_("probe_fit", best);
-  }
-
-  // A cut for each mode the model `weights` (smallest eigenvalue `lambda_min`) leaves below the
-  // held target on a user support: the steps after it keep away from those modes.
-  void CutSoftModes(const std::vector<double>& weights, double lambda_min) {
-    if (!cuts_.enabled() || !(lambda_min < cuts_.options().target) || lambda_min <= 0.0) return;
-    const SparseMatrix model = SpringRestStiffness(objective_.problem(), weights);
-    for (std::size_t s = 0; s < objective_.bank().supports.size(); ++s) {
-      if (!objective_.bank().supports[s].user) continue;
-      const SupportSystem& reference = objective_.reference()[s];
-      for (const SoftMode& mode : SoftModes(model, reference, cuts_.options().target,
-                                            cuts_.options().modes_per_support, 80, interruption_))
-        cuts_.Add(springs_, mode, reference);
-    }
   }
 
   // The fitted objective at `weights` (`at` its linearisation): the probes' error, the Tikhonov

@@ -1,12 +1,14 @@
-// The probe fit without a Gram matrix (response_fit.h, FitResponse's choice above
-// ResponseFitOptions::dense_max_genes): for meshes whose genes are too many for the dense fit's
-// m^2 doubles and m^3 / 3 per Newton step (a 3D mesh of a thousand nodes has six thousand
-// springs). It uses only sparse solves with each support's factorisation, so its memory grows
-// with the mesh and the probes, not with the square of the springs.
+// The probe fit without a Gram matrix (response_fit.h, step 2; the default at every size, above
+// ResponseFitOptions::dense_max_genes): the dense fit's m^2 doubles and m^3 / 3 per Newton step
+// rule it out on meshes (a 3D mesh of a thousand nodes has six thousand springs), and with the
+// held modes this fit does better on the kidney's 700 genes too. It uses only sparse solves with
+// each support's factorisation, so its memory grows with the mesh and the probes, not with the
+// square of the springs.
 //
 // Projected Gauss-Newton on the exact error (the rest-linear responses) over the fitted probes,
 // started from the prior (the closed-form baseline), in the scaled variables x = k / scale:
-//   minimise  Phi(x) = sum_p w_p |u_p(k) - u_ref,p|^2 + (lambda / m) |x - x_prior|^2,  x >= 0.
+//   minimise  Phi(x) = sum_p w_p |u_p(k) - u_ref,p|^2 + (lambda / m) |x - x_prior|^2 + P(x),
+//   x >= 0, P the held modes' penalty (mode_cuts.h, its half gradient and Hessian added below).
 // With u_p = C(k) f_p, C the model's compliance on the probe's support, the Jacobian is
 // J_p = -sqrt(w_p) C G diag(delta_p) S (G the springs' force columns, delta_p the model's
 // elongations, S the scales). Each step:

@@ -12,7 +12,9 @@
 //   weight * sum_j max(0, target - a_j . k)^2,
 // a penalty that is zero on every model holding the modes it has met, and pushes the fit away
 // from the modes it left soft before, so that the weak Tikhonov pulls, which fit the probes
-// more closely, no longer buy that with a soft mode (bench/RESULTS.md, "Held modes").
+// more closely, no longer buy that with a soft mode (bench/RESULTS.md, "Held modes"). A mode
+// that stays soft over several judged models is cut once per model, nearly the same cut each
+// time, so the pull on it grows until it is held; the weight was chosen with that so.
 #pragma once
 
 #include <string>

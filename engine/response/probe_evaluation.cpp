@@ -185,27 +185,35 @@ double SmallestGeneralizedEigenvalue(const SupportSystem& model, const SupportSy
   return 1.0 / LargestPencilEigenvalue(reference, model, iterations, 2, interruption);
 }
 
-std::vector<SoftMode> SoftModes(const SparseMatrix& model, const SupportSystem& reference,
-                                double below, int count, int iterations,
-                                Interruption* interruption) {
-  SupportSystem m(reference.dimension(), reference.constrained());
-  if (!m.Factorize(model)) return {};
+LowestModes SmallestGeneralizedEigenpairs(const SupportSystem& model,
+                                          const SupportSystem& reference, double below, int count,
+                                          int iterations, Interruption* interruption) {
   // The largest eigenvalues of K_model^-1 K_ref are the smallest of the pencil, inverted; the
   // same Lanczos run as SmallestGeneralizedEigenvalue's (seed 2), so the first is its value.
-  const PencilLanczos l = RunPencilLanczos(reference, m, iterations, 2, interruption);
+  const PencilLanczos l = RunPencilLanczos(reference, model, iterations, 2, interruption);
   const Eigen::SelfAdjointEigenSolver<Matrix> eig(l.t);
   const Vector none = Vector::Zero(static_cast<Eigen::Index>(
       reference.constrained().size() * static_cast<std::size_t>(reference.dimension())));
-  std::vector<SoftMode> modes;
-  for (Eigen::Index j = l.t.rows() - 1; j >= 0 && static_cast<int>(modes.size()) < count; --j) {
+  LowestModes lowest;
+  lowest.lambda_min = 1.0 / eig.eigenvalues().maxCoeff();
+  for (Eigen::Index j = l.t.rows() - 1; j >= 0 && static_cast<int>(lowest.modes.size()) < count;
+       --j) {
     const double lambda = 1.0 / eig.eigenvalues()[j];
     if (!(lambda < below)) break;
     Vector free = Vector::Zero(reference.free_dofs());
     for (std::size_t i = 0; i < l.basis.size(); ++i)
       free += eig.eigenvectors()(static_cast<Eigen::Index>(i), j) * l.basis[i];
-    modes.push_back({lambda, reference.Scatter(free, none)});
+    lowest.modes.push_back({lambda, reference.Scatter(free, none)});
   }
-  return modes;
+  return lowest;
+}
+
+std::vector<SoftMode> SoftModes(const SparseMatrix& model, const SupportSystem& reference,
+                                double below, int count, int iterations,
+                                Interruption* interruption) {
+  SupportSystem m(reference.dimension(), reference.constrained());
+  if (!m.Factorize(model)) return {};
+  return SmallestGeneralizedEigenpairs(m, reference, below, count, iterations, interruption).modes;
 }
 
 PencilExtremes GeneralizedEigenvalueExtremes(const SparseMatrix& model,

@@ -79,6 +79,17 @@ struct SoftMode {
 std::vector<SoftMode> SoftModes(const SparseMatrix& model, const SupportSystem& reference,
                                 double below, int count, int iterations = 80,
                                 Interruption* interruption = nullptr);
+// The smallest generalised eigenvalue (as SmallestGeneralizedEigenvalue gives it, from the same
+// Lanczos run) and the soft modes below `below` (as SoftModes), the model factorised on that
+// support by the caller: one run for both.
+struct LowestModes {
+  double lambda_min = 0.0;
+  std::vector<SoftMode> modes;
+};
+LowestModes SmallestGeneralizedEigenpairs(const SupportSystem& model,
+                                          const SupportSystem& reference, double below, int count,
+                                          int iterations = 80,
+                                          Interruption* interruption = nullptr);
 // By Lanczos iterations (full reorthogonalisation, at most `iterations`, seeded) in the
 // reference's energy inner product, on the free degrees of freedom of `constrained`.
 PencilExtremes GeneralizedEigenvalueExtremes(const SparseMatrix& model,

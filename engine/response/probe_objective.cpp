@@ -137,6 +137,26 @@ double ProbeObjective::LambdaMin(const std::vector<double>& weights,
   return std::isfinite(smallest) ? smallest : 0.0;
 }
 
+double ProbeObjective::LambdaMinAndSoftModes(const std::vector<double>& weights,
+                                             const FactorizedOn& factorized, double below,
+                                             int count, std::vector<SupportMode>& soft) const {
+  soft.clear();
+  if (PresentSprings(weights) == 0) return 0.0;
+  const SparseMatrix k = SpringRestStiffness(problem_, weights);
+  double smallest = std::numeric_limits<double>::infinity();
+  for (std::size_t s = 0; s < bank_.supports.size(); ++s) {
+    if (!bank_.supports[s].user) continue;
+    const SupportSystem* given = factorized ? factorized(s) : nullptr;
+    SupportSystem own(problem_.dimension(), bank_.supports[s].constrained);
+    if (!given && !own.Factorize(k)) return 0.0;  // (not held there)
+    LowestModes lowest = SmallestGeneralizedEigenpairs(given ? *given : own, reference_[s], below,
+                                                       count, 80, interruption_);
+    smallest = std::min(smallest, lowest.lambda_min);
+    for (SoftMode& mode : lowest.modes) soft.push_back({s, std::move(mode)});
+  }
+  return std::isfinite(smallest) ? smallest : 0.0;
+}
+
 double ProbeObjective::SelectError(const std::vector<double>& weights,
                                    const FactorizedOn& factorized) const {
   if (PresentSprings(weights) == 0) return std::numeric_limits<double>::infinity();

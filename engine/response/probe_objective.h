@@ -62,6 +62,14 @@ class ProbeObjective {
   // The smallest generalised eigenvalue of (K_model, K_ref) over the user supports.
   // `factorized`: the model's factorisations the caller already holds (probe_evaluation.h).
   double LambdaMin(const std::vector<double>& weights, const FactorizedOn& factorized = {}) const;
+  // The same, and the soft modes below `below` (at most `count` per user support) from the same
+  // Lanczos runs, in support order: one run for both (at 10,000 nodes each is seconds).
+  struct SupportMode {
+    std::size_t support = 0;
+    SoftMode mode;
+  };
+  double LambdaMinAndSoftModes(const std::vector<double>& weights, const FactorizedOn& factorized,
+                               double below, int count, std::vector<SupportMode>& soft) const;
   // FamilyBalancedRms on the choosing probes; infinity for no model.
   double SelectError(const std::vector<double>& weights, const FactorizedOn& factorized = {}) const;
 

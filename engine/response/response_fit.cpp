@@ -156,6 +156,8 @@ void ResponseFitOptions::Validate(const std::string& owner) const {
   check.Require(diagonal_samples >= 1, "diagonal_samples", diagonal_samples, "value >= 1");
   lift.Validate(check.Nested("lift"));
   hold.Validate(check.Nested("hold"));
+  check.Require(hold.weight == 0.0 || hold.target >= min_lambda, "hold.target", hold.target,
+                "value >= min_lambda (the cuts hold the modes a little above it)");
   check.Require(continuation_patience >= 0, "continuation_patience", continuation_patience,
                 "value >= 0 (0: every strength)");
   check.Require(soft_mode_rounds >= 0, "soft_mode_rounds", soft_mode_rounds, "value >= 0");
@@ -190,7 +192,7 @@ std::optional<std::size_t> BestWithinBudget(const std::vector<int>& springs,
                                          score.begin())];
 }
 
-// Step 2: the first-order fit at every strength, strongest first, each solve started from the
+// The dense fit's first-order fit at every strength, strongest first, each solve started from the
 // previous one's solution (continuation: the strongly regularised problem is well conditioned,
 // and each weaker one starts near its answer). Records each strength's model in `r` and sets
 // r.regularization to the chosen one; returns its solution (scaled variables) and choosing
@@ -310,7 +312,7 @@ int ChoosePathPoint(const std::vector<ResponseFitResult::Point>& path,
   return chosen;
 }
 
-// Step 3: the sparsity path from `x` (choosing error `error`) down, until the choosing error
+// The dense fit's sparsity path from `x` (choosing error `error`) down, until the choosing error
 // passes stop_error_factor times its best (below the budget, when there is one); fills r.path,
 // r.chosen and the chosen point's errors, and returns its weights.
 std::vector<double> SparsityPath(const Fit& fit, const ScaledQuadratic& q, const Vector& x,
@@ -340,8 +342,8 @@ std::vector<double> SparsityPath(const Fit& fit, const ScaledQuadratic& q, const
   return point_weights[static_cast<std::size_t>(r.chosen)];
 }
 
-// Step 4: Gauss-Newton on the exact error over the springs of `weights` only (its Gram matrix
-// on them alone: a fraction of the first-order one). Each step is kept when it lowers the
+// The dense fit's Gauss-Newton on the exact error over the springs of `weights` only (its Gram
+// matrix on them alone: a fraction of the first-order one). Each step is kept when it lowers the
 // fitted objective; the iterate returned is the one that does best on the choosing probes
 // (early stopping), among those that support every mode when the start does. The steps end
 // after three without a better choosing error. Sets r.weights and the returned iterate's
@@ -406,7 +408,7 @@ void GaussNewton(Fit& fit, std::vector<double> weights, const ResponseFitOptions
   r.weights = iterates[returned];
 }
 
-// Steps 2 to 4 with a Gram matrix (the genes up to dense_max_genes).
+// Step 2 with a Gram matrix, the dense fit (the genes up to dense_max_genes).
 ResponseFitResult FitDense(const Problem& problem, const ProbeBank& bank,
                            const SparseMatrix& reference_stiffness,
                            const std::vector<double>& prior, const ResponseFitOptions& options,

@@ -55,11 +55,14 @@ struct ResponseFitOptions {
   // The Tikhonov strengths tried: moving every spring by its own prior stiffness costs as much
   // as a mean squared relative error of this. Each >= 0. With the held modes the weak pulls
   // no longer leave a mode soft, and the fine kidney's choosing error fell from 0.058 at 1e-4
-  // to 0.046 at 1e-6 (bench/RESULTS.md, "Held modes").
+  // to 0.049 down to 1e-6, every mode held (bench/RESULTS.md, "Held modes").
   std::vector<double> regularizations = {1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0};
-  double prune_fraction = 0.1;  // of the present springs per path point, in (0, 1)
-  // A removal that multiplies the choosing error by more than this is retried with half as
-  // many springs (> 1), at most `max_retries` times per point.
+  // Of the present springs per path point, in (0, 1): the dense fit's sparsity path and the
+  // matrix-free fit's budget paths.
+  double prune_fraction = 0.1;
+  // The dense fit's path (dense_max_genes), to the tolerance below: a removal that multiplies
+  // the choosing error by more than this is retried with half as many springs (> 1), at most
+  // `max_retries` times per point.
   double max_error_growth = 1.3;
   int max_retries = 3;
   int max_path_points = 60;  // >= 1
@@ -74,8 +77,8 @@ struct ResponseFitOptions {
   // leave it, as dust does. 0: none. A simulator's stiffest spring sets its stable time step,
   // and springs far below it carry nothing it would notice.
   double max_spread = 0.0;
-  // Gauss-Newton steps at most (>= 0); they end earlier after three without a better choosing
-  // error.
+  // The dense fit's Gauss-Newton steps at most (>= 0); they end earlier after three without a
+  // better choosing error.
   int gauss_newton_steps = 20;
   // Every mode supported: a model whose smallest generalised eigenvalue of (K_model, K_ref) on
   // a user support is below `min_lambda` leaves a mode soft that some load on that support
@@ -102,7 +105,7 @@ struct ResponseFitOptions {
   bool lift_soft_modes = true;
   ModeLiftOptions lift;
   QuadraticNnlsOptions nnls;
-  // Up to this many genes the fit runs with a Gram matrix (steps 2 to 4 above; 0: never, the
+  // Up to this many genes the fit runs with a Gram matrix (the dense fit of step 2; 0: never, the
   // default): the matrix-free fit (matrix_free_fit.h) runs otherwise. The dense fit's memory is
   // m^2 doubles and each of its Newton steps m^3 / 3 (>= 0). Since the held modes
   // (mode_cuts.h) the matrix-free fit does better on the independent evaluator's every family
