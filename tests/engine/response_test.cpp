@@ -380,14 +380,18 @@ TEST(ProbeFitStrategy, TheNamedCaseFitGivesWayToTheBaselineWhenWorseOnUnseenLoad
   EXPECT_EQ(r.outcome.verdict, Verdict::kUnmetRequest);  // the target is not met
 }
 
+// An example run with the scene's spring budget set to `budget`.
+IdentificationResult RunWithinBudget(const char* example, int budget) {
+  Scene s = examples::Make(example);
+  s.search.max_springs = budget;
+  const Problem problem(s);
+  return RunIdentification(problem, ResolveSearchOptions(s.search, problem.gene_count()));
+}
+
 // The best model within a budget that models can meet (the plate's 5x5 nodes need about 45
 // springs to hold every mode); a budget none meets is verdict_test.cpp's.
 TEST(ProbeFitStrategy, ASpringBudgetGivesTheBestModelWithinIt) {
-  Scene s = examples::Make("fem-plate-5x5");
-  s.search.max_springs = 60;
-  const Problem problem(s);
-  const SearchOptions options = ResolveSearchOptions(s.search, problem.gene_count());
-  const IdentificationResult r = RunIdentification(problem, options);
+  const IdentificationResult r = RunWithinBudget("fem-plate-5x5", 60);
   ASSERT_TRUE(r.generalization);
   EXPECT_EQ(r.outcome.verdict, Verdict::kUsable) << r.outcome.Headline();
   EXPECT_LE(static_cast<int>(r.springs.size()), 60);
@@ -406,11 +410,7 @@ TEST(ProbeFitStrategy, ASpringBudgetGivesTheBestModelWithinIt) {
 // alone leaves soft modes on the way down and returned a model with unseen-probe E 0.999
 // against the baseline's 0.217; the path from the mesh edges keeps a good one within it.
 TEST(ProbeFitStrategy, ABudgetNearTheMeshEdgesKeepsAModelBetterThanTheBaseline) {
-  Scene s = examples::Make("fem-kidney-2d");
-  s.search.max_springs = 250;
-  const Problem problem(s);
-  const SearchOptions options = ResolveSearchOptions(s.search, problem.gene_count());
-  const IdentificationResult r = RunIdentification(problem, options);
+  const IdentificationResult r = RunWithinBudget("fem-kidney-2d", 250);
   ASSERT_TRUE(r.generalization);
   EXPECT_EQ(r.outcome.verdict, Verdict::kUsable) << r.outcome.Headline();
   EXPECT_LE(static_cast<int>(r.springs.size()), 250);
