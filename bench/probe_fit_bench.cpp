@@ -18,6 +18,7 @@
 #include "engine/fit/stiffness_fit.h"
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/problem/problem.h"
+#include "engine/response/generalization.h"
 #include "engine/response/probe_evaluation.h"
 #include "engine/response/response_fit.h"
 #include "engine/response/rest_stiffness.h"
@@ -32,10 +33,9 @@ double Seconds(Clock::time_point since) {
   return std::chrono::duration<double>(Clock::now() - since).count();
 }
 
-void PrintFamilies(const char* what, const response::ProbeBank& bank,
-                   const std::vector<double>& errors) {
+void PrintFamilies(const char* what, const std::vector<response::FamilyErrors>& families) {
   std::printf("    %-10s", what);
-  for (const auto& f : response::SummarizeByFamily(bank, errors))
+  for (const auto& f : families)
     std::printf("  %s %.3g (p95 %.3g)", proto::ProbeFamilyName(f.family), f.errors.median,
                 f.errors.p95);
   std::printf("\n");
@@ -110,9 +110,10 @@ int Main(int argc, char** argv) {
     const SparseMatrix k_ref = response::ReferenceRestStiffness(problem);
     response::ResponseFitOptions options = defaults;
     options.probes.seed = seed;
-    const response::ProbeBank bank = response::MakeProbeBank(problem, k_ref, options.probes);
-    std::printf("  probe bank: %zu probes on %zu supports, %.2f s\n", bank.probes.size(),
-                bank.supports.size(), Seconds(t1));
+    const response::ProbeBanks banks = response::MakeProbeBanks(problem, k_ref, options.probes);
+    const response::ProbeBank& bank = banks.fit;
+    std::printf("  probe bank: %zu probes (and %d held out) on %zu supports, %.2f s\n",
+                bank.probes.size(), banks.held_out.size(), bank.supports.size(), Seconds(t1));
     if (solve_timing) {
       PrintSolveTiming(problem, k_ref, bank);
       continue;
@@ -152,31 +153,21 @@ int Main(int argc, char** argv) {
     std::printf("\n    path:");
     for (const auto& p : fit.path) std::printf(" %d:%.3g", p.springs, p.select_error);
     std::printf("  (chosen %d)\n", fit.chosen);
-    std::vector<bool> held(bank.probes.size());
-    for (std::size_t p = 0; p < held.size(); ++p)
-      held[p] = bank.probes[p].role == response::ProbeRole::kHeldOut ||
-                bank.probes[p].family == response::ProbeFamily::kNamed;
-    const auto model_errors =
-        response::ProbeErrorsFor(bank, response::SpringRestStiffness(problem, fit.weights), held);
-    const auto base_errors =
-        response::ProbeErrorsFor(bank, response::SpringRestStiffness(problem, prior), held);
-    PrintFamilies("model", bank, model_errors);
-    PrintFamilies("baseline", bank, base_errors);
+    // The certificate: the held-out probes and the named cases, and the pencil per user support.
     const auto t3 = Clock::now();
-    for (const auto& support : bank.supports) {
-      if (!support.user) continue;
-      const auto x = response::GeneralizedEigenvalueExtremes(
-          response::SpringRestStiffness(problem, fit.weights), k_ref, support.constrained,
-          problem.dimension());
-      const auto b =
-          response::GeneralizedEigenvalueExtremes(response::SpringRestStiffness(problem, prior),
-                                                  k_ref, support.constrained, problem.dimension());
+    const response::Generalization g =
+        response::Certifier(problem, bank, banks.held_out, k_ref)
+            .Certify(fit.weights, response::SpringRestStiffness(problem, prior));
+    PrintFamilies("model", g.model);
+    PrintFamilies("baseline", g.baseline);
+    for (const auto& pencil : g.pencils) {
       std::printf(
           "    %s: model lambda [%.3g, %.3g] bound %.3g; baseline [%.3g, %.3g] bound %.3g\n",
-          support.description.c_str(), x.lambda_min, x.lambda_max, x.Bound(), b.lambda_min,
-          b.lambda_max, b.Bound());
+          pencil.support.c_str(), pencil.model.lambda_min, pencil.model.lambda_max,
+          pencil.model.Bound(), pencil.baseline.lambda_min, pencil.baseline.lambda_max,
+          pencil.baseline.Bound());
     }
-    std::printf("  eigenvalues: %.2f s\n", Seconds(t3));
+    std::printf("  certificate: %.2f s\n", Seconds(t3));
   }
   return 0;
 }

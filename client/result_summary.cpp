@@ -246,7 +246,7 @@ void PrintGeneralization(const proto::Json& g, std::ostream& out) {
       << "]: energy-norm error at most " << number(g, "bound") << " of the response\n";
   if (g.value("returned_baseline", false))
     out << "WARNING:           THE FITTED MODEL DID NO BETTER THAN THE CLOSED-FORM BASELINE ON "
-           "HELD-OUT LOADS: the baseline is returned\n";
+           "THE CHOOSING PROBES: the baseline is returned\n";
 }
 
 // The reference topology, when it is known: recovered or not, and what differs.

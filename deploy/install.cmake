@@ -27,6 +27,7 @@ install(FILES proto/EVAL.md proto/IMPORT.md proto/MODEL.md proto/RPC.md proto/RU
               proto/SCENE.md proto/scene.schema.json
         DESTINATION ${SPRINGFIT_DOC_DIR})
 install(FILES deploy/README.md DESTINATION ${SPRINGFIT_DOC_DIR}/deploy)
+install(FILES docs/ARCHITECTURE.md DESTINATION ${SPRINGFIT_DOC_DIR}/docs)
 install(FILES deploy/springfitd.env deploy/springfitd-worker.env
         DESTINATION ${SPRINGFIT_DOC_DIR}/examples)
 install(DIRECTORY examples/ DESTINATION ${CMAKE_INSTALL_DATADIR}/springfit/examples)

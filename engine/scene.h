@@ -172,7 +172,7 @@ enum class Response {
   kLinear,
 };
 
-// Settings of the topology search (DESIGN.md §1). An unset GA parameter takes the chosen
+// Settings of the topology search (docs/ARCHITECTURE.md, "The identification cost and the strategies"). An unset GA parameter takes the chosen
 // strategy's default (engine/search/search_options.h).
 struct SearchSettings {
   Strategy strategy = Strategy::kDefault;

@@ -260,6 +260,11 @@ Json GeneralizationToJson(const response::Generalization& g) {
   j["supports"] = std::move(pencils);
   j["fitted_to_probes"] = g.fitted_to_probes;
   j["returned_baseline"] = g.returned_baseline;
+  if (g.returned_baseline) {
+    j["baseline_choice"] = {
+        {"fitted_choosing_rms_error", NumberOrNull(g.fitted_choosing_error)},
+        {"baseline_choosing_rms_error", NumberOrNull(g.baseline_choosing_error)}};
+  }
   if (g.fitted_to_probes) {
     Json fit;
     fit["method"] = g.fit.method;

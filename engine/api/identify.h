@@ -5,6 +5,7 @@
 #pragma once
 
 #include "engine/identification/identify.h"
+#include "engine/identification/run_bounds.h"
 #include "engine/identification/strategy.h"
 #include "engine/interruption.h"
 #include "engine/search/search_options.h"

@@ -11,7 +11,7 @@ namespace {
 // 1 (in the scene's force per area) loses nothing.
 constexpr double kYoung = 1.0;
 // Loads of every FEM example: the largest nodal displacement is this fraction of the scene's
-// extent in the small-load limit (moderate strain, DESIGN.md).
+// extent in the small-load limit (moderate strain, docs/ARCHITECTURE.md, "Paper7 load cases").
 constexpr double kStrain = 0.05;
 
 // The paper7 patterns as load cases on node sets: the fixed side held, a total traction on

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <string>
 
+#include "engine/identification/run_bounds.h"
 #include "engine/identification/run_monitor.h"
 #include "engine/identification/strategy.h"
 #include "engine/input_error.h"
@@ -153,6 +154,7 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
   // `default` on a scene whose springs differ in stiffness runs direct, which then identifies
   // each one's (ResolvedStrategy: search.identify was unset, or asked for exactly that).
   SearchOptions options = requested;
+  CheckRunBounds(problem, options);
   if (ResolvedStrategy(options.strategy, problem) == Strategy::kDirect &&
       options.strategy == Strategy::kDefault)
     options.identify = Identify::kTopologyAndStiffness;

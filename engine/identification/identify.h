@@ -6,6 +6,9 @@
 // names (strategy.h: the one place that maps strategies to code), and fills the parts of the
 // result every strategy shares (springs, stiffness, difference to the reference).
 //
+// A request the run cannot meet (too few probes, more memory than the machine has: run_bounds.h)
+// throws InputError before any work.
+//
 // Control: every phase reports beats and can be stopped within about a second (run_monitor.h).
 // A run stopped before it had evaluated any model (during the analysis, the direct phase or the
 // first population's evaluation without a seed) returns the empty topology, stop kCancelled or

@@ -11,6 +11,8 @@
 #include <optional>
 #include <string>
 
+#include <fmt/format.h>
+
 #include "engine/fit/sparsity_path.h"
 #include "engine/identification/strategy.h"
 #include "engine/problem/baseline_evaluation.h"
@@ -375,47 +377,43 @@ class NamedCaseFit {
   }
 
   // Judged on the probe bank as a probe fit is, where the reference can be probed (a target
-  // error: FitsToProbes), with the probe fit's baseline guarantee on unseen loads.
+  // error: FitsToProbes), with the probe fit's baseline guarantee on the choosing probes. A
+  // stop here leaves the model uncertified.
   void CertifyOnProbeBank() {
     if (stopped_ || path_.points.empty()) return;
-    r_.generalization =
-        CertifyOnProbes(problem_, options_, weights_, *start_, &monitor_.interruption(), pool_);
-    if (!r_.generalization) return;
-    const response::Generalization& g = *r_.generalization;
-    char judged[200];
-    std::snprintf(judged, sizeof judged,
-                  "; fitted to the named cases (a target error chooses along their path), "
-                  "judged on %d held-out probes: median E %.3g (baseline %.3g)",
-                  g.held_out, g.model_held_out.median, g.baseline_held_out.median);
-    r_.stop_message += judged;
-    KeepBaselineGuarantee();
+    std::optional<ProbeCertificate> c;
+    try {
+      c = CertifyOnProbes(problem_, options_, weights_, *start_, &monitor_.interruption(), pool_);
+    } catch (const Interrupted&) {
+      r_.stop_message += "; stopped before the certificate: not judged on probes";
+      return;
+    }
+    if (!c) return;
+    const response::Generalization& g = c->generalization;
+    if (c->returned_baseline) {
+      r_.stop_message += fmt::format(
+          "; the closed-form baseline ({} springs) is returned: the fitted model's choosing "
+          "error {:.3g} (over {} choosing probes) was not below the baseline's {:.3g}",
+          PresentSprings(*start_), g.fitted_choosing_error, g.choosing, g.baseline_choosing_error);
+      ReturnBaseline();
+    }
+    r_.stop_message += fmt::format(
+        "; {}judged on {} held-out probes: median E {:.3g} (baseline {:.3g})",
+        c->returned_baseline ? ""
+                             : "fitted to the named cases (a target error chooses along their "
+                               "path), ",
+        g.held_out, g.model_held_out.median, g.baseline_held_out.median);
+    r_.generalization = std::move(c->generalization);
   }
 
-  // A model no better than the closed-form baseline on the held-out probes (one that leaves a
-  // mode free is infinitely worse) gives way to the baseline, within the spring budget.
-  void KeepBaselineGuarantee() {
-    const response::Generalization& g = *r_.generalization;
-    const bool within_budget =
-        options_.max_springs == 0 || PresentSprings(*start_) <= options_.max_springs;
-    if (!details_.started_from_baseline || !within_budget ||
-        g.model_held_out.rms < g.baseline_held_out.rms)
-      return;
-    char judged[200];
-    std::snprintf(judged, sizeof judged,
-                  "; the closed-form baseline (%d springs) is returned: the fitted model's "
-                  "held-out E (RMS over %d probes) %.3g was not below the baseline's %.3g",
-                  PresentSprings(*start_), g.held_out, g.model_held_out.rms,
-                  g.baseline_held_out.rms);
-    r_.stop_message += judged;
+  // The closed-form baseline in place of the fitted model (the baseline guarantee).
+  void ReturnBaseline() {
     weights_ = *start_;
     Take(weights_);
     r_.evaluation = cost_.Evaluate(problem_.SpringsOfWeights(weights_));
     details_.chosen = -1;
     details_.held_out_normalized_error.reset();
     details_.held_out_per_case.clear();
-    r_.generalization =
-        CertifyOnProbes(problem_, options_, weights_, *start_, &monitor_.interruption(), pool_);
-    r_.generalization->returned_baseline = true;
     if (r_.stop == StopReason::kTargetReached && !(r_.evaluation.normalized_error <= target_))
       r_.stop = StopReason::kCompleted;
   }

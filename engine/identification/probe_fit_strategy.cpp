@@ -1,11 +1,14 @@
 // Strategy continuous on an FEM or MSS reference with a probe bank: the model fitted to the
-// reference's whole response (engine/response/response_fit.h), certified on held-out probes,
-// and returned only when it beats the closed-form baseline there (issue 31).
+// reference's whole response (engine/response/response_fit.h), returned only when it beats the
+// closed-form baseline on the choosing probes, and certified on the held-out probes, which
+// nothing else reads (docs/ARCHITECTURE.md, "Probes by role").
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <memory>
+#include <string>
+
+#include <fmt/format.h>
 
 #include "engine/fem/closed_form_baseline.h"
 #include "engine/fit/stiffness_fit.h"
@@ -13,6 +16,7 @@
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/problem/cost.h"
 #include "engine/response/generalization.h"
+#include "engine/response/probe_objective.h"
 #include "engine/wall_clock.h"
 
 namespace springfit {
@@ -44,28 +48,70 @@ BaselineModel BaselineModelOf(const Problem& problem,
           response::ModelOfWeights(problem, *weights)};
 }
 
-// The certificate's judgement at the named loads' size and below, when the response is
-// nonlinear. False when stopped: the amplitudes are then left empty (the run is ending).
-bool JudgeAtAmplitudes(const Problem& problem, const response::ProbeBank& bank,
-                       const std::vector<double>& weights, const response::SpringModel& baseline,
-                       response::Generalization& certificate, Interruption* interruption,
-                       WorkerPool* pool) {
-  try {
-    certificate.amplitudes =
-        response::JudgeAtAmplitudes(problem, bank, response::ModelOfWeights(problem, weights),
-                                    baseline, {}, interruption, pool);
-    return true;
-  } catch (const Interrupted&) {
-    certificate.amplitudes.clear();
-    return false;
-  }
-}
-
 response::ProbeOptions ProbeOptionsOf(const SearchOptions& options) {
   response::ProbeOptions o;
   o.seed = options.seed;
   if (options.probes > 0) o.count = options.probes;
   return o;
+}
+
+// A run's probes: the reference's rest stiffness, the banks (the fit's and the held-out one),
+// and the certificate, the one reader of the held-out probes. Refers to itself: built in place.
+class RunProbes {
+ public:
+  RunProbes(const Problem& problem, const response::ProbeOptions& options)
+      : reference_stiffness_(response::ReferenceRestStiffness(problem)),
+        banks_(response::MakeProbeBanks(problem, reference_stiffness_, options)),
+        certifier_(problem, banks_.fit, banks_.held_out, reference_stiffness_) {}
+  RunProbes(const RunProbes&) = delete;
+  RunProbes& operator=(const RunProbes&) = delete;
+
+  const SparseMatrix& reference_stiffness() const { return reference_stiffness_; }
+  const response::ProbeBank& fit() const { return banks_.fit; }
+  const response::Certifier& certifier() const { return certifier_; }
+
+ private:
+  SparseMatrix reference_stiffness_;
+  response::ProbeBanks banks_;
+  response::Certifier certifier_;
+};
+
+// The baseline guarantee on unseen loads, decided on the choosing probes (never the held-out
+// ones, which only the certificate reads): a fitted model whose choosing error is not below the
+// closed-form baseline's gives way to it, where the baseline is a model of the candidates
+// within the spring budget. Sets the two errors when the baseline is chosen.
+bool BaselineChosen(const Problem& problem, const SearchOptions& options,
+                    const response::ProbeBank& bank, const std::vector<double>& fitted,
+                    const std::optional<std::vector<double>>& baseline_on_genes,
+                    const SparseMatrix& baseline, Interruption* interruption,
+                    response::Generalization& g) {
+  if (!baseline_on_genes ||
+      (options.max_springs > 0 && PresentSprings(*baseline_on_genes) > options.max_springs))
+    return false;
+  const double model_error =
+      response::ChoosingError(bank, response::SpringRestStiffness(problem, fitted), interruption);
+  const double baseline_error = response::ChoosingError(bank, baseline, interruption);
+  if (model_error < baseline_error) return false;
+  g.fitted_choosing_error = model_error;
+  g.baseline_choosing_error = baseline_error;
+  return true;
+}
+
+// The nonlinear judgement at the named loads' size and below (a nonlinear response only).
+// False when stopped: the amplitudes are then left empty (the run is ending).
+bool JudgeAtAmplitudes(const Problem& problem, const RunProbes& probes,
+                       const std::vector<double>& weights, const response::SpringModel& baseline,
+                       response::Generalization& certificate, Interruption* interruption,
+                       WorkerPool* pool) {
+  if (problem.response() != Response::kNonlinear) return true;
+  try {
+    certificate.amplitudes = probes.certifier().JudgeAtAmplitudes(
+        response::ModelOfWeights(problem, weights), baseline, {}, interruption, pool);
+    return true;
+  } catch (const Interrupted&) {
+    certificate.amplitudes.clear();
+    return false;
+  }
 }
 
 }  // namespace
@@ -75,23 +121,33 @@ bool FitsToProbes(const Problem& problem, const SearchOptions& options) {
   return Probeable(problem, options) && options.target_error == 0.0;
 }
 
-std::optional<response::Generalization> CertifyOnProbes(
-    const Problem& problem, const SearchOptions& options, const std::vector<double>& weights,
-    const std::vector<double>& start, Interruption* interruption, WorkerPool* pool) {
+std::optional<ProbeCertificate> CertifyOnProbes(const Problem& problem,
+                                                const SearchOptions& options,
+                                                const std::vector<double>& weights,
+                                                const std::vector<double>& start,
+                                                Interruption* interruption, WorkerPool* pool) {
   if (!Probeable(problem, options)) return std::nullopt;
   std::optional<std::vector<double>> baseline_weights;
   if (problem.scene().reference.kind == Reference::Kind::kFem)
     baseline_weights = BaselineGeneWeights(problem);
-  const SparseMatrix reference_stiffness = response::ReferenceRestStiffness(problem);
-  const response::ProbeOptions probe_options = ProbeOptionsOf(options);
-  const response::ProbeBank bank =
-      response::MakeProbeBank(problem, reference_stiffness, probe_options);
+  const RunProbes probes(problem, ProbeOptionsOf(options));
   const BaselineModel baseline = BaselineModelOf(problem, baseline_weights, start);
-  response::Generalization g =
-      response::Certify(problem, bank, reference_stiffness, weights, baseline.stiffness);
-  g.named_weight = probe_options.named_weight;
-  JudgeAtAmplitudes(problem, bank, weights, baseline.springs, g, interruption, pool);
-  return g;
+  ProbeCertificate c;
+  c.weights = weights;
+  response::Generalization chosen;
+  if (BaselineChosen(problem, options, probes.fit(), weights, baseline_weights, baseline.stiffness,
+                     interruption, chosen)) {
+    c.weights = *baseline_weights;
+    c.returned_baseline = true;
+  }
+  c.generalization = probes.certifier().Certify(c.weights, baseline.stiffness, interruption);
+  c.generalization.named_weight = ProbeOptionsOf(options).named_weight;
+  c.generalization.returned_baseline = c.returned_baseline;
+  c.generalization.fitted_choosing_error = chosen.fitted_choosing_error;
+  c.generalization.baseline_choosing_error = chosen.baseline_choosing_error;
+  c.judgement_stopped = !JudgeAtAmplitudes(problem, probes, c.weights, baseline.springs,
+                                           c.generalization, interruption, pool);
+  return c;
 }
 
 namespace {
@@ -127,93 +183,106 @@ response::ResponseFitOptions FitOptionsOf(const SearchOptions& options) {
   return o;
 }
 
-// The model a probe fit returns, and its certificate.
+// Where a run stopped (on request or at its time limit), if it did.
+enum class StoppedIn { kNowhere, kFit, kCertificate, kJudgement };
+
+// The model a probe fit returns, and its certificate (none when stopped before it was made).
 struct ProbeFitModel {
   std::vector<double> weights;
-  response::Generalization certificate;
-  bool stopped = false;  // during the fit: the start, judged
-  // After the fit, during its nonlinear judgement: the fitted model, not judged at amplitudes.
-  bool judgement_stopped = false;
-  // When the baseline is returned: the fitted model's held-out errors it was refused on.
-  response::ErrorSummary fitted_held_out;
+  std::optional<response::Generalization> certificate;
+  response::ResponseFitResult fit;
+  bool fitted = false;  // the weights are the fit's (else the start's)
+  bool start_is_baseline = false;
+  bool returned_baseline = false;
+  double fitted_choosing_error = 0.0;  // when returned_baseline
+  double baseline_choosing_error = 0.0;
+  StoppedIn stopped = StoppedIn::kNowhere;
 };
 
-// The fit, certified on the held-out probes; stopped, the start certified instead.
-ProbeFitModel FitAndCertify(const Problem& problem, const response::ProbeBank& bank,
-                            const SparseMatrix& reference_stiffness,
-                            const ProbeFitBaseline& baseline,
-                            const response::ResponseFitOptions& fit_options, RunMonitor& monitor,
-                            const response::ResponseProgress& progress, WorkerPool* pool) {
-  ProbeFitModel m;
+// The fit; stopped, the start, uncertified (a stop ends the run within a second: certifying
+// a large model is seconds of solves).
+void Fit(const Problem& problem, const RunProbes& probes, const ProbeFitBaseline& baseline,
+         const response::ResponseFitOptions& fit_options, RunMonitor& monitor,
+         const response::ResponseProgress& progress, WorkerPool* pool, ProbeFitModel& m) {
   m.weights = baseline.start;
+  m.start_is_baseline = baseline.on_genes.has_value();
   try {
-    response::ResponseFitResult fit =
-        response::FitResponse(problem, bank, reference_stiffness, baseline.start, fit_options,
-                              &monitor.interruption(), progress, pool);
-    m.weights = fit.weights;
-    m.certificate =
-        response::Certify(problem, bank, reference_stiffness, m.weights, baseline.model.stiffness);
-    m.certificate.fitted_to_probes = true;
-    m.certificate.fit = std::move(fit);
+    m.fit =
+        response::FitResponse(problem, probes.fit(), probes.reference_stiffness(), baseline.start,
+                              fit_options, &monitor.interruption(), progress, pool);
+    m.weights = m.fit.weights;
+    m.fitted = true;
   } catch (const Interrupted&) {
-    m.stopped = true;
-    m.certificate =
-        response::Certify(problem, bank, reference_stiffness, m.weights, baseline.model.stiffness);
+    m.stopped = StoppedIn::kFit;
   }
-  m.certificate.named_weight = fit_options.probes.named_weight;
-  return m;
 }
 
-// The baseline guarantee on unseen loads: a model whose held-out E is not below the
-// baseline's gives way to it (within the spring budget, when there is one).
-void KeepBaselineGuarantee(const Problem& problem, const SearchOptions& options,
-                           const response::ProbeBank& bank, const SparseMatrix& reference_stiffness,
-                           const ProbeFitBaseline& baseline, ProbeFitModel& m) {
-  const bool within_budget =
-      baseline.on_genes &&
-      (options.max_springs == 0 || PresentSprings(*baseline.on_genes) <= options.max_springs);
-  if (m.stopped || !within_budget ||
-      m.certificate.model_held_out.rms < m.certificate.baseline_held_out.rms)
-    return;
-  m.weights = *baseline.on_genes;
-  m.fitted_held_out = m.certificate.model_held_out;
-  response::Generalization judged =
-      response::Certify(problem, bank, reference_stiffness, m.weights, baseline.model.stiffness);
-  judged.fitted_to_probes = m.certificate.fitted_to_probes;
-  judged.fit = std::move(m.certificate.fit);
-  judged.named_weight = m.certificate.named_weight;
-  judged.returned_baseline = true;
-  m.certificate = std::move(judged);
+// The baseline guarantee (BaselineChosen), then the certificate of the model returned.
+void ChooseAndCertify(const Problem& problem, const SearchOptions& options, const RunProbes& probes,
+                      const ProbeFitBaseline& baseline,
+                      const response::ResponseFitOptions& fit_options, RunMonitor& monitor,
+                      ProbeFitModel& m) {
+  if (m.stopped != StoppedIn::kNowhere) return;
+  try {
+    response::Generalization choice;
+    if (BaselineChosen(problem, options, probes.fit(), m.weights, baseline.on_genes,
+                       baseline.model.stiffness, &monitor.interruption(), choice)) {
+      m.weights = *baseline.on_genes;
+      m.returned_baseline = true;
+      m.fitted_choosing_error = choice.fitted_choosing_error;
+      m.baseline_choosing_error = choice.baseline_choosing_error;
+    }
+    response::Generalization g =
+        probes.certifier().Certify(m.weights, baseline.model.stiffness, &monitor.interruption());
+    g.fitted_to_probes = true;
+    g.fit = m.fit;
+    g.named_weight = fit_options.probes.named_weight;
+    g.returned_baseline = m.returned_baseline;
+    g.fitted_choosing_error = m.fitted_choosing_error;
+    g.baseline_choosing_error = m.baseline_choosing_error;
+    m.certificate = std::move(g);
+  } catch (const Interrupted&) {
+    m.stopped = StoppedIn::kCertificate;
+  }
 }
 
-// The stop message: the model's springs, probes and errors, or why the baseline was returned.
+// The stop message: the model's springs, probes and errors, or why the baseline was returned,
+// or where the run stopped and what it returns then.
 std::string ProbeFitMessage(const IdentificationResult& r, const ProbeFitModel& m) {
-  const response::Generalization& c = m.certificate;
-  char message[512];
-  if (c.returned_baseline) {
-    std::snprintf(message, sizeof message,
-                  "the closed-form baseline (%d springs): the fitted model's held-out E (RMS over "
-                  "%d probes) %.3g was not below the baseline's %.3g",
-                  PresentSprings(m.weights), c.held_out, m.fitted_held_out.rms,
-                  c.baseline_held_out.rms);
-  } else {
-    const char* stopped =
-        r.stop == StopReason::kCompleted ? ""
-        : m.judgement_stopped
-            ? (r.stop == StopReason::kTimeLimit
-                   ? "time limit reached during the nonlinear judgement (not judged at "
-                     "amplitudes): "
-                   : "stopped on request during the nonlinear judgement (not judged at "
-                     "amplitudes): ")
-        : r.stop == StopReason::kTimeLimit ? "time limit reached; the best so far: "
-                                           : "stopped on request; the best so far: ";
-    std::snprintf(message, sizeof message,
-                  "%s%d springs fitted to %d probe loads on %d supports; held-out probes: "
-                  "median E %.3g (baseline %.3g); named cases E %.3g",
-                  stopped, PresentSprings(m.weights), c.fitted, c.supports, c.model_held_out.median,
-                  c.baseline_held_out.median, std::sqrt(r.evaluation.normalized_error));
+  const char* why = r.stop == StopReason::kTimeLimit ? "time limit reached" : "stopped on request";
+  const int springs = PresentSprings(m.weights);
+  switch (m.stopped) {
+    case StoppedIn::kFit:
+      return fmt::format(
+          "{} during the fit: the start ({}, {} springs), not fitted and not certified", why,
+          m.start_is_baseline ? "the closed-form baseline" : "the training stiffness", springs);
+    case StoppedIn::kCertificate:
+      return fmt::format("{} during the certificate: {} ({} springs), not certified", why,
+                         m.returned_baseline ? "the closed-form baseline" : "the fitted model",
+                         springs);
+    case StoppedIn::kJudgement:
+    case StoppedIn::kNowhere:
+      break;
   }
-  return message;
+  const response::Generalization& c = *m.certificate;
+  const std::string prefix =
+      m.stopped == StoppedIn::kJudgement
+          ? fmt::format("{} during the nonlinear judgement (not judged at amplitudes): ", why)
+      : r.stop != StopReason::kCompleted ? fmt::format("{}; the model then made: ", why)
+                                         : std::string();
+  if (m.returned_baseline) {
+    return prefix + fmt::format(
+                        "the closed-form baseline ({} springs): the fitted model's choosing error "
+                        "{:.3g} (over {} choosing probes) was not below the baseline's {:.3g}; "
+                        "held-out probes: median E {:.3g}",
+                        springs, m.fitted_choosing_error, c.choosing, m.baseline_choosing_error,
+                        c.model_held_out.median);
+  }
+  return prefix + fmt::format(
+                      "{} springs fitted to {} probe loads on {} supports; held-out probes: "
+                      "median E {:.3g} (baseline {:.3g}); named cases E {:.3g}",
+                      springs, c.fitted, c.supports, c.model_held_out.median,
+                      c.baseline_held_out.median, std::sqrt(r.evaluation.normalized_error));
 }
 
 }  // namespace
@@ -278,20 +347,21 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
     if (monitor.TimeLimitPassed()) throw Interrupted();
   };
 
-  // The bank, the fit and its certificate, the baseline guarantee, the nonlinear judgement.
+  // The banks, the fit, the baseline guarantee on the choosing probes, the certificate, the
+  // nonlinear judgement.
   const response::ResponseFitOptions fit_options = FitOptionsOf(options);
-  const SparseMatrix reference_stiffness = response::ReferenceRestStiffness(problem);
-  const response::ProbeBank bank =
-      response::MakeProbeBank(problem, reference_stiffness, fit_options.probes);
+  const RunProbes probes(problem, fit_options.probes);
   std::unique_ptr<WorkerPool> own_pool;
   WorkerPool* pool = PoolOf(context, own_pool);
-  ProbeFitModel m = FitAndCertify(problem, bank, reference_stiffness, baseline, fit_options,
-                                  monitor, progress, pool);
-  KeepBaselineGuarantee(problem, options, bank, reference_stiffness, baseline, m);
-  if (!m.stopped && problem.response() == Response::kNonlinear) {
+  ProbeFitModel m;
+  Fit(problem, probes, baseline, fit_options, monitor, progress, pool, m);
+  if (m.stopped == StoppedIn::kNowhere) enter("certificate");
+  ChooseAndCertify(problem, options, probes, baseline, fit_options, monitor, m);
+  if (m.certificate && problem.response() == Response::kNonlinear) {
     enter("nonlinear");
-    m.judgement_stopped = !JudgeAtAmplitudes(problem, bank, m.weights, baseline.model.springs,
-                                             m.certificate, &monitor.interruption(), pool);
+    if (!JudgeAtAmplitudes(problem, probes, m.weights, baseline.model.springs, *m.certificate,
+                           &monitor.interruption(), pool))
+      m.stopped = StoppedIn::kJudgement;
   }
   details.model_seconds = since();
 
@@ -304,12 +374,12 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   details.start_normalized_error =
       cost.Evaluate(problem.SpringsOfWeights(baseline.start)).normalized_error;
   details.fit_normalized_error = r.evaluation.normalized_error;
-  details.chosen = m.certificate.returned_baseline ? -1 : m.certificate.fit.chosen;
-  details.regularization = m.certificate.fit.regularization;
-  details.steps = m.certificate.fit.gauss_newton_accepted;
+  details.chosen = m.returned_baseline || !m.fitted ? -1 : m.fit.chosen;
+  details.regularization = m.fit.regularization;
+  details.steps = m.fit.gauss_newton_accepted;
 
   const bool stopped = !RecordModel(problem, m.weights, since(), context, monitor, r) ||
-                       m.stopped || m.judgement_stopped;
+                       m.stopped != StoppedIn::kNowhere;
   r.wall_seconds = since();
   r.stop = stopped
                ? (monitor.time_limit_reached() ? StopReason::kTimeLimit : StopReason::kCancelled)

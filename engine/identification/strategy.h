@@ -70,15 +70,24 @@ WorkerPool* PoolOf(const RunContext& context, std::unique_ptr<WorkerPool>& own);
 // set (it chooses along the named cases' path); by the matrix-free fit (matrix_free_fit.h) unless
 // ResponseFitOptions::dense_max_genes asks for the dense one.
 bool FitsToProbes(const Problem& problem, const SearchOptions& options);
-// The certificate of a model (per-gene weights) on the probe bank, when the reference can be
-// probed and the probes are not switched off; `start` is the baseline's stand-in for an MSS
-// reference. A stop during its nonlinear judgement leaves the amplitudes empty.
-std::optional<response::Generalization> CertifyOnProbes(const Problem& problem,
-                                                        const SearchOptions& options,
-                                                        const std::vector<double>& weights,
-                                                        const std::vector<double>& start,
-                                                        Interruption* interruption = nullptr,
-                                                        WorkerPool* pool = nullptr);
+// A model certified on the probe bank: the model returned (the one given, or the closed-form
+// baseline when the given one is not better on the choosing probes), and its certificate.
+struct ProbeCertificate {
+  std::vector<double> weights;
+  bool returned_baseline = false;
+  response::Generalization generalization;
+  bool judgement_stopped = false;  // the amplitudes are then empty
+};
+// The baseline guarantee and the certificate of a model (per-gene weights) on the probe bank,
+// when the reference can be probed and the probes are not switched off; `start` is the
+// baseline's stand-in for an MSS reference. Throws Interrupted when stopped before the
+// certificate is made.
+std::optional<ProbeCertificate> CertifyOnProbes(const Problem& problem,
+                                                const SearchOptions& options,
+                                                const std::vector<double>& weights,
+                                                const std::vector<double>& start,
+                                                Interruption* interruption = nullptr,
+                                                WorkerPool* pool = nullptr);
 IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& options,
                                  const RunContext& context, RunMonitor& monitor);
 // Strategy continuous fitted to the named cases' sparsity path (named_case_fit.cpp), where it

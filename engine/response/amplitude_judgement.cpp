@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <numeric>
 #include <optional>
 
 #include "engine/equilibrium.h"
@@ -12,15 +13,11 @@
 namespace springfit::response {
 namespace {
 
-// The probes judged: the held-out ones and the named cases, at most `limit`, evenly spread
-// over the bank's order (which runs support by support, family by family).
+// The probes judged: at most `limit`, evenly spread over the bank's order (which runs support
+// by support, family by family).
 std::vector<int> JudgedProbes(const ProbeBank& bank, int limit) {
-  std::vector<int> all;
-  for (std::size_t p = 0; p < bank.probes.size(); ++p) {
-    const Probe& probe = bank.probes[p];
-    if (probe.role == ProbeRole::kHeldOut || probe.family == ProbeFamily::kNamed)
-      all.push_back(static_cast<int>(p));
-  }
+  std::vector<int> all(bank.probes.size());
+  std::iota(all.begin(), all.end(), 0);
   if (static_cast<int>(all.size()) <= limit) return all;
   std::vector<int> some;
   for (int i = 0; i < limit; ++i)
@@ -200,7 +197,9 @@ std::vector<AmplitudeErrors> JudgeAtAmplitudes(const Problem& problem, const Pro
     SpringResponse baseline_solver(baseline_input, free, problem.solver_options(), interruption);
     for (std::size_t a = 0; a < amplitudes; ++a) {
       const Vector force = options.amplitudes[a] * probe.force;
-      const Vector prescribed = options.amplitudes[a] * probe.prescribed;
+      const Vector prescribed = probe.prescribed.size() == 0
+                                    ? Vector::Zero(force.size())
+                                    : Vector(options.amplitudes[a] * probe.prescribed);
       const std::optional<Vector> reference = reference_solver.Solve(force, prescribed);
       if (!reference) {
         model_errors[a][i] = baseline_errors[a][i] = std::numeric_limits<double>::quiet_NaN();

@@ -36,8 +36,8 @@ SpringModel ModelOfWeights(const Problem& problem, const std::vector<double>& we
 struct AmplitudeOptions {
   // Fractions of the named loads' size, each in (0, 4], ascending.
   std::vector<double> amplitudes = {0.25, 0.5, 1.0};
-  // Held-out probes and named cases judged at most (evenly spread over the bank), >= 1: each is
-  // three nonlinear solves per amplitude.
+  // Probes judged at most (evenly spread over the bank), >= 1: each is three nonlinear solves
+  // per amplitude.
   int max_probes = 48;
 
   // Throws std::invalid_argument naming the field, its value and the rule.
@@ -51,10 +51,11 @@ struct AmplitudeErrors {
   int reference_failed = 0;  // probes left out: the reference has no equilibrium there
 };
 
-// Per amplitude; empty when the problem's response is linear or its reference is positions.
+// Per amplitude, on the probes of `judged` (the certificate's: the held-out probes and the named
+// cases, Certifier); empty when the problem's response is linear or its reference is positions.
 // Throws Interrupted when `interruption` stops it (checked between probes). With a pool the
 // probes run in parallel, with the same result.
-std::vector<AmplitudeErrors> JudgeAtAmplitudes(const Problem& problem, const ProbeBank& bank,
+std::vector<AmplitudeErrors> JudgeAtAmplitudes(const Problem& problem, const ProbeBank& judged,
                                                const SpringModel& model,
                                                const SpringModel& baseline,
                                                const AmplitudeOptions& options = {},

@@ -1,5 +1,5 @@
 // The probe fit's normal equations: a sum of compliance-weighted force residuals, quadratic in
-// the springs' stiffness k (DESIGN.md §5, "A convex start").
+// the springs' stiffness k (docs/ARCHITECTURE.md, "The probe fit"; proto/RUN.md, the dense fit).
 //
 // A spring e over nodes (i, j) with unit rest direction n_e has the force column
 // g_e = (-n_e on i, +n_e on j); at a displacement u its elongation is delta_e = g_e^T u, and the

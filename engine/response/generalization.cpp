@@ -4,43 +4,52 @@
 
 namespace springfit::response {
 
-Generalization Certify(const Problem& problem, const ProbeBank& bank,
-                       const SparseMatrix& reference_stiffness, const std::vector<double>& model,
-                       const SparseMatrix& baseline) {
+Certifier::Certifier(const Problem& problem, const ProbeBank& bank, const HeldOutProbes& held_out,
+                     const SparseMatrix& reference_stiffness)
+    : problem_(problem), bank_(bank), reference_stiffness_(reference_stiffness) {
+  judged_.supports = bank.supports;
+  judged_.boundary = bank.boundary;
+  judged_.amplitude = bank.amplitude;
+  for (const Probe& probe : bank.probes)
+    if (probe.family == ProbeFamily::kNamed) judged_.probes.push_back(probe);
+  named_ = static_cast<int>(judged_.probes.size());
+  for (const Probe& probe : held_out.bank_.probes) judged_.probes.push_back(probe);
+  held_out_ = held_out.size();
+}
+
+Generalization Certifier::Certify(const std::vector<double>& model, const SparseMatrix& baseline,
+                                  Interruption* interruption) const {
   Generalization g;
-  g.probes = static_cast<int>(bank.probes.size());
-  g.supports = static_cast<int>(bank.supports.size());
-  std::vector<bool> judged(bank.probes.size()), held(bank.probes.size());
-  for (std::size_t p = 0; p < bank.probes.size(); ++p) {
-    const Probe& probe = bank.probes[p];
+  g.probes = static_cast<int>(bank_.probes.size()) + held_out_;
+  g.supports = static_cast<int>(bank_.supports.size());
+  for (const Probe& probe : bank_.probes) {
     g.fitted += probe.role == ProbeRole::kFit;
     g.choosing += probe.role == ProbeRole::kSelect;
-    g.held_out += probe.role == ProbeRole::kHeldOut;
-    held[p] = probe.role == ProbeRole::kHeldOut;
-    judged[p] = held[p] || probe.family == ProbeFamily::kNamed;
   }
-  const SparseMatrix k_model = SpringRestStiffness(problem, model);
-  const std::vector<double> model_errors = ProbeErrorsFor(bank, k_model, judged);
-  const std::vector<double> baseline_errors = ProbeErrorsFor(bank, baseline, judged);
-  g.model = SummarizeByFamily(bank, model_errors);
-  g.baseline = SummarizeByFamily(bank, baseline_errors);
+  g.held_out = held_out_;
+  const std::vector<bool> every(judged_.probes.size(), true);
+  const SparseMatrix k_model = SpringRestStiffness(problem_, model);
+  const std::vector<double> model_errors = ProbeErrorsFor(judged_, k_model, every, interruption);
+  const std::vector<double> baseline_errors =
+      ProbeErrorsFor(judged_, baseline, every, interruption);
+  g.model = SummarizeByFamily(judged_, model_errors);
+  g.baseline = SummarizeByFamily(judged_, baseline_errors);
   const auto held_only = [&](const std::vector<double>& errors) {
-    std::vector<double> mine;
-    for (std::size_t p = 0; p < errors.size(); ++p)
-      if (held[p]) mine.push_back(errors[p]);
-    return Summarize(mine);
+    return Summarize(std::vector<double>(errors.begin() + named_, errors.end()));
   };
   g.model_held_out = held_only(model_errors);
   g.baseline_held_out = held_only(baseline_errors);
   bool first = true;
-  for (const Support& support : bank.supports) {
+  for (const Support& support : bank_.supports) {
     if (!support.user) continue;
     Generalization::SupportPencil pencil;
     pencil.support = support.description;
-    pencil.model = GeneralizedEigenvalueExtremes(k_model, reference_stiffness, support.constrained,
-                                                 problem.dimension());
-    pencil.baseline = GeneralizedEigenvalueExtremes(baseline, reference_stiffness,
-                                                    support.constrained, problem.dimension());
+    pencil.model =
+        GeneralizedEigenvalueExtremes(k_model, reference_stiffness_, support.constrained,
+                                      problem_.dimension(), kLanczosIterations, interruption);
+    pencil.baseline =
+        GeneralizedEigenvalueExtremes(baseline, reference_stiffness_, support.constrained,
+                                      problem_.dimension(), kLanczosIterations, interruption);
     g.lambda_min =
         first ? pencil.model.lambda_min : std::min(g.lambda_min, pencil.model.lambda_min);
     g.lambda_max =
@@ -50,6 +59,15 @@ Generalization Certify(const Problem& problem, const ProbeBank& bank,
   }
   g.bound = PencilExtremes{g.lambda_min, g.lambda_max}.Bound();
   return g;
+}
+
+std::vector<AmplitudeErrors> Certifier::JudgeAtAmplitudes(const SpringModel& model,
+                                                          const SpringModel& baseline,
+                                                          const AmplitudeOptions& options,
+                                                          Interruption* interruption,
+                                                          WorkerPool* pool) const {
+  return response::JudgeAtAmplitudes(problem_, judged_, model, baseline, options, interruption,
+                                     pool);
 }
 
 }  // namespace springfit::response

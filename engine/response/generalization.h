@@ -43,14 +43,46 @@ struct Generalization {
   // The fit (absent when the model was not fitted to probes: only judged on them).
   bool fitted_to_probes = false;
   ResponseFitResult fit;
-  // The baseline was returned: the fitted model's held-out E was not below it.
+  // The baseline was returned: the fitted model's choosing error (FamilyBalancedRms on the
+  // choosing probes, never the held-out ones) was not below the baseline's.
   bool returned_baseline = false;
+  double fitted_choosing_error = 0.0;    // when returned_baseline: the fitted model's
+  double baseline_choosing_error = 0.0;  // and the baseline's
 };
 
-// Judges `model` (per-gene weights) and `baseline` (a rest stiffness) on the bank's held-out
-// probes and named cases, and bounds the model's pencil on the user's supports.
-Generalization Certify(const Problem& problem, const ProbeBank& bank,
-                       const SparseMatrix& reference_stiffness, const std::vector<double>& model,
-                       const SparseMatrix& baseline);
+// The one reader of the held-out probes (probe_bank.h, HeldOutProbes): the certificate judges a
+// model on them and on the named cases; nothing it returns can steer a fit or a choice except
+// through a Generalization, which the strategies read after every choice is made.
+class Certifier {
+ public:
+  // Keeps references to `problem`, `bank` and `reference_stiffness`; copies the held-out
+  // probes and the named cases into the bank it judges on.
+  Certifier(const Problem& problem, const ProbeBank& bank, const HeldOutProbes& held_out,
+            const SparseMatrix& reference_stiffness);
+
+  // Judges `model` (per-gene weights) and `baseline` (a rest stiffness) on the held-out probes
+  // and the named cases, and bounds the model's pencil on the user's supports. Throws
+  // Interrupted when `interruption` stops it (between solves and Lanczos iterations).
+  Generalization Certify(const std::vector<double>& model, const SparseMatrix& baseline,
+                         Interruption* interruption = nullptr) const;
+
+  // The model and the baseline as nonlinear spring models on the same probes
+  // (amplitude_judgement.h).
+  std::vector<AmplitudeErrors> JudgeAtAmplitudes(const SpringModel& model,
+                                                 const SpringModel& baseline,
+                                                 const AmplitudeOptions& options = {},
+                                                 Interruption* interruption = nullptr,
+                                                 WorkerPool* pool = nullptr) const;
+
+  int held_out() const { return held_out_; }
+
+ private:
+  const Problem& problem_;
+  const ProbeBank& bank_;
+  const SparseMatrix& reference_stiffness_;
+  ProbeBank judged_;  // the named cases, then the held-out probes, each in the bank's order
+  int named_ = 0;
+  int held_out_ = 0;
+};
 
 }  // namespace springfit::response

@@ -30,8 +30,9 @@ ModeLift LiftSoftModes(const Problem& problem, const std::vector<double>& weight
     std::vector<double> lambdas;
     std::vector<Vector> slopes;
     for (const auto& [support, reference] : references) {
-      for (const SoftMode& mode : SoftModes(model, reference, options.target,
-                                            options.modes_per_support, 80, interruption)) {
+      for (const SoftMode& mode :
+           SoftModes(model, reference, options.target, options.modes_per_support,
+                     kLanczosIterations, interruption)) {
         Vector slope = ModeSlope(springs, mode, reference);
         for (std::size_t g = 0; g < lift.weights.size(); ++g)
           if (!(lift.weights[g] > 0.0)) slope[static_cast<Eigen::Index>(g)] = 0.0;  // absent

@@ -4,6 +4,9 @@
 #include <cmath>
 #include <map>
 #include <numeric>
+#include <stdexcept>
+
+#include <fmt/format.h>
 
 #include "engine/fem/fem_model.h"
 #include "engine/input_error.h"
@@ -13,6 +16,10 @@
 
 namespace springfit::response {
 namespace {
+
+// Each (support, family) group of generated probes has at least one probe per role.
+constexpr int kGroupMinimum = 3;
+constexpr int kGeneratedFamilies = 3;  // point, patch, body
 
 // A direction drawn uniformly on the unit circle or sphere (Box-Muller on the stream's own
 // uniform draws, so the same seed gives the same directions everywhere).
@@ -121,23 +128,25 @@ double LargestNodal(int d, const Vector& u) {
   return largest;
 }
 
-// Marks the roles of probes [begin, end): shuffled, the first held out, the next chosen on.
-void AssignRoles(std::vector<Probe>& probes, std::size_t begin, const ProbeOptions& options,
-                 RandomStream& random) {
+// The roles of probes [begin, end): shuffled, the first held out (`held` set), the next chosen
+// on, the rest fitted.
+void AssignRoles(std::vector<Probe>& probes, std::vector<bool>& held, std::size_t begin,
+                 const ProbeOptions& options, RandomStream& random) {
   const std::size_t count = probes.size() - begin;
+  held.resize(probes.size(), false);
   if (count == 0) return;
   std::vector<std::size_t> order(count);
   std::iota(order.begin(), order.end(), begin);
   for (std::size_t i = count; i > 1; --i)
     std::swap(order[i - 1], order[static_cast<std::size_t>(random.Below(static_cast<int>(i)))]);
-  const auto held =
+  const auto held_out =
       static_cast<std::size_t>(std::ceil(options.held_out_fraction * static_cast<double>(count)));
   const auto select =
       static_cast<std::size_t>(std::ceil(options.select_fraction * static_cast<double>(count)));
   for (std::size_t i = 0; i < count; ++i) {
-    probes[order[i]].role = i < held            ? ProbeRole::kHeldOut
-                            : i < held + select ? ProbeRole::kSelect
-                                                : ProbeRole::kFit;
+    held[order[i]] = i < held_out;
+    probes[order[i]].role =
+        i >= held_out && i < held_out + select ? ProbeRole::kSelect : ProbeRole::kFit;
   }
 }
 
@@ -185,6 +194,15 @@ void ProbeOptions::Validate(const std::string& owner) const {
                 "0 <= value < 1");
   check.Require(soft_mode_weight >= 0.0 && named_weight + soft_mode_weight < 1.0,
                 "soft_mode_weight", soft_mode_weight, "value >= 0 and named_weight + value < 1");
+}
+
+int MinimumProbeCount(int user_supports, const ProbeOptions& options) {
+  return kGroupMinimum * kGeneratedFamilies * (user_supports + options.extra_supports);
+}
+
+double ProbeBankBytes(long long probes, int nodes, int dimension) {
+  return 2.0 * static_cast<double>(probes) * static_cast<double>(nodes) * dimension *
+         static_cast<double>(sizeof(double));
 }
 
 namespace {
@@ -291,9 +309,12 @@ class BankBuilder {
     int bodies = d_ + 2;
     if (options_.count > 0) {
       const double per_support = static_cast<double>(options_.count) / supports;
-      points = std::max(1, static_cast<int>(std::lround(0.6 * per_support)));
-      patches = std::max(1, static_cast<int>(std::lround(0.3 * per_support)));
-      bodies = std::max(1, static_cast<int>(std::lround(0.1 * per_support)));
+      const auto share = [&](double fraction) {
+        return std::max(kGroupMinimum, static_cast<int>(std::lround(fraction * per_support)));
+      };
+      points = share(0.6);
+      patches = share(0.3);
+      bodies = share(0.1);
     }
     const Vector volumes = NodalVolumes(scene_);
     for (int s = 0; s < supports; ++s) {
@@ -311,18 +332,26 @@ class BankBuilder {
         else if (family == ProbeFamily::kBody)
           forces = BodyForces(support, volumes, bodies);
         for (const Vector& force : forces) Add(family, s, force);
-        AssignRoles(bank_.probes, begin, options_, random_);
+        AssignRoles(bank_.probes, held_, begin, options_, random_);
       }
     }
   }
 
-  // Every probe's |u_ref|^2 over its support's free nodes.
-  ProbeBank Finish() {
-    for (Probe& probe : bank_.probes) {
+  // Every probe's |u_ref|^2 over its support's free nodes; the held-out probes in a bank of
+  // their own (the same supports), each part in the order the probes were made.
+  std::pair<ProbeBank, ProbeBank> Finish() {
+    held_.resize(bank_.probes.size(), false);
+    ProbeBank fit, held_out;
+    fit.supports = held_out.supports = std::move(bank_.supports);
+    fit.boundary = held_out.boundary = std::move(bank_.boundary);
+    fit.amplitude = held_out.amplitude = bank_.amplitude;
+    for (std::size_t p = 0; p < bank_.probes.size(); ++p) {
+      Probe& probe = bank_.probes[p];
       const Vector free = systems_[static_cast<std::size_t>(probe.support)].Gather(probe.reference);
       probe.reference_norm2 = free.squaredNorm();
+      (held_[p] ? held_out : fit).probes.push_back(std::move(probe));
     }
-    return std::move(bank_);
+    return {std::move(fit), std::move(held_out)};
   }
 
  private:
@@ -379,8 +408,7 @@ class BankBuilder {
     Probe probe;
     probe.family = family;
     probe.support = s;
-    probe.prescribed = Vector::Zero(d_ * n_);
-    probe.reference = systems_[static_cast<std::size_t>(s)].Displacement(force, probe.prescribed);
+    probe.reference = systems_[static_cast<std::size_t>(s)].Displacement(force, Vector());
     const double largest = LargestNodal(d_, probe.reference);
     if (!(largest > 0.0)) return;
     const double scale = bank_.amplitude / largest;
@@ -398,21 +426,32 @@ class BankBuilder {
   RandomStream random_;
   const Surface surface_;
   ProbeBank bank_;
+  std::vector<bool> held_;              // per probe of bank_: held out
   std::vector<SupportSystem> systems_;  // per support of the bank
   std::vector<int> support_of_free_set_;
 };
 
 }  // namespace
 
-ProbeBank MakeProbeBank(const Problem& problem, const SparseMatrix& reference_stiffness,
-                        const ProbeOptions& options) {
+ProbeBanks MakeProbeBanks(const Problem& problem, const SparseMatrix& reference_stiffness,
+                          const ProbeOptions& options) {
   options.Validate();
+  const int user_supports = static_cast<int>(problem.free_sets().size());
+  if (options.count > 0 && options.count < MinimumProbeCount(user_supports, options)) {
+    throw std::invalid_argument(fmt::format(
+        "ProbeOptions.count: {} probes are too few for {} supports ({} of the load cases, {} "
+        "drawn): at least {} ({} per family on each support: one fitted, one choosing, one "
+        "held out)",
+        options.count, user_supports + options.extra_supports, user_supports,
+        options.extra_supports, MinimumProbeCount(user_supports, options), kGroupMinimum));
+  }
   BankBuilder builder(problem, reference_stiffness, options);
   builder.AddUserSupports();
   builder.AddNamedCases();
   builder.DrawSupports();
   builder.AddGeneratedProbes();
-  return builder.Finish();
+  auto [fit, held_out] = builder.Finish();
+  return {std::move(fit), HeldOutProbes(std::move(held_out))};
 }
 
 void AddSoftModeProbe(ProbeBank& bank, int support, const Vector& shape,
@@ -431,7 +470,6 @@ void AddSoftModeProbe(ProbeBank& bank, int support, const Vector& shape,
     if (held[node])
       probe.force.segment(dimension * static_cast<Eigen::Index>(node), dimension).setZero();
   }
-  probe.prescribed = Vector::Zero(probe.force.size());
   probe.reference_norm2 = probe.reference.squaredNorm();
   bank.probes.push_back(std::move(probe));
 }

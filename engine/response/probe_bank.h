@@ -1,6 +1,6 @@
 // The probe bank: load cases springfit generates from the reference itself, so that an
 // identification sees the whole response and is judged on loads it was not fitted to
-// (DESIGN.md §5, issue 31).
+// (docs/ARCHITECTURE.md, "The probe fit").
 //
 // Supports: the user's (each distinct set of nodes the named load cases hold) and
 // `extra_supports` more, each a patch of boundary nodes around a random boundary node (the
@@ -20,7 +20,11 @@
 // Roles: each (support, family) group of generated probes is shuffled and split into a part
 // that is fitted, a part that chooses among fitted models (the regularisation, the point of
 // the sparsity path), and a held-out part that no fit and no choice ever sees, on which the
-// certificate reports. The named cases are all fitted.
+// certificate reports. The named cases are all fitted. The held-out part is a type of its own
+// (HeldOutProbes), which gives its probes to the certificate alone (docs/ARCHITECTURE.md,
+// "Probes by role"): a fit or a choice cannot be handed them, the compiler refuses it. Every
+// group has at least three probes (one per role): a request for fewer probes than that needs
+// is refused before any work (MinimumProbeCount).
 //
 // Boundary: for an FEM reference, the nodes of the facets (edges in 2D, faces in 3D) that belong
 // to one element only, with the outward normal summed over them; for an MSS reference (no
@@ -31,6 +35,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "engine/problem/problem.h"
@@ -43,11 +48,13 @@ namespace springfit::response {
 enum class ProbeFamily { kPoint, kPatch, kBody, kNamed, kMode };
 inline constexpr int kProbeFamilies = 5;  // (their names: proto/names.h, ProbeFamilyName)
 
-enum class ProbeRole { kFit, kSelect, kHeldOut };
+// The roles of the probes in a ProbeBank; the held-out ones are in HeldOutProbes.
+enum class ProbeRole { kFit, kSelect };
 
 struct ProbeOptions {
-  // Generated probes in all, spread over the supports and families; 0: automatic (per support,
-  // min(boundary nodes, 24) point loads, 12 patches and d + 2 body forces).
+  // Generated probes in all, spread over the supports and families (at least 3 per family on
+  // each support, so that each role has one); 0: automatic (per support, min(boundary nodes,
+  // 24) point loads, 12 patches and d + 2 body forces). At least MinimumProbeCount.
   int count = 0;
   // Supports drawn from the boundary beside the user's, >= 0.
   int extra_supports = 3;
@@ -79,14 +86,17 @@ struct Support {
 struct Probe {
   ProbeFamily family = ProbeFamily::kPoint;
   ProbeRole role = ProbeRole::kFit;
-  int support = 0;               // index into ProbeBank::supports
-  int named_case = -1;           // kNamed: the problem's load case
-  Vector force;                  // flat d*n
-  Vector prescribed;             // flat d*n: the named cases' prescribed displacements, else 0
+  int support = 0;      // index into ProbeBank::supports
+  int named_case = -1;  // kNamed: the problem's load case
+  Vector force;         // flat d*n
+  // Flat d*n: the named cases' prescribed displacements; empty for the generated probes (none:
+  // a flat zero vector per probe was a third of a large bank's memory).
+  Vector prescribed;
   Vector reference;              // the reference's rest-linear displacement under it, flat d*n
   double reference_norm2 = 0.0;  // |u| over the support's free nodes, squared
 };
 
+// The probes a fit may see: fitted and choosing ones (the named cases among the fitted).
 struct ProbeBank {
   std::vector<Support> supports;
   std::vector<Probe> probes;
@@ -94,15 +104,48 @@ struct ProbeBank {
   double amplitude = 0.0;     // the generated probes' largest nodal displacement
 };
 
+struct ProbeBanks;
+class Certifier;  // generalization.h
+
+// The held-out probes: loads no fit and no choice ever sees. Their probes are readable by the
+// certificate (Certifier) alone; everything else sees how many there are.
+class HeldOutProbes {
+ public:
+  HeldOutProbes() = default;
+  int size() const { return static_cast<int>(bank_.probes.size()); }
+
+ private:
+  friend class Certifier;
+  friend ProbeBanks MakeProbeBanks(const Problem& problem, const SparseMatrix& reference_stiffness,
+                                   const ProbeOptions& options);
+  explicit HeldOutProbes(ProbeBank bank) : bank_(std::move(bank)) {}
+  ProbeBank bank_;  // the same supports as the fit's bank; its probes' roles mean nothing
+};
+
+struct ProbeBanks {
+  ProbeBank fit;  // fitted and choosing probes, with the named cases
+  HeldOutProbes held_out;
+};
+
+// The fewest generated probes an explicit ProbeOptions::count may ask for on a problem with
+// `user_supports` distinct supports among its load cases: 3 per family (one per role) on each
+// user support and each drawn one.
+int MinimumProbeCount(int user_supports, const ProbeOptions& options);
+
+// The bytes a bank of `probes` probes on `nodes` nodes in `dimension` holds (each probe's force
+// and reference displacement, flat d*n), a lower bound of a probe fit's memory.
+double ProbeBankBytes(long long probes, int nodes, int dimension);
+
 // Adds a fitted probe of family kMode on `support`: the load K_ref v under which the reference
 // moves by `shape` = v (flat d*n, 0 on the support's nodes), scaled to the bank's amplitude.
 void AddSoftModeProbe(ProbeBank& bank, int support, const Vector& shape,
                       const SparseMatrix& reference_stiffness, int dimension);
 
 // Precondition: the problem's reference is FEM or MSS; `reference_stiffness` is its
-// ReferenceRestStiffness. Throws std::invalid_argument for invalid options, and InputError
-// when no user support holds the reference (a load case that leaves it free to move).
-ProbeBank MakeProbeBank(const Problem& problem, const SparseMatrix& reference_stiffness,
-                        const ProbeOptions& options);
+// ReferenceRestStiffness. Throws std::invalid_argument for invalid options (a count below
+// MinimumProbeCount among them), and InputError when no user support holds the reference (a
+// load case that leaves it free to move).
+ProbeBanks MakeProbeBanks(const Problem& problem, const SparseMatrix& reference_stiffness,
+                          const ProbeOptions& options);
 
 }  // namespace springfit::response

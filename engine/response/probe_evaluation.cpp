@@ -219,14 +219,15 @@ std::vector<SoftMode> SoftModes(const SparseMatrix& model, const SupportSystem& 
 PencilExtremes GeneralizedEigenvalueExtremes(const SparseMatrix& model,
                                              const SparseMatrix& reference,
                                              const std::vector<bool>& constrained, int dimension,
-                                             int iterations) {
+                                             int iterations, Interruption* interruption) {
   SupportSystem m(dimension, constrained);
   SupportSystem r(dimension, constrained);
   PencilExtremes x;
   if (!r.Factorize(reference)) return x;  // (callers pass supports that hold the reference)
+  if (interruption && interruption->Check()) throw Interrupted();
   const bool held = m.Factorize(model);
-  x.lambda_max = LargestPencilEigenvalue(m, r, iterations, 1);
-  if (held) x.lambda_min = 1.0 / LargestPencilEigenvalue(r, m, iterations, 2);
+  x.lambda_max = LargestPencilEigenvalue(m, r, iterations, 1, interruption);
+  if (held) x.lambda_min = 1.0 / LargestPencilEigenvalue(r, m, iterations, 2, interruption);
   return x;
 }
 

@@ -8,7 +8,7 @@
 // The pencil (K_model, K_ref) on a support's free degrees of freedom: if every generalised
 // eigenvalue lies in [lambda_min, lambda_max], then for every load on that support
 //   |u_model - u_ref|_K_ref <= max(1/lambda_min - 1, 1 - 1/lambda_max) |u_ref|_K_ref,
-// the energy norm's worst case (DESIGN.md §5, "Every mode supported"). lambda_min near 0 is a
+// the energy norm's worst case (docs/ARCHITECTURE.md, "The certificate"). lambda_min near 0 is a
 // mode the model leaves soft.
 #pragma once
 
@@ -54,6 +54,10 @@ std::vector<FamilyErrors> SummarizeByFamily(const ProbeBank& bank,
 // sqrt of the mean over families of each family's mean E_p^2: every family counts alike.
 double FamilyBalancedRms(const ProbeBank& bank, const std::vector<double>& errors);
 
+// Lanczos steps of the pencil's extreme eigenvalues (full reorthogonalisation): enough for the
+// extremes of every example to settle to three digits (bench/RESULTS.md, "Held modes").
+inline constexpr int kLanczosIterations = 80;
+
 struct PencilExtremes {
   double lambda_min = 0.0;  // 0 when the model is not held by the support
   double lambda_max = 0.0;
@@ -64,10 +68,12 @@ struct PencilExtremes {
 // factorisation it uses: 0 when the model is not held there.
 // `interruption`, when set, is checked at every Lanczos iteration (one solve).
 double SmallestGeneralizedEigenvalue(const SparseMatrix& model, const SupportSystem& reference,
-                                     int iterations = 80, Interruption* interruption = nullptr);
+                                     int iterations = kLanczosIterations,
+                                     Interruption* interruption = nullptr);
 // The same with the model factorised on that support by the caller.
 double SmallestGeneralizedEigenvalue(const SupportSystem& model, const SupportSystem& reference,
-                                     int iterations = 80, Interruption* interruption = nullptr);
+                                     int iterations = kLanczosIterations,
+                                     Interruption* interruption = nullptr);
 // The displacements the model resists least against the reference on `reference`'s support:
 // generalised eigenvectors of (model, reference), as Lanczos' Ritz vectors, smallest eigenvalue
 // first, at most `count`, those with eigenvalue below `below`. Under the load K_ref v the
@@ -77,7 +83,7 @@ struct SoftMode {
   Vector shape;  // flat d*n, 0 on the support's nodes
 };
 std::vector<SoftMode> SoftModes(const SparseMatrix& model, const SupportSystem& reference,
-                                double below, int count, int iterations = 80,
+                                double below, int count, int iterations = kLanczosIterations,
                                 Interruption* interruption = nullptr);
 // The smallest generalised eigenvalue (as SmallestGeneralizedEigenvalue gives it, from the same
 // Lanczos run) and the soft modes below `below` (as SoftModes), the model factorised on that
@@ -88,13 +94,15 @@ struct LowestModes {
 };
 LowestModes SmallestGeneralizedEigenpairs(const SupportSystem& model,
                                           const SupportSystem& reference, double below, int count,
-                                          int iterations = 80,
+                                          int iterations = kLanczosIterations,
                                           Interruption* interruption = nullptr);
 // By Lanczos iterations (full reorthogonalisation, at most `iterations`, seeded) in the
 // reference's energy inner product, on the free degrees of freedom of `constrained`.
+// `interruption`, when set, is checked after each factorisation and at every Lanczos iteration.
 PencilExtremes GeneralizedEigenvalueExtremes(const SparseMatrix& model,
                                              const SparseMatrix& reference,
                                              const std::vector<bool>& constrained, int dimension,
-                                             int iterations = 80);
+                                             int iterations = kLanczosIterations,
+                                             Interruption* interruption = nullptr);
 
 }  // namespace springfit::response

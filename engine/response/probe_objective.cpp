@@ -131,8 +131,10 @@ double ProbeObjective::LambdaMin(const std::vector<double>& weights,
     if (!bank_.supports[s].user) continue;
     const SupportSystem* model = factorized ? factorized(s) : nullptr;
     smallest = std::min(
-        smallest, model ? SmallestGeneralizedEigenvalue(*model, reference_[s], 80, interruption_)
-                        : SmallestGeneralizedEigenvalue(k, reference_[s], 80, interruption_));
+        smallest,
+        model ? SmallestGeneralizedEigenvalue(*model, reference_[s], kLanczosIterations,
+                                              interruption_)
+              : SmallestGeneralizedEigenvalue(k, reference_[s], kLanczosIterations, interruption_));
   }
   return std::isfinite(smallest) ? smallest : 0.0;
 }
@@ -150,7 +152,7 @@ double ProbeObjective::LambdaMinAndSoftModes(const std::vector<double>& weights,
     SupportSystem own(problem_.dimension(), bank_.supports[s].constrained);
     if (!given && !own.Factorize(k)) return 0.0;  // (not held there)
     LowestModes lowest = SmallestGeneralizedEigenpairs(given ? *given : own, reference_[s], below,
-                                                       count, 80, interruption_);
+                                                       count, kLanczosIterations, interruption_);
     smallest = std::min(smallest, lowest.lambda_min);
     for (SoftMode& mode : lowest.modes) soft.push_back({s, std::move(mode)});
   }

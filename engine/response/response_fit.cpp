@@ -490,8 +490,9 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
       const SparseMatrix model = SpringRestStiffness(problem, rounds.back().weights);
       int added = 0;
       for (const auto& [s, reference] : user_supports()) {
-        for (const SoftMode& mode : SoftModes(model, reference, options.min_lambda,
-                                              options.soft_modes_per_round, 80, interruption)) {
+        for (const SoftMode& mode :
+             SoftModes(model, reference, options.min_lambda, options.soft_modes_per_round,
+                       kLanczosIterations, interruption)) {
           AddSoftModeProbe(augmented, s, mode.shape, reference_stiffness, d);
           ++added;
         }
@@ -527,7 +528,8 @@ ResponseFitResult FitResponse(const Problem& problem, const ProbeBank& bank,
     lifted.lambda_min = kNoModel;
     for (const auto& [s, reference] : user_supports())
       lifted.lambda_min = std::min(
-          lifted.lambda_min, SmallestGeneralizedEigenvalue(model, reference, 80, interruption));
+          lifted.lambda_min,
+          SmallestGeneralizedEigenvalue(model, reference, kLanczosIterations, interruption));
     path.push_back(
         {0, PresentSprings(lifted.weights), lifted.select_error, lifted.lambda_min, true});
     rounds.push_back(std::move(lifted));

@@ -1,5 +1,5 @@
 // The probe fit: per-spring stiffness fitted to the reference's whole response at rest, not
-// to the named load cases alone (DESIGN.md §5, issue 31).
+// to the named load cases alone (docs/ARCHITECTURE.md, "The probe fit").
 //
 // Steps, each judged on probes no fit sees:
 //  1. Probe bank (probe_bank.h): the named cases and generated loads on several supports,

@@ -8,7 +8,7 @@
 // with A the material's tangent at F = I, the same for the linear, St. Venant-Kirchhoff and
 // neo-Hookean laws (material_law.h: they agree to first order). So these matrices describe the
 // small-load limit of every reference and model, which is what the probe fit matches
-// (DESIGN.md §5).
+// (docs/ARCHITECTURE.md, "The probe fit").
 #pragma once
 
 #include <vector>

@@ -65,13 +65,14 @@ Vector SupportSystem::Gather(const Vector& full) const {
 }
 
 Vector SupportSystem::Scatter(const Vector& free, const Vector& prescribed) const {
-  Vector full = prescribed;
+  Vector full = prescribed.size() == 0 ? Vector::Zero(static_cast<Eigen::Index>(free_index_.size()))
+                                       : prescribed;
   for (int i = 0; i < free_dofs(); ++i) full[free_dofs_[static_cast<std::size_t>(i)]] = free[i];
   return full;
 }
 
 Vector SupportSystem::RightHandSide(const Vector& force, const Vector& prescribed) const {
-  if (prescribed.isZero(0.0)) return Gather(force);
+  if (prescribed.size() == 0 || prescribed.isZero(0.0)) return Gather(force);
   return Gather(force - full_ * prescribed);
 }
 

@@ -45,6 +45,7 @@ class SupportSystem {
   // The free entries of a flat d*n vector.
   Vector Gather(const Vector& full) const;
   // A flat d*n vector: `free` on the free degrees of freedom, `prescribed`'s entries elsewhere.
+  // Below, an empty `prescribed` means none (zero).
   Vector Scatter(const Vector& free, const Vector& prescribed) const;
   // The right-hand side f_f - K_fc u_c of a load (flat force and prescribed displacements).
   Vector RightHandSide(const Vector& force, const Vector& prescribed) const;

@@ -172,12 +172,18 @@ Json AnswerRetry(JobStore& store, const NewJob& job, const JobRecord& old) {
   return j;
 }
 
-// The bounds known once a scene is prepared: its genes, and the bytes a genetic search would
-// hold per generation (population x genes). Returns the search options resolved.
+// The bounds known once a scene is prepared: its genes, what the run asks of its probes
+// (CheckRunBounds), and the bytes a genetic search would hold per generation (population x
+// genes). Returns the search options resolved.
 SearchOptions CheckPreparedBounds(const Problem& problem, const ServiceLimits& limits) {
   if (problem.gene_count() > limits.max_genes)
     LimitExceeded("max_genes", problem.gene_count(), limits.max_genes);
   SearchOptions options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
+  try {
+    CheckRunBounds(problem, options);  // (probes too few, or more memory than the machine has)
+  } catch (const InputError& e) {
+    throw InvalidScene(e);
+  }
   const std::int64_t population_genes =
       static_cast<std::int64_t>(options.population) * problem.gene_count();
   if (population_genes > limits.max_population_genes)

@@ -33,26 +33,35 @@ struct KidneyAtRest {
   Problem problem{examples::Make("fem-kidney-2d")};
   SparseMatrix k = ReferenceRestStiffness(problem);
   ResponseFitOptions options;
-  ProbeBank bank = MakeProbeBank(problem, k, options.probes);
+  ProbeBanks banks = MakeProbeBanks(problem, k, options.probes);
   std::vector<double> prior = *BaselineGeneWeights(problem);
+  const ProbeBank& bank = banks.fit;
+  // The certificate of `weights` beside `prior`'s.
+  Generalization Certify(const std::vector<double>& weights) const {
+    return Certifier(problem, bank, banks.held_out, k)
+        .Certify(weights, SpringRestStiffness(problem, prior));
+  }
 };
 
 TEST(ProbeBank, EverySupportHasEveryFamilyInEveryDirectionAndAHeldOutPart) {
   const Problem problem(examples::Make("fem-plate-5x5"));
   const SparseMatrix k = ReferenceRestStiffness(problem);
-  const ProbeBank bank = MakeProbeBank(problem, k, ProbeOptions{});
+  const ProbeBanks banks = MakeProbeBanks(problem, k, ProbeOptions{});
+  const ProbeBank& bank = banks.fit;
   ASSERT_GE(bank.supports.size(), 4u);  // the user's two and drawn ones
+  // (How many of each group are held out: the certificate's counts, per support and family.)
+  EXPECT_GT(banks.held_out.size(), 0);
   int user = 0;
   for (const Support& s : bank.supports) user += s.user;
   EXPECT_EQ(user, 2);
   for (std::size_t s = 0; s < bank.supports.size(); ++s) {
     for (ProbeFamily family : {ProbeFamily::kPoint, ProbeFamily::kPatch, ProbeFamily::kBody}) {
-      int count = 0, held = 0, fitted = 0;
+      int count = 0, choosing = 0, fitted = 0;
       Matrix directions = Matrix::Zero(2, 2);  // sum of f f^T over the family's forces
       for (const Probe& p : bank.probes) {
         if (p.support != static_cast<int>(s) || p.family != family) continue;
         ++count;
-        held += p.role == ProbeRole::kHeldOut;
+        choosing += p.role == ProbeRole::kSelect;
         fitted += p.role == ProbeRole::kFit;
         for (int node = 0; node < problem.scene().node_count(); ++node) {
           const Vector f = p.force.segment(2 * node, 2);
@@ -64,7 +73,7 @@ TEST(ProbeBank, EverySupportHasEveryFamilyInEveryDirectionAndAHeldOutPart) {
         }
       }
       EXPECT_GT(count, 0) << "support " << s << " family " << proto::ProbeFamilyName(family);
-      EXPECT_GT(held, 0);
+      EXPECT_GT(choosing, 0);
       EXPECT_GT(fitted, 0);
       // Both directions of the plane are loaded.
       const Eigen::SelfAdjointEigenSolver<Matrix> eig(directions);
@@ -73,30 +82,12 @@ TEST(ProbeBank, EverySupportHasEveryFamilyInEveryDirectionAndAHeldOutPart) {
     }
   }
   // Same options, same bank.
-  const ProbeBank again = MakeProbeBank(problem, k, ProbeOptions{});
+  const ProbeBank again = MakeProbeBanks(problem, k, ProbeOptions{}).fit;
   ASSERT_EQ(again.probes.size(), bank.probes.size());
   for (std::size_t p = 0; p < bank.probes.size(); ++p) {
     EXPECT_EQ(again.probes[p].force, bank.probes[p].force);
     EXPECT_EQ(again.probes[p].role, bank.probes[p].role);
   }
-}
-
-TEST(ResponseFit, HeldOutProbesNeverEnterTheFit) {
-  const Problem problem(examples::Make("fem-plate-5x5"));
-  const SparseMatrix k = ReferenceRestStiffness(problem);
-  ResponseFitOptions options;
-  const ProbeBank bank = MakeProbeBank(problem, k, options.probes);
-  const std::vector<double> prior = *BaselineGeneWeights(problem);
-  const ResponseFitResult fit = FitResponse(problem, bank, k, prior, options);
-  // Held-out probes made nonsense: the fit cannot tell.
-  ProbeBank corrupted = bank;
-  for (Probe& p : corrupted.probes) {
-    if (p.role != ProbeRole::kHeldOut) continue;
-    p.reference *= -3.0;
-    p.force.setRandom();
-  }
-  const ResponseFitResult again = FitResponse(problem, corrupted, k, prior, options);
-  EXPECT_EQ(again.weights, fit.weights);
 }
 
 // The first-order Gram matrix of every `stride`-th probe of a problem's bank, with what it was
@@ -114,7 +105,7 @@ struct FirstOrder {
 FirstOrder FirstOrderOf(const Problem& problem, std::size_t stride) {
   FirstOrder f;
   const SparseMatrix kref = ReferenceRestStiffness(problem);
-  f.bank = MakeProbeBank(problem, kref, ProbeOptions{});
+  f.bank = MakeProbeBanks(problem, kref, ProbeOptions{}).fit;
   f.springs = GeneSpringsOf(problem);
   for (const Support& s : f.bank.supports) {
     f.systems.emplace_back(problem.dimension(), s.constrained);
@@ -184,7 +175,7 @@ TEST(PencilExtremes, MatchADenseGeneralisedEigensolver) {
   const Problem problem(examples::Make("fem-plate-5x5"));
   const SparseMatrix kref = ReferenceRestStiffness(problem);
   const SparseMatrix kb = SpringRestStiffness(problem, *BaselineGeneWeights(problem));
-  const ProbeBank bank = MakeProbeBank(problem, kref, ProbeOptions{});
+  const ProbeBank bank = MakeProbeBanks(problem, kref, ProbeOptions{}).fit;
   const Support& support = bank.supports[0];
   const PencilExtremes x = GeneralizedEigenvalueExtremes(kb, kref, support.constrained, 2);
   SupportSystem a(2, support.constrained), b(2, support.constrained);
@@ -209,7 +200,7 @@ TEST(PencilExtremes, SoftModesAreTheSmallestGeneralisedEigenpairs) {
   const Problem problem(examples::Make("fem-kidney-2d"));
   const SparseMatrix kref = ReferenceRestStiffness(problem);
   const SparseMatrix kb = SpringRestStiffness(problem, *BaselineGeneWeights(problem));
-  const ProbeBank bank = MakeProbeBank(problem, kref, ProbeOptions{});
+  const ProbeBank bank = MakeProbeBanks(problem, kref, ProbeOptions{}).fit;
   const Support& support = bank.supports[0];
   SupportSystem reference(2, support.constrained), model(2, support.constrained);
   ASSERT_TRUE(reference.Factorize(kref));
@@ -235,7 +226,7 @@ TEST(PencilExtremes, SoftModesAreTheSmallestGeneralisedEigenpairs) {
 TEST(SupportSystem, ManyRightHandSidesGiveEachOnesOwnSolveBitForBit) {
   const Problem problem(examples::Make("fem-kidney-2d"));
   const SparseMatrix kref = ReferenceRestStiffness(problem);
-  const ProbeBank bank = MakeProbeBank(problem, kref, ProbeOptions{});
+  const ProbeBank bank = MakeProbeBanks(problem, kref, ProbeOptions{}).fit;
   SupportSystem system(2, bank.supports[0].constrained);
   ASSERT_TRUE(system.Factorize(kref));
   const int n = system.free_dofs();
@@ -329,7 +320,8 @@ namespace {
 TEST(ProbeBank, DrawnSupportsOnA3DBoundaryHoldEveryRigidMotion) {
   const Problem problem(examples::Make("fem-block-3d"));
   const SparseMatrix k = ReferenceRestStiffness(problem);
-  const ProbeBank bank = MakeProbeBank(problem, k, ProbeOptions{});
+  const ProbeBanks banks = MakeProbeBanks(problem, k, ProbeOptions{});
+  const ProbeBank& bank = banks.fit;
   const int d = problem.dimension();
   int drawn = 0;
   for (const Support& s : bank.supports) {
@@ -350,7 +342,8 @@ TEST(ProbeBank, DrawnSupportsOnA3DBoundaryHoldEveryRigidMotion) {
   const std::optional<std::vector<double>> baseline = BaselineGeneWeights(problem);
   ASSERT_TRUE(baseline);
   const SparseMatrix baseline_k = SpringRestStiffness(problem, *baseline);
-  const Generalization g = Certify(problem, bank, k, *baseline, baseline_k);
+  const Generalization g =
+      Certifier(problem, bank, banks.held_out, k).Certify(*baseline, baseline_k);
   EXPECT_TRUE(std::isfinite(g.model_held_out.p95)) << g.model_held_out.p95;
   EXPECT_GT(g.lambda_min, 0.0);
 }
@@ -489,8 +482,7 @@ TEST(ResponseFit, SoftModeProbesHoldEveryModeOfTheKidney) {
   EXPECT_GT(r.soft_mode_rounds[1].probes, 0);
   EXPECT_GE(r.lambda_min, fits.options.min_lambda);
   EXPECT_LE(r.select_error, (1.0 + fits.options.lambda_slack) * plain.select_error);
-  const Generalization g = Certify(fits.problem, fits.bank, fits.k, r.weights,
-                                   SpringRestStiffness(fits.problem, fits.prior));
+  const Generalization g = fits.Certify(r.weights);
   EXPECT_GE(g.lambda_min, fits.options.min_lambda);
   EXPECT_LT(g.model_held_out.median, 0.5 * g.baseline_held_out.median);
 }
@@ -664,8 +656,7 @@ TEST(ResponseFit, HeldModesKeepTheKidneysEveryModeWithoutRefitOrLift) {
   for (double lambda : held.regularization_lambda_min) EXPECT_GE(lambda, options.min_lambda);
   EXPECT_GE(held.lambda_min, options.min_lambda);
   EXPECT_LT(held.select_error, loose.select_error);
-  const Generalization g = Certify(kidney.problem, kidney.bank, kidney.k, held.weights,
-                                   SpringRestStiffness(kidney.problem, kidney.prior));
+  const Generalization g = kidney.Certify(held.weights);
   EXPECT_GE(g.lambda_min, options.min_lambda);
   EXPECT_LT(g.model_held_out.median, 0.25 * g.baseline_held_out.median);
 }
@@ -678,7 +669,7 @@ TEST(LinearizedResponse, GradientAndNormalProductMatchFiniteDifferences) {
   const SparseMatrix k = ReferenceRestStiffness(problem);
   ResponseFitOptions options;
   options.dust = 0.0;
-  const ProbeBank bank = MakeProbeBank(problem, k, options.probes);
+  const ProbeBank bank = MakeProbeBanks(problem, k, options.probes).fit;
   const std::vector<double> prior = *BaselineGeneWeights(problem);
   const ProbeObjective objective(problem, bank, k, prior, options);
   const GeneSprings springs = GeneSpringsOf(problem);
@@ -743,8 +734,7 @@ TEST(ResponseFit, TheMatrixFreeFitBeatsTheBaselineOnHeldOutProbesWhateverTheThre
   EXPECT_EQ(a.method, "matrix-free");
   EXPECT_EQ(a.weights, fits.two.weights);
   EXPECT_GT(a.gauss_newton_accepted, 0);
-  const Generalization g = Certify(fits.problem, fits.bank, fits.k, a.weights,
-                                   SpringRestStiffness(fits.problem, fits.prior));
+  const Generalization g = fits.Certify(a.weights);
   EXPECT_LT(g.model_held_out.median, 0.5 * g.baseline_held_out.median)
       << g.model_held_out.median << " vs " << g.baseline_held_out.median;
   EXPECT_GT(g.lambda_min, 0.0);
@@ -766,7 +756,7 @@ TEST(ResponseFit, TheMatrixFreeFitKeepsASpringBudget) {
   const SparseMatrix k = ReferenceRestStiffness(problem);
   ResponseFitOptions options;
   options.max_springs = 300;
-  const ProbeBank bank = MakeProbeBank(problem, k, options.probes);
+  const ProbeBank bank = MakeProbeBanks(problem, k, options.probes).fit;
   const std::vector<double> prior = *BaselineGeneWeights(problem);
   const ResponseFitResult r = FitResponse(problem, bank, k, prior, options);
   ASSERT_EQ(r.path.size(), 2u);
@@ -834,21 +824,23 @@ TEST(AmplitudeJudgement, SmallLoadsGiveTheRestLinearErrorsAndFullOnesDiffer) {
   const Problem problem(examples::Make("fem-kidney-2d-nl"));
   ASSERT_EQ(problem.response(), Response::kNonlinear);
   const SparseMatrix k = ReferenceRestStiffness(problem);
-  const ProbeBank bank = MakeProbeBank(problem, k, ProbeOptions{});
+  // Every fourth probe of the fit's bank (the certificate passes its held-out probes and named
+  // cases the same way).
+  const ProbeBank all = MakeProbeBanks(problem, k, ProbeOptions{}).fit;
+  ProbeBank bank = all;
+  bank.probes.clear();
+  for (std::size_t p = 0; p < all.probes.size(); p += 4) bank.probes.push_back(all.probes[p]);
   const std::vector<double> baseline = *BaselineGeneWeights(problem);
   std::vector<double> model = baseline;  // another model: every other spring twice as stiff
   for (std::size_t g = 0; g < model.size(); g += 2) model[g] *= 2.0;
   AmplitudeOptions options;
   options.amplitudes = {1e-3, 1.0};
-  options.max_probes = 1000;  // every held-out probe and named case
+  options.max_probes = 1000;  // every probe of the bank
   const std::vector<AmplitudeErrors> judged = JudgeAtAmplitudes(
       problem, bank, ModelOfWeights(problem, model), ModelOfWeights(problem, baseline), options);
   ASSERT_EQ(judged.size(), 2u);
 
-  std::vector<bool> include(bank.probes.size());
-  for (std::size_t p = 0; p < bank.probes.size(); ++p)
-    include[p] =
-        bank.probes[p].role == ProbeRole::kHeldOut || bank.probes[p].family == ProbeFamily::kNamed;
+  const std::vector<bool> include(bank.probes.size(), true);
   const ErrorSummary linear_model =
       Summarize(ProbeErrorsFor(bank, SpringRestStiffness(problem, model), include));
   const ErrorSummary linear_baseline =
@@ -876,7 +868,7 @@ TEST(AmplitudeJudgement, ALinearResponseIsNotJudgedAgain) {
   const Problem problem(examples::Make("fem-kidney-2d"));
   ASSERT_EQ(problem.response(), Response::kLinear);
   const SparseMatrix k = ReferenceRestStiffness(problem);
-  const ProbeBank bank = MakeProbeBank(problem, k, ProbeOptions{});
+  const ProbeBank bank = MakeProbeBanks(problem, k, ProbeOptions{}).fit;
   const SpringModel baseline = ModelOfWeights(problem, *BaselineGeneWeights(problem));
   EXPECT_TRUE(JudgeAtAmplitudes(problem, bank, baseline, baseline).empty());
 }
@@ -891,7 +883,7 @@ namespace {
 // judgement takes seconds, and a job must stop (and beat) within one.
 TEST(ProbeObjective, ItsJudgementsStopBetweenSolvesWhenAsked) {
   const KidneyAtRest kidney;
-  const auto& [problem, k, options, bank, prior] = kidney;
+  const auto& [problem, k, options, banks, prior, bank] = kidney;
   // A poll that asks for the stop at its n-th call (checked every time: period 0).
   const auto judged_until = [&](int n, const std::function<void(const ProbeObjective&)>& judge) {
     int polls = 0;

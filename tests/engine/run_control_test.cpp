@@ -203,6 +203,42 @@ TEST(RunControl, AStopDuringTheNonlinearJudgementIsAStopNotACompletion) {
   EXPECT_EQ(r.stiffness, whole.stiffness);
 }
 
+// A stop during the certificate ends the run there (its solves and Lanczos steps check for it):
+// the fitted model comes back uncertified, and says so.
+TEST(RunControl, AStopDuringTheCertificateReturnsTheModelUncertified) {
+  const Problem p = Problem::Build(examples::Make("fem-kidney-2d"));
+  const IdentificationResult whole =
+      RunIdentification(p, Resolved(p, Strategy::kContinuous), RunContext{});
+  ASSERT_TRUE(whole.generalization);
+  StopAtPhase stop{"certificate", {}};
+  const IdentificationResult r =
+      RunIdentification(p, Resolved(p, Strategy::kContinuous), stop.Context());
+  ASSERT_FALSE(stop.seen.empty());
+  EXPECT_EQ(stop.seen.back(), "certificate");
+  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  EXPECT_NE(r.stop_message.find("during the certificate"), std::string::npos) << r.stop_message;
+  EXPECT_NE(r.stop_message.find("not certified"), std::string::npos) << r.stop_message;
+  EXPECT_FALSE(r.generalization);
+  EXPECT_EQ(r.best, whole.best);  // the fitted model, whole
+  EXPECT_EQ(r.stiffness, whole.stiffness);
+}
+
+// A stop during the fit returns the start, named as such: not "springs fitted".
+TEST(RunControl, AStopDuringTheFitReturnsTheStartNamedAsTheBaseline) {
+  const Problem p = Problem::Build(examples::Make("fem-kidney-2d"));
+  StopAtPhase stop{"probe_fit", {}};
+  const IdentificationResult r =
+      RunIdentification(p, Resolved(p, Strategy::kContinuous), stop.Context());
+  ASSERT_FALSE(stop.seen.empty());
+  EXPECT_EQ(stop.seen.back(), "probe_fit");
+  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  EXPECT_NE(r.stop_message.find("during the fit: the start (the closed-form baseline"),
+            std::string::npos)
+      << r.stop_message;
+  EXPECT_EQ(r.stop_message.find("springs fitted"), std::string::npos) << r.stop_message;
+  EXPECT_FALSE(r.generalization);
+}
+
 TEST(RunControl, AResumedRunStoppedBeforeItsFirstStepKeepsTheCheckpointsBest) {
   const Problem p = Problem::Build(examples::Make("fem-plate-5x5"));
   SearchOptions o = Resolved(p, Strategy::kPaper);
