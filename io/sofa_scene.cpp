@@ -16,9 +16,11 @@
 namespace springfit::io {
 namespace {
 
+// A release as SOFA names it ("v24.06") or without its "v" ("24.06"), as users write it.
 int ReleaseIndex(const std::string& release) {
+  const std::string named = !release.empty() && release[0] != 'v' ? "v" + release : release;
   for (std::size_t i = 0; i < kSofaReleases.size(); ++i)
-    if (release == kSofaReleases[i]) return static_cast<int>(i);
+    if (named == kSofaReleases[i]) return static_cast<int>(i);
   return -1;
 }
 
@@ -136,7 +138,8 @@ struct SofaScene {
   // The comment that says what the scene is, and the root node with its plugins.
   void WriteHeader(std::ostream& out) const {
     out << "<?xml version=\"1.0\"?>\n<!-- springfit model " << XmlCommentText(model.name) << ": "
-        << XmlCommentText(model.description) << ".\n     SOFA " << options.release
+        << XmlCommentText(model.description) << ".\n     SOFA "
+        << kSofaReleases[static_cast<std::size_t>(ReleaseIndex(options.release))]
         << " (the release chosen at export; components as that release names them, "
            "proto/MODEL.md).\n     Load case '"
         << XmlCommentText(lc.name) << "': " << lc.held.size() << " held nodes, " << loaded.size()

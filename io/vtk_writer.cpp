@@ -128,7 +128,7 @@ std::string VtuText(const SpringModel& model) {
     out << "          " << VtkElementType(model.dimension) << "\n";
   out << "        </DataArray>\n      </Cells>\n      <CellData Scalars=\"stiffness\">\n";
   for (const CellArray& a : kCellArrays) {
-    out << "        <DataArray type=\"" << (a.integer ? "Int8" : "Float64") << "\" Name=\""
+    out << "        <DataArray type=\"" << (a.integer ? "Int64" : "Float64") << "\" Name=\""
         << a.name << "\" format=\"ascii\">\n";
     for (const auto& s : model.springs)
       out << "          " << ValueText(a.of(s), a.integer) << "\n";
@@ -142,7 +142,7 @@ std::string VtuText(const SpringModel& model) {
   if (!fields.empty()) {
     out << "      <PointData>\n";
     for (const PointField& f : fields) {
-      out << "        <DataArray type=\"" << (f.integer ? "UInt8" : "Float64") << "\" Name=\""
+      out << "        <DataArray type=\"" << (f.integer ? "Int64" : "Float64") << "\" Name=\""
           << XmlEscape(f.name) << "\" NumberOfComponents=\"" << f.components
           << "\" format=\"ascii\">\n";
       for (int p = 0; p < model.node_count(); ++p) {

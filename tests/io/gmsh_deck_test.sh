@@ -87,6 +87,19 @@ for tag, x in zip(inp["node_tags"], inp["nodes"]):
 v = meshio.read(sys.argv[5])
 assert [int(t) for t in v.point_data["node_tag"]] == inp["node_tags"]
 PY
+# Tags past a byte's range travel too, in both VTK formats (a .vtu once wrote them as UInt8:
+# node 1000's tag read 232).
+python3 -c "import json,sys; s=json.load(open(sys.argv[1])); d=s['scene_definition']; d['node_tags']=[t + 100000 for t in d['node_tags']]; json.dump(s, open(sys.argv[2],'w'))" "$tmp/inp-result.json" "$tmp/big-tags-result.json"
+for ext in vtu vtk; do
+  expect_exit 0 "export large tags as .$ext" "$sf" export "$tmp/big-tags-result.json" -o "$tmp/big-tags.$ext"
+  "$debian_python" - "$tmp/inp.json" "$tmp/big-tags.$ext" <<'PY' || fail "large node tags in .$ext"
+import json, sys, meshio
+inp = json.load(open(sys.argv[1]))
+v = meshio.read(sys.argv[2])
+assert [int(t) for t in v.point_data["node_tag"]] == [t + 100000 for t in inp["node_tags"]], \
+    list(v.point_data["node_tag"][:5])
+PY
+done
 python3 -c "import json,sys; s=json.load(open(sys.argv[1])); s['node_tags'].pop(); json.dump(s, open(sys.argv[2],'w'))" "$tmp/inp.json" "$tmp/short-tags.json"
 expect_exit 2 "node_tags of the wrong length" "$sf" check "$tmp/short-tags.json"
 grep -qF "node_tags: 214 tags for 215 nodes" "$tmp/err" || fail "node_tags length: $(cat "$tmp/err")"

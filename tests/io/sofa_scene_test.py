@@ -332,6 +332,11 @@ with tempfile.TemporaryDirectory() as work:
         p = run("export", plate, "-o", f"{work}/bad.scn", *args, expect=2)
         check(message in p.stderr, f"{args}: {p.stderr}")
         check(not os.path.exists(f"{work}/bad.scn"), f"{args}: a file was written")
+    # A release as users write it, without SOFA's "v": the same scene as with it.
+    run("export", plate, "-o", f"{work}/bare.scn", "--sofa-version", "24.06")
+    run("export", plate, "-o", f"{work}/named.scn", "--sofa-version", "v24.06")
+    check(open(f"{work}/bare.scn").read() == open(f"{work}/named.scn").read(),
+          "--sofa-version 24.06 and v24.06 differ")
     p = run("export", plate, "-o", f"{work}/bad.vtu", "--sofa-version", "v24.06", expect=2)
     check("--sofa-version: applies to a SOFA scene (.scn)" in p.stderr, p.stderr)
     p = run("export", grid, "-o", f"{work}/bad.scn", "--density", "1", expect=2)
