@@ -418,23 +418,25 @@ void Scheduler::MonitorLoop() {
 }
 
 void Scheduler::Heartbeat() {
-  std::vector<std::pair<Lease, Running*>> leases;
+  std::vector<Lease> leases;
   {
     MutexLock lock(mutex_);
-    for (auto& [id, running] : running_) leases.emplace_back(running->lease, running.get());
+    for (const auto& [id, running] : running_) leases.push_back(running->lease);
   }
-  for (auto& [lease, running] : leases) {
+  for (const Lease& lease : leases) {
     try {
       const LeaseStatus status = store_.RenewLease(lease, options_.lease_seconds);
-      // The Running slot lives until its runner erases it, under mutex_, after RunJob: read
-      // it under the mutex, since a job may have ended since the snapshot.
+      // The job's run may have ended since the snapshot, and the job been claimed again into
+      // a new slot (whose address may be the old one's): the answer is for this claim only,
+      // known by its epoch, which every claim of the job increments.
       MutexLock lock(mutex_);
       const auto r = running_.find(lease.job_id);
-      if (r == running_.end() || r->second.get() != running) continue;
-      if (!status.held && !running->lease_lost.exchange(true)) {
+      if (r == running_.end() || r->second->lease.epoch != lease.epoch) continue;
+      Running& running = *r->second;
+      if (!status.held && !running.lease_lost.exchange(true)) {
         spdlog::warn("job {}: lease lost to another daemon; stopping it here", lease.job_id);
       }
-      if (status.cancel_requested) running->cancel.store(true);
+      if (status.cancel_requested) running.cancel.store(true);
     } catch (const std::exception& e) {
       store_errors.Report("job " + std::to_string(lease.job_id) + ": cannot renew its lease", e);
     }

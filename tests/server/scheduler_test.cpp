@@ -19,6 +19,7 @@
 #include <future>
 #include <map>
 #include <mutex>
+#include <new>
 #include <optional>
 #include <set>
 #include <string>
@@ -35,9 +36,83 @@
 #include "server/store/sqlite_store.h"
 #include "tests/test_scenes.h"
 
+// Address reuse on demand. Whether a block just freed is handed out again at once is up to
+// the allocator (glibc's per-thread caches often do, unless another allocation of its size
+// class came first; a sanitizer's quarantine never does). While a ReuseFreedBlocks lives, the
+// last block of each size that `delete` frees is handed to the next `new` of that exact size,
+// so that an object made right after one of its type was destroyed sits at its address.
+namespace reuse {
+std::atomic<bool> armed{false};
+std::mutex mutex;
+std::map<std::size_t, void*>* held = nullptr;  // under mutex, while armed
+// The map's own nodes come and go through plain malloc and free.
+thread_local bool inside = false;
+
+void* Take(std::size_t n) {
+  if (!armed.load() || inside) return nullptr;
+  std::lock_guard lock(mutex);
+  if (!held) return nullptr;
+  inside = true;
+  void* p = nullptr;
+  if (const auto it = held->find(n); it != held->end()) {
+    p = it->second;
+    held->erase(it);
+  }
+  inside = false;
+  return p;
+}
+
+bool Keep(void* p, std::size_t n) {
+  if (!armed.load() || inside) return false;
+  std::lock_guard lock(mutex);
+  if (!held) return false;
+  inside = true;
+  const auto [it, kept] = held->try_emplace(n, p);
+  if (!kept) {
+    std::free(it->second);
+    it->second = p;
+  }
+  inside = false;
+  return true;
+}
+}  // namespace reuse
+
+void* operator new(std::size_t n) {
+  if (void* p = reuse::Take(n)) return p;
+  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept {
+  std::free(p);
+}
+void operator delete(void* p, std::size_t n) noexcept {
+  if (p && !reuse::Keep(p, n)) std::free(p);
+}
+
 namespace springfit::server {
 namespace {
 using proto::Json;
+
+class ReuseFreedBlocks {
+ public:
+  ReuseFreedBlocks() {
+    std::lock_guard lock(reuse::mutex);
+    reuse::held = new std::map<std::size_t, void*>();
+    reuse::armed.store(true);
+  }
+  ~ReuseFreedBlocks() {
+    std::map<std::size_t, void*>* held = nullptr;
+    {
+      std::lock_guard lock(reuse::mutex);
+      reuse::armed.store(false);
+      std::swap(held, reuse::held);
+    }
+    for (const auto& [size, p] : *held) std::free(p);
+    delete held;
+  }
+  ReuseFreedBlocks(const ReuseFreedBlocks&) = delete;
+  ReuseFreedBlocks& operator=(const ReuseFreedBlocks&) = delete;
+};
 
 constexpr std::chrono::seconds kBound{60};
 
@@ -77,6 +152,10 @@ class HookedStore final : public ForwardingStore {
   std::vector<std::int64_t> Claimed() {
     std::lock_guard lock(mutex_);
     return claimed_;
+  }
+  long ClaimsOf(std::int64_t id) {
+    std::lock_guard lock(mutex_);
+    return std::count(claimed_.begin(), claimed_.end(), id);
   }
 
   std::optional<Claim> ClaimNext(const std::string& owner, double lease_seconds) override {
@@ -209,6 +288,14 @@ T GetWithin(std::future<T>& future, const char* what) {
   return future.get();
 }
 
+// Whether `done` holds within `bound` (polled every 5 ms).
+bool WaitUntil(const std::function<bool()>& done, std::chrono::seconds bound) {
+  const auto deadline = std::chrono::steady_clock::now() + bound;
+  while (!done() && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  return done();
+}
+
 class SchedulerTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -243,6 +330,23 @@ class SchedulerTest : public ::testing::Test {
     o.workers = 2;
     o.max_running = max_running;
     return o;
+  }
+  // Leases of 2 s renewed every 0.2 s, for the tests of leases lapsing. (Ten heartbeats:
+  // under ThreadSanitizer on a slow turn of a 2-core machine a 1 s lease lapsed between two
+  // renewals, a claim the test did not ask.)
+  static SchedulerOptions ShortLeases(int max_running) {
+    SchedulerOptions o = Options(max_running);
+    o.lease_seconds = 2.0;
+    o.heartbeat_seconds = 0.2;
+    return o;
+  }
+
+  // An endless job that runs until cancelled within a test of a minute. (The endless grid
+  // breeds a million generations in about 5 s here: a larger budget.)
+  std::int64_t CreateLongJob(SqliteStore& sqlite, const std::string& label) {
+    scene_.search.max_generations = 100000000;
+    scene_.search.max_seconds = 60.0;
+    return sqlite.CreateJob(Job(label), 100).job.id;
   }
 
   // The job's one job.finished notification, with state "cancelled".
@@ -461,37 +565,21 @@ TEST_F(SchedulerTest, AShutdownInsideAGenerationLeavesTheJobToResume) {
 TEST_F(SchedulerTest, AJobItsOwnDaemonClaimsAgainRunsOnceAtATime) {
   SqliteStore sqlite(path_);
   HookedStore store(sqlite);
-  // (The endless grid breeds a million generations in about 5 s here: a larger budget.)
-  scene_.search.max_generations = 100000000;
-  scene_.search.max_seconds = 60.0;
-  const std::int64_t id = sqlite.CreateJob(Job("stalled"), 100).job.id;
-  SchedulerOptions options = Options(2);
-  // (A 2 s lease, ten heartbeats: under ThreadSanitizer on a slow turn of a 2-core machine a
-  // 1 s lease lapsed between two renewals of the new run, a third claim the test did not ask.)
-  options.lease_seconds = 2.0;
-  options.heartbeat_seconds = 0.2;
+  const std::int64_t id = CreateLongJob(sqlite, "stalled");
+  const SchedulerOptions options = ShortLeases(2);
   Notifications inbox;
   Scheduler scheduler(store, options);
   scheduler.Watch(id, inbox.For(id));
   scheduler.Start();
-  const auto wait_until = [](const std::function<bool()>& done, std::chrono::seconds bound) {
-    const auto deadline = std::chrono::steady_clock::now() + bound;
-    while (!done() && std::chrono::steady_clock::now() < deadline)
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    return done();
-  };
-  const auto claims = [&] {
-    const std::vector<std::int64_t> claimed = store.Claimed();
-    return std::count(claimed.begin(), claimed.end(), id);
-  };
+  const auto claims = [&] { return store.ClaimsOf(id); };
   ASSERT_TRUE(
-      wait_until([&] { return !store.ProgressEpochs(id).empty(); }, std::chrono::seconds(30)));
+      WaitUntil([&] { return !store.ProgressEpochs(id).empty(); }, std::chrono::seconds(30)));
   // The heartbeat stalls until the lapsed lease has been claimed again.
   store.StallNextRenewal([&] { return claims() >= 2; });
-  ASSERT_TRUE(wait_until([&] { return claims() == 2; }, std::chrono::seconds(30)))
+  ASSERT_TRUE(WaitUntil([&] { return claims() == 2; }, std::chrono::seconds(30)))
       << "the idle runner did not claim the lapsed job";
   const std::int64_t first_epoch = store.ProgressEpochs(id).front();
-  ASSERT_TRUE(wait_until(
+  ASSERT_TRUE(WaitUntil(
       [&] {
         const auto epochs = store.ProgressEpochs(id);
         return std::count_if(epochs.begin(), epochs.end(),
@@ -508,6 +596,54 @@ TEST_F(SchedulerTest, AJobItsOwnDaemonClaimsAgainRunsOnceAtATime) {
       std::find_if(epochs.begin(), epochs.end(), [&](std::int64_t e) { return e != first_epoch; });
   EXPECT_TRUE(std::all_of(first_new, epochs.end(), [&](std::int64_t e) { return e == *first_new; }))
       << "a write of the old run after the new run's first";
+  EXPECT_EQ(scheduler.Cancel(id), Scheduler::CancelOutcome::kCancelling);
+  ASSERT_TRUE(inbox.WaitFinished({id}));
+  ExpectFinishedOnceCancelled(inbox, id);
+  ASSERT_TRUE(scheduler.Stop(std::chrono::seconds(30)));
+  ExpectNothingLeft(sqlite, scheduler, {id});
+}
+
+// A heartbeat that stalls on a run's renewal while that run loses its lease (to another
+// daemon, which lets it go) and the same runner claims the job again: the new run's slot may
+// sit where the old one did. The stalled renewal, answered "not held" for the old claim, must
+// not stop the new run, whose lease it is not: the new run goes on, and the job is not claimed
+// a third time.
+TEST_F(SchedulerTest, AStaleRenewalDoesNotStopTheNextRunOfTheSameJob) {
+  SqliteStore sqlite(path_);
+  HookedStore store(sqlite);
+  const std::int64_t id = CreateLongJob(sqlite, "reclaimed");
+  // One runner: the old run's slot is freed and the new one made on the same thread.
+  SchedulerOptions options = ShortLeases(1);
+  options.poll_seconds = 0.1;
+  Notifications inbox;
+  Scheduler scheduler(store, options);
+  scheduler.Watch(id, inbox.For(id));
+  scheduler.Start();
+  ASSERT_TRUE(
+      WaitUntil([&] { return !store.ProgressEpochs(id).empty(); }, std::chrono::seconds(30)));
+  // The new run's slot is made where the old run's was (reproduced, not left to the allocator).
+  const ReuseFreedBlocks reuse_addresses;
+  // The next renewal (the old run's) stalls until the job runs here again.
+  store.StallNextRenewal([&] { return store.ClaimsOf(id) >= 2 && scheduler.IsRunningHere(id); });
+  std::optional<Claim> other;
+  ASSERT_TRUE(WaitUntil(
+      [&] {
+        if (!other) other = sqlite.ClaimNext("other-daemon", 30.0);
+        return other.has_value();
+      },
+      std::chrono::seconds(30)))
+      << "the stalled lease did not lapse";
+  ASSERT_TRUE(WaitUntil([&] { return !scheduler.IsRunningHere(id); }, std::chrono::seconds(30)))
+      << "the old run did not stop on losing its lease";
+  sqlite.ReleaseLease(other->lease);
+  ASSERT_TRUE(WaitUntil([&] { return store.ClaimsOf(id) == 2; }, std::chrono::seconds(30)))
+      << "the released job was not claimed again";
+  const std::int64_t new_epoch = other->lease.epoch + 1;
+  // Three leases' worth of time after the stalled renewal returned.
+  std::this_thread::sleep_for(std::chrono::seconds(6));
+  EXPECT_TRUE(scheduler.IsRunningHere(id)) << "the new run was stopped";
+  EXPECT_EQ(store.ClaimsOf(id), 2);
+  EXPECT_EQ(store.ProgressEpochs(id).back(), new_epoch);
   EXPECT_EQ(scheduler.Cancel(id), Scheduler::CancelOutcome::kCancelling);
   ASSERT_TRUE(inbox.WaitFinished({id}));
   ExpectFinishedOnceCancelled(inbox, id);
