@@ -406,10 +406,18 @@ auto PostgresStore::With(Slot& slot, F&& f) {
     slot.socket = -1;
     return slot.fired;
   };
+  // The watchdog may fire after the call's last round trip: the call succeeded, but the
+  // socket is shut all the same, and the connection's next call would fail on it (a progress
+  // write, which interrupts its job). Such a connection goes: the next call opens a new one.
   struct Disarm {
     const decltype(disarm)& off;
-    ~Disarm() { off(); }
-  } disarm_at_end{disarm};
+    const std::function<void()>& on_call_end;
+    Slot& slot;
+    ~Disarm() {
+      if (on_call_end) on_call_end();
+      if (off()) slot.connection.reset();
+    }
+  } disarm_at_end{disarm, options_.on_call_end, slot};
   const auto drop = [&](const std::string& what) {
     const bool timed_out = disarm();
     slot.connection.reset();

@@ -40,6 +40,9 @@ class PostgresStore final : public JobStore {
     // shorter ScopedStoreDeadline (server.info) gives up after that.
     double call_seconds = 10.0;
     int readers = 2;  // connections for reads (>= 1)
+    // Tests: runs as each call ends, before the watchdog stops watching it (a call whose
+    // deadline passes after its last round trip).
+    std::function<void()> on_call_end;
     void Validate() const;
   };
 

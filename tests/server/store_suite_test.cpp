@@ -81,6 +81,7 @@ class PostgresFactory final : public StoreFactory {
   }
   std::unique_ptr<JobStore> Open() override { return std::make_unique<PostgresStore>(url_, ""); }
   std::unique_ptr<JobStore> Second() override { return Open(); }
+  const std::string& url() const { return url_; }
   void ExecRaw(const std::string& sql) override {
     pqxx::connection c(url_);
     pqxx::nontransaction w(c);
@@ -676,6 +677,39 @@ TEST(PostgresStoreOnly, DaemonsStartingTogetherMigrateOnce) {
     }));
   }
   for (auto& f : opens) EXPECT_EQ(f.get(), PostgresStore::kSchemaVersion);
+}
+
+// PostgreSQL alone: a call whose deadline passes after its last round trip succeeds, and the
+// watchdog shuts its socket all the same. The next call on that connection (the writer's, here
+// a progress write; a reader's) must not fail on the dead socket: the connection is replaced.
+TEST(PostgresStoreOnly, AWatchdogFiringAfterASuccessfulCallLeavesNoDeadConnection) {
+  PostgresFactory factory("t_late_watchdog");
+  std::atomic<bool> linger{false};
+  PostgresStore::Options options;
+  options.call_seconds = 1.0;
+  options.readers = 1;
+  // The call has answered; its end comes after the deadline (and the watchdog's 50 ms beat).
+  options.on_call_end = [&] {
+    if (linger.exchange(false)) std::this_thread::sleep_for(1500ms);
+  };
+  PostgresStore store(factory.url(), "", options);
+  const std::int64_t id = store.CreateJob(StoreTestJob("late"), 10).job.id;
+  const std::optional<Claim> claim = store.ClaimNext("d", 30.0);
+  ASSERT_TRUE(claim);
+  linger = true;
+  EXPECT_TRUE(store.RenewLease(claim->lease, 30.0).held);
+  ProgressBatch batch;
+  batch.latest = StoreTestRow(1, 0.5);
+  EXPECT_NO_THROW(store.SaveProgress(claim->lease, batch));
+  linger = true;
+  EXPECT_TRUE(store.GetJob(id));
+  try {
+    const std::optional<JobRecord> job = store.GetJob(id);
+    ASSERT_TRUE(job && job->progress);
+    EXPECT_EQ(job->progress->generation, 1);
+  } catch (const StoreUnavailable& e) {
+    ADD_FAILURE() << "the reader kept the connection the watchdog shut: " << e.what();
+  }
 }
 
 }  // namespace
