@@ -3,8 +3,8 @@
 //
 // The equilibrium minimises the potential energy over the free nodes' displacements u:
 //   E(u) = sum_springs 1/2 k (L - l)^2 - sum_free F . u
-// (docs/ARCHITECTURE.md, "Equilibria and numerics"). Newton's method with a backtracking (Armijo) line search
-// on E: each step uses the exact spring Hessian when it is positive definite (quadratic
+// (docs/ARCHITECTURE.md, "Equilibria and numerics"). Newton's method with a backtracking (Armijo)
+// line search on E: each step uses the exact spring Hessian when it is positive definite (quadratic
 // convergence) and the projected one (compressive lateral term clamped at 0, see springs.h)
 // when it is not. Constrained nodes (fixed or with a prescribed displacement) are not unknowns.
 //

@@ -172,8 +172,9 @@ enum class Response {
   kLinear,
 };
 
-// Settings of the topology search (docs/ARCHITECTURE.md, "The identification cost and the strategies"). An unset GA parameter takes the chosen
-// strategy's default (engine/search/search_options.h).
+// Settings of the topology search (docs/ARCHITECTURE.md, "The identification cost and the
+// strategies"). An unset GA parameter takes the chosen strategy's default
+// (engine/search/search_options.h).
 struct SearchSettings {
   Strategy strategy = Strategy::kDefault;
   // nullopt: topology and stiffness for strategy direct, topology for the others.

@@ -1,7 +1,8 @@
 // The built-in example scenes (`springfit example NAME`), also committed under examples/.
 //
 // Each generator builds its scene deterministically and checks that the reference stays
-// unambiguous under every load case: no cell of the mesh inverts (docs/ARCHITECTURE.md, "Paper7 load cases").
+// unambiguous under every load case: no cell of the mesh inverts (docs/ARCHITECTURE.md, "Paper7
+// load cases").
 #pragma once
 
 #include <cstdint>
@@ -32,10 +33,10 @@ Vector GridNodes(const std::vector<int>& n, double spacing);
 // All pairs of the 8 (2D) or 26 (3D) grid neighbourhood of GridNodes(n, spacing).
 std::vector<NodePair> GridNeighbourSprings(const std::vector<int>& n);
 
-// The paper's seven load cases (docs/ARCHITECTURE.md, "Paper7 load cases") on any node set, choosing fixed and
-// loaded nodes from the bounding box: nodes within `band` (a fraction of the extent along
-// that axis; 0 = exactly on the boundary) of the minimum are fixed, those within it of the
-// maximum loaded with `magnitude` per node. 2D: bottom fixed, top loaded +y, -y, +x, -x; left
+// The paper's seven load cases (docs/ARCHITECTURE.md, "Paper7 load cases") on any node set,
+// choosing fixed and loaded nodes from the bounding box: nodes within `band` (a fraction of the
+// extent along that axis; 0 = exactly on the boundary) of the minimum are fixed, those within it of
+// the maximum loaded with `magnitude` per node. 2D: bottom fixed, top loaded +y, -y, +x, -x; left
 // fixed, right loaded +x, +y, -y. 3D adds z: bottom (z) fixed, top loaded +z, -z, +x, -x, +y;
 // left (x) fixed, right loaded +x, +y, -y, +z (9 cases).
 std::vector<LoadCase> Paper7LoadCases(int dimension, const Vector& rest, double magnitude,
@@ -65,8 +66,8 @@ Scene FemKidney2dFine(const SimplexMesh& mesh);
 Scene FemBlock3d();
 
 // Rescales every load case's forces and tractions so that the reference's largest nodal
-// displacement in the small-load (linear) limit is `strain` times the scene's extent (docs/ARCHITECTURE.md, "Paper7 load cases":
-// examples keep loads at moderate strain).
+// displacement in the small-load (linear) limit is `strain` times the scene's extent
+// (docs/ARCHITECTURE.md, "Paper7 load cases": examples keep loads at moderate strain).
 void ScaleLoadsToStrain(Scene& scene, double strain);
 
 // Throws std::logic_error when a simplex of `simplices` (triangles in 2D, tetrahedra in 3D,

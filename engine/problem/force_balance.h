@@ -1,5 +1,6 @@
 // The equilibrium equations of the training model, written at the reference's equilibrium
-// positions, as a linear system in the spring weights (docs/ARCHITECTURE.md, "The identification cost and the strategies"):
+// positions, as a linear system in the spring weights (docs/ARCHITECTURE.md, "The identification
+// cost and the strategies"):
 //
 //   for load case k and free node i:   sum_j w_ij g_ij(X^R_k) = -F_ext,i,k
 //   g_ij(X) = -(|X_i - X_j| - l_ij) (X_i - X_j) / |X_i - X_j|
