@@ -94,6 +94,9 @@ const SpringModel::LoadCase& ChosenLoadCase(const SpringModel& model, const Sofa
   return *it;
 }
 
+// The nodes whose predicted displacement a scene states (SofaScene::WritePrediction).
+constexpr std::size_t kMonitoredNodes = 5;
+
 // What one SOFA scene is written from: the model, the options, the load case, and the scales of
 // the solver's stopping tests (the body's size and the load's size).
 struct SofaScene {
@@ -168,6 +171,52 @@ struct SofaScene {
     if (masses) plugins.push_back("Sofa.Component.Mass");
     for (const auto& p : plugins) out << "  <RequiredPlugin name=\"" << p << "\"/>\n";
     out << "  <DefaultAnimationLoop/>\n";
+  }
+
+  // What springfit predicts this scene computes: the displacement of the nodes that move most,
+  // from springfit's solve of the same springs with SOFA's law (f = k (l - L0) along the current
+  // direction: nonlinear springs), as a comment a user compares SOFA's result with, and one line
+  // per node (`springfit-expected NODE UX UY UZ`) a script reads.
+  void WritePrediction(std::ostream& out) const {
+    const int d = model.dimension;
+    const int n = model.node_count();
+    out << "<!-- What this scene should compute (springfit's prediction): the equilibrium of these "
+           "springs\n     under load case '"
+        << XmlCommentText(lc.name)
+        << "', solved by springfit with SOFA's spring law (f = k (l - L0) along the current "
+           "direction:\n     nonlinear springs, as every release here runs them), the same "
+           "supports and forces.\n";
+    if (lc.model_displacement.empty()) {
+      out << "     None: the springs have no equilibrium under this case (a mechanism, or a "
+             "load they cannot carry). -->\n";
+      return;
+    }
+    std::vector<std::pair<double, int>> by_size;
+    for (int p = 0; p < n; ++p) {
+      double u2 = 0.0;
+      for (int c = 0; c < d; ++c)
+        u2 += std::pow(lc.model_displacement[static_cast<std::size_t>(d * p + c)], 2);
+      by_size.emplace_back(-u2, p);
+    }
+    const std::size_t shown = std::min<std::size_t>(kMonitoredNodes, by_size.size());
+    std::partial_sort(by_size.begin(), by_size.begin() + static_cast<std::ptrdiff_t>(shown),
+                      by_size.end());
+    out << "     Compare each node's displacement from rest (position - rest_position) after "
+        << (options.dynamic ? "the motion settles" : "the static solve")
+        << ": the relative difference\n     |u_SOFA - u| / |u| should be at most 1e-6 (the "
+           "Newton tolerances below); a larger one means the scene\n     was changed or SOFA's "
+           "springs differ from the law above. The "
+        << shown << " nodes that move most (node, u x y z):\n";
+    for (std::size_t i = 0; i < shown; ++i) {
+      const int p = by_size[i].second;
+      out << "     springfit-expected " << p;
+      for (int c = 0; c < 3; ++c)
+        out << " "
+            << (c < d ? ExactNumber(lc.model_displacement[static_cast<std::size_t>(d * p + c)])
+                      : "0");
+      out << "\n";
+    }
+    out << "-->\n";
   }
 
   // The time integration (implicit Euler) or the static Newton solve, and the linear solver.
@@ -295,6 +344,7 @@ std::string SofaSceneText(const SpringModel& model, const SofaOptions& options) 
   const SofaScene scene(model, options);
   std::ostringstream out;
   scene.WriteHeader(out);
+  scene.WritePrediction(out);
   out << "  <Node name=\"" << XmlEscape(model.name) << "\">\n";
   scene.WriteSolver(out);
   scene.WriteBody(out);

@@ -12,8 +12,10 @@
 namespace springfit::io {
 namespace {
 
-// Each load case as a simulator applies it, the reference's equilibrium, and the model's own
-// (with the problem's response, as the certificate judged it).
+// Each load case as a simulator applies it, the reference's equilibrium, and the model's own as
+// a simulator computes it: with the simulator's spring law (nonlinear springs: f = k (l - L0)
+// along the current direction), whatever response the fit was judged with, so that what an
+// export states is what SOFA reaches (docs/ARCHITECTURE.md, "The nonlinear judgement").
 void AddLoadCases(SpringModel& model, const Problem& problem) {
   const Scene& scene = problem.scene();
   const int d = model.dimension;
@@ -24,6 +26,7 @@ void AddLoadCases(SpringModel& model, const Problem& problem) {
   }
   CostOptions every_case;
   every_case.solve_cases_of_mechanisms = true;
+  every_case.response = Response::kNonlinear;
   CostFunction cost(problem, every_case);
   std::vector<Vector> displacements;
   cost.Evaluate(springs, &displacements);

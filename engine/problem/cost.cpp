@@ -52,8 +52,10 @@ void Penalize(const Problem& p, double stable_cost, Evaluation& e) {
 CostFunction::CostFunction(const Problem& problem, CostOptions options)
     : problem_(&problem), options_(options) {
   solvers_.reserve(problem.free_sets().size());
+  EquilibriumOptions solver_options = problem.solver_options();
+  if (options_.response) solver_options.response = *options_.response;
   for (const FreeNodes& free : problem.free_sets()) {
-    solvers_.emplace_back(problem.candidates(), free, problem.solver_options());
+    solvers_.emplace_back(problem.candidates(), free, solver_options);
   }
 }
 

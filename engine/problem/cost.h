@@ -17,6 +17,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "engine/equilibrium.h"
@@ -57,6 +58,9 @@ struct CostOptions {
   // false skips the other load cases' solves (termination kNotSolved), which a search never
   // reads; true solves them for a per-case report (`springfit eval`).
   bool solve_cases_of_mechanisms = false;
+  // The springs' law for these evaluations; none: the problem's (Problem::response). An export
+  // predicts what a simulator computes, so it asks for kNonlinear whatever the problem's.
+  std::optional<Response> response;
 };
 
 // Evaluates topologies of one Problem. Holds one EquilibriumSolver per distinct set of free
