@@ -228,12 +228,14 @@ void Scheduler::PublishFinished(std::int64_t id, const JobRecord& job) {
   Publish(id, proto::rpc::Notification("job.finished", proto::JobToJson(job)));
 }
 
-void Scheduler::PublishGone(std::int64_t id) {
+void Scheduler::PublishGone(std::int64_t id, const std::string& why) {
   proto::Json params;
   params["job_id"] = id;
-  params["message"] = "job " + std::to_string(id) +
-                      " no longer exists (a submission refused or abandoned while it was "
-                      "prepared, which was never acknowledged, or a job deleted)";
+  params["message"] = why.empty() ? "job " + std::to_string(id) +
+                                        " no longer exists (a submission refused or abandoned "
+                                        "while it was prepared, which was never acknowledged, "
+                                        "or a job deleted)"
+                                  : why;
   Publish(id, proto::rpc::Notification("job.gone", params));
 }
 
@@ -471,6 +473,11 @@ void Scheduler::FollowWatched() {
     std::optional<JobRecord> job;
     try {
       job = store_.GetJob(id);
+    } catch (const StoreCorrupt& e) {
+      // Its row cannot be read (quarantined: it never runs again). Its watch ends; the other
+      // watched jobs are followed on.
+      PublishGone(id, e.what());
+      continue;
     } catch (const std::exception& e) {
       store_errors.Report("cannot follow watched jobs", e);
       return;

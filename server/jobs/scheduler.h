@@ -153,8 +153,9 @@ class Scheduler {
   void Wake();
   void Publish(std::int64_t id, const proto::Json& notification);
   void PublishFinished(std::int64_t id, const JobRecord& job);
-  // job.gone: a watched job that no longer exists (a submission dropped while prepared).
-  void PublishGone(std::int64_t id);
+  // job.gone: a watched job that no longer exists (a submission dropped while prepared), or
+  // whose row cannot be read (`why`).
+  void PublishGone(std::int64_t id, const std::string& why = "");
   void OnGeneration(std::int64_t id, Running& running, const JobRecord& job, const TraceRow& row);
 
   JobStore& store_;

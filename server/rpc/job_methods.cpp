@@ -26,6 +26,28 @@ namespace springfit::server {
 namespace rpc = proto::rpc;
 using proto::Json;
 
+namespace {
+
+// The quarantined jobs of a job.list page that it reaches: up to its cursor, from which the
+// next page goes on (newest first: the jobs before it).
+Json QuarantinedToJson(const std::vector<QuarantinedJob>& quarantined,
+                       const std::optional<std::int64_t>& cursor, bool newest_first) {
+  Json out = Json::array();
+  for (const QuarantinedJob& q : quarantined) {
+    if (cursor && (newest_first ? q.job_id < *cursor : q.job_id > *cursor)) continue;
+    Json row;
+    row["job_id"] = q.job_id;
+    row["state"] = "quarantined";
+    row["incident"] = q.incident;
+    row["reason"] = q.reason;
+    row["quarantined_at"] = q.quarantined_at;
+    out.push_back(std::move(row));
+  }
+  return out;
+}
+
+}  // namespace
+
 JobRecord RpcService::RequireJob(const Json& params) {
   const Json& id_json = proto::RequiredMember(params, "params", "job_id");
   const std::uint64_t id = proto::ReadUint64(id_json, ParamPath("job_id"));
@@ -193,6 +215,7 @@ Json RpcService::JobList(const Json& params) {
     jobs.push_back(std::move(row));
   }
   j["jobs"] = std::move(jobs);
+  j["quarantined"] = QuarantinedToJson(page.quarantined, next_cursor, filter.newest_first);
   j["next_cursor"] = next_cursor ? Json(*next_cursor) : Json(nullptr);
   return j;
 }

@@ -168,7 +168,15 @@ Json RpcService::ErrorOfCurrentException(const Json& id, const std::string& meth
     data["path"] = e.path();
     return rpc::Error(id, rpc::kInvalidParams, std::string("invalid params: ") + e.what(), data);
   } catch (const StoreCorrupt& e) {
-    // Not the client's fault, and not to be retried: the database holds a damaged record.
+    // Not the client's fault, and not to be retried: the database holds a damaged record. A
+    // quarantined job's was logged, once, under its own incident by the store.
+    if (e.incident() > 0) {
+      Json data;
+      data["incident"] = e.incident();
+      data["quarantined"] = true;
+      return rpc::Error(id, rpc::kStoreCorrupt,
+                        std::string("the store holds a damaged record: ") + e.what(), data);
+    }
     const std::uint64_t incident = ++incidents_;
     spdlog::error("{}: damaged record in the store (incident {}): {}", method, incident, e.what());
     Json data;

@@ -2,10 +2,13 @@
 
 #include <algorithm>
 
+#include <spdlog/spdlog.h>
+
 #include "engine/api/input_error.h"
 #include "proto/json_reader.h"
 #include "proto/outcome_codec.h"
 #include "proto/search_codec.h"
+#include "server/store/store_rows.h"
 
 namespace springfit::server {
 
@@ -24,6 +27,12 @@ ScopedStoreDeadline::~ScopedStoreDeadline() {
 double ScopedStoreDeadline::Current() {
   return t_store_deadline;
 }
+
+StoreCorrupt::StoreCorrupt(const QuarantinedJob& quarantined)
+    : std::runtime_error("job " + std::to_string(quarantined.job_id) +
+                         " is quarantined (quarantine incident " +
+                         std::to_string(quarantined.incident) + "): " + quarantined.reason),
+      incident_(quarantined.incident) {}
 
 JobState StoredJobState(std::int64_t job_id, const std::string& text) {
   if (const auto state = proto::ParseJobState(text)) return *state;
@@ -47,6 +56,17 @@ Outcome StoredOutcome(std::int64_t job_id, const std::string& text) {
     throw StoreCorrupt("job " + std::to_string(job_id) +
                        ": the store's outcome column is not a verdict (" + e.what() + ")");
   }
+}
+
+std::optional<QuarantinedJob> rows::Announced(const std::optional<Quarantining>& q) {
+  if (!q) return std::nullopt;
+  if (q->first) {
+    spdlog::error(
+        "job {} quarantined (quarantine incident {}): {}; it is never claimed, the other jobs go "
+        "on; repair or delete its row in the store",
+        q->job.job_id, q->job.incident, q->job.reason);
+  }
+  return q->job;
 }
 
 }  // namespace springfit::server

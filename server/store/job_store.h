@@ -123,12 +123,30 @@ class ScopedStoreDeadline {
   double previous_;
 };
 
+// A job whose stored row could not be read (a value no springfitd writes) and was set aside
+// by the store that found it: its state is `quarantined` in the database, so that no daemon
+// claims or counts it, and its other columns stay as they were found, for an operator to
+// repair or delete. Every other job goes on.
+struct QuarantinedJob {
+  std::int64_t job_id = 0;
+  std::int64_t incident = 0;  // the store's number for it, one per job, shared by its daemons
+  std::string reason;         // what could not be read (StoreCorrupt's message)
+  double quarantined_at = 0.0;
+};
+
 // A stored record cannot be read: the database holds a value no springfitd writes (an unknown
-// state, a progress column that is not a trace row). Nothing was changed; the other records
-// stay readable. The RPC answers it with kStoreCorrupt and an incident number (proto/RPC.md).
+// state, a progress column that is not a trace row). Nothing else was changed; the other
+// records stay readable. A job's row is quarantined by then (`incident` its number); the RPC
+// answers kStoreCorrupt with that incident, or with one of its own (proto/RPC.md).
 class StoreCorrupt : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
+  explicit StoreCorrupt(const QuarantinedJob& quarantined);
+  // The quarantine's incident number; 0 when the record was not quarantined.
+  std::int64_t incident() const { return incident_; }
+
+ private:
+  std::int64_t incident_ = 0;
 };
 
 // The job state stored for `job_id`, or StoreCorrupt naming the value.
@@ -150,6 +168,9 @@ struct JobFilter {
 
 struct JobPage {
   std::vector<JobRecord> jobs;
+  // The page's jobs that are quarantined (found so now, or before), by id: `jobs` goes on
+  // without them, and the page's limit and cursor count them.
+  std::vector<QuarantinedJob> quarantined;
   std::optional<std::int64_t> next_cursor;  // set when more jobs match
 };
 

@@ -102,6 +102,16 @@ CREATE INDEX jobs_preparing ON jobs (lease_expires) WHERE state = 'preparing';
     R"sql(
 ALTER TABLE jobs ADD COLUMN outcome TEXT;
 )sql",
+    // 4: jobs whose rows cannot be read, set aside (state 'quarantined'), an incident each
+    // (server/store/job_store.h).
+    R"sql(
+CREATE TABLE quarantine (
+  incident BIGSERIAL PRIMARY KEY,
+  job_id BIGINT NOT NULL UNIQUE REFERENCES jobs (id) ON DELETE CASCADE,
+  reason TEXT NOT NULL,
+  quarantined_at DOUBLE PRECISION NOT NULL
+);
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(std::size(kMigrations));
 static_assert(kMigrationCount == PostgresStore::kSchemaVersion);
@@ -132,10 +142,17 @@ const std::pair<const char*, const char*> kStatements[] = {
      "DELETE FROM jobs WHERE id = $1 AND state = 'preparing' AND lease_owner = $2 AND "
      "lease_epoch = $3"},
     {"sweep_preparing", "DELETE FROM jobs WHERE state = 'preparing' AND lease_expires < " SF_NOW},
-    {"get_job", "SELECT " SF_JOB_COLUMNS " FROM jobs WHERE id = $1"},
     {"get_scene", "SELECT scene FROM jobs WHERE id = $1"},
-    {"unfinished", "SELECT " SF_JOB_COLUMNS
-                   " FROM jobs WHERE state IN ('queued', 'running') ORDER BY priority DESC, id"},
+    {"get_listed", "SELECT " SF_LISTED_COLUMNS " FROM " SF_JOBS_LISTED " WHERE id = $1"},
+    // Locked: the daemons that find one damaged row quarantine it once.
+    {"lock_listed",
+     "SELECT " SF_LISTED_COLUMNS " FROM " SF_JOBS_LISTED " WHERE id = $1 FOR UPDATE OF jobs"},
+    {"quarantine", "INSERT INTO quarantine (job_id, reason, quarantined_at) VALUES ($1, $2, " SF_NOW
+                   ") RETURNING incident, quarantined_at"},
+    {"set_aside",
+     "UPDATE jobs SET state = 'quarantined', lease_owner = NULL, lease_expires = 0 WHERE id = $1"},
+    {"unfinished", "SELECT " SF_LISTED_COLUMNS " FROM " SF_JOBS_LISTED
+                   " WHERE state IN ('queued', 'running') ORDER BY priority DESC, id"},
     {"claim",
      "UPDATE jobs SET state = 'running', lease_owner = $1, lease_epoch = lease_epoch + 1, "
      "lease_expires = " SF_NOW " + $2, started_at = CASE WHEN started_at = 0 THEN " SF_NOW
@@ -273,6 +290,28 @@ void Fence(pqxx::work& w, const Lease& lease) {
                     " (claim " + std::to_string(lease.epoch) +
                     ") is no longer the job's: another daemon took it over, or it finished");
   }
+}
+
+// In a write transaction: job `id` quarantined when its row still cannot be read.
+std::optional<rows::Quarantining> QuarantineIfDamaged(pqxx::work& w, std::int64_t id) {
+  const pqxx::result r = w.exec_prepared("lock_listed", id);
+  std::optional<rows::ListedJob> row;
+  if (!r.empty()) row = rows::ListedJobOf(PgRow{r[0]});
+  std::optional<rows::Quarantining> quarantining =
+      rows::QuarantineIfDamaged(row, [&](std::int64_t job_id, const std::string& reason) {
+        const pqxx::result q = w.exec_prepared("quarantine", job_id, reason);
+        return QuarantinedJob{job_id, q[0][0].as<std::int64_t>(), reason, q[0][1].as<double>()};
+      });
+  // (Again for a row quarantined before whose state was set back by hand.)
+  if (quarantining) w.exec_prepared("set_aside", id);
+  return quarantining;
+}
+
+// The listed rows of a result (SF_LISTED_COLUMNS).
+std::vector<rows::ListedJob> ListedOf(const pqxx::result& r) {
+  std::vector<rows::ListedJob> listed;
+  for (const auto& row : r) listed.push_back(rows::ListedJobOf(PgRow{row}));
+  return listed;
 }
 
 }  // namespace
@@ -577,13 +616,22 @@ void PostgresStore::DropPreparing(const Lease& lease) {
   });
 }
 
+std::optional<QuarantinedJob> PostgresStore::Quarantine(std::int64_t id) {
+  return rows::Announced(Write([&](pqxx::connection_base& c) {
+    pqxx::work w(c);
+    std::optional<rows::Quarantining> found = QuarantineIfDamaged(w, id);
+    w.commit();
+    return found;
+  }));
+}
+
 std::optional<JobRecord> PostgresStore::GetJob(std::int64_t id) {
-  return Read([&](pqxx::connection_base& c) -> std::optional<JobRecord> {
+  const std::vector<rows::ListedJob> row = Read([&](pqxx::connection_base& c) {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
-    const pqxx::result r = w.exec_prepared("get_job", id);
-    if (r.empty()) return std::nullopt;
-    return ReadJob(r[0]);
+    return ListedOf(w.exec_prepared("get_listed", id));
   });
+  if (row.empty()) return std::nullopt;
+  return rows::ReadableJob(row[0], [this](std::int64_t job) { return Quarantine(job); });
 }
 
 std::optional<std::string> PostgresStore::GetScene(std::int64_t id) {
@@ -596,10 +644,10 @@ std::optional<std::string> PostgresStore::GetScene(std::int64_t id) {
 }
 
 JobPage PostgresStore::ListJobs(const JobFilter& f) {
-  return Read([&](pqxx::connection_base& c) {
+  std::vector<rows::ListedJob> listed = Read([&](pqxx::connection_base& c) {
     pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
     // Four shapes of one query; the parameters are bound, never spliced.
-    std::string sql = std::string("SELECT " SF_JOB_COLUMNS " FROM jobs WHERE ") +
+    std::string sql = std::string("SELECT " SF_LISTED_COLUMNS " FROM " SF_JOBS_LISTED " WHERE ") +
                       (!f.newest_first  ? "id > $1"
                        : f.after_id > 0 ? "id < $1"
                                         : "$1::bigint = 0");
@@ -619,23 +667,18 @@ JobPage PostgresStore::ListJobs(const JobFilter& f) {
     } else {
       r = w.exec_params(sql, f.after_id, f.limit + 1);
     }
-    JobPage page;
-    for (const auto& row : r) page.jobs.push_back(ReadJob(row));
-    if (static_cast<int>(page.jobs.size()) > f.limit) {
-      page.jobs.pop_back();
-      page.next_cursor = page.jobs.back().id;
-    }
-    return page;
+    return ListedOf(r);
   });
+  return rows::PageOf(std::move(listed), f.limit,
+                      [this](std::int64_t id) { return Quarantine(id); });
 }
 
 std::vector<JobRecord> PostgresStore::UnfinishedJobs() {
-  return Read([&](pqxx::connection_base& c) {
-    pqxx::nontransaction w(c);  // one statement: no BEGIN and COMMIT round trips
-    std::vector<JobRecord> jobs;
-    for (const auto& row : w.exec_prepared("unfinished")) jobs.push_back(ReadJob(row));
-    return jobs;
-  });
+  return rows::ReadableJobs(Read([&](pqxx::connection_base& c) {
+                              pqxx::nontransaction w(c);  // one statement
+                              return ListedOf(w.exec_prepared("unfinished"));
+                            }),
+                            [this](std::int64_t id) { return Quarantine(id); });
 }
 
 int PostgresStore::CountQueued() {
@@ -659,17 +702,36 @@ std::map<JobState, int> PostgresStore::CountJobs() {
 
 std::optional<Claim> PostgresStore::ClaimNext(const std::string& owner, double lease_seconds) {
   return Write([&](pqxx::connection_base& c) -> std::optional<Claim> {
-    pqxx::work w(c);
-    // Submissions whose daemon stopped renewing them while they were prepared: never answered.
-    w.exec_prepared("sweep_preparing");
-    const pqxx::result r = w.exec_prepared("claim", owner, lease_seconds);
-    w.commit();
-    if (r.empty()) return std::nullopt;
-    Claim claim;
-    claim.job = ReadJob(r[0]);
-    claim.lease = {claim.job.id, owner, r[0][rows::kJobColumnCount].as<std::int64_t>()};
-    claim.cancel_requested = r[0][rows::kJobColumnCount + 1].as<bool>();
-    return claim;
+    // A job whose row cannot be read is quarantined (by the claim's transaction, which holds
+    // it), and the next one taken instead: one damaged row must not hold up the queue.
+    while (true) {
+      pqxx::work w(c);
+      // Submissions whose daemon stopped renewing them while they were prepared: never
+      // answered.
+      w.exec_prepared("sweep_preparing");
+      const pqxx::result r = w.exec_prepared("claim", owner, lease_seconds);
+      if (r.empty()) {
+        w.commit();
+        return std::nullopt;
+      }
+      const std::int64_t id = r[0][0].as<std::int64_t>();
+      std::optional<rows::Quarantining> quarantined;
+      Claim claim;
+      try {
+        claim.job = ReadJob(r[0]);
+      } catch (const StoreCorrupt&) {
+        quarantined = QuarantineIfDamaged(w, id);
+        if (!quarantined) throw;  // (not set aside: it would be claimed again)
+      }
+      w.commit();
+      if (quarantined) {
+        rows::Announced(*quarantined);
+        continue;
+      }
+      claim.lease = {id, owner, r[0][rows::kJobColumnCount].as<std::int64_t>()};
+      claim.cancel_requested = r[0][rows::kJobColumnCount + 1].as<bool>();
+      return claim;
+    }
   });
 }
 

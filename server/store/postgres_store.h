@@ -32,7 +32,7 @@ namespace springfit::server {
 
 class PostgresStore final : public JobStore {
  public:
-  static constexpr int kSchemaVersion = 3;
+  static constexpr int kSchemaVersion = 4;
 
   struct Options {
     // Each call gives up after this long with StoreUnavailable (seconds, > 0): heartbeats,
@@ -89,6 +89,9 @@ class PostgresStore final : public JobStore {
   auto Write(F&& f);
   template <typename F>
   auto Read(F&& f);
+  // Quarantines job `id` when its row still cannot be read (server/store/store_rows.h), and
+  // logs it when this call did: its quarantine, or nothing when the row is readable or gone.
+  std::optional<QuarantinedJob> Quarantine(std::int64_t id);
   void Migrate();
   void ListenLoop();
   void WatchdogLoop();

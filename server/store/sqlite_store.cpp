@@ -97,6 +97,16 @@ CREATE INDEX jobs_preparing ON jobs (lease_expires) WHERE state = 'preparing';
     R"sql(
 ALTER TABLE jobs ADD COLUMN outcome TEXT;
 )sql",
+    // 5: jobs whose rows cannot be read, set aside (state 'quarantined'), an incident each
+    // (server/store/job_store.h).
+    R"sql(
+CREATE TABLE quarantine (
+  incident INTEGER PRIMARY KEY AUTOINCREMENT,
+  job_id INTEGER NOT NULL UNIQUE REFERENCES jobs (id) ON DELETE CASCADE,
+  reason TEXT NOT NULL,
+  quarantined_at REAL NOT NULL
+);
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(std::size(kMigrations));
 static_assert(kMigrationCount == SqliteStore::kSchemaVersion);
@@ -162,6 +172,79 @@ void CheckLease(SQLite::Database& db, const Lease& lease) {
                     " (claim " + std::to_string(lease.epoch) +
                     ") is no longer the job's: another daemon took it over, or it finished");
   }
+}
+
+// The job to claim next at `now` (the highest priority, then the oldest, of the queued jobs
+// and the running ones whose lease expired), if any.
+std::optional<std::int64_t> PickNext(SQLite::Database& db, double now) {
+  // In claim order from the partial index: the first match ends the scan (the planner, left
+  // alone, sorts every queued job at each claim).
+  SQLite::Statement pick(db,
+                         "SELECT id FROM jobs INDEXED BY jobs_to_claim WHERE state IN ('queued', "
+                         "'running') AND (state = 'queued' OR lease_expires < ?) ORDER BY "
+                         "priority DESC, id LIMIT 1");
+  pick.bind(1, now);
+  if (!pick.executeStep()) return std::nullopt;
+  return pick.getColumn(0).getInt64();
+}
+
+// Job `id` running, held by `owner` for `lease_seconds` from `now`, in a new claim (its epoch
+// incremented).
+void TakeJob(SQLite::Database& db, std::int64_t id, const std::string& owner, double now,
+             double lease_seconds) {
+  SQLite::Statement take(
+      db,
+      "UPDATE jobs SET state = 'running', lease_owner = ?, lease_epoch = lease_epoch + 1, "
+      "lease_expires = ?, started_at = CASE WHEN started_at = 0 THEN ? ELSE started_at END "
+      "WHERE id = ?");
+  take.bind(1, owner);
+  take.bind(2, now + lease_seconds);
+  take.bind(3, now);
+  take.bind(4, id);
+  take.exec();
+}
+
+// The claim of job `id` just taken by `owner`; StoreCorrupt when its row cannot be read.
+Claim ReadClaim(SQLite::Database& db, std::int64_t id, const std::string& owner) {
+  SQLite::Statement q(
+      db, "SELECT " SF_JOB_COLUMNS ", lease_epoch, cancel_requested FROM jobs WHERE id = ?");
+  q.bind(1, id);
+  q.executeStep();
+  Claim claim;
+  claim.job = ReadJob(q);
+  claim.lease = {id, owner, q.getColumn(rows::kJobColumnCount).getInt64()};
+  claim.cancel_requested = q.getColumn(rows::kJobColumnCount + 1).getInt() != 0;
+  return claim;
+}
+
+// In the writer's transaction: job `id` quarantined when its row still cannot be read.
+std::optional<rows::Quarantining> QuarantineIfDamaged(SQLite::Database& db, std::int64_t id) {
+  SQLite::Statement q(db, "SELECT " SF_LISTED_COLUMNS " FROM " SF_JOBS_LISTED " WHERE id = ?");
+  q.bind(1, id);
+  std::optional<rows::ListedJob> row;
+  if (q.executeStep()) row = rows::ListedJobOf(SqliteRow{q});
+  q.reset();
+  std::optional<rows::Quarantining> quarantining =
+      rows::QuarantineIfDamaged(row, [&](std::int64_t job_id, const std::string& reason) {
+        QuarantinedJob quarantined{job_id, 0, reason, UnixNow()};
+        SQLite::Statement insert(
+            db, "INSERT INTO quarantine (job_id, reason, quarantined_at) VALUES (?, ?, ?)");
+        insert.bind(1, job_id);
+        insert.bind(2, reason);
+        insert.bind(3, quarantined.quarantined_at);
+        insert.exec();
+        quarantined.incident = db.getLastInsertRowid();
+        return quarantined;
+      });
+  // (Again for a row quarantined before whose state was set back by hand.)
+  if (quarantining) {
+    SQLite::Statement set_aside(db,
+                                "UPDATE jobs SET state = 'quarantined', lease_owner = NULL, "
+                                "lease_expires = 0 WHERE id = ?");
+    set_aside.bind(1, id);
+    set_aside.exec();
+  }
+  return quarantining;
 }
 
 }  // namespace
@@ -425,13 +508,32 @@ void SqliteStore::DropPreparing(const Lease& lease) {
   });
 }
 
-std::optional<JobRecord> SqliteStore::GetJob(std::int64_t id) {
-  return Read([&](SQLite::Database& db) -> std::optional<JobRecord> {
-    SQLite::Statement q(db, "SELECT " SF_JOB_COLUMNS " FROM jobs WHERE id = ?");
-    q.bind(1, id);
-    if (!q.executeStep()) return std::nullopt;
-    return ReadJob(q);
+std::optional<QuarantinedJob> SqliteStore::Quarantine(std::int64_t id) {
+  return rows::Announced(Run([&](SQLite::Database& db) {
+    SQLite::Transaction tx(db, SQLite::TransactionBehavior::IMMEDIATE);
+    std::optional<rows::Quarantining> found = QuarantineIfDamaged(db, id);
+    tx.commit();
+    return found;
+  }));
+}
+
+std::vector<rows::ListedJob> SqliteStore::ReadListed(
+    const std::string& sql, const std::function<void(SQLite::Statement&)>& bind) {
+  return Read([&](SQLite::Database& db) {
+    SQLite::Statement q(db, sql);
+    bind(q);
+    std::vector<rows::ListedJob> listed;
+    while (q.executeStep()) listed.push_back(rows::ListedJobOf(SqliteRow{q}));
+    return listed;
   });
+}
+
+std::optional<JobRecord> SqliteStore::GetJob(std::int64_t id) {
+  const std::vector<rows::ListedJob> row =
+      ReadListed("SELECT " SF_LISTED_COLUMNS " FROM " SF_JOBS_LISTED " WHERE id = ?",
+                 [&](SQLite::Statement& q) { q.bind(1, id); });
+  if (row.empty()) return std::nullopt;
+  return rows::ReadableJob(row[0], [this](std::int64_t job) { return Quarantine(job); });
 }
 
 std::optional<std::string> SqliteStore::GetScene(std::int64_t id) {
@@ -444,39 +546,30 @@ std::optional<std::string> SqliteStore::GetScene(std::int64_t id) {
 }
 
 JobPage SqliteStore::ListJobs(const JobFilter& f) {
-  return Read([&](SQLite::Database& db) {
-    std::string sql =
-        std::string("SELECT " SF_JOB_COLUMNS " FROM jobs WHERE ") + (!f.newest_first  ? "id > ?"
-                                                                     : f.after_id > 0 ? "id < ?"
-                                                                                      : "? = 0");
-    if (f.state) sql += " AND state = ?";
-    if (f.label) sql += " AND label = ?";
-    sql += f.newest_first ? " ORDER BY id DESC LIMIT ?" : " ORDER BY id LIMIT ?";
-    SQLite::Statement q(db, sql);
+  std::string sql = std::string("SELECT " SF_LISTED_COLUMNS " FROM " SF_JOBS_LISTED " WHERE ") +
+                    (!f.newest_first  ? "id > ?"
+                     : f.after_id > 0 ? "id < ?"
+                                      : "? = 0");
+  if (f.state) sql += " AND state = ?";
+  if (f.label) sql += " AND label = ?";
+  sql += f.newest_first ? " ORDER BY id DESC LIMIT ?" : " ORDER BY id LIMIT ?";
+  std::vector<rows::ListedJob> listed = ReadListed(sql, [&](SQLite::Statement& q) {
     int i = 1;
     q.bind(i++, f.after_id);
     if (f.state) q.bind(i++, std::string(proto::JobStateName(*f.state)));
     if (f.label) q.bind(i++, *f.label);
     q.bind(i++, f.limit + 1);  // one more tells whether there is a next page
-    JobPage page;
-    while (q.executeStep()) page.jobs.push_back(ReadJob(q));
-    if (static_cast<int>(page.jobs.size()) > f.limit) {
-      page.jobs.pop_back();
-      page.next_cursor = page.jobs.back().id;
-    }
-    return page;
   });
+  return rows::PageOf(std::move(listed), f.limit,
+                      [this](std::int64_t id) { return Quarantine(id); });
 }
 
 std::vector<JobRecord> SqliteStore::UnfinishedJobs() {
-  return Read([&](SQLite::Database& db) {
-    SQLite::Statement q(
-        db, "SELECT " SF_JOB_COLUMNS
-            " FROM jobs WHERE state IN ('queued', 'running') ORDER BY priority DESC, id");
-    std::vector<JobRecord> jobs;
-    while (q.executeStep()) jobs.push_back(ReadJob(q));
-    return jobs;
-  });
+  return rows::ReadableJobs(
+      ReadListed("SELECT " SF_LISTED_COLUMNS " FROM " SF_JOBS_LISTED
+                 " WHERE state IN ('queued', 'running') ORDER BY priority DESC, id",
+                 [](SQLite::Statement&) {}),
+      [this](std::int64_t id) { return Quarantine(id); });
 }
 
 int SqliteStore::CountQueued() {
@@ -498,49 +591,34 @@ std::map<JobState, int> SqliteStore::CountJobs() {
 }
 
 std::optional<Claim> SqliteStore::ClaimNext(const std::string& owner, double lease_seconds) {
-  return Run([&](SQLite::Database& db) -> std::optional<Claim> {
+  std::vector<rows::Quarantining> quarantined;
+  std::optional<Claim> claim = Run([&](SQLite::Database& db) -> std::optional<Claim> {
+    quarantined.clear();  // (a transaction rolled back quarantines nothing)
     SQLite::Transaction tx(db, SQLite::TransactionBehavior::IMMEDIATE);
     const double now = UnixNow();
     // Submissions whose daemon stopped renewing them while they were prepared: never answered.
     SQLite::Statement sweep(db, "DELETE FROM jobs WHERE state = 'preparing' AND lease_expires < ?");
     sweep.bind(1, now);
     sweep.exec();
-    SQLite::Statement pick(db,
-                           // In claim order from the partial index: the first match ends the scan
-                           // (the planner, left alone, sorts every queued job at each claim).
-                           "SELECT id FROM jobs INDEXED BY jobs_to_claim WHERE state IN ('queued', "
-                           "'running') AND (state = 'queued' OR lease_expires < ?) ORDER BY "
-                           "priority DESC, id LIMIT 1");
-    pick.bind(1, now);
-    if (!pick.executeStep()) {
-      pick.reset();
-      tx.commit();  // (the sweep)
-      return std::nullopt;
+    std::optional<Claim> taken;
+    // A job whose row cannot be read is quarantined, and the next one taken instead: one
+    // damaged row must not hold up the queue.
+    while (const std::optional<std::int64_t> id = PickNext(db, now)) {
+      TakeJob(db, *id, owner, now, lease_seconds);
+      try {
+        taken = ReadClaim(db, *id, owner);
+        break;
+      } catch (const StoreCorrupt&) {
+        std::optional<rows::Quarantining> q = QuarantineIfDamaged(db, *id);
+        if (!q) throw;  // (not set aside: it would be picked again)
+        quarantined.push_back(std::move(*q));
+      }
     }
-    const std::int64_t id = pick.getColumn(0).getInt64();
-    pick.reset();
-    SQLite::Statement take(
-        db,
-        "UPDATE jobs SET state = 'running', lease_owner = ?, lease_epoch = lease_epoch + 1, "
-        "lease_expires = ?, started_at = CASE WHEN started_at = 0 THEN ? ELSE started_at END "
-        "WHERE id = ?");
-    take.bind(1, owner);
-    take.bind(2, now + lease_seconds);
-    take.bind(3, now);
-    take.bind(4, id);
-    take.exec();
-    SQLite::Statement q(
-        db, "SELECT " SF_JOB_COLUMNS ", lease_epoch, cancel_requested FROM jobs WHERE id = ?");
-    q.bind(1, id);
-    q.executeStep();
-    Claim claim;
-    claim.job = ReadJob(q);
-    claim.lease = {id, owner, q.getColumn(rows::kJobColumnCount).getInt64()};
-    claim.cancel_requested = q.getColumn(rows::kJobColumnCount + 1).getInt() != 0;
-    q.reset();
     tx.commit();
-    return claim;
+    return taken;
   });
+  for (const rows::Quarantining& q : quarantined) rows::Announced(q);
+  return claim;
 }
 
 LeaseStatus SqliteStore::RenewLease(const Lease& lease, double lease_seconds) {

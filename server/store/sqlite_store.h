@@ -13,6 +13,7 @@
 // current version in one transaction, and refuses a database of a newer springfit.
 #pragma once
 #include <atomic>
+#include <functional>
 #include <memory>
 #include <string>
 #include <utility>
@@ -20,17 +21,19 @@
 
 #include "server/mutex.h"
 #include "server/store/job_store.h"
+#include "server/store/store_rows.h"
 
 namespace SQLite {
 class Database;
 class Exception;
+class Statement;
 }  // namespace SQLite
 
 namespace springfit::server {
 
 class SqliteStore final : public JobStore {
  public:
-  static constexpr int kSchemaVersion = 4;
+  static constexpr int kSchemaVersion = 5;
 
   // Opens or creates the database; throws std::runtime_error with the reason.
   explicit SqliteStore(const std::string& path);
@@ -79,6 +82,12 @@ class SqliteStore final : public JobStore {
     ConnectionState state SF_GUARDED_BY(mutex);
   };
 
+  // Quarantines job `id` when its row still cannot be read (server/store/store_rows.h), and
+  // logs it when this call did: its quarantine, or nothing when the row is readable or gone.
+  std::optional<QuarantinedJob> Quarantine(std::int64_t id);
+  // The rows of a SELECT of SF_LISTED_COLUMNS, read on a reader.
+  std::vector<rows::ListedJob> ReadListed(const std::string& sql,
+                                          const std::function<void(SQLite::Statement&)>& bind);
   // A connection on path_ with this store's settings (WAL, synchronous, busy timeout).
   std::unique_ptr<SQLite::Database> Open(bool read_only) const;
   void Migrate() SF_REQUIRES(mutex_);

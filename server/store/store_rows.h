@@ -10,7 +10,11 @@
 
 #include <bit>
 #include <cstdint>
+#include <limits>
+#include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "engine/api/checkpoint.h"
 #include "engine/api/result.h"
@@ -25,6 +29,11 @@ namespace springfit::server::rows {
   "max_generations, created_at, started_at, finished_at, progress, checkpoint_generation, " \
   "exact, outcome"
 inline constexpr int kJobColumnCount = 18;
+
+// A job's columns with its quarantine's (null unless it is quarantined), in the order
+// ListedJobOf reads them, from SF_JOBS_LISTED.
+#define SF_LISTED_COLUMNS SF_JOB_COLUMNS ", incident, job_id, reason, quarantined_at"
+#define SF_JOBS_LISTED "jobs LEFT JOIN quarantine ON job_id = id"
 
 // A trace row's columns (table trace), in the order TraceRowOf reads them.
 #define SF_TRACE_COLUMNS                                                                  \
@@ -65,6 +74,92 @@ JobRecord JobOf(const Row& r) {
   if (!r.Null(16)) j.exact = r.Bool(16);
   if (!r.Null(17)) j.outcome = StoredOutcome(j.id, r.Text(17));
   return j;
+}
+
+// A job's row as a listing reads it: the job, or its quarantine, or else the damage that
+// makes it unreadable (StoreCorrupt's message), which the store is to quarantine.
+struct ListedJob {
+  std::int64_t id = 0;
+  std::optional<JobRecord> job;
+  std::optional<QuarantinedJob> quarantined;
+  std::string damage;
+};
+
+template <typename Row>
+ListedJob ListedJobOf(const Row& r) {
+  ListedJob listed;
+  listed.id = r.Int64(0);
+  if (!r.Null(kJobColumnCount)) {
+    QuarantinedJob& q = listed.quarantined.emplace();
+    q.incident = r.Int64(kJobColumnCount);
+    q.job_id = r.Int64(kJobColumnCount + 1);
+    q.reason = r.Text(kJobColumnCount + 2);
+    q.quarantined_at = r.Double(kJobColumnCount + 3);
+    return listed;
+  }
+  try {
+    listed.job = JobOf(r);
+  } catch (const StoreCorrupt& e) {
+    listed.damage = e.what();
+  }
+  return listed;
+}
+
+// A job's quarantine, and whether this call set it (and is to log it, once committed).
+struct Quarantining {
+  QuarantinedJob job;
+  bool first = false;
+};
+
+// In a write transaction, with `row` the job's row read again there: the job's quarantine,
+// made by `insert(id, damage)` when the row is still damaged; nothing when it is gone or
+// readable again.
+template <typename Insert>
+std::optional<Quarantining> QuarantineIfDamaged(const std::optional<ListedJob>& row,
+                                                Insert&& insert) {
+  if (!row || row->job) return std::nullopt;
+  if (row->quarantined) return Quarantining{*row->quarantined, false};
+  return Quarantining{insert(row->id, row->damage), true};
+}
+
+// A quarantine, committed: logged (one line) when this call set it. Returns its job.
+std::optional<QuarantinedJob> Announced(const std::optional<Quarantining>& q);
+
+// The job of a listed row, or StoreCorrupt naming its quarantine: `quarantine(id)` (the
+// store's) quarantines a damaged row, returning its QuarantinedJob when it still is.
+template <typename Quarantine>
+JobRecord ReadableJob(const ListedJob& row, Quarantine&& quarantine) {
+  if (row.job) return *row.job;
+  if (row.quarantined) throw StoreCorrupt(*row.quarantined);
+  if (const std::optional<QuarantinedJob> q = quarantine(row.id)) throw StoreCorrupt(*q);
+  throw StoreCorrupt(row.damage);  // (repaired since: read again)
+}
+
+// A listing's rows (up to `limit` + 1, in the listing's order) as a page: the damaged rows
+// quarantined through `quarantine`, and shown so with those quarantined before.
+template <typename Quarantine>
+JobPage PageOf(std::vector<ListedJob> rows, int limit, Quarantine&& quarantine) {
+  JobPage page;
+  if (static_cast<int>(rows.size()) > limit) {
+    rows.resize(static_cast<std::size_t>(limit));
+    page.next_cursor = rows.back().id;
+  }
+  for (ListedJob& row : rows) {
+    if (row.job) {
+      page.jobs.push_back(std::move(*row.job));
+    } else if (row.quarantined) {
+      page.quarantined.push_back(*row.quarantined);
+    } else if (const std::optional<QuarantinedJob> q = quarantine(row.id)) {
+      page.quarantined.push_back(*q);
+    }  // (repaired since it was read: on the next listing)
+  }
+  return page;
+}
+
+// The readable jobs of `rows`, the damaged ones quarantined through `quarantine`.
+template <typename Quarantine>
+std::vector<JobRecord> ReadableJobs(std::vector<ListedJob> rows, Quarantine&& quarantine) {
+  return PageOf(std::move(rows), std::numeric_limits<int>::max(), quarantine).jobs;
 }
 
 template <typename Row>

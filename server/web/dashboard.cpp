@@ -169,6 +169,20 @@ std::string StateBadge(JobState s) {
   return "<span class=\"state " + name + "\">" + name + "</span>";
 }
 
+// The jobs of a listing whose rows cannot be read: set aside by the store, one incident each.
+std::string QuarantinedTable(const std::vector<QuarantinedJob>& quarantined) {
+  if (quarantined.empty()) return "";
+  std::string body =
+      "<h2>Quarantined</h2>\n<p>Their rows in the store cannot be read: they are never run, "
+      "and the other jobs go on. Repair or delete them in the store.</p>\n<table "
+      "id=\"quarantined\"><tr><th>job</th><th>incident</th><th>since</th><th>reason</th></tr>\n";
+  for (const QuarantinedJob& q : quarantined) {
+    body += fmt::format("<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n", q.job_id,
+                        q.incident, UtcTime(q.quarantined_at), XmlEscape(q.reason));
+  }
+  return body + "</table>\n";
+}
+
 std::string Row(const std::string& key, const std::string& value_html) {
   return "<tr><th>" + XmlEscape(key) + "</th><td>" + value_html + "</td></tr>\n";
 }
@@ -536,7 +550,8 @@ HttpResponse Dashboard::ListView(const std::map<std::string, std::string>& query
         Seconds(Elapsed(job)), job.exact ? (*job.exact ? "yes" : "no") : "-");
   }
   body += "</table>\n";
-  if (page.jobs.empty()) body += "<p>No jobs.</p>\n";
+  if (page.jobs.empty() && page.quarantined.empty()) body += "<p>No jobs.</p>\n";
+  body += QuarantinedTable(page.quarantined);
   if (page.next_cursor) {
     std::string next = "/?cursor=" + std::to_string(*page.next_cursor);
     if (!state_name.empty()) next += "&state=" + PercentEncode(state_name);

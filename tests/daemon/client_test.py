@@ -23,6 +23,7 @@ import select
 import shutil
 import signal
 import socket
+import sqlite3
 import stat
 import subprocess
 import sys
@@ -892,6 +893,46 @@ def test_failing_writes(ctx):
              f"no reopening in the log: {short(d.log_text()[-800:], 800)}")
 
 
+def test_damaged_row(ctx):
+    """A queued job whose row was damaged while the daemon was stopped (its progress column not
+    JSON): the daemon starts all the same (it exited at start, issue 48), quarantines the job
+    with one line in its log, runs the job queued behind it, and lists both, the damaged one
+    apart as quarantined; reading it answers -32008 with the same incident every time."""
+    d = ctx.daemon("damaged-row", ["--jobs", "1"])
+    with Conn(d.port) as c:
+        scene = json.load(open(ctx.kidney_path))
+        scene.setdefault("search", {}).update({"strategy": "paper", "max_generations": 1000000})
+        blocker = c.result("job.submit", {"scene": scene, "label": "blocker", "priority": 10})["job"]["job_id"]
+        job = wait_state(c, blocker, ("running",) + FINAL_STATES, 10)
+        require(job["state"] == "running", f"job {blocker} does not run: {short(job)}")
+        damaged = c.result("job.submit", {"scene": ctx.small_scene, "label": "damaged", "priority": 5})["job"]["job_id"]
+        good = c.result("job.submit", {"scene": ctx.small_scene, "label": "good"})["job"]["job_id"]
+    require(d.stop(), "the daemon did not stop")
+    db = sqlite3.connect(d.db)
+    db.execute("UPDATE jobs SET progress = '{not json' WHERE id = ?", (damaged,))
+    db.commit()
+    db.close()
+    d.start()
+    with Conn(d.port) as c:
+        c.result("job.cancel", {"job_id": blocker})
+        job = wait_state(c, good, FINAL_STATES, 30)
+        R.expect(job["state"] == "succeeded", f"the job behind the damaged one: {short(job)}")
+        listed = c.result("job.list", {})
+        R.expect([j["job_id"] for j in listed["jobs"]] == [blocker, good], f"job.list: {short(listed)}")
+        quarantined = listed.get("quarantined") or [{}]
+        R.expect(len(quarantined) == 1 and quarantined[0].get("job_id") == damaged
+                 and quarantined[0].get("state") == "quarantined"
+                 and "progress column" in quarantined[0].get("reason", ""),
+                 f"job.list's quarantined: {short(listed)}")
+        for read in (1, 2):
+            err = expect_error(c.call("job.get", {"job_id": damaged}), -32008, f"job.get {read} of the damaged job")
+            R.expect(error_data(err).get("incident") == quarantined[0].get("incident"),
+                     f"job.get {read}: the incident is not the quarantine's: {short(err)}")
+    R.expect(d.alive(), f"the daemon died: {short(d.log_text()[-800:], 800)}")
+    lines = [l for l in d.log_text().splitlines() if f"job {damaged} quarantined" in l]
+    R.expect(len(lines) == 1, f"the quarantine's lines in the log: {lines}")
+
+
 def main(argv):
     groups = [
         ("setup", test_setup, True),
@@ -908,6 +949,7 @@ def main(argv):
         ("preparation threads", test_preparation_threads, False),
         ("preparing state", test_preparing_state, False),
         ("durable cancel", test_durable_cancel, False),
+        ("damaged row", test_damaged_row, False),
         ("failing writes", test_failing_writes, False),
         ("descriptor limit", test_descriptor_limit, False),
         ("EMFILE back-off", test_emfile_backoff, False),

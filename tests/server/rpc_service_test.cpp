@@ -170,23 +170,41 @@ TEST_F(RpcServiceTest, InternalErrorsAnswerDocumentedMessagesNotLibraryTexts) {
             "needs");
 }
 
-// A damaged row in the store: its own documented error with an incident number, not invalid
-// params and not a job of another state; the server answers the next request as before.
+// A damaged row in the store: its own documented error with the number of its quarantine,
+// not invalid params and not a job of another state; the same at every read; job.list lists
+// the other jobs and this one apart, as quarantined; the server answers as before.
 TEST_F(RpcServiceTest, ADamagedStoredJobIsCorruptionWithAnIncident) {
   MakeService(false);
   const std::int64_t id = Submit("paper-iso-5x5")["result"]["job"]["job_id"].get<std::int64_t>();
+  const std::int64_t other = Submit("paper-iso-5x5")["result"]["job"]["job_id"].get<std::int64_t>();
   {
     SQLite::Database db((dir_ / "jobs.db").string(), SQLite::OPEN_READWRITE);
     db.exec("UPDATE jobs SET state = 'bogus' WHERE id = " + std::to_string(id));
   }
-  const Json got = Call("job.get", {{"job_id", id}});
-  ASSERT_TRUE(got.contains("error")) << got.dump();
-  EXPECT_EQ(Code(got), rpc::kStoreCorrupt);
-  EXPECT_EQ(got["error"]["data"]["incident"], 1);
-  const std::string message = got["error"]["message"].get<std::string>();
-  EXPECT_NE(message.find("the store holds a damaged record (incident 1"), std::string::npos)
-      << message;
-  EXPECT_NE(message.find("unknown state 'bogus'"), std::string::npos) << message;
+  for (int read = 0; read < 2; ++read) {
+    const Json got = Call("job.get", {{"job_id", id}});
+    ASSERT_TRUE(got.contains("error")) << got.dump();
+    EXPECT_EQ(Code(got), rpc::kStoreCorrupt);
+    EXPECT_EQ(got["error"]["data"]["incident"], 1);
+    EXPECT_EQ(got["error"]["data"]["quarantined"], true);
+    const std::string message = got["error"]["message"].get<std::string>();
+    EXPECT_NE(message.find("the store holds a damaged record: job " + std::to_string(id) +
+                           " is quarantined (quarantine incident 1)"),
+              std::string::npos)
+        << message;
+    EXPECT_NE(message.find("unknown state 'bogus'"), std::string::npos) << message;
+  }
+  const Json list = Call("job.list", Json::object());
+  ASSERT_TRUE(list.contains("result")) << list.dump();
+  ASSERT_EQ(list["result"]["jobs"].size(), 1u) << list.dump();
+  EXPECT_EQ(list["result"]["jobs"][0]["job_id"], other);
+  ASSERT_EQ(list["result"]["quarantined"].size(), 1u) << list.dump();
+  const Json& quarantined = list["result"]["quarantined"][0];
+  EXPECT_EQ(quarantined["job_id"], id);
+  EXPECT_EQ(quarantined["state"], "quarantined");
+  EXPECT_EQ(quarantined["incident"], 1);
+  EXPECT_NE(quarantined["reason"].get<std::string>().find("unknown state 'bogus'"),
+            std::string::npos);
   EXPECT_TRUE(Call("server.info").contains("result"));
 }
 

@@ -26,6 +26,7 @@
 #include <thread>
 #include <vector>
 
+#include <SQLiteCpp/SQLiteCpp.h>
 #include <gtest/gtest.h>
 
 #include "proto/job.h"
@@ -343,10 +344,10 @@ class SchedulerTest : public ::testing::Test {
 
   // An endless job that runs until cancelled within a test of a minute. (The endless grid
   // breeds a million generations in about 5 s here: a larger budget.)
-  std::int64_t CreateLongJob(SqliteStore& sqlite, const std::string& label) {
+  std::int64_t CreateLongJob(SqliteStore& sqlite, const std::string& label, int priority = 0) {
     scene_.search.max_generations = 100000000;
     scene_.search.max_seconds = 60.0;
-    return sqlite.CreateJob(Job(label), 100).job.id;
+    return sqlite.CreateJob(Job(label, priority), 100).job.id;
   }
 
   // The job's one job.finished notification, with state "cancelled".
@@ -649,6 +650,38 @@ TEST_F(SchedulerTest, AStaleRenewalDoesNotStopTheNextRunOfTheSameJob) {
   ExpectFinishedOnceCancelled(inbox, id);
   ASSERT_TRUE(scheduler.Stop(std::chrono::seconds(30)));
   ExpectNothingLeft(sqlite, scheduler, {id});
+}
+
+// Watched jobs that run elsewhere are followed through the store. One whose row is damaged
+// (quarantined when read) ends its watch with job.gone saying so; the jobs watched after it
+// are followed on: one finished by another daemon gets its job.finished.
+TEST_F(SchedulerTest, AWatchedJobWhoseRowIsDamagedEndsItsWatchAndTheOthersAreFollowed) {
+  SqliteStore sqlite(path_);
+  const std::int64_t busy = CreateLongJob(sqlite, "busy", 10);
+  const std::int64_t damaged = sqlite.CreateJob(Job("damaged", 0), 100).job.id;
+  const std::int64_t elsewhere = sqlite.CreateJob(Job("elsewhere", 5), 100).job.id;
+  Notifications inbox;
+  Scheduler scheduler(sqlite, Options(1));  // its one runner busy with `busy`
+  scheduler.Start();
+  ASSERT_TRUE(WaitUntil([&] { return scheduler.IsRunningHere(busy); }, std::chrono::seconds(30)));
+  scheduler.Watch(damaged, inbox.For(damaged));
+  scheduler.Watch(elsewhere, inbox.For(elsewhere));
+  {
+    SQLite::Database db(path_, SQLite::OPEN_READWRITE);
+    db.exec("UPDATE jobs SET progress = '{not json' WHERE id = " + std::to_string(damaged));
+  }
+  const std::optional<Claim> other = sqlite.ClaimNext("other-daemon", 30.0);
+  ASSERT_TRUE(other && other->job.id == elsewhere);
+  sqlite.MarkFinished(other->lease, {JobState::kSucceeded, "", "{}", std::nullopt, 2e9, ""});
+  EXPECT_TRUE(inbox.WaitFinished({elsewhere})) << "the job after the damaged one was not followed";
+  ASSERT_TRUE(
+      WaitUntil([&] { return !inbox.Of(damaged, "job.gone").empty(); }, std::chrono::seconds(30)));
+  const std::string message =
+      inbox.Of(damaged, "job.gone")[0].at("params").at("message").get<std::string>();
+  EXPECT_NE(message.find("job " + std::to_string(damaged) + " is quarantined"), std::string::npos)
+      << message;
+  EXPECT_EQ(scheduler.Cancel(busy), Scheduler::CancelOutcome::kCancelling);
+  ASSERT_TRUE(scheduler.Stop(std::chrono::seconds(30)));
 }
 
 // The race for real: 30 endless jobs, 3 runners claiming from the moment Start() returns, and

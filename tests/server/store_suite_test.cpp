@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <future>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <set>
@@ -125,6 +126,22 @@ class StoreSuite : public ::testing::TestWithParam<std::string> {
     return store_->CreateJob(Job(label, priority), 1000).job.id;
   }
 
+  // The incident of the StoreCorrupt that reading job `id` throws, whose message must hold
+  // `what`; 0 (a failure) when the read succeeds.
+  std::int64_t CorruptIncident(std::int64_t id, const std::string& what) {
+    try {
+      store_->GetJob(id);
+      ADD_FAILURE() << "job " << id << ": a damaged row was read";
+    } catch (const StoreCorrupt& e) {
+      EXPECT_NE(std::string(e.what()).find("job " + std::to_string(id)), std::string::npos)
+          << e.what();
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+      EXPECT_GT(e.incident(), 0) << e.what();
+      return e.incident();
+    }
+    return 0;
+  }
+
   // Claims the one job there is, for `owner`.
   Claim ClaimOne(const std::string& owner, double lease_seconds = 30.0) {
     std::optional<Claim> claim = store_->ClaimNext(owner, lease_seconds);
@@ -164,32 +181,79 @@ TEST_P(StoreSuite, CreateGetIdempotencyKeysAndTheQueueBound) {
 }
 
 // A damaged row is its own error, naming the job and the value, never a job of another state
-// or the client's fault; the other jobs stay readable.
-TEST_P(StoreSuite, ADamagedRowIsReportedAsCorruptionNotAState) {
+// or the client's fault. The row is quarantined, once: every later read names the same
+// incident, listings show it apart, and the other jobs stay readable and listed.
+TEST_P(StoreSuite, ADamagedRowIsQuarantinedOnceAndTheOthersStayListed) {
   const std::int64_t good = Create("good");
   const std::int64_t bogus = Create("bogus state");
   const std::int64_t garbled = Create("bad progress");
+  const std::int64_t last = Create("last");
   factory_->ExecRaw("UPDATE jobs SET state = 'bogus' WHERE id = " + std::to_string(bogus));
   factory_->ExecRaw("UPDATE jobs SET progress = '{\"generation\": \"x\"' WHERE id = " +
                     std::to_string(garbled));
-  try {
-    store_->GetJob(bogus);
-    ADD_FAILURE() << "a job of unknown state was read";
-  } catch (const StoreCorrupt& e) {
-    EXPECT_NE(std::string(e.what()).find("job " + std::to_string(bogus) +
-                                         ": the store holds the unknown state 'bogus'"),
-              std::string::npos)
-        << e.what();
+  const std::int64_t bogus_incident =
+      CorruptIncident(bogus, "the store holds the unknown state 'bogus'");
+  EXPECT_EQ(CorruptIncident(bogus, "is quarantined (quarantine incident"), bogus_incident);
+  const std::int64_t garbled_incident = CorruptIncident(garbled, "progress column");
+  EXPECT_NE(garbled_incident, bogus_incident);
+  // A page at a time, the quarantined counted in the page: every job once, in order.
+  JobFilter one;
+  one.limit = 1;
+  std::vector<std::int64_t> listed;
+  std::map<std::int64_t, std::int64_t> incidents;
+  for (int page = 0; page < 10; ++page) {
+    const JobPage p = store_->ListJobs(one);
+    for (const JobRecord& j : p.jobs) listed.push_back(j.id);
+    for (const QuarantinedJob& q : p.quarantined) {
+      listed.push_back(q.job_id);
+      incidents[q.job_id] = q.incident;
+      EXPECT_NE(q.reason.find("job " + std::to_string(q.job_id)), std::string::npos) << q.reason;
+    }
+    if (!p.next_cursor) break;
+    one.after_id = *p.next_cursor;
   }
-  try {
-    store_->GetJob(garbled);
-    ADD_FAILURE() << "a job with a garbled progress column was read";
-  } catch (const StoreCorrupt& e) {
-    EXPECT_NE(std::string(e.what()).find("progress column"), std::string::npos) << e.what();
-  }
-  EXPECT_THROW(store_->ListJobs(JobFilter{}), StoreCorrupt);
+  EXPECT_EQ(listed, (std::vector<std::int64_t>{good, bogus, garbled, last}));
+  EXPECT_EQ(incidents, (std::map<std::int64_t, std::int64_t>{{bogus, bogus_incident},
+                                                             {garbled, garbled_incident}}));
   ASSERT_TRUE(store_->GetJob(good));
   EXPECT_EQ(store_->GetJob(good)->state, JobState::kQueued);
+  EXPECT_EQ(store_->CountQueued(), 2);
+}
+
+// Damage found by a listing, before any read of the job: the whole listing answers, and the
+// damaged job is quarantined by it. At a start, the unfinished jobs are read the same way.
+TEST_P(StoreSuite, ListingsQuarantineDamageTheyFindAndGoOn) {
+  const std::int64_t good = Create("good");
+  const std::int64_t garbled = Create("bad progress");
+  factory_->ExecRaw("UPDATE jobs SET progress = '{not json' WHERE id = " + std::to_string(garbled));
+  const std::vector<JobRecord> unfinished = store_->UnfinishedJobs();
+  ASSERT_EQ(unfinished.size(), 1u);
+  EXPECT_EQ(unfinished[0].id, good);
+  const JobPage page = store_->ListJobs(JobFilter{});
+  ASSERT_EQ(page.jobs.size(), 1u);
+  EXPECT_EQ(page.jobs[0].id, good);
+  ASSERT_EQ(page.quarantined.size(), 1u);
+  EXPECT_EQ(page.quarantined[0].job_id, garbled);
+  EXPECT_GT(page.quarantined[0].incident, 0);
+  EXPECT_EQ(CorruptIncident(garbled, "progress column"), page.quarantined[0].incident);
+}
+
+// A queued job whose row cannot be read is never claimed, not even once: it is quarantined by
+// the claim that finds it, which takes the next job instead, so that one damaged row never
+// holds up the queue (nor is handed out at every poll).
+TEST_P(StoreSuite, AClaimQuarantinesADamagedRowAndTakesTheNextJob) {
+  const std::int64_t damaged = Create("damaged", 5);
+  const std::int64_t next = Create("next", 0);
+  factory_->ExecRaw("UPDATE jobs SET progress = '{not json' WHERE id = " + std::to_string(damaged));
+  std::optional<Claim> claim;
+  ASSERT_NO_THROW(claim = store_->ClaimNext("d", 30.0));
+  ASSERT_TRUE(claim);
+  EXPECT_EQ(claim->job.id, next);
+  EXPECT_EQ(claim->lease.epoch, 1);
+  EXPECT_FALSE(store_->ClaimNext("d", 30.0)) << "the damaged job was handed out";
+  EXPECT_GT(CorruptIncident(damaged, "progress column"), 0);
+  EXPECT_EQ(store_->CountQueued(), 0);
+  EXPECT_EQ(store_->RequestCancel(damaged), JobStore::CancelOutcome::kNotActive);
 }
 
 TEST_P(StoreSuite, ListPagesAndFilters) {
