@@ -244,6 +244,15 @@ void PrintGeneralization(const proto::Json& g, std::ostream& out) {
          "in ["
       << number(g, "lambda_min") << ", " << number(g, "lambda_max")
       << "]: energy-norm error at most " << number(g, "bound") << " of the response\n";
+  if (g.contains("free_body") && g["free_body"].is_object()) {
+    const proto::Json& model = g["free_body"]["model"];
+    const proto::Json& free_baseline = g["free_body"]["baseline"];
+    out << "  any support:     on the free body (modulo rigid motions, which bounds every support) "
+           "in ["
+        << number(model, "lambda_min") << ", " << number(model, "lambda_max")
+        << "]: energy-norm error at most " << number(model, "bound") << " (baseline "
+        << number(free_baseline, "bound") << ")\n";
+  }
   if (g.value("returned_baseline", false))
     out << "WARNING:           THE FITTED MODEL DID NO BETTER THAN THE CLOSED-FORM BASELINE ON "
            "THE CHOOSING PROBES: the baseline is returned\n";

@@ -258,6 +258,8 @@ Json GeneralizationToJson(const response::Generalization& g) {
                        {"model", PencilToJson(p.model)},
                        {"baseline", PencilToJson(p.baseline)}});
   j["supports"] = std::move(pencils);
+  j["free_body"] = {{"model", PencilToJson(g.free_body)},
+                    {"baseline", PencilToJson(g.baseline_free_body)}};
   j["fitted_to_probes"] = g.fitted_to_probes;
   j["returned_baseline"] = g.returned_baseline;
   if (g.returned_baseline) {

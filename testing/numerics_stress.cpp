@@ -274,7 +274,7 @@ StressOutcome RunStressScene(std::uint64_t seed, double max_seconds) {
   }
   const Problem& p = *problem;
   Random random(seed ^ 0x9e3779b97f4a7c15ULL);
-  CostFunction cost(p, {CostOptions::WarmStart::kReference, true});
+  CostFunction cost(p, {CostOptions::WarmStart::kReference, true, std::nullopt});
 
   // Random topologies: verdicts against the SVD, flags against the penalty, equilibria
   // against the forces.

@@ -58,6 +58,11 @@ Generalization Certifier::Certify(const std::vector<double>& model, const Sparse
     g.pencils.push_back(std::move(pencil));
   }
   g.bound = PencilExtremes{g.lambda_min, g.lambda_max}.Bound();
+  const Scene& scene = problem_.scene();
+  g.free_body = FreeBodyExtremes(k_model, reference_stiffness_, scene.dimension, scene.rest,
+                                 kLanczosIterations, interruption);
+  g.baseline_free_body = FreeBodyExtremes(baseline, reference_stiffness_, scene.dimension,
+                                          scene.rest, kLanczosIterations, interruption);
   return g;
 }
 

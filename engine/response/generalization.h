@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "engine/response/amplitude_judgement.h"
+#include "engine/response/free_body.h"
 #include "engine/response/probe_evaluation.h"
 #include "engine/response/response_fit.h"
 
@@ -36,6 +37,10 @@ struct Generalization {
   double lambda_min = 0.0;
   double lambda_max = 0.0;
   double bound = 0.0;  // PencilExtremes::Bound of the extremes
+  // The free-body pencil (free_body.h), of the model and of the baseline: it bounds every
+  // support, the user's and any other a simulator holds the body by.
+  PencilExtremes free_body;
+  PencilExtremes baseline_free_body;
   // A nonlinear response: the model and the baseline as nonlinear spring models against the
   // nonlinear reference, per fraction of the named loads' size (amplitude_judgement.h); empty
   // for a linear one.

@@ -216,12 +216,9 @@ std::vector<SoftMode> SoftModes(const SparseMatrix& model, const SupportSystem& 
   return SmallestGeneralizedEigenpairs(m, reference, below, count, iterations, interruption).modes;
 }
 
-PencilExtremes GeneralizedEigenvalueExtremes(const SparseMatrix& model,
-                                             const SparseMatrix& reference,
-                                             const std::vector<bool>& constrained, int dimension,
-                                             int iterations, Interruption* interruption) {
-  SupportSystem m(dimension, constrained);
-  SupportSystem r(dimension, constrained);
+PencilExtremes PencilExtremesOn(const SparseMatrix& model, const SparseMatrix& reference,
+                                SupportSystem m, SupportSystem r, int iterations,
+                                Interruption* interruption) {
   PencilExtremes x;
   if (!r.Factorize(reference)) return x;  // (callers pass supports that hold the reference)
   if (interruption && interruption->Check()) throw Interrupted();
@@ -229,6 +226,14 @@ PencilExtremes GeneralizedEigenvalueExtremes(const SparseMatrix& model,
   x.lambda_max = LargestPencilEigenvalue(m, r, iterations, 1, interruption);
   if (held) x.lambda_min = 1.0 / LargestPencilEigenvalue(r, m, iterations, 2, interruption);
   return x;
+}
+
+PencilExtremes GeneralizedEigenvalueExtremes(const SparseMatrix& model,
+                                             const SparseMatrix& reference,
+                                             const std::vector<bool>& constrained, int dimension,
+                                             int iterations, Interruption* interruption) {
+  return PencilExtremesOn(model, reference, SupportSystem(dimension, constrained),
+                          SupportSystem(dimension, constrained), iterations, interruption);
 }
 
 }  // namespace springfit::response

@@ -96,6 +96,12 @@ LowestModes SmallestGeneralizedEigenpairs(const SupportSystem& model,
                                           const SupportSystem& reference, double below, int count,
                                           int iterations = kLanczosIterations,
                                           Interruption* interruption = nullptr);
+// The extremes on the support `m` and `r` share (the model's system and the reference's, not yet
+// factorised), by Lanczos as below.
+PencilExtremes PencilExtremesOn(const SparseMatrix& model, const SparseMatrix& reference,
+                                SupportSystem m, SupportSystem r,
+                                int iterations = kLanczosIterations,
+                                Interruption* interruption = nullptr);
 // By Lanczos iterations (full reorthogonalisation, at most `iterations`, seeded) in the
 // reference's energy inner product, on the free degrees of freedom of `constrained`.
 // `interruption`, when set, is checked after each factorisation and at every Lanczos iteration.

@@ -20,6 +20,23 @@ SupportSystem::SupportSystem(int dimension, const std::vector<bool>& constrained
   }
 }
 
+SupportSystem SupportSystem::OfDofs(int dimension, const std::vector<bool>& held_dofs) {
+  const auto d = static_cast<std::size_t>(dimension);
+  std::vector<bool> nodes(held_dofs.size() / d, false);
+  SupportSystem system(dimension, nodes);
+  system.free_dofs_.clear();
+  for (std::size_t dof = 0; dof < held_dofs.size(); ++dof) {
+    if (held_dofs[dof]) {
+      system.constrained_[dof / d] = true;
+      system.free_index_[dof] = -1;
+      continue;
+    }
+    system.free_index_[dof] = static_cast<int>(system.free_dofs_.size());
+    system.free_dofs_.push_back(static_cast<int>(dof));
+  }
+  return system;
+}
+
 bool SupportSystem::Factorize(const SparseMatrix& full) {
   full_ = full;
   const int n = free_dofs();

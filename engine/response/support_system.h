@@ -27,6 +27,10 @@ class SupportSystem {
   static constexpr int kSupernodalMinDofs3d = 6000;
   // `constrained[node]`: held (fixed or displaced) by this support.
   SupportSystem(int dimension, const std::vector<bool>& constrained);
+  // A support that holds single degrees of freedom (`held_dofs[d * node + c]`), such as the
+  // minimal one that removes the rigid motions alone (free_body.h). constrained() is then true
+  // for a node with any held degree of freedom.
+  static SupportSystem OfDofs(int dimension, const std::vector<bool>& held_dofs);
   SupportSystem(SupportSystem&&) = default;
   SupportSystem& operator=(SupportSystem&&) = default;
 

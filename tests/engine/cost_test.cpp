@@ -89,8 +89,8 @@ TEST(Cost, MechanismPenaltyIsFiniteGradedAndAboveStableTopologies) {
 
 TEST(Cost, WarmStartDoesNotChangeTheAnswer) {
   const Problem p = Problem::Build(examples::Make("kidney-2d"));
-  CostFunction from_reference(p, {CostOptions::WarmStart::kReference});
-  CostFunction from_rest(p, {CostOptions::WarmStart::kRest});
+  CostFunction from_reference(p, {CostOptions::WarmStart::kReference, false, std::nullopt});
+  CostFunction from_rest(p, {CostOptions::WarmStart::kRest, false, std::nullopt});
   const std::vector<std::uint8_t> all(p.candidates().size(), 1);
   const Evaluation a = from_reference.EvaluateMask(all);
   const Evaluation b = from_rest.EvaluateMask(all);
