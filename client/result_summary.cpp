@@ -67,7 +67,9 @@ void PrintRun(const proto::Json& r, bool continuous, std::ostream& out) {
   // A run without an answer says why and what to try, whatever the strategy.
   const bool no_answer =
       stop == "mechanism" || stop == "no_equilibrium" || stop == "not_reproduced";
-  if (continuous || no_answer) {
+  // (A continuous run stopped before its fit has no `continuous` details, and its message says
+  // what it returns.)
+  if (continuous || no_answer || r.value("ran", std::string()) == "continuous") {
     out << "stopped:           " << stop << ": " << r.value("stop_message", std::string()) << "\n";
   } else {
     out << "stopped:           " << r.value("stop", std::string()) << " after "

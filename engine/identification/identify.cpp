@@ -3,11 +3,14 @@
 #include <cstdio>
 #include <string>
 
+#include <fmt/format.h>
+
 #include "engine/identification/run_bounds.h"
 #include "engine/identification/run_monitor.h"
 #include "engine/identification/strategy.h"
 #include "engine/input_error.h"
 #include "engine/number_text.h"
+#include "engine/problem/baseline_evaluation.h"
 
 namespace springfit {
 namespace {
@@ -110,8 +113,10 @@ std::string StopMessage(const IdentificationResult& r) {
   return buf;
 }
 
-// A run stopped before its strategy had a model: a resumed run's checkpointed best, else the
-// empty topology (a mechanism: its evaluation is rest factorisations only); no new trace row.
+// A run stopped before its strategy had a model: a resumed run's checkpointed best; else, where
+// strategy continuous would start from the closed-form baseline (an FEM reference), that
+// baseline, named as such; else the empty topology (a mechanism: its evaluation is rest
+// factorisations only); no new trace row.
 IdentificationResult StoppedBeforeAModel(const Problem& problem, const SearchOptions& options,
                                          const RunContext& context, const RunMonitor& monitor) {
   IdentificationResult r;
@@ -120,23 +125,36 @@ IdentificationResult StoppedBeforeAModel(const Problem& problem, const SearchOpt
   r.trace = context.trace;
   r.wall_seconds = monitor.SecondsSinceStart();
   const char* why = r.stop == StopReason::kCancelled ? "stopped on request" : "time limit reached";
-  char message[200];
+  const std::optional<std::vector<double>> baseline =
+      ResolvedStrategy(options.strategy, problem) == Strategy::kContinuous
+          ? BaselineGeneWeights(problem)
+          : std::nullopt;
   if (context.resume_from && !context.resume_from->best.empty()) {
     const SearchState& s = *context.resume_from;
     r.best = s.best;
     r.generations = s.generation;
     r.best_generation = s.best_generation;
     r.counters = s.counters;
-    std::snprintf(message, sizeof message,
-                  "%s before the resumed run's first step: the checkpoint's best (generation %d) "
-                  "is kept",
-                  why, s.best_generation);
+    r.stop_message = fmt::format(
+        "{} before the resumed run's first step: the checkpoint's best (generation {}) is kept",
+        why, s.best_generation);
+  } else if (baseline) {
+    r.best.assign(static_cast<std::size_t>(problem.gene_count()), 0);
+    for (std::size_t g = 0; g < baseline->size(); ++g) {
+      if (!((*baseline)[g] > 0.0)) continue;
+      r.best[g] = 1;
+      r.stiffness.push_back((*baseline)[g]);
+    }
+    r.stop_message = fmt::format(
+        "{} before the fit began (during the analysis): the closed-form baseline ({} springs, "
+        "van Gelder 1998 on the mesh edges), not fitted and not certified",
+        why, r.stiffness.size());
+    r.evaluation = CostFunction(problem).Evaluate(problem.SpringsOfWeights(*baseline));
+    return r;
   } else {
     r.best.assign(static_cast<std::size_t>(problem.gene_count()), 0);
-    std::snprintf(message, sizeof message, "%s before any model was evaluated: no model found",
-                  why);
+    r.stop_message = fmt::format("{} before any model was evaluated: no model found", why);
   }
-  r.stop_message = message;
   r.evaluation = CostFunction(problem).EvaluateGenome(r.best);
   return r;
 }

@@ -17,6 +17,7 @@
 #include "engine/identification/run_monitor.h"
 #include "engine/identification/strategy.h"
 #include "engine/interruption.h"
+#include "engine/problem/baseline_evaluation.h"
 #include "engine/worker_pool.h"
 #include "io/example_catalog.h"
 
@@ -178,6 +179,18 @@ TEST(RunControl, TheFemBaselineIsStoppableBeforeTheRun) {
   EXPECT_FALSE(r.baseline);  // stopped while evaluating it
   EXPECT_FALSE(r.direct_phase);
   EXPECT_TRUE(r.trace.empty());
+  // What comes back is the start the fit would have had, the closed-form baseline, named as
+  // such (not "0 springs ... a mechanism", nor "springs fitted").
+  const std::vector<double> baseline = *BaselineGeneWeights(p);
+  int springs = 0;
+  for (double w : baseline) springs += w > 0.0;
+  EXPECT_EQ(static_cast<int>(r.springs.size()), springs);
+  EXPECT_FALSE(r.evaluation.mechanism);
+  EXPECT_NE(
+      r.stop_message.find("the closed-form baseline (" + std::to_string(springs) + " springs"),
+      std::string::npos)
+      << r.stop_message;
+  EXPECT_EQ(r.outcome.verdict, Verdict::kUsable);
 }
 
 // A stop during the nonlinear judgement (after the fit) returns the fitted model, says it was
