@@ -191,6 +191,13 @@ struct SofaScene {
              "load they cannot carry). -->\n";
       return;
     }
+    if (std::any_of(options.gravity.begin(), options.gravity.end(),
+                    [](double g) { return g != 0.0; })) {
+      out << "     None here: this scene adds gravity, which springfit's solve of the "
+             "case does not;\n     export without gravity for a scene whose equilibrium is "
+             "stated. -->\n";
+      return;
+    }
     std::vector<std::pair<double, int>> by_size;
     for (int p = 0; p < n; ++p) {
       double u2 = 0.0;

@@ -386,16 +386,22 @@ class NamedCaseFit {
       c = CertifyOnProbes(problem_, options_, weights_, *start_, &monitor_.interruption(), pool_);
     } catch (const Interrupted&) {
       r_.stop_message += "; stopped before the certificate: not judged on probes";
+      MarkStopped();
       return;
     }
     if (!c) return;
+    if (c->judgement_stopped) {
+      r_.stop_message += "; stopped during the nonlinear judgement (not judged at amplitudes)";
+      MarkStopped();
+    }
     const response::Generalization& g = c->generalization;
     if (c->returned_baseline) {
       r_.stop_message += fmt::format(
           "; the closed-form baseline ({} springs) is returned: the fitted model's choosing "
           "error {:.3g} (over {} choosing probes) was not below the baseline's {:.3g}",
-          PresentSprings(*start_), g.fitted_choosing_error, g.choosing, g.baseline_choosing_error);
-      ReturnBaseline();
+          PresentSprings(c->weights), g.fitted_choosing_error, g.choosing,
+          g.baseline_choosing_error);
+      ReturnBaseline(c->weights);
     }
     r_.stop_message += fmt::format(
         "; {}judged on {} held-out probes: median E {:.3g} (baseline {:.3g})",
@@ -406,9 +412,14 @@ class NamedCaseFit {
     r_.generalization = std::move(c->generalization);
   }
 
+  // A stop during the certificate: the run ends stopped, not completed.
+  void MarkStopped() {
+    r_.stop = monitor_.time_limit_reached() ? StopReason::kTimeLimit : StopReason::kCancelled;
+  }
+
   // The closed-form baseline in place of the fitted model (the baseline guarantee).
-  void ReturnBaseline() {
-    weights_ = *start_;
+  void ReturnBaseline(const std::vector<double>& baseline) {
+    weights_ = baseline;
     Take(weights_);
     r_.evaluation = cost_.Evaluate(problem_.SpringsOfWeights(weights_));
     details_.chosen = -1;

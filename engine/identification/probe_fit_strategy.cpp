@@ -135,7 +135,10 @@ std::optional<ProbeCertificate> CertifyOnProbes(const Problem& problem,
   ProbeCertificate c;
   c.weights = weights;
   response::Generalization chosen;
-  if (BaselineChosen(problem, options, probes.fit(), weights, baseline_weights, baseline.stiffness,
+  // (The guarantee returns the baseline only where the fit started from it: a start of the
+  // training stiffness, where the baseline has no equilibrium, is not the baseline.)
+  if (baseline_weights && *baseline_weights == start &&
+      BaselineChosen(problem, options, probes.fit(), weights, baseline_weights, baseline.stiffness,
                      interruption, chosen)) {
     c.weights = *baseline_weights;
     c.returned_baseline = true;

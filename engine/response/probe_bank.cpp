@@ -207,7 +207,7 @@ double ProbeBankBytes(long long probes, int nodes, int dimension) {
 
 namespace {
 
-// MakeProbeBank's steps, in the order they draw from the random stream (the same seed gives the
+// MakeProbeBanks' steps, in the order they draw from the random stream (the same seed gives the
 // same bank).
 class BankBuilder {
  public:

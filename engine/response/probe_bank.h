@@ -44,7 +44,7 @@
 namespace springfit::response {
 
 // kMode: a load along a mode a fitted model left soft (AddSoftModeProbe), added by the fit
-// itself (response_fit.h); never in the bank MakeProbeBank returns, so never judged on.
+// itself (response_fit.h); never in the banks MakeProbeBanks returns, so never judged on.
 enum class ProbeFamily { kPoint, kPatch, kBody, kNamed, kMode };
 inline constexpr int kProbeFamilies = 5;  // (their names: proto/names.h, ProbeFamilyName)
 

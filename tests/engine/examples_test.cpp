@@ -88,7 +88,8 @@ TEST(Examples, GridSimplicesCoverTheGrid) {
 
 TEST(Examples, FoldCheckRejectsAnInvertingLoad) {
   Scene s = examples::Make("paper-aniso-5x5");
-  // 0.1 k h per node: DESIGN.md reports 7-19 of the 32 triangles inverting at this load.
+  // 0.1 k h per node: 7-19 of the 32 triangles invert at this load (docs/ARCHITECTURE.md, "Paper7
+  // load cases": the examples stay at 0.05).
   for (LoadCase& lc : s.load_cases) lc.forces[0].value *= 2.0;
   EXPECT_THROW(examples::CheckFoldFree(s, examples::GridSimplices({5, 5})), std::logic_error);
 }

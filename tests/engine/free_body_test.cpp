@@ -42,6 +42,10 @@ TEST(FreeBody, TheDeterminateSupportHoldsEveryRigidMotionAndNothingElse) {
     EXPECT_GT(std::abs(at.determinant()),
               1e-6 * std::pow(at.norm(), static_cast<double>(at.rows())))
         << name;
+    // They are the rigid motions: the reference stores no energy in any of them.
+    const SparseMatrix reference = ReferenceRestStiffness(problem);
+    const Matrix energy = Matrix(reference) * rigid;
+    EXPECT_LT(energy.norm(), 1e-9 * Matrix(reference).norm() * rigid.norm()) << name;
   }
 }
 

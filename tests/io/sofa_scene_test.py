@@ -275,6 +275,10 @@ with tempfile.TemporaryDirectory() as work:
     check(ode.get("rayleighStiffness") == "0.2" and ode.get("rayleighMass") == "0.3",
           "Rayleigh damping as given")
     check(s["root"].get("gravity") == "0 -9.81 0", f"gravity {s['root'].get('gravity')}")
+    # springfit's prediction has no gravity: such a scene states none rather than a wrong one.
+    text = open(f"{work}/lumped.scn").read()
+    check("springfit-expected" not in text and "this scene adds gravity" in text,
+          "a gravity scene states a prediction without gravity")
     check("total mass" in p.stdout and "stable explicit time step at most" in p.stdout,
           f"the export's facts: {p.stdout}")
     # What the result says of the model, in the run's words: its verdict line, the certificate's
