@@ -407,22 +407,52 @@ std::string PostgresStore::Describe() const {
   return url_;
 }
 
-template <typename F>
-auto PostgresStore::With(Slot& slot, F&& f) {
-  const double limit = CallLimit();
-  const auto deadline = std::chrono::steady_clock::now() +
-                        std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                            std::chrono::duration<double>(limit));
-  const std::string late = fmt::format("the database did not answer within {:g} s", limit);
-  {
-    MutexLock lock(slot.mutex);
-    while (slot.busy && lock.WaitUntil(slot.free, deadline)) {
-    }
-    if (slot.busy)
-      throw StoreUnavailable(late + " (its connection is held by a call that has not returned)");
-    slot.busy = true;
+struct PostgresStore::Call {
+  explicit Call(double limit)
+      : deadline(std::chrono::steady_clock::now() +
+                 std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                     std::chrono::duration<double>(limit))),
+        late(fmt::format("the database did not answer within {:g} s", limit)) {}
+  std::chrono::steady_clock::time_point deadline;
+  std::string late;  // the error past the deadline
+};
+
+PostgresStore::Slot& PostgresStore::TakeWriter(const Call& call) {
+  MutexLock lock(writer_->mutex);
+  while (writer_->busy && lock.WaitUntil(writer_->free, call.deadline)) {
   }
+  if (writer_->busy)
+    throw StoreUnavailable(call.late + " (its connection is held by a call that has not returned)");
+  writer_->busy = true;
+  return *writer_;
+}
+
+PostgresStore::Slot& PostgresStore::TakeReader(const Call& call) {
+  // From a different reader at each call: the reads are spread over the connections.
+  const std::size_t first = next_reader_.fetch_add(1);
+  MutexLock lock(readers_mutex_);
+  while (true) {
+    for (std::size_t i = 0; i < readers_.size(); ++i) {
+      Slot& slot = *readers_[(first + i) % readers_.size()];
+      MutexLock slot_lock(slot.mutex);
+      if (!slot.busy) {
+        slot.busy = true;
+        return slot;
+      }
+    }
+    if (!lock.WaitUntil(reader_freed_, call.deadline)) {
+      throw StoreUnavailable(call.late +
+                             " (every reading connection is held by a call that has not returned)");
+    }
+  }
+}
+
+template <typename F>
+auto PostgresStore::With(Slot& slot, const Call& call, F&& f) {
+  const auto& deadline = call.deadline;
+  const std::string& late = call.late;
   struct Release {
+    PostgresStore& store;
     Slot& slot;
     ~Release() {
       {
@@ -430,8 +460,11 @@ auto PostgresStore::With(Slot& slot, F&& f) {
         slot.busy = false;
       }
       slot.free.notify_one();
+      // (Taken and released: a reader that found every slot busy is waiting by now.)
+      { MutexLock readers(store.readers_mutex_); }
+      store.reader_freed_.notify_all();
     }
-  } release{slot};
+  } release{*this, slot};
   // The watchdog's view of this call: armed once the connection has a socket, disarmed
   // before the connection is dropped (its descriptor may then be reused).
   const auto arm = [&] {
@@ -487,12 +520,14 @@ auto PostgresStore::With(Slot& slot, F&& f) {
 
 template <typename F>
 auto PostgresStore::Write(F&& f) {
-  return With(*writer_, std::forward<F>(f));
+  const Call call(CallLimit());
+  return With(TakeWriter(call), call, std::forward<F>(f));
 }
 
 template <typename F>
 auto PostgresStore::Read(F&& f) {
-  return With(*readers_[next_reader_.fetch_add(1) % readers_.size()], std::forward<F>(f));
+  const Call call(CallLimit());
+  return With(TakeReader(call), call, std::forward<F>(f));
 }
 
 void PostgresStore::Migrate() {

@@ -19,6 +19,7 @@
 // libpq's wait; the connection is then opened anew by the next call.
 #pragma once
 #include <atomic>
+#include <condition_variable>
 #include <functional>
 #include <memory>
 #include <string>
@@ -81,10 +82,15 @@ class PostgresStore final : public JobStore {
 
  private:
   struct Slot;  // one connection and the calls on it, one at a time (postgres_store.cpp)
-  // Runs f(connection) on the slot's connection, connecting first when needed; maps the
-  // errors of a server that is not there to StoreUnavailable.
+  struct Call;  // a call's deadline (postgres_store.cpp)
+  // The writer's connection, taken for `call` once no other call holds it.
+  Slot& TakeWriter(const Call& call);
+  // A reading connection no other call holds, taken for `call`: a slow read delays no other.
+  Slot& TakeReader(const Call& call);
+  // Runs f(connection) on the taken slot's connection, connecting first when needed, and lets
+  // the slot go; maps the errors of a server that is not there to StoreUnavailable.
   template <typename F>
-  auto With(Slot& slot, F&& f);
+  auto With(Slot& slot, const Call& call, F&& f);
   template <typename F>
   auto Write(F&& f);
   template <typename F>
@@ -102,7 +108,10 @@ class PostgresStore final : public JobStore {
   std::string url_;
   std::unique_ptr<Slot> writer_;
   std::vector<std::unique_ptr<Slot>> readers_;
-  std::atomic<std::size_t> next_reader_{0};
+  std::atomic<std::size_t> next_reader_{0};  // where the search for a free reader starts
+  // A reader waiting for a free connection waits on reader_freed_ under readers_mutex_.
+  Mutex readers_mutex_;
+  std::condition_variable reader_freed_;
 
   Mutex listener_mutex_;
   std::function<void()> on_change_ SF_GUARDED_BY(listener_mutex_);

@@ -776,5 +776,43 @@ TEST(PostgresStoreOnly, AWatchdogFiringAfterASuccessfulCallLeavesNoDeadConnectio
   }
 }
 
+// PostgreSQL alone: a read takes a reading connection no call holds. One read held on its
+// connection (a slow query) must not delay the others, which the other connection serves
+// within server.info's kind of deadline.
+TEST(PostgresStoreOnly, AReadTakesAFreeConnectionWhileAnotherIsHeld) {
+  PostgresFactory factory("t_free_reader");
+  std::atomic<bool> hold_next{false};
+  std::atomic<bool> holding{false};
+  std::atomic<bool> release{false};
+  PostgresStore::Options options;
+  options.readers = 2;
+  // The next call to end holds its connection until released (its thread: the slow read's).
+  options.on_call_end = [&] {
+    if (!hold_next.exchange(false)) return;
+    holding = true;
+    while (!release.load()) std::this_thread::sleep_for(5ms);
+  };
+  PostgresStore store(factory.url(), "", options);
+  const std::int64_t id = store.CreateJob(StoreTestJob("read"), 10).job.id;
+  hold_next = true;
+  auto slow = std::async(std::launch::async, [&] { return store.GetJob(id).has_value(); });
+  // (Released however the test ends: `slow` waits for its thread.)
+  const std::shared_ptr<void> release_at_end(nullptr, [&](void*) { release = true; });
+  const auto deadline = std::chrono::steady_clock::now() + 30s;
+  while (!holding.load() && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(5ms);
+  ASSERT_TRUE(holding.load()) << "the slow read did not start";
+  for (int i = 0; i < 6; ++i) {
+    SCOPED_TRACE("read " + std::to_string(i));
+    const ScopedStoreDeadline within(1.0);
+    const auto start = std::chrono::steady_clock::now();
+    EXPECT_NO_THROW(EXPECT_TRUE(store.GetJob(id)));
+    EXPECT_NO_THROW(EXPECT_EQ(store.CountQueued(), 1));
+    EXPECT_LT(std::chrono::steady_clock::now() - start, 1s);
+  }
+  release = true;
+  EXPECT_TRUE(slow.get());
+}
+
 }  // namespace
 }  // namespace springfit::server
