@@ -400,6 +400,10 @@ HttpResponse Dashboard::Handle(const HttpRequest& request) {
     return Text(503, std::string("store unavailable, try again: ") + e.what() + "\n");
   } catch (const InputError& e) {
     return Text(400, std::string(e.what()) + "\n");
+  } catch (const StoreCorrupt& e) {
+    // A quarantined job's was logged once, by the store that quarantined it.
+    if (e.incident() == 0) spdlog::error("http {}: {}", request.target.substr(0, 200), e.what());
+    return Text(500, std::string("the store holds a damaged record: ") + e.what() + "\n");
   } catch (const std::exception& e) {
     spdlog::error("http {}: {}", request.target.substr(0, 200), e.what());
     return Text(500, std::string("internal error: ") + e.what() + "\n");

@@ -14,6 +14,7 @@
 #include <string>
 #include <thread>
 
+#include <SQLiteCpp/SQLiteCpp.h>
 #include <gtest/gtest.h>
 #include <boost/asio/io_context.hpp>
 
@@ -194,6 +195,45 @@ TEST(Dashboard, GroupsNotAnalysedAreNotCountedOnTheJobPage) {
     EXPECT_NE(page.body.find(row + "not analysed (more than 5 seen genes)</td>"), std::string::npos)
         << page.body;
     EXPECT_EQ(page.body.find("rank of the analysed groups"), std::string::npos);
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// Issue 48: a job whose row cannot be read is listed apart, as quarantined, with its incident
+// and its reason (escaped: it quotes the damaged value); its page says why it cannot be shown.
+TEST(Dashboard, AQuarantinedJobIsListedApartWithItsIncident) {
+  const auto dir = std::filesystem::temp_directory_path() / "springfit-dashboard-quarantine";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  {
+    SqliteStore store((dir / "jobs.db").string());
+    NewJob job;
+    job.record.label = "fine";
+    job.record.scene_name = "s";
+    job.scene_json = "{}";
+    const std::int64_t fine = store.CreateJob(job, 100).job.id;
+    const std::int64_t damaged = store.CreateJob(job, 100).job.id;
+    {
+      SQLite::Database db((dir / "jobs.db").string(), SQLite::OPEN_READWRITE);
+      db.exec("UPDATE jobs SET state = '<b>x</b>' WHERE id = " + std::to_string(damaged));
+    }
+    Metrics metrics;
+    Scheduler scheduler(store, SchedulerOptions{});
+    Dashboard dashboard(store, scheduler, metrics, DashboardOptions{});
+    const HttpResponse list = dashboard.Handle({"GET", "/", {}, ""});
+    ASSERT_EQ(list.status, 200) << list.body;
+    EXPECT_NE(list.body.find("<a href=\"/jobs/" + std::to_string(fine) + "\">"), std::string::npos);
+    const std::size_t table = list.body.find("<table id=\"quarantined\">");
+    ASSERT_NE(table, std::string::npos) << list.body;
+    EXPECT_NE(list.body.find("<tr><td>" + std::to_string(damaged) + "</td><td>1</td>", table),
+              std::string::npos)
+        << list.body;
+    EXPECT_NE(list.body.find("unknown state '&lt;b&gt;x&lt;/b&gt;'", table), std::string::npos)
+        << list.body;
+    EXPECT_EQ(list.body.find("<b>x</b>"), std::string::npos);
+    const HttpResponse page = dashboard.Handle({"GET", "/jobs/" + std::to_string(damaged), {}, ""});
+    EXPECT_NE(page.body.find("is quarantined (quarantine incident 1)"), std::string::npos)
+        << page.body;
   }
   std::filesystem::remove_all(dir);
 }
