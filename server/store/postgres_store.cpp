@@ -144,9 +144,7 @@ const std::pair<const char*, const char*> kStatements[] = {
     {"sweep_preparing", "DELETE FROM jobs WHERE state = 'preparing' AND lease_expires < " SF_NOW},
     {"get_scene", "SELECT scene FROM jobs WHERE id = $1"},
     {"get_listed", "SELECT " SF_LISTED_COLUMNS " FROM " SF_JOBS_LISTED " WHERE id = $1"},
-    // Locked: the daemons that find one damaged row quarantine it once.
-    {"lock_listed",
-     "SELECT " SF_LISTED_COLUMNS " FROM " SF_JOBS_LISTED " WHERE id = $1 FOR UPDATE OF jobs"},
+    {"lock_job", "SELECT 1 FROM jobs WHERE id = $1 FOR UPDATE"},
     {"quarantine", "INSERT INTO quarantine (job_id, reason, quarantined_at) VALUES ($1, $2, " SF_NOW
                    ") RETURNING incident, quarantined_at"},
     {"set_aside",
@@ -294,7 +292,12 @@ void Fence(pqxx::work& w, const Lease& lease) {
 
 // In a write transaction: job `id` quarantined when its row still cannot be read.
 std::optional<rows::Quarantining> QuarantineIfDamaged(pqxx::work& w, std::int64_t id) {
-  const pqxx::result r = w.exec_prepared("lock_listed", id);
+  // The row locked first, then read by a statement of its own: daemons that find the damage
+  // together take turns, and each reads the row as the one before left it (quarantined
+  // once). (A join locked and read in one statement reads the quarantine table as it was
+  // when that statement began.)
+  w.exec_prepared("lock_job", id);
+  const pqxx::result r = w.exec_prepared("get_listed", id);
   std::optional<rows::ListedJob> row;
   if (!r.empty()) row = rows::ListedJobOf(PgRow{r[0]});
   std::optional<rows::Quarantining> quarantining =

@@ -668,6 +668,7 @@ TEST_F(SchedulerTest, AWatchedJobWhoseRowIsDamagedEndsItsWatchAndTheOthersAreFol
   scheduler.Watch(elsewhere, inbox.For(elsewhere));
   {
     SQLite::Database db(path_, SQLite::OPEN_READWRITE);
+    db.setBusyTimeout(30000);  // (the running job writes meanwhile)
     db.exec("UPDATE jobs SET progress = '{not json' WHERE id = " + std::to_string(damaged));
   }
   const std::optional<Claim> other = sqlite.ClaimNext("other-daemon", 30.0);

@@ -129,8 +129,11 @@ class StoreSuite : public ::testing::TestWithParam<std::string> {
   // The incident of the StoreCorrupt that reading job `id` throws, whose message must hold
   // `what`; 0 (a failure) when the read succeeds.
   std::int64_t CorruptIncident(std::int64_t id, const std::string& what) {
+    return CorruptIncident(*store_, id, what);
+  }
+  static std::int64_t CorruptIncident(JobStore& store, std::int64_t id, const std::string& what) {
     try {
-      store_->GetJob(id);
+      store.GetJob(id);
       ADD_FAILURE() << "job " << id << ": a damaged row was read";
     } catch (const StoreCorrupt& e) {
       EXPECT_NE(std::string(e.what()).find("job " + std::to_string(id)), std::string::npos)
@@ -218,6 +221,44 @@ TEST_P(StoreSuite, ADamagedRowIsQuarantinedOnceAndTheOthersStayListed) {
   ASSERT_TRUE(store_->GetJob(good));
   EXPECT_EQ(store_->GetJob(good)->state, JobState::kQueued);
   EXPECT_EQ(store_->CountQueued(), 2);
+  // Another daemon of a shared store reads the same quarantine (and logs nothing).
+  if (const std::unique_ptr<JobStore> second = factory_->Second()) {
+    EXPECT_EQ(CorruptIncident(*second, garbled, "is quarantined"), garbled_incident);
+    EXPECT_EQ(second->ListJobs(JobFilter{}).quarantined.size(), 2u);
+  }
+}
+
+// Daemons (and threads) that find one damaged row at once quarantine it once: every read
+// answers the same incident, none another error.
+TEST_P(StoreSuite, ReadersFindingOneDamagedRowTogetherQuarantineItOnce) {
+  const std::unique_ptr<JobStore> second = factory_->Second();
+  std::vector<JobStore*> stores{store_.get()};
+  if (second) stores.push_back(second.get());
+  constexpr int kReaders = 6;
+  for (int round = 0; round < 5; ++round) {
+    SCOPED_TRACE("round " + std::to_string(round));
+    const std::int64_t id = Create("damaged");
+    factory_->ExecRaw("UPDATE jobs SET progress = '{not json' WHERE id = " + std::to_string(id));
+    std::atomic<int> ready{0};
+    std::vector<std::future<std::int64_t>> reads;
+    for (int r = 0; r < kReaders; ++r) {
+      JobStore& store = *stores[r % stores.size()];
+      reads.push_back(std::async(std::launch::async, [&store, &ready, id] {
+        ++ready;
+        while (ready.load() < kReaders) std::this_thread::yield();
+        try {
+          store.GetJob(id);
+          return std::int64_t{-1};
+        } catch (const StoreCorrupt& e) {
+          return e.incident();
+        }
+      }));
+    }
+    std::set<std::int64_t> incidents;
+    for (auto& read : reads) incidents.insert(read.get());
+    ASSERT_EQ(incidents.size(), 1u);
+    EXPECT_GT(*incidents.begin(), 0);
+  }
 }
 
 // Damage found by a listing, before any read of the job: the whole listing answers, and the
