@@ -76,7 +76,13 @@ void PrintRun(const proto::Json& r, bool continuous, std::ostream& out) {
         << r.value("generations", 0) << " generations (best found in generation "
         << r.value("best_generation", 0) << ")\n";
   }
-  if (continuous) {
+  const bool fitted_to_probes = r.contains("generalization") && r["generalization"].is_object() &&
+                                r["generalization"].value("fitted_to_probes", false);
+  if (continuous && fitted_to_probes) {
+    // (The probe fit counts its accepted Gauss-Newton steps; it evaluates no genome.)
+    out << "steps:             " << r["continuous"].value("steps", 0LL)
+        << " (Gauss-Newton steps of the probe fit)\n";
+  } else if (continuous) {
     out << "steps:             " << r.value("evaluations", 0LL)
         << " (trust-region steps: the fit, the path's refits, the returned model's refit)\n";
   } else {

@@ -295,6 +295,8 @@ PY
 expect_exit 0 "run fem probes" "$sf" run "$src/examples/fem-plate-5x5.json" -q -o "$tmp/probes.json"
 grep -q "^unseen loads:      [0-9]* held-out probes on [0-9]* supports, never fitted: median E .*; baseline " "$tmp/out" || fail "run prints the held-out E: $(cat "$tmp/out")"
 grep -q "^  every load:      generalised eigenvalues of (K_model, K_ref)" "$tmp/out" || fail "run prints the pencil's bound: $(cat "$tmp/out")"
+grep -q "^  any support:     on the free body (modulo rigid motions, which bounds every support) in \[" "$tmp/out" || fail "run prints the free-body bound: $(cat "$tmp/out")"
+cp "$tmp/out" "$tmp/probes-summary.txt"
 python3 - "$tmp/probes.json" <<'PY' || fail "probe result: $(head -c 300 "$tmp/probes.json")"
 import json, sys
 r = json.load(open(sys.argv[1]))
@@ -305,6 +307,15 @@ assert set(g["by_family"]) == {"point", "patch", "body", "named"}, g["by_family"
 assert g["lambda_min"] > 0.1 and g["lambda_max"] >= g["lambda_min"], g
 assert g["probes"]["held_out"] > 0 and g["probes"]["supports"] >= 3, g["probes"]
 assert r["options"]["probes"] == "auto"
+fb = g["free_body"]
+assert fb["model"]["lambda_min"] <= g["lambda_min"] * (1 + 1e-9) and fb["baseline"]["bound"] is not None, fb
+PY
+python3 - "$tmp/kidney-steps.json" "$src/examples/fem-kidney-2d.json" "$sf" <<'PY' || fail "the summary's steps are the fit's"
+import json, subprocess, sys
+out = subprocess.run([sys.argv[3], "run", sys.argv[2], "-o", sys.argv[1]], capture_output=True, text=True).stdout
+r = json.load(open(sys.argv[1]))
+steps = r["continuous"]["steps"]
+assert steps > 0 and f"steps:             {steps} (Gauss-Newton steps of the probe fit)" in out, (steps, out)
 PY
 expect_exit 0 "run fem probes 60" "$sf" run "$src/examples/fem-plate-5x5.json" --probes 60 -q -o "$tmp/probes60.json"
 python3 - "$tmp/probes60.json" <<'PY' || fail "probe count: $(head -c 300 "$tmp/probes60.json")"
