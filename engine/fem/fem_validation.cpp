@@ -37,7 +37,12 @@ void CheckMaterial(const Material& m, const std::string& path) {
                                           "units (springfit computes in double precision)");
   }
   if (!std::isfinite(m.poisson) || !(m.poisson > -1.0 && m.poisson < 0.5)) {
-    throw InputError(path + ".poisson", "must be in (-1, 0.5), got " + Number(m.poisson));
+    throw InputError(path + ".poisson",
+                     "must be in (-1, 0.5), got " + Number(m.poisson) +
+                         (m.poisson >= 0.5 && std::isfinite(m.poisson)
+                              ? ": an incompressible material has no displacement-only FEM "
+                                "model; for soft tissue use 0.49 (nearly incompressible)"
+                              : ""));
   }
   if (m.density && (!std::isfinite(*m.density) || !(*m.density > 0.0) || *m.density > 1e100 ||
                     *m.density < 1e-100)) {

@@ -6,6 +6,8 @@
 #include <optional>
 #include <string>
 
+#include <fmt/format.h>
+
 #include "engine/candidates.h"
 #include "engine/fem/closed_form_baseline.h"
 #include "engine/fem/traction.h"
@@ -78,6 +80,18 @@ std::vector<std::string> SceneNotices(const Problem& problem) {
   std::vector<std::string> notices;
   const Scene& s = problem.scene();
   if (s.reference.kind != Reference::Kind::kFem) return notices;
+  // Linear triangles and tetrahedra lock as nu nears 0.5: the reference turns stiffer than the
+  // material it models, and the springs are fitted to that.
+  for (std::size_t i = 0; i < s.reference.fem.materials.size(); ++i) {
+    const double nu = s.reference.fem.materials[i].poisson;
+    if (nu > kLockingPoisson) {
+      notices.push_back(fmt::format(
+          "reference material {}: Poisson's ratio {} is above {}: linear triangles and "
+          "tetrahedra lock there (the reference turns stiffer than the material, most in "
+          "bending); 0.49 is the usual value for soft tissue",
+          i, nu, kLockingPoisson));
+    }
+  }
   for (const Material& m : s.reference.fem.materials)
     if (m.model != MaterialModel::kLinear) return notices;
   const double size = BoundingBox::Of(s.dimension, s.rest).Diagonal();

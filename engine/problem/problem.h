@@ -83,6 +83,8 @@ Response ResolveResponse(const Scene& scene);
 // so scaling them down changes nothing but the reference's meaning). `run` and `check` print
 // them.
 inline constexpr double kLargeDisplacementFraction = 0.05;
+// A Poisson's ratio above this gets a notice too: linear elements lock near 0.5.
+inline constexpr double kLockingPoisson = 0.49;
 std::vector<std::string> SceneNotices(const Problem& problem);
 
 // The training stiffness of a positions reference given without one: the median of the

@@ -276,6 +276,16 @@ json.dump(s, open(sys.argv[2], "w"))
 PY
 expect_exit 2 "reference invalid fem" "$sf" reference "$tmp/bad-fem.json"
 grep -q "reference.material.poisson: must be in (-1, 0.5), got 0.5" "$tmp/err" || fail "reference names the path: $(cat "$tmp/err")"
+grep -q "got 0.5: an incompressible material .*use 0.49" "$tmp/err" || fail "nu 0.5 hints at 0.49: $(cat "$tmp/err")"
+# Nearly incompressible is taken, with a notice on locking.
+python3 - "$src/examples/fem-plate-5x5.json" "$tmp/locking-fem.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+s["reference"]["material"]["poisson"] = 0.499
+json.dump(s, open(sys.argv[2], "w"))
+PY
+expect_exit 0 "check nu 0.499" "$sf" check "$tmp/locking-fem.json"
+grep -q "^notice: .*Poisson's ratio 0.499 is above 0.49: linear triangles and tetrahedra lock" "$tmp/out" || fail "nu 0.499 notes locking: $(cat "$tmp/out")"
 # direct on an FEM reference: no MSS reproduces it, and on the kidney direct's model is
 # worse than the rest shape (normalised error 1.4): stop not_reproduced, exit 10.
 expect_exit 10 "run fem direct" "$sf" run "$src/examples/fem-kidney-2d.json" --strategy direct --json
