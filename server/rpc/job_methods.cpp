@@ -41,6 +41,7 @@ Json QuarantinedToJson(const std::vector<QuarantinedJob>& quarantined,
     row["incident"] = q.incident;
     row["reason"] = q.reason;
     row["quarantined_at"] = q.quarantined_at;
+    row["previous_state"] = q.previous_state;
     out.push_back(std::move(row));
   }
   return out;

@@ -132,6 +132,7 @@ struct QuarantinedJob {
   std::int64_t incident = 0;  // the store's number for it, one per job, shared by its daemons
   std::string reason;         // what could not be read (StoreCorrupt's message)
   double quarantined_at = 0.0;
+  std::string previous_state;  // the row's state when quarantined: to set back once repaired
 };
 
 // A stored record cannot be read: the database holds a value no springfitd writes (an unknown

@@ -109,7 +109,8 @@ CREATE TABLE quarantine (
   incident BIGSERIAL PRIMARY KEY,
   job_id BIGINT NOT NULL UNIQUE REFERENCES jobs (id) ON DELETE CASCADE,
   reason TEXT NOT NULL,
-  quarantined_at DOUBLE PRECISION NOT NULL
+  quarantined_at DOUBLE PRECISION NOT NULL,
+  previous_state TEXT NOT NULL      -- the job's, to set back once its row is repaired
 );
 )sql",
 };
@@ -145,8 +146,9 @@ const std::pair<const char*, const char*> kStatements[] = {
     {"get_scene", "SELECT scene FROM jobs WHERE id = $1"},
     {"get_listed", "SELECT " SF_LISTED_COLUMNS " FROM " SF_JOBS_LISTED " WHERE id = $1"},
     {"lock_job", "SELECT 1 FROM jobs WHERE id = $1 FOR UPDATE"},
-    {"quarantine", "INSERT INTO quarantine (job_id, reason, quarantined_at) VALUES ($1, $2, " SF_NOW
-                   ") RETURNING incident, quarantined_at"},
+    {"quarantine",
+     "INSERT INTO quarantine (job_id, reason, quarantined_at, previous_state) VALUES "
+     "($1, $2, " SF_NOW ", $3) RETURNING incident, quarantined_at"},
     {"set_aside",
      "UPDATE jobs SET state = 'quarantined', lease_owner = NULL, lease_expires = 0 WHERE id = $1"},
     {"unfinished", "SELECT " SF_LISTED_COLUMNS " FROM " SF_JOBS_LISTED
@@ -301,9 +303,11 @@ std::optional<rows::Quarantining> QuarantineIfDamaged(pqxx::work& w, std::int64_
   std::optional<rows::ListedJob> row;
   if (!r.empty()) row = rows::ListedJobOf(PgRow{r[0]});
   std::optional<rows::Quarantining> quarantining =
-      rows::QuarantineIfDamaged(row, [&](std::int64_t job_id, const std::string& reason) {
-        const pqxx::result q = w.exec_prepared("quarantine", job_id, reason);
-        return QuarantinedJob{job_id, q[0][0].as<std::int64_t>(), reason, q[0][1].as<double>()};
+      rows::QuarantineIfDamaged(row, [&](const rows::ListedJob& damaged) {
+        const pqxx::result q =
+            w.exec_prepared("quarantine", damaged.id, damaged.damage, damaged.stored_state);
+        return QuarantinedJob{damaged.id, q[0][0].as<std::int64_t>(), damaged.damage,
+                              q[0][1].as<double>(), damaged.stored_state};
       });
   // (Again for a row quarantined before whose state was set back by hand.)
   if (quarantining) w.exec_prepared("set_aside", id);
@@ -740,13 +744,14 @@ std::map<JobState, int> PostgresStore::CountJobs() {
 
 std::optional<Claim> PostgresStore::ClaimNext(const std::string& owner, double lease_seconds) {
   return Write([&](pqxx::connection_base& c) -> std::optional<Claim> {
-    // A job whose row cannot be read is quarantined (by the claim's transaction, which holds
-    // it), and the next one taken instead: one damaged row must not hold up the queue.
+    // A job whose row cannot be read is quarantined as it was (its claim undone), and the
+    // next one taken instead: one damaged row must not hold up the queue.
     while (true) {
       pqxx::work w(c);
       // Submissions whose daemon stopped renewing them while they were prepared: never
       // answered.
       w.exec_prepared("sweep_preparing");
+      w.exec("SAVEPOINT claim");
       const pqxx::result r = w.exec_prepared("claim", owner, lease_seconds);
       if (r.empty()) {
         w.commit();
@@ -758,6 +763,7 @@ std::optional<Claim> PostgresStore::ClaimNext(const std::string& owner, double l
       try {
         claim.job = ReadJob(r[0]);
       } catch (const StoreCorrupt&) {
+        w.exec("ROLLBACK TO SAVEPOINT claim");
         quarantined = QuarantineIfDamaged(w, id);
         if (!quarantined) throw;  // (not set aside: it would be claimed again)
       }

@@ -104,7 +104,8 @@ CREATE TABLE quarantine (
   incident INTEGER PRIMARY KEY AUTOINCREMENT,
   job_id INTEGER NOT NULL UNIQUE REFERENCES jobs (id) ON DELETE CASCADE,
   reason TEXT NOT NULL,
-  quarantined_at REAL NOT NULL
+  quarantined_at REAL NOT NULL,
+  previous_state TEXT NOT NULL      -- the job's, to set back once its row is repaired
 );
 )sql",
 };
@@ -225,13 +226,15 @@ std::optional<rows::Quarantining> QuarantineIfDamaged(SQLite::Database& db, std:
   if (q.executeStep()) row = rows::ListedJobOf(SqliteRow{q});
   q.reset();
   std::optional<rows::Quarantining> quarantining =
-      rows::QuarantineIfDamaged(row, [&](std::int64_t job_id, const std::string& reason) {
-        QuarantinedJob quarantined{job_id, 0, reason, UnixNow()};
-        SQLite::Statement insert(
-            db, "INSERT INTO quarantine (job_id, reason, quarantined_at) VALUES (?, ?, ?)");
-        insert.bind(1, job_id);
-        insert.bind(2, reason);
+      rows::QuarantineIfDamaged(row, [&](const rows::ListedJob& damaged) {
+        QuarantinedJob quarantined{damaged.id, 0, damaged.damage, UnixNow(), damaged.stored_state};
+        SQLite::Statement insert(db,
+                                 "INSERT INTO quarantine (job_id, reason, quarantined_at, "
+                                 "previous_state) VALUES (?, ?, ?, ?)");
+        insert.bind(1, damaged.id);
+        insert.bind(2, damaged.damage);
         insert.bind(3, quarantined.quarantined_at);
+        insert.bind(4, damaged.stored_state);
         insert.exec();
         quarantined.incident = db.getLastInsertRowid();
         return quarantined;
@@ -601,14 +604,18 @@ std::optional<Claim> SqliteStore::ClaimNext(const std::string& owner, double lea
     sweep.bind(1, now);
     sweep.exec();
     std::optional<Claim> taken;
-    // A job whose row cannot be read is quarantined, and the next one taken instead: one
-    // damaged row must not hold up the queue.
+    // A job whose row cannot be read is quarantined as it was (its claim undone), and the
+    // next one taken instead: one damaged row must not hold up the queue.
     while (const std::optional<std::int64_t> id = PickNext(db, now)) {
+      db.exec("SAVEPOINT claim");
       TakeJob(db, *id, owner, now, lease_seconds);
       try {
         taken = ReadClaim(db, *id, owner);
+        db.exec("RELEASE claim");
         break;
       } catch (const StoreCorrupt&) {
+        db.exec("ROLLBACK TO claim");
+        db.exec("RELEASE claim");
         std::optional<rows::Quarantining> q = QuarantineIfDamaged(db, *id);
         if (!q) throw;  // (not set aside: it would be picked again)
         quarantined.push_back(std::move(*q));

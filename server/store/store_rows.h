@@ -32,7 +32,8 @@ inline constexpr int kJobColumnCount = 18;
 
 // A job's columns with its quarantine's (null unless it is quarantined), in the order
 // ListedJobOf reads them, from SF_JOBS_LISTED.
-#define SF_LISTED_COLUMNS SF_JOB_COLUMNS ", incident, job_id, reason, quarantined_at"
+#define SF_LISTED_COLUMNS \
+  SF_JOB_COLUMNS ", incident, job_id, reason, quarantined_at, previous_state"
 #define SF_JOBS_LISTED "jobs LEFT JOIN quarantine ON job_id = id"
 
 // A trace row's columns (table trace), in the order TraceRowOf reads them.
@@ -80,6 +81,7 @@ JobRecord JobOf(const Row& r) {
 // makes it unreadable (StoreCorrupt's message), which the store is to quarantine.
 struct ListedJob {
   std::int64_t id = 0;
+  std::string stored_state;  // the state column's text, whatever it holds
   std::optional<JobRecord> job;
   std::optional<QuarantinedJob> quarantined;
   std::string damage;
@@ -89,12 +91,14 @@ template <typename Row>
 ListedJob ListedJobOf(const Row& r) {
   ListedJob listed;
   listed.id = r.Int64(0);
+  listed.stored_state = r.Text(5);
   if (!r.Null(kJobColumnCount)) {
     QuarantinedJob& q = listed.quarantined.emplace();
     q.incident = r.Int64(kJobColumnCount);
     q.job_id = r.Int64(kJobColumnCount + 1);
     q.reason = r.Text(kJobColumnCount + 2);
     q.quarantined_at = r.Double(kJobColumnCount + 3);
+    q.previous_state = r.Text(kJobColumnCount + 4);
     return listed;
   }
   try {
@@ -112,14 +116,14 @@ struct Quarantining {
 };
 
 // In a write transaction, with `row` the job's row read again there: the job's quarantine,
-// made by `insert(id, damage)` when the row is still damaged; nothing when it is gone or
-// readable again.
+// made by `insert(row)` when the row is still damaged; nothing when it is gone or readable
+// again.
 template <typename Insert>
 std::optional<Quarantining> QuarantineIfDamaged(const std::optional<ListedJob>& row,
                                                 Insert&& insert) {
   if (!row || row->job) return std::nullopt;
   if (row->quarantined) return Quarantining{*row->quarantined, false};
-  return Quarantining{insert(row->id, row->damage), true};
+  return Quarantining{insert(*row), true};
 }
 
 // A quarantine, committed: logged (one line) when this call set it. Returns its job.

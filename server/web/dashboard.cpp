@@ -175,10 +175,12 @@ std::string QuarantinedTable(const std::vector<QuarantinedJob>& quarantined) {
   std::string body =
       "<h2>Quarantined</h2>\n<p>Their rows in the store cannot be read: they are never run, "
       "and the other jobs go on. Repair or delete them in the store.</p>\n<table "
-      "id=\"quarantined\"><tr><th>job</th><th>incident</th><th>since</th><th>reason</th></tr>\n";
+      "id=\"quarantined\"><tr><th>job</th><th>incident</th><th>since</th><th>reason</th>"
+      "<th>state before</th></tr>\n";
   for (const QuarantinedJob& q : quarantined) {
-    body += fmt::format("<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n", q.job_id,
-                        q.incident, UtcTime(q.quarantined_at), XmlEscape(q.reason));
+    body += fmt::format("<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
+                        q.job_id, q.incident, UtcTime(q.quarantined_at), XmlEscape(q.reason),
+                        XmlEscape(q.previous_state));
   }
   return body + "</table>\n";
 }

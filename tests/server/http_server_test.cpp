@@ -230,6 +230,8 @@ TEST(Dashboard, AQuarantinedJobIsListedApartWithItsIncident) {
         << list.body;
     EXPECT_NE(list.body.find("unknown state '&lt;b&gt;x&lt;/b&gt;'", table), std::string::npos)
         << list.body;
+    EXPECT_NE(list.body.find("<td>&lt;b&gt;x&lt;/b&gt;</td></tr>", table), std::string::npos)
+        << list.body;  // the state before
     EXPECT_EQ(list.body.find("<b>x</b>"), std::string::npos);
     const HttpResponse page = dashboard.Handle({"GET", "/jobs/" + std::to_string(damaged), {}, ""});
     EXPECT_NE(page.body.find("is quarantined (quarantine incident 1)"), std::string::npos)

@@ -203,6 +203,7 @@ TEST_F(RpcServiceTest, ADamagedStoredJobIsCorruptionWithAnIncident) {
   EXPECT_EQ(quarantined["job_id"], id);
   EXPECT_EQ(quarantined["state"], "quarantined");
   EXPECT_EQ(quarantined["incident"], 1);
+  EXPECT_EQ(quarantined["previous_state"], "bogus");
   EXPECT_NE(quarantined["reason"].get<std::string>().find("unknown state 'bogus'"),
             std::string::npos);
   EXPECT_TRUE(Call("server.info").contains("result"));

@@ -204,12 +204,14 @@ TEST_P(StoreSuite, ADamagedRowIsQuarantinedOnceAndTheOthersStayListed) {
   one.limit = 1;
   std::vector<std::int64_t> listed;
   std::map<std::int64_t, std::int64_t> incidents;
+  std::map<std::int64_t, std::string> previous_states;
   for (int page = 0; page < 10; ++page) {
     const JobPage p = store_->ListJobs(one);
     for (const JobRecord& j : p.jobs) listed.push_back(j.id);
     for (const QuarantinedJob& q : p.quarantined) {
       listed.push_back(q.job_id);
       incidents[q.job_id] = q.incident;
+      previous_states[q.job_id] = q.previous_state;
       EXPECT_NE(q.reason.find("job " + std::to_string(q.job_id)), std::string::npos) << q.reason;
     }
     if (!p.next_cursor) break;
@@ -218,6 +220,9 @@ TEST_P(StoreSuite, ADamagedRowIsQuarantinedOnceAndTheOthersStayListed) {
   EXPECT_EQ(listed, (std::vector<std::int64_t>{good, bogus, garbled, last}));
   EXPECT_EQ(incidents, (std::map<std::int64_t, std::int64_t>{{bogus, bogus_incident},
                                                              {garbled, garbled_incident}}));
+  // The state each had, to set back once repaired.
+  EXPECT_EQ(previous_states,
+            (std::map<std::int64_t, std::string>{{bogus, "bogus"}, {garbled, "queued"}}));
   ASSERT_TRUE(store_->GetJob(good));
   EXPECT_EQ(store_->GetJob(good)->state, JobState::kQueued);
   EXPECT_EQ(store_->CountQueued(), 2);
@@ -295,6 +300,10 @@ TEST_P(StoreSuite, AClaimQuarantinesADamagedRowAndTakesTheNextJob) {
   EXPECT_GT(CorruptIncident(damaged, "progress column"), 0);
   EXPECT_EQ(store_->CountQueued(), 0);
   EXPECT_EQ(store_->RequestCancel(damaged), JobStore::CancelOutcome::kNotActive);
+  // The claim that found it left it as it was (queued, to set back once repaired).
+  const JobPage page = store_->ListJobs(JobFilter{});
+  ASSERT_EQ(page.quarantined.size(), 1u);
+  EXPECT_EQ(page.quarantined[0].previous_state, "queued");
 }
 
 TEST_P(StoreSuite, ListPagesAndFilters) {
