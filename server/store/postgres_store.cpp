@@ -508,8 +508,14 @@ auto PostgresStore::With(Slot& slot, const Call& call, F&& f) {
       arm();
       for (const auto& [name, sql] : kStatements) slot.connection->prepare(name, sql);
       // The connect completes here, under the watchdog: a first round trip, since some calls
-      // quote text (which needs the server's encoding) before their first statement.
-      pqxx::nontransaction(*slot.connection).exec("SELECT 1");
+      // quote text (which needs the server's encoding) before their first statement. It also
+      // bounds how long this session may sit in an open transaction: a daemon frozen inside one
+      // (SIGSTOP, a stalled host) holds the job's row lock, and the claims of the other daemons
+      // (FOR UPDATE SKIP LOCKED) would pass over the job for as long as it stays frozen; the
+      // server ends such a session after one call limit, and the lock with it.
+      pqxx::nontransaction(*slot.connection)
+          .exec(fmt::format("SET idle_in_transaction_session_timeout = {}",
+                            static_cast<long long>(std::ceil(1000.0 * options_.call_seconds))));
     } else {
       arm();
     }
