@@ -48,6 +48,31 @@ void PrintOutcome(const Outcome& o, std::ostream& out) {
 
 namespace {
 
+// The probe fit's nonlinear stage, where it ran (a nonlinear response): its steps, its cases and
+// the choosing error (at the load range's sizes, with the simulator's spring law) it began and
+// ended at, beside the closed-form baseline's.
+void PrintNonlinearFit(const proto::Json& fit, std::ostream& out) {
+  if (!fit.contains("nonlinear") || !fit["nonlinear"].is_object()) return;
+  const proto::Json& n = fit["nonlinear"];
+  std::string sizes;
+  for (const auto& a : n.value("amplitudes", proto::Json::array()))
+    sizes += (sizes.empty() ? "" : ", ") + Format("%.0f", 100.0 * a.get<double>());
+  const auto number = [&n](const char* key) {
+    return n.contains(key) && n[key].is_number() ? Format("%.3g", n[key].get<double>())
+                                                 : std::string("-");
+  };
+  out << "nonlinear fit:     " << n.value("gauss_newton_steps", 0) << " Gauss-Newton steps on "
+      << n.value("fitted_cases", 0) << " equilibria (the fitted probes at " << sizes
+      << "% of the named loads, nonlinear springs): choosing E "
+      << number("start_choosing_rms_error") << " at rest-linear fit, "
+      << number("choosing_rms_error") << " returned (baseline "
+      << number("baseline_choosing_rms_error") << ")";
+  if (n.value("failed", 0) > 0)
+    out << "; " << n.value("failed", 0)
+        << " choosing equilibria not found (a fold or no equilibrium)";
+  out << "\n";
+}
+
 // How the run went: the scene and job, the verdict, the strategy and its stop, its work.
 void PrintRun(const proto::Json& r, bool continuous, std::ostream& out) {
   out << "scene:             " << r.value("scene", std::string()) << "\n";
@@ -82,6 +107,7 @@ void PrintRun(const proto::Json& r, bool continuous, std::ostream& out) {
     // (The probe fit counts its accepted Gauss-Newton steps; it evaluates no genome.)
     out << "steps:             " << r["continuous"].value("steps", 0LL)
         << " (Gauss-Newton steps of the probe fit)\n";
+    PrintNonlinearFit(r["generalization"].value("fit", proto::Json::object()), out);
   } else if (continuous) {
     out << "steps:             " << r.value("evaluations", 0LL)
         << " (trust-region steps: the fit, the path's refits, the returned model's refit)\n";

@@ -294,6 +294,19 @@ Json GeneralizationToJson(const response::Generalization& g) {
                        {"lifted", m.lifted}});
     fit["soft_modes"] = std::move(modes);
     fit["soft_modes_chosen"] = g.fit.soft_mode_chosen;
+    if (const auto& n = g.fit.nonlinear) {
+      fit["nonlinear"] = {{"amplitudes", n->amplitudes},
+                          {"fitted_cases", n->fitted_cases},
+                          {"choosing_cases", n->choosing_cases},
+                          {"start_choosing_rms_error", NumberOrNull(n->start_choosing_error)},
+                          {"choosing_rms_error", NumberOrNull(n->choosing_error)},
+                          {"baseline_choosing_rms_error", NumberOrNull(n->baseline_choosing_error)},
+                          {"start_failed", n->start_failed},
+                          {"failed", n->failed},
+                          {"regularization", n->regularization},
+                          {"gauss_newton_steps", n->steps},
+                          {"seconds", n->seconds}};
+    }
     j["fit"] = std::move(fit);
   }
   return j;

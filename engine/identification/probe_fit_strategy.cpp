@@ -16,6 +16,7 @@
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/problem/cost.h"
 #include "engine/response/generalization.h"
+#include "engine/response/matrix_free_fit.h"
 #include "engine/response/probe_objective.h"
 #include "engine/wall_clock.h"
 
@@ -83,14 +84,20 @@ class RunProbes {
 bool BaselineChosen(const Problem& problem, const SearchOptions& options,
                     const response::ProbeBank& bank, const std::vector<double>& fitted,
                     const std::optional<std::vector<double>>& baseline_on_genes,
-                    const SparseMatrix& baseline, Interruption* interruption,
-                    response::Generalization& g) {
+                    const SparseMatrix& baseline,
+                    const std::optional<response::NonlinearFitResult>& stage,
+                    Interruption* interruption, response::Generalization& g) {
   if (!baseline_on_genes ||
       (options.max_springs > 0 && PresentSprings(*baseline_on_genes) > options.max_springs))
     return false;
+  // (After a nonlinear stage, both as it judged them: at the load range's sizes.)
+  const bool nonlinear = stage && stage->choosing_cases > 0;
   const double model_error =
-      response::ChoosingError(bank, response::SpringRestStiffness(problem, fitted), interruption);
-  const double baseline_error = response::ChoosingError(bank, baseline, interruption);
+      nonlinear ? stage->choosing_error
+                : response::ChoosingError(bank, response::SpringRestStiffness(problem, fitted),
+                                          interruption);
+  const double baseline_error = nonlinear ? stage->baseline_choosing_error
+                                          : response::ChoosingError(bank, baseline, interruption);
   if (model_error < baseline_error) return false;
   g.fitted_choosing_error = model_error;
   g.baseline_choosing_error = baseline_error;
@@ -139,7 +146,7 @@ std::optional<ProbeCertificate> CertifyOnProbes(const Problem& problem,
   // training stiffness, where the baseline has no equilibrium, is not the baseline.)
   if (baseline_weights && *baseline_weights == start &&
       BaselineChosen(problem, options, probes.fit(), weights, baseline_weights, baseline.stiffness,
-                     interruption, chosen)) {
+                     std::nullopt, interruption, chosen)) {
     c.weights = *baseline_weights;
     c.returned_baseline = true;
   }
@@ -187,7 +194,7 @@ response::ResponseFitOptions FitOptionsOf(const SearchOptions& options) {
 }
 
 // Where a run stopped (on request or at its time limit), if it did.
-enum class StoppedIn { kNowhere, kFit, kCertificate, kJudgement };
+enum class StoppedIn { kNowhere, kFit, kNonlinearFit, kCertificate, kJudgement };
 
 // The model a probe fit returns, and its certificate (none when stopped before it was made).
 struct ProbeFitModel {
@@ -217,6 +224,19 @@ void Fit(const Problem& problem, const RunProbes& probes, const ProbeFitBaseline
     m.fitted = true;
   } catch (const Interrupted&) {
     m.stopped = StoppedIn::kFit;
+    return;
+  }
+  // A nonlinear response: the rest-linear model continued to the equilibria at the load
+  // range's sizes (docs/ARCHITECTURE.md, "The nonlinear fit"); stopped, the rest-linear model.
+  if (problem.response() != Response::kNonlinear) return;
+  try {
+    m.fit.nonlinear = response::FitNonlinearResponse(
+        problem, probes.fit(), probes.reference_stiffness(), m.fit.weights, fit_options,
+        response::NonlinearFitOptions{}, baseline.on_genes ? &*baseline.on_genes : nullptr,
+        &monitor.interruption(), progress, pool);
+    m.weights = m.fit.nonlinear->weights;
+  } catch (const Interrupted&) {
+    m.stopped = StoppedIn::kNonlinearFit;
   }
 }
 
@@ -229,7 +249,8 @@ void ChooseAndCertify(const Problem& problem, const SearchOptions& options, cons
   try {
     response::Generalization choice;
     if (BaselineChosen(problem, options, probes.fit(), m.weights, baseline.on_genes,
-                       baseline.model.stiffness, &monitor.interruption(), choice)) {
+                       baseline.model.stiffness, m.fit.nonlinear, &monitor.interruption(),
+                       choice)) {
       m.weights = *baseline.on_genes;
       m.returned_baseline = true;
       m.fitted_choosing_error = choice.fitted_choosing_error;
@@ -259,6 +280,11 @@ std::string ProbeFitMessage(const IdentificationResult& r, const ProbeFitModel& 
       return fmt::format(
           "{} during the fit: the start ({}, {} springs), not fitted and not certified", why,
           m.start_is_baseline ? "the closed-form baseline" : "the training stiffness", springs);
+    case StoppedIn::kNonlinearFit:
+      return fmt::format(
+          "{} during the nonlinear fit: the rest-linear fitted model ({} springs), not fitted at "
+          "the load range's sizes and not certified",
+          why, springs);
     case StoppedIn::kCertificate:
       return fmt::format("{} during the certificate: {} ({} springs), not certified", why,
                          m.returned_baseline ? "the closed-form baseline" : "the fitted model",

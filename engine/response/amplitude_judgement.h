@@ -18,20 +18,12 @@
 #include <vector>
 
 #include "engine/interruption.h"
+#include "engine/response/nonlinear_solves.h"
 #include "engine/response/probe_bank.h"
 #include "engine/response/probe_evaluation.h"
 #include "engine/worker_pool.h"
 
 namespace springfit::response {
-
-// Springs over the scene's nodes with their stiffness.
-struct SpringModel {
-  std::vector<NodePair> pairs;
-  std::vector<double> stiffness;  // > 0, parallel to pairs
-};
-// The model of per-gene `weights` (0: absent) with the candidates no load case sees at
-// Problem::unidentifiable_stiffness, as SpringRestStiffness(problem, weights) has them.
-SpringModel ModelOfWeights(const Problem& problem, const std::vector<double>& weights);
 
 struct AmplitudeOptions {
   // Fractions of the named loads' size, each in (0, 4], ascending.

@@ -31,6 +31,11 @@
 // support order, so the result does not depend on the threads.
 #pragma once
 
+#include <functional>
+#include <memory>
+
+#include "engine/response/nonlinear_response.h"
+#include "engine/response/probe_objective.h"
 #include "engine/response/response_fit.h"
 
 namespace springfit::response {
@@ -41,5 +46,17 @@ ResponseFitResult FitResponseMatrixFree(const Problem& problem, const ProbeBank&
                                         const ResponseFitOptions& options,
                                         Interruption* interruption,
                                         const ResponseProgress& progress, WorkerPool* pool);
+
+// The nonlinear stage (docs/ARCHITECTURE.md, "The nonlinear fit"): the same driver from the
+// rest-linear fit's model `start`, on the nonlinear objective (nonlinear_response.h) with the
+// Tikhonov pull toward `start` at the strengths of `nonlinear.regularizations`, springs absent
+// from `start` kept out; every iterate, `start` first, is chosen among on the choosing probes
+// solved at the amplitudes. So the returned model is never worse there than `start`.
+// `baseline` (per gene), when given, is judged on the same choosing cases.
+NonlinearFitResult FitNonlinearResponse(
+    const Problem& problem, const ProbeBank& bank, const SparseMatrix& reference_stiffness,
+    const std::vector<double>& start, const ResponseFitOptions& options,
+    const NonlinearFitOptions& nonlinear, const std::vector<double>* baseline,
+    Interruption* interruption, const ResponseProgress& progress, WorkerPool* pool);
 
 }  // namespace springfit::response

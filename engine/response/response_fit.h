@@ -38,12 +38,14 @@
 // limit.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "engine/interruption.h"
 #include "engine/response/mode_cuts.h"
 #include "engine/response/mode_lift.h"
+#include "engine/response/nonlinear_response.h"
 #include "engine/response/probe_bank.h"
 #include "engine/response/quadratic_nnls.h"
 #include "engine/worker_pool.h"
@@ -169,6 +171,8 @@ struct ResponseFitResult {
   double seconds_first_order = 0.0;
   double seconds_path = 0.0;
   double seconds_refine = 0.0;
+  // The nonlinear stage, where it ran (a nonlinear response: matrix_free_fit.h).
+  std::optional<NonlinearFitResult> nonlinear;
 };
 
 // Progress: called with the phase ("probe_fit", "probe_path", "probe_refine") and the best

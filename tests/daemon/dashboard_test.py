@@ -280,8 +280,9 @@ def check_phase(rpc_port, port):
         return p.get("phase", "-") != "-"
     expect(wait_for(phase_shown, 30), f"no phase shown for the running continuous job: {seen}")
     name = seen.get("phase", "-").split(",")[0]
-    expect(name in ("analysis", "probes", "probe_fit", "probe_path", "probe_refine", "fit", "path",
-                    "refit", "held_out"), f"an unexpected phase: {seen.get('phase')}")
+    expect(name in ("analysis", "probes", "probe_fit", "probe_path", "probe_refine",
+                    "nonlinear_fit", "certificate", "nonlinear", "fit", "path", "refit",
+                    "held_out"), f"an unexpected phase: {seen.get('phase')}")
     expect("/" not in seen.get("generation", ""), f"a continuous job shown by generations: {seen}")
     status, _, page = get(port, f"/jobs/{job}")
     expect(status == 200 and '<span id="p-phase">' in page, "the job page has no live phase")

@@ -10,6 +10,7 @@
 #include "engine/response/free_body.h"
 #include "engine/response/generalization.h"
 #include "engine/response/rest_stiffness.h"
+#include "io/example_catalog.h"
 
 namespace springfit::response {
 namespace {
