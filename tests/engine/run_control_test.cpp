@@ -216,6 +216,30 @@ TEST(RunControl, AStopDuringTheNonlinearJudgementIsAStopNotACompletion) {
   EXPECT_EQ(r.stiffness, whole.stiffness);
 }
 
+// A stop during the nonlinear fit returns the rest-linear model it started from, uncertified,
+// and says so.
+TEST(RunControl, AStopDuringTheNonlinearFitReturnsTheRestLinearModel) {
+  const Problem p = Problem::Build(examples::Make("fem-kidney-2d-nl"));
+  const IdentificationResult whole =
+      RunIdentification(p, Resolved(p, Strategy::kContinuous), RunContext{});
+  ASSERT_TRUE(whole.generalization && whole.generalization->fit.nonlinear);
+  std::vector<double> rest_linear;
+  for (double w : whole.generalization->fit.weights)
+    if (w > 0.0) rest_linear.push_back(w);
+  ASSERT_NE(rest_linear, whole.stiffness);  // (the stage moved it)
+  StopAtPhase stop{"nonlinear_fit", {}};
+  const IdentificationResult r =
+      RunIdentification(p, Resolved(p, Strategy::kContinuous), stop.Context());
+  ASSERT_FALSE(stop.seen.empty());
+  EXPECT_EQ(stop.seen.back(), "nonlinear_fit");
+  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  EXPECT_NE(r.stop_message.find("during the nonlinear fit: the rest-linear fitted model"),
+            std::string::npos)
+      << r.stop_message;
+  EXPECT_FALSE(r.generalization);
+  EXPECT_EQ(r.stiffness, rest_linear);
+}
+
 // A stop during the certificate ends the run there (its solves and Lanczos steps check for it):
 // the fitted model comes back uncertified, and says so.
 TEST(RunControl, AStopDuringTheCertificateReturnsTheModelUncertified) {
