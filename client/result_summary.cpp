@@ -272,6 +272,10 @@ void PrintGeneralization(const proto::Json& g, std::ostream& out) {
         << number(baseline, "median") << ", 95% " << number(baseline, "p95");
     if (a.value("reference_failed", 0) > 0)
       out << " (" << a.value("reference_failed", 0) << " left out: no reference equilibrium)";
+    // (A model that turns a mesh element inside out under a probe fails it, whatever its E.)
+    if (a.value("model_inverted", 0) > 0 || a.value("baseline_inverted", 0) > 0)
+      out << "; inverting an element: " << a.value("model_inverted", 0) << " (baseline "
+          << a.value("baseline_inverted", 0) << ")";
     out << "\n";
   }
   out << "  every load:      generalised eigenvalues of (K_model, K_ref) on the user's supports "

@@ -250,7 +250,9 @@ Json GeneralizationToJson(const response::Generalization& g) {
     amplitudes.push_back({{"amplitude", a.amplitude},
                           {"model", ErrorSummaryToJson(a.model)},
                           {"baseline", ErrorSummaryToJson(a.baseline)},
-                          {"reference_failed", a.reference_failed}});
+                          {"reference_failed", a.reference_failed},
+                          {"model_inverted", a.model_inverted},
+                          {"baseline_inverted", a.baseline_inverted}});
   j["amplitudes"] = std::move(amplitudes);
   Json pencils = Json::array();
   for (const auto& p : g.pencils)

@@ -54,6 +54,10 @@ std::vector<AmplitudeErrors> JudgeAtAmplitudes(const Problem& problem, const Pro
   // has none there).
   std::vector<std::vector<double>> model_errors(amplitudes, std::vector<double>(judged.size()));
   std::vector<std::vector<double>> baseline_errors = model_errors;
+  // Per amplitude and judged probe: whether the model's (baseline's) equilibrium inverts an
+  // element.
+  std::vector<std::vector<char>> model_inverts(amplitudes, std::vector<char>(judged.size(), 0));
+  std::vector<std::vector<char>> baseline_inverts = model_inverts;
 
   const ReferenceModel reference_model(problem);
   const SpringSolverInput model_input(scene, model), baseline_input(scene, baseline);
@@ -75,12 +79,14 @@ std::vector<AmplitudeErrors> JudgeAtAmplitudes(const Problem& problem, const Pro
         model_errors[a][i] = baseline_errors[a][i] = std::numeric_limits<double>::quiet_NaN();
         continue;
       }
-      const auto error = [&](SpringResponse& solver) {
+      const auto error = [&](SpringResponse& solver, char& inverts) {
         const std::optional<Vector> u = solver.Solve(load.force, load.prescribed);
-        return u ? RelativeError(*u, *reference, free, d) : std::numeric_limits<double>::infinity();
+        if (!u) return std::numeric_limits<double>::infinity();
+        inverts = InvertedElements(scene, *u) > 0 ? 1 : 0;
+        return RelativeError(*u, *reference, free, d);
       };
-      model_errors[a][i] = error(model_solver);
-      baseline_errors[a][i] = error(baseline_solver);
+      model_errors[a][i] = error(model_solver, model_inverts[a][i]);
+      baseline_errors[a][i] = error(baseline_solver, baseline_inverts[a][i]);
     }
   };
   const int slots = static_cast<int>(judged.size());
@@ -92,7 +98,15 @@ std::vector<AmplitudeErrors> JudgeAtAmplitudes(const Problem& problem, const Pro
   } else {
     for (int slot = 0; slot < slots; ++slot) judge(slot);
   }
-  return SummariesByAmplitude(options.amplitudes, model_errors, baseline_errors);
+  std::vector<AmplitudeErrors> out =
+      SummariesByAmplitude(options.amplitudes, model_errors, baseline_errors);
+  for (std::size_t a = 0; a < amplitudes; ++a) {
+    for (std::size_t i = 0; i < judged.size(); ++i) {
+      out[a].model_inverted += model_inverts[a][i];
+      out[a].baseline_inverted += baseline_inverts[a][i];
+    }
+  }
+  return out;
 }
 
 }  // namespace springfit::response

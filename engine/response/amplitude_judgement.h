@@ -41,6 +41,10 @@ struct AmplitudeErrors {
   ErrorSummary model;
   ErrorSummary baseline;
   int reference_failed = 0;  // probes left out: the reference has no equilibrium there
+  // Judged probes whose equilibrium turns an element of the FEM mesh inside out
+  // (InvertedElements): the model and the baseline fail them, whatever their E.
+  int model_inverted = 0;
+  int baseline_inverted = 0;
 };
 
 // Per amplitude, on the probes of `judged` (the certificate's: the held-out probes and the named

@@ -172,7 +172,7 @@ double NonlinearCases::ChoosingError(const std::vector<double>& weights, int* fa
           const ScaledLoad load = ScaleLoad(probe.force, probe.prescribed, choosing_[i].amplitude);
           const std::optional<Vector> u = solver.Solve(load.force, load.prescribed);
           double e = 1.0;
-          if (u)
+          if (u && InvertedElements(problem_.scene(), *u) == 0)
             e = std::min(1.0, RelativeError(*u, choosing_[i].reference, free, d));
           else
             ++misses[g];

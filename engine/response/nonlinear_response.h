@@ -88,7 +88,8 @@ class NonlinearCases {
 
   // What the nonlinear fit chooses by: FamilyBalancedRms over the choosing probes of each
   // probe's RMS E over its amplitudes, the model solved with the spring law. A case the model
-  // has no stable equilibrium for (a mechanism, a fold) counts as E = 1 there (the whole
+  // has no equilibrium for (a mechanism, Newton's failure), or whose equilibrium turns an
+  // element of the FEM mesh inside out (InvertedElements), counts as E = 1 there (the whole
   // response missed) and in `failed`.
   // E is capped at 1 there too: a probe missed by more than its whole response (an equilibrium
   // on another branch, a snap-through) is missed, and one such probe does not decide a choice.

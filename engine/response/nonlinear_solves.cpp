@@ -96,6 +96,33 @@ double RelativeError(const Vector& model, const Vector& reference, const FreeNod
   return norm > 0.0 ? std::sqrt(error / norm) : std::numeric_limits<double>::quiet_NaN();
 }
 
+namespace {
+
+// The signed volume (area) of the simplex `nodes` at positions x, times d!.
+double SignedVolume(const std::vector<int>& nodes, const Vector& x, int d) {
+  Matrix edges(d, d);
+  for (int a = 0; a < d; ++a)
+    edges.col(a) =
+        x.segment(d * nodes[static_cast<std::size_t>(a) + 1], d) - x.segment(d * nodes[0], d);
+  return edges.determinant();
+}
+
+}  // namespace
+
+int InvertedElements(const Scene& scene, const Vector& u) {
+  if (scene.reference.kind != Reference::Kind::kFem) return 0;
+  const int d = scene.dimension;
+  const Vector deformed = scene.rest + u;
+  int inverted = 0;
+  for (const std::vector<int>& element : scene.reference.fem.elements) {
+    if (static_cast<int>(element.size()) != d + 1) continue;
+    const double before = SignedVolume(element, scene.rest, d);
+    const double after = SignedVolume(element, deformed, d);
+    inverted += before * after <= 0.0 ? 1 : 0;
+  }
+  return inverted;
+}
+
 ScaledLoad ScaleLoad(const Vector& force, const Vector& prescribed, double amplitude) {
   return {amplitude * force,
           prescribed.size() == 0 ? Vector::Zero(force.size()) : Vector(amplitude * prescribed)};

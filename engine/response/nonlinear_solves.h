@@ -76,6 +76,12 @@ struct ReferenceModel {
 // |model - reference| / |reference| over the free nodes (NaN when the reference is 0).
 double RelativeError(const Vector& model, const Vector& reference, const FreeNodes& free, int d);
 
+// The FEM reference's elements that a displacement `u` (flat d*n) turns inside out: the sign of
+// their volume (area in 2D) at X + u is not that at rest, or the volume vanishes. A spring model
+// whose equilibrium does that has folded the tissue the mesh describes: a simulator's
+// collision and rendering meshes invert with it. 0 for a reference without elements.
+int InvertedElements(const Scene& scene, const Vector& u);
+
 // A probe's loads at `amplitude` of their size: the force and the prescribed displacements (an
 // empty `prescribed` is none).
 struct ScaledLoad {

@@ -107,5 +107,32 @@ TEST(NonlinearFit, ContinuesTheRestLinearModelToTheLoadRangesSizes) {
   EXPECT_LT(after, 0.8 * before) << std::sqrt(after) << " from " << std::sqrt(before);
 }
 
+// The inversion check: none at rest or under a rigid rotation, every element under a mirror
+// image, and the elements around a node pushed through its neighbours.
+TEST(InvertedElements, CountsTheMeshElementsTurnedInsideOut) {
+  const Scene scene = examples::Make("fem-plate-5x5");
+  const int d = scene.dimension;
+  const Vector zero = Vector::Zero(scene.rest.size());
+  EXPECT_EQ(InvertedElements(scene, zero), 0);
+  Vector rotated(scene.rest.size()), mirrored(scene.rest.size());
+  for (Eigen::Index n = 0; n < scene.rest.size() / d; ++n) {
+    const double x = scene.rest[d * n], y = scene.rest[d * n + 1];
+    rotated.segment(d * n, 2) << -y - x, x - y;   // (x, y) -> (-y, x)
+    mirrored.segment(d * n, 2) << -2.0 * x, 0.0;  // (x, y) -> (-x, y)
+  }
+  EXPECT_EQ(InvertedElements(scene, rotated), 0);
+  const int elements = static_cast<int>(scene.reference.fem.elements.size());
+  EXPECT_EQ(InvertedElements(scene, mirrored), elements);
+  // The centre node (2, 2) of the 5 x 5 plate moved two cells to the right: past its
+  // neighbours, its elements fold.
+  Vector pushed = zero;
+  const int centre = 12;
+  ASSERT_DOUBLE_EQ(scene.rest[d * centre], 2.0 * scene.rest[d * 1]);
+  pushed[d * centre] = 2.0 * (scene.rest[d * 1] - scene.rest[0]);
+  const int folded = InvertedElements(scene, pushed);
+  EXPECT_GT(folded, 0);
+  EXPECT_LT(folded, elements);
+}
+
 }  // namespace
 }  // namespace springfit::response

@@ -855,12 +855,39 @@ TEST(AmplitudeJudgement, SmallLoadsGiveTheRestLinearErrorsAndFullOnesDiffer) {
   EXPECT_GT(std::abs(full.baseline.rms - small.baseline.rms), 1e-3 * small.baseline.rms);
   EXPECT_EQ(full.model.probes + full.reference_failed, linear_model.probes);
 
+  // At a thousandth of the loads nothing folds.
+  EXPECT_EQ(small.model_inverted, 0);
+  EXPECT_EQ(small.baseline_inverted, 0);
+
   WorkerPool pool(2);
   const std::vector<AmplitudeErrors> threaded =
       JudgeAtAmplitudes(problem, bank, ModelOfWeights(problem, model),
                         ModelOfWeights(problem, baseline), options, nullptr, &pool);
   EXPECT_EQ(threaded[1].model.rms, full.model.rms);
   EXPECT_EQ(threaded[1].baseline.median, full.baseline.median);
+  EXPECT_EQ(threaded[1].model_inverted, full.model_inverted);
+}
+
+// A model that folds the mesh under a probe is counted as inverting an element: the closed-form
+// baseline on the kidney at four times the named loads folds under some pushes, and a model
+// twice as stiff everywhere folds under fewer.
+TEST(AmplitudeJudgement, ModelsThatFoldTheMeshAreCounted) {
+  const Problem problem(examples::Make("fem-kidney-2d-nl"));
+  const SparseMatrix k = ReferenceRestStiffness(problem);
+  const ProbeBank bank = MakeProbeBanks(problem, k, ProbeOptions{}).fit;
+  const std::vector<double> baseline = *BaselineGeneWeights(problem);
+  std::vector<double> stiffer = baseline;
+  for (double& w : stiffer) w *= 2.0;
+  AmplitudeOptions options;
+  options.amplitudes = {4.0};
+  options.max_probes = 1000;
+  WorkerPool pool(2);
+  const std::vector<AmplitudeErrors> judged =
+      JudgeAtAmplitudes(problem, bank, ModelOfWeights(problem, stiffer),
+                        ModelOfWeights(problem, baseline), options, nullptr, &pool);
+  ASSERT_EQ(judged.size(), 1u);
+  EXPECT_GT(judged[0].baseline_inverted, 0);
+  EXPECT_LT(judged[0].model_inverted, judged[0].baseline_inverted);
 }
 
 // A linear response has nothing to add to the rest-linear certificate.
