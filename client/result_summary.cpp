@@ -278,6 +278,25 @@ void PrintGeneralization(const proto::Json& g, std::ostream& out) {
           << a.value("baseline_inverted", 0) << ")";
     out << "\n";
   }
+  // Tool pushes: a node moved in to a depth; the shape's E and the force the tool feels.
+  for (const auto& t : g.value("tool_pushes", proto::Json::array())) {
+    const proto::Json model = t.value("model", proto::Json::object());
+    const proto::Json baseline = t.value("baseline", proto::Json::object());
+    const proto::Json model_force = t.value("model_force", proto::Json::object());
+    const proto::Json baseline_force = t.value("baseline_force", proto::Json::object());
+    out << "  tool push " << Format("%3.0f", 100.0 * t.value("amplitude", 0.0))
+        << "%: " << model.value("probes", 0) << " nodes pushed in by " << number(t, "depth")
+        << ": median E " << number(model, "median") << ", tool force error "
+        << number(model_force, "median") << " (force " << number(t, "model_force_ratio")
+        << " of the reference's); baseline E " << number(baseline, "median") << ", force error "
+        << number(baseline_force, "median") << " (" << number(t, "baseline_force_ratio") << ")";
+    if (t.value("reference_failed", 0) > 0)
+      out << " (" << t.value("reference_failed", 0) << " left out: no reference equilibrium)";
+    if (t.value("model_inverted", 0) > 0 || t.value("baseline_inverted", 0) > 0)
+      out << "; inverting an element: " << t.value("model_inverted", 0) << " (baseline "
+          << t.value("baseline_inverted", 0) << ")";
+    out << "\n";
+  }
   out << "  every load:      generalised eigenvalues of (K_model, K_ref) on the user's supports "
          "in ["
       << number(g, "lambda_min") << ", " << number(g, "lambda_max")

@@ -254,6 +254,20 @@ Json GeneralizationToJson(const response::Generalization& g) {
                           {"model_inverted", a.model_inverted},
                           {"baseline_inverted", a.baseline_inverted}});
   j["amplitudes"] = std::move(amplitudes);
+  Json pushes = Json::array();
+  for (const response::ToolPushErrors& t : g.tool_pushes)
+    pushes.push_back({{"amplitude", t.amplitude},
+                      {"depth", t.depth},
+                      {"model", ErrorSummaryToJson(t.model)},
+                      {"baseline", ErrorSummaryToJson(t.baseline)},
+                      {"model_force", ErrorSummaryToJson(t.model_force)},
+                      {"baseline_force", ErrorSummaryToJson(t.baseline_force)},
+                      {"model_force_ratio", NumberOrNull(t.model_force_ratio)},
+                      {"baseline_force_ratio", NumberOrNull(t.baseline_force_ratio)},
+                      {"reference_failed", t.reference_failed},
+                      {"model_inverted", t.model_inverted},
+                      {"baseline_inverted", t.baseline_inverted}});
+  j["tool_pushes"] = std::move(pushes);
   Json pencils = Json::array();
   for (const auto& p : g.pencils)
     pencils.push_back({{"support", p.support},

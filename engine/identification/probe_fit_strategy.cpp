@@ -112,11 +112,15 @@ bool JudgeAtAmplitudes(const Problem& problem, const RunProbes& probes,
                        WorkerPool* pool) {
   if (problem.response() != Response::kNonlinear) return true;
   try {
-    certificate.amplitudes = probes.certifier().JudgeAtAmplitudes(
-        response::ModelOfWeights(problem, weights), baseline, {}, interruption, pool);
+    const response::SpringModel model = response::ModelOfWeights(problem, weights);
+    certificate.amplitudes =
+        probes.certifier().JudgeAtAmplitudes(model, baseline, {}, interruption, pool);
+    certificate.tool_pushes =
+        probes.certifier().JudgeToolPushes(model, baseline, {}, interruption, pool);
     return true;
   } catch (const Interrupted&) {
     certificate.amplitudes.clear();
+    certificate.tool_pushes.clear();
     return false;
   }
 }

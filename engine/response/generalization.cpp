@@ -75,4 +75,16 @@ std::vector<AmplitudeErrors> Certifier::JudgeAtAmplitudes(const SpringModel& mod
                                      pool);
 }
 
+std::vector<ToolPushErrors> Certifier::JudgeToolPushes(const SpringModel& model,
+                                                       const SpringModel& baseline,
+                                                       const ToolPushOptions& options,
+                                                       Interruption* interruption,
+                                                       WorkerPool* pool) const {
+  for (const Support& support : bank_.supports)
+    if (support.user)
+      return response::JudgeToolPushes(problem_, support, bank_.amplitude, model, baseline, options,
+                                       interruption, pool);
+  return {};
+}
+
 }  // namespace springfit::response

@@ -10,6 +10,7 @@
 #include "engine/response/free_body.h"
 #include "engine/response/probe_evaluation.h"
 #include "engine/response/response_fit.h"
+#include "engine/response/tool_pushes.h"
 
 namespace springfit::response {
 
@@ -45,6 +46,9 @@ struct Generalization {
   // nonlinear reference, per fraction of the named loads' size (amplitude_judgement.h); empty
   // for a linear one.
   std::vector<AmplitudeErrors> amplitudes;
+  // A nonlinear response on an FEM reference: tool pushes (imposed displacements) on the first
+  // user support, per depth (tool_pushes.h); empty otherwise.
+  std::vector<ToolPushErrors> tool_pushes;
   // The fit (absent when the model was not fitted to probes: only judged on them).
   bool fitted_to_probes = false;
   ResponseFitResult fit;
@@ -78,6 +82,13 @@ class Certifier {
                                                  const AmplitudeOptions& options = {},
                                                  Interruption* interruption = nullptr,
                                                  WorkerPool* pool = nullptr) const;
+
+  // Tool pushes on the first user support, the depths fractions of the named loads' size
+  // (tool_pushes.h): loads no fit sees.
+  std::vector<ToolPushErrors> JudgeToolPushes(const SpringModel& model, const SpringModel& baseline,
+                                              const ToolPushOptions& options = {},
+                                              Interruption* interruption = nullptr,
+                                              WorkerPool* pool = nullptr) const;
 
   int held_out() const { return held_out_; }
 

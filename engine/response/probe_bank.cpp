@@ -35,11 +35,6 @@ Vector RandomDirection(int d, RandomStream& random) {
   return v / v.norm();
 }
 
-struct Surface {
-  std::vector<int> nodes;  // ascending
-  Vector normal;           // flat d*n, outward unit normals (zero off the surface)
-};
-
 // The FEM mesh's boundary: facets of one element, with outward normals summed per node.
 Surface FemSurface(const Scene& scene) {
   const int d = scene.dimension;
@@ -77,15 +72,6 @@ Surface FemSurface(const Scene& scene) {
     const double length = s.normal.segment(d * node, d).norm();
     if (length > 0.0) s.normal.segment(d * node, d) /= length;
   }
-  return s;
-}
-
-Surface AnySurface(const Scene& scene) {
-  if (scene.reference.kind == Reference::Kind::kFem) return FemSurface(scene);
-  Surface s;
-  s.nodes.reserve(static_cast<std::size_t>(scene.node_count()));
-  for (int node = 0; node < scene.node_count(); ++node) s.nodes.push_back(node);
-  s.normal = Vector::Zero(scene.rest.size());
   return s;
 }
 
@@ -472,6 +458,15 @@ void AddSoftModeProbe(ProbeBank& bank, int support, const Vector& shape,
   }
   probe.reference_norm2 = probe.reference.squaredNorm();
   bank.probes.push_back(std::move(probe));
+}
+
+Surface AnySurface(const Scene& scene) {
+  if (scene.reference.kind == Reference::Kind::kFem) return FemSurface(scene);
+  Surface s;
+  s.nodes.reserve(static_cast<std::size_t>(scene.node_count()));
+  for (int node = 0; node < scene.node_count(); ++node) s.nodes.push_back(node);
+  s.normal = Vector::Zero(scene.rest.size());
+  return s;
 }
 
 }  // namespace springfit::response

@@ -77,6 +77,13 @@ struct ProbeOptions {
   void Validate(const std::string& owner = "ProbeOptions") const;
 };
 
+// The reference's boundary (above): its nodes and their outward unit normals.
+struct Surface {
+  std::vector<int> nodes;  // ascending
+  Vector normal;           // flat d*n, outward unit normals (zero off the surface)
+};
+Surface AnySurface(const Scene& scene);
+
 struct Support {
   std::vector<bool> constrained;  // per node
   bool user = false;              // held by some named load case

@@ -13,6 +13,7 @@
 #include "engine/response/probe_bank.h"
 #include "engine/response/probe_objective.h"
 #include "engine/response/rest_stiffness.h"
+#include "engine/response/tool_pushes.h"
 #include "io/example_catalog.h"
 
 namespace springfit::response {
@@ -132,6 +133,35 @@ TEST(InvertedElements, CountsTheMeshElementsTurnedInsideOut) {
   const int folded = InvertedElements(scene, pushed);
   EXPECT_GT(folded, 0);
   EXPECT_LT(folded, elements);
+}
+
+// Tool pushes are imposed displacements: a model with every stiffness doubled takes the same
+// shape (E unchanged) and the tool feels twice the force, which is why the force judges the
+// stiffness where E cannot; every push moves its node by the stated depth.
+TEST(ToolPushes, TheShapeIgnoresAStiffnessScaleAndTheToolForceDoesNot) {
+  const NonlinearKidney kidney;
+  const SpringModel baseline = ModelOfWeights(kidney.problem, kidney.prior);
+  SpringModel doubled = baseline;
+  for (double& k : doubled.stiffness) k *= 2.0;
+  const Support* user = nullptr;
+  for (const Support& s : kidney.bank.supports)
+    if (s.user && !user) user = &s;
+  ASSERT_NE(user, nullptr);
+  ToolPushOptions options;
+  options.amplitudes = {0.5, 1.0};
+  options.max_nodes = 6;
+  const std::vector<ToolPushErrors> pushes =
+      JudgeToolPushes(kidney.problem, *user, kidney.bank.amplitude, doubled, baseline, options);
+  ASSERT_EQ(pushes.size(), 2u);
+  for (const ToolPushErrors& t : pushes) {
+    EXPECT_DOUBLE_EQ(t.depth, t.amplitude * kidney.bank.amplitude);
+    EXPECT_EQ(t.model.probes + t.reference_failed, 6);
+    ASSERT_GT(t.model.probes, 3);
+    EXPECT_NEAR(t.model.median, t.baseline.median, 1e-6 * t.baseline.median);
+    EXPECT_NEAR(t.model_force_ratio, 2.0 * t.baseline_force_ratio, 1e-6 * t.model_force_ratio);
+    // (The shape differs from the reference's: the baseline is not the FEM.)
+    EXPECT_GT(t.model.median, 0.0);
+  }
 }
 
 }  // namespace
