@@ -48,6 +48,13 @@ void AddSearchFlags(CLI::App* command, SearchFlags& flags) {
                    "smallest, at most this (> 1; springs below the largest / this leave the "
                    "model)")
       ->check(CLI::Range(1.0, 1e300));
+  command
+      ->add_option("--load-size", flags.load_size,
+                   "Strategy continuous fitted to probes: the size of the loads the simulator "
+                   "will apply, as the largest nodal displacement in the scene's length; the "
+                   "nonlinear fit and judgement and the tool pushes run at 25, 50 and 100% of it "
+                   "(default: the scene's, else the named loads' size)")
+      ->check(CLI::PositiveNumber);
   command->add_option("--regularization", flags.regularization,
                       "Strategy continuous (default on an FEM reference): pull the stiffness "
                       "toward the closed-form baseline by this strength (>= 0; 0.01: moving "
@@ -73,6 +80,7 @@ void ApplySearchFlags(const SearchFlags& flags, SearchSettings& st) {
   if (flags.max_springs) st.max_springs = *flags.max_springs;
   if (flags.target_error) st.target_error = *flags.target_error;
   if (flags.max_spread) st.max_spread = *flags.max_spread;
+  if (flags.load_size) st.load_size = *flags.load_size;
   if (flags.regularization)
     st.regularization = proto::RegularizationFromText(*flags.regularization, "--regularization");
   if (flags.probes) st.probes = proto::ProbesFromText(*flags.probes, "--probes");

@@ -26,6 +26,7 @@ struct SearchFlags {
   std::optional<std::string> probes;
   std::optional<double> target_error;
   std::optional<double> max_spread;
+  std::optional<double> load_size;
 };
 
 void AddSearchFlags(CLI::App* command, SearchFlags& flags);

@@ -198,6 +198,11 @@ struct SearchSettings {
   // smallest, at most this (> 1): springs below the largest / this leave every model the fit
   // considers. nullopt: no bound.
   std::optional<double> max_spread;
+  // Strategy continuous fitted to probes: the size of the loads the simulator will apply, as the
+  // largest nodal displacement they cause, in the scene's length (> 0). The nonlinear fit, the
+  // nonlinear judgement and the tool pushes run at 25, 50 and 100% of it. nullopt: the named
+  // loads' size (the probe bank's amplitude).
+  std::optional<double> load_size;
   // Strategy continuous: the stiffness fits' pull toward the closed-form baseline
   // (StiffnessFitOptions::regularization, >= 0), or `automatic`: chosen among
   // kRegularizationChoices by the held-out error. nullopt: 0, none.

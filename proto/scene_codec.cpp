@@ -275,7 +275,7 @@ void ReadSearch(const Json& v, SearchSettings& st) {
              {"strategy", "identify", "response", "seed", "population", "crossover_probability",
               "mutation_probability", "max_generations", "target_normalized_error", "max_seconds",
               "stall_generations", "max_springs", "target_error", "regularization", "probes",
-              "max_spread"});
+              "max_spread", "load_size"});
   if (v.contains("strategy")) {
     st.strategy = StrategyFromName(ReadString(v["strategy"], JoinPath(path, "strategy")),
                                    JoinPath(path, "strategy"));
@@ -312,6 +312,8 @@ void ReadSearch(const Json& v, SearchSettings& st) {
     st.target_error = ReadNumber(v["target_error"], JoinPath(path, "target_error"));
   if (v.contains("max_spread"))
     st.max_spread = ReadNumber(v["max_spread"], JoinPath(path, "max_spread"));
+  if (v.contains("load_size"))
+    st.load_size = ReadNumber(v["load_size"], JoinPath(path, "load_size"));
   if (v.contains("regularization")) {
     const Json& r = v["regularization"];
     const std::string where = JoinPath(path, "regularization");
@@ -497,6 +499,7 @@ Json SearchSettingsToJson(const SearchSettings& st) {
   if (st.max_springs) sj["max_springs"] = *st.max_springs;
   if (st.target_error) sj["target_error"] = *st.target_error;
   if (st.max_spread) sj["max_spread"] = *st.max_spread;
+  if (st.load_size) sj["load_size"] = *st.load_size;
   if (st.regularization) {
     sj["regularization"] =
         st.regularization->automatic ? Json("auto") : Json(st.regularization->strength);

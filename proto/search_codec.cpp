@@ -39,6 +39,7 @@ Json SearchOptionsToJson(const SearchOptions& o) {
   j["max_springs"] = o.max_springs;
   j["target_error"] = o.target_error;
   j["max_spread"] = o.max_spread;
+  j["load_size"] = o.load_size;
   j["regularization"] = o.choose_regularization ? Json("auto") : Json(o.regularization);
   j["probes"] = o.probes == SearchOptions::kAutomaticProbes ? Json("auto") : ProbesToJson(o.probes);
   j["selection"] = o.selection == SearchOptions::Selection::kRoulette ? "roulette" : "tournament";

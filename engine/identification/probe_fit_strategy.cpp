@@ -13,6 +13,7 @@
 #include "engine/fem/closed_form_baseline.h"
 #include "engine/fit/stiffness_fit.h"
 #include "engine/identification/strategy.h"
+#include "engine/input_error.h"
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/problem/cost.h"
 #include "engine/response/generalization.h"
@@ -104,19 +105,43 @@ bool BaselineChosen(const Problem& problem, const SearchOptions& options,
   return true;
 }
 
-// The nonlinear judgement at the named loads' size and below (a nonlinear response only).
+// A load range at most this many times the named loads' size: beyond it the reference has no
+// equilibrium for most probes (the St Venant-Kirchhoff kidney lost a third of them at 3x).
+constexpr double kMaxLoadScale = 20.0;
+
+// The fractions of the named loads' size the nonlinear fit, the nonlinear judgement and the
+// tool pushes run at: 25, 50 and 100% of the load range (SearchOptions::load_size, else the
+// named loads' size, the bank's amplitude). Throws InputError on search.load_size beyond
+// kMaxLoadScale times the named loads' size.
+std::vector<double> LoadRangeAmplitudes(const SearchOptions& options,
+                                        const response::ProbeBank& bank) {
+  double scale = 1.0;
+  if (options.load_size > 0.0 && bank.amplitude > 0.0) scale = options.load_size / bank.amplitude;
+  if (scale > kMaxLoadScale)
+    throw InputError("search.load_size",
+                     fmt::format("{:.4g} is {:.3g} times the named loads' size ({:.4g}, their "
+                                 "largest nodal displacement); at most {:.0f} times",
+                                 options.load_size, scale, bank.amplitude, kMaxLoadScale));
+  return {0.25 * scale, 0.5 * scale, scale};
+}
+
+// The nonlinear judgement across the load range (a nonlinear response only).
 // False when stopped: the amplitudes are then left empty (the run is ending).
 bool JudgeAtAmplitudes(const Problem& problem, const RunProbes& probes,
                        const std::vector<double>& weights, const response::SpringModel& baseline,
-                       response::Generalization& certificate, Interruption* interruption,
-                       WorkerPool* pool) {
+                       const std::vector<double>& amplitudes, response::Generalization& certificate,
+                       Interruption* interruption, WorkerPool* pool) {
   if (problem.response() != Response::kNonlinear) return true;
   try {
     const response::SpringModel model = response::ModelOfWeights(problem, weights);
+    response::AmplitudeOptions judged;
+    judged.amplitudes = amplitudes;
     certificate.amplitudes =
-        probes.certifier().JudgeAtAmplitudes(model, baseline, {}, interruption, pool);
+        probes.certifier().JudgeAtAmplitudes(model, baseline, judged, interruption, pool);
+    response::ToolPushOptions pushes;
+    pushes.amplitudes = amplitudes;
     certificate.tool_pushes =
-        probes.certifier().JudgeToolPushes(model, baseline, {}, interruption, pool);
+        probes.certifier().JudgeToolPushes(model, baseline, pushes, interruption, pool);
     return true;
   } catch (const Interrupted&) {
     certificate.amplitudes.clear();
@@ -160,6 +185,7 @@ std::optional<ProbeCertificate> CertifyOnProbes(const Problem& problem,
   c.generalization.fitted_choosing_error = chosen.fitted_choosing_error;
   c.generalization.baseline_choosing_error = chosen.baseline_choosing_error;
   c.judgement_stopped = !JudgeAtAmplitudes(problem, probes, c.weights, baseline.springs,
+                                           LoadRangeAmplitudes(options, probes.fit()),
                                            c.generalization, interruption, pool);
   return c;
 }
@@ -216,8 +242,9 @@ struct ProbeFitModel {
 // The fit; stopped, the start, uncertified (a stop ends the run within a second: certifying
 // a large model is seconds of solves).
 void Fit(const Problem& problem, const RunProbes& probes, const ProbeFitBaseline& baseline,
-         const response::ResponseFitOptions& fit_options, RunMonitor& monitor,
-         const response::ResponseProgress& progress, WorkerPool* pool, ProbeFitModel& m) {
+         const response::ResponseFitOptions& fit_options, const std::vector<double>& amplitudes,
+         RunMonitor& monitor, const response::ResponseProgress& progress, WorkerPool* pool,
+         ProbeFitModel& m) {
   m.weights = baseline.start;
   m.start_is_baseline = baseline.on_genes.has_value();
   try {
@@ -234,10 +261,11 @@ void Fit(const Problem& problem, const RunProbes& probes, const ProbeFitBaseline
   // range's sizes (docs/ARCHITECTURE.md, "The nonlinear fit"); stopped, the rest-linear model.
   if (problem.response() != Response::kNonlinear) return;
   try {
+    response::NonlinearFitOptions nonlinear;
+    nonlinear.amplitudes = amplitudes;
     m.fit.nonlinear = response::FitNonlinearResponse(
-        problem, probes.fit(), probes.reference_stiffness(), m.fit.weights, fit_options,
-        response::NonlinearFitOptions{}, baseline.on_genes ? &*baseline.on_genes : nullptr,
-        &monitor.interruption(), progress, pool);
+        problem, probes.fit(), probes.reference_stiffness(), m.fit.weights, fit_options, nonlinear,
+        baseline.on_genes ? &*baseline.on_genes : nullptr, &monitor.interruption(), progress, pool);
     m.weights = m.fit.nonlinear->weights;
   } catch (const Interrupted&) {
     m.stopped = StoppedIn::kNonlinearFit;
@@ -387,13 +415,15 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   std::unique_ptr<WorkerPool> own_pool;
   WorkerPool* pool = PoolOf(context, own_pool);
   ProbeFitModel m;
-  Fit(problem, probes, baseline, fit_options, monitor, progress, pool, m);
+  // (The load range is checked before the fit: a size out of bounds is refused at once.)
+  const std::vector<double> amplitudes = LoadRangeAmplitudes(options, probes.fit());
+  Fit(problem, probes, baseline, fit_options, amplitudes, monitor, progress, pool, m);
   if (m.stopped == StoppedIn::kNowhere) enter("certificate");
   ChooseAndCertify(problem, options, probes, baseline, fit_options, monitor, m);
   if (m.certificate && problem.response() == Response::kNonlinear) {
     enter("nonlinear");
-    if (!JudgeAtAmplitudes(problem, probes, m.weights, baseline.model.springs, *m.certificate,
-                           &monitor.interruption(), pool))
+    if (!JudgeAtAmplitudes(problem, probes, m.weights, baseline.model.springs, amplitudes,
+                           *m.certificate, &monitor.interruption(), pool))
       m.stopped = StoppedIn::kJudgement;
   }
   details.model_seconds = since();

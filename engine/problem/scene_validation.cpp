@@ -433,6 +433,18 @@ void CheckSearchRanges(const Scene& scene) {
                      "default on an FEM reference) on an FEM or MSS reference, with probes (not "
                      "\"none\") and no target error");
   }
+  if (s.load_size && !(*s.load_size > 0.0 && std::isfinite(*s.load_size))) {
+    throw InputError("search.load_size",
+                     "must be a finite number > 0 (the largest nodal displacement the "
+                     "simulator's loads cause, in the scene's length)");
+  }
+  if (s.load_size && (!continuous || scene.reference.kind == Reference::Kind::kPositions ||
+                      (s.probes && *s.probes == 0) || s.target_error)) {
+    throw InputError("search.load_size",
+                     "sets the size the fit to probes is judged and fitted at: it needs "
+                     "strategy continuous (or default on an FEM reference) on an FEM or MSS "
+                     "reference, with probes (not \"none\") and no target error");
+  }
   if (s.population && *s.population < 2) {
     throw InputError("search.population", "must be >= 2, got " + std::to_string(*s.population));
   }

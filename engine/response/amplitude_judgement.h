@@ -26,7 +26,7 @@
 namespace springfit::response {
 
 struct AmplitudeOptions {
-  // Fractions of the named loads' size, each in (0, 4], ascending.
+  // Fractions of the named loads' size, each in (0, 20], ascending.
   std::vector<double> amplitudes = {0.25, 0.5, 1.0};
   // Probes judged at most (evenly spread over the bank), >= 1: each is three nonlinear solves
   // per amplitude.

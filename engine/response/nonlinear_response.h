@@ -24,7 +24,7 @@
 namespace springfit::response {
 
 struct NonlinearFitOptions {
-  // Fractions of the named loads' size the model is fitted and chosen at, each in (0, 4],
+  // Fractions of the named loads' size the model is fitted and chosen at, each in (0, 20],
   // ascending. The smallest anchors the small-load limit the rest-linear fit matched.
   std::vector<double> amplitudes = {0.25, 0.5, 1.0};
   // Generated fitted probes at most, evenly spread over the bank's (the named cases are always

@@ -131,8 +131,8 @@ ScaledLoad ScaleLoad(const Vector& force, const Vector& prescribed, double ampli
 void CheckAmplitudes(const OptionsCheck& check, const std::vector<double>& amplitudes) {
   check.Require(!amplitudes.empty(), "amplitudes", 0.0, "at least one amplitude");
   for (std::size_t i = 0; i < amplitudes.size(); ++i) {
-    check.Require(amplitudes[i] > 0.0 && amplitudes[i] <= 4.0, "amplitudes", amplitudes[i],
-                  "every value in (0, 4]");
+    check.Require(amplitudes[i] > 0.0 && amplitudes[i] <= 20.0, "amplitudes", amplitudes[i],
+                  "every value in (0, 20]");
     if (i > 0)
       check.Require(amplitudes[i] > amplitudes[i - 1], "amplitudes", amplitudes[i], "ascending");
   }

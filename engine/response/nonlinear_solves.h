@@ -91,7 +91,7 @@ struct ScaledLoad {
 ScaledLoad ScaleLoad(const Vector& force, const Vector& prescribed, double amplitude);
 
 // Fractions of the named loads' size (an options field `amplitudes`): at least one, each in
-// (0, 4], ascending; `check` names the owner.
+// (0, 20], ascending; `check` names the owner.
 void CheckAmplitudes(const OptionsCheck& check, const std::vector<double>& amplitudes);
 
 // At most `limit` of `items`, evenly spread over their order (a bank runs support by support,

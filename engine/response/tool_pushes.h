@@ -23,7 +23,7 @@ namespace springfit::response {
 
 struct ToolPushOptions {
   // Push depths as fractions of the named loads' size (the bank's amplitude: the largest nodal
-  // displacement of its probes), each in (0, 4], ascending.
+  // displacement of its probes), each in (0, 20], ascending.
   std::vector<double> amplitudes = {0.25, 0.5, 1.0};
   // Pushed nodes at most (>= 1), evenly spread over the support's free boundary nodes: each is
   // three nonlinear solves per depth.

@@ -37,6 +37,8 @@ void SearchOptions::Validate() const {
   check.Require(max_springs >= 0, "max_springs", max_springs, "value >= 0 (0: no limit)");
   check.Require(target_error >= 0.0 && std::isfinite(target_error), "target_error", target_error,
                 "0 <= value < infinity (0: none)");
+  check.Require(load_size >= 0.0 && std::isfinite(load_size), "load_size", load_size,
+                "finite value >= 0 (0: the named loads' size)");
   check.Require(max_spread == 0.0 || (max_spread > 1.0 && std::isfinite(max_spread)), "max_spread",
                 max_spread, "value > 1 (0: none)");
   check.Require(regularization >= 0.0 && std::isfinite(regularization), "regularization",
@@ -82,6 +84,7 @@ SearchOptions ResolveSearchOptions(const SearchSettings& settings, int genes) {
   if (settings.max_springs) o.max_springs = *settings.max_springs;
   if (settings.target_error) o.target_error = *settings.target_error;
   if (settings.max_spread) o.max_spread = *settings.max_spread;
+  if (settings.load_size) o.load_size = *settings.load_size;
   if (settings.regularization) {
     o.choose_regularization = settings.regularization->automatic;
     o.regularization = settings.regularization->strength;

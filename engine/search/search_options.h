@@ -103,6 +103,9 @@ struct SearchOptions {
   // Strategy continuous fitted to probes: the bound on the model's stiffness spread
   // (ResponseFitOptions::max_spread; 0: none).
   double max_spread = 0.0;
+  // Strategy continuous fitted to probes: the load range's size, the largest nodal displacement
+  // (scene length; 0: the named loads' size). SearchSettings::load_size.
+  double load_size = 0.0;
   // Strategy continuous: the stiffness fits' regularisation toward the start
   // (StiffnessFitOptions::regularization), or with `choose_regularization` the one of
   // kRegularizationChoices whose held-out error is lowest.

@@ -5,6 +5,8 @@
 
 #include <cmath>
 
+#include "engine/identification/identify.h"
+#include "engine/input_error.h"
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/problem/cost.h"
 #include "engine/response/compliance_gram.h"
@@ -161,6 +163,41 @@ TEST(ToolPushes, TheShapeIgnoresAStiffnessScaleAndTheToolForceDoesNot) {
     EXPECT_NEAR(t.model_force_ratio, 2.0 * t.baseline_force_ratio, 1e-6 * t.model_force_ratio);
     // (The shape differs from the reference's: the baseline is not the FEM.)
     EXPECT_GT(t.model.median, 0.0);
+  }
+}
+
+// A stated load range (search.load_size): the nonlinear fit, the judgement and the tool pushes
+// run at 25, 50 and 100% of it rather than of the named loads' size; a size beyond 20 times
+// the named loads' is refused, naming the field, before the fit.
+TEST(LoadRange, TheStatedSizeSetsTheAmplitudesAndTooLargeIsRefused) {
+  Scene scene = examples::Make("fem-kidney-2d-nl");
+  const Problem named(scene);
+  const double size =
+      MakeProbeBanks(named, ReferenceRestStiffness(named), ProbeOptions{}).fit.amplitude;
+  ASSERT_GT(size, 0.0);
+  scene.search.load_size = 2.0 * size;
+  const Problem stated(scene);
+  const SearchOptions options = ResolveSearchOptions(scene.search, stated.gene_count());
+  EXPECT_DOUBLE_EQ(options.load_size, 2.0 * size);
+  const IdentificationResult r = RunIdentification(stated, options, RunContext{});
+  ASSERT_TRUE(r.generalization);
+  const Generalization& g = *r.generalization;
+  ASSERT_TRUE(g.fit.nonlinear);
+  EXPECT_EQ(g.fit.nonlinear->amplitudes, (std::vector<double>{0.5, 1.0, 2.0}));
+  ASSERT_EQ(g.amplitudes.size(), 3u);
+  EXPECT_DOUBLE_EQ(g.amplitudes.back().amplitude, 2.0);
+  ASSERT_EQ(g.tool_pushes.size(), 3u);
+  EXPECT_NEAR(g.tool_pushes.back().depth, 2.0 * size, 1e-12 * size);
+
+  scene.search.load_size = 25.0 * size;
+  const Problem too_large(scene);
+  try {
+    RunIdentification(too_large, ResolveSearchOptions(scene.search, too_large.gene_count()),
+                      RunContext{});
+    ADD_FAILURE() << "a load range 25 times the named loads' was taken";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.path(), "search.load_size");
+    EXPECT_NE(std::string(e.what()).find("at most 20 times"), std::string::npos) << e.what();
   }
 }
 
