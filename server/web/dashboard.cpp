@@ -239,6 +239,38 @@ std::string ResultCard(const Outcome& o, const Json& result, const Json& search)
           Row(fmt::format("E nonlinear at {:.0f}% of the loads", 100.0 * a.value("amplitude", 0.0)),
               text);
     }
+    // Tool pushes (imposed displacements): the shape and the force the tool feels
+    // (proto/RUN.md, generalization.tool_pushes).
+    for (const auto& t : g->value("tool_pushes", proto::Json::array())) {
+      const proto::Json model = t.value("model", proto::Json::object());
+      const proto::Json force = t.value("model_force", proto::Json::object());
+      const proto::Json baseline = t.value("baseline", proto::Json::object());
+      const proto::Json baseline_force = t.value("baseline_force", proto::Json::object());
+      if (!model["median"].is_number() || !force["median"].is_number()) continue;
+      std::string text = "median E " + ErrorText(model["median"].get<double>()) +
+                         ", tool force error " + ErrorText(force["median"].get<double>());
+      if (baseline["median"].is_number() && baseline_force["median"].is_number())
+        text += " (baseline " + ErrorText(baseline["median"].get<double>()) + ", " +
+                ErrorText(baseline_force["median"].get<double>()) + ")";
+      if (t.value("model_inverted", 0) > 0)
+        text += fmt::format("; {} invert an element", t.value("model_inverted", 0));
+      body +=
+          Row(fmt::format("tool push at {:.0f}% of the loads", 100.0 * t.value("amplitude", 0.0)),
+              text);
+    }
+    // The nonlinear fit's choosing error at the load range's sizes (generalization.fit.nonlinear).
+    if (g->contains("fit") && (*g)["fit"].contains("nonlinear") &&
+        (*g)["fit"]["nonlinear"]["choosing_rms_error"].is_number()) {
+      const proto::Json& n = (*g)["fit"]["nonlinear"];
+      std::string text =
+          fmt::format("{} Gauss-Newton steps: choosing E ", n.value("gauss_newton_steps", 0));
+      if (n["start_choosing_rms_error"].is_number())
+        text += ErrorText(n["start_choosing_rms_error"].get<double>()) + " at rest-linear fit, ";
+      text += ErrorText(n["choosing_rms_error"].get<double>()) + " returned";
+      if (n["baseline_choosing_rms_error"].is_number())
+        text += " (baseline " + ErrorText(n["baseline_choosing_rms_error"].get<double>()) + ")";
+      body += Row("nonlinear fit", text);
+    }
     if (g->contains("fit") && (*g)["fit"]["regularization"].is_number())
       body += Row("regularisation", ErrorText((*g)["fit"]["regularization"].get<double>()));
   } else if (const auto c = result.find("continuous"); c != result.end() && c->is_object()) {

@@ -199,6 +199,47 @@ TEST(Dashboard, GroupsNotAnalysedAreNotCountedOnTheJobPage) {
   std::filesystem::remove_all(dir);
 }
 
+// Issue 50: the job page shows the tool pushes (the shape's E and the tool's force error, beside
+// the baseline's) and the nonlinear fit's choosing errors, in the summary's words.
+TEST(Dashboard, TheJobPageShowsToolPushesAndTheNonlinearFit) {
+  const auto dir = std::filesystem::temp_directory_path() / "springfit-dashboard-pushes";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  {
+    SqliteStore store((dir / "jobs.db").string());
+    Metrics metrics;
+    Scheduler scheduler(store, SchedulerOptions{});
+    const std::string target = FinishedPaperJob(store, [](proto::Json& result) {
+      proto::Json g = proto::Json::object();
+      g["tool_pushes"] = proto::Json::array({{{"amplitude", 1.0},
+                                              {"model", {{"median", 0.159}}},
+                                              {"baseline", {{"median", 0.16}}},
+                                              {"model_force", {{"median", 0.126}}},
+                                              {"baseline_force", {{"median", 0.152}}},
+                                              {"model_inverted", 2}}});
+      g["fit"] = {{"nonlinear",
+                   {{"gauss_newton_steps", 12},
+                    {"start_choosing_rms_error", 0.124},
+                    {"choosing_rms_error", 0.123},
+                    {"baseline_choosing_rms_error", 0.319}}}};
+      result["generalization"] = g;
+    });
+    Dashboard dashboard(store, scheduler, metrics, DashboardOptions{});
+    const HttpResponse page = dashboard.Handle({"GET", target, {}, ""});
+    ASSERT_EQ(page.status, 200) << page.body;
+    EXPECT_NE(page.body.find("<tr><th>tool push at 100% of the loads</th><td>median E 0.159, "
+                             "tool force error 0.126 (baseline 0.16, 0.152); 2 invert an "
+                             "element</td>"),
+              std::string::npos)
+        << page.body;
+    EXPECT_NE(page.body.find("<tr><th>nonlinear fit</th><td>12 Gauss-Newton steps: choosing E "
+                             "0.124 at rest-linear fit, 0.123 returned (baseline 0.319)</td>"),
+              std::string::npos)
+        << page.body;
+  }
+  std::filesystem::remove_all(dir);
+}
+
 // Issue 48: a job whose row cannot be read is listed apart, as quarantined, with its incident
 // and its reason (escaped: it quotes the damaged value); its page says why it cannot be shown.
 TEST(Dashboard, AQuarantinedJobIsListedApartWithItsIncident) {
