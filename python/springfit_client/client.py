@@ -50,8 +50,8 @@ def _read_token_file(path):
 _SEARCH_OPTIONS = {
     "strategy": "strategy", "identify": "identify", "generations": "max_generations",
     "time_limit": "max_seconds", "stall": "stall_generations", "response": "response",
-    "max_springs": "max_springs", "target_error": "target_error",
-    "regularization": "regularization", "probes": "probes",
+    "max_springs": "max_springs", "target_error": "target_error", "max_spread": "max_spread",
+    "load_size": "load_size", "regularization": "regularization", "probes": "probes",
 }
 
 
@@ -249,7 +249,8 @@ class Client:
         label, priority ([-1000, 1000]), seed, idempotency_key: as proto/RPC.md. The search
         options of `springfit submit`, written into the scene's `search` (a copy; the
         caller's dict is not changed): strategy, identify, generations,
-        time_limit, stall, response, max_springs, target_error, regularization, probes
+        time_limit, stall, response, max_springs, target_error, max_spread, load_size,
+        regularization, probes
         ("auto" drops the scene's); search: further `search` members as proto/SCENE.md names
         them (e.g. {"population": 40}). on_preparing(params): called with each job.preparing
         notice of a scene that takes the daemon more than a second to prepare.

@@ -544,6 +544,13 @@ def test_submit_options(ctx):
         got = {k: stored.get("search", {}).get(k) for k in want}
         R.expect(got == want, f"the stored scene's search: {got}, expected {want}")
         c.watch(first.job.job_id, timeout=JOB_TIMEOUT)
+        # The probe fit's options, as springfit submit's --max-spread and --load-size write them.
+        tuned = c.submit(ctx.kidney_path, label=f"tuned-{ctx.nonce}", strategy="continuous",
+                         max_spread=1000, load_size=0.5)
+        search = c.scene(tuned).get("search", {})
+        R.expect(search.get("max_spread") == 1000 and search.get("load_size") == 0.5,
+                 f"the stored scene's search: {search}")
+        c.watch(tuned, timeout=JOB_TIMEOUT)
         try:
             c.submit(scene, generation=5)
             R.fail("submit with an unknown option: accepted")
