@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <ctime>
+#include <initializer_list>
 #include <limits>
+#include <optional>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -185,6 +187,21 @@ std::string QuarantinedTable(const std::vector<QuarantinedJob>& quarantined) {
   return body + "</table>\n";
 }
 
+// The number at a path of object members in `j`, or nothing where a member is missing or not a
+// number. (A const Json's operator[] on a missing member is undefined behaviour: the result
+// card reads stored results, which may lack any member.)
+std::optional<double> NumberAt(const Json& j, std::initializer_list<const char*> path) {
+  const Json* at = &j;
+  for (const char* key : path) {
+    if (!at->is_object()) return std::nullopt;
+    const auto it = at->find(key);
+    if (it == at->end()) return std::nullopt;
+    at = &*it;
+  }
+  if (!at->is_number()) return std::nullopt;
+  return at->get<double>();
+}
+
 std::string Row(const std::string& key, const std::string& value_html) {
   return "<tr><th>" + XmlEscape(key) + "</th><td>" + value_html + "</td></tr>\n";
 }
@@ -220,21 +237,20 @@ std::string ResultCard(const Outcome& o, const Json& result, const Json& search)
     body += Row("E on unseen " + o.held_out_of, text);
   }
   if (const auto g = result.find("generalization"); g != result.end() && g->is_object()) {
-    if ((*g)["lambda_min"].is_number() && (*g)["lambda_max"].is_number())
+    if (const auto low = NumberAt(*g, {"lambda_min"}), high = NumberAt(*g, {"lambda_max"});
+        low && high)
       body += Row("generalised eigenvalues",
-                  fmt::format("[{}, {}]", ErrorText((*g)["lambda_min"].get<double>()),
-                              ErrorText((*g)["lambda_max"].get<double>())));
+                  fmt::format("[{}, {}]", ErrorText(*low), ErrorText(*high)));
     // A nonlinear response: the held-out probes and named cases at fractions of the named
     // loads' size, every model nonlinear (proto/RUN.md, generalization.amplitudes).
     for (const auto& a : g->value("amplitudes", proto::Json::array())) {
-      const proto::Json model = a.value("model", proto::Json::object());
-      const proto::Json baseline = a.value("baseline", proto::Json::object());
-      if (!model["median"].is_number()) continue;
-      std::string text = "median " + ErrorText(model["median"].get<double>());
-      if (model["p95"].is_number())
-        text += ", worst 5% above " + ErrorText(model["p95"].get<double>());
-      if (baseline["median"].is_number())
-        text += " (baseline median " + ErrorText(baseline["median"].get<double>()) + ")";
+      const auto median = NumberAt(a, {"model", "median"});
+      if (!median) continue;
+      std::string text = "median " + ErrorText(*median);
+      if (const auto p95 = NumberAt(a, {"model", "p95"}))
+        text += ", worst 5% above " + ErrorText(*p95);
+      if (const auto baseline = NumberAt(a, {"baseline", "median"}))
+        text += " (baseline median " + ErrorText(*baseline) + ")";
       body +=
           Row(fmt::format("E nonlinear at {:.0f}% of the loads", 100.0 * a.value("amplitude", 0.0)),
               text);
@@ -242,16 +258,15 @@ std::string ResultCard(const Outcome& o, const Json& result, const Json& search)
     // Tool pushes (imposed displacements): the shape and the force the tool feels
     // (proto/RUN.md, generalization.tool_pushes).
     for (const auto& t : g->value("tool_pushes", proto::Json::array())) {
-      const proto::Json model = t.value("model", proto::Json::object());
-      const proto::Json force = t.value("model_force", proto::Json::object());
-      const proto::Json baseline = t.value("baseline", proto::Json::object());
-      const proto::Json baseline_force = t.value("baseline_force", proto::Json::object());
-      if (!model["median"].is_number() || !force["median"].is_number()) continue;
-      std::string text = "median E " + ErrorText(model["median"].get<double>()) +
-                         ", tool force error " + ErrorText(force["median"].get<double>());
-      if (baseline["median"].is_number() && baseline_force["median"].is_number())
-        text += " (baseline " + ErrorText(baseline["median"].get<double>()) + ", " +
-                ErrorText(baseline_force["median"].get<double>()) + ")";
+      const auto median = NumberAt(t, {"model", "median"});
+      const auto force = NumberAt(t, {"model_force", "median"});
+      if (!median || !force) continue;
+      std::string text =
+          "median E " + ErrorText(*median) + ", tool force error " + ErrorText(*force);
+      const auto baseline = NumberAt(t, {"baseline", "median"});
+      const auto baseline_force = NumberAt(t, {"baseline_force", "median"});
+      if (baseline && baseline_force)
+        text += " (baseline " + ErrorText(*baseline) + ", " + ErrorText(*baseline_force) + ")";
       if (t.value("model_inverted", 0) > 0)
         text += fmt::format("; {} invert an element", t.value("model_inverted", 0));
       body +=
@@ -259,23 +274,23 @@ std::string ResultCard(const Outcome& o, const Json& result, const Json& search)
               text);
     }
     // The nonlinear fit's choosing error at the load range's sizes (generalization.fit.nonlinear).
-    if (g->contains("fit") && (*g)["fit"].contains("nonlinear") &&
-        (*g)["fit"]["nonlinear"]["choosing_rms_error"].is_number()) {
-      const proto::Json& n = (*g)["fit"]["nonlinear"];
+    if (const auto returned = NumberAt(*g, {"fit", "nonlinear", "choosing_rms_error"})) {
       std::string text =
-          fmt::format("{} Gauss-Newton steps: choosing E ", n.value("gauss_newton_steps", 0));
-      if (n["start_choosing_rms_error"].is_number())
-        text += ErrorText(n["start_choosing_rms_error"].get<double>()) + " at rest-linear fit, ";
-      text += ErrorText(n["choosing_rms_error"].get<double>()) + " returned";
-      if (n["baseline_choosing_rms_error"].is_number())
-        text += " (baseline " + ErrorText(n["baseline_choosing_rms_error"].get<double>()) + ")";
+          fmt::format("{} Gauss-Newton steps: choosing E ",
+                      static_cast<long long>(
+                          NumberAt(*g, {"fit", "nonlinear", "gauss_newton_steps"}).value_or(0.0)));
+      if (const auto start = NumberAt(*g, {"fit", "nonlinear", "start_choosing_rms_error"}))
+        text += ErrorText(*start) + " at rest-linear fit, ";
+      text += ErrorText(*returned) + " returned";
+      if (const auto base = NumberAt(*g, {"fit", "nonlinear", "baseline_choosing_rms_error"}))
+        text += " (baseline " + ErrorText(*base) + ")";
       body += Row("nonlinear fit", text);
     }
-    if (g->contains("fit") && (*g)["fit"]["regularization"].is_number())
-      body += Row("regularisation", ErrorText((*g)["fit"]["regularization"].get<double>()));
+    if (const auto strength = NumberAt(*g, {"fit", "regularization"}))
+      body += Row("regularisation", ErrorText(*strength));
   } else if (const auto c = result.find("continuous"); c != result.end() && c->is_object()) {
-    if ((*c)["regularization"].is_object() && (*c)["regularization"]["strength"].is_number())
-      body += Row("regularisation", ErrorText((*c)["regularization"]["strength"].get<double>()));
+    if (const auto strength = NumberAt(*c, {"regularization", "strength"}))
+      body += Row("regularisation", ErrorText(*strength));
   }
   if (result.contains("ran") && result["ran"].is_string())
     body += Row("strategy that ran", XmlEscape(result["ran"].get<std::string>()));
