@@ -175,6 +175,9 @@ int Check(const SceneInput& input) {
   PrintIdentifiability(Identifiability(problem));
   for (const std::string& notice : SceneNotices(problem))
     std::cout << "notice:                 " << notice << "\n";
+  // (The same line a run's verdict gives as a doubt: proto/RUN.md, "Doubts".)
+  if (const auto strain = SmallStrainWarning(problem, s.search.load_size.value_or(0.0)))
+    std::cout << "WARNING:                " << *strain << "\n";
   PrintReference(problem);
   std::cout << "training stiffness:     " << problem.training_stiffness() << "\n"
             << "load cases:             " << s.load_cases.size() << "\n";

@@ -22,11 +22,15 @@ inline constexpr int kExitUnusable = 10;
 // run, submit --wait, watch, result: a usable model that does not meet a hard request (a spring
 // budget, a target error); a WARNING line says which.
 inline constexpr int kExitUnmetRequest = 11;
+// run, submit --wait, watch, result: a usable model, every request met, that its certificate
+// or its judgement as the simulator runs it finds worse than the closed-form recipe somewhere
+// (or fitted to a linear reference past small strain); a WARNING line says each.
+inline constexpr int kExitDoubtful = 12;
 inline constexpr int kExitUsage = 64;  // bad command line (unknown option, missing argument)
 inline constexpr int kExitInterrupted =
     130;  // stopped by SIGINT/SIGTERM (run: the result so far is still written)
 
-// The exit code of a result's verdict: usable 0, unmet_request 11, unusable 10.
+// The exit code of a result's verdict: usable 0, unmet_request 11, unusable 10, doubtful 12.
 inline int ExitCodeOfVerdict(Verdict verdict) {
   switch (verdict) {
     case Verdict::kUsable:
@@ -35,6 +39,8 @@ inline int ExitCodeOfVerdict(Verdict verdict) {
       return kExitUnmetRequest;
     case Verdict::kUnusable:
       return kExitUnusable;
+    case Verdict::kDoubtful:
+      return kExitDoubtful;
   }
   return kExitUnusable;
 }

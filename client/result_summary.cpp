@@ -43,6 +43,7 @@ void PrintVerdict(const proto::Json& r, std::ostream& out) {
 void PrintOutcome(const Outcome& o, std::ostream& out) {
   out << "verdict:           " << o.Headline() << "\n";
   for (const std::string& line : o.unmet) out << "WARNING:           " << line << "\n";
+  for (const std::string& line : o.doubts) out << "WARNING:           " << line << "\n";
   if (!o.reason.empty()) out << "NO USABLE MODEL:   " << o.reason << "\n";
 }
 
@@ -297,10 +298,20 @@ void PrintGeneralization(const proto::Json& g, std::ostream& out) {
           << t.value("baseline_inverted", 0) << ")";
     out << "\n";
   }
-  out << "  every load:      generalised eigenvalues of (K_model, K_ref) on the user's supports "
-         "in ["
-      << number(g, "lambda_min") << ", " << number(g, "lambda_max")
-      << "]: energy-norm error at most " << number(g, "bound") << " of the response\n";
+  // The bound in words a user can act on, beside the baseline's (issue 47 item 2).
+  const proto::Json pencil_base = g.value("baseline_pencil", proto::Json::object());
+  out << "  every load:      any load on your supports is reproduced within " << number(g, "bound")
+      << " of the response in the energy norm (baseline within " << number(pencil_base, "bound")
+      << "); generalised eigenvalues of (K_model, K_ref) in [" << number(g, "lambda_min") << ", "
+      << number(g, "lambda_max") << "] (baseline [" << number(pencil_base, "lambda_min") << ", "
+      << number(pencil_base, "lambda_max") << "])";
+  const double lambda_min = g.value("lambda_min", 0.0);
+  if (lambda_min > 0.0)
+    out << ": under the load that finds its softest mode, the model moves "
+        << Format("%.3g", 1.0 / lambda_min) << " times as far as the reference";
+  else
+    out << ": the model leaves a mode free";
+  out << "\n";
   if (g.contains("free_body") && g["free_body"].is_object()) {
     const proto::Json& model = g["free_body"]["model"];
     const proto::Json& free_baseline = g["free_body"]["baseline"];

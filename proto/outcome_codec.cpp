@@ -32,6 +32,7 @@ Json OutcomeToJson(const Outcome& o) {
   j["headline"] = o.Headline();
   j["reason"] = o.reason;
   j["unmet"] = o.unmet;
+  j["doubts"] = o.doubts;
   j["springs"] = o.springs;
   j["unseen_springs"] = o.unseen_springs;
   j["rms_error"] = Optional(o.rms_error);
@@ -55,13 +56,18 @@ Outcome OutcomeFromJson(const Json& j, const std::string& path) {
   const std::optional<Verdict> verdict = ParseVerdict(name);
   if (!verdict)
     throw InputError(JoinPath(path, "verdict"),
-                     "unknown verdict '" + name + "' (usable, unmet_request, unusable)");
+                     "unknown verdict '" + name + "' (usable, unmet_request, unusable, doubtful)");
   o.verdict = *verdict;
   if (j.contains("reason")) o.reason = ReadString(j["reason"], JoinPath(path, "reason"));
   if (j.contains("unmet")) {
     ExpectArray(j["unmet"], JoinPath(path, "unmet"));
     for (std::size_t i = 0; i < j["unmet"].size(); ++i)
       o.unmet.push_back(ReadString(j["unmet"][i], IndexPath(JoinPath(path, "unmet"), i)));
+  }
+  if (j.contains("doubts")) {
+    ExpectArray(j["doubts"], JoinPath(path, "doubts"));
+    for (std::size_t i = 0; i < j["doubts"].size(); ++i)
+      o.doubts.push_back(ReadString(j["doubts"][i], IndexPath(JoinPath(path, "doubts"), i)));
   }
   if (j.contains("springs")) o.springs = ReadInt(j["springs"], JoinPath(path, "springs"));
   if (j.contains("unseen_springs"))

@@ -246,6 +246,7 @@ Json GeneralizationToJson(const response::Generalization& g) {
   j["lambda_min"] = g.lambda_min;
   j["lambda_max"] = g.lambda_max;
   j["bound"] = NumberOrNull(g.bound);
+  j["baseline_pencil"] = PencilToJson(g.baseline_pencil);
   Json amplitudes = Json::array();
   for (const response::AmplitudeErrors& a : g.amplitudes)
     amplitudes.push_back({{"amplitude", a.amplitude},

@@ -5,3 +5,4 @@
 #include "engine/problem/cost.h"
 #include "engine/problem/problem.h"
 #include "engine/problem/scene_validation.h"
+#include "engine/problem/small_strain.h"

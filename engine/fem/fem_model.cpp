@@ -3,6 +3,8 @@
 #include <cmath>
 #include <limits>
 
+#include <Eigen/Eigenvalues>
+
 namespace springfit::fem {
 namespace {
 
@@ -70,6 +72,38 @@ int FemModel::FirstInvertedElement(const Vector& u) const {
     if (!(Jacobian(e, u) > 0.0)) return e;
   }
   return -1;
+}
+
+namespace {
+
+// The largest principal Green-Lagrange strain of an element, in magnitude.
+template <int D>
+double PrincipalStrain(const Element<D>& element, const Vector& u) {
+  const MatD<D> h = DisplacementGradient(element, u);
+  const MatD<D> strain = 0.5 * (h + h.transpose() + h.transpose() * h);
+  const Eigen::SelfAdjointEigenSolver<MatD<D>> eigen(strain, Eigen::EigenvaluesOnly);
+  return eigen.eigenvalues().cwiseAbs().maxCoeff();
+}
+
+template <int D>
+std::vector<double> StrainsOf(const std::vector<Element<D>>& elements, const Vector& u) {
+  std::vector<double> strains;
+  strains.reserve(elements.size());
+  for (const Element<D>& element : elements) strains.push_back(PrincipalStrain(element, u));
+  return strains;
+}
+
+}  // namespace
+
+std::vector<double> FemModel::ElementStrains(const Vector& u) const {
+  return dimension_ == 2 ? StrainsOf(elements2_, u) : StrainsOf(elements3_, u);
+}
+
+std::vector<double> FemModel::ElementVolumes() const {
+  std::vector<double> volumes;
+  for (const auto& el : elements2_) volumes.push_back(el.volume);
+  for (const auto& el : elements3_) volumes.push_back(el.volume);
+  return volumes;
 }
 
 double FemModel::Volume() const {

@@ -81,6 +81,12 @@ class FemModel {
   double Jacobian(int e, const Vector& u) const;
   // The first element with J <= 0 at u, or -1.
   int FirstInvertedElement(const Vector& u) const;
+  // Per element, its largest principal Green-Lagrange strain in magnitude,
+  // E = (H + H^T + H^T H) / 2, at displacement u (flat d*n); unit-free. The Green-Lagrange rather
+  // than the small strain: a large rotation strains it too, and a linear material misjudges both.
+  std::vector<double> ElementStrains(const Vector& u) const;
+  // Per element, its rest volume (2D: area x thickness), in element order.
+  std::vector<double> ElementVolumes() const;
   // Total rest volume (2D: area x thickness).
   double Volume() const;
   // The smallest element quality (SimplexQuality, unsigned) and the element attaining it.

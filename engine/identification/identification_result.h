@@ -45,8 +45,8 @@ struct IdentificationResult {
   EvaluationCounters counters;
   double wall_seconds = 0.0;
   std::vector<TraceRow> trace;
-  // Strategies hybrid and default: the direct phase that seeded the GA (absent on a resumed
-  // run: it ran before the checkpoint).
+  // Strategies hybrid and default: the direct phase that seeded the GA (on a resumed run, as
+  // the checkpoint's seed reports it).
   struct DirectPhase {
     double seconds = 0.0;
     double normalized_error = 0.0;  // of the direct topology (training stiffness)

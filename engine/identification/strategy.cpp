@@ -20,13 +20,18 @@ struct Seed {
   Evaluation evaluation;
 };
 
-// Before the GA's first generation (not on a resumed run): a hook that may seed it.
-using BeforeStart =
-    std::function<std::optional<Seed>(GeneticSearch&, FitnessEvaluator&, IdentificationResult&)>;
+// A phase before the GA's first generation that may seed it. `run` runs it on a fresh run;
+// on a run resumed from a checkpoint, `resumed` reports it again from the checkpoint's seeds
+// and seconds (SearchState::seeds), so that a resumed job's result says what an uninterrupted
+// one says.
+struct Preamble {
+  std::function<std::optional<Seed>(GeneticSearch&, FitnessEvaluator&, IdentificationResult&)> run;
+  std::function<void(const SearchState&, FitnessEvaluator&, IdentificationResult&)> resumed;
+};
 
 IdentificationResult RunGenetic(const Problem& problem, const SearchOptions& options,
                                 const RunContext& context, RunMonitor& monitor,
-                                const BeforeStart& before_start) {
+                                const Preamble* preamble) {
   std::unique_ptr<WorkerPool> own_pool;
   WorkerPool* pool = PoolOf(context, own_pool);
   FitnessEvaluator evaluator(problem, pool, options.cache_capacity, context.use_cache);
@@ -64,9 +69,12 @@ IdentificationResult RunGenetic(const Problem& problem, const SearchOptions& opt
   try {
     genetic_phase();
     if (context.resume_from) {
+      // (Before Restore, which sets the evaluator's counters to the checkpoint's.)
+      if (preamble && !context.resume_from->seeds.empty())
+        preamble->resumed(*context.resume_from, evaluator, result);
       search.Restore(*context.resume_from);
     } else {
-      if (before_start) seed = before_start(search, evaluator, result);
+      if (preamble) seed = preamble->run(search, evaluator, result);
       genetic_phase();
       record(search.Initialize());
     }
@@ -111,26 +119,37 @@ IdentificationResult GeneticStrategy::Run(const Problem& problem, const SearchOp
 
 IdentificationResult HybridStrategy::Run(const Problem& problem, const SearchOptions& options,
                                          const RunContext& context, RunMonitor& monitor) const {
-  return RunGenetic(
-      problem, options, context, monitor,
-      [&](GeneticSearch& search, FitnessEvaluator& evaluator, IdentificationResult& result) {
-        // The GA's models have the training stiffness: the direct phase identifies topology only.
-        const auto start = std::chrono::steady_clock::now();
-        ClockPhase(monitor, "direct", start);
-        DirectOptions direct_options;
-        direct_options.known_stiffness = problem.training_stiffness();
-        const DirectResult direct =
-            IdentifyDirect(problem, direct_options, &monitor.interruption());
-        Seed seed{direct.genome, evaluator.EvaluateInDetail(direct.genome)};
-        if (seed.evaluation.interrupted) throw Interrupted();
-        IdentificationResult::DirectPhase phase;
-        phase.seconds = SecondsSince(start);
-        phase.normalized_error = seed.evaluation.normalized_error;
-        phase.difference = problem.CompareWithReference(direct.genome);
-        result.direct_phase = phase;
-        search.SeedInitialPopulation({direct.genome}, phase.seconds);  // its time starts the clock
-        return seed;
-      });
+  // The direct phase as the result reports it: its topology's error at the training stiffness.
+  const auto report = [&](const Genome& topology, const Evaluation& evaluation, double seconds,
+                          IdentificationResult& result) {
+    if (evaluation.interrupted) throw Interrupted();
+    IdentificationResult::DirectPhase phase;
+    phase.seconds = seconds;
+    phase.normalized_error = evaluation.normalized_error;
+    phase.difference = problem.CompareWithReference(topology);
+    result.direct_phase = phase;
+  };
+  Preamble direct_phase;
+  direct_phase.run = [&](GeneticSearch& search, FitnessEvaluator& evaluator,
+                         IdentificationResult& result) {
+    // The GA's models have the training stiffness: the direct phase identifies topology only.
+    const auto start = std::chrono::steady_clock::now();
+    ClockPhase(monitor, "direct", start);
+    DirectOptions direct_options;
+    direct_options.known_stiffness = problem.training_stiffness();
+    const DirectResult direct = IdentifyDirect(problem, direct_options, &monitor.interruption());
+    Seed seed{direct.genome, evaluator.EvaluateInDetail(direct.genome)};
+    const double seconds = SecondsSince(start);
+    report(seed.genome, seed.evaluation, seconds, result);
+    search.SeedInitialPopulation({direct.genome}, seconds);  // its time starts the clock
+    return std::optional<Seed>(std::move(seed));
+  };
+  direct_phase.resumed = [&](const SearchState& state, FitnessEvaluator& evaluator,
+                             IdentificationResult& result) {
+    const Genome& topology = state.seeds.front();
+    report(topology, evaluator.EvaluateInDetail(topology), state.seeded_seconds, result);
+  };
+  return RunGenetic(problem, options, context, monitor, &direct_phase);
 }
 
 IdentificationResult DirectStrategy::Run(const Problem& problem, const SearchOptions& options,

@@ -43,7 +43,8 @@ class DirectStrategy : public IdentificationStrategy {
 };
 
 // Direct (topology only, at the training stiffness), then the GA seeded with its topology,
-// the direct phase's time starting the GA's clock. A resumed run skips the direct phase.
+// the direct phase's time starting the GA's clock. A resumed run does not run the direct phase
+// again: it reports it from the checkpoint's seed.
 class HybridStrategy : public IdentificationStrategy {
  public:
   IdentificationResult Run(const Problem& problem, const SearchOptions& options,

@@ -5,6 +5,7 @@
 
 #include "engine/identification/identification_result.h"
 #include "engine/number_text.h"
+#include "engine/problem/small_strain.h"
 
 namespace springfit {
 namespace {
@@ -46,6 +47,105 @@ std::vector<std::string> UnmetRequests(const IdentificationResult& r, const Outc
   return unmet;
 }
 
+// A bound is doubted when it is worse than the recipe's by more than this factor: the bounds
+// are worst cases from Lanczos extremes, and one a few percent above the recipe's (the plate:
+// 2.02 against 1.99) says nothing a user can act on.
+constexpr double kBoundMargin = 1.25;
+
+// A model whose softest mode is this much softer than the reference (1/lambda_min times) is
+// doubted when the recipe has no mode as soft: under the load that finds it, the model moves
+// ten times more than the tissue.
+constexpr double kSoftModeLambda = 0.1;
+
+std::string Percent(double fraction) {
+  return NumberText(100.0 * fraction) + "%";
+}
+
+// The certificate's doubts: on the user's supports (the bound, the softest mode), on loads the
+// model was not fitted to, and on any support (the free body).
+void CertificateDoubts(const response::Generalization& g, std::vector<std::string>& doubts) {
+  const response::PencilExtremes& base = g.baseline_pencil;
+  if (g.bound > kBoundMargin * base.Bound() && base.lambda_min > 0.0)
+    doubts.push_back("the certificate: a load on your supports can move the model by up to " +
+                     NumberText(g.bound) +
+                     " times the reference's response in error (energy norm), the "
+                     "closed-form recipe by at most " +
+                     NumberText(base.Bound()) + " (generalised eigenvalues [" +
+                     NumberText(g.lambda_min) + ", " + NumberText(g.lambda_max) +
+                     "], the recipe's [" + NumberText(base.lambda_min) + ", " +
+                     NumberText(base.lambda_max) +
+                     "]): some load there finds a mode the model holds worse "
+                     "than the recipe does");
+  if (g.lambda_min > 0.0 && g.lambda_min < kSoftModeLambda && g.lambda_min < base.lambda_min)
+    doubts.push_back(
+        "a soft mode: under the load that finds it on your supports, the model "
+        "moves " +
+        NumberText(1.0 / g.lambda_min) +
+        " times as far as the reference (the recipe's softest mode: " +
+        NumberText(1.0 / base.lambda_min) + " times)");
+  if (g.model_held_out.p95 > g.baseline_held_out.median)
+    doubts.push_back("unseen loads: one in twenty of the held-out probes has E at or above " +
+                     NumberText(g.model_held_out.p95) + ", above the recipe's median " +
+                     NumberText(g.baseline_held_out.median));
+  const double free_body = g.free_body.Bound();
+  const double base_free_body = g.baseline_free_body.Bound();
+  if (free_body > kBoundMargin * base_free_body && std::isfinite(base_free_body))
+    doubts.push_back(
+        "held by supports other than yours (the free body's bound, which covers "
+        "every support): error up to " +
+        NumberText(free_body) + " times the response, the recipe's " + NumberText(base_free_body));
+}
+
+// The judgement as the simulator runs it: nonlinear springs at the load range's sizes, and a
+// tool's pushes (displacement and reaction force), beside the recipe.
+void AsSimulatedDoubts(const response::Generalization& g, std::vector<std::string>& doubts) {
+  std::string worse;
+  int inverted = 0, base_inverted = 0;
+  for (const response::AmplitudeErrors& a : g.amplitudes) {
+    if (a.model.median > a.baseline.median)
+      worse += (worse.empty() ? "" : ", ") + Percent(a.amplitude) + ": E " +
+               NumberText(a.model.median) + " (recipe " + NumberText(a.baseline.median) + ")";
+    inverted += a.model_inverted;
+    base_inverted += a.baseline_inverted;
+  }
+  if (!worse.empty())
+    doubts.push_back(
+        "as the simulator runs it (nonlinear springs), the model is worse than the "
+        "closed-form recipe at " +
+        worse + " of the named loads' size");
+  std::string pushes;
+  for (const response::ToolPushErrors& t : g.tool_pushes) {
+    if (t.model.median > t.baseline.median || t.model_force.median > t.baseline_force.median)
+      pushes += (pushes.empty() ? "" : ", ") + Percent(t.amplitude) + ": E " +
+                NumberText(t.model.median) + ", tool force error " +
+                NumberText(t.model_force.median) + " (recipe " + NumberText(t.baseline.median) +
+                ", " + NumberText(t.baseline_force.median) + ")";
+    inverted += t.model_inverted;
+    base_inverted += t.baseline_inverted;
+  }
+  if (!pushes.empty())
+    doubts.push_back(
+        "a tool's push (an imposed displacement) meets a model worse than the "
+        "recipe at " +
+        pushes);
+  if (inverted > base_inverted)
+    doubts.push_back("the model turns a mesh element inside out under " + std::to_string(inverted) +
+                     " of the judged loads (the recipe under " + std::to_string(base_inverted) +
+                     "): it folds where the tissue does not");
+}
+
+// Each doubt about a usable model, one line each.
+std::vector<std::string> Doubts(const Problem& problem, const IdentificationResult& r) {
+  std::vector<std::string> doubts;
+  if (r.generalization) {
+    CertificateDoubts(*r.generalization, doubts);
+    AsSimulatedDoubts(*r.generalization, doubts);
+  }
+  if (const auto strain = SmallStrainWarning(problem, r.options.load_size))
+    doubts.push_back(*strain);
+  return doubts;
+}
+
 }  // namespace
 
 std::string_view VerdictName(Verdict verdict) {
@@ -56,12 +156,15 @@ std::string_view VerdictName(Verdict verdict) {
       return "unmet_request";
     case Verdict::kUnusable:
       return "unusable";
+    case Verdict::kDoubtful:
+      return "doubtful";
   }
   return "unusable";
 }
 
 std::optional<Verdict> ParseVerdict(std::string_view name) {
-  for (Verdict v : {Verdict::kUsable, Verdict::kUnmetRequest, Verdict::kUnusable})
+  for (Verdict v :
+       {Verdict::kUsable, Verdict::kUnmetRequest, Verdict::kUnusable, Verdict::kDoubtful})
     if (VerdictName(v) == name) return v;
   return std::nullopt;
 }
@@ -105,7 +208,10 @@ Outcome JudgeResult(const Problem& problem, const IdentificationResult& r) {
     return o;
   }
   o.unmet = UnmetRequests(r, o);
-  o.verdict = o.unmet.empty() ? Verdict::kUsable : Verdict::kUnmetRequest;
+  o.doubts = Doubts(problem, r);
+  o.verdict = !o.unmet.empty()    ? Verdict::kUnmetRequest
+              : !o.doubts.empty() ? Verdict::kDoubtful
+                                  : Verdict::kUsable;
   return o;
 }
 

@@ -17,9 +17,14 @@ enum class Verdict {
   kUsable,        // a model to use: every request met
   kUnmetRequest,  // a usable model, but a hard request (spring budget, target error) is not met
   kUnusable,      // no answer: a mechanism, no equilibrium, or no better than the rest shape
+  // A usable model, every request met, that its certificate or its judgement as the simulator
+  // runs it finds worse than the closed-form recipe somewhere a user will meet it (a bound, a
+  // soft mode, unseen loads, the nonlinear springs at the load range, a tool's push, a folded
+  // element), or fitted to a linear reference loaded past small strain.
+  kDoubtful,
 };
 
-std::string_view VerdictName(Verdict verdict);  // "usable", "unmet_request", "unusable"
+std::string_view VerdictName(Verdict verdict);  // "usable", "unmet_request", "unusable", "doubtful"
 std::optional<Verdict> ParseVerdict(std::string_view name);
 
 // The verdict and the headline numbers of one result.
@@ -29,6 +34,9 @@ struct Outcome {
   std::string reason;
   // kUnmetRequest: each request not met, one line each (shown as WARNING lines).
   std::vector<std::string> unmet;
+  // Each doubt about a usable model, one line each (WARNING lines): kDoubtful when there are
+  // doubts and every request is met (an unmet request decides the verdict first).
+  std::vector<std::string> doubts;
 
   // The model's springs (the result's `springs`), and the candidates no load case can see
   // (both nodes held in every case, ...) that an export adds at the training stiffness so that

@@ -92,32 +92,6 @@ std::vector<std::string> SceneNotices(const Problem& problem) {
           i, nu, kLockingPoisson));
     }
   }
-  for (const Material& m : s.reference.fem.materials)
-    if (m.model != MaterialModel::kLinear) return notices;
-  const double size = BoundingBox::Of(s.dimension, s.rest).Diagonal();
-  if (!(size > 0.0)) return notices;
-  for (std::size_t k = 0; k < problem.load_cases().size(); ++k) {
-    const Vector& u = problem.load_cases()[k].reference;
-    double largest = 0.0;
-    int node = 0;
-    for (int i = 0; i < s.node_count(); ++i) {
-      const double d = u.segment(s.dimension * i, s.dimension).norm();
-      if (d > largest) {
-        largest = d;
-        node = i;
-      }
-    }
-    if (largest > kLargeDisplacementFraction * size) {
-      char text[400];
-      std::snprintf(text, sizeof text,
-                    "load_cases[%zu] ('%s'): the linear reference moves node %d by %.0f%% of the "
-                    "body's size; a linear material is a small-strain model, so its response at "
-                    "this load means little (scale the loads down: the linear fit does not "
-                    "depend on their size; or use a nonlinear material)",
-                    k, s.load_cases[k].name.c_str(), node, 100.0 * largest / size);
-      notices.push_back(text);
-    }
-  }
   return notices;
 }
 

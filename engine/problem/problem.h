@@ -77,13 +77,10 @@ struct TopologyDifference {
 // at the FEM's load would mix a load-level artefact into the model error), nonlinear otherwise.
 Response ResolveResponse(const Scene& scene);
 
-// Notices about the scene that are not errors, one line each: a linear FEM reference whose
-// displacement in some load case exceeds kLargeDisplacementFraction of the body's size (a
-// linear material is a small-strain model; the linear fit does not depend on the loads' size,
-// so scaling them down changes nothing but the reference's meaning). `run` and `check` print
-// them.
-inline constexpr double kLargeDisplacementFraction = 0.05;
-// A Poisson's ratio above this gets a notice too: linear elements lock near 0.5.
+// Notices about the scene that are not errors, one line each: a Poisson's ratio near 0.5, where
+// linear elements lock. `run` and `check` print them. (A linear reference loaded past small
+// strain is a warning of its own: small_strain.h.)
+// A Poisson's ratio above this gets a notice: linear elements lock near 0.5.
 inline constexpr double kLockingPoisson = 0.49;
 std::vector<std::string> SceneNotices(const Problem& problem);
 

@@ -54,6 +54,11 @@ Generalization Certifier::Certify(const std::vector<double>& model, const Sparse
         first ? pencil.model.lambda_min : std::min(g.lambda_min, pencil.model.lambda_min);
     g.lambda_max =
         first ? pencil.model.lambda_max : std::max(g.lambda_max, pencil.model.lambda_max);
+    PencilExtremes& b = g.baseline_pencil;
+    b.lambda_min =
+        first ? pencil.baseline.lambda_min : std::min(b.lambda_min, pencil.baseline.lambda_min);
+    b.lambda_max =
+        first ? pencil.baseline.lambda_max : std::max(b.lambda_max, pencil.baseline.lambda_max);
     first = false;
     g.pencils.push_back(std::move(pencil));
   }

@@ -38,6 +38,8 @@ struct Generalization {
   double lambda_min = 0.0;
   double lambda_max = 0.0;
   double bound = 0.0;  // PencilExtremes::Bound of the extremes
+  // The baseline's extremes over the same supports, for the same words beside the model's.
+  PencilExtremes baseline_pencil;
   // The free-body pencil (free_body.h), of the model and of the baseline: it bounds every
   // support, the user's and any other a simulator holds the body by.
   PencilExtremes free_body;

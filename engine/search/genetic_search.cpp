@@ -27,12 +27,16 @@ GeneticSearch::GeneticSearch(const Problem& problem, SearchOptions options,
 
 TraceRow GeneticSearch::Initialize() {
   const int n = options_.population;
+  std::vector<Genome> seeds = std::move(state_.seeds);
+  const double seeded_seconds = state_.seeded_seconds;
   state_ = SearchState{};
   state_.population.reserve(n);
   for (int i = 0; i < n; ++i) {
     Genome drawn = InitialGenome(i);  // drawn for every place, so seeding moves no other draw
-    state_.population.push_back(i < static_cast<int>(seeds_.size()) ? seeds_[i] : std::move(drawn));
+    state_.population.push_back(i < static_cast<int>(seeds.size()) ? seeds[i] : std::move(drawn));
   }
+  state_.seeds = std::move(seeds);
+  state_.seeded_seconds = seeded_seconds;
   state_.fitness = evaluator_->Evaluate(state_.population);
   state_.best = state_.population.front();
   state_.best_fitness = state_.fitness.front();
@@ -52,7 +56,8 @@ void GeneticSearch::SeedInitialPopulation(std::vector<Genome> genomes, double el
     if (g.size() != genes)
       throw std::invalid_argument("GeneticSearch::SeedInitialPopulation: wrong genome size");
   }
-  seeds_ = std::move(genomes);
+  state_.seeds = std::move(genomes);
+  state_.seeded_seconds = elapsed_seconds;
   // The earlier phases' time replaces whatever the clock counted since construction.
   elapsed_before_ = elapsed_seconds;
   started_ = std::chrono::steady_clock::now();
@@ -75,6 +80,7 @@ void GeneticSearch::Restore(const SearchState& state) {
                     state.fitness.size() == state.population.size() && state.best.size() == genes &&
                     (state.local_optimum.empty() || state.local_optimum.size() == genes);
   for (const Genome& g : state.population) consistent = consistent && g.size() == genes;
+  for (const Genome& g : state.seeds) consistent = consistent && g.size() == genes;
   if (!consistent) {
     throw std::invalid_argument(
         "GeneticSearch::Restore: the state does not match this problem and options");

@@ -41,6 +41,10 @@ struct SearchState {
   Genome local_optimum;  // last genome the local search proved locally optimal
   EvaluationCounters counters;
   double elapsed_seconds = 0.0;
+  // The genomes an earlier phase seeded the initial population with, and that phase's seconds
+  // (SeedInitialPopulation): a resumed run reports its seeding phase from them.
+  std::vector<Genome> seeds;
+  double seeded_seconds = 0.0;
 };
 
 class GeneticSearch {
@@ -117,7 +121,6 @@ class GeneticSearch {
   std::vector<std::vector<int>> swap_partners_;
   std::chrono::steady_clock::time_point started_;
   double elapsed_before_ = 0.0;  // wall time of the run before a Restore() or a seeding phase
-  std::vector<Genome> seeds_;
   Interruption* interruption_ = nullptr;
   bool interrupted_ = false;
   // Checks the interruption (once interrupted, stays so).

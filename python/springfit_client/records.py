@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any, List, Optional
 
 __all__ = [
-    "USABLE", "UNMET_REQUEST", "UNUSABLE", "FINAL_STATES", "Outcome", "TraceRow", "Progress",
+    "USABLE", "UNMET_REQUEST", "UNUSABLE", "DOUBTFUL", "FINAL_STATES", "Outcome", "TraceRow", "Progress",
     "Job", "Result", "ServerInfo", "Submission", "Improvement",
 ]
 
@@ -20,6 +20,7 @@ __all__ = [
 USABLE = "usable"                # a model, every request met
 UNMET_REQUEST = "unmet_request"  # a usable model that misses a hard request (budget, target)
 UNUSABLE = "unusable"            # a mechanism, no equilibrium, no better than the rest shape
+DOUBTFUL = "doubtful"            # a usable model the certificate or the nonlinear judgement doubts
 
 # The states a job ends in (proto/RPC.md, "Job").
 FINAL_STATES = ("succeeded", "failed", "cancelled")
@@ -59,10 +60,11 @@ class _Record:
 @dataclass(frozen=True)
 class Outcome(_Record):
     """A finished job's verdict and headline numbers (proto/RUN.md, "The verdict")."""
-    verdict: Optional[str] = None          # USABLE, UNMET_REQUEST or UNUSABLE
+    verdict: Optional[str] = None          # USABLE, UNMET_REQUEST, UNUSABLE or DOUBTFUL
     headline: Optional[str] = None         # the verdict line `springfit run` prints
     reason: Optional[str] = None           # unusable: why
     unmet: Optional[List[str]] = None      # unmet_request: each request not met
+    doubts: Optional[List[str]] = None     # doubtful: each doubt (worse than the recipe where)
     springs: Optional[int] = None          # the model's springs
     unseen_springs: Optional[int] = None
     rms_error: Optional[float] = None      # E on the named load cases (None: no equilibrium)
@@ -72,8 +74,8 @@ class Outcome(_Record):
 
     @property
     def usable(self):
-        """True for a model to use (usable or unmet_request); False for unusable."""
-        return self.verdict in (USABLE, UNMET_REQUEST)
+        """True for a model to use (usable, unmet_request or doubtful); False for unusable."""
+        return self.verdict in (USABLE, UNMET_REQUEST, DOUBTFUL)
 
 
 @dataclass(frozen=True)

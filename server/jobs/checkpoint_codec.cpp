@@ -12,7 +12,7 @@
 namespace springfit::server {
 namespace {
 
-constexpr char kMagic[8] = {'S', 'F', 'C', 'K', 'P', 'T', '0', '3'};  // format version 3
+constexpr char kMagic[8] = {'S', 'F', 'C', 'K', 'P', 'T', '0', '4'};  // format version 4
 constexpr std::uint32_t kByteOrderMark = 0x01020304;
 
 class Writer {
@@ -130,6 +130,9 @@ std::string EncodeCheckpoint(const SearchState& s, int genes, std::uint64_t fing
   w.Put<std::int64_t>(s.counters.evaluations);
   w.Put<std::int64_t>(s.counters.cache_hits);
   w.Put(s.elapsed_seconds);
+  w.Put<std::uint64_t>(s.seeds.size());
+  for (const Genome& g : s.seeds) w.PutGenome(g);
+  w.Put(s.seeded_seconds);
   return w.Take();
 }
 
@@ -137,7 +140,7 @@ SearchState DecodeCheckpoint(const std::string& bytes, int genes, std::uint64_t 
   Reader r(bytes, genes);
   for (char c : kMagic) {
     if (r.Get<char>() != c)
-      throw std::runtime_error("checkpoint: not a springfit checkpoint of format version 3");
+      throw std::runtime_error("checkpoint: not a springfit checkpoint of format version 4");
   }
   if (r.Get<std::uint32_t>() != kByteOrderMark)
     throw std::runtime_error("checkpoint: written on another byte order");
@@ -168,6 +171,9 @@ SearchState DecodeCheckpoint(const std::string& bytes, int genes, std::uint64_t 
   s.counters.evaluations = r.Get<std::int64_t>();
   s.counters.cache_hits = r.Get<std::int64_t>();
   s.elapsed_seconds = r.Get<double>();
+  s.seeds.resize(r.GetCount(1));
+  for (Genome& g : s.seeds) g = r.GetGenome();
+  s.seeded_seconds = r.Get<double>();
   if (!r.AtEnd()) throw std::runtime_error("checkpoint: trailing bytes");
   return s;
 }

@@ -39,6 +39,7 @@ JobRecord FinishJob(JobStore& store, const Lease& lease, JobRecord& record, Fini
                record.exact ? (*record.exact ? ", exact" : ", not exact") : "",
                result.outcome.Headline());
   for (const std::string& line : result.outcome.unmet) spdlog::warn("job {}: {}", record.id, line);
+  for (const std::string& line : result.outcome.doubts) spdlog::warn("job {}: {}", record.id, line);
   if (!result.outcome.reason.empty())
     spdlog::warn("job {}: no usable model: {}", record.id, result.outcome.reason);
   return record;

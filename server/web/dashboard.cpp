@@ -217,6 +217,7 @@ std::string ResultCard(const Outcome& o, const Json& result, const Json& search)
   body += Row("verdict", "<strong class=\"verdict " + std::string(VerdictName(o.verdict)) + "\">" +
                              std::string(VerdictName(o.verdict)) + "</strong>");
   for (const std::string& line : o.unmet) body += Row("WARNING", XmlEscape(line));
+  for (const std::string& line : o.doubts) body += Row("WARNING", XmlEscape(line));
   if (!o.reason.empty()) body += Row("no usable model", XmlEscape(o.reason));
   body += Row("springs",
               std::to_string(o.springs) +

@@ -84,7 +84,7 @@ std::string Metrics::Render(const Gauges& g) {
     MutexLock lock(mutex_);
     header("springfit_jobs_finished_total", "counter",
            "Jobs run on this daemon that ended, by state and by their result's verdict (usable, "
-           "unmet_request, unusable; none without a result).");
+           "unmet_request, unusable, doubtful; none without a result).");
     for (const auto& [key, count] : finished_)
       out += fmt::format("springfit_jobs_finished_total{{state=\"{}\",verdict=\"{}\"}} {}\n",
                          key.first, key.second, count);

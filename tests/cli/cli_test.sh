@@ -286,9 +286,10 @@ json.dump(s, open(sys.argv[2], "w"))
 PY
 expect_exit 0 "check nu 0.499" "$sf" check "$tmp/locking-fem.json"
 grep -q "^notice: .*Poisson's ratio 0.499 is above 0.49: linear triangles and tetrahedra lock" "$tmp/out" || fail "nu 0.499 notes locking: $(cat "$tmp/out")"
-# direct on an FEM reference: no MSS reproduces it, and on the kidney direct's model is
-# worse than the rest shape (normalised error 1.4): stop not_reproduced, exit 10.
-expect_exit 10 "run fem direct" "$sf" run "$src/examples/fem-kidney-2d.json" --strategy direct --json
+# direct on an FEM reference: no MSS reproduces it (stop not_reproduced), but at the kidney's
+# small-strain loads direct's force balance gives a usable model (E 0.081, the baseline's 0.32;
+# at five times the loads, past small strain, it was worse than the rest shape).
+expect_exit 0 "run fem direct" "$sf" run "$src/examples/fem-kidney-2d.json" --strategy direct --json
 python3 - "$tmp/out" <<'PY' || fail "run fem reports E and the baseline: $(head -c 300 "$tmp/out")"
 import json, math, sys
 r = json.load(open(sys.argv[1]))
@@ -296,7 +297,7 @@ assert abs(r["rms_error"] - math.sqrt(r["normalized_error"])) < 1e-12 * r["rms_e
 b = r["baseline"]
 assert b["recipe"] == "van_gelder_1998" and b["springs"] == 263 and b["converged"], b
 assert b["worse_than_baseline"] == (r["normalized_error"] > b["normalized_error"]), b
-assert r["stop"] == "not_reproduced" and r["normalized_error"] >= 1, r["stop"]
+assert r["stop"] == "not_reproduced" and 0 < r["normalized_error"] < 1, r["stop"]
 assert "does not reproduce the reference" in r["stop_message"], r["stop_message"]
 PY
 
@@ -304,7 +305,7 @@ PY
 # loads it was never fitted to, beside the baseline, in the summary and the result.
 expect_exit 0 "run fem probes" "$sf" run "$src/examples/fem-plate-5x5.json" -q -o "$tmp/probes.json"
 grep -q "^unseen loads:      [0-9]* held-out probes on [0-9]* supports, never fitted: median E .*; baseline " "$tmp/out" || fail "run prints the held-out E: $(cat "$tmp/out")"
-grep -q "^  every load:      generalised eigenvalues of (K_model, K_ref)" "$tmp/out" || fail "run prints the pencil's bound: $(cat "$tmp/out")"
+grep -q "^  every load:      any load on your supports is reproduced within [0-9.e+-]* of the response in the energy norm (baseline within [0-9.e+-]*); generalised eigenvalues of (K_model, K_ref) in \[" "$tmp/out" || fail "run prints the pencil's bound beside the baseline's: $(cat "$tmp/out")"
 grep -q "^  any support:     on the free body (modulo rigid motions, which bounds every support) in \[" "$tmp/out" || fail "run prints the free-body bound: $(cat "$tmp/out")"
 cp "$tmp/out" "$tmp/probes-summary.txt"
 python3 - "$tmp/probes.json" <<'PY' || fail "probe result: $(head -c 300 "$tmp/probes.json")"
@@ -327,7 +328,10 @@ r = json.load(open(sys.argv[1]))
 steps = r["continuous"]["steps"]
 assert steps > 0 and f"steps:             {steps} (Gauss-Newton steps of the probe fit)" in out, (steps, out)
 PY
-expect_exit 0 "run fem probes 60" "$sf" run "$src/examples/fem-plate-5x5.json" --probes 60 -q -o "$tmp/probes60.json"
+# (Its certificate bound, 2.64, is worse than the recipe's 1.99 by more than a quarter: a
+# doubtful verdict, exit 12, with the WARNING saying it; proto/RUN.md, "Doubts".)
+expect_exit 12 "run fem probes 60" "$sf" run "$src/examples/fem-plate-5x5.json" --probes 60 -q -o "$tmp/probes60.json"
+grep -q "^WARNING: *the certificate: a load on your supports can move the model by up to [0-9.]* times" "$tmp/out" || fail "the doubt is not said: $(grep -E 'verdict|WARNING' "$tmp/out")"
 python3 - "$tmp/probes60.json" <<'PY' || fail "probe count: $(head -c 300 "$tmp/probes60.json")"
 import json, sys
 r = json.load(open(sys.argv[1]))
@@ -460,11 +464,17 @@ expect_exit 2 "a force on a fixed set" "$sf" check "$tmp/on-fixed.json"
 grep -q "load_cases\[0\].forces\[1\].nodes ('bottom', node_sets.bottom\[0\]): node 0 is constrained in this load case" "$tmp/err" || fail "a force on a fixed set names the force: $(cat "$tmp/err")"
 expect_exit 2 "a case without supports" "$sf" check "$tmp/unsupported.json"
 grep -q "load_cases\[1\]: case '[^']*': its \`fixed\` and \`displacements\` leave rigid motion free" "$tmp/err" || fail "a case without supports names the case: $(cat "$tmp/err")"
-# A linear material displaced by a large fraction of the body: a notice, not silence.
+# A linear material strained past small strain (issue 50 item 1): a WARNING naming the element
+# and the nonlinear materials to use, not silence; the kidney's named loads give none.
 "$sf" check "$tmp/large.json" >"$tmp/large.txt" 2>&1 || fail "check of a large-load scene"
-grep -q "^notice: .*the linear reference moves node [0-9]* by [0-9]*% of the body's size" "$tmp/large.txt" || fail "no notice on a large load: $(tail -3 "$tmp/large.txt")"
+grep -q "^WARNING: .*the linear reference is loaded past small strain under the named loads" "$tmp/large.txt" || fail "no small-strain warning on a large load: $(tail -3 "$tmp/large.txt")"
+grep -q "neo_hookean" "$tmp/large.txt" || fail "the small-strain warning names no nonlinear material"
+# A run on it: the verdict is doubtful (exit 12) and says why on a WARNING line.
+expect_exit 12 "a run fitted to a linear reference past small strain" "$sf" run "$tmp/large.json"
+grep -q "^verdict: *doubtful: " "$tmp/out" || fail "no doubtful verdict: $(grep verdict "$tmp/out")"
+grep -q "^WARNING: .*the linear reference is loaded past small strain" "$tmp/out" || fail "the run's verdict does not say the strain: $(grep WARNING "$tmp/out")"
 "$sf" check "$src/examples/fem-kidney-2d.json" >"$tmp/small-check.txt" 2>&1
-! grep -q "^notice:" "$tmp/small-check.txt" || fail "a notice on the kidney's small loads"
+! grep -q "^notice:\|^WARNING:" "$tmp/small-check.txt" || fail "a notice on the kidney's small loads"
 # A 3D geometry meshed with gmsh -2: the hint to mesh it with -3.
 cat >"$tmp/box.geo" <<'GEO'
 SetFactory("OpenCASCADE");

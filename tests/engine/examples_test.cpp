@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "engine/problem/problem.h"
+#include "engine/problem/small_strain.h"
 
 namespace springfit {
 namespace {
@@ -63,13 +64,16 @@ TEST(Examples, FemExamplesAreWhatTheCatalogueSays) {
   EXPECT_EQ(plate.load_cases[0].fixed_set, "bottom");
   EXPECT_EQ(plate.load_cases[0].tractions[0].on, "top");
   EXPECT_EQ(plate.candidates.kind, CandidateSpec::Kind::kMesh);
-  // 5% strain in the small-load limit: the largest displacement is 5% of the extent (4).
+  // A linear example within small strain: the largest displacement is 1% of the extent (4),
+  // and no doubt about its strain (engine/problem/small_strain.h).
   const Problem p = Problem::Build(plate);
   double largest = 0.0;
   for (const PreparedLoadCase& lc : p.load_cases())
     largest = std::max(largest, lc.reference.cwiseAbs().maxCoeff());
-  EXPECT_GT(largest, 0.05 * 4.0 * 0.7);
-  EXPECT_LT(largest, 0.05 * 4.0 * 1.0 + 1e-12);
+  EXPECT_GT(largest, 0.01 * 4.0 * 0.7);
+  EXPECT_LT(largest, 0.01 * 4.0 * 1.0 + 1e-12);
+  for (const char* linear : {"fem-plate-5x5", "fem-kidney-2d", "fem-kidney-2d-fine"})
+    EXPECT_FALSE(SmallStrainWarning(Problem::Build(examples::Make(linear)))) << linear;
   const Scene nl = examples::Make("fem-kidney-2d-nl");
   EXPECT_EQ(nl.reference.fem.materials[0].model, MaterialModel::kStVenantKirchhoff);
   EXPECT_EQ(examples::Make("fem-kidney-2d").reference.fem.materials[0].model,

@@ -99,8 +99,11 @@ TEST(NonlinearFit, ContinuesTheRestLinearModelToTheLoadRangesSizes) {
   EXPECT_LT(n.choosing_error, 0.9 * n.start_choosing_error)
       << n.choosing_error << " from " << n.start_choosing_error;
   EXPECT_LT(n.choosing_error, 0.5 * n.baseline_choosing_error);
-  for (std::size_t g = 0; g < rest.weights.size(); ++g)
-    if (!(rest.weights[g] > 0.0)) EXPECT_EQ(n.weights[g], 0.0) << g;
+  for (std::size_t g = 0; g < rest.weights.size(); ++g) {
+    if (!(rest.weights[g] > 0.0)) {
+      EXPECT_EQ(n.weights[g], 0.0) << g;
+    }
+  }
   // The named cases, judged as every result is (engine/problem/cost.h): nonlinear springs
   // against the reference's nonlinear equilibria.
   CostFunction cost(kidney.problem);

@@ -271,8 +271,14 @@ TEST(Search, CancellationReturnsTheBestSoFar) {
 TEST(Search, ResumingFromASnapshotEndsExactlyLikeAnUninterruptedRun) {
   const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
   for (Strategy strategy : {Strategy::kPaper, Strategy::kDefault}) {
-    const SearchOptions o = Options(strategy, p, 9, 30);
-    const IdentificationResult whole = RunGa(p, o);
+    SearchOptions o = Options(strategy, p, 9, 30);
+    o.stop_at_target = false;  // (the direct phase may recover it at once)
+    // Default runs as its strategy resolves (hybrid here: the direct phase seeds the GA).
+    const auto run = [&](const RunContext& context) {
+      return strategy == Strategy::kDefault ? RunIdentification(p, o, context)
+                                            : RunGa(p, o, context);
+    };
+    const IdentificationResult whole = run({});
     ASSERT_GE(whole.generations, 2);
     const int stop_at = whole.generations / 2;
 
@@ -283,12 +289,12 @@ TEST(Search, ResumingFromASnapshotEndsExactlyLikeAnUninterruptedRun) {
       snapshot = state.snapshot();
       return false;
     };
-    const IdentificationResult part = RunGa(p, o, first);
+    const IdentificationResult part = run(first);
     ASSERT_TRUE(snapshot);
     RunContext second;
     second.resume_from = snapshot;
     second.trace = part.trace;
-    const IdentificationResult resumed = RunGa(p, o, second);
+    const IdentificationResult resumed = run(second);
     // The snapshot has no fitness cache: only cache hits may differ.
     ASSERT_EQ(whole.trace.size(), resumed.trace.size());
     for (std::size_t i = 0; i < whole.trace.size(); ++i)
@@ -296,6 +302,15 @@ TEST(Search, ResumingFromASnapshotEndsExactlyLikeAnUninterruptedRun) {
     EXPECT_EQ(whole.best, resumed.best);
     EXPECT_EQ(whole.counters.evaluations, resumed.counters.evaluations);
     EXPECT_EQ(whole.stop, resumed.stop);
+    // The seeding direct phase (default = hybrid here) is reported alike, from the snapshot.
+    ASSERT_EQ(whole.direct_phase.has_value(), strategy == Strategy::kDefault);
+    ASSERT_EQ(resumed.direct_phase.has_value(), whole.direct_phase.has_value());
+    if (!whole.direct_phase) continue;
+    EXPECT_EQ(resumed.direct_phase->normalized_error, whole.direct_phase->normalized_error);
+    EXPECT_EQ(resumed.direct_phase->seconds, part.direct_phase->seconds);  // the snapshot's run
+    ASSERT_TRUE(resumed.direct_phase->difference && whole.direct_phase->difference);
+    EXPECT_EQ(resumed.direct_phase->difference->missing, whole.direct_phase->difference->missing);
+    EXPECT_EQ(resumed.direct_phase->difference->extra, whole.direct_phase->difference->extra);
   }
 }
 

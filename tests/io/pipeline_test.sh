@@ -22,6 +22,7 @@ assert scene["reference"]["type"] == "fem" and len(scene["reference"]["element_m
 assert {"left", "right", "top", "bottom", "tissue", "inclusion"} <= set(scene["node_sets"])
 r = json.load(open(tmp + "/result.json"))
 assert r["rms_error"] < r["baseline"]["rms_error"], (r["rms_error"], r["baseline"]["rms_error"])
+assert r["outcome"]["verdict"] in ("usable", "doubtful"), r["outcome"]  # doubtful: exit 12, goes on
 vtu = ET.parse(tmp + "/model.vtu").getroot().find("UnstructuredGrid/Piece")
 assert int(vtu.get("NumberOfCells")) == len(r["springs"]) + len(scene["reference"]["elements"]) and int(vtu.get("NumberOfPoints")) == len(scene["nodes"])
 ff = ET.parse(tmp + "/model.scn").getroot().find(".//SpringForceField")

@@ -17,6 +17,7 @@
 #include "proto/evaluation_codec.h"
 #include "proto/job.h"
 #include "proto/names.h"
+#include "proto/outcome_codec.h"
 #include "proto/rpc.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
@@ -596,6 +597,30 @@ TEST(TopologyCodecRoundTrip, AnyMaskSurvivesATopologyFile) {
     Json file;
     file["springs"] = turned;
     EXPECT_EQ(TopologyFromJson(p, ParseJson(file.dump())), mask);
+  }
+}
+
+// A verdict reads back with its lines: the doubts of a doubtful one as well as the unmet requests.
+TEST(OutcomeCodecRoundTrip, EveryVerdictAndItsLinesReadBack) {
+  Outcome o;
+  o.verdict = Verdict::kDoubtful;
+  o.doubts = {"a soft mode: ...", "unseen loads: ..."};
+  o.unmet = {"spring budget not met: ..."};
+  o.springs = 80;
+  o.rms_error = 0.05;
+  const Outcome back = OutcomeFromJson(ParseJson(OutcomeToJson(o).dump()), "outcome");
+  EXPECT_EQ(back.verdict, Verdict::kDoubtful);
+  EXPECT_EQ(back.doubts, o.doubts);
+  EXPECT_EQ(back.unmet, o.unmet);
+  EXPECT_EQ(back.springs, 80);
+  EXPECT_EQ(OutcomeToJson(back).dump(), OutcomeToJson(o).dump());
+  Json bad = OutcomeToJson(o);
+  bad["doubts"][1] = 3;
+  try {
+    OutcomeFromJson(bad, "outcome");
+    ADD_FAILURE() << "a doubt that is not a string was read";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("outcome.doubts[1]"), std::string::npos) << e.what();
   }
 }
 

@@ -64,6 +64,8 @@ TEST(CheckpointCodec, RoundTripKeepsEveryField) {
   s.stall = 4;
   s.counters = {100, 40};
   s.elapsed_seconds = 1.5;
+  s.seeds = {{0, 1, 1}};
+  s.seeded_seconds = 0.25;
   const SearchState d = DecodeCheckpoint(EncodeCheckpoint(s, 3, 42), 3, 42);
   EXPECT_EQ(d.generation, 7);
   EXPECT_EQ(d.random_state, s.random_state);
@@ -76,6 +78,8 @@ TEST(CheckpointCodec, RoundTripKeepsEveryField) {
   EXPECT_TRUE(d.local_optimum.empty());
   EXPECT_EQ(d.counters, s.counters);
   EXPECT_EQ(d.elapsed_seconds, 1.5);
+  EXPECT_EQ(d.seeds, s.seeds);
+  EXPECT_EQ(d.seeded_seconds, 0.25);
 }
 
 TEST(CheckpointCodec, CorruptOrForeignBytesAreRefused) {
