@@ -485,18 +485,25 @@ GEO
 gmsh "$tmp/box.geo" -2 -o "$tmp/box-surface.msh" >/dev/null 2>&1 || fail "gmsh box"
 expect_exit 2 "a 3D geometry meshed in 2D" "$sf" import "$tmp/box-surface.msh" -o "$tmp/box.json"
 grep -q "mesh it with \`gmsh -3\`" "$tmp/err" || fail "no -3 hint: $(cat "$tmp/err")"
-# check lists many pairs eight to a line: every case holds the same two rows of the grid.
+# check lists many pairs eight to a line: every case holds the same three rows of the grid.
 python3 - "$src/examples/paper-iso-5x5.json" "$tmp/held-rows.json" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1]))
 for lc in s["load_cases"]:
-    lc["fixed"] = list(range(10))
+    lc["fixed"] = list(range(15))
     for f in lc.get("forces", []):
-        f["nodes"] = [n for n in f.get("nodes", []) if n >= 10] or [20, 21, 22, 23, 24]
+        f["nodes"] = [n for n in f.get("nodes", []) if n >= 15] or [20, 21, 22, 23, 24]
 json.dump(s, open(sys.argv[2], "w"))
 PY
 "$sf" check "$tmp/held-rows.json" >"$tmp/held-check.txt" 2>&1 || fail "check of the held rows: $(tail -2 "$tmp/held-check.txt")"
 [ "$(grep -c "^    (" "$tmp/held-check.txt")" -ge 2 ] || fail "check does not wrap its pairs: $(grep -m1 unidentifiable "$tmp/held-check.txt" | cut -c1-200)"
+# ... at most three lines of them, then how many more; --all-pairs lists every one (issue 47
+# item 7: 635 pairs over 80 lines).
+grep -q "^    \.\.\. and [0-9]* more (springfit check --all-pairs lists them)" "$tmp/held-check.txt" || fail "check does not cut a long pair list: $(grep -A4 unidentifiable "$tmp/held-check.txt" | cut -c1-120)"
+[ "$(grep -A4 "^unidentifiable springs" "$tmp/held-check.txt" | grep -c "^    (")" -le 3 ] || fail "check lists more than three lines of pairs"
+"$sf" check "$tmp/held-rows.json" --all-pairs >"$tmp/held-all.txt" 2>&1 || fail "check --all-pairs"
+! grep -q "more (springfit check --all-pairs" "$tmp/held-all.txt" || fail "check --all-pairs still cuts the list"
+[ "$(grep -c "^    (" "$tmp/held-all.txt")" -gt "$(grep -c "^    (" "$tmp/held-check.txt")" ] || fail "check --all-pairs lists no more pairs"
 grep -v "^description:" "$tmp/held-check.txt" | awk 'length > 200 { exit 1 }' || fail "check prints a line longer than 200 characters"
 
 finish cli

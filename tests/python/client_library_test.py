@@ -399,6 +399,10 @@ def test_unknown_members(ctx):
         R.expect(final.state == "succeeded" and final.verdict == "unmet_request" and
                  final.outcome.unmet == ["spring budget not met: ..."] and final.outcome.usable,
                  f"job.finished with unknown members: {final}")
+        # A doubtful verdict is a usable model whose doubts the record carries.
+        doubtful = sf.Outcome.from_json({"verdict": sf.DOUBTFUL, "doubts": ["a soft mode: ..."]})
+        R.expect(doubtful.usable and doubtful.doubts == ["a soft mode: ..."],
+                 f"a doubtful outcome: {doubtful}")
         R.expect([(p.job_id, p.generation, p.max_generations, p.final) for p in seen] == [(7, 3, 10, False)],
                  f"watch reported {seen}, expected job 7's one progress (not job 8's, and not the "
                  "final row again)")
