@@ -1,5 +1,5 @@
 // Neighbour queries against scene size (bench/RESULTS.md, "Neighbour queries"): the k-d tree
-// (engine/point_index.h) behind k-nearest candidates, the coincident-node check of validation
+// (engine/model/point_index.h) behind k-nearest candidates, the coincident-node check of validation
 // and the memetic search's swap partners, each of which compared every pair before.
 //
 //   build/bench/neighbour_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
@@ -9,8 +9,8 @@
 #include <memory>
 #include <random>
 
-#include "engine/candidates.h"
-#include "engine/point_index.h"
+#include "engine/model/candidates.h"
+#include "engine/model/point_index.h"
 #include "engine/problem/problem.h"
 #include "engine/search/genetic_search.h"
 #include "io/example_catalog.h"

@@ -1,4 +1,4 @@
-// The probe fit (engine/response/response_fit.h) on FEM and MSS references: the model's error
+// The probe fit (engine/probe_fit/response_fit.h) on FEM and MSS references: the model's error
 // on held-out probes by family beside the closed-form baseline's, the extreme generalised
 // eigenvalues of (K_model, K_ref) on the user's supports, and the time of each step
 // (bench/RESULTS.md, "Fitting the response").
@@ -16,12 +16,12 @@
 #include <vector>
 
 #include "engine/fit/stiffness_fit.h"
+#include "engine/probe_fit/generalization.h"
+#include "engine/probe_fit/probe_evaluation.h"
+#include "engine/probe_fit/response_fit.h"
+#include "engine/probe_fit/rest_stiffness.h"
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/problem/problem.h"
-#include "engine/response/generalization.h"
-#include "engine/response/probe_evaluation.h"
-#include "engine/response/response_fit.h"
-#include "engine/response/rest_stiffness.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
 

@@ -9,9 +9,9 @@
 #include <random>
 
 #include "engine/identification/identify.h"
-#include "engine/input_error.h"
 #include "engine/problem/cost.h"
 #include "engine/problem/problem.h"
+#include "engine/runtime/input_error.h"
 
 namespace springfit::examples {
 namespace {

@@ -14,7 +14,7 @@
 #include <cstdint>
 #include <string>
 
-#include "engine/scene.h"
+#include "engine/model/scene.h"
 
 namespace springfit::examples {
 

@@ -4,4 +4,4 @@
 
 #include "engine/direct/identifiability.h"
 #include "engine/fem/fem_model.h"
-#include "engine/response/probe_bank.h"
+#include "engine/probe_fit/probe_bank.h"

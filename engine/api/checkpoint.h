@@ -2,5 +2,5 @@
 // its state (to resume from) and genomes in their packed byte form.
 #pragma once
 
-#include "engine/genome_packing.h"
+#include "engine/genome/genome_packing.h"
 #include "engine/search/genetic_search.h"

@@ -2,5 +2,5 @@
 // bad input, and numbers written for people.
 #pragma once
 
-#include "engine/input_error.h"
-#include "engine/number_text.h"
+#include "engine/runtime/input_error.h"
+#include "engine/runtime/number_text.h"

@@ -3,7 +3,7 @@
 // equilibrium solver's terminations a result names.
 #pragma once
 
-#include "engine/equilibrium.h"
 #include "engine/identification/identification_result.h"
 #include "engine/identification/verdict.h"
-#include "engine/trace.h"
+#include "engine/model/equilibrium.h"
+#include "engine/runtime/trace.h"

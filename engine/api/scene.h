@@ -3,7 +3,7 @@
 // load cases, search settings), the candidate rules, the units and the Eigen types.
 #pragma once
 
-#include "engine/candidates.h"
-#include "engine/linalg.h"
-#include "engine/scene.h"
-#include "engine/units.h"
+#include "engine/linalg/linalg.h"
+#include "engine/model/candidates.h"
+#include "engine/model/scene.h"
+#include "engine/model/units.h"

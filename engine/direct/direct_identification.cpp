@@ -7,8 +7,8 @@
 
 #include "engine/direct/scale_pinning.h"
 #include "engine/direct/weight_uncertainty.h"
-#include "engine/options_check.h"
-#include "engine/wall_clock.h"
+#include "engine/runtime/options_check.h"
+#include "engine/runtime/wall_clock.h"
 
 namespace springfit {
 namespace {

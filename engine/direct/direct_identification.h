@@ -1,6 +1,6 @@
 // Strategy `direct`: topology and per-spring stiffness from the force balance at the
 // reference's equilibria (engine/problem/force_balance.h), by non-negative least squares
-// (engine/nnls.h), judged afterwards by the same displacement cost as every other strategy.
+// (engine/linalg/nnls.h), judged afterwards by the same displacement cost as every other strategy.
 //
 // A spring is in the identified topology when its weight w_j exceeds its threshold
 //   t_j = max(relative_threshold * (largest weight), significance * sigma_j),
@@ -40,7 +40,7 @@
 #include <vector>
 
 #include "engine/direct/stiffness_refinement.h"
-#include "engine/nnls.h"
+#include "engine/linalg/nnls.h"
 #include "engine/problem/cost.h"
 #include "engine/problem/force_balance.h"
 #include "engine/problem/problem.h"

@@ -5,12 +5,12 @@
 #include <cmath>
 #include <map>
 
-#include "engine/column_dependencies.h"
-#include "engine/equilibrium.h"
+#include "engine/linalg/column_dependencies.h"
+#include "engine/linalg/sparse_columns.h"
+#include "engine/model/equilibrium.h"
 #include "engine/problem/force_balance.h"
-#include "engine/sparse_columns.h"
 
-#include "engine/options_check.h"
+#include "engine/runtime/options_check.h"
 
 namespace springfit {
 namespace {

@@ -6,7 +6,7 @@
 //  - dependent groups: springs whose columns are linearly dependent, so that different
 //    weights (topologies) balance the same forces in every load case. The groups are the
 //    connected components of the fundamental circuits of A's columns (relative to the basis
-//    a sparse rank-revealing QR chooses, engine/column_dependencies.h): two springs share a
+//    a sparse rank-revealing QR chooses, engine/linalg/column_dependencies.h): two springs share a
 //    group when some dependency involves both, and the partition does not depend on the
 //    basis chosen (two fill orderings, two bases, give the same groups on
 //    fem-kidney-2d-fine).
@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/column_dependencies.h"
+#include "engine/linalg/column_dependencies.h"
 #include "engine/problem/force_balance.h"
 #include "engine/problem/problem.h"
 
@@ -30,7 +30,7 @@ struct IdentifiabilityOptions {
   // The QR's tolerances and bounds, on A's columns scaled to unit norm.
   ColumnDependencyOptions dependencies;
   double unseen_strain = kUnseenStrain;
-  // A sparse QR of A over the seen genes (engine/column_dependencies.h; A has a column per
+  // A sparse QR of A over the seen genes (engine/linalg/column_dependencies.h; A has a column per
   // gene and a row per free coordinate and load case) that cannot be interrupted. The whole
   // analysis: 0.05 s at fem-kidney-2d-fine's 2,853 genes, 0.34 s at fem-block-3d's 6,256, 4.4 s
   // and 0.8 GB at the 4,346-node Gmsh block's 26,791 (the QR 2.8 s of it), 28.6 s and 2.6 GB at

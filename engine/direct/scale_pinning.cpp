@@ -1,5 +1,5 @@
 #include "engine/direct/scale_pinning.h"
-#include "engine/sparse_columns.h"
+#include "engine/linalg/sparse_columns.h"
 
 #include <Eigen/SparseCholesky>
 

@@ -13,7 +13,7 @@
 #include <optional>
 #include <vector>
 
-#include "engine/nnls.h"
+#include "engine/linalg/nnls.h"
 #include "engine/problem/force_balance.h"
 
 namespace springfit {

@@ -4,11 +4,11 @@
 #include <cmath>
 #include <optional>
 
-#include "engine/nnls.h"
+#include "engine/linalg/nnls.h"
 #include "engine/problem/force_balance.h"
 
-#include "engine/options_check.h"
-#include "engine/sparse_columns.h"
+#include "engine/linalg/sparse_columns.h"
+#include "engine/runtime/options_check.h"
 
 namespace springfit {
 namespace {

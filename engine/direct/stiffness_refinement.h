@@ -1,8 +1,8 @@
 // Refines spring weights (stiffness; 0 = absent) by minimising the displacement cost itself,
 //   f(w) = sum_k sum_i |X^R_ik - X^M_ik(w)|^2,   w >= 0,
 // the maximum-likelihood fit for Gaussian noise on measured positions. The force-balance
-// NNLS (engine/nnls.h) puts that noise into its matrix and so shrinks every weight (at 1% noise on
-// paper-iso-5x5 the weights come out near 0.6 instead of 1); this fit does not.
+// NNLS (engine/linalg/nnls.h) puts that noise into its matrix and so shrinks every weight (at 1%
+// noise on paper-iso-5x5 the weights come out near 0.6 instead of 1); this fit does not.
 //
 // Bounded Gauss-Newton with Levenberg-Marquardt damping: the equilibrium's sensitivity to
 // w_j is du/dw_j = H^-1 g_j, H the tangent stiffness at the model's equilibrium and g_j the
@@ -15,9 +15,9 @@
 #include <string>
 #include <vector>
 
-#include "engine/interruption.h"
 #include "engine/problem/cost.h"
 #include "engine/problem/problem.h"
+#include "engine/runtime/interruption.h"
 
 namespace springfit {
 

@@ -6,8 +6,8 @@
 #include <optional>
 #include <vector>
 
-#include "engine/interruption.h"
 #include "engine/problem/force_balance.h"
+#include "engine/runtime/interruption.h"
 
 namespace springfit {
 

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "engine/examples/simplex_mesh.h"
-#include "engine/scene.h"
+#include "engine/model/scene.h"
 
 namespace springfit::examples {
 

@@ -4,7 +4,7 @@
 
 #include <vector>
 
-#include "engine/linalg.h"
+#include "engine/linalg/linalg.h"
 
 namespace springfit::examples {
 

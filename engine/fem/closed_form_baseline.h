@@ -12,7 +12,7 @@
 
 #include <vector>
 
-#include "engine/scene.h"
+#include "engine/model/scene.h"
 
 namespace springfit::fem {
 

@@ -5,8 +5,8 @@
 #include <limits>
 #include <stdexcept>
 
-#include "engine/newton_iteration.h"
-#include "engine/options_check.h"
+#include "engine/linalg/newton_iteration.h"
+#include "engine/runtime/options_check.h"
 
 namespace springfit::fem {
 namespace {

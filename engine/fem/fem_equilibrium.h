@@ -24,9 +24,9 @@
 #include <string>
 #include <vector>
 
-#include "engine/equilibrium.h"
 #include "engine/fem/fem_model.h"
-#include "engine/symmetric_system.h"
+#include "engine/linalg/symmetric_system.h"
+#include "engine/model/equilibrium.h"
 
 namespace springfit::fem {
 

@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "engine/fem/material_law.h"
-#include "engine/scene.h"
+#include "engine/model/scene.h"
 
 namespace springfit::fem {
 

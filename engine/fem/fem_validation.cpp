@@ -6,7 +6,7 @@
 #include <string>
 
 #include "engine/fem/fem_model.h"
-#include "engine/input_error.h"
+#include "engine/runtime/input_error.h"
 
 namespace springfit::fem {
 namespace {

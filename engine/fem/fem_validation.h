@@ -2,7 +2,7 @@
 // the boundary with the rest of the scene (engine/problem/scene_validation.h).
 #pragma once
 
-#include "engine/scene.h"
+#include "engine/model/scene.h"
 
 namespace springfit::fem {
 

@@ -4,7 +4,7 @@
 #include <map>
 
 #include "engine/fem/fem_model.h"
-#include "engine/input_error.h"
+#include "engine/runtime/input_error.h"
 
 namespace springfit::fem {
 

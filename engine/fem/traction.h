@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/scene.h"
+#include "engine/model/scene.h"
 
 namespace springfit::fem {
 

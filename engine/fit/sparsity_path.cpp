@@ -5,8 +5,8 @@
 #include <limits>
 #include <numeric>
 
-#include "engine/options_check.h"
 #include "engine/problem/cost.h"
+#include "engine/runtime/options_check.h"
 
 namespace springfit {
 namespace {

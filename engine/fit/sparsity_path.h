@@ -24,8 +24,8 @@
 #include <vector>
 
 #include "engine/fit/stiffness_fit.h"
-#include "engine/interruption.h"
 #include "engine/problem/problem.h"
+#include "engine/runtime/interruption.h"
 
 namespace springfit {
 

@@ -6,8 +6,8 @@
 #include <limits>
 #include <random>
 
-#include "engine/options_check.h"
 #include "engine/problem/force_balance.h"
+#include "engine/runtime/options_check.h"
 
 namespace springfit {
 namespace {

@@ -24,10 +24,10 @@
 #include <string>
 #include <vector>
 
-#include "engine/gene_weights.h"
-#include "engine/interruption.h"
+#include "engine/genome/gene_weights.h"
 #include "engine/problem/problem.h"
-#include "engine/worker_pool.h"
+#include "engine/runtime/interruption.h"
+#include "engine/runtime/worker_pool.h"
 
 namespace springfit {
 

@@ -5,13 +5,13 @@
 
 #include <fmt/format.h>
 
-#include "engine/gene_weights.h"
+#include "engine/genome/gene_weights.h"
 #include "engine/identification/run_bounds.h"
 #include "engine/identification/run_monitor.h"
 #include "engine/identification/strategy.h"
-#include "engine/input_error.h"
-#include "engine/number_text.h"
 #include "engine/problem/baseline_evaluation.h"
+#include "engine/runtime/input_error.h"
+#include "engine/runtime/number_text.h"
 
 namespace springfit {
 namespace {

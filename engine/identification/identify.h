@@ -22,8 +22,8 @@
 #include <vector>
 
 #include "engine/identification/identification_result.h"
+#include "engine/runtime/worker_pool.h"
 #include "engine/search/genetic_search.h"
-#include "engine/worker_pool.h"
 
 namespace springfit {
 

@@ -1,5 +1,5 @@
 // Strategy continuous on an FEM or MSS reference with a probe bank: the model fitted to the
-// reference's whole response (engine/response/response_fit.h), returned only when it beats the
+// reference's whole response (engine/probe_fit/response_fit.h), returned only when it beats the
 // closed-form baseline on the choosing probes, and certified on the held-out probes, which
 // nothing else reads (docs/ARCHITECTURE.md, "Probes by role").
 #include <chrono>
@@ -13,13 +13,13 @@
 #include "engine/fem/closed_form_baseline.h"
 #include "engine/fit/stiffness_fit.h"
 #include "engine/identification/strategy.h"
-#include "engine/input_error.h"
+#include "engine/probe_fit/generalization.h"
+#include "engine/probe_fit/matrix_free_fit.h"
+#include "engine/probe_fit/probe_objective.h"
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/problem/cost.h"
-#include "engine/response/generalization.h"
-#include "engine/response/matrix_free_fit.h"
-#include "engine/response/probe_objective.h"
-#include "engine/wall_clock.h"
+#include "engine/runtime/input_error.h"
+#include "engine/runtime/wall_clock.h"
 
 namespace springfit {
 

@@ -7,8 +7,8 @@
 #include <fmt/format.h>
 
 #include "engine/identification/strategy.h"
-#include "engine/input_error.h"
-#include "engine/response/probe_bank.h"
+#include "engine/probe_fit/probe_bank.h"
+#include "engine/runtime/input_error.h"
 
 namespace springfit {
 namespace {

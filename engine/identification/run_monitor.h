@@ -1,11 +1,11 @@
 // Progress and stopping of one identification run, whatever the phase it is in.
 //
-// RunIdentification() makes one RunMonitor per run. Its Interruption (engine/interruption.h)
-// reaches every long loop of the run: the analysis before it, the direct phase's solves, the
-// genetic generations' evaluations. When due (RunContext::beat_seconds after the last report)
-// the poll describes where the run has got to as a ProgressBeat of the current phase, hands it
-// to RunContext::on_beat, and stops the run when that returns false or when the time limit
-// (SearchOptions::max_seconds of wall time since the run began) has passed.
+// RunIdentification() makes one RunMonitor per run. Its Interruption
+// (engine/runtime/interruption.h) reaches every long loop of the run: the analysis before it, the
+// direct phase's solves, the genetic generations' evaluations. When due (RunContext::beat_seconds
+// after the last report) the poll describes where the run has got to as a ProgressBeat of the
+// current phase, hands it to RunContext::on_beat, and stops the run when that returns false or when
+// the time limit (SearchOptions::max_seconds of wall time since the run began) has passed.
 #pragma once
 
 #include <chrono>
@@ -13,8 +13,8 @@
 #include <string_view>
 
 #include "engine/identification/identify.h"
-#include "engine/interruption.h"
-#include "engine/wall_clock.h"
+#include "engine/runtime/interruption.h"
+#include "engine/runtime/wall_clock.h"
 
 namespace springfit {
 

@@ -4,8 +4,8 @@
 #include <cstdio>
 
 #include "engine/identification/identification_result.h"
-#include "engine/number_text.h"
 #include "engine/problem/small_strain.h"
+#include "engine/runtime/number_text.h"
 
 namespace springfit {
 namespace {

@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "engine/equilibrium.h"
 #include "engine/fem/closed_form_baseline.h"
+#include "engine/model/equilibrium.h"
 
 namespace springfit {
 

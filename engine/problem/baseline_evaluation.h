@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/interruption.h"
 #include "engine/problem/problem.h"
+#include "engine/runtime/interruption.h"
 
 namespace springfit {
 

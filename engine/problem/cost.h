@@ -20,7 +20,7 @@
 #include <optional>
 #include <vector>
 
-#include "engine/equilibrium.h"
+#include "engine/model/equilibrium.h"
 #include "engine/problem/problem.h"
 
 namespace springfit {

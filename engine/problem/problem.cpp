@@ -8,15 +8,15 @@
 
 #include <fmt/format.h>
 
-#include "engine/candidates.h"
 #include "engine/fem/closed_form_baseline.h"
 #include "engine/fem/traction.h"
-#include "engine/gene_weights.h"
-#include "engine/input_error.h"
-#include "engine/nnls.h"
+#include "engine/genome/gene_weights.h"
+#include "engine/linalg/nnls.h"
+#include "engine/model/candidates.h"
 #include "engine/problem/force_balance.h"
 #include "engine/problem/reference_equilibria.h"
 #include "engine/problem/scene_validation.h"
+#include "engine/runtime/input_error.h"
 
 namespace springfit {
 namespace {

@@ -19,11 +19,11 @@
 #include <optional>
 #include <vector>
 
-#include "engine/equilibrium.h"
-#include "engine/genome.h"
+#include "engine/genome/genome.h"
+#include "engine/model/equilibrium.h"
+#include "engine/model/scene.h"
+#include "engine/model/springs.h"
 #include "engine/problem/scene_validation.h"
-#include "engine/scene.h"
-#include "engine/springs.h"
 
 namespace springfit {
 
@@ -86,7 +86,7 @@ std::vector<std::string> SceneNotices(const Problem& problem);
 
 // The training stiffness of a positions reference given without one: the median of the
 // springs the force balance at the reference's positions keeps (its non-negative
-// least-squares weights above 1e-3 of the largest, engine/nnls.h): the stiffness the
+// least-squares weights above 1e-3 of the largest, engine/linalg/nnls.h): the stiffness the
 // data give the springs they need, in the data's units. 1 when the loads only prescribe
 // displacements (the data fix no scale).
 double PositionsTrainingStiffness(const Problem& problem);
@@ -138,7 +138,7 @@ class Problem {
   // other supports (a simulator's, the probe bank's) they hold the body. The closed-form
   // model's on an FEM reference's mesh edge (not fitted: the baseline is the best guess there),
   // the training stiffness otherwise. Exports write them (io/spring_model.h); the rest-linear
-  // stiffness of a model includes them (engine/response/rest_stiffness.h).
+  // stiffness of a model includes them (engine/probe_fit/rest_stiffness.h).
   const std::vector<double>& unidentifiable_stiffness() const { return unidentifiable_stiffness_; }
   // The scene's `stiffness`, else: an MSS reference's single stiffness, the closed-form
   // baseline's median on an FEM reference, PositionsTrainingStiffness on a positions one.

@@ -5,8 +5,8 @@
 #include <string>
 
 #include "engine/fem/fem_equilibrium.h"
-#include "engine/input_error.h"
-#include "engine/number_text.h"
+#include "engine/runtime/input_error.h"
+#include "engine/runtime/number_text.h"
 
 namespace springfit {
 namespace {

@@ -7,9 +7,9 @@
 
 #include <vector>
 
-#include "engine/equilibrium.h"
-#include "engine/interruption.h"
+#include "engine/model/equilibrium.h"
 #include "engine/problem/problem.h"
+#include "engine/runtime/interruption.h"
 
 namespace springfit {
 

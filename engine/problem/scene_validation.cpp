@@ -1,5 +1,5 @@
 #include "engine/problem/scene_validation.h"
-#include "engine/units.h"
+#include "engine/model/units.h"
 
 #include <Eigen/Eigenvalues>
 
@@ -10,9 +10,9 @@
 #include <string>
 
 #include "engine/fem/fem_validation.h"
-#include "engine/input_error.h"
-#include "engine/number_text.h"
-#include "engine/point_index.h"
+#include "engine/model/point_index.h"
+#include "engine/runtime/input_error.h"
+#include "engine/runtime/number_text.h"
 
 namespace springfit {
 namespace {

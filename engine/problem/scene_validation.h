@@ -3,7 +3,7 @@
 
 #include <utility>
 
-#include "engine/scene.h"
+#include "engine/model/scene.h"
 
 namespace springfit {
 

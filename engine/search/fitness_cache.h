@@ -15,7 +15,7 @@
 #include <utility>
 #include <vector>
 
-#include "engine/genome_packing.h"
+#include "engine/genome/genome_packing.h"
 #include "engine/problem/problem.h"
 #include "engine/search/fitness.h"
 
@@ -28,7 +28,7 @@ class FitnessCache {
 
   explicit FitnessCache(std::size_t capacity = kDefaultCapacity) : capacity_(capacity) {}
 
-  // Keys are packed genomes (engine/genome_packing.h).
+  // Keys are packed genomes (engine/genome/genome_packing.h).
   static std::string Key(const Genome& genome) { return PackGenome(genome); }
 
   std::optional<Fitness> Find(const std::string& key) const;

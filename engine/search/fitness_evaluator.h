@@ -12,12 +12,12 @@
 #include <memory>
 #include <vector>
 
-#include "engine/interruption.h"
 #include "engine/problem/cost.h"
 #include "engine/problem/problem.h"
+#include "engine/runtime/interruption.h"
+#include "engine/runtime/worker_pool.h"
 #include "engine/search/fitness.h"
 #include "engine/search/fitness_cache.h"
-#include "engine/worker_pool.h"
 
 namespace springfit {
 

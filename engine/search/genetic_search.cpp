@@ -6,9 +6,9 @@
 #include <string>
 #include <utility>
 
-#include "engine/point_index.h"
+#include "engine/model/point_index.h"
+#include "engine/runtime/wall_clock.h"
 #include "engine/search/genetic_operators.h"
-#include "engine/wall_clock.h"
 
 namespace springfit {
 

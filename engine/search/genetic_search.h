@@ -16,10 +16,10 @@
 #include <vector>
 
 #include "engine/problem/problem.h"
+#include "engine/runtime/trace.h"
 #include "engine/search/fitness_evaluator.h"
 #include "engine/search/random_stream.h"
 #include "engine/search/search_options.h"
-#include "engine/trace.h"
 
 namespace springfit {
 

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "engine/options_check.h"
+#include "engine/runtime/options_check.h"
 
 namespace springfit {
 

@@ -26,7 +26,7 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "engine/scene.h"
+#include "engine/model/scene.h"
 #include "engine/search/fitness_cache.h"
 
 namespace springfit {

@@ -4,7 +4,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "engine/input_error.h"
+#include "engine/runtime/input_error.h"
 #include "figures/error_plot.h"
 #include "figures/svg_document.h"
 #include "figures/topology_figure.h"

@@ -1,9 +1,9 @@
-#include "engine/candidates.h"
+#include "engine/model/candidates.h"
 
 #include <gtest/gtest.h>
 
 #include "engine/examples/catalog.h"
-#include "engine/input_error.h"
+#include "engine/runtime/input_error.h"
 #include "tests/test_scenes.h"
 
 namespace springfit {

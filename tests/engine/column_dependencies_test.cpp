@@ -1,14 +1,14 @@
-// The dependencies among a sparse matrix's columns (engine/column_dependencies.h): exact on a
-// built matrix, and on a real force balance where Heath's sparse rank alone misses some.
+// The dependencies among a sparse matrix's columns (engine/linalg/column_dependencies.h): exact on
+// a built matrix, and on a real force balance where Heath's sparse rank alone misses some.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <set>
 
-#include "engine/column_dependencies.h"
+#include "engine/linalg/column_dependencies.h"
+#include "engine/linalg/sparse_columns.h"
 #include "engine/problem/force_balance.h"
-#include "engine/sparse_columns.h"
 #include "io/example_catalog.h"
 
 namespace springfit {

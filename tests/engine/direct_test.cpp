@@ -7,9 +7,9 @@
 #include "engine/direct/direct_identification.h"
 #include "engine/identification/identify.h"
 #include "engine/identification/strategy.h"
-#include "engine/input_error.h"
-#include "engine/nnls.h"
+#include "engine/linalg/nnls.h"
 #include "engine/problem/force_balance.h"
+#include "engine/runtime/input_error.h"
 #include "io/example_catalog.h"
 #include "tests/test_scenes.h"
 

@@ -1,5 +1,5 @@
 // The equilibrium solver: analytic answers, derivatives, force balance, backends.
-#include "engine/equilibrium.h"
+#include "engine/model/equilibrium.h"
 
 #include <cmath>
 

@@ -10,8 +10,8 @@
 
 #include "engine/examples/simplex_mesh.h"
 #include "engine/fem/traction.h"
-#include "engine/input_error.h"
 #include "engine/problem/problem.h"
+#include "engine/runtime/input_error.h"
 #include "tests/test_scenes.h"
 
 namespace springfit {

@@ -8,10 +8,10 @@
 #include "engine/fit/stiffness_fit.h"
 #include "engine/identification/identify.h"
 #include "engine/identification/strategy.h"
-#include "engine/input_error.h"
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/problem/cost.h"
 #include "engine/problem/force_balance.h"
+#include "engine/runtime/input_error.h"
 #include "io/example_catalog.h"
 #include "tests/test_scenes.h"
 

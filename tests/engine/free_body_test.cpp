@@ -1,4 +1,4 @@
-// The free-body pencil (engine/response/free_body.h): its extremes against a dense solve of the
+// The free-body pencil (engine/probe_fit/free_body.h): its extremes against a dense solve of the
 // pencil on the complement of the rigid motions, and their range containing every supported
 // pencil's.
 #include <gtest/gtest.h>
@@ -6,10 +6,10 @@
 #include <Eigen/Eigenvalues>
 
 #include "engine/examples/catalog.h"
+#include "engine/probe_fit/free_body.h"
+#include "engine/probe_fit/generalization.h"
+#include "engine/probe_fit/rest_stiffness.h"
 #include "engine/problem/baseline_evaluation.h"
-#include "engine/response/free_body.h"
-#include "engine/response/generalization.h"
-#include "engine/response/rest_stiffness.h"
 #include "io/example_catalog.h"
 
 namespace springfit::response {

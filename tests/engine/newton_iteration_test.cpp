@@ -1,6 +1,6 @@
-// The Newton iteration both equilibrium solvers share (engine/newton_iteration.h), on
+// The Newton iteration both equilibrium solvers share (engine/linalg/newton_iteration.h), on
 // one-dimensional energies whose minimiser is known.
-#include "engine/newton_iteration.h"
+#include "engine/linalg/newton_iteration.h"
 
 #include <gtest/gtest.h>
 

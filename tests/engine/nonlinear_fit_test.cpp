@@ -1,4 +1,4 @@
-// The nonlinear fit (engine/response/nonlinear_response.h, matrix_free_fit.h): the exact adjoint
+// The nonlinear fit (engine/probe_fit/nonlinear_response.h, matrix_free_fit.h): the exact adjoint
 // of the spring equilibrium against finite differences, and the stage's result on the nonlinear
 // kidney.
 #include <gtest/gtest.h>
@@ -6,16 +6,16 @@
 #include <cmath>
 
 #include "engine/identification/identify.h"
-#include "engine/input_error.h"
+#include "engine/probe_fit/compliance_gram.h"
+#include "engine/probe_fit/matrix_free_fit.h"
+#include "engine/probe_fit/nonlinear_response.h"
+#include "engine/probe_fit/probe_bank.h"
+#include "engine/probe_fit/probe_objective.h"
+#include "engine/probe_fit/rest_stiffness.h"
+#include "engine/probe_fit/tool_pushes.h"
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/problem/cost.h"
-#include "engine/response/compliance_gram.h"
-#include "engine/response/matrix_free_fit.h"
-#include "engine/response/nonlinear_response.h"
-#include "engine/response/probe_bank.h"
-#include "engine/response/probe_objective.h"
-#include "engine/response/rest_stiffness.h"
-#include "engine/response/tool_pushes.h"
+#include "engine/runtime/input_error.h"
 #include "io/example_catalog.h"
 
 namespace springfit::response {

@@ -5,11 +5,11 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/column_dependencies.h"
 #include "engine/direct/direct_identification.h"
 #include "engine/direct/identifiability.h"
-#include "engine/equilibrium.h"
 #include "engine/fem/fem_equilibrium.h"
+#include "engine/linalg/column_dependencies.h"
+#include "engine/model/equilibrium.h"
 #include "engine/search/genetic_search.h"
 #include "engine/search/search_options.h"
 #include "io/example_catalog.h"

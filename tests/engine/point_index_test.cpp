@@ -1,7 +1,7 @@
 // The k-d tree's answers against comparing every pair (the code it replaced), on layouts with
 // exact ties (grids), random clouds and nodes on one line; the candidate estimate a service
 // checks before generating candidates; the memetic swap partners against every pair.
-#include "engine/point_index.h"
+#include "engine/model/point_index.h"
 
 #include <algorithm>
 #include <random>
@@ -9,10 +9,10 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/candidates.h"
-#include "engine/input_error.h"
+#include "engine/model/candidates.h"
 #include "engine/problem/problem.h"
 #include "engine/problem/scene_validation.h"
+#include "engine/runtime/input_error.h"
 #include "engine/search/genetic_search.h"
 #include "io/example_catalog.h"
 #include "tests/test_scenes.h"

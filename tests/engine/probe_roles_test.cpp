@@ -1,4 +1,4 @@
-// Probes by role (engine/response/probe_bank.h, docs/ARCHITECTURE.md "Probes by role"): the
+// Probes by role (engine/probe_fit/probe_bank.h, docs/ARCHITECTURE.md "Probes by role"): the
 // held-out probes are a type only the certificate reads, every group has a probe of each role, a
 // request for fewer probes than that is refused before any work, and so is one whose memory the
 // machine does not have.
@@ -10,12 +10,12 @@
 #include "engine/examples/catalog.h"
 #include "engine/identification/identify.h"
 #include "engine/identification/run_bounds.h"
-#include "engine/input_error.h"
+#include "engine/probe_fit/generalization.h"
+#include "engine/probe_fit/probe_bank.h"
+#include "engine/probe_fit/probe_objective.h"
+#include "engine/probe_fit/response_fit.h"
 #include "engine/problem/baseline_evaluation.h"
-#include "engine/response/generalization.h"
-#include "engine/response/probe_bank.h"
-#include "engine/response/probe_objective.h"
-#include "engine/response/response_fit.h"
+#include "engine/runtime/input_error.h"
 #include "engine/search/search_options.h"
 
 namespace springfit::response {

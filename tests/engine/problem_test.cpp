@@ -3,7 +3,7 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/input_error.h"
+#include "engine/runtime/input_error.h"
 #include "tests/test_scenes.h"
 
 namespace springfit {

@@ -1,4 +1,4 @@
-// The probe fit (engine/response/): the probe bank, the first-order Gram matrix, the pencil's
+// The probe fit (engine/probe_fit/): the probe bank, the first-order Gram matrix, the pencil's
 // eigenvalue bound, and strategy continuous fitted to probes (issue 31).
 #include <gtest/gtest.h>
 
@@ -9,18 +9,18 @@
 
 #include "engine/fit/stiffness_fit.h"
 #include "engine/identification/identify.h"
+#include "engine/probe_fit/amplitude_judgement.h"
+#include "engine/probe_fit/compliance_gram.h"
+#include "engine/probe_fit/generalization.h"
+#include "engine/probe_fit/linearized_response.h"
+#include "engine/probe_fit/mode_cuts.h"
+#include "engine/probe_fit/mode_lift.h"
+#include "engine/probe_fit/probe_bank.h"
+#include "engine/probe_fit/probe_evaluation.h"
+#include "engine/probe_fit/probe_objective.h"
+#include "engine/probe_fit/response_fit.h"
+#include "engine/probe_fit/rest_stiffness.h"
 #include "engine/problem/baseline_evaluation.h"
-#include "engine/response/amplitude_judgement.h"
-#include "engine/response/compliance_gram.h"
-#include "engine/response/generalization.h"
-#include "engine/response/linearized_response.h"
-#include "engine/response/mode_cuts.h"
-#include "engine/response/mode_lift.h"
-#include "engine/response/probe_bank.h"
-#include "engine/response/probe_evaluation.h"
-#include "engine/response/probe_objective.h"
-#include "engine/response/response_fit.h"
-#include "engine/response/rest_stiffness.h"
 #include "io/example_catalog.h"
 #include "proto/names.h"
 

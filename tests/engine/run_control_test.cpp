@@ -1,6 +1,7 @@
-// Control of a run in every phase (engine/interruption.h, engine/identification/run_monitor.h):
-// beats name their phase, a refused beat or the time limit stops the analysis, the direct
-// phase and a first population midway, and the result says what, if anything, was found.
+// Control of a run in every phase (engine/runtime/interruption.h,
+// engine/identification/run_monitor.h): beats name their phase, a refused beat or the time limit
+// stops the analysis, the direct phase and a first population midway, and the result says what, if
+// anything, was found.
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -16,9 +17,9 @@
 #include "engine/direct/direct_identification.h"
 #include "engine/identification/run_monitor.h"
 #include "engine/identification/strategy.h"
-#include "engine/interruption.h"
 #include "engine/problem/baseline_evaluation.h"
-#include "engine/worker_pool.h"
+#include "engine/runtime/interruption.h"
+#include "engine/runtime/worker_pool.h"
 #include "io/example_catalog.h"
 
 namespace springfit {

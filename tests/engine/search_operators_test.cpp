@@ -5,7 +5,7 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/genome_packing.h"
+#include "engine/genome/genome_packing.h"
 #include "engine/search/fitness_cache.h"
 #include "engine/search/genetic_operators.h"
 #include "engine/search/random_stream.h"

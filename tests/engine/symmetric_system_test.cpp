@@ -1,8 +1,8 @@
 // The factorisation behind the equilibrium solver, on matrices whose answers are known: the
 // banded path's fallback to a pivoted LDLT where its Cholesky fails, and the empty system.
-#include "engine/symmetric_system.h"
+#include "engine/linalg/symmetric_system.h"
 
-#include "engine/supernodal_cholesky.h"
+#include "engine/linalg/supernodal_cholesky.h"
 
 #include <gtest/gtest.h>
 #include <Eigen/Eigenvalues>

@@ -1,7 +1,7 @@
-// The evaluation threads (engine/worker_pool.h): every slot exactly once, exceptions
+// The evaluation threads (engine/runtime/worker_pool.h): every slot exactly once, exceptions
 // rethrown, and a batch that finishes while every pool thread is busy with another one. Every
 // wait is bounded: a hang fails the test instead of blocking it forever.
-#include "engine/worker_pool.h"
+#include "engine/runtime/worker_pool.h"
 
 #include <algorithm>
 #include <atomic>

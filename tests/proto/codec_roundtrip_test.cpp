@@ -11,7 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "engine/identification/identify.h"
-#include "engine/input_error.h"
+#include "engine/runtime/input_error.h"
 #include "engine/search/search_options.h"
 #include "io/example_catalog.h"
 #include "proto/evaluation_codec.h"

@@ -5,7 +5,7 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/input_error.h"
+#include "engine/runtime/input_error.h"
 #include "io/example_catalog.h"
 
 namespace springfit::proto {

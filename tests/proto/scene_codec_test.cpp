@@ -1,13 +1,13 @@
 // Reading scenes: every validation rule rejects with a message naming the JSON path.
 #include "proto/scene_codec.h"
-#include "engine/units.h"
+#include "engine/model/units.h"
 
 #include <functional>
 
 #include <gtest/gtest.h>
 
-#include "engine/input_error.h"
 #include "engine/problem/problem.h"
+#include "engine/runtime/input_error.h"
 #include "io/example_catalog.h"
 
 namespace springfit::proto {

@@ -1,0 +1,264 @@
+// Static equilibrium of a mass-spring model under one load case (or, with
+// EquilibriumOptions::response kLinear, its linearised response at rest).
+//
+// The equilibrium minimises the potential energy over the free nodes' displacements u:
+//   E(u) = sum_springs 1/2 k (L - l)^2 - sum_free F . u
+// (docs/ARCHITECTURE.md, "Equilibria and numerics"). Newton's method with a backtracking (Armijo)
+// line search on E: each step uses the exact spring Hessian when it is positive definite (quadratic
+// convergence) and the projected one (compressive lateral term clamped at 0, see springs.h)
+// when it is not. Constrained nodes (fixed or with a prescribed displacement) are not unknowns.
+//
+// A mechanism (a topology whose stiffness at rest is singular on the free nodes: a node with
+// too few springs, an island cut off from every constrained node, a square without a diagonal)
+// cannot carry a general load; RestMechanismModes() detects it before any Newton step, from the
+// eigenvalues of the Jacobi-scaled rest stiffness with unit stiffness (see symmetric_system.h),
+// and counts its modes.
+//
+// An EquilibriumSolver is built once per spring geometry and set of constrained nodes: that
+// fixes the sparsity pattern, whose symbolic analysis is done in the constructor and reused by
+// every solve. Not thread-safe; copy one per thread (a copy of a sparse-backed solver redoes
+// the symbolic analysis once, see symmetric_system.h).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "engine/linalg/linalg.h"
+#include "engine/linalg/newton_iteration.h"
+#include "engine/linalg/symmetric_system.h"
+#include "engine/model/free_nodes.h"
+#include "engine/model/springs.h"
+#include "engine/runtime/interruption.h"
+
+namespace springfit {
+
+enum class Termination {
+  kConverged,     // |gradient|_inf <= tolerance (see EquilibriumOptions)
+  kNotConverged,  // iteration limit reached or the line search found no decrease
+  kMechanism,     // the rest stiffness is singular on the free nodes; no solve was attempted
+  kNotSolved,     // not attempted: another load case's mechanism already decided
+                  // (engine/problem/cost.h)
+  kInterrupted,   // stopped between iterations by the solver's Interruption
+};
+
+struct EquilibriumOptions {
+  // kLinear: the springs' linearised response at rest (springs.h, SpringState::Linearised): the
+  // energy is quadratic, Newton's first step solves it and a second, if any, removes round-off.
+  // Set from the scene by Problem (search.response).
+  Response response = Response::kNonlinear;
+  // Converged when every free node's force imbalance is at most
+  //   max(relative_force_tolerance * force_scale, roundoff_force_tolerance * max k l),
+  // force_scale = max(largest external force, largest k * prescribed displacement over the
+  // springs to a displaced node), the max over the node's springs. The second term is the
+  // floor that round-off allows: a spring's force is computed from L - l, which carries an
+  // error of about machine epsilon times l. Per node: the scene's stiffest spring does not set
+  // a soft region's floor (it did, and tiny loads on soft springs "converged" unmoved). Both
+  // are unit-free, in (0, 1).
+  double relative_force_tolerance = 1e-10;
+  double roundoff_force_tolerance = 1e-13;
+  int max_iterations = 100;  // Newton iterations; the projected Hessian converges only linearly
+  int max_line_search_steps = 50;  // halvings of the step before giving up
+  double armijo = 1e-4;            // sufficient decrease parameter c1, in (0, 1/2)
+  // Largest change of any spring's separation X_i - X_j in one Newton step, as a fraction of
+  // its rest length (> 0). Moderate loads never reach it; large ones walk.
+  double max_step = 0.5;
+  // A Newton step trusts the exact Hessian only when every Jacobi-scaled pivot is above this
+  // (unit-free). It sits a little above round-off, which is about 1e-16 times the number of
+  // springs at a node: a stiffness ratio of 1e12 gives scaled pivots of about 1e-12, which a
+  // step can still use, and where double precision cannot tell a pivot from zero the step
+  // takes the projected, then regularised, Hessian.
+  double pivot_tolerance = 1e-14;
+  // The rest verdict (RestStabilityOf) depends on the geometry alone: the null space of
+  // sum k n n^T is the rigidity matrix's whatever the (positive) stiffness, so it is decided on
+  // the springs with stiffness 1 and a stiffness spread of 1e12 cannot make a model a
+  // mechanism. First an LDLT of the Jacobi-scaled unit-stiffness rest matrix counts its
+  // eigenvalues below near_mechanism_tolerance (0 for almost every model: no more work). Those
+  // are mechanism modes or so close to them that the stiffness matrix cannot tell (a rigid
+  // strip 300 cells long and one wide has 1e-10). Then a QR of the rigidity matrix
+  // (engine/model/rigidity.h), which resolves twice the digits, counts as mechanism modes only its
+  // singular values at or below rigidity_tolerance; an exact mechanism's are round-off, about
+  // 1e-15. The rest are near-mechanism modes: rigid, but stiff along them only to about their
+  // singular value squared, relative.
+  double near_mechanism_tolerance = 1e-10;
+  double rigidity_tolerance = 1e-12;
+  // Free-node degrees of freedom up to which the banded factorisation is used; above it the
+  // sparse one. On grids numbered row by row the banded one also wins up to 20x20, not on
+  // irregular meshes in their mesher's numbering (bench/RESULTS.md, solve section).
+  int banded_max_dofs = 96;
+  // Free-node degrees of freedom above which CHOLMOD's supernodal Cholesky replaces Eigen's
+  // simplicial LDLT: at a 316 x 316 grid (200k) the simplicial one took 20 s a
+  // factorisation. Above every example's size, so that their trajectories do not change.
+  int supernodal_min_dofs = 20000;
+
+  // Throws std::invalid_argument naming the field, its value and the rule it breaks.
+  void Validate() const;
+};
+
+struct EquilibriumSummary {
+  Termination termination = Termination::kNotConverged;
+  int iterations = 0;             // Newton steps taken
+  int projected_steps = 0;        // of which on the projected Hessian
+  int line_search_steps = 0;      // step halvings in all
+  double initial_residual = 0.0;  // |gradient|_inf / force_scale at the start
+  double final_residual = 0.0;    // |gradient|_inf / force_scale at the end
+  int mechanism_modes = 0;        // kMechanism: the rest stiffness's null-space dimension
+  // Set by the cost function (engine/problem/cost.h) from the rest verdict: directions along which
+  // the model is rigid but too soft for double precision to be sure of (RestStability::near_modes).
+  int near_mechanism_modes = 0;
+  // The loosest free node's tolerance on its force imbalance, relative to force_scale (see
+  // EquilibriumOptions::relative_force_tolerance): how far round-off lets the solve resolve
+  // the load.
+  double tolerance = 0.0;
+  // The worst free node's force imbalance over its tolerance: <= 1 when converged.
+  double excess = 0.0;
+  // kNotConverged: why, in words ("the iteration limit (100) was reached", ...); static text.
+  const char* why = "";
+
+  bool converged() const { return termination == Termination::kConverged; }
+};
+
+// The rest stiffness's verdict (EquilibriumOptions::near_mechanism_tolerance): `modes`
+// mechanism modes, and `near_modes` more directions along which the model is rigid but its
+// relative stiffness is below near_mechanism_tolerance, where a solve in double precision is
+// at the edge of what it resolves.
+struct RestStability {
+  int modes = 0;
+  int near_modes = 0;
+};
+
+// Spring stiffness ratios from about this on are at the limit of double precision: the
+// softest springs' contribution to a stiffness entry is below the stiffest's round-off.
+inline constexpr double kStiffnessRatioLimit = 1e12;
+
+// Why a solve did not converge, for messages: the reason, the iterations, the relative
+// residual and the tolerance, e.g. "the Newton iteration limit was reached after 100
+// iterations, with a force imbalance 32 times what its node allows (relative force residual
+// 3.2e-09)".
+std::string NotConvergedText(const EquilibriumSummary& summary);
+// What double precision cannot decide about a model that did not converge: its near-mechanism
+// modes, a stiffness ratio at or beyond kStiffnessRatioLimit. "" when neither; otherwise
+// begins with "; ".
+std::string PrecisionLimitText(const RestStability& stability, const ActiveSprings& springs);
+
+class EquilibriumSolver {
+ public:
+  EquilibriumSolver() = default;
+  // Keeps a pointer to `geometry`, which must outlive the solver.
+  EquilibriumSolver(const SpringGeometry& geometry, FreeNodes free_nodes,
+                    EquilibriumOptions options = {});
+
+  const FreeNodes& free_nodes() const { return free_; }
+  // Checked between Newton iterations (nullptr: never stopped); must outlive its use.
+  void set_interruption(Interruption* interruption) { interruption_ = interruption; }
+  const EquilibriumOptions& options() const { return options_; }
+
+  // The number of mechanism modes of `springs` at rest with this solver's constrained nodes:
+  // 0 for a model that carries any load. Depends on which springs are active, not on their
+  // stiffness (see near_mechanism_tolerance): one factorisation, and a QR when the model is a
+  // mechanism or near one.
+  int RestMechanismModes(const ActiveSprings& springs) { return RestStabilityOf(springs).modes; }
+  RestStability RestStabilityOf(const ActiveSprings& springs);
+
+  // Solves for the equilibrium. `force` and `prescribed` are flat d*n vectors (entries of
+  // free nodes in `prescribed` and of constrained nodes in `force` are ignored). `u` holds the
+  // starting displacements of the free nodes on entry (the warm start; zero = from rest) and
+  // the equilibrium on return; its constrained entries are set to `prescribed`.
+  // Precondition: RestMechanismModes(springs) == 0 (otherwise the result is kNotConverged or
+  // a meaningless equilibrium, never NaN). Never throws.
+  EquilibriumSummary Solve(const ActiveSprings& springs, const Vector& force,
+                           const Vector& prescribed, Vector& u);
+
+  // Solves H x = b for every column b of `rhs` (free degrees of freedom, free-node order), H
+  // the exact Hessian of E at `u` (an equilibrium from Solve): one factorisation, then one
+  // solve per column. The sensitivity of an equilibrium to the stiffness is such a solve.
+  // Returns false, leaving `rhs` unspecified, when H is not positive definite there.
+  bool SolveWithTangent(const ActiveSprings& springs, const Vector& force, const Vector& u,
+                        Matrix& rhs);
+  // The same in two parts, for callers that solve with H many times (sensitivities applied as
+  // operators): FactorizeTangent() factorises H at `u` and returns whether it is positive
+  // definite; SolveTangent() overwrites b (free degrees of freedom) with H^-1 b, using the
+  // last FactorizeTangent() as long as no other method of this solver has been called since.
+  bool FactorizeTangent(const ActiveSprings& springs, const Vector& u);
+  // At rest (u = 0) the tangent is the linear response's stiffness.
+  // EnergyAndGradient() without the Hessian does not touch the factorisation. SolveTangent() and
+  // EnergyAndGradient() without the Hessian only read the solver: several threads may call
+  // them at once (the sparse and banded backends' solves are const), as long as no other
+  // method runs meanwhile.
+  void SolveTangent(Vector& b) const { system_.Solve(b); }
+
+  // How far round-off leaves the displacements of an equilibrium `u` of the last Solve()
+  // undetermined: |H^-1 r| (2-norm over the free nodes, in length units), r the force
+  // imbalance each free node is allowed (its tolerance, signs from a fixed pattern), H the
+  // exact tangent at u. Well-conditioned models give about the tolerance times the
+  // displacement; a tangent that is nearly singular (a stiffness spread near 1e12, nearly
+  // collinear springs) amplifies it, and normalised errors below this over |u| are noise.
+  // `stable` is false when H is not positive definite: u is a saddle of the energy, not a
+  // minimum (a straight column compressed past its buckling load stays straight by symmetry);
+  // H^-1 r is then solved with an indefinite factorisation. spread is +inf when H is singular
+  // (stable is then true: a singular tangent says nothing of stability).
+  // One or two factorisations.
+  struct Resolution {
+    double spread = 0.0;
+    bool stable = true;
+  };
+  Resolution DisplacementResolution(const ActiveSprings& springs, const Vector& u);
+
+  // E(u) and its gradient on the free degrees of freedom (flat, free-node order). Exposed for
+  // tests; `hessian` true also assembles the Hessian into the system (`projected` clamps it).
+  double EnergyAndGradient(const ActiveSprings& springs, const Vector& force, const Vector& u,
+                           Vector* gradient, bool hessian, bool projected);
+  // The assembled Hessian as a dense matrix on the free degrees of freedom (tests only).
+  Matrix AssembledHessian() const;
+
+ private:
+  template <int D>
+  double Assemble(const ActiveSprings& springs, const Vector& force, const Vector& u,
+                  Vector* gradient, bool hessian, bool projected, double* magnitude);
+  template <int D>
+  EquilibriumSummary SolveImpl(const ActiveSprings& springs, const Vector& force,
+                               const Vector& prescribed, Vector& u);
+  // SolveImpl's steps.
+  // The load's force scale, which the relative tolerance multiplies.
+  template <int D>
+  double ForceScale(const ActiveSprings& springs, const Vector& force,
+                    const Vector& prescribed) const;
+  // Each free node's round-off force floor into floor_; returns the largest.
+  double SetRoundoffFloors(const ActiveSprings& springs);
+  // The largest imbalance of a free node over its tolerance (converged at <= 1).
+  template <int D>
+  double Excess(const Vector& gradient) const;
+  // The stop tests before a step (converged, the iteration limit, an interruption), setting
+  // the termination: nullptr to go on, else why it stopped ("" when it needs no words).
+  const char* StopBeforeStep(EquilibriumSummary& summary);
+  // The Newton step into step_ and its slope along the gradient: nullptr, or why there is none.
+  template <int D>
+  const char* NewtonStep(const ActiveSprings& springs, const Vector& force, const Vector& u,
+                         EquilibriumSummary& summary, double& slope);
+  // Newton's steps (newton_iteration.h), on this solver's state.
+  template <int D>
+  struct NewtonSteps;
+  // The point at step length alpha along step_ from u, into trial_u_ and trial_gradient_ (the
+  // line search's trial, newton_iteration.h).
+  template <int D>
+  EnergyPoint TrialPoint(const ActiveSprings& springs, const Vector& force, const Vector& u,
+                         double alpha);
+
+  const SpringGeometry* geometry_ = nullptr;
+  FreeNodes free_;
+  EquilibriumOptions options_;
+  int dim_ = 2;
+  // slots_[spring * 3 * D*D + block * D*D + a*D + b]: the system slot receiving entry (a, b) of
+  // block 0 = (i,i), 1 = (j,j), 2 = (i,j) of that spring, or -1 (constrained node, or the
+  // upper triangle of a diagonal block).
+  std::vector<int> slots_;
+  SymmetricSystem system_;
+  Interruption* interruption_ = nullptr;
+  ActiveSprings unit_;  // the springs of a rest verdict, stiffness 1
+  // Assembles the unit-stiffness rest matrix of `springs` into the system.
+  void AssembleUnitRest(const ActiveSprings& springs);
+  Vector gradient_, trial_gradient_, step_, trial_u_;
+  std::vector<double> floor_;  // per free node: its round-off force floor (SolveImpl)
+  double relative_ = 0.0;      // the relative force tolerance in force units (SolveImpl)
+};
+
+}  // namespace springfit

@@ -1,0 +1,438 @@
+#include "engine/probe_fit/matrix_free_fit.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <numeric>
+#include <optional>
+
+#include "engine/fit/stiffness_fit.h"
+#include "engine/probe_fit/linearized_response.h"
+#include "engine/probe_fit/mode_cuts.h"
+#include "engine/probe_fit/nonlinear_response.h"
+#include "engine/probe_fit/probe_objective.h"
+#include "engine/runtime/wall_clock.h"
+
+namespace springfit::response {
+namespace {
+
+// Jacobi-preconditioned conjugate gradients for A d = b on the entries where `free` holds (d is
+// 0 elsewhere); at most `iterations`, or until the residual falls below `tolerance` |b|.
+// (Eigen's ConjugateGradient takes a matrix-free operator only as a sparse-matrix-like
+// expression type; a closure over the masked products is the shorter and clearer form here.)
+Vector ConjugateGradients(const std::function<Vector(const Vector&)>& multiply, const Vector& b,
+                          const Vector& diagonal, const std::vector<bool>& free, int iterations,
+                          double tolerance) {
+  const Eigen::Index m = b.size();
+  Vector mask(m);
+  for (Eigen::Index e = 0; e < m; ++e) mask[e] = free[static_cast<std::size_t>(e)] ? 1.0 : 0.0;
+  Vector d = Vector::Zero(m);
+  Vector r = b.cwiseProduct(mask);
+  const double target = tolerance * r.norm();
+  Vector z = r.cwiseQuotient(diagonal);
+  Vector p = z;
+  double rz = r.dot(z);
+  for (int it = 0; it < iterations && r.norm() > target; ++it) {
+    const Vector ap = multiply(p).cwiseProduct(mask);
+    const double curvature = p.dot(ap);
+    if (!(curvature > 0.0)) break;
+    const double alpha = rz / curvature;
+    d += alpha * p;
+    r -= alpha * ap;
+    z = r.cwiseQuotient(diagonal);
+    const double rz_next = r.dot(z);
+    p = z + (rz_next / rz) * p;
+    rz = rz_next;
+  }
+  return d;
+}
+
+// What the driver descends and chooses by where it is not the rest-linear probe objective (the
+// nonlinear stage's).
+struct FitStage {
+  // The objective's operators, made afresh for each point (unset: LinearizedResponse).
+  std::function<std::unique_ptr<SpringSensitivities>(const ProbeObjective&, const GeneSprings&)>
+      linearise;
+  // A model's choosing error (unset: ProbeObjective::SelectError, rest-linear).
+  std::function<double(const std::vector<double>& weights)> choosing_error;
+  // Springs absent from the start stay out.
+  bool freeze_absent = false;
+  // The phase its progress reports.
+  const char* phase = "probe_fit";
+};
+
+// The fit's state: the objective, and every accepted iterate with its strength, choosing error
+// and smallest eigenvalue.
+class MatrixFreeFit {
+ public:
+  MatrixFreeFit(const Problem& problem, const ProbeBank& bank,
+                const SparseMatrix& reference_stiffness, const std::vector<double>& prior,
+                const ResponseFitOptions& options, Interruption* interruption,
+                const ResponseProgress& progress, WorkerPool* pool, FitStage stage = {})
+      : objective_(problem, bank, reference_stiffness, prior, options, interruption),
+        stage_(std::move(stage)),
+        springs_(GeneSpringsOf(problem)),
+        cuts_(options.hold, objective_.scale()),
+        genes_(static_cast<double>(problem.gene_count())),
+        options_(options),
+        interruption_(interruption),
+        progress_(progress),
+        pool_(pool) {}
+
+  struct Iterate {
+    std::vector<double> weights;
+    double regularization = 0.0;
+    double select_error = kNoModel;
+    double lambda_min = 0.0;
+    int step = 0;
+  };
+  const std::vector<Iterate>& iterates() const { return iterates_; }
+
+  // The continuation from the prior: `steps_per_strength` steps at every strength, strongest
+  // first, until `continuation_patience` successive strengths each end worse on the choosing
+  // probes than the best before them; records each strength's model in `r`.
+  void Continuation(ResponseFitResult& r) {
+    std::vector<double> weights = objective_.Weights(objective_.prior_scaled());
+    std::unique_ptr<SpringSensitivities> at = Linearisation();
+    const bool held = at->At(weights);
+    Judge(weights, options_.regularizations.front(), 0, held ? at.get() : nullptr);
+    if (!held) return;
+    std::vector<double> strengths = options_.regularizations;
+    std::sort(strengths.begin(), strengths.end(), std::greater<>());
+    // (The nonlinear stage keeps the rest-linear fit's topology: absent springs stay out.)
+    std::vector<bool> out(weights.size(), false);
+    if (stage_.freeze_absent)
+      for (std::size_t g = 0; g < weights.size(); ++g) out[g] = !(weights[g] > 0.0);
+    int worse = 0;
+    for (double strength : strengths) {
+      double best = kNoModel;
+      for (const Iterate& i : iterates_) best = std::min(best, i.select_error);
+      Descend(weights, at, strength, out);
+      // The model at this strength: its last accepted step's, or the one it started from when
+      // none was accepted.
+      r.regularizations.push_back(strength);
+      r.regularization_select_errors.push_back(iterates_.back().select_error);
+      r.regularization_lambda_min.push_back(iterates_.back().lambda_min);
+      worse = iterates_.back().select_error < best ? 0 : worse + 1;
+      if (options_.continuation_patience > 0 && worse >= options_.continuation_patience) break;
+    }
+  }
+
+  // A spring budget: two sparsity paths down to it, at the strength of iterate `chosen`, one
+  // from that iterate and one from the closed-form baseline's springs (the mesh edges) refitted
+  // alone, as the fit's many springs stand in for each other in ways a path from them may not
+  // undo. Returns the best iterate within the budget, or nothing when none is a model.
+  std::optional<std::size_t> WithinBudget(std::size_t chosen) {
+    // (A model held on a support has at least a spring per free degree of freedom there: a
+    // budget below that is met by no model, and the paths would only try mechanisms.)
+    for (std::size_t s : objective_.fitted_supports())
+      if (options_.max_springs < objective_.reference()[s].free_dofs()) return std::nullopt;
+    const double regularization = iterates_[chosen].regularization;
+    BudgetPath(iterates_[chosen].weights, regularization, false);
+    BudgetPath(objective_.Weights(objective_.prior_scaled()), regularization, true);
+    return BestWithinBudget();
+  }
+
+  // One path from `weights` down to the spring budget (`refit`: its springs refitted first).
+  // The least salient springs (1/2 x_e^2 (J^T J)_ee at the current model) out, `prune_fraction`
+  // of the present ones at a time and at most down to the budget, each removal followed by the
+  // Gauss-Newton steps of the strength on the springs left; a spring once out stays out. A
+  // removal that leaves a mechanism is retried with half as many springs; a single spring whose
+  // removal leaves one is kept for good (the saliency does not see that a soft spring alone
+  // holds a node).
+  void BudgetPath(std::vector<double> weights, double regularization, bool refit) {
+    std::unique_ptr<SpringSensitivities> at = Linearisation();
+    if (!at->At(weights)) return;
+    std::vector<bool> removed(weights.size()), kept(weights.size(), false);
+    const auto descend = [&] {
+      for (std::size_t g = 0; g < weights.size(); ++g)
+        removed[g] = removed[g] || !(weights[g] > 0.0);
+      Descend(weights, at, regularization, removed);
+    };
+    if (refit) {
+      Judge(weights, regularization, step_count_, at.get());
+      descend();
+    }
+    while (PresentSprings(weights) > options_.max_springs) {
+      ThrowIfInterrupted(interruption_);
+      const int present = PresentSprings(weights);
+      std::vector<int> order;
+      for (int e : BySaliency(weights, *at))
+        if (!kept[static_cast<std::size_t>(e)]) order.push_back(e);
+      std::vector<double> trial;
+      std::unique_ptr<SpringSensitivities> next = Linearisation();
+      bool held = false;
+      while (!held && !order.empty()) {
+        int count =
+            std::min({present - options_.max_springs, static_cast<int>(order.size()),
+                      std::max(1, static_cast<int>(std::ceil(options_.prune_fraction * present)))});
+        while (!held) {
+          ThrowIfInterrupted(interruption_);  // (each attempt factorises every fitted support)
+          trial = weights;
+          for (int i = 0; i < count; ++i) trial[static_cast<std::size_t>(order[i])] = 0.0;
+          held = next->At(trial);
+          if (!held && count == 1) break;
+          if (!held) count = std::max(1, count / 2);
+        }
+        if (!held) {
+          kept[static_cast<std::size_t>(order.front())] = true;
+          order.erase(order.begin());
+        }
+      }
+      if (!held) return;
+      weights = std::move(trial);
+      at = std::move(next);
+      Judge(weights, regularization, step_count_, at.get());
+      if (progress_) progress_("probe_path", iterates_.back().select_error);
+      descend();
+    }
+  }
+
+  // The best iterate within the spring budget that is a model; nothing when none is.
+  std::optional<std::size_t> BestWithinBudget() const {
+    std::vector<std::size_t> within;
+    std::vector<double> errors, lambdas;
+    for (std::size_t i = 0; i < iterates_.size(); ++i) {
+      const Iterate& it = iterates_[i];
+      if (PresentSprings(it.weights) > options_.max_springs || !(it.lambda_min > 0.0) ||
+          !(it.select_error < kNoModel))
+        continue;
+      within.push_back(i);
+      errors.push_back(it.select_error);
+      lambdas.push_back(it.lambda_min);
+    }
+    if (within.empty()) return std::nullopt;
+    const std::vector<double> score = PreferSupported(errors, lambdas, options_);
+    return within[static_cast<std::size_t>(std::min_element(score.begin(), score.end()) -
+                                           score.begin())];
+  }
+
+  // The best iterate from `from` on, on the choosing probes, preferring one that holds every
+  // mode.
+  std::size_t BestOf(std::size_t from) const {
+    std::vector<double> errors, lambdas;
+    for (std::size_t i = from; i < iterates_.size(); ++i) {
+      errors.push_back(iterates_[i].select_error);
+      lambdas.push_back(iterates_[i].lambda_min);
+    }
+    const std::vector<double> score = PreferSupported(errors, lambdas, options_);
+    return from +
+           static_cast<std::size_t>(std::min_element(score.begin(), score.end()) - score.begin());
+  }
+
+ private:
+  // The present springs of `weights`, least salient first (1/2 x_e^2 (J^T J)_ee, `at` its
+  // linearisation; ties by gene).
+  std::vector<int> BySaliency(const std::vector<double>& weights,
+                              const SpringSensitivities& at) const {
+    const Vector x = objective_.Scaled(weights);
+    const Vector diagonal = at.NormalDiagonal(options_.diagonal_samples, options_.probes.seed);
+    std::vector<std::pair<double, int>> saliency;
+    for (int e = 0; e < x.size(); ++e)
+      if (x[e] > 0.0) saliency.emplace_back(0.5 * x[e] * x[e] * diagonal[e], e);
+    std::sort(saliency.begin(), saliency.end());
+    std::vector<int> order;
+    for (const auto& [value, e] : saliency) order.push_back(e);
+    return order;
+  }
+
+  std::unique_ptr<SpringSensitivities> Linearisation() const {
+    if (stage_.linearise) return stage_.linearise(objective_, springs_);
+    return std::make_unique<LinearizedResponse>(objective_, springs_, interruption_, pool_);
+  }
+
+  // Records `weights` as an iterate; `at`, when given, is its linearisation, whose
+  // factorisations the judgements reuse.
+  void Judge(const std::vector<double>& weights, double regularization, int step,
+             const SpringSensitivities* at) {
+    const FactorizedOn factorized = at ? at->Factorized() : FactorizedOn{};
+    std::vector<ProbeObjective::SupportMode> soft;
+    const double lambda_min = cuts_.enabled() ? objective_.LambdaMinAndSoftModes(
+                                                    weights, factorized, cuts_.options().target,
+                                                    cuts_.options().modes_per_support, soft)
+                                              : objective_.LambdaMin(weights, factorized);
+    iterates_.push_back({weights, regularization,
+                         stage_.choosing_error ? stage_.choosing_error(weights)
+                                               : objective_.SelectError(weights, factorized),
+                         lambda_min, step});
+    // A cut for each mode the model leaves below the held target on a user support: the steps
+    // after it keep away from those modes.
+    for (const ProbeObjective::SupportMode& soft_mode : soft)
+      cuts_.Add(springs_, soft_mode.mode, objective_.reference()[soft_mode.support]);
+    double best = kNoModel;
+    for (const Iterate& i : iterates_) best = std::min(best, i.select_error);
+    if (progress_) progress_(stage_.phase, best);
+  }
+
+  // The fitted objective at `weights` (`at` its linearisation): the probes' error, the Tikhonov
+  // pull and the held modes' penalty.
+  double Phi(const std::vector<double>& weights, const SpringSensitivities& at,
+             double regularization) const {
+    return at.ResidualNorm2() + objective_.Regularization(weights, regularization) +
+           cuts_.Penalty(objective_.Scaled(weights));
+  }
+
+  // Gauss-Newton steps at one strength from `weights`, `at` its linearisation (springs with
+  // `removed` set stay out); each accepted step is judged, and `weights` and `at` follow it.
+  void Descend(std::vector<double>& weights, std::unique_ptr<SpringSensitivities>& at,
+               double regularization, const std::vector<bool>& removed) {
+    const double rho = regularization / genes_;
+    Vector x = objective_.Scaled(weights);
+    for (int step = 0; step < options_.steps_per_strength; ++step) {
+      // (Again at every step: the judgement of the last one may have added cuts.)
+      double phi = Phi(weights, *at, regularization);
+      const Vector gradient =
+          at->Gradient() + rho * (x - objective_.prior_scaled()) + cuts_.HalfGradient(x);
+      std::vector<bool> free(static_cast<std::size_t>(x.size()));
+      for (Eigen::Index e = 0; e < x.size(); ++e)
+        free[static_cast<std::size_t>(e)] =
+            !removed[static_cast<std::size_t>(e)] && !(x[e] <= 0.0 && gradient[e] > 0.0);
+      Vector diagonal = at->NormalDiagonal(options_.diagonal_samples, options_.probes.seed);
+      diagonal.array() += rho;
+      diagonal += cuts_.HalfHessianDiagonal(x);
+      const Vector d = ConjugateGradients(
+          [&](const Vector& v) {
+            return Vector(at->NormalProduct(v) + rho * v + cuts_.HalfHessianProduct(x, v));
+          },
+          -gradient, diagonal, free, options_.cg_iterations, options_.cg_tolerance);
+      if (!ProjectedStep(weights, x, phi, at, d, regularization)) break;
+      Judge(weights, regularization, ++step_count_, at.get());
+    }
+  }
+
+  // The projected step max(x + t d, 0), t halved until the objective falls (at most three
+  // times); false when it never does. On success `weights`, `x`, `phi` and `at` follow it.
+  bool ProjectedStep(std::vector<double>& weights, Vector& x, double& phi,
+                     std::unique_ptr<SpringSensitivities>& at, const Vector& d,
+                     double regularization) const {
+    for (int halving = 0; halving < 4; ++halving) {
+      const double t = std::ldexp(1.0, -halving);
+      const std::vector<double> trial = objective_.Weights((x + t * d).cwiseMax(0.0));
+      if (PresentSprings(trial) == 0) continue;
+      std::unique_ptr<SpringSensitivities> next = Linearisation();
+      if (!next->At(trial)) continue;
+      const double value = Phi(trial, *next, regularization);
+      if (!(value < phi)) continue;
+      weights = trial;
+      x = objective_.Scaled(trial);
+      phi = value;
+      at = std::move(next);
+      return true;
+    }
+    return false;
+  }
+
+  const ProbeObjective objective_;
+  const FitStage stage_;
+  const GeneSprings springs_;
+  ModeCuts cuts_;
+  const double genes_;
+  const ResponseFitOptions& options_;
+  Interruption* interruption_;
+  const ResponseProgress& progress_;
+  WorkerPool* pool_;
+  std::vector<Iterate> iterates_;
+  int step_count_ = 0;
+};
+
+}  // namespace
+
+ResponseFitResult FitResponseMatrixFree(const Problem& problem, const ProbeBank& bank,
+                                        const SparseMatrix& reference_stiffness,
+                                        const std::vector<double>& prior,
+                                        const ResponseFitOptions& options,
+                                        Interruption* interruption,
+                                        const ResponseProgress& progress, WorkerPool* pool) {
+  const auto started = std::chrono::steady_clock::now();
+  const auto seconds = [&started] { return SecondsSince(started); };
+  MatrixFreeFit fit(problem, bank, reference_stiffness, prior, options, interruption, progress,
+                    pool);
+  ResponseFitResult r;
+  r.method = "matrix-free";
+  fit.Continuation(r);
+  r.seconds_first_order = seconds();
+
+  std::size_t chosen = fit.BestOf(0);
+  const auto point = [&](std::size_t i) {
+    const MatrixFreeFit::Iterate& it = fit.iterates()[i];
+    return ResponseFitResult::Point{PresentSprings(it.weights), it.select_error, it.lambda_min};
+  };
+  r.path.push_back(point(chosen));
+  if (options.max_springs > 0 && r.path.back().springs > options.max_springs) {
+    if (const std::optional<std::size_t> within = fit.WithinBudget(chosen)) {
+      r.path.push_back(point(*within));
+      if (r.path.back().select_error < kNoModel && r.path.back().lambda_min > 0.0) {
+        chosen = *within;
+        r.chosen = 1;
+      }
+    }
+  }
+  const MatrixFreeFit::Iterate& returned = fit.iterates()[chosen];
+  r.weights = returned.weights;
+  r.regularization = returned.regularization;
+  r.select_error = returned.select_error;
+  r.lambda_min = returned.lambda_min;
+  r.gauss_newton_accepted = returned.step;
+  r.seconds_path = seconds() - r.seconds_first_order;
+  return r;
+}
+
+NonlinearFitResult FitNonlinearResponse(
+    const Problem& problem, const ProbeBank& bank, const SparseMatrix& reference_stiffness,
+    const std::vector<double>& start, const ResponseFitOptions& options,
+    const NonlinearFitOptions& nonlinear, const std::vector<double>* baseline,
+    Interruption* interruption, const ResponseProgress& progress, WorkerPool* pool) {
+  const auto started = std::chrono::steady_clock::now();
+  nonlinear.Validate();
+  NonlinearCases cases(problem, bank, FitWeights(bank, options.probes), nonlinear, interruption,
+                       pool);
+  {
+    const GeneSprings springs = GeneSpringsOf(problem);
+    NonlinearResponse at_start(cases, springs, PriorScale(start), interruption, pool);
+    if (at_start.At(start)) cases.BoundWeights(at_start.CaseErrors());
+  }
+  NonlinearFitResult r;
+  r.amplitudes = nonlinear.amplitudes;
+  r.fitted_cases = static_cast<int>(cases.fitted().size());
+  r.choosing_cases = static_cast<int>(cases.choosing().size());
+  // The stage's options: its strengths and steps; the topology is the rest-linear fit's.
+  ResponseFitOptions stage_options = options;
+  stage_options.regularizations = nonlinear.regularizations;
+  stage_options.steps_per_strength = nonlinear.steps_per_strength;
+  stage_options.max_springs = 0;
+  FitStage stage;
+  stage.linearise = [&](const ProbeObjective& objective, const GeneSprings& springs) {
+    return std::make_unique<NonlinearResponse>(cases, springs, objective.scale(), interruption,
+                                               pool);
+  };
+  stage.choosing_error = [&](const std::vector<double>& weights) {
+    return cases.ChoosingError(weights);
+  };
+  stage.freeze_absent = true;
+  stage.phase = "nonlinear_fit";
+  MatrixFreeFit fit(problem, bank, reference_stiffness, start, stage_options, interruption,
+                    progress, pool, std::move(stage));
+  ResponseFitResult ignored;
+  if (r.fitted_cases > 0 && r.choosing_cases > 0) fit.Continuation(ignored);
+  // (Without cases the start stands: its iterate alone is judged.)
+  const std::size_t chosen = fit.iterates().empty() ? 0 : fit.BestOf(0);
+  r.start_choosing_error = cases.ChoosingError(start, &r.start_failed);
+  if (fit.iterates().empty() || chosen == 0) {
+    r.weights = start;
+    r.choosing_error = r.start_choosing_error;
+    r.failed = r.start_failed;
+  } else {
+    const MatrixFreeFit::Iterate& it = fit.iterates()[chosen];
+    r.weights = it.weights;
+    r.regularization = it.regularization;
+    r.steps = it.step;
+    r.choosing_error = cases.ChoosingError(r.weights, &r.failed);
+  }
+  if (baseline) r.baseline_choosing_error = cases.ChoosingError(*baseline);
+  r.seconds = SecondsSince(started);
+  return r;
+}
+
+}  // namespace springfit::response

@@ -1,0 +1,134 @@
+// The nonlinear fit's objective (docs/ARCHITECTURE.md, "The nonlinear fit"): the model's
+// equilibria under the simulator's spring law at the sizes of the load range, against the
+// reference's own nonlinear equilibria there.
+//
+// The rest-linear fit matches the small-load limit. A simulator loads the model at the size of
+// what a tool does, where a nonlinear reference (St. Venant-Kirchhoff, neo-Hookean, an MSS)
+// and the springs (which turn and stretch) both leave that limit. So fitted probes are applied
+// again at fractions of the named loads' size (`amplitudes`), the reference solved once with its
+// own law, and the model's equilibria differentiated exactly in the stiffness through the
+// tangent at each equilibrium (the adjoint; spring_sensitivities.h). Choosing probes at the same
+// amplitudes, solved the same way, decide every choice; held-out probes are never seen here
+// (they are judged at amplitudes by the certificate, amplitude_judgement.h).
+#pragma once
+
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "engine/probe_fit/nonlinear_solves.h"
+#include "engine/probe_fit/probe_bank.h"
+#include "engine/probe_fit/spring_sensitivities.h"
+
+namespace springfit::response {
+
+struct NonlinearFitOptions {
+  // Fractions of the named loads' size the model is fitted and chosen at, each in (0, 20],
+  // ascending. The smallest anchors the small-load limit the rest-linear fit matched.
+  std::vector<double> amplitudes = {0.25, 0.5, 1.0};
+  // Generated fitted probes at most, evenly spread over the bank's (the named cases are always
+  // in), >= 0; and choosing probes at most, >= 1. Each is a Newton solve, a factorisation and
+  // its solves per amplitude at every Gauss-Newton trial.
+  int max_fitted_probes = 1000;
+  int max_choosing_probes = 1000;
+  // The Tikhonov strengths of the continuation toward the rest-linear fit's model, strongest
+  // first (each >= 0; regularisation as in ResponseFitOptions::regularizations), and the
+  // Gauss-Newton steps per strength (>= 1).
+  std::vector<double> regularizations = {1e-2, 1e-3, 1e-4, 1e-5};
+  int steps_per_strength = 3;
+
+  // Throws std::invalid_argument naming the field, its value and the rule.
+  void Validate(const std::string& owner = "NonlinearFitOptions") const;
+};
+
+// What the nonlinear stage of the probe fit did (FitNonlinearResponse, matrix_free_fit.h).
+struct NonlinearFitResult {
+  std::vector<double> weights;     // per gene
+  std::vector<double> amplitudes;  // NonlinearFitOptions::amplitudes
+  int fitted_cases = 0;            // probe-amplitude pairs in the objective
+  int choosing_cases = 0;          // and in the choice
+  // The choosing error (NonlinearCases::ChoosingError) of `start` and of the returned model,
+  // and their choosing cases without a stable equilibrium.
+  double start_choosing_error = 0.0;
+  double choosing_error = 0.0;
+  int start_failed = 0;
+  int failed = 0;
+  // The closed-form baseline's, where it is a model of the candidates (NaN otherwise).
+  double baseline_choosing_error = std::numeric_limits<double>::quiet_NaN();
+  double regularization = 0.0;  // of the returned iterate (0 when it is `start`)
+  int steps = 0;                // Gauss-Newton steps accepted
+  double seconds = 0.0;
+};
+// One probe at one amplitude, with the reference's equilibrium there.
+struct NonlinearCase {
+  int probe = 0;  // in the bank
+  double amplitude = 0.0;
+  Vector reference;     // the reference's equilibrium displacement, flat d*n
+  double weight = 0.0;  // in the fitted objective (0 for choosing cases)
+};
+
+// The fitted and choosing cases of a bank, the reference solved for each (in parallel on the
+// pool; the same result whatever the threads). A probe the reference has no equilibrium for at
+// some amplitude is left out there.
+class NonlinearCases {
+ public:
+  // `fit_weight`: per probe, its weight in the rest-linear objective (FitWeights): the fitted
+  // probes and their families' shares, which the cases keep (each family's share spread over
+  // its cases, every case a relative error).
+  NonlinearCases(const Problem& problem, const ProbeBank& bank,
+                 const std::vector<double>& fit_weight, const NonlinearFitOptions& options,
+                 Interruption* interruption = nullptr, WorkerPool* pool = nullptr);
+
+  const Problem& problem() const { return problem_; }
+  const ProbeBank& bank() const { return bank_; }
+  // Ordered by probe, then by amplitude ascending.
+  const std::vector<NonlinearCase>& fitted() const { return fitted_; }
+  const std::vector<NonlinearCase>& choosing() const { return choosing_; }
+
+  // What the nonlinear fit chooses by: FamilyBalancedRms over the choosing probes of each
+  // probe's RMS E over its amplitudes, the model solved with the spring law. A case the model
+  // has no equilibrium for (a mechanism, Newton's failure), or whose equilibrium turns an
+  // element of the FEM mesh inside out (InvertedElements), counts as E = 1 there (the whole
+  // response missed) and in `failed`.
+  // E is capped at 1 there too: a probe missed by more than its whole response (an equilibrium
+  // on another branch, a snap-through) is missed, and one such probe does not decide a choice.
+  double ChoosingError(const std::vector<double>& weights, int* failed = nullptr) const;
+
+  // Scales each fitted case's weight by min(1, 1 / E^2), E its error at the start
+  // (NonlinearResponse::CaseErrors): a case the start misses by more than its whole response
+  // weighs as one missed by exactly that, so that one far-off equilibrium cannot steer the fit.
+  void BoundWeights(const std::vector<double>& start_errors);
+
+ private:
+  const Problem& problem_;
+  const ProbeBank& bank_;
+  Interruption* interruption_;
+  WorkerPool* pool_;
+  std::vector<NonlinearCase> fitted_, choosing_;
+};
+
+// The nonlinear objective's operators at a model (spring_sensitivities.h): a part per fitted
+// case, H the exact tangent of the model's energy at the case's equilibrium (each probe's
+// amplitudes solved in order, each warm-started from the last).
+class NonlinearResponse : public SpringSensitivities {
+ public:
+  // `cases` and `springs` (GeneSpringsOf the problem) must outlive this object; `scale` as the
+  // fit's (ProbeObjective::scale()).
+  NonlinearResponse(const NonlinearCases& cases, const GeneSprings& springs, const Vector& scale,
+                    Interruption* interruption = nullptr, WorkerPool* pool = nullptr);
+
+  bool At(const std::vector<double>& weights) override;
+  // Per fitted case, the relative error E of the last successful At()'s equilibrium.
+  const std::vector<double>& CaseErrors() const { return case_errors_; }
+
+ private:
+  void Solve(std::size_t part, Matrix& b) const override;
+
+  std::vector<double> case_errors_;
+  const NonlinearCases* cases_;
+  const GeneSprings* springs_;
+  std::vector<std::unique_ptr<EquilibriumSolver>> solvers_;  // per part (fitted case)
+};
+
+}  // namespace springfit::response

@@ -1,0 +1,101 @@
+// Nonlinear equilibria of a probe's loads, shared by the nonlinear judgement
+// (amplitude_judgement.h) and the nonlinear fit (nonlinear_response.h): a spring model solved
+// with the simulator's spring law (springs.h), the reference with its own law (the FEM model's
+// St. Venant-Kirchhoff or neo-Hookean solve, or the reference MSS's), and the relative error
+// between them.
+#pragma once
+
+#include <optional>
+#include <vector>
+
+#include "engine/fem/fem_equilibrium.h"
+#include "engine/model/equilibrium.h"
+#include "engine/problem/problem.h"
+#include "engine/runtime/options_check.h"
+
+namespace springfit::response {
+
+// Springs over the scene's nodes with their stiffness.
+struct SpringModel {
+  std::vector<NodePair> pairs;
+  std::vector<double> stiffness;  // > 0, parallel to pairs
+};
+// The model of per-gene `weights` (0: absent) with the candidates no load case sees at
+// Problem::unidentifiable_stiffness, as SpringRestStiffness(problem, weights) has them.
+SpringModel ModelOfWeights(const Problem& problem, const std::vector<double>& weights);
+// The reference's own springs (an MSS reference).
+SpringModel ReferenceSprings(const Scene& scene);
+
+// A spring model as an equilibrium solver's geometry and springs.
+struct SpringSolverInput {
+  SpringGeometry geometry;
+  ActiveSprings springs;
+  SpringSolverInput(const Scene& scene, const SpringModel& model);
+};
+
+// A spring model's equilibria on one support, each solve warm-started from the last.
+class SpringResponse {
+ public:
+  SpringResponse(const SpringSolverInput& input, const FreeNodes& free,
+                 const EquilibriumOptions& options, Interruption* interruption);
+  // The displacement (flat d*n) under (force, prescribed), or nothing (a mechanism, no
+  // convergence). Throws Interrupted when stopped.
+  std::optional<Vector> Solve(const Vector& force, const Vector& prescribed);
+
+ private:
+  const SpringSolverInput& input_;
+  EquilibriumSolver solver_;
+  bool held_ = false;
+  Vector last_;
+};
+
+// The reference's response to a probe's loads on one support: the FEM model's nonlinear solve,
+// or the reference MSS's. Checked for a stop at every Newton iteration too: a probe of a large
+// nonlinear mesh is nine solves.
+class ReferenceSolver {
+ public:
+  ReferenceSolver(const std::optional<fem::FemModel>& fem,
+                  const std::optional<SpringSolverInput>& springs, const FreeNodes& free,
+                  const Problem& problem, Interruption* interruption);
+  // nullopt where the reference has no equilibrium.
+  std::optional<Vector> Solve(const Vector& force, const Vector& prescribed);
+
+ private:
+  std::optional<fem::FemEquilibriumSolver> fem_;
+  std::optional<SpringResponse> springs_;
+};
+
+// The reference model of a problem for ReferenceSolver: its FEM model or its springs (one of
+// the two set). Precondition: an FEM or MSS reference.
+struct ReferenceModel {
+  std::optional<fem::FemModel> fem;
+  std::optional<SpringSolverInput> springs;
+  explicit ReferenceModel(const Problem& problem);
+};
+
+// |model - reference| / |reference| over the free nodes (NaN when the reference is 0).
+double RelativeError(const Vector& model, const Vector& reference, const FreeNodes& free, int d);
+
+// The FEM reference's elements that a displacement `u` (flat d*n) turns inside out: the sign of
+// their volume (area in 2D) at X + u is not that at rest, or the volume vanishes. A spring model
+// whose equilibrium does that has folded the tissue the mesh describes: a simulator's
+// collision and rendering meshes invert with it. 0 for a reference without elements.
+int InvertedElements(const Scene& scene, const Vector& u);
+
+// A probe's loads at `amplitude` of their size: the force and the prescribed displacements (an
+// empty `prescribed` is none).
+struct ScaledLoad {
+  Vector force;
+  Vector prescribed;
+};
+ScaledLoad ScaleLoad(const Vector& force, const Vector& prescribed, double amplitude);
+
+// Fractions of the named loads' size (an options field `amplitudes`): at least one, each in
+// (0, 20], ascending; `check` names the owner.
+void CheckAmplitudes(const OptionsCheck& check, const std::vector<double>& amplitudes);
+
+// At most `limit` of `items`, evenly spread over their order (a bank runs support by support,
+// family by family, so every part of it is represented).
+std::vector<int> EvenlySpread(const std::vector<int>& items, int limit);
+
+}  // namespace springfit::response

@@ -1,0 +1,164 @@
+#include "engine/probe_fit/tool_pushes.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+
+#include "engine/runtime/options_check.h"
+
+namespace springfit::response {
+namespace {
+
+// The elastic force of springs on `node` at displacement u: sum over its springs of
+// k (L - l) (x_node - x_other) / L, the gradient of their energy in the node's position.
+Vector SpringReaction(const SpringSolverInput& input, const Vector& rest, const Vector& u, int node,
+                      int d) {
+  Vector r = Vector::Zero(d);
+  const SpringGeometry& g = input.geometry;
+  for (int s = 0; s < input.springs.size(); ++s) {
+    const int e = input.springs.index[static_cast<std::size_t>(s)];
+    const NodePair pair = g.pairs[static_cast<std::size_t>(e)];
+    if (pair.first != node && pair.second != node) continue;
+    const int other = pair.first == node ? pair.second : pair.first;
+    const Vector separation = (rest.segment(d * node, d) + u.segment(d * node, d)) -
+                              (rest.segment(d * other, d) + u.segment(d * other, d));
+    const double length = separation.norm();
+    if (!(length > 0.0)) continue;
+    r += input.springs.stiffness[static_cast<std::size_t>(s)] *
+         (length - g.rest_length[static_cast<std::size_t>(e)]) * separation / length;
+  }
+  return r;
+}
+
+// The FEM reference's elastic force on `node` at u: the gradient of its energy there, from a
+// solver that leaves the node free (no external force).
+Vector FemReaction(const fem::FemModel& fem, const std::vector<bool>& constrained, const Vector& u,
+                   int node, int d) {
+  std::vector<bool> with_node_free = constrained;
+  with_node_free[static_cast<std::size_t>(node)] = false;
+  const FreeNodes free = FreeNodes::FromConstrained(with_node_free);
+  fem::FemEquilibriumSolver solver(fem, free);
+  Vector gradient;
+  solver.EnergyAndGradient(Vector::Zero(u.size()), u, &gradient, false);
+  return gradient.segment(d * free.free_index[static_cast<std::size_t>(node)], d);
+}
+
+struct PushResult {
+  double error = std::numeric_limits<double>::quiet_NaN();  // NaN: the reference failed
+  double force_error = std::numeric_limits<double>::quiet_NaN();
+  double force_ratio = std::numeric_limits<double>::quiet_NaN();
+  bool inverted = false;
+};
+
+}  // namespace
+
+void ToolPushOptions::Validate(const std::string& owner) const {
+  const OptionsCheck check(owner);
+  CheckAmplitudes(check, amplitudes);
+  check.Require(max_nodes >= 1, "max_nodes", max_nodes, "value >= 1");
+}
+
+std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const Support& support,
+                                            double size, const SpringModel& model,
+                                            const SpringModel& baseline,
+                                            const ToolPushOptions& options,
+                                            Interruption* interruption, WorkerPool* pool) {
+  options.Validate();
+  const Scene& scene = problem.scene();
+  if (scene.reference.kind != Reference::Kind::kFem || !(size > 0.0)) return {};
+  const int d = scene.dimension;
+  const Surface surface = AnySurface(scene);
+  std::vector<int> candidates;
+  for (int node : surface.nodes)
+    if (!support.constrained[static_cast<std::size_t>(node)] &&
+        surface.normal.segment(d * node, d).norm() > 0.5)
+      candidates.push_back(node);
+  const std::vector<int> pushed = EvenlySpread(candidates, options.max_nodes);
+  if (pushed.empty()) return {};
+  const std::size_t depths = options.amplitudes.size();
+  const ReferenceModel reference(problem);
+  const SpringSolverInput model_input(scene, model), baseline_input(scene, baseline);
+  // Per depth and pushed node: the model's and the baseline's results.
+  std::vector<std::vector<PushResult>> model_results(depths,
+                                                     std::vector<PushResult>(pushed.size()));
+  std::vector<std::vector<PushResult>> baseline_results = model_results;
+
+  RunSlots(
+      pool, static_cast<int>(pushed.size()),
+      [&](int slot) {
+        const auto i = static_cast<std::size_t>(slot);
+        const int node = pushed[i];
+        std::vector<bool> held = support.constrained;
+        held[static_cast<std::size_t>(node)] = true;
+        const FreeNodes free = FreeNodes::FromConstrained(held);
+        ReferenceSolver reference_solver(reference.fem, reference.springs, free, problem,
+                                         interruption);
+        SpringResponse model_solver(model_input, free, problem.solver_options(), interruption);
+        SpringResponse baseline_solver(baseline_input, free, problem.solver_options(),
+                                       interruption);
+        const Vector force = Vector::Zero(scene.rest.size());
+        for (std::size_t a = 0; a < depths; ++a) {
+          Vector prescribed = Vector::Zero(scene.rest.size());
+          prescribed.segment(d * node, d) =
+              -options.amplitudes[a] * size * surface.normal.segment(d * node, d);
+          const std::optional<Vector> u_ref = reference_solver.Solve(force, prescribed);
+          if (!u_ref) continue;  // (NaN: left out)
+          const Vector r_ref = FemReaction(*reference.fem, held, *u_ref, node, d);
+          const auto judge = [&](SpringResponse& solver, const SpringSolverInput& input) {
+            PushResult r;
+            const std::optional<Vector> u = solver.Solve(force, prescribed);
+            if (!u) {
+              r.error = r.force_error = std::numeric_limits<double>::infinity();
+              return r;
+            }
+            r.error = RelativeError(*u, *u_ref, free, d);
+            const Vector reaction = SpringReaction(input, scene.rest, *u, node, d);
+            r.force_error = (reaction - r_ref).norm() / r_ref.norm();
+            r.force_ratio = reaction.norm() / r_ref.norm();
+            r.inverted = InvertedElements(scene, *u) > 0;
+            return r;
+          };
+          model_results[a][i] = judge(model_solver, model_input);
+          baseline_results[a][i] = judge(baseline_solver, baseline_input);
+        }
+      },
+      [interruption] {
+        if (interruption) interruption->Check();
+      });
+  ThrowIfInterrupted(interruption);
+
+  std::vector<ToolPushErrors> out;
+  for (std::size_t a = 0; a < depths; ++a) {
+    ToolPushErrors e;
+    e.amplitude = options.amplitudes[a];
+    e.depth = options.amplitudes[a] * size;
+    std::vector<double> me, be, mf, bf, mr, br;
+    for (std::size_t i = 0; i < pushed.size(); ++i) {
+      const PushResult& m = model_results[a][i];
+      const PushResult& b = baseline_results[a][i];
+      if (std::isnan(m.error)) {
+        ++e.reference_failed;
+        continue;
+      }
+      me.push_back(m.error);
+      be.push_back(b.error);
+      mf.push_back(m.force_error);
+      bf.push_back(b.force_error);
+      mr.push_back(m.force_ratio);
+      br.push_back(b.force_ratio);
+      e.model_inverted += m.inverted ? 1 : 0;
+      e.baseline_inverted += b.inverted ? 1 : 0;
+    }
+    e.model = Summarize(me);
+    e.baseline = Summarize(be);
+    e.model_force = Summarize(mf);
+    e.baseline_force = Summarize(bf);
+    e.model_force_ratio = Summarize(mr).median;
+    e.baseline_force_ratio = Summarize(br).median;
+    out.push_back(e);
+  }
+  return out;
+}
+
+}  // namespace springfit::response

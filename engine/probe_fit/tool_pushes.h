@@ -1,0 +1,64 @@
+// Tool pushes: a boundary node moved into the body to a depth, as a surgical tool does (an
+// imposed displacement, not a force), the rest of the body free but for a support. A model is
+// judged by the shape (E over the free nodes, as every probe) and by the force the tool feels
+// (its reaction), which is what a haptic device renders: under an imposed displacement,
+// scaling every stiffness leaves E unchanged, so E alone cannot judge the stiffness; the force
+// can. The reference is solved with its own law (FEM), the model and the baseline with the
+// simulator's spring law (docs/ARCHITECTURE.md, "Tool pushes").
+//
+// Nothing in a fit sees these loads: they are a family of their own, judged by the certificate
+// beside the held-out probes.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "engine/probe_fit/nonlinear_solves.h"
+#include "engine/probe_fit/probe_bank.h"
+#include "engine/probe_fit/probe_evaluation.h"
+#include "engine/runtime/interruption.h"
+#include "engine/runtime/worker_pool.h"
+
+namespace springfit::response {
+
+struct ToolPushOptions {
+  // Push depths as fractions of the named loads' size (the bank's amplitude: the largest nodal
+  // displacement of its probes), each in (0, 20], ascending.
+  std::vector<double> amplitudes = {0.25, 0.5, 1.0};
+  // Pushed nodes at most (>= 1), evenly spread over the support's free boundary nodes: each is
+  // three nonlinear solves per depth.
+  int max_nodes = 12;
+
+  // Throws std::invalid_argument naming the field, its value and the rule.
+  void Validate(const std::string& owner = "ToolPushOptions") const;
+};
+
+struct ToolPushErrors {
+  double amplitude = 0.0;
+  double depth = 0.0;  // in the scene's length
+  ErrorSummary model;  // E over the free nodes
+  ErrorSummary baseline;
+  // |R - R_ref| / |R_ref|, R the tool's reaction (the elastic force on the pushed node).
+  ErrorSummary model_force;
+  ErrorSummary baseline_force;
+  // The median of |R| / |R_ref|: below 1, the model feels too soft to the tool.
+  double model_force_ratio = 0.0;
+  double baseline_force_ratio = 0.0;
+  int reference_failed = 0;  // pushes the reference has no equilibrium for, left out
+  // Pushes whose equilibrium turns an FEM element inside out (InvertedElements): failed.
+  int model_inverted = 0;
+  int baseline_inverted = 0;
+};
+
+// Per depth, the pushes of up to options.max_nodes boundary nodes along their inward normal,
+// on `support` (its nodes held); `size` is the named loads' size (ProbeBank::amplitude). Empty
+// for a reference without a surface (an MSS) or a support that leaves no boundary node free.
+// Throws Interrupted when stopped; with a pool the nodes run in parallel, with the same result.
+std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const Support& support,
+                                            double size, const SpringModel& model,
+                                            const SpringModel& baseline,
+                                            const ToolPushOptions& options = {},
+                                            Interruption* interruption = nullptr,
+                                            WorkerPool* pool = nullptr);
+
+}  // namespace springfit::response
