@@ -1,5 +1,7 @@
 #include "server/log_format.h"
 
+#include <cstdlib>
+
 #include <fmt/format.h>
 #include <spdlog/pattern_formatter.h>
 #include <spdlog/spdlog.h>
@@ -57,6 +59,15 @@ void InstallLogFormat() {
   auto formatter = std::make_unique<spdlog::pattern_formatter>();
   formatter->add_flag<EscapedMessage>('*').set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %*");
   spdlog::set_formatter(std::move(formatter));
+}
+
+void FlushLogForExit() {
+  if (auto logger = spdlog::default_logger()) logger->flush();
+}
+
+void FlushLogAndExit(int code) {
+  FlushLogForExit();
+  std::_Exit(code);
 }
 
 }  // namespace springfit::server

@@ -18,4 +18,13 @@ std::string EscapeLogText(std::string_view text, std::size_t max = kMaxLogMessag
 // spdlog's default logger writes "TIME LEVEL MESSAGE" with the message escaped.
 void InstallLogFormat();
 
+// Flushes the log before the process ends at once. The loggers stay registered and usable:
+// another thread may be inside a log call or about to make one, and spdlog::shutdown() would
+// free the logger under it (a SIGSEGV instead of the exit code; issue 48, item 5).
+void FlushLogForExit();
+
+// Ends the process at once with `code` (a second signal, jobs that outlast the shutdown's
+// wait) after FlushLogForExit.
+[[noreturn]] void FlushLogAndExit(int code);
+
 }  // namespace springfit::server

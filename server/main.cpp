@@ -179,8 +179,7 @@ void StopOnSignals(boost::asio::io_context& io, boost::asio::signal_set& signals
     signals.async_wait([](const boost::system::error_code& again, int) {
       if (again) return;
       spdlog::warn("second signal: exiting now; running jobs resume from their last checkpoint");
-      spdlog::shutdown();
-      std::_Exit(1);
+      sf::FlushLogAndExit(1);
     });
     stopper = std::thread([&, shutdown_seconds] {
       const auto timeout =
@@ -191,8 +190,7 @@ void StopOnSignals(boost::asio::io_context& io, boost::asio::signal_set& signals
         spdlog::warn(
             "jobs still running after {:.1f} s; exiting, they resume from their last checkpoint",
             shutdown_seconds);
-        spdlog::shutdown();
-        std::_Exit(1);
+        sf::FlushLogAndExit(1);
       }
       server.Stop();
       if (http) http->Stop();
@@ -229,6 +227,9 @@ int RunDaemon(const DaemonArgs& args) {
   sf::RpcService service(store, scheduler, service_options);
 
   boost::asio::io_context io;
+  // Signals are caught from before the first connection: a SIGTERM while the daemon starts is
+  // queued and stops it as any other (checkpoints), instead of killing it without them.
+  boost::asio::signal_set signals(io, SIGINT, SIGTERM);
   sf::TcpServer server(io, service, TcpOptionsOf(args, address));
   server.Start();
 
@@ -260,7 +261,6 @@ int RunDaemon(const DaemonArgs& args) {
       unfinished ? ", " + std::to_string(unfinished) + " unfinished jobs in the store" : "");
   WritePortFile(args.port_file, server.port());
 
-  boost::asio::signal_set signals(io, SIGINT, SIGTERM);
   std::thread stopper;
   StopOnSignals(io, signals, service, server, scheduler, http, args.shutdown_seconds, stopper);
   std::signal(SIGPIPE, SIG_IGN);

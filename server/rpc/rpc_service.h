@@ -22,7 +22,7 @@ struct ServiceLimits {
   int max_nodes = 100000;   // nodes per scene
   int max_genes = 2000000;  // candidate springs per scene
   // Candidate springs a scene's spec may ask for, estimated before they are generated
-  // (engine/candidates.h EstimateCandidateCount: k n for k nearest, counted for a radius).
+  // (engine/model/candidates.h EstimateCandidateCount: k n for k nearest, counted for a radius).
   std::int64_t max_candidates = 4000000;
   int max_population = 10000;  // a genetic search's population
   // Population times genes: the bytes of one generation's genomes (100 MB by default).
