@@ -998,7 +998,9 @@ class Soak:
                                             f"damaged by the schedule: {short(q)}")
             elif op == "info":
                 result, err = rpc(port, "server.info")
-        except Down:
+        except (Down, OSError):
+            # The daemon went down (killed, its disk full) under the call; a watch's own
+            # connection meets it as a refused or reset socket.
             pass
 
     def check_result_digest(self, job, result):

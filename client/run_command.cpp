@@ -1,6 +1,7 @@
 // springfit run SCENE [options]: a topology identification in this process (proto/RUN.md).
 
 #include <atomic>
+#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -56,6 +57,7 @@ struct RunArgs {
 };
 
 int Run(const RunArgs& args) {
+  const auto started = std::chrono::steady_clock::now();  // --time-limit counts from here
   Scene scene = SceneOf(args.scene);
   SearchSettings& st = scene.search;
   ApplySearchFlags(args.search, st);
@@ -91,6 +93,7 @@ int Run(const RunArgs& args) {
   auto previous_term = std::signal(SIGTERM, OnInterrupt);
 
   RunContext run;
+  run.started = started;
   run.threads = args.threads;
   run.on_iteration = [&](const TraceRow& row, const IterationState& state) {
     if (trace.is_open()) trace << proto::TraceRowToCsv(row) << std::endl;  // on disk as it goes

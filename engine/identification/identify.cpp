@@ -197,7 +197,12 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
   try {
     // Before the run's clock starts (it starts inside the strategy): not part of its time.
     identifiability = Identifiability(problem, &monitor.interruption());
+    const auto evaluating = std::chrono::steady_clock::now();
     baseline = EvaluateClosedFormBaseline(problem, &monitor.interruption());
+    // A stopped run still evaluates the model it returns on the named cases (as long as this
+    // evaluation of a model of the mesh's size): the time limit keeps room for it, with a
+    // tenth of a second for the result's judgement and output.
+    if (baseline) monitor.ReserveForClosing(SecondsSince(evaluating) + 0.1);
     r = strategy.Run(problem, options, context, monitor);
   } catch (const Interrupted&) {
     r = StoppedBeforeAModel(problem, options, context, monitor, baseline);

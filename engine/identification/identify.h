@@ -15,6 +15,7 @@
 // kTimeLimit, and an empty trace.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -68,6 +69,10 @@ struct RunContext {
   // Stop requests (on_beat's answer, the time limit) are read this often too: a quarter of a
   // second keeps a stop within a second even behind a unit of work of half a second.
   double beat_seconds = 0.25;
+  // When the run began for its user: before its scene was read and prepared (a command's
+  // start, a job's claim). The time limit (SearchOptions::max_seconds) counts from here, so
+  // that it bounds what the user waits; unset, from the call of RunIdentification().
+  std::optional<std::chrono::steady_clock::time_point> started;
   // Continue a checkpointed genetic run instead of starting one; `trace` is the trace so far.
   std::optional<SearchState> resume_from;
   std::vector<TraceRow> trace;

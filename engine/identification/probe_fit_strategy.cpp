@@ -434,8 +434,11 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   cost_options.solve_cases_of_mechanisms = true;
   CostFunction cost(problem, cost_options);
   r.evaluation = cost.Evaluate(problem.SpringsOfWeights(m.weights));
+  // (Stopped during the fit, the model is the start: evaluated once.)
   details.start_normalized_error =
-      cost.Evaluate(problem.SpringsOfWeights(baseline.start)).normalized_error;
+      m.weights == baseline.start
+          ? r.evaluation.normalized_error
+          : cost.Evaluate(problem.SpringsOfWeights(baseline.start)).normalized_error;
   details.fit_normalized_error = r.evaluation.normalized_error;
   details.chosen = m.returned_baseline || !m.fitted ? -1 : m.fit.chosen;
   details.regularization = m.fit.regularization;

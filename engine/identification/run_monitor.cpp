@@ -12,7 +12,7 @@ RunMonitor::RunMonitor(const RunContext& context, double max_seconds)
       // A resumed run's clock goes on from its checkpoint, as the GA's does (SearchState::
       // elapsed_seconds): one clock for the time limit, whichever of them checks it.
       before_(context.resume_from ? context.resume_from->elapsed_seconds : 0.0),
-      start_(std::chrono::steady_clock::now()),
+      start_(context.started.value_or(std::chrono::steady_clock::now())),
       interruption_([this] { return Poll(); }, context.beat_seconds) {}
 
 void RunMonitor::SetPhase(std::string_view phase, std::function<void(ProgressBeat&)> fill) {
@@ -25,7 +25,8 @@ double RunMonitor::SecondsSinceStart() const {
 }
 
 bool RunMonitor::TimeLimitPassed() {
-  if (max_seconds_ > 0.0 && SecondsSinceStart() >= max_seconds_) time_limit_reached_ = true;
+  if (max_seconds_ > 0.0 && SecondsSinceStart() + closing_seconds_ >= max_seconds_)
+    time_limit_reached_ = true;
   return time_limit_reached_;
 }
 

@@ -36,6 +36,9 @@ class RunMonitor {
   bool TimeLimitPassed();
   // The run's clock: seconds since it began, a resumed run's earlier seconds included.
   double SecondsSinceStart() const;
+  // What the run still does once stopped (its returned model's named cases, solved again): the
+  // time limit trips this much earlier, so that the whole run ends within it.
+  void ReserveForClosing(double seconds) { closing_seconds_ = seconds; }
 
  private:
   bool Poll();
@@ -43,6 +46,7 @@ class RunMonitor {
   const RunContext& context_;
   double max_seconds_;
   double before_;  // a resumed run's seconds before this process (its checkpoint's clock)
+  double closing_seconds_ = 0.0;
   std::chrono::steady_clock::time_point start_;
   std::string_view phase_ = "analysis";
   std::function<void(ProgressBeat&)> fill_;

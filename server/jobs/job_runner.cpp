@@ -64,7 +64,8 @@ class JobRun {
         lease_(claim.lease),
         options_(options),
         control_(control),
-        record_(claim.job) {}
+        record_(claim.job),
+        started_(std::chrono::steady_clock::now()) {}
 
   JobRecord& record() { return record_; }
 
@@ -97,6 +98,7 @@ class JobRun {
     genes_ = problem.gene_count();
     fingerprint_ = OptionsFingerprint(search_options);
     RunContext run;
+    run.started = started_;  // the job's time limit counts from its claim, preparation included
     run.pool = &pool_;
     run.resume_from = LoadCheckpoint();
     best_error_ = run.resume_from ? run.resume_from->best_fitness.normalized_error
@@ -235,6 +237,7 @@ class JobRun {
   const JobRunnerOptions& options_;
   const JobControl& control_;
   JobRecord record_;
+  const std::chrono::steady_clock::time_point started_;  // the claim: the time limit counts from it
   int genes_ = 0;
   std::uint64_t fingerprint_ = 0;
   ProgressBatch batch_;

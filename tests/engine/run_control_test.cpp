@@ -320,6 +320,33 @@ TEST(RunControl, AResumedRunsClockGoesOnFromItsCheckpoint) {
   EXPECT_FALSE(fresh_monitor.TimeLimitPassed());
 }
 
+// A time limit bounds what the user waits (issue 48 item 6): it counts from when the run began
+// for its user (RunContext::started: the command's start, the job's claim, before the scene is
+// prepared), and it trips early by what a stopped run still does after it.
+TEST(RunControl, TheTimeLimitCountsFromTheRunsStartAndKeepsRoomForClosing) {
+  RunContext prepared_long;
+  prepared_long.started = std::chrono::steady_clock::now() - std::chrono::seconds(40);
+  RunMonitor late(prepared_long, 30.0);
+  EXPECT_GE(late.SecondsSinceStart(), 40.0);
+  EXPECT_TRUE(late.TimeLimitPassed());
+
+  RunContext now;
+  now.started = std::chrono::steady_clock::now() - std::chrono::seconds(25);
+  RunMonitor within(now, 30.0);
+  EXPECT_FALSE(within.TimeLimitPassed());
+  within.ReserveForClosing(6.0);  // closing takes 6 s: 25 + 6 is past 30
+  EXPECT_TRUE(within.TimeLimitPassed());
+
+  // A whole run whose preparation used its limit stops at once, with the start named as such.
+  const Problem p = Problem::Build(examples::Make("fem-plate-5x5"));
+  SearchOptions o = Resolved(p, Strategy::kDefault);
+  o.max_seconds = 5.0;
+  const IdentificationResult r = RunIdentification(p, o, prepared_long);
+  EXPECT_EQ(r.stop, StopReason::kTimeLimit);
+  EXPECT_NE(r.stop_message.find("time limit reached"), std::string::npos) << r.stop_message;
+  EXPECT_FALSE(r.generalization);  // not certified
+}
+
 TEST(WorkerPool, AThrowingWaitCallbackStillWaitsForTheRunningSlots) {
   WorkerPool pool(2);
   std::atomic<bool> pool_started{false};

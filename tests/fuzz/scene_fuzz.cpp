@@ -11,8 +11,8 @@
 #include <cstdlib>
 #include <string_view>
 
-#include "engine/input_error.h"
 #include "engine/problem/problem.h"
+#include "engine/runtime/input_error.h"
 #include "proto/scene_codec.h"
 
 namespace {
