@@ -117,7 +117,7 @@ FAULTS = {
     "sqlite": ["kill", "freeze", "disk-full", "damage", "disconnect", "slowloris"],
     "postgres": ["kill", "freeze", "pg-restart", "pg-stop", "damage", "disconnect", "slowloris"],
 }
-DAMAGE = {  # a queued row made unreadable, as tests/server/store_suite_test.cpp does
+DAMAGE = {  # a queued row made unreadable, as tests/server/store_quarantine_test.cpp does
     "progress-not-json": "progress = '{not json'",
     "progress-bad-field": "progress = '{\"generation\": \"x\"'",
     "state-unknown": "state = 'bogus'",

@@ -1,0 +1,105 @@
+// The nonlinear judgement (engine/probe_fit/amplitude_judgement.h): small loads give the
+// rest-linear errors, models that fold the mesh are counted, a linear response is not judged.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "engine/probe_fit/amplitude_judgement.h"
+#include "engine/probe_fit/nonlinear_solves.h"
+#include "engine/probe_fit/probe_bank.h"
+#include "engine/probe_fit/probe_evaluation.h"
+#include "engine/probe_fit/rest_stiffness.h"
+#include "engine/problem/baseline_evaluation.h"
+#include "engine/runtime/worker_pool.h"
+#include "io/example_catalog.h"
+
+namespace springfit::response {
+namespace {
+
+// The nonlinear judgement (amplitude_judgement.h) on the nonlinear kidney: at a thousandth of
+// the named loads' size every response is its rest-linear one, so the errors are the
+// certificate's rest-linear errors on the same probes; at their full size the springs and the
+// neo-Hookean reference leave that limit; the same numbers on one thread or two.
+TEST(AmplitudeJudgement, SmallLoadsGiveTheRestLinearErrorsAndFullOnesDiffer) {
+  const Problem problem(examples::Make("fem-kidney-2d-nl"));
+  ASSERT_EQ(problem.response(), Response::kNonlinear);
+  const SparseMatrix k = ReferenceRestStiffness(problem);
+  // Every fourth probe of the fit's bank (the certificate passes its held-out probes and named
+  // cases the same way).
+  const ProbeBank all = MakeProbeBanks(problem, k, ProbeOptions{}).fit;
+  ProbeBank bank = all;
+  bank.probes.clear();
+  for (std::size_t p = 0; p < all.probes.size(); p += 4) bank.probes.push_back(all.probes[p]);
+  const std::vector<double> baseline = *BaselineGeneWeights(problem);
+  std::vector<double> model = baseline;  // another model: every other spring twice as stiff
+  for (std::size_t g = 0; g < model.size(); g += 2) model[g] *= 2.0;
+  AmplitudeOptions options;
+  options.amplitudes = {1e-3, 1.0};
+  options.max_probes = 1000;  // every probe of the bank
+  const std::vector<AmplitudeErrors> judged = JudgeAtAmplitudes(
+      problem, bank, ModelOfWeights(problem, model), ModelOfWeights(problem, baseline), options);
+  ASSERT_EQ(judged.size(), 2u);
+
+  const std::vector<bool> include(bank.probes.size(), true);
+  const ErrorSummary linear_model =
+      Summarize(ProbeErrorsFor(bank, SpringRestStiffness(problem, model), include));
+  const ErrorSummary linear_baseline =
+      Summarize(ProbeErrorsFor(bank, SpringRestStiffness(problem, baseline), include));
+  const AmplitudeErrors& small = judged[0];
+  EXPECT_EQ(small.reference_failed, 0);
+  EXPECT_EQ(small.model.probes, linear_model.probes);
+  EXPECT_NEAR(small.model.median, linear_model.median, 1e-2 * linear_model.median);
+  EXPECT_NEAR(small.model.p95, linear_model.p95, 1e-2 * linear_model.p95);
+  EXPECT_NEAR(small.baseline.rms, linear_baseline.rms, 1e-2 * linear_baseline.rms);
+  const AmplitudeErrors& full = judged[1];
+  EXPECT_GT(std::abs(full.baseline.rms - small.baseline.rms), 1e-3 * small.baseline.rms);
+  EXPECT_EQ(full.model.probes + full.reference_failed, linear_model.probes);
+
+  // At a thousandth of the loads nothing folds.
+  EXPECT_EQ(small.model_inverted, 0);
+  EXPECT_EQ(small.baseline_inverted, 0);
+
+  WorkerPool pool(2);
+  const std::vector<AmplitudeErrors> threaded =
+      JudgeAtAmplitudes(problem, bank, ModelOfWeights(problem, model),
+                        ModelOfWeights(problem, baseline), options, nullptr, &pool);
+  EXPECT_EQ(threaded[1].model.rms, full.model.rms);
+  EXPECT_EQ(threaded[1].baseline.median, full.baseline.median);
+  EXPECT_EQ(threaded[1].model_inverted, full.model_inverted);
+}
+
+// A model that folds the mesh under a probe is counted as inverting an element: the closed-form
+// baseline on the kidney at four times the named loads folds under some pushes, and a model
+// twice as stiff everywhere folds under fewer.
+TEST(AmplitudeJudgement, ModelsThatFoldTheMeshAreCounted) {
+  const Problem problem(examples::Make("fem-kidney-2d-nl"));
+  const SparseMatrix k = ReferenceRestStiffness(problem);
+  const ProbeBank bank = MakeProbeBanks(problem, k, ProbeOptions{}).fit;
+  const std::vector<double> baseline = *BaselineGeneWeights(problem);
+  std::vector<double> stiffer = baseline;
+  for (double& w : stiffer) w *= 2.0;
+  AmplitudeOptions options;
+  options.amplitudes = {4.0};
+  options.max_probes = 1000;
+  WorkerPool pool(2);
+  const std::vector<AmplitudeErrors> judged =
+      JudgeAtAmplitudes(problem, bank, ModelOfWeights(problem, stiffer),
+                        ModelOfWeights(problem, baseline), options, nullptr, &pool);
+  ASSERT_EQ(judged.size(), 1u);
+  EXPECT_GT(judged[0].baseline_inverted, 0);
+  EXPECT_LT(judged[0].model_inverted, judged[0].baseline_inverted);
+}
+
+// A linear response has nothing to add to the rest-linear certificate.
+TEST(AmplitudeJudgement, ALinearResponseIsNotJudgedAgain) {
+  const Problem problem(examples::Make("fem-kidney-2d"));
+  ASSERT_EQ(problem.response(), Response::kLinear);
+  const SparseMatrix k = ReferenceRestStiffness(problem);
+  const ProbeBank bank = MakeProbeBanks(problem, k, ProbeOptions{}).fit;
+  const SpringModel baseline = ModelOfWeights(problem, *BaselineGeneWeights(problem));
+  EXPECT_TRUE(JudgeAtAmplitudes(problem, bank, baseline, baseline).empty());
+}
+
+}  // namespace
+}  // namespace springfit::response

@@ -1,0 +1,31 @@
+// What the probe fit's tests (engine/probe_fit/) share: the kidney at rest, its bank and
+// prior.
+#pragma once
+#include <vector>
+
+#include "engine/probe_fit/generalization.h"
+#include "engine/probe_fit/probe_bank.h"
+#include "engine/probe_fit/response_fit.h"
+#include "engine/probe_fit/rest_stiffness.h"
+#include "engine/problem/baseline_evaluation.h"
+#include "io/example_catalog.h"
+
+namespace springfit::response {
+
+// The kidney, its reference stiffness at rest, the default probe bank, and the closed-form
+// baseline as the prior.
+struct KidneyAtRest {
+  Problem problem{examples::Make("fem-kidney-2d")};
+  SparseMatrix k = ReferenceRestStiffness(problem);
+  ResponseFitOptions options;
+  ProbeBanks banks = MakeProbeBanks(problem, k, options.probes);
+  std::vector<double> prior = *BaselineGeneWeights(problem);
+  const ProbeBank& bank = banks.fit;
+  // The certificate of `weights` beside `prior`'s.
+  Generalization Certify(const std::vector<double>& weights) const {
+    return Certifier(problem, bank, banks.held_out, k)
+        .Certify(weights, SpringRestStiffness(problem, prior));
+  }
+};
+
+}  // namespace springfit::response
