@@ -17,18 +17,14 @@
 #include "engine/problem/cost.h"
 #include "engine/runtime/input_error.h"
 #include "io/example_catalog.h"
+#include "tests/engine/probe_fit_test_support.h"
 
 namespace springfit::response {
 namespace {
 
 // The St. Venant-Kirchhoff kidney, its default bank and the closed-form baseline.
-struct NonlinearKidney {
-  Problem problem{examples::Make("fem-kidney-2d-nl")};
-  SparseMatrix k = ReferenceRestStiffness(problem);
-  ResponseFitOptions options;
-  ProbeBanks banks = MakeProbeBanks(problem, k, options.probes);
-  std::vector<double> prior = *BaselineGeneWeights(problem);
-  const ProbeBank& bank = banks.fit;
+struct NonlinearKidney : KidneyAtRest {
+  NonlinearKidney() : KidneyAtRest("fem-kidney-2d-nl") {}
 };
 
 // J^T r and J^T J v of the nonlinear objective against central differences of its residuals:

@@ -1,6 +1,7 @@
 // What the probe fit's tests (engine/probe_fit/) share: the kidney at rest, its bank and
 // prior.
 #pragma once
+#include <string>
 #include <vector>
 
 #include "engine/probe_fit/generalization.h"
@@ -12,10 +13,12 @@
 
 namespace springfit::response {
 
-// The kidney, its reference stiffness at rest, the default probe bank, and the closed-form
-// baseline as the prior.
+// An FEM example (the kidney unless named), its reference stiffness at rest, the default probe
+// bank, and the closed-form baseline as the prior.
 struct KidneyAtRest {
-  Problem problem{examples::Make("fem-kidney-2d")};
+  explicit KidneyAtRest(const std::string& example = "fem-kidney-2d")
+      : problem(examples::Make(example)) {}
+  Problem problem;
   SparseMatrix k = ReferenceRestStiffness(problem);
   ResponseFitOptions options;
   ProbeBanks banks = MakeProbeBanks(problem, k, options.probes);
