@@ -210,6 +210,8 @@ const char* ProbeFamilyName(response::ProbeFamily family) {
       return "named";
     case response::ProbeFamily::kMode:
       return "mode";
+    case response::ProbeFamily::kPush:
+      return "push";
   }
   return "?";
 }

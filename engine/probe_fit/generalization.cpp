@@ -21,7 +21,7 @@ Generalization Certifier::Certify(const std::vector<double>& model, const Sparse
                                   Interruption* interruption) const {
   Generalization g;
   g.probes = static_cast<int>(bank_.probes.size()) + held_out_;
-  g.supports = static_cast<int>(bank_.supports.size());
+  for (const Support& support : bank_.supports) g.supports += support.tool_node < 0 ? 1 : 0;
   for (const Probe& probe : bank_.probes) {
     g.fitted += probe.role == ProbeRole::kFit;
     g.choosing += probe.role == ProbeRole::kSelect;
@@ -85,11 +85,7 @@ std::vector<ToolPushErrors> Certifier::JudgeToolPushes(const SpringModel& model,
                                                        const ToolPushOptions& options,
                                                        Interruption* interruption,
                                                        WorkerPool* pool) const {
-  for (const Support& support : bank_.supports)
-    if (support.user)
-      return response::JudgeToolPushes(problem_, support, bank_.amplitude, model, baseline, options,
-                                       interruption, pool);
-  return {};
+  return response::JudgeToolPushes(problem_, judged_, model, baseline, options, interruption, pool);
 }
 
 }  // namespace springfit::response

@@ -419,7 +419,10 @@ NonlinearFitResult FitNonlinearResponse(
   // (Without cases the start stands: its iterate alone is judged.)
   const std::size_t chosen = fit.iterates().empty() ? 0 : fit.BestOf(0);
   r.start_choosing_error = cases.ChoosingError(start, &r.start_failed);
-  if (fit.iterates().empty() || chosen == 0) {
+  // (The first iterate is the start with the fit's dust and spread bounds applied, which can
+  // judge worse than the start itself: the start stands unless the chosen iterate beats it.)
+  if (fit.iterates().empty() || chosen == 0 ||
+      !(fit.iterates()[chosen].select_error < r.start_choosing_error)) {
     r.weights = start;
     r.choosing_error = r.start_choosing_error;
     r.failed = r.start_failed;

@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include "engine/fem/fem_model.h"
+#include "engine/probe_fit/nonlinear_solves.h"
 #include "engine/probe_fit/support_system.h"
 #include "engine/runtime/input_error.h"
 #include "engine/runtime/options_check.h"
@@ -170,6 +171,8 @@ void ProbeOptions::Validate(const std::string& owner) const {
   check.Require(count >= 0, "count", count, "value >= 0");
   check.Require(extra_supports >= 0 && extra_supports <= 64, "extra_supports", extra_supports,
                 "0 <= value <= 64");
+  check.Require(pushes == 0 || (pushes >= kGroupMinimum && pushes <= 256), "pushes", pushes,
+                "0, or 3 <= value <= 256");
   check.Require(support_fraction > 0.0 && support_fraction <= 0.5, "support_fraction",
                 support_fraction, "0 < value <= 0.5");
   check.Require(select_fraction > 0.0 && select_fraction <= 0.5, "select_fraction", select_fraction,
@@ -180,10 +183,17 @@ void ProbeOptions::Validate(const std::string& owner) const {
                 "0 <= value < 1");
   check.Require(soft_mode_weight >= 0.0 && named_weight + soft_mode_weight < 1.0,
                 "soft_mode_weight", soft_mode_weight, "value >= 0 and named_weight + value < 1");
+  check.Require(push_weight >= 0.0 && named_weight + soft_mode_weight + push_weight < 1.0,
+                "push_weight", push_weight,
+                "value >= 0 and named_weight + soft_mode_weight + value < 1");
 }
 
 int MinimumProbeCount(int user_supports, const ProbeOptions& options) {
   return kGroupMinimum * kGeneratedFamilies * (user_supports + options.extra_supports);
+}
+
+int MaximumPushCount(int user_supports, const ProbeOptions& options) {
+  return options.pushes * (user_supports + options.extra_supports);
 }
 
 double ProbeBankBytes(long long probes, int nodes, int dimension) {
@@ -323,6 +333,33 @@ class BankBuilder {
     }
   }
 
+  // Tool pushes on every support made so far (the user's and the drawn ones): boundary nodes
+  // with a normal, free on it, evenly spread, each moved in along its inward normal; each push
+  // a support of its own, the pushes of one base support a group whose roles are assigned as a
+  // family's.
+  void AddPushProbes() {
+    if (options_.pushes == 0 || scene_.reference.kind != Reference::Kind::kFem) return;
+    const std::size_t bases = bank_.supports.size();
+    for (std::size_t s = 0; s < bases; ++s) {
+      std::vector<int> pushable;
+      for (int node : surface_.nodes)
+        if (!bank_.supports[s].constrained[static_cast<std::size_t>(node)] &&
+            surface_.normal.segment(d_ * node, d_).norm() > 0.5)
+          pushable.push_back(node);
+      const std::size_t begin = bank_.probes.size();
+      // (In 3D the pushes are judged, not fitted (ProbeOptions::fit_pushes_in_3d): only as many
+      // as would be held out are made, each held out.)
+      const bool fitted = d_ == 2 || options_.fit_pushes_in_3d;
+      const int count = fitted ? options_.pushes
+                               : static_cast<int>(std::ceil(options_.held_out_fraction *
+                                                            static_cast<double>(options_.pushes)));
+      for (int node : EvenlySpread(pushable, count)) AddPush(s, node);
+      AssignRoles(bank_.probes, held_, begin, options_, random_);
+      if (!fitted)
+        for (std::size_t p = begin; p < held_.size(); ++p) held_[p] = true;
+    }
+  }
+
   // Every probe's |u_ref|^2 over its support's free nodes; the held-out probes in a bank of
   // their own (the same supports), each part in the order the probes were made.
   std::pair<ProbeBank, ProbeBank> Finish() {
@@ -403,6 +440,31 @@ class BankBuilder {
     bank_.probes.push_back(std::move(probe));
   }
 
+  // A push of `node` on base support `base` to the bank's amplitude: the tool's depth is the
+  // loads' size (the body beyond the tool may move further, as a cantilever's tip does). Dropped
+  // when the base support with the node held does not hold the reference.
+  void AddPush(std::size_t base, int node) {
+    Support support = bank_.supports[base];
+    support.user = false;
+    support.tool_node = node;
+    support.constrained[static_cast<std::size_t>(node)] = true;
+    support.description =
+        fmt::format("tool at node {} on {}", node, bank_.supports[base].description);
+    SupportSystem system(d_, support.constrained);
+    if (!system.Factorize(reference_stiffness_)) return;
+    Probe probe;
+    probe.family = ProbeFamily::kPush;
+    probe.force = Vector::Zero(d_ * n_);
+    probe.prescribed = Vector::Zero(d_ * n_);
+    probe.prescribed.segment(d_ * node, d_) =
+        -bank_.amplitude * surface_.normal.segment(d_ * node, d_);
+    probe.reference = system.Displacement(probe.force, probe.prescribed);
+    probe.support = static_cast<int>(bank_.supports.size());
+    bank_.supports.push_back(std::move(support));
+    systems_.push_back(std::move(system));
+    bank_.probes.push_back(std::move(probe));
+  }
+
   const Problem& problem_;
   const Scene& scene_;
   const SparseMatrix& reference_stiffness_;
@@ -436,6 +498,7 @@ ProbeBanks MakeProbeBanks(const Problem& problem, const SparseMatrix& reference_
   builder.AddNamedCases();
   builder.DrawSupports();
   builder.AddGeneratedProbes();
+  builder.AddPushProbes();
   auto [fit, held_out] = builder.Finish();
   return {std::move(fit), HeldOutProbes(std::move(held_out))};
 }

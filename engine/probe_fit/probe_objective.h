@@ -83,6 +83,8 @@ class ProbeObjective {
   const std::vector<double>& weight() const { return weight_; }  // per probe (FitWeights)
   const Vector& scale() const { return scale_; }
   const Vector& prior_scaled() const { return prior_scaled_; }
+  // Per support of the bank, the reference's system, factorised on the user's supports and
+  // those with a probe of the bank (the held-out pushes' own are not: the certificate's).
   const std::vector<SupportSystem>& reference() const { return reference_; }
   // The supports with a fitted probe, ascending.
   const std::vector<std::size_t>& fitted_supports() const { return fitted_supports_; }

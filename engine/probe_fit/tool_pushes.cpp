@@ -56,25 +56,21 @@ struct PushResult {
 void ToolPushOptions::Validate(const std::string& owner) const {
   const OptionsCheck check(owner);
   CheckAmplitudes(check, amplitudes);
-  check.Require(max_nodes >= 1, "max_nodes", max_nodes, "value >= 1");
+  check.Require(max_pushes >= 1, "max_pushes", max_pushes, "value >= 1");
 }
 
-std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const Support& support,
-                                            double size, const SpringModel& model,
-                                            const SpringModel& baseline,
+std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const ProbeBank& bank,
+                                            const SpringModel& model, const SpringModel& baseline,
                                             const ToolPushOptions& options,
                                             Interruption* interruption, WorkerPool* pool) {
   options.Validate();
   const Scene& scene = problem.scene();
-  if (scene.reference.kind != Reference::Kind::kFem || !(size > 0.0)) return {};
+  if (scene.reference.kind != Reference::Kind::kFem) return {};
   const int d = scene.dimension;
-  const Surface surface = AnySurface(scene);
-  std::vector<int> candidates;
-  for (int node : surface.nodes)
-    if (!support.constrained[static_cast<std::size_t>(node)] &&
-        surface.normal.segment(d * node, d).norm() > 0.5)
-      candidates.push_back(node);
-  const std::vector<int> pushed = EvenlySpread(candidates, options.max_nodes);
+  std::vector<int> all;
+  for (std::size_t p = 0; p < bank.probes.size(); ++p)
+    if (bank.probes[p].family == ProbeFamily::kPush) all.push_back(static_cast<int>(p));
+  const std::vector<int> pushed = EvenlySpread(all, options.max_pushes);
   if (pushed.empty()) return {};
   const std::size_t depths = options.amplitudes.size();
   const ReferenceModel reference(problem);
@@ -88,9 +84,10 @@ std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const Suppor
       pool, static_cast<int>(pushed.size()),
       [&](int slot) {
         const auto i = static_cast<std::size_t>(slot);
-        const int node = pushed[i];
-        std::vector<bool> held = support.constrained;
-        held[static_cast<std::size_t>(node)] = true;
+        const Probe& probe = bank.probes[static_cast<std::size_t>(pushed[i])];
+        const Support& support = bank.supports[static_cast<std::size_t>(probe.support)];
+        const int node = support.tool_node;
+        const std::vector<bool>& held = support.constrained;
         const FreeNodes free = FreeNodes::FromConstrained(held);
         ReferenceSolver reference_solver(reference.fem, reference.springs, free, problem,
                                          interruption);
@@ -99,9 +96,7 @@ std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const Suppor
                                        interruption);
         const Vector force = Vector::Zero(scene.rest.size());
         for (std::size_t a = 0; a < depths; ++a) {
-          Vector prescribed = Vector::Zero(scene.rest.size());
-          prescribed.segment(d * node, d) =
-              -options.amplitudes[a] * size * surface.normal.segment(d * node, d);
+          const Vector prescribed = options.amplitudes[a] * probe.prescribed;
           const std::optional<Vector> u_ref = reference_solver.Solve(force, prescribed);
           if (!u_ref) continue;  // (NaN: left out)
           const Vector r_ref = FemReaction(*reference.fem, held, *u_ref, node, d);
@@ -132,7 +127,7 @@ std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const Suppor
   for (std::size_t a = 0; a < depths; ++a) {
     ToolPushErrors e;
     e.amplitude = options.amplitudes[a];
-    e.depth = options.amplitudes[a] * size;
+    e.depth = options.amplitudes[a] * bank.amplitude;
     std::vector<double> me, be, mf, bf, mr, br;
     for (std::size_t i = 0; i < pushed.size(); ++i) {
       const PushResult& m = model_results[a][i];

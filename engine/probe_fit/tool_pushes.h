@@ -6,8 +6,9 @@
 // can. The reference is solved with its own law (FEM), the model and the baseline with the
 // simulator's spring law (docs/ARCHITECTURE.md, "Tool pushes").
 //
-// Nothing in a fit sees these loads: they are a family of their own, judged by the certificate
-// beside the held-out probes.
+// The pushes are the probe bank's family push (probe_bank.h): fitted and chosen on like every
+// family at the named loads' size; the certificate judges the held-out ones here, at depths
+// across the load range, with the simulator's spring law and the reference's own.
 #pragma once
 
 #include <string>
@@ -25,9 +26,9 @@ struct ToolPushOptions {
   // Push depths as fractions of the named loads' size (the bank's amplitude: the largest nodal
   // displacement of its probes), each in (0, 20], ascending.
   std::vector<double> amplitudes = {0.25, 0.5, 1.0};
-  // Pushed nodes at most (>= 1), evenly spread over the support's free boundary nodes: each is
-  // three nonlinear solves per depth.
-  int max_nodes = 12;
+  // Pushes judged at most (>= 1), evenly spread over the bank's: each is three nonlinear solves
+  // per depth.
+  int max_pushes = 24;
 
   // Throws std::invalid_argument naming the field, its value and the rule.
   void Validate(const std::string& owner = "ToolPushOptions") const;
@@ -50,13 +51,11 @@ struct ToolPushErrors {
   int baseline_inverted = 0;
 };
 
-// Per depth, the pushes of up to options.max_nodes boundary nodes along their inward normal,
-// on `support` (its nodes held); `size` is the named loads' size (ProbeBank::amplitude). Empty
-// for a reference without a surface (an MSS) or a support that leaves no boundary node free.
-// Throws Interrupted when stopped; with a pool the nodes run in parallel, with the same result.
-std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const Support& support,
-                                            double size, const SpringModel& model,
-                                            const SpringModel& baseline,
+// Per depth, up to options.max_pushes of `bank`'s pushes (family push, each at the bank's
+// amplitude, scaled to the depth). Empty for a bank without pushes (an MSS reference).
+// Throws Interrupted when stopped; with a pool the pushes run in parallel, with the same result.
+std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const ProbeBank& bank,
+                                            const SpringModel& model, const SpringModel& baseline,
                                             const ToolPushOptions& options = {},
                                             Interruption* interruption = nullptr,
                                             WorkerPool* pool = nullptr);

@@ -314,7 +314,7 @@ r = json.load(open(sys.argv[1]))
 g = r["generalization"]
 assert g["fitted_to_probes"] and not g["returned_baseline"], g
 assert g["held_out"]["median"] < 0.5 * g["baseline_held_out"]["median"], g
-assert set(g["by_family"]) == {"point", "patch", "body", "named"}, g["by_family"]
+assert set(g["by_family"]) == {"point", "patch", "body", "push", "named"}, g["by_family"]
 assert g["lambda_min"] > 0.1 and g["lambda_max"] >= g["lambda_min"], g
 assert g["probes"]["held_out"] > 0 and g["probes"]["supports"] >= 3, g["probes"]
 assert r["options"]["probes"] == "auto"
@@ -328,16 +328,19 @@ r = json.load(open(sys.argv[1]))
 steps = r["continuous"]["steps"]
 assert steps > 0 and f"steps:             {steps} (Gauss-Newton steps of the probe fit)" in out, (steps, out)
 PY
-# (Its certificate bound, 2.64, is worse than the recipe's 1.99 by more than a quarter: a
-# doubtful verdict, exit 12, with the WARNING saying it; proto/RUN.md, "Doubts".)
-expect_exit 12 "run fem probes 60" "$sf" run "$src/examples/fem-plate-5x5.json" --probes 60 -q -o "$tmp/probes60.json"
-grep -q "^WARNING: *the certificate: a load on your supports can move the model by up to [0-9.]* times" "$tmp/out" || fail "the doubt is not said: $(grep -E 'verdict|WARNING' "$tmp/out")"
+# A requested probe count: the generated probes are about that many, with the tool pushes (8 on
+# each of the 5 supports) on top.
+expect_exit 0 "run fem probes 60" "$sf" run "$src/examples/fem-plate-5x5.json" --probes 60 -q -o "$tmp/probes60.json"
 python3 - "$tmp/probes60.json" <<'PY' || fail "probe count: $(head -c 300 "$tmp/probes60.json")"
 import json, sys
 r = json.load(open(sys.argv[1]))
 assert r["scene_definition"]["search"]["probes"] == 60 and r["options"]["probes"] == 60
-assert 50 <= r["generalization"]["probes"]["total"] - len(r["load_cases"]) <= 70, r["generalization"]["probes"]
+assert 90 <= r["generalization"]["probes"]["total"] - len(r["load_cases"]) <= 110, r["generalization"]["probes"]
 PY
+# (The kidney's certificate bound, 6.4, is worse than the recipe's 4.18 by more than a quarter:
+# a doubtful verdict, exit 12, with the WARNING saying it; proto/RUN.md, "Doubts".)
+expect_exit 12 "run fem kidney doubtful" "$sf" run "$src/examples/fem-kidney-2d.json" -q
+grep -q "^WARNING: *the certificate: a load on your supports can move the model by up to [0-9.]* times" "$tmp/out" || fail "the doubt is not said: $(grep -E 'verdict|WARNING' "$tmp/out")"
 expect_exit 2 "bad probes" "$sf" run "$src/examples/fem-plate-5x5.json" --probes many
 grep -q -- "--probes: must be \"auto\", \"none\" or a count from 1 to 20000, got 'many'" "$tmp/err" || fail "probes names the value: $(cat "$tmp/err")"
 

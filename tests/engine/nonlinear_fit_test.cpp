@@ -79,15 +79,20 @@ TEST(NonlinearResponse, GradientAndNormalProductMatchFiniteDifferences) {
 TEST(NonlinearFit, ContinuesTheRestLinearModelToTheLoadRangesSizes) {
   const NonlinearKidney kidney;
   ResponseFitOptions options = kidney.options;
-  const ResponseFitResult rest =
-      FitResponse(kidney.problem, kidney.bank, kidney.k, kidney.prior, options);
+  // (The force families alone, as these figures were measured: with the tool pushes in the bank
+  // too, pushed three times as deep, the stage lowers its choosing error by 5 % there, 0.149 to
+  // 0.141; bench/RESULTS.md, "Round seven".)
+  options.probes.pushes = 0;
+  const ProbeBanks banks = MakeProbeBanks(kidney.problem, kidney.k, options.probes);
+  const ProbeBank& bank = banks.fit;
+  const ResponseFitResult rest = FitResponse(kidney.problem, bank, kidney.k, kidney.prior, options);
   // Up to three times the named loads (15% strain), where the springs' nonlinearity tells: the
   // rest-linear objective continued the same way ends at 0.118 there (from 0.125), the
   // nonlinear one at 0.109.
   NonlinearFitOptions nonlinear;
   nonlinear.amplitudes = {1.0, 2.0, 3.0};
   const NonlinearFitResult n =
-      FitNonlinearResponse(kidney.problem, kidney.bank, kidney.k, rest.weights, options, nonlinear,
+      FitNonlinearResponse(kidney.problem, bank, kidney.k, rest.weights, options, nonlinear,
                            &kidney.prior, nullptr, {}, nullptr);
   EXPECT_GT(n.fitted_cases, 2 * 100);
   EXPECT_GT(n.steps, 0);
@@ -144,15 +149,11 @@ TEST(ToolPushes, TheShapeIgnoresAStiffnessScaleAndTheToolForceDoesNot) {
   const SpringModel baseline = ModelOfWeights(kidney.problem, kidney.prior);
   SpringModel doubled = baseline;
   for (double& k : doubled.stiffness) k *= 2.0;
-  const Support* user = nullptr;
-  for (const Support& s : kidney.bank.supports)
-    if (s.user && !user) user = &s;
-  ASSERT_NE(user, nullptr);
   ToolPushOptions options;
   options.amplitudes = {0.5, 1.0};
-  options.max_nodes = 6;
+  options.max_pushes = 6;
   const std::vector<ToolPushErrors> pushes =
-      JudgeToolPushes(kidney.problem, *user, kidney.bank.amplitude, doubled, baseline, options);
+      JudgeToolPushes(kidney.problem, kidney.bank, doubled, baseline, options);
   ASSERT_EQ(pushes.size(), 2u);
   for (const ToolPushErrors& t : pushes) {
     EXPECT_DOUBLE_EQ(t.depth, t.amplitude * kidney.bank.amplitude);

@@ -10,8 +10,10 @@
 #include <Eigen/Eigenvalues>
 
 #include "engine/probe_fit/generalization.h"
+#include "engine/probe_fit/nonlinear_solves.h"
 #include "engine/probe_fit/probe_bank.h"
 #include "engine/probe_fit/rest_stiffness.h"
+#include "engine/probe_fit/tool_pushes.h"
 #include "engine/problem/baseline_evaluation.h"
 #include "io/example_catalog.h"
 #include "proto/names.h"
@@ -31,6 +33,7 @@ TEST(ProbeBank, EverySupportHasEveryFamilyInEveryDirectionAndAHeldOutPart) {
   for (const Support& s : bank.supports) user += s.user;
   EXPECT_EQ(user, 2);
   for (std::size_t s = 0; s < bank.supports.size(); ++s) {
+    if (bank.supports[s].tool_node >= 0) continue;  // a push's own (ToolPushes... below)
     for (ProbeFamily family : {ProbeFamily::kPoint, ProbeFamily::kPatch, ProbeFamily::kBody}) {
       int count = 0, choosing = 0, fitted = 0;
       Matrix directions = Matrix::Zero(2, 2);  // sum of f f^T over the family's forces
@@ -77,7 +80,7 @@ TEST(ProbeBank, DrawnSupportsOnA3DBoundaryHoldEveryRigidMotion) {
   const int d = problem.dimension();
   int drawn = 0;
   for (const Support& s : bank.supports) {
-    if (s.user) continue;
+    if (s.user || s.tool_node >= 0) continue;
     ++drawn;
     std::vector<Eigen::Vector3d> held;
     for (int node = 0; node < problem.scene().node_count(); ++node)
@@ -98,6 +101,89 @@ TEST(ProbeBank, DrawnSupportsOnA3DBoundaryHoldEveryRigidMotion) {
       Certifier(problem, bank, banks.held_out, k).Certify(*baseline, baseline_k);
   EXPECT_TRUE(std::isfinite(g.model_held_out.p95)) << g.model_held_out.p95;
   EXPECT_GT(g.lambda_min, 0.0);
+}
+
+// Tool pushes (family push) are imposed displacements: each holds its base support and its
+// pushed node, which moves in along the inward normal by the bank's amplitude, with no force;
+// the reference takes that shape; each base support's pushes have every role (the held-out ones
+// in the certificate's bank); an MSS reference, without a surface, has none.
+TEST(ProbeBank, ToolPushesHoldTheirNodeAtTheAmplitudeAlongTheInwardNormal) {
+  const Problem problem(examples::Make("fem-kidney-2d"));
+  const SparseMatrix k = ReferenceRestStiffness(problem);
+  ProbeOptions options;
+  const ProbeBanks banks = MakeProbeBanks(problem, k, options);
+  const ProbeBank& bank = banks.fit;
+  const int d = problem.dimension();
+  const Surface surface = AnySurface(problem.scene());
+  std::vector<int> bases;  // per support: its base support (itself when not a push's)
+  for (std::size_t s = 0; s < bank.supports.size(); ++s) {
+    const Support& support = bank.supports[s];
+    if (support.tool_node < 0) {
+      bases.push_back(static_cast<int>(s));
+      continue;
+    }
+    EXPECT_FALSE(support.user);
+    EXPECT_TRUE(support.constrained[static_cast<std::size_t>(support.tool_node)]);
+    // The base: the one support before it that holds every node it holds but the tool's.
+    int base = -1;
+    for (std::size_t b = 0; b < s && base < 0; ++b) {
+      std::vector<bool> with_tool = bank.supports[b].constrained;
+      with_tool[static_cast<std::size_t>(support.tool_node)] = true;
+      if (bank.supports[b].tool_node < 0 && with_tool == support.constrained)
+        base = static_cast<int>(b);
+    }
+    ASSERT_GE(base, 0) << support.description;
+    bases.push_back(base);
+  }
+  std::vector<int> fitted(bank.supports.size(), 0), choosing(bank.supports.size(), 0);
+  int pushes = 0;
+  for (const Probe& p : bank.probes) {
+    if (p.family != ProbeFamily::kPush) continue;
+    ++pushes;
+    const Support& support = bank.supports[static_cast<std::size_t>(p.support)];
+    const int node = support.tool_node;
+    ASSERT_GE(node, 0);
+    EXPECT_EQ(p.force.norm(), 0.0);
+    ASSERT_EQ(p.prescribed.size(), p.reference.size());
+    EXPECT_NEAR(p.prescribed.norm(), bank.amplitude, 1e-12 * bank.amplitude);
+    const Vector inward = -surface.normal.segment(d * node, d);
+    EXPECT_NEAR(p.prescribed.segment(d * node, d).dot(inward), bank.amplitude,
+                1e-12 * bank.amplitude);
+    EXPECT_LT((p.reference.segment(d * node, d) - p.prescribed.segment(d * node, d)).norm(),
+              1e-12 * bank.amplitude);
+    // The reference takes the push's shape: its elastic force vanishes off the held nodes.
+    const Vector residual = k * p.reference;
+    for (int n = 0; n < problem.scene().node_count(); ++n) {
+      if (!support.constrained[static_cast<std::size_t>(n)]) {
+        EXPECT_LT(residual.segment(d * n, d).norm(), 1e-8 * (k * p.prescribed).norm()) << n;
+      }
+    }
+    const int base = bases[static_cast<std::size_t>(p.support)];
+    fitted[static_cast<std::size_t>(base)] += p.role == ProbeRole::kFit;
+    choosing[static_cast<std::size_t>(base)] += p.role == ProbeRole::kSelect;
+  }
+  EXPECT_GT(pushes, 0);
+  int held_out_pushes = 0;
+  for (std::size_t s = 0; s < bank.supports.size(); ++s) {
+    if (bank.supports[s].tool_node >= 0) continue;
+    EXPECT_GT(fitted[s], 0) << bank.supports[s].description;
+    EXPECT_GT(choosing[s], 0) << bank.supports[s].description;
+    held_out_pushes += options.pushes - fitted[s] - choosing[s];
+  }
+  // The held-out pushes are judged by the certificate: its tool-push table counts them.
+  const std::optional<std::vector<double>> baseline = BaselineGeneWeights(problem);
+  ASSERT_TRUE(baseline);
+  const SpringModel model = ModelOfWeights(problem, *baseline);
+  ToolPushOptions push_options;
+  push_options.amplitudes = {1.0};
+  const std::vector<ToolPushErrors> judged =
+      Certifier(problem, bank, banks.held_out, k).JudgeToolPushes(model, model, push_options);
+  ASSERT_EQ(judged.size(), 1u);
+  EXPECT_EQ(judged[0].model.probes + judged[0].reference_failed, held_out_pushes);
+
+  const Problem mss(examples::Make("paper-iso-5x5"));
+  const ProbeBanks none = MakeProbeBanks(mss, ReferenceRestStiffness(mss), options);
+  for (const Probe& p : none.fit.probes) EXPECT_NE(p.family, ProbeFamily::kPush);
 }
 
 }  // namespace

@@ -67,8 +67,9 @@ TEST(ProbeFitStrategy, ResultDoesNotDependOnUnits) {
   // last iteration's share, up to 1.2e-4 on the plate; the springs are the same.)
   for (std::size_t s = 0; s < ra.stiffness.size(); ++s)
     EXPECT_NEAR(rb.stiffness[s], ra.stiffness[s] * modulus * length, 3e-4 * rb.stiffness[s]);
+  // (The held-out E moves with those steps: 1e-6 of it between the two on the plate.)
   EXPECT_NEAR(rb.generalization->model_held_out.median, ra.generalization->model_held_out.median,
-              1e-6 * ra.generalization->model_held_out.median);
+              1e-5 * ra.generalization->model_held_out.median);
 }
 
 TEST(ProbeFitStrategy, ProbesNoneKeepsTheNamedCaseFit) {
