@@ -469,11 +469,31 @@ class Client:
         """job.list over all its pages: a list of Jobs (see iter_jobs)."""
         return [j for j in self.iter_jobs(state=state, label=label, limit=limit, order=order)]
 
-    def export(self, job_id, path):
+    def export(self, job_id, path, density=None, node_mass=None, dead_fraction=None,
+               drop_dead=False, sofa_version=None, case=None, dynamic=False,
+               rayleigh_stiffness=None, rayleigh_mass=None, dt=None, gravity=None):
         """Writes a finished job's model with `springfit export ID -o PATH` (format by the
-        extension: .vtu, .vtk, .msh, .scn, .json; proto/MODEL.md); returns path. Raises
-        CliError when springfit fails (e.g. exit 4: no such job, 9: no result yet)."""
-        self._run_springfit(["export", str(int(job_id)), "-o", os.fspath(path)], server=True)
+        extension: .vtu, .vtk, .msh, .scn, .json; proto/MODEL.md); returns path. The options
+        are the command's, by the same names (proto/MODEL.md): `density` (mass per volume
+        lumped on the FEM mesh's nodes) or `node_mass`, `dead_fraction` and `drop_dead`; for a
+        .scn, `sofa_version` ("v24.06"), `case` (the load case's name), `dynamic`,
+        `rayleigh_stiffness`, `rayleigh_mass`, `dt` and `gravity` (2 or 3 numbers). Raises
+        CliError when springfit fails (e.g. exit 4: no such job, 9: no result yet, 2: a bad
+        option, named in its stderr)."""
+        args = ["export", str(int(job_id)), "-o", os.fspath(path)]
+        for flag, value in (("--density", density), ("--node-mass", node_mass),
+                            ("--dead-fraction", dead_fraction), ("--sofa-version", sofa_version),
+                            ("--case", case), ("--rayleigh-stiffness", rayleigh_stiffness),
+                            ("--rayleigh-mass", rayleigh_mass), ("--dt", dt)):
+            if value is not None:
+                args += [flag, value if isinstance(value, str) else f"{value:.17g}"]
+        if gravity is not None:
+            args += ["--gravity", ",".join(f"{float(g):.17g}" for g in gravity)]
+        if drop_dead:
+            args.append("--drop-dead")
+        if dynamic:
+            args.append("--dynamic")
+        self._run_springfit(args, server=True)
         return path
 
     def _run_springfit(self, args, server):

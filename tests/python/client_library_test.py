@@ -486,6 +486,18 @@ def test_round_trip(ctx):
             head = f.read(4096)
         R.expect(head.startswith(b"<?xml") and b'<VTKFile type="UnstructuredGrid"' in head,
                  f"the exported .vtu: {short(head)}")
+        # The command's options, by the same names: a SOFA scene for a release, with masses.
+        scn = os.path.join(ctx.tmp, "model.scn")
+        c.export(job_id, scn, node_mass=2.5, sofa_version="v24.06", dead_fraction=1e-4)
+        with open(scn, encoding="utf-8") as f:
+            text = f.read()
+        R.expect("SOFA v24.06" in text and 'vertexMass="2.5"' in text,
+                 f"export's options reach the scene: {short(text)}")
+        try:
+            c.export(job_id, scn, sofa_version="v1.0")
+            R.fail("export with an unknown SOFA release: no error")
+        except sf.CliError as e:
+            R.expect(e.returncode == 2 and "v1.0" in e.stderr, f"an unknown release: {e}")
         try:
             c.export(987654, os.path.join(ctx.tmp, "none.vtu"))
             R.fail("export of an unknown job: no error")
