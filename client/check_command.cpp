@@ -174,11 +174,13 @@ int Check(const SceneInput& input, bool all_pairs) {
             << "candidate springs:      " << problem.candidates().size() << " ("
             << proto::CandidateKindName(s.candidates.kind) << ")\n"
             << "genes:                  " << problem.gene_count() << "\n"
-            << "unidentifiable springs: " << problem.unidentifiable().size();
+            << "between held nodes:     " << problem.unidentifiable().size();
   if (!problem.unidentifiable().empty()) {
     std::vector<NodePair> pairs;
     for (int c : problem.unidentifiable()) pairs.push_back(problem.candidates().pairs[c]);
-    std::cout << " (both nodes constrained in every load case):" << PairList(pairs, all_pairs);
+    std::cout << " springs (both nodes held in every load case: no load case sees them; exports "
+                 "add them at the recipe's stiffness):"
+              << PairList(pairs, all_pairs);
   }
   std::cout << "\n";
   PrintIdentifiability(Identifiability(problem), all_pairs);

@@ -93,7 +93,15 @@ int Export(const ExportArgs& a) {
   }
   std::cout << a.output << ": " << io::ModelFormatName(format) << ", " << model.node_count()
             << " nodes, " << model.springs.size() << " springs";
-  if (undetermined > 0) std::cout << " (" << undetermined << " not determined by the data)";
+  // (One name for one thing, as check, run and the dashboard say it: the springs between held
+  // nodes, then those in groups the load cases cannot tell apart.)
+  const int held = static_cast<int>(loaded.result.unidentifiable.size());
+  if (undetermined > 0) {
+    std::cout << " (" << undetermined << " not determined by the data: ";
+    if (held > 0) std::cout << held << " between held nodes" << (undetermined > held ? ", " : "");
+    if (undetermined > held) std::cout << undetermined - held << " in dependent groups";
+    std::cout << ")";
+  }
   if (not_analysed > 0)
     std::cout << " (whether the data determine " << not_analysed
               << " of them is not known: dependent groups "

@@ -141,7 +141,8 @@ void PrintModel(const proto::Json& r, std::ostream& out) {
   const int unseen = r.contains("outcome") ? r["outcome"].value("unseen_springs", 0) : 0;
   if (unseen > 0)
     out << " (+" << unseen
-        << " candidates no load case sees, added by exports at the training stiffness)";
+        << " between held nodes: no load case sees them; exports add them at the recipe's "
+           "stiffness, proto/MODEL.md)";
   out << "\n";
   // The stiffness a simulator will get (proto/MODEL.md, "Simulator facts"): its range, and
   // the dead springs an export flags or drops, where the result identifies stiffness.
@@ -279,18 +280,20 @@ void PrintGeneralization(const proto::Json& g, std::ostream& out) {
           << a.value("baseline_inverted", 0) << ")";
     out << "\n";
   }
-  // Tool pushes: a node moved in to a depth; the shape's E and the force the tool feels.
+  // Tool loads: a node (push) or three (grasp) moved in to a depth; the shape's E and the force
+  // the tool feels.
   for (const auto& t : g.value("tool_pushes", proto::Json::array())) {
     const proto::Json model = t.value("model", proto::Json::object());
     const proto::Json baseline = t.value("baseline", proto::Json::object());
     const proto::Json model_force = t.value("model_force", proto::Json::object());
     const proto::Json baseline_force = t.value("baseline_force", proto::Json::object());
     out << "  tool push " << Format("%3.0f", 100.0 * t.value("amplitude", 0.0))
-        << "%: " << model.value("probes", 0) << " nodes pushed in by " << number(t, "depth")
-        << ": median E " << number(model, "median") << ", tool force error "
-        << number(model_force, "median") << " (force " << number(t, "model_force_ratio")
-        << " of the reference's); baseline E " << number(baseline, "median") << ", force error "
-        << number(baseline_force, "median") << " (" << number(t, "baseline_force_ratio") << ")";
+        << "%: " << t.value("pushes", 0) << " pushes and " << t.value("grasps", 0)
+        << " grasps (3 nodes) in by " << number(t, "depth") << ": median E "
+        << number(model, "median") << ", tool force error " << number(model_force, "median")
+        << " (force " << number(t, "model_force_ratio") << " of the reference's); baseline E "
+        << number(baseline, "median") << ", force error " << number(baseline_force, "median")
+        << " (" << number(t, "baseline_force_ratio") << ")";
     if (t.value("reference_failed", 0) > 0)
       out << " (" << t.value("reference_failed", 0) << " left out: no reference equilibrium)";
     if (t.value("model_inverted", 0) > 0 || t.value("baseline_inverted", 0) > 0)

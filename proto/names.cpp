@@ -212,6 +212,8 @@ const char* ProbeFamilyName(response::ProbeFamily family) {
       return "mode";
     case response::ProbeFamily::kPush:
       return "push";
+    case response::ProbeFamily::kGrasp:
+      return "grasp";
   }
   return "?";
 }

@@ -266,6 +266,8 @@ Json GeneralizationToJson(const response::Generalization& g) {
                       {"baseline_force", ErrorSummaryToJson(t.baseline_force)},
                       {"model_force_ratio", NumberOrNull(t.model_force_ratio)},
                       {"baseline_force_ratio", NumberOrNull(t.baseline_force_ratio)},
+                      {"pushes", t.pushes},
+                      {"grasps", t.grasps},
                       {"reference_failed", t.reference_failed},
                       {"model_inverted", t.model_inverted},
                       {"baseline_inverted", t.baseline_inverted}});

@@ -30,12 +30,12 @@ int UserSupports(const Problem& problem) {
 long long PlannedProbes(const Problem& problem, const SearchOptions& options) {
   if (!RunsProbes(problem, options)) return 0;
   const response::ProbeOptions defaults;
-  const long long pushes = problem.scene().reference.kind == Reference::Kind::kFem
-                               ? response::MaximumPushCount(UserSupports(problem), defaults)
-                               : 0;
-  if (options.probes > 0) return options.probes + pushes;
+  const long long tools = problem.scene().reference.kind == Reference::Kind::kFem
+                              ? response::MaximumToolCount(UserSupports(problem), defaults)
+                              : 0;
+  if (options.probes > 0) return options.probes + tools;
   const long long supports = UserSupports(problem) + defaults.extra_supports;
-  return supports * (24 + 12 + problem.dimension() + 2) + pushes;
+  return supports * (24 + 12 + problem.dimension() + 2) + tools;
 }
 
 double ProbeFitBytes(const Problem& problem, const SearchOptions& options) {

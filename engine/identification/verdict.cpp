@@ -173,7 +173,7 @@ std::string Outcome::Headline() const {
   std::string text =
       std::string(VerdictName(verdict)) + ": " + std::to_string(springs) + " springs";
   if (unseen_springs > 0)
-    text += " (+" + std::to_string(unseen_springs) + " no load case sees, in exports)";
+    text += " (+" + std::to_string(unseen_springs) + " between held nodes, in exports)";
   text += ", E " + (rms_error ? NumberText(*rms_error) : std::string("-"));
   if (baseline_rms_error) text += " (baseline " + NumberText(*baseline_rms_error) + ")";
   if (held_out_rms_error) {

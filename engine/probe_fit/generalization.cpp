@@ -21,7 +21,7 @@ Generalization Certifier::Certify(const std::vector<double>& model, const Sparse
                                   Interruption* interruption) const {
   Generalization g;
   g.probes = static_cast<int>(bank_.probes.size()) + held_out_;
-  for (const Support& support : bank_.supports) g.supports += support.tool_node < 0 ? 1 : 0;
+  for (const Support& support : bank_.supports) g.supports += support.tool() ? 0 : 1;
   for (const Probe& probe : bank_.probes) {
     g.fitted += probe.role == ProbeRole::kFit;
     g.choosing += probe.role == ProbeRole::kSelect;

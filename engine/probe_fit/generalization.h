@@ -20,7 +20,7 @@ struct Generalization {
   int fitted = 0;
   int choosing = 0;
   int held_out = 0;
-  int supports = 0;  // the user's and the drawn ones (a push's own support not counted)
+  int supports = 0;  // the user's and the drawn ones (a tool load's own support not counted)
   double named_weight = 0.0;
   // E on the held-out probes by family (point, patch, body), and on the named cases (rest
   // linear responses), of the model and of the baseline; and over every held-out probe.
@@ -85,8 +85,8 @@ class Certifier {
                                                  Interruption* interruption = nullptr,
                                                  WorkerPool* pool = nullptr) const;
 
-  // The held-out tool pushes (family push, on every support), at depths that are fractions of
-  // the named loads' size (tool_pushes.h): loads no fit and no choice sees.
+  // The held-out tool loads (families push and grasp, on every support), at depths that are
+  // fractions of the named loads' size (tool_pushes.h): loads no fit and no choice sees.
   std::vector<ToolPushErrors> JudgeToolPushes(const SpringModel& model, const SpringModel& baseline,
                                               const ToolPushOptions& options = {},
                                               Interruption* interruption = nullptr,

@@ -173,6 +173,8 @@ void ProbeOptions::Validate(const std::string& owner) const {
                 "0 <= value <= 64");
   check.Require(pushes == 0 || (pushes >= kGroupMinimum && pushes <= 256), "pushes", pushes,
                 "0, or 3 <= value <= 256");
+  check.Require(grasps == 0 || (grasps >= kGroupMinimum && grasps <= 256), "grasps", grasps,
+                "0, or 3 <= value <= 256");
   check.Require(support_fraction > 0.0 && support_fraction <= 0.5, "support_fraction",
                 support_fraction, "0 < value <= 0.5");
   check.Require(select_fraction > 0.0 && select_fraction <= 0.5, "select_fraction", select_fraction,
@@ -183,8 +185,8 @@ void ProbeOptions::Validate(const std::string& owner) const {
                 "0 <= value < 1");
   check.Require(soft_mode_weight >= 0.0 && named_weight + soft_mode_weight < 1.0,
                 "soft_mode_weight", soft_mode_weight, "value >= 0 and named_weight + value < 1");
-  check.Require(push_weight >= 0.0 && named_weight + soft_mode_weight + push_weight < 1.0,
-                "push_weight", push_weight,
+  check.Require(tool_weight >= 0.0 && named_weight + soft_mode_weight + tool_weight < 1.0,
+                "tool_weight", tool_weight,
                 "value >= 0 and named_weight + soft_mode_weight + value < 1");
 }
 
@@ -192,8 +194,8 @@ int MinimumProbeCount(int user_supports, const ProbeOptions& options) {
   return kGroupMinimum * kGeneratedFamilies * (user_supports + options.extra_supports);
 }
 
-int MaximumPushCount(int user_supports, const ProbeOptions& options) {
-  return options.pushes * (user_supports + options.extra_supports);
+int MaximumToolCount(int user_supports, const ProbeOptions& options) {
+  return (options.pushes + options.grasps) * (user_supports + options.extra_supports);
 }
 
 double ProbeBankBytes(long long probes, int nodes, int dimension) {
@@ -333,30 +335,42 @@ class BankBuilder {
     }
   }
 
-  // Tool pushes on every support made so far (the user's and the drawn ones): boundary nodes
-  // with a normal, free on it, evenly spread, each moved in along its inward normal; each push
-  // a support of its own, the pushes of one base support a group whose roles are assigned as a
-  // family's.
-  void AddPushProbes() {
-    if (options_.pushes == 0 || scene_.reference.kind != Reference::Kind::kFem) return;
+  // Tool loads on every support made so far (the user's and the drawn ones): boundary nodes
+  // with a normal, free on it, evenly spread, each pushed in along its inward normal (family
+  // push) or held with its two nearest such neighbours and moved in with them (family grasp);
+  // each a support of its own, the loads of one family on one base support a group whose roles
+  // are assigned as a family's.
+  void AddToolProbes() {
+    if (scene_.reference.kind != Reference::Kind::kFem) return;
+    // (A family judged but not fitted (in 3D, ProbeOptions::fit_tools_in_3d; grasps,
+    // ProbeOptions::fit_grasps): only as many as would be held out are made, each held out.)
+    const bool fit_pushes = d_ == 2 || options_.fit_tools_in_3d;
+    const bool fit_grasps = fit_pushes && options_.fit_grasps;
     const std::size_t bases = bank_.supports.size();
-    for (std::size_t s = 0; s < bases; ++s) {
-      std::vector<int> pushable;
-      for (int node : surface_.nodes)
-        if (!bank_.supports[s].constrained[static_cast<std::size_t>(node)] &&
-            surface_.normal.segment(d_ * node, d_).norm() > 0.5)
-          pushable.push_back(node);
-      const std::size_t begin = bank_.probes.size();
-      // (In 3D the pushes are judged, not fitted (ProbeOptions::fit_pushes_in_3d): only as many
-      // as would be held out are made, each held out.)
-      const bool fitted = d_ == 2 || options_.fit_pushes_in_3d;
-      const int count = fitted ? options_.pushes
-                               : static_cast<int>(std::ceil(options_.held_out_fraction *
-                                                            static_cast<double>(options_.pushes)));
-      for (int node : EvenlySpread(pushable, count)) AddPush(s, node);
-      AssignRoles(bank_.probes, held_, begin, options_, random_);
-      if (!fitted)
-        for (std::size_t p = begin; p < held_.size(); ++p) held_[p] = true;
+    // (Family by family, so that the pushes' roles do not depend on the grasps.)
+    for (const ProbeFamily family : {ProbeFamily::kPush, ProbeFamily::kGrasp}) {
+      const bool push = family == ProbeFamily::kPush;
+      const bool fitted = push ? fit_pushes : fit_grasps;
+      const int count = push ? options_.pushes : options_.grasps;
+      if (count == 0) continue;
+      const int made = fitted ? count
+                              : static_cast<int>(std::ceil(options_.held_out_fraction *
+                                                           static_cast<double>(count)));
+      for (std::size_t s = 0; s < bases; ++s) {
+        std::vector<int> pushable;
+        for (int node : surface_.nodes)
+          if (!bank_.supports[s].constrained[static_cast<std::size_t>(node)] &&
+              surface_.normal.segment(d_ * node, d_).norm() > 0.5)
+            pushable.push_back(node);
+        if (pushable.size() < (push ? 1u : 3u)) continue;
+        const std::size_t begin = bank_.probes.size();
+        for (int node : EvenlySpread(pushable, made))
+          AddTool(s, family, push ? std::vector<int>{node} : Nearest(scene_, pushable, node, 3),
+                  -surface_.normal.segment(d_ * node, d_));
+        AssignRoles(bank_.probes, held_, begin, options_, random_);
+        if (!fitted)
+          for (std::size_t p = begin; p < held_.size(); ++p) held_[p] = true;
+      }
     }
   }
 
@@ -440,24 +454,26 @@ class BankBuilder {
     bank_.probes.push_back(std::move(probe));
   }
 
-  // A push of `node` on base support `base` to the bank's amplitude: the tool's depth is the
-  // loads' size (the body beyond the tool may move further, as a cantilever's tip does). Dropped
-  // when the base support with the node held does not hold the reference.
-  void AddPush(std::size_t base, int node) {
+  // A tool load on base support `base`: `nodes` held and moved by the bank's amplitude along
+  // the unit `direction` (the tool's depth is the loads' size; the body beyond it may move
+  // further, as a cantilever's tip does). Dropped when the base support with the nodes held
+  // does not hold the reference.
+  void AddTool(std::size_t base, ProbeFamily family, const std::vector<int>& nodes,
+               const Vector& direction) {
     Support support = bank_.supports[base];
     support.user = false;
-    support.tool_node = node;
-    support.constrained[static_cast<std::size_t>(node)] = true;
+    support.tool_nodes = nodes;
+    for (int node : nodes) support.constrained[static_cast<std::size_t>(node)] = true;
     support.description =
-        fmt::format("tool at node {} on {}", node, bank_.supports[base].description);
+        fmt::format("{} at node {} on {}", family == ProbeFamily::kPush ? "push" : "grasp",
+                    nodes[0], bank_.supports[base].description);
     SupportSystem system(d_, support.constrained);
     if (!system.Factorize(reference_stiffness_)) return;
     Probe probe;
-    probe.family = ProbeFamily::kPush;
+    probe.family = family;
     probe.force = Vector::Zero(d_ * n_);
     probe.prescribed = Vector::Zero(d_ * n_);
-    probe.prescribed.segment(d_ * node, d_) =
-        -bank_.amplitude * surface_.normal.segment(d_ * node, d_);
+    for (int node : nodes) probe.prescribed.segment(d_ * node, d_) = bank_.amplitude * direction;
     probe.reference = system.Displacement(probe.force, probe.prescribed);
     probe.support = static_cast<int>(bank_.supports.size());
     bank_.supports.push_back(std::move(support));
@@ -498,7 +514,7 @@ ProbeBanks MakeProbeBanks(const Problem& problem, const SparseMatrix& reference_
   builder.AddNamedCases();
   builder.DrawSupports();
   builder.AddGeneratedProbes();
-  builder.AddPushProbes();
+  builder.AddToolProbes();
   auto [fit, held_out] = builder.Finish();
   return {std::move(fit), HeldOutProbes(std::move(held_out))};
 }

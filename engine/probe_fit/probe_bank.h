@@ -16,13 +16,15 @@
 //   push   a tool pushing a boundary node in along its inward normal to a depth (an imposed
 //          displacement, not a force: a tool moves to a depth); FEM references only. Each push
 //          is a support of its own, the base support with the pushed node held at its depth
-//          (Support::tool_node), so the shape the body takes around a tool is fitted, chosen on
-//          and certified like every other family's;
+//          (Support::tool_nodes), so the shape the body takes around a tool is fitted, chosen
+//          on and certified like every other family's;
+//   grasp  a tool holding a boundary node and its two nearest boundary neighbours and moving
+//          them in together along the first's inward normal (a grasper, a spatula); as push;
 //   named  the user's load cases (in the fit with the stated weight `named_weight`).
 // Every generated probe is scaled so that its largest nodal displacement in the reference equals
 // the named cases' median largest displacement (the loads a simulator applies are of that
-// size; the linear response does not care, a nonlinear one does); a push moves its node by that
-// size (the tool's depth).
+// size; the linear response does not care, a nonlinear one does); a tool moves its nodes by
+// that size (its depth).
 // Roles: each (support, family) group of generated probes is shuffled and split into a part
 // that is fitted, a part that chooses among fitted models (the regularisation, the point of
 // the sparsity path), and a held-out part that no fit and no choice ever sees, on which the
@@ -51,8 +53,8 @@ namespace springfit::response {
 
 // kMode: a load along a mode a fitted model left soft (AddSoftModeProbe), added by the fit
 // itself (response_fit.h); never in the banks MakeProbeBanks returns, so never judged on.
-enum class ProbeFamily { kPoint, kPatch, kBody, kNamed, kMode, kPush };
-inline constexpr int kProbeFamilies = 6;  // (their names: proto/names.h, ProbeFamilyName)
+enum class ProbeFamily { kPoint, kPatch, kBody, kNamed, kMode, kPush, kGrasp };
+inline constexpr int kProbeFamilies = 7;  // (their names: proto/names.h, ProbeFamilyName)
 
 // The roles of the probes in a ProbeBank; the held-out ones are in HeldOutProbes.
 enum class ProbeRole { kFit, kSelect };
@@ -64,11 +66,13 @@ struct ProbeOptions {
   int count = 0;
   // Supports drawn from the boundary beside the user's, >= 0.
   int extra_supports = 3;
-  // Tool pushes (family push) per support, user and drawn, on boundary nodes evenly spread over
-  // its free boundary: 0 (none), or at least 3 (one per role). Each is a support of its own, so
-  // each fitted or choosing push costs one more factorisation per fit step. Not counted in
-  // `count`. FEM references only (an MSS has no surface to push).
+  // Tool pushes (family push) and grasps (family grasp) per support, user and drawn, on
+  // boundary nodes evenly spread over its free boundary: each 0 (none), or at least 3 (one per
+  // role). Each is a support of its own, so each fitted or choosing one costs one more
+  // factorisation per fit step. Not counted in `count`. FEM references only (an MSS has no
+  // surface to push).
   int pushes = 8;
+  int grasps = 6;
   // Of the boundary's nodes held by a drawn support, in (0, 0.5].
   double support_fraction = 0.15;
   // Of each group of generated probes: chosen on, and held out; both in (0, 0.5].
@@ -82,17 +86,24 @@ struct ProbeOptions {
   // lifted it further (0.19) but raised the independent evaluator's pushed-node tail past half
   // the baseline's (bench/RESULTS.md). In [0, 1), with named_weight + soft_mode_weight < 1.
   double soft_mode_weight = 0.01;
-  // The tool pushes' share of the fitted objective, when the bank has any, in [0, 1), with
-  // named_weight + soft_mode_weight + push_weight < 1. On the 2D examples 0.1 lowered the
-  // held-out pushes' E with the other families' level (bench/RESULTS.md, "Round seven").
-  double push_weight = 0.1;
-  // In 3D the pushes are held out (judged by the certificate, neither fitted nor chosen on)
+  // The tool loads' share of the fitted objective (split equally between the push and grasp
+  // families the bank has), in [0, 1), with named_weight + soft_mode_weight + tool_weight < 1.
+  // On the 2D examples 0.1 lowered the held-out pushes' E with the other families' level
+  // (bench/RESULTS.md, "Round seven").
+  double tool_weight = 0.1;
+  // In 3D the tool loads are held out (judged by the certificate, neither fitted nor chosen on)
   // unless this is set: an imposed point displacement's shape in a tetrahedral mesh is set by
   // the few elements at the node (its energy vanishes as the mesh refines), which no spring
   // model on fem-block-3d came near (held-out push E 0.42 fitted, the recipe's 0.43), while the
   // pushes' supports, one factorisation each per fit step, made the fit 2.5 times as long and
   // every other family worse (bench/RESULTS.md, "Round seven").
-  bool fit_pushes_in_3d = false;
+  bool fit_tools_in_3d = false;
+  // Grasps are held out (judged by the certificate) unless this is set. Fitted beside the
+  // pushes (the tool share split between them) they made the kidney's named cases worse (E
+  // 0.077 against 0.056), the fine kidney's fit 2.6 times as long (9.5 s against 3.6 s) and its
+  // held-out pushes no better (bench/RESULTS.md, "Round seven"): the pushes already carry the
+  // shape around a tool.
+  bool fit_grasps = false;
   std::uint64_t seed = 1;
 
   // Throws std::invalid_argument naming the field, its value and the rule.
@@ -109,9 +120,10 @@ Surface AnySurface(const Scene& scene);
 struct Support {
   std::vector<bool> constrained;  // per node
   bool user = false;              // held by some named load case
-  // A tool push's support (family push): the node the tool holds at its depth, besides the
-  // base support's nodes; -1 for every other support.
-  int tool_node = -1;
+  // A tool load's support (families push and grasp): the nodes the tool holds at their depth,
+  // besides the base support's nodes; empty for every other support.
+  std::vector<int> tool_nodes;
+  bool tool() const { return !tool_nodes.empty(); }
   std::string description;  // "load case 'stretch'", "boundary patch around node 17"
 };
 
@@ -121,7 +133,7 @@ struct Probe {
   int support = 0;      // index into ProbeBank::supports
   int named_case = -1;  // kNamed: the problem's load case
   Vector force;         // flat d*n
-  // Flat d*n: the prescribed displacements of the named cases and the tool pushes; empty for
+  // Flat d*n: the prescribed displacements of the named cases and the tool loads; empty for
   // the other generated probes (none: a flat zero vector per probe was a third of a large
   // bank's memory).
   Vector prescribed;
@@ -165,9 +177,9 @@ struct ProbeBanks {
 // user support and each drawn one.
 int MinimumProbeCount(int user_supports, const ProbeOptions& options);
 
-// The tool pushes MakeProbeBanks adds at most on a problem with `user_supports` distinct
-// supports among its load cases (ProbeOptions::pushes on each support).
-int MaximumPushCount(int user_supports, const ProbeOptions& options);
+// The tool loads (pushes and grasps) MakeProbeBanks adds at most on a problem with
+// `user_supports` distinct supports among its load cases.
+int MaximumToolCount(int user_supports, const ProbeOptions& options);
 
 // The bytes a bank of `probes` probes on `nodes` nodes in `dimension` holds (each probe's force
 // and reference displacement, flat d*n), a lower bound of a probe fit's memory.

@@ -10,38 +10,44 @@
 namespace springfit::response {
 namespace {
 
-// The elastic force of springs on `node` at displacement u: sum over its springs of
-// k (L - l) (x_node - x_other) / L, the gradient of their energy in the node's position.
-Vector SpringReaction(const SpringSolverInput& input, const Vector& rest, const Vector& u, int node,
-                      int d) {
+// The elastic force of springs on `nodes` at displacement u, summed: over each node's springs
+// k (L - l) (x_node - x_other) / L, the gradient of their energy in the node's position (a
+// spring between two of the nodes cancels, as it does in the tool's own force).
+Vector SpringReaction(const SpringSolverInput& input, const Vector& rest, const Vector& u,
+                      const std::vector<int>& nodes, int d) {
   Vector r = Vector::Zero(d);
   const SpringGeometry& g = input.geometry;
-  for (int s = 0; s < input.springs.size(); ++s) {
-    const int e = input.springs.index[static_cast<std::size_t>(s)];
-    const NodePair pair = g.pairs[static_cast<std::size_t>(e)];
-    if (pair.first != node && pair.second != node) continue;
-    const int other = pair.first == node ? pair.second : pair.first;
-    const Vector separation = (rest.segment(d * node, d) + u.segment(d * node, d)) -
-                              (rest.segment(d * other, d) + u.segment(d * other, d));
-    const double length = separation.norm();
-    if (!(length > 0.0)) continue;
-    r += input.springs.stiffness[static_cast<std::size_t>(s)] *
-         (length - g.rest_length[static_cast<std::size_t>(e)]) * separation / length;
+  for (int node : nodes) {
+    for (int s = 0; s < input.springs.size(); ++s) {
+      const int e = input.springs.index[static_cast<std::size_t>(s)];
+      const NodePair pair = g.pairs[static_cast<std::size_t>(e)];
+      if (pair.first != node && pair.second != node) continue;
+      const int other = pair.first == node ? pair.second : pair.first;
+      const Vector separation = (rest.segment(d * node, d) + u.segment(d * node, d)) -
+                                (rest.segment(d * other, d) + u.segment(d * other, d));
+      const double length = separation.norm();
+      if (!(length > 0.0)) continue;
+      r += input.springs.stiffness[static_cast<std::size_t>(s)] *
+           (length - g.rest_length[static_cast<std::size_t>(e)]) * separation / length;
+    }
   }
   return r;
 }
 
-// The FEM reference's elastic force on `node` at u: the gradient of its energy there, from a
-// solver that leaves the node free (no external force).
+// The FEM reference's elastic force on `nodes` at u, summed: the gradient of its energy there,
+// from a solver that leaves them free (no external force).
 Vector FemReaction(const fem::FemModel& fem, const std::vector<bool>& constrained, const Vector& u,
-                   int node, int d) {
-  std::vector<bool> with_node_free = constrained;
-  with_node_free[static_cast<std::size_t>(node)] = false;
-  const FreeNodes free = FreeNodes::FromConstrained(with_node_free);
+                   const std::vector<int>& nodes, int d) {
+  std::vector<bool> with_nodes_free = constrained;
+  for (int node : nodes) with_nodes_free[static_cast<std::size_t>(node)] = false;
+  const FreeNodes free = FreeNodes::FromConstrained(with_nodes_free);
   fem::FemEquilibriumSolver solver(fem, free);
   Vector gradient;
   solver.EnergyAndGradient(Vector::Zero(u.size()), u, &gradient, false);
-  return gradient.segment(d * free.free_index[static_cast<std::size_t>(node)], d);
+  Vector r = Vector::Zero(d);
+  for (int node : nodes)
+    r += gradient.segment(d * free.free_index[static_cast<std::size_t>(node)], d);
+  return r;
 }
 
 struct PushResult {
@@ -69,7 +75,8 @@ std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const ProbeB
   const int d = scene.dimension;
   std::vector<int> all;
   for (std::size_t p = 0; p < bank.probes.size(); ++p)
-    if (bank.probes[p].family == ProbeFamily::kPush) all.push_back(static_cast<int>(p));
+    if (bank.probes[p].family == ProbeFamily::kPush || bank.probes[p].family == ProbeFamily::kGrasp)
+      all.push_back(static_cast<int>(p));
   const std::vector<int> pushed = EvenlySpread(all, options.max_pushes);
   if (pushed.empty()) return {};
   const std::size_t depths = options.amplitudes.size();
@@ -86,7 +93,7 @@ std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const ProbeB
         const auto i = static_cast<std::size_t>(slot);
         const Probe& probe = bank.probes[static_cast<std::size_t>(pushed[i])];
         const Support& support = bank.supports[static_cast<std::size_t>(probe.support)];
-        const int node = support.tool_node;
+        const std::vector<int>& nodes = support.tool_nodes;
         const std::vector<bool>& held = support.constrained;
         const FreeNodes free = FreeNodes::FromConstrained(held);
         ReferenceSolver reference_solver(reference.fem, reference.springs, free, problem,
@@ -99,7 +106,7 @@ std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const ProbeB
           const Vector prescribed = options.amplitudes[a] * probe.prescribed;
           const std::optional<Vector> u_ref = reference_solver.Solve(force, prescribed);
           if (!u_ref) continue;  // (NaN: left out)
-          const Vector r_ref = FemReaction(*reference.fem, held, *u_ref, node, d);
+          const Vector r_ref = FemReaction(*reference.fem, held, *u_ref, nodes, d);
           const auto judge = [&](SpringResponse& solver, const SpringSolverInput& input) {
             PushResult r;
             const std::optional<Vector> u = solver.Solve(force, prescribed);
@@ -108,7 +115,7 @@ std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const ProbeB
               return r;
             }
             r.error = RelativeError(*u, *u_ref, free, d);
-            const Vector reaction = SpringReaction(input, scene.rest, *u, node, d);
+            const Vector reaction = SpringReaction(input, scene.rest, *u, nodes, d);
             r.force_error = (reaction - r_ref).norm() / r_ref.norm();
             r.force_ratio = reaction.norm() / r_ref.norm();
             r.inverted = InvertedElements(scene, *u) > 0;
@@ -136,6 +143,8 @@ std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const ProbeB
         ++e.reference_failed;
         continue;
       }
+      ++(bank.probes[static_cast<std::size_t>(pushed[i])].family == ProbeFamily::kGrasp ? e.grasps
+                                                                                        : e.pushes);
       me.push_back(m.error);
       be.push_back(b.error);
       mf.push_back(m.force_error);

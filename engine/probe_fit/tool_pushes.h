@@ -1,13 +1,14 @@
-// Tool pushes: a boundary node moved into the body to a depth, as a surgical tool does (an
-// imposed displacement, not a force), the rest of the body free but for a support. A model is
+// Tool loads: a boundary node (a push) or three neighbouring ones (a grasp) moved into the body
+// to a depth, as a surgical tool does (an imposed displacement, not a force), the rest of the
+// body free but for a support. A model is
 // judged by the shape (E over the free nodes, as every probe) and by the force the tool feels
 // (its reaction), which is what a haptic device renders: under an imposed displacement,
 // scaling every stiffness leaves E unchanged, so E alone cannot judge the stiffness; the force
 // can. The reference is solved with its own law (FEM), the model and the baseline with the
 // simulator's spring law (docs/ARCHITECTURE.md, "Tool pushes").
 //
-// The pushes are the probe bank's family push (probe_bank.h): fitted and chosen on like every
-// family at the named loads' size; the certificate judges the held-out ones here, at depths
+// They are the probe bank's families push and grasp (probe_bank.h): fitted and chosen on like
+// every family at the named loads' size; the certificate judges the held-out ones here, at depths
 // across the load range, with the simulator's spring law and the reference's own.
 #pragma once
 
@@ -26,8 +27,8 @@ struct ToolPushOptions {
   // Push depths as fractions of the named loads' size (the bank's amplitude: the largest nodal
   // displacement of its probes), each in (0, 20], ascending.
   std::vector<double> amplitudes = {0.25, 0.5, 1.0};
-  // Pushes judged at most (>= 1), evenly spread over the bank's: each is three nonlinear solves
-  // per depth.
+  // Tool loads (pushes and grasps) judged at most (>= 1), evenly spread over the bank's: each
+  // is three nonlinear solves per depth.
   int max_pushes = 24;
 
   // Throws std::invalid_argument naming the field, its value and the rule.
@@ -45,14 +46,17 @@ struct ToolPushErrors {
   // The median of |R| / |R_ref|: below 1, the model feels too soft to the tool.
   double model_force_ratio = 0.0;
   double baseline_force_ratio = 0.0;
-  int reference_failed = 0;  // pushes the reference has no equilibrium for, left out
+  int pushes = 0;            // the judged pushes (family push) with a reference equilibrium
+  int grasps = 0;            // and grasps (family grasp)
+  int reference_failed = 0;  // tool loads the reference has no equilibrium for, left out
   // Pushes whose equilibrium turns an FEM element inside out (InvertedElements): failed.
   int model_inverted = 0;
   int baseline_inverted = 0;
 };
 
-// Per depth, up to options.max_pushes of `bank`'s pushes (family push, each at the bank's
-// amplitude, scaled to the depth). Empty for a bank without pushes (an MSS reference).
+// Per depth, up to options.max_pushes of `bank`'s tool loads (families push and grasp, each at
+// the bank's amplitude, scaled to the depth; a grasp's force is the sum over its held nodes).
+// Empty for a bank without them (an MSS reference).
 // Throws Interrupted when stopped; with a pool the pushes run in parallel, with the same result.
 std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const ProbeBank& bank,
                                             const SpringModel& model, const SpringModel& baseline,

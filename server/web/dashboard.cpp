@@ -222,7 +222,7 @@ std::string ResultCard(const Outcome& o, const Json& result, const Json& search)
   body += Row("springs",
               std::to_string(o.springs) +
                   (o.unseen_springs > 0
-                       ? fmt::format(" (+{} no load case sees, added by exports)", o.unseen_springs)
+                       ? fmt::format(" (+{} between held nodes, in exports)", o.unseen_springs)
                        : std::string()));
   body += Row("E (named cases)", o.rms_error ? ErrorText(*o.rms_error) : "- (no equilibrium)");
   if (o.baseline_rms_error) {
@@ -256,7 +256,7 @@ std::string ResultCard(const Outcome& o, const Json& result, const Json& search)
           Row(fmt::format("E nonlinear at {:.0f}% of the loads", 100.0 * a.value("amplitude", 0.0)),
               text);
     }
-    // Tool pushes (imposed displacements): the shape and the force the tool feels
+    // Tool pushes and grasps (imposed displacements): the shape and the force the tool feels
     // (proto/RUN.md, generalization.tool_pushes).
     for (const auto& t : g->value("tool_pushes", proto::Json::array())) {
       const auto median = NumberAt(t, {"model", "median"});
@@ -270,6 +270,8 @@ std::string ResultCard(const Outcome& o, const Json& result, const Json& search)
         text += " (baseline " + ErrorText(*baseline) + ", " + ErrorText(*baseline_force) + ")";
       if (t.value("model_inverted", 0) > 0)
         text += fmt::format("; {} invert an element", t.value("model_inverted", 0));
+      text +=
+          fmt::format(" over {} pushes and {} grasps", t.value("pushes", 0), t.value("grasps", 0));
       body +=
           Row(fmt::format("tool push at {:.0f}% of the loads", 100.0 * t.value("amplitude", 0.0)),
               text);
@@ -372,7 +374,7 @@ std::string IdentifiabilityTable(const Json& r) {
     body += Row("why", XmlEscape(r["stop_message"].get<std::string>()));
   if (const auto id = r.find("identifiability"); id != r.end() && id->is_object()) {
     const Json& rep = *id;
-    body += Row("candidates no load case sees",
+    body += Row("unseen springs (no load case changes their length)",
                 std::to_string(rep.value("unseen", Json::array()).size()));
     if (rep.contains("rank") && rep["rank"].is_number())
       body += Row("rank of the analysed groups", std::to_string(rep["rank"].get<int>()));

@@ -1,6 +1,7 @@
 // What the probe fit's tests (engine/probe_fit/) share: the kidney at rest, its bank and
 // prior.
 #pragma once
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,21 @@
 #include "io/example_catalog.h"
 
 namespace springfit::response {
+
+// The largest ratio of the model's held-out median E to the baseline's over the force families
+// (point, patch, body): the loads whose pooled median the fit's claims were first stated on,
+// before the tool loads (push, grasp), where the recipe comes closer, joined the held-out pool.
+inline double ForceFamiliesRatio(const Generalization& g) {
+  double worst = 0.0;
+  for (const FamilyErrors& m : g.model) {
+    if (m.family != ProbeFamily::kPoint && m.family != ProbeFamily::kPatch &&
+        m.family != ProbeFamily::kBody)
+      continue;
+    for (const FamilyErrors& b : g.baseline)
+      if (b.family == m.family) worst = std::max(worst, m.errors.median / b.errors.median);
+  }
+  return worst;
+}
 
 // An FEM example (the kidney unless named), its reference stiffness at rest, the default probe
 // bank, and the closed-form baseline as the prior.

@@ -56,10 +56,10 @@ TEST(ProbeRoles, EveryGroupOfTheSmallestBankHasAProbeOfEachRole) {
   const std::vector<double> baseline = *BaselineGeneWeights(problem);
   const Generalization g = certifier.Certify(baseline, SpringRestStiffness(problem, baseline));
   int bases = 0;  // the supports but the pushes' own
-  for (const Support& s : banks.fit.supports) bases += s.tool_node < 0 ? 1 : 0;
+  for (const Support& s : banks.fit.supports) bases += s.tool() ? 0 : 1;
   EXPECT_GE(g.held_out, 3 * bases);
   for (std::size_t s = 0; s < banks.fit.supports.size(); ++s) {
-    if (banks.fit.supports[s].tool_node >= 0) continue;
+    if (banks.fit.supports[s].tool()) continue;
     for (ProbeFamily family : {ProbeFamily::kPoint, ProbeFamily::kPatch, ProbeFamily::kBody}) {
       int fitted = 0, choosing = 0;
       for (const Probe& p : banks.fit.probes) {

@@ -199,8 +199,9 @@ TEST(Dashboard, GroupsNotAnalysedAreNotCountedOnTheJobPage) {
   std::filesystem::remove_all(dir);
 }
 
-// Issue 50: the job page shows the tool pushes (the shape's E and the tool's force error, beside
-// the baseline's) and the nonlinear fit's choosing errors, in the summary's words.
+// Issue 50: the job page shows the tool loads (the shape's E and the tool's force error, beside
+// the baseline's, over how many pushes and grasps) and the nonlinear fit's choosing errors, in the
+// summary's words.
 TEST(Dashboard, TheJobPageShowsToolPushesAndTheNonlinearFit) {
   const auto dir = std::filesystem::temp_directory_path() / "springfit-dashboard-pushes";
   std::filesystem::remove_all(dir);
@@ -216,6 +217,8 @@ TEST(Dashboard, TheJobPageShowsToolPushesAndTheNonlinearFit) {
                                               {"baseline", {{"median", 0.16}}},
                                               {"model_force", {{"median", 0.126}}},
                                               {"baseline_force", {{"median", 0.152}}},
+                                              {"pushes", 10},
+                                              {"grasps", 8},
                                               {"model_inverted", 2}}});
       g["fit"] = {{"nonlinear",
                    {{"gauss_newton_steps", 12},
@@ -229,7 +232,7 @@ TEST(Dashboard, TheJobPageShowsToolPushesAndTheNonlinearFit) {
     ASSERT_EQ(page.status, 200) << page.body;
     EXPECT_NE(page.body.find("<tr><th>tool push at 100% of the loads</th><td>median E 0.159, "
                              "tool force error 0.126 (baseline 0.16, 0.152); 2 invert an "
-                             "element</td>"),
+                             "element over 10 pushes and 8 grasps</td>"),
               std::string::npos)
         << page.body;
     EXPECT_NE(page.body.find("<tr><th>nonlinear fit</th><td>12 Gauss-Newton steps: choosing E "
