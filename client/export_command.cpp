@@ -42,16 +42,20 @@ std::string FactsLine(const io::SpringModel& model) {
                 : f.dead_dropped ? ", left out"
                                  : ", kept and flagged");
   std::string text = line;
+  // Mass in the unit the scene's length and force imply, time in seconds; bare numbers where
+  // the scene states no units (they are then in whatever units its numbers were).
+  const std::string mass_unit = model.units ? " " + model.units->mass : "";
+  const std::string time_unit = model.units ? " " + model.units->time : "";
   if (f.total_mass) {
-    std::snprintf(line, sizeof line, "; total mass %.4g (%s)", *f.total_mass,
+    std::snprintf(line, sizeof line, "; total mass %.4g%s (%s)", *f.total_mass, mass_unit.c_str(),
                   model.mass_source.c_str());
     text += line;
   } else {
     text += "; no masses (give a density in the scene's material, --density or --node-mass)";
   }
   if (f.stable_time_step) {
-    std::snprintf(line, sizeof line, "; stable explicit time step at most %.4g",
-                  *f.stable_time_step);
+    std::snprintf(line, sizeof line, "; stable explicit time step at most %.4g%s",
+                  *f.stable_time_step, time_unit.c_str());
     text += line;
   }
   return text;

@@ -130,6 +130,10 @@ void WriteGmshFile(const SpringModel& model, const std::string& path) {
     gmsh::option::setNumber("Mesh.MshFileVersion", 4.1);
     gmsh::option::setNumber("Mesh.Binary", 0);
     gmsh::option::setNumber("Mesh.SaveAll", 1);  // every node, also those no spring holds
+    // The mesh once, then the views alone: by default Gmsh writes the mesh again before each
+    // appended view (13 copies of every node and element, which Gmsh's reader then merged
+    // into duplicate nodes).
+    gmsh::option::setNumber("PostProcessing.SaveMesh", 0);
     gmsh::write(path);
     WriteViews(model, data, node_tags, path);
   } catch (const std::exception& e) {

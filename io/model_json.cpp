@@ -4,6 +4,7 @@
 #include <algorithm>
 
 #include "io/model_writers.h"
+#include "proto/scene_codec.h"
 
 namespace springfit::io {
 
@@ -14,14 +15,7 @@ std::string ModelJsonText(const SpringModel& model) {
   j["version"] = 1;
   j["name"] = model.name;
   j["description"] = model.description;
-  if (model.units) {
-    j["units"] = {{"length", model.units->length},
-                  {"force", model.units->force},
-                  {"stiffness", model.units->stiffness},
-                  {"modulus", model.units->modulus}};
-  } else {
-    j["units"] = nullptr;
-  }
+  j["units"] = model.units ? proto::UnitsToJson(*model.units) : proto::Json(nullptr);
   j["dimension"] = model.dimension;
   Json nodes = Json::array();
   for (int p = 0; p < model.node_count(); ++p) {

@@ -157,7 +157,7 @@ struct SofaScene {
         << ".";
     if (model.facts.stable_time_step)
       out << " Stable explicit time step at most " << Number(*model.facts.stable_time_step)
-          << " (undamped).";
+          << (model.units ? " " + model.units->time : std::string()) << " (undamped).";
     if (model.dimension == 2) out << "\n     2D model: Vec3d at z = 0, every node held along z.";
     out << " -->\n";
     out << "<Node name=\"root\" gravity=\"" << Number(options.gravity[0]) << " "

@@ -73,7 +73,7 @@ std::string DescriptionOf(const proto::StoredResult& result, const Scene& scene)
   if (scene.units) {
     const DerivedUnits units = DeriveUnits(*scene.units);
     description += "; units: length " + units.length + ", force " + units.force + ", stiffness " +
-                   units.stiffness;
+                   units.stiffness + ", mass " + units.mass + ", time " + units.time;
   }
   return description;
 }

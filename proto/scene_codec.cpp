@@ -578,6 +578,11 @@ Json ReferenceToJson(const Scene& s) {
 
 }  // namespace
 
+Json UnitsToJson(const DerivedUnits& u) {
+  return {{"length", u.length},   {"force", u.force}, {"stiffness", u.stiffness},
+          {"modulus", u.modulus}, {"mass", u.mass},   {"time", u.time}};
+}
+
 Json SceneToJson(const Scene& s) {
   Json j;
   if (!s.name.empty()) j["name"] = s.name;

@@ -21,6 +21,10 @@ Scene LoadSceneFile(const std::string& path);
 
 // The scene as JSON: fields equal to their defaults are left out.
 Json SceneToJson(const Scene& scene);
+
+// The units the numbers are in (DeriveUnits: the scene's length and force, and the stiffness,
+// modulus, mass and time they imply), as results and exported models state them.
+Json UnitsToJson(const DerivedUnits& units);
 // A scene's `search` member alone, both ways (the same rules and paths as in a scene): what
 // `submit` reads, applies its flags to and writes back.
 SearchSettings SearchSettingsFromJson(const Json& json);

@@ -332,14 +332,6 @@ Json GeneralizationToJson(const response::Generalization& g) {
   return j;
 }
 
-// The units the numbers are in, as the scene states them (null: unstated).
-Json UnitsToJson(const Scene& scene) {
-  if (!scene.units) return nullptr;
-  const DerivedUnits u = DeriveUnits(*scene.units);
-  return {
-      {"length", u.length}, {"force", u.force}, {"stiffness", u.stiffness}, {"modulus", u.modulus}};
-}
-
 // The closed-form baseline on the same cases, and whether the model is worse: no equilibrium
 // where the baseline has one, or a larger error.
 Json BaselineToJson(const BaselineReport& baseline, const Evaluation& model) {
@@ -383,7 +375,9 @@ Json ResultToJson(const Problem& problem, const IdentificationResult& r, bool wi
   j["outcome"] = OutcomeToJson(r.outcome);
   // Notices about the scene (engine/problem/problem.h, SceneNotices): shown wherever the result is.
   j["notices"] = SceneNotices(problem);
-  j["units"] = UnitsToJson(problem.scene());
+  // The units the numbers are in, as the scene states them (null: unstated).
+  const auto& units = problem.scene().units;
+  j["units"] = units ? UnitsToJson(DeriveUnits(*units)) : Json(nullptr);
   if (const auto exact = r.exact()) {
     j["exact"] = *exact;
     j["hamming"] = r.difference->hamming();

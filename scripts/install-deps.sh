@@ -23,11 +23,13 @@ packages=(
   clang-format             # the format check (tests/format_check.sh)
   git                      # the format check lists the tracked files
   python3                  # the end-to-end tests drive the CLI and the daemon with it
-  python3-pip python3-setuptools python3-wheel  # pip install --no-build-isolation ./python, offline
+  python3-pip              # pip install ./python (the Python client; its build backend is its own)
   calculix-ccx             # CalculiX: independent answers for the FEM reference tests
   gmsh                     # meshes a 2D shape for the FEM reference tests; reads exported .msh
   libgmsh-dev              # the Gmsh library: writes (and reads) Gmsh's mesh files
   python3-meshio           # an independent reader of the exported .vtk, .vtu, .msh (tests/io)
+  python3-vtk9 python3-gmsh  # VTK's and Gmsh's own readers of the exports (tests/io/real_readers_test.py)
+  python3-venv             # the Python client installed by pip into a plain venv (tests/python)
   python3-scipy            # the independent evaluator bench/generalization.py (sparse and bounded fits)
 )
 

@@ -25,6 +25,19 @@ std::string Number(double v) {
   return buf;
 }
 
+// Nodes as the user knows them: by the mesh's own tags (Gmsh's node tags, a deck's node
+// ids) when the scene was imported with them, by springfit's 0-based indices otherwise.
+std::string NodesNamed(const Scene& s, const std::vector<int>& nodes) {
+  std::string text;
+  for (int node : nodes) {
+    text += text.empty() ? "" : ", ";
+    const bool tagged = static_cast<std::size_t>(node) < s.node_tags.size();
+    text += std::to_string(tagged ? s.node_tags[node] : node);
+  }
+  const bool tagged = !s.node_tags.empty();
+  return (nodes.size() == 1 ? "node " : "nodes ") + text + (tagged ? " (the mesh's tags)" : "");
+}
+
 void CheckMaterial(const Material& m, const std::string& path) {
   if (!std::isfinite(m.young) || !(m.young > 0.0)) {
     throw InputError(path + ".young", "must be a finite number > 0, got " + Number(m.young));
@@ -72,8 +85,7 @@ void CheckNoFold(const Scene& s) {
     const auto [it, inserted] = owner.emplace(facet, std::make_pair(static_cast<int>(e), opposite));
     if (inserted) return;
     const int other = it->second.first;
-    std::string nodes;
-    for (int node : facet) nodes += (nodes.empty() ? "" : ", ") + std::to_string(node);
+    const std::string nodes = NodesNamed(s, facet);
     if (other < 0) {
       throw InputError(Index("reference.elements", e), std::string("a third element on the ") +
                                                            (d == 2 ? "edge" : "face") + " (" +
@@ -122,16 +134,16 @@ void ValidateFemReference(const Scene& s) {
     const double q = SimplexQuality(d, corners);
     if (!(std::abs(q) >= kDegenerateQuality)) {
       throw InputError(p, "degenerate element (quality " + Number(std::abs(q)) +
-                              ", 1 = equilateral): its nodes are " +
+                              ", 1 = equilateral): its " + NodesNamed(s, el) + " are " +
                               (d == 2 ? "on one line" : "in one plane"));
     }
   }
   CheckNoFold(s);
   for (int i = 0; i < n; ++i) {
     if (!used[i]) {
-      throw InputError("reference.elements",
-                       "node " + std::to_string(i) +
-                           " belongs to no element (every node of an FEM reference must)");
+      throw InputError(
+          "reference.elements",
+          NodesNamed(s, {i}) + " belongs to no element (every node of an FEM reference must)");
     }
   }
   if (fem.materials.empty()) throw InputError("reference.material", "required");

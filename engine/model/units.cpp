@@ -14,6 +14,7 @@ using Table = std::vector<std::pair<const char*, double>>;  // name, in SI units
 const Table kLengths = {{"m", 1.0}, {"cm", 1e-2}, {"mm", 1e-3}, {"um", 1e-6}};
 const Table kForces = {{"kN", 1e3}, {"N", 1.0}, {"mN", 1e-3}, {"uN", 1e-6}};
 const Table kModuli = {{"GPa", 1e9}, {"MPa", 1e6}, {"kPa", 1e3}, {"Pa", 1.0}};
+const Table kMasses = {{"t", 1e3}, {"kg", 1.0}, {"g", 1e-3}, {"mg", 1e-6}};
 
 std::string Names(const Table& table) {
   std::string text;
@@ -46,6 +47,8 @@ DerivedUnits DeriveUnits(const Scene::Units& units) {
   const double modulus = force / (length * length);
   const std::string derived = NameOf(kModuli, modulus);
   d.modulus = derived.empty() ? units.force + "/" + units.length + "^2" : derived;
+  const std::string mass = NameOf(kMasses, force / length);  // (force x s^2 / length, in kg)
+  d.mass = mass.empty() ? units.force + " s^2/" + units.length : mass;
   if (!units.modulus.empty()) {
     const double given = FactorOf(kModuli, units.modulus, "units.modulus");
     if (std::abs(given - modulus) > 1e-9 * given) {

@@ -14,6 +14,10 @@ struct DerivedUnits {
   std::string force;      // as given
   std::string stiffness;  // force / length, e.g. "mN/mm"
   std::string modulus;    // force / length^2 by its name where it has one (mN/mm^2 = kPa)
+  // Time is the second wherever a simulator steps in time; the mass unit follows from
+  // F = m a: force x s^2 / length, by its name where it has one (mN s^2/mm = kg, N s^2/mm = t).
+  std::string time = "s";
+  std::string mass;
 };
 
 // Checks `units` (throws InputError at "units.length", "units.force" or "units.modulus": an

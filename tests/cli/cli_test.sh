@@ -423,7 +423,7 @@ grep -q "load_cases: required: a mesh carries no load cases; pass them with --lo
 python3 - "$tmp/inclusion-direct.json" <<'PY' || fail "the result carries the units"
 import json, sys
 r = json.load(open(sys.argv[1]))
-assert r["units"] == {"length": "mm", "force": "mN", "stiffness": "mN/mm", "modulus": "kPa"}, r["units"]
+assert r["units"] == {"length": "mm", "force": "mN", "stiffness": "mN/mm", "modulus": "kPa", "mass": "kg", "time": "s"}, r["units"]
 PY
 "$sf" export "$tmp/inclusion-direct.json" -o "$tmp/inclusion-model.json" >/dev/null || fail "export with units"
 python3 -c "import json,sys; m=json.load(open(sys.argv[1])); assert m['units']['stiffness']=='mN/mm', m['units']" "$tmp/inclusion-model.json" || fail "the JSON model carries the units"

@@ -335,6 +335,10 @@ TEST(FemEquilibrium, ValidationNamesTheField) {
     s.load_cases.push_back(lc);
   }
   expect_path(s, "reference.elements[1]", "inverted at rest");
+  // An imported mesh's nodes are named by its own tags (Gmsh's node tags), which the user
+  // knows, not by springfit's 0-based indices: the shared edge B-C is tags 102, 103.
+  s.node_tags = {101, 102, 103, 104};
+  expect_path(s, "reference.elements[1]", "edge (nodes 102, 103 (the mesh's tags))");
   s = bar;
   s.reference.fem.elements[2][2] = 99;
   expect_path(s, "reference.elements[2][2]", "out of range");
@@ -350,6 +354,11 @@ TEST(FemEquilibrium, ValidationNamesTheField) {
               els.end());
   }
   expect_path(s, "reference.elements", "belongs to no element");
+  s.node_tags.resize(s.node_count());
+  for (int i = 0; i < s.node_count(); ++i) s.node_tags[i] = 7001 + 2 * i;
+  expect_path(
+      s, "reference.elements",
+      "node " + std::to_string(7001 + 2 * (s.node_count() - 1)) + " (the mesh's tags) belongs");
   s = bar;
   s.reference.fem.regions = true;
   s.reference.fem.materials.push_back(s.reference.fem.materials[0]);

@@ -55,6 +55,13 @@ TEST(SceneCodec, UnitsRoundTripAndAConsistentModulusIsAccepted) {
   EXPECT_EQ(d.stiffness, "mN/mm");
   EXPECT_EQ(d.modulus, "kPa");
   EXPECT_EQ(DeriveUnits({"m", "uN", ""}).modulus, "uN/m^2");  // no named unit
+  // The mass unit F = m a implies with time in seconds (the unit of a density, a node mass).
+  EXPECT_EQ(d.mass, "kg");
+  EXPECT_EQ(d.time, "s");
+  EXPECT_EQ(DeriveUnits({"mm", "N", ""}).mass, "t");
+  EXPECT_EQ(DeriveUnits({"m", "N", ""}).mass, "kg");
+  EXPECT_EQ(DeriveUnits({"m", "uN", ""}).mass, "mg");
+  EXPECT_EQ(DeriveUnits({"cm", "N", ""}).mass, "N s^2/cm");  // 100 kg: no named unit
   EXPECT_FALSE(SceneFromJson(ParseJson(kMinimal)).units);
 }
 

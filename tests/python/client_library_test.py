@@ -4,8 +4,8 @@
 Usage: client_library_test.py SPRINGFITD SPRINGFIT SOURCE_DIR
 
 Starts springfitd on 127.0.0.1 (a free port, SQLite in a temporary directory, a token file)
-and checks: `pip install --no-build-isolation --target` of python/ offline with Debian's
-python3 and the installed copy talking to the daemon; connection failures and timeouts; a
+and checks: `pip install` of python/ offline into a plain venv (no setuptools, no wheel) and the
+installed copy talking to the daemon; connection failures and timeouts; a
 wrong or missing token (-32001); readers that ignore members they do not know (a fake server
 adding some everywhere); submit, watch with a progress callback (notifications and polling),
 result with springs and a verdict, list and trace over several pages, export to .vtu,
@@ -35,12 +35,12 @@ from harness import STOP_TIMEOUT, Abort, Daemon, R, require, run_suite, short  #
 
 CLIENT_TIMEOUT = 10.0     # the Client's timeout: to connect and for each answer
 JOB_TIMEOUT = 60.0        # for a small job to finish (watch's timeout)
-PIP_TIMEOUT = 120.0       # for pip install --target
+PIP_TIMEOUT = 120.0       # for venv and pip install
 EXAMPLE_TIMEOUT = 60.0    # for README.md's example
 GROUP_TIMEOUT = 180       # for one group: a library that hangs fails the group, not the run
 TOKEN = "0123456789abcdefABCDEF0123456789"
 WRONG_TOKEN = "0123456789abcdefABCDEF012345678X"
-DEBIAN_PYTHON = "/usr/bin/python3"   # where install-deps.sh puts python3-pip and setuptools
+DEBIAN_PYTHON = "/usr/bin/python3"   # Debian's, with python3-venv from install-deps.sh
 VERDICTS = ("usable", "unmet_request", "unusable")
 
 sf = None   # the springfit_client module, imported from SOURCE_DIR/python in setup
@@ -281,40 +281,49 @@ def test_setup(ctx):
 
 
 def test_package(ctx):
-    """pip install --no-build-isolation --no-index --target: offline, with Debian's python3
-    (python3-pip, python3-setuptools, python3-wheel from install-deps.sh). The source is copied
-    first: pip builds in the tree it is given (build/, *.egg-info)."""
-    python = DEBIAN_PYTHON if os.access(DEBIAN_PYTHON, os.X_OK) else sys.executable
-    probe = subprocess.run([python, "-c", "import setuptools, wheel, pip"], capture_output=True,
-                           timeout=30)
-    require(probe.returncode == 0, f"{python} lacks pip, setuptools or wheel (run "
-                                   f"scripts/install-deps.sh): {probe.stderr.decode()[-300:]}")
-    src = os.path.join(ctx.tmp, "python-src")
-    shutil.copytree(os.path.join(ctx.source, "python"), src,
-                    ignore=shutil.ignore_patterns("build", "*.egg-info", "__pycache__"))
-    target = os.path.join(ctx.tmp, "site")
+    """pip install of python/ into a plain venv, offline (--no-index), with and without build
+    isolation, in a venv from which setuptools and wheel are removed (Python 3.12's venvs have
+    neither; an install that needed them failed there with "invalid command 'bdist_wheel'"):
+    the project's own build backend needs nothing but pip. With Debian's python3 (python3-venv
+    from install-deps.sh) and, where it is another one, the python3 running this test. The
+    installed copy, run by the venv's python, talks to the daemon."""
+    pythons = [DEBIAN_PYTHON] if os.access(DEBIAN_PYTHON, os.X_OK) else []
+    if not pythons or os.path.realpath(sys.executable) != os.path.realpath(DEBIAN_PYTHON):
+        pythons.append(sys.executable)
     env = clean_env(PIP_ROOT_USER_ACTION="ignore", PIP_DISABLE_PIP_VERSION_CHECK="1",
                     PYTHONDONTWRITEBYTECODE="1")
-    p = subprocess.run([python, "-m", "pip", "install", "--no-build-isolation", "--no-index",
-                        "--no-deps", "--quiet", "--target", target, src],
+    src = os.path.join(ctx.source, "python")
+    for n, python in enumerate(pythons):
+        venv = os.path.join(ctx.tmp, f"venv{n}")
+        p = subprocess.run([python, "-m", "venv", venv], capture_output=True, timeout=PIP_TIMEOUT)
+        require(p.returncode == 0, f"{python} -m venv: exit {p.returncode} (run "
+                                   f"scripts/install-deps.sh: python3-venv): {short(p.stderr.decode(), 600)}")
+        vpy = os.path.join(venv, "bin", "python")
+        pip = [vpy, "-m", "pip"]
+        subprocess.run(pip + ["uninstall", "-y", "--quiet", "setuptools", "wheel"],
                        capture_output=True, timeout=PIP_TIMEOUT, env=env)
-    require(p.returncode == 0, f"pip install --no-build-isolation --target: exit {p.returncode}: "
-                               f"{short(p.stderr.decode(), 1500)}")
-    installed = os.path.join(target, "springfit_client")
-    for name in sorted(os.listdir(os.path.join(ctx.source, "python", "springfit_client"))):
-        if name.endswith(".py") or name == "py.typed":
-            have = os.path.join(installed, name)
-            R.expect(os.path.isfile(have), f"pip install: {name} is not installed")
-    # The installed copy, in Debian's python, talks to the daemon.
-    code = ("import sys, springfit_client as s\n"
-            "assert s.__file__.startswith(sys.argv[1]), s.__file__\n"
-            "with s.Client(sys.argv[2], token_file=sys.argv[3], timeout=10) as c:\n"
-            "    print(c.info().name, c.info().auth_required)\n")
-    p = subprocess.run([python, "-c", code, target, ctx.server(), ctx.token_file],
-                       capture_output=True, timeout=60, env=dict(env, PYTHONPATH=target))
-    R.expect(p.returncode == 0 and p.stdout.decode().split() == ["springfitd", "True"],
-             f"the installed package against the daemon: exit {p.returncode}, stdout "
-             f"{p.stdout.decode()!r}, stderr {short(p.stderr.decode(), 800)}")
+        probe = subprocess.run([vpy, "-c", "import setuptools"], capture_output=True, timeout=30)
+        R.expect(probe.returncode != 0, f"{venv}: setuptools is still there: the venv is not plain")
+        for isolation in ([], ["--no-build-isolation"]):
+            subprocess.run(pip + ["uninstall", "-y", "--quiet", "springfit-client"],
+                           capture_output=True, timeout=PIP_TIMEOUT, env=env)
+            p = subprocess.run(pip + ["install", "--no-index", "--quiet", *isolation, src],
+                               capture_output=True, timeout=PIP_TIMEOUT, env=env)
+            R.expect(p.returncode == 0, f"{python}: pip install --no-index {' '.join(isolation)} "
+                                        f"./python in a plain venv: exit {p.returncode}: "
+                                        f"{short(p.stderr.decode(), 1500)}")
+        # The installed copy (not the source tree), by the name pip knows it, against the daemon.
+        code = ("import sys, importlib.metadata as m, springfit_client as s\n"
+                "assert s.__file__.startswith(sys.prefix), s.__file__\n"
+                "files = {f.name for f in m.files('springfit-client')}\n"
+                "assert {'__init__.py', 'client.py', 'py.typed'} <= files, files\n"
+                "with s.Client(sys.argv[1], token_file=sys.argv[2], timeout=10) as c:\n"
+                "    print(m.version('springfit-client'), c.info().name, c.info().auth_required)\n")
+        p = subprocess.run([vpy, "-c", code, ctx.server(), ctx.token_file],
+                           capture_output=True, timeout=60, env=env, cwd=ctx.tmp)
+        R.expect(p.returncode == 0 and p.stdout.decode().split() == ["1.0.0", "springfitd", "True"],
+                 f"{python}: the venv's package against the daemon: exit {p.returncode}, stdout "
+                 f"{p.stdout.decode()!r}, stderr {short(p.stderr.decode(), 800)}")
 
 
 def test_connection_errors(ctx):
@@ -718,7 +727,7 @@ def bounded(fn):
 def main(argv):
     groups = [
         ("setup", test_setup, True),
-        ("pip install --target", test_package, False),
+        ("pip install in a plain venv", test_package, False),
         ("connection errors", test_connection_errors, False),
         ("authentication", test_auth, False),
         ("unknown members", test_unknown_members, False),
