@@ -36,7 +36,7 @@ double Seconds(Clock::time_point since) {
 void PrintFamilies(const char* what, const std::vector<response::FamilyErrors>& families) {
   std::printf("    %-10s", what);
   for (const auto& f : families)
-    std::printf("  %s %.3g (p95 %.3g)", proto::ProbeFamilyName(f.family), f.errors.median,
+    std::printf("  %s %.3g (p95 %.3g)", response::ProbeFamilyName(f.family), f.errors.median,
                 f.errors.p95);
   std::printf("\n");
 }

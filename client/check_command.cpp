@@ -3,6 +3,8 @@
 #include <cstdio>
 #include <iostream>
 
+#include <fmt/format.h>
+
 #include "client/commands.h"
 #include "client/error_reporting.h"
 #include "client/exit_codes.h"
@@ -58,10 +60,8 @@ void PrintIdentifiability(const IdentifiabilityReport& report, bool all_pairs) {
 }
 
 std::string MaterialText(const Material& m) {
-  char buf[160];
-  std::snprintf(buf, sizeof buf, "%s, young %.6g, poisson %.6g",
-                std::string(proto::MaterialModelName(m.model)).c_str(), m.young, m.poisson);
-  return buf;
+  return fmt::format("{}, young {:.6g}, poisson {:.6g}", proto::MaterialModelName(m.model), m.young,
+                     m.poisson);
 }
 
 void PrintFemReference(const Scene& s) {

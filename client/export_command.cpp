@@ -1,8 +1,9 @@
 // springfit export RESULT_OR_ID -o FILE: the identified model in a simulator's or viewer's
 // format, chosen by the file's extension (io/model_writers.h, proto/MODEL.md).
-#include <cstdio>
 #include <iostream>
 #include <memory>
+
+#include <fmt/format.h>
 
 #include "client/commands.h"
 #include "client/error_reporting.h"
@@ -31,33 +32,26 @@ struct ExportArgs {
 // The facts a simulator needs, one line (proto/MODEL.md, "Simulator facts").
 std::string FactsLine(const io::SpringModel& model) {
   const auto& f = model.facts;
-  char line[512];
-  std::snprintf(line, sizeof line,
-                "stiffness %.4g to %.4g, median %.4g (spread %.3g); %d dead springs (below %.3g "
-                "x the median)%s",
-                f.min_stiffness, f.max_stiffness, f.median_stiffness,
-                f.min_stiffness > 0.0 ? f.max_stiffness / f.min_stiffness : 0.0, f.dead,
-                f.median_stiffness > 0.0 ? f.dead_threshold / f.median_stiffness : 0.0,
-                f.dead == 0      ? ""
-                : f.dead_dropped ? ", left out"
-                                 : ", kept and flagged");
-  std::string text = line;
+  std::string text = fmt::format(
+      "stiffness {:.4g} to {:.4g}, median {:.4g} (spread {:.3g}); {} dead springs (below {:.3g} "
+      "x the median){}",
+      f.min_stiffness, f.max_stiffness, f.median_stiffness,
+      f.min_stiffness > 0.0 ? f.max_stiffness / f.min_stiffness : 0.0, f.dead,
+      f.median_stiffness > 0.0 ? f.dead_threshold / f.median_stiffness : 0.0,
+      f.dead == 0      ? ""
+      : f.dead_dropped ? ", left out"
+                       : ", kept and flagged");
   // Mass in the unit the scene's length and force imply, time in seconds; bare numbers where
   // the scene states no units (they are then in whatever units its numbers were).
   const std::string mass_unit = model.units ? " " + model.units->mass : "";
   const std::string time_unit = model.units ? " " + model.units->time : "";
-  if (f.total_mass) {
-    std::snprintf(line, sizeof line, "; total mass %.4g%s (%s)", *f.total_mass, mass_unit.c_str(),
-                  model.mass_source.c_str());
-    text += line;
-  } else {
+  if (f.total_mass)
+    text += fmt::format("; total mass {:.4g}{} ({})", *f.total_mass, mass_unit, model.mass_source);
+  else
     text += "; no masses (give a density in the scene's material, --density or --node-mass)";
-  }
-  if (f.stable_time_step) {
-    std::snprintf(line, sizeof line, "; stable explicit time step at most %.4g%s",
-                  *f.stable_time_step, time_unit.c_str());
-    text += line;
-  }
+  if (f.stable_time_step)
+    text +=
+        fmt::format("; stable explicit time step at most {:.4g}{}", *f.stable_time_step, time_unit);
   return text;
 }
 
@@ -67,14 +61,10 @@ std::string FactsLine(const io::SpringModel& model) {
 std::string JudgementLine(const proto::StoredResult& result) {
   if (!result.outcome) return "";
   std::string text = "verdict " + result.outcome->Headline();
-  if (result.lambda_min && result.lambda_max) {
-    char line[160];
-    std::snprintf(line, sizeof line,
-                  "; generalised eigenvalues of (K_model, K_ref) on the user's supports in "
-                  "[%.3g, %.3g]",
-                  *result.lambda_min, *result.lambda_max);
-    text += line;
-  }
+  if (result.lambda_min && result.lambda_max)
+    text += fmt::format(
+        "; generalised eigenvalues of (K_model, K_ref) on the user's supports in [{:.3g}, {:.3g}]",
+        *result.lambda_min, *result.lambda_max);
   return text;
 }
 

@@ -7,6 +7,8 @@
 #include <iostream>
 #include <optional>
 
+#include <fmt/format.h>
+
 #include "client/commands.h"
 #include "client/error_reporting.h"
 #include "client/exit_codes.h"
@@ -50,9 +52,7 @@ std::string LocalTime(double unix_seconds) {
 }
 
 std::string ErrorText(double e) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.3g", e);
-  return text;
+  return fmt::format("{:.3g}", e);
 }
 
 // Where an unfinished job has got to: a genetic search's generation of its limit; strategy

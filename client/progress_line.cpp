@@ -8,19 +8,15 @@
 #include <cstdlib>
 #include <string>
 
+#include <fmt/format.h>
+
 namespace springfit::cli {
 
 std::string ClockText(double seconds) {
   if (!(seconds >= 0.0) || !std::isfinite(seconds)) return "-";
   const long long total = std::llround(seconds);
-  char text[48];
-  if (total < 3600) {
-    std::snprintf(text, sizeof text, "%lld:%02lld", total / 60, total % 60);
-  } else {
-    std::snprintf(text, sizeof text, "%lld:%02lld:%02lld", total / 3600, total / 60 % 60,
-                  total % 60);
-  }
-  return text;
+  if (total < 3600) return fmt::format("{}:{:02}", total / 60, total % 60);
+  return fmt::format("{}:{:02}:{:02}", total / 3600, total / 60 % 60, total % 60);
 }
 
 std::string FitToWidth(const std::string& line, int columns) {
@@ -60,11 +56,9 @@ void ProgressLine::Report(const TraceRow& row, bool last) {
   shown_at_ = row.wall_seconds;
   shown_generation_ = row.generation;
   if (fit_) {
-    char line[160];
-    std::snprintf(line, sizeof line, "fit step %lld  E %.4g  %.1f s",
-                  static_cast<long long>(row.evaluations), std::sqrt(row.best_normalized_error),
-                  row.wall_seconds);
-    Show(line, last);
+    Show(fmt::format("fit step {}  E {:.4g}  {:.1f} s", row.evaluations,
+                     std::sqrt(row.best_normalized_error), row.wall_seconds),
+         last);
     return;
   }
   const double rate =
@@ -81,19 +75,18 @@ void ProgressLine::Report(const TraceRow& row, bool last) {
   // The most telling first, so that a narrow terminal cuts the least: progress, E (the one
   // error measure shown, proto/RUN.md), the topology's distance, time and ETA, then the
   // evaluation rate.
-  char line[320];
-  std::snprintf(line, sizeof line, "gen %d/%d  E %.4g%s  %s%s  %.0f eval/s", row.generation,
-                max_generations_, std::sqrt(row.best_normalized_error), topology.c_str(),
-                ClockText(row.wall_seconds).c_str(), eta.c_str(), rate);
-  Show(line, last);
+  Show(fmt::format("gen {}/{}  E {:.4g}{}  {}{}  {:.0f} eval/s", row.generation, max_generations_,
+                   std::sqrt(row.best_normalized_error), topology, ClockText(row.wall_seconds), eta,
+                   rate),
+       last);
 }
 
-void ProgressLine::Show(const char* line, bool last) const {
+void ProgressLine::Show(const std::string& line, bool last) const {
   if (terminal_) {
     // Cut to the width: a wrapped line cannot be redrawn in place (\r returns to its last row).
     std::fprintf(stderr, "\r\033[K%s%s", FitToWidth(line, columns_).c_str(), last ? "\n" : "");
   } else {
-    std::fprintf(stderr, "%s\n", line);
+    std::fprintf(stderr, "%s\n", line.c_str());
   }
   std::fflush(stderr);
 }
@@ -106,26 +99,23 @@ void ProgressLine::Beat(const ProgressBeat& beat) {
       beat.wall_seconds - shown_at_ < 2.0)
     return;
   shown_phase_ = std::string(beat.phase);
-  char line[320];
+  std::string line;
   if (beat.phase == "genetic" && !std::isnan(beat.best_normalized_error)) {
-    std::snprintf(line, sizeof line,
-                  "generation %d/%d in progress  E %.4g  %lld evaluations  %.1f s", beat.generation,
-                  max_generations_, std::sqrt(beat.best_normalized_error),
-                  static_cast<long long>(beat.evaluations), beat.wall_seconds);
+    line = fmt::format("generation {}/{} in progress  E {:.4g}  {} evaluations  {:.1f} s",
+                       beat.generation, max_generations_, std::sqrt(beat.best_normalized_error),
+                       beat.evaluations, beat.wall_seconds);
   } else if (beat.phase == "fit" && !std::isnan(beat.best_normalized_error)) {
-    std::snprintf(line, sizeof line, "fit step %lld in progress  E %.4g  %.1f s",
-                  static_cast<long long>(beat.evaluations), std::sqrt(beat.best_normalized_error),
-                  beat.wall_seconds);
+    line = fmt::format("fit step {} in progress  E {:.4g}  {:.1f} s", beat.evaluations,
+                       std::sqrt(beat.best_normalized_error), beat.wall_seconds);
   } else if (beat.phase == "path" && !std::isnan(beat.best_normalized_error)) {
-    std::snprintf(line, sizeof line, "sparsity path: %d points, the last at E %.4g  %.1f s",
-                  beat.generation, std::sqrt(beat.best_normalized_error), beat.wall_seconds);
+    line = fmt::format("sparsity path: {} points, the last at E {:.4g}  {:.1f} s", beat.generation,
+                       std::sqrt(beat.best_normalized_error), beat.wall_seconds);
   } else if (beat.phase == "genetic") {
-    std::snprintf(line, sizeof line,
-                  "generation 0/%d: evaluating the initial population  %lld evaluations  %.1f s",
-                  max_generations_, static_cast<long long>(beat.evaluations), beat.wall_seconds);
+    line =
+        fmt::format("generation 0/{}: evaluating the initial population  {} evaluations  {:.1f} s",
+                    max_generations_, beat.evaluations, beat.wall_seconds);
   } else {
-    std::snprintf(line, sizeof line, "%s phase  %.1f s", std::string(beat.phase).c_str(),
-                  beat.wall_seconds);
+    line = fmt::format("{} phase  {:.1f} s", beat.phase, beat.wall_seconds);
   }
   shown_at_ = beat.wall_seconds;
   shown_beat_ = true;

@@ -28,7 +28,7 @@ class ProgressLine {
 
  private:
   // Redrawn in place on a terminal (`last` ends the line), a line of its own otherwise.
-  void Show(const char* line, bool last) const;
+  void Show(const std::string& line, bool last) const;
 
   int max_generations_;
   bool quiet_;

@@ -4,8 +4,9 @@
 
 #include <algorithm>
 #include <csignal>
-#include <cstdio>
 #include <iostream>
+
+#include <fmt/format.h>
 
 #include "client/exit_codes.h"
 #include "client/progress_line.h"
@@ -53,13 +54,13 @@ extern "C" void OnDetach(int) {
 class DetachOnInterrupt {
  public:
   explicit DetachOnInterrupt(std::int64_t job_id) {
-    const int n = std::snprintf(g_detach_message, sizeof g_detach_message,
-                                "\nspringfit: stopped watching; job %lld keeps running on the "
-                                "server (springfit cancel %lld stops it, springfit watch %lld "
-                                "watches it again)\n",
-                                static_cast<long long>(job_id), static_cast<long long>(job_id),
-                                static_cast<long long>(job_id));
-    g_detach_length = n > 0 ? std::min<std::size_t>(n, sizeof g_detach_message - 1) : 0;
+    // (Into the fixed buffer, cut to its size: the handler reads no heap.)
+    const auto end = fmt::format_to_n(g_detach_message, sizeof g_detach_message,
+                                      "\nspringfit: stopped watching; job {0} keeps running on "
+                                      "the server (springfit cancel {0} stops it, springfit "
+                                      "watch {0} watches it again)\n",
+                                      job_id);
+    g_detach_length = std::min<std::size_t>(end.size, sizeof g_detach_message);
     previous_int_ = std::signal(SIGINT, OnDetach);
     previous_term_ = std::signal(SIGTERM, OnDetach);
   }

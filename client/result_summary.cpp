@@ -4,22 +4,17 @@
 
 #include <cmath>
 
-#include <cstdio>
 #include <fstream>
 #include <iostream>
 #include <stdexcept>
 #include <string>
 
+#include <fmt/format.h>
+
 #include "proto/outcome_codec.h"
 
 namespace springfit::cli {
 namespace {
-
-std::string Format(const char* format, double value) {
-  char text[64];
-  std::snprintf(text, sizeof text, format, value);
-  return text;
-}
 
 void PrintPairs(std::ostream& out, const char* label, const proto::Json& pairs) {
   if (!pairs.is_array() || pairs.empty()) return;
@@ -57,9 +52,9 @@ void PrintNonlinearFit(const proto::Json& fit, std::ostream& out) {
   const proto::Json& n = fit["nonlinear"];
   std::string sizes;
   for (const auto& a : n.value("amplitudes", proto::Json::array()))
-    sizes += (sizes.empty() ? "" : ", ") + Format("%.0f", 100.0 * a.get<double>());
+    sizes += (sizes.empty() ? "" : ", ") + fmt::format("{:.0f}", 100.0 * a.get<double>());
   const auto number = [&n](const char* key) {
-    return n.contains(key) && n[key].is_number() ? Format("%.3g", n[key].get<double>())
+    return n.contains(key) && n[key].is_number() ? fmt::format("{:.3g}", n[key].get<double>())
                                                  : std::string("-");
   };
   out << "nonlinear fit:     " << n.value("gauss_newton_steps", 0) << " Gauss-Newton steps on "
@@ -116,16 +111,17 @@ void PrintRun(const proto::Json& r, bool continuous, std::ostream& out) {
     out << "evaluations:       " << r.value("evaluations", 0LL) << " ("
         << r.value("cache_hits", 0LL) << " from the cache)\n";
   }
-  out << "wall time:         " << Format("%.3f", r.value("wall_seconds", 0.0)) << " s";
+  out << "wall time:         " << fmt::format("{:.3f}", r.value("wall_seconds", 0.0)) << " s";
   if (continuous && r["continuous"].contains("model_seconds")) {
-    out << " (the model at " << Format("%.3f", r["continuous"]["model_seconds"].get<double>())
+    out << " (the model at "
+        << fmt::format("{:.3f}", r["continuous"]["model_seconds"].get<double>())
         << " s, then its held-out error)";
   }
   out << "\n";
   if (r.contains("direct_phase") && r["direct_phase"].is_object()) {
     const proto::Json& phase = r["direct_phase"];
-    out << "direct seed:       " << Format("%.3f", phase.value("seconds", 0.0)) << " s, E "
-        << Format("%.4g", std::sqrt(phase.value("normalized_error", 0.0)));
+    out << "direct seed:       " << fmt::format("{:.3f}", phase.value("seconds", 0.0)) << " s, E "
+        << fmt::format("{:.4g}", std::sqrt(phase.value("normalized_error", 0.0)));
     if (phase.contains("missing") && phase["missing"].is_number()) {
       out << " (" << phase["missing"].get<long long>() << " missing, "
           << phase["extra"].get<long long>() << " extra)";
@@ -151,15 +147,15 @@ void PrintModel(const proto::Json& r, std::ostream& out) {
     const std::vector<double> k = r["stiffness"].get<std::vector<double>>();
     const io::StiffnessSpread spread = io::SpreadOf(k);
     const double fraction = io::ModelOptions{}.dead_fraction;
-    out << "stiffness:         " << Format("%.4g", spread.min) << " to "
-        << Format("%.4g", spread.max) << ", median " << Format("%.4g", spread.median) << " (spread "
-        << Format("%.3g", spread.min > 0.0 ? spread.max / spread.min : 0.0) << "); "
-        << spread.below(k, fraction) << " dead (below " << Format("%g", fraction)
+    out << "stiffness:         " << fmt::format("{:.4g}", spread.min) << " to "
+        << fmt::format("{:.4g}", spread.max) << ", median " << fmt::format("{:.4g}", spread.median)
+        << " (spread " << fmt::format("{:.3g}", spread.min > 0.0 ? spread.max / spread.min : 0.0)
+        << "); " << spread.below(k, fraction) << " dead (below " << fmt::format("{:g}", fraction)
         << " x the median: export flags them, --drop-dead leaves them out)\n";
   }
   // E is the one quality measure shown (the normalised error and the cost are in --json).
   out << "E (RMS nodal):     "
-      << (r.contains("rms_error") ? Format("%.6g", r["rms_error"].get<double>())
+      << (r.contains("rms_error") ? fmt::format("{:.6g}", r["rms_error"].get<double>())
                                   : std::string("- (no equilibrium)"))
       << " on the named load cases (relative RMS nodal error against the reference)"
       << (r.value("mechanism", false) ? "; a mechanism" : "") << "\n";
@@ -172,7 +168,7 @@ void PrintContinuous(const proto::Json& r, std::ostream& out) {
   if (!path.empty()) {
     const auto error = [](const proto::Json& point) {
       return point.contains("rms_error") && point["rms_error"].is_number()
-                 ? Format("%.4g", point["rms_error"].get<double>())
+                 ? fmt::format("{:.4g}", point["rms_error"].get<double>())
                  : std::string("-");
     };
     out << "sparsity path:     " << path.size() << " points, from "
@@ -183,14 +179,14 @@ void PrintContinuous(const proto::Json& r, std::ostream& out) {
   const proto::Json reg = c.value("regularization", proto::Json::object());
   const proto::Json tried = reg.value("tried", proto::Json::array());
   if (reg.value("strength", 0.0) > 0.0 || !tried.empty()) {
-    out << "regularization:    " << Format("%.3g", reg.value("strength", 0.0));
+    out << "regularization:    " << fmt::format("{:.3g}", reg.value("strength", 0.0));
     if (!tried.empty()) {
       out << ", the lowest held-out E of those tried (";
       for (std::size_t i = 0; i < tried.size(); ++i) {
         const proto::Json& t = tried[i];
-        out << (i > 0 ? ", " : "") << Format("%.3g", t.value("strength", 0.0)) << ": "
+        out << (i > 0 ? ", " : "") << fmt::format("{:.3g}", t.value("strength", 0.0)) << ": "
             << (t["held_out_rms_error"].is_number()
-                    ? Format("%.4g", t["held_out_rms_error"].get<double>())
+                    ? fmt::format("{:.4g}", t["held_out_rms_error"].get<double>())
                     : std::string("-"));
       }
       out << ")";
@@ -198,7 +194,7 @@ void PrintContinuous(const proto::Json& r, std::ostream& out) {
     out << "\n";
   }
   if (c.contains("held_out_rms_error") && c["held_out_rms_error"].is_number()) {
-    out << "held-out E:        " << Format("%.6g", c["held_out_rms_error"].get<double>())
+    out << "held-out E:        " << fmt::format("{:.6g}", c["held_out_rms_error"].get<double>())
         << " (each load case predicted by the springs fitted to the others)\n";
     // The case predicted worst (unpredictable: no equilibrium), beside its E when fitted:
     // the kind of deformation the other cases tell least about.
@@ -214,9 +210,9 @@ void PrintContinuous(const proto::Json& r, std::ostream& out) {
     if (worst < per_case.size() && per_case.size() > 1) {
       const proto::Json& lc = cases[worst];
       out << "  worst predicted: '" << lc.value("name", std::string()) << "', E "
-          << (per_case[worst].is_number() ? Format("%.4g", per_case[worst].get<double>())
+          << (per_case[worst].is_number() ? fmt::format("{:.4g}", per_case[worst].get<double>())
                                           : std::string("- (no equilibrium)"))
-          << " (" << Format("%.4g", std::sqrt(lc.value("normalized_error", 0.0)))
+          << " (" << fmt::format("{:.4g}", std::sqrt(lc.value("normalized_error", 0.0)))
           << " fitted with it): the other cases tell least about its deformation\n";
     }
   }
@@ -227,7 +223,7 @@ void PrintBaseline(const proto::Json& b, std::ostream& out) {
   out << "baseline:          " << b.value("recipe", std::string()) << " on the "
       << b.value("springs", 0) << " mesh edges: ";
   if (b.value("converged", false)) {
-    out << "E " << Format("%.6g", b.value("rms_error", 0.0)) << "\n";
+    out << "E " << fmt::format("{:.6g}", b.value("rms_error", 0.0)) << "\n";
   } else {
     out << "no equilibrium\n";
   }
@@ -243,7 +239,7 @@ void PrintGeneralization(const proto::Json& g, std::ostream& out) {
   // ("inf": some probe finds a mode the model leaves free; "-": not measured.)
   const auto number = [](const proto::Json& j, const char* key) {
     if (j.contains(key) && j[key].is_string()) return j[key].get<std::string>();
-    return j.contains(key) && j[key].is_number() ? Format("%.3g", j[key].get<double>())
+    return j.contains(key) && j[key].is_number() ? fmt::format("{:.3g}", j[key].get<double>())
                                                  : std::string("-");
   };
   const proto::Json held = g.value("held_out", proto::Json::object());
@@ -268,7 +264,7 @@ void PrintGeneralization(const proto::Json& g, std::ostream& out) {
   for (const auto& a : g.value("amplitudes", proto::Json::array())) {
     const proto::Json model = a.value("model", proto::Json::object());
     const proto::Json baseline = a.value("baseline", proto::Json::object());
-    out << "  nonlinear at " << Format("%3.0f", 100.0 * a.value("amplitude", 0.0))
+    out << "  nonlinear at " << fmt::format("{:3.0f}", 100.0 * a.value("amplitude", 0.0))
         << "%: " << model.value("probes", 0) << " probes solved to equilibrium: median E "
         << number(model, "median") << ", 95% " << number(model, "p95") << "; baseline "
         << number(baseline, "median") << ", 95% " << number(baseline, "p95");
@@ -287,7 +283,7 @@ void PrintGeneralization(const proto::Json& g, std::ostream& out) {
     const proto::Json baseline = t.value("baseline", proto::Json::object());
     const proto::Json model_force = t.value("model_force", proto::Json::object());
     const proto::Json baseline_force = t.value("baseline_force", proto::Json::object());
-    out << "  tool push " << Format("%3.0f", 100.0 * t.value("amplitude", 0.0))
+    out << "  tool push " << fmt::format("{:3.0f}", 100.0 * t.value("amplitude", 0.0))
         << "%: " << t.value("pushes", 0) << " pushes and " << t.value("grasps", 0)
         << " grasps (3 nodes) in by " << number(t, "depth") << ": median E "
         << number(model, "median") << ", tool force error " << number(model_force, "median")
@@ -311,7 +307,7 @@ void PrintGeneralization(const proto::Json& g, std::ostream& out) {
   const double lambda_min = g.value("lambda_min", 0.0);
   if (lambda_min > 0.0)
     out << ": under the load that finds its softest mode, the model moves "
-        << Format("%.3g", 1.0 / lambda_min) << " times as far as the reference";
+        << fmt::format("{:.3g}", 1.0 / lambda_min) << " times as far as the reference";
   else
     out << ": the model leaves a mode free";
   out << "\n";

@@ -2,9 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <stdexcept>
+
+#include <fmt/format.h>
 
 #include "figures/plot_axes.h"
 #include "figures/svg_document.h"
@@ -37,13 +38,8 @@ void DrawErrorLegend(SvgDocument& svg, const std::vector<ErrorCurve>& curves, do
     std::string label = curves[i].label;
     if (!curves[i].points.empty()) {
       const auto& [t, e] = curves[i].points.back();
-      char tail[96];
-      if (e <= 0.0) {
-        std::snprintf(tail, sizeof tail, "  (exact at %.3g s)", t);
-      } else {
-        std::snprintf(tail, sizeof tail, "  (error %.3g at %.3g s)", e, t);
-      }
-      label += tail;
+      label += e <= 0.0 ? fmt::format("  (exact at {:.3g} s)", t)
+                        : fmt::format("  (error {:.3g} at {:.3g} s)", e, t);
     }
     svg.Text({kPlotLeft + 32, y}, label, "");
   }

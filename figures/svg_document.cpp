@@ -1,6 +1,6 @@
 #include "figures/svg_document.h"
 
-#include <cstdio>
+#include <fmt/format.h>
 
 namespace springfit::figures {
 namespace {
@@ -8,9 +8,7 @@ namespace {
 // Two decimals: a hundredth of a pixel is below any viewer's resolution, and it keeps files
 // of a few thousand springs small.
 std::string Num(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.2f", v);
-  return text;
+  return fmt::format("{:.2f}", v);
 }
 
 std::string Points(const std::vector<Point2>& points) {

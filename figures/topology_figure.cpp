@@ -2,9 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <numbers>
+
+#include <fmt/format.h>
 
 #include "engine/api/input_error.h"
 #include "engine/api/problem.h"
@@ -39,12 +40,6 @@ constexpr std::string_view kCss =
     // Line widths by stiffness (kStiffnessWidths classes, thinnest = softest).
     ".k0{stroke-width:0.5}.k1{stroke-width:1}.k2{stroke-width:1.6}.k3{stroke-width:2.4}"
     ".k4{stroke-width:3.4}\n";
-
-std::string Format(const char* format, double value) {
-  char text[64];
-  std::snprintf(text, sizeof text, format, value);
-  return text;
-}
 
 // Projects the scene's points onto the page: 2D as they are; 3D in an orthographic view.
 // Page coordinates grow downwards, so y is flipped at the very end (in Frame).
@@ -154,7 +149,8 @@ class FigureWriter {
                               difference_ ? &difference_->missing : nullptr,
                               difference_ ? &difference_->extra : nullptr, identified_stiffness};
       const LoadCaseEvaluation& eval = evaluation_.load_cases[k];
-      std::string caption = "identified: E " + Format("%.3g", std::sqrt(eval.normalized_error));
+      std::string caption =
+          "identified: E " + fmt::format("{:.3g}", std::sqrt(eval.normalized_error));
       bool warn = false;
       if (eval.solve.termination == Termination::kMechanism) {
         caption = "identified: a mechanism (" + std::to_string(eval.solve.mechanism_modes) +
@@ -193,7 +189,7 @@ class FigureWriter {
                             input.stiffness.empty() ? nullptr : &input.stiffness};
     Panel(svg, {kMargin + p + kGap, top}, -1, identified,
           "identified topology, at rest: E " +
-              Format("%.3g", std::sqrt(evaluation_.normalized_error)));
+              fmt::format("{:.3g}", std::sqrt(evaluation_.normalized_error)));
     return svg.str();
   }
 
@@ -292,7 +288,7 @@ class FigureWriter {
     }
     // E, the one error measure shown (proto/RUN.md); the springs as the result counts them.
     return s + "; " + std::to_string(input.springs.size()) + " springs; E " +
-           Format("%.3g", std::sqrt(evaluation_.normalized_error));
+           fmt::format("{:.3g}", std::sqrt(evaluation_.normalized_error));
   }
 
   double Magnification() const {
@@ -351,8 +347,8 @@ class FigureWriter {
     }
     if (widths_) {
       // On the subtitle's line, at the right: the thinnest and the thickest width, and the range.
-      const std::string label =
-          "width: stiffness " + Format("%.3g", k_lo_) + " to " + Format("%.3g", k_hi_) + " (log)";
+      const std::string label = "width: stiffness " + fmt::format("{:.3g}", k_lo_) + " to " +
+                                fmt::format("{:.3g}", k_hi_) + " (log)";
       const double right = width - kMargin, line_y = kMargin + 28;
       const double start = right - 6.5 * static_cast<double>(label.size()) - 34;
       svg.Line({start, line_y}, {start + 12, line_y}, "spring k0");
@@ -369,8 +365,8 @@ class FigureWriter {
     svg.Line({x, y - 4}, {x + 18, y - 4}, "force");
     svg.Polygon({{x + 22, y - 4}, {x + 15, y - 7.5}, {x + 15, y - 0.5}}, "force-head");
     svg.Text({x + 27, y}, "force", "");
-    const std::string scale =
-        magnify == 1.0 ? "displacements true size" : "displacements x" + Format("%.3g", magnify);
+    const std::string scale = magnify == 1.0 ? "displacements true size"
+                                             : "displacements x" + fmt::format("{:.3g}", magnify);
     svg.Text({width - kMargin, kMargin + 14}, scale, "", SvgDocument::Anchor::kEnd);
   }
 

@@ -2,9 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <stdexcept>
+
+#include <fmt/format.h>
 
 #include "figures/plot_axes.h"
 #include "figures/svg_document.h"
@@ -84,9 +85,8 @@ void DrawAxes(SvgDocument& svg, const TradeoffFrame& f, const std::string& title
   for (double s = f.x_lo; s <= f.x_hi + 0.5 * f.step; s += f.step) {
     const double x = f.X(s);
     svg.Line({x, kPlotTop}, {x, kPlotTop + f.plot_h}, "grid");
-    char label[32];
-    std::snprintf(label, sizeof label, "%.0f", s);
-    svg.Text({x, kPlotTop + f.plot_h + 18}, label, "", SvgDocument::Anchor::kMiddle);
+    svg.Text({x, kPlotTop + f.plot_h + 18}, fmt::format("{:.0f}", s), "",
+             SvgDocument::Anchor::kMiddle);
   }
   for (int d = f.y_axis.lo; d <= f.y_axis.hi; ++d) {
     const double y = f.Y(std::pow(10.0, d));
@@ -131,19 +131,13 @@ void DrawLegend(SvgDocument& svg, const std::vector<TradeoffCurve>& curves, doub
     svg.Line({kPlotLeft, y - 4}, {kPlotLeft + 26, y - 4}, "curve" + std::to_string(i));
     svg.Text({kPlotLeft + 32, y}, c.label, "");
     std::string text;
-    char part[128];
-    if (c.returned) {
-      std::snprintf(part, sizeof part, "returned model (square): %d springs, E %.3g",
-                    c.returned->first, c.returned->second);
-      text = part;
-    }
-    if (c.chosen && *c.chosen < c.points.size()) {
-      std::snprintf(part, sizeof part,
-                    "%srefitted from path point %zu of %zu (%d springs, E %.3g: large dot)",
-                    text.empty() ? "" : "; ", *c.chosen + 1, c.points.size(),
-                    c.points[*c.chosen].first, c.points[*c.chosen].second);
-      text += part;
-    }
+    if (c.returned)
+      text = fmt::format("returned model (square): {} springs, E {:.3g}", c.returned->first,
+                         c.returned->second);
+    if (c.chosen && *c.chosen < c.points.size())
+      text += fmt::format("{}refitted from path point {} of {} ({} springs, E {:.3g}: large dot)",
+                          text.empty() ? "" : "; ", *c.chosen + 1, c.points.size(),
+                          c.points[*c.chosen].first, c.points[*c.chosen].second);
     if (!text.empty()) svg.Text({kPlotLeft + 32, y + kLegendRow}, text, "");
   }
   const bool any_baseline = std::any_of(curves.begin(), curves.end(), [](const TradeoffCurve& c) {

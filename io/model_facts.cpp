@@ -2,8 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <string>
+
+#include <fmt/format.h>
 
 #include "engine/api/analysis.h"
 #include "engine/api/input_error.h"
@@ -59,11 +60,9 @@ void MarkDeadSprings(SpringModel& model, const ModelOptions& options) {
 
 void LumpMasses(SpringModel& model, const Scene& scene, const ModelOptions& options) {
   const int n = model.node_count();
-  char text[96];
   if (options.node_mass) {
     model.mass.assign(static_cast<std::size_t>(n), *options.node_mass);
-    std::snprintf(text, sizeof text, "node mass %.6g (--node-mass)", *options.node_mass);
-    model.mass_source = text;
+    model.mass_source = fmt::format("node mass {:.6g} (--node-mass)", *options.node_mass);
     return;
   }
   const bool fem = scene.reference.kind == Reference::Kind::kFem;
@@ -100,8 +99,7 @@ void LumpMasses(SpringModel& model, const Scene& scene, const ModelOptions& opti
     for (int node : nodes) model.mass[node] += rho * measure / static_cast<double>(nodes.size());
   }
   if (options.density) {
-    std::snprintf(text, sizeof text, "density %.6g (--density)", *options.density);
-    model.mass_source = text;
+    model.mass_source = fmt::format("density {:.6g} (--density)", *options.density);
   } else {
     model.mass_source = "the materials' density";
   }

@@ -5,8 +5,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <sstream>
+
+#include <fmt/format.h>
 
 #include "engine/api/analysis.h"
 #include "engine/api/input_error.h"
@@ -228,11 +229,7 @@ struct SofaScene {
 
   // The time integration (implicit Euler) or the static Newton solve, and the linear solver.
   void WriteSolver(std::ostream& out) const {
-    const auto short_number = [](double x) {
-      char text[32];
-      std::snprintf(text, sizeof text, "%.3g", x);
-      return std::string(text);
-    };
+    const auto short_number = [](double x) { return fmt::format("{:.3g}", x); };
     const std::string residual = short_number(1e-12 * force_scale);
     const std::string correction = short_number(1e-12 * (size > 0.0 ? size : 1.0));
     if (options.dynamic) {

@@ -1,9 +1,10 @@
 #include "io/spring_model.h"
 
-#include <cstdio>
 #include <map>
 #include <set>
 #include <utility>
+
+#include <fmt/format.h>
 
 #include "engine/api/input_error.h"
 #include "engine/api/problem.h"
@@ -66,9 +67,7 @@ std::string DescriptionOf(const proto::StoredResult& result, const Scene& scene)
   if (result.outcome) {
     description += "; " + result.outcome->Headline();
   } else if (result.rms_error) {
-    char e[32];
-    std::snprintf(e, sizeof e, ", E %.4g", *result.rms_error);
-    description += e;
+    description += fmt::format(", E {:.4g}", *result.rms_error);
   }
   if (scene.units) {
     const DerivedUnits units = DeriveUnits(*scene.units);

@@ -1,11 +1,11 @@
 #include "proto/job.h"
 
-#include <cstdio>
-
 #include <cmath>
 
 #include <array>
 #include <utility>
+
+#include <fmt/format.h>
 
 #include "engine/api/input_error.h"
 #include "proto/names.h"
@@ -61,9 +61,7 @@ bool ProgressCountsSteps(std::string_view strategy) {
 std::string JobErrorText(const JobRecord& job) {
   const auto text = [](double e) {
     if (!std::isfinite(e)) return std::string("-");
-    char buffer[32];
-    std::snprintf(buffer, sizeof buffer, "%.3g", e);
-    return std::string(buffer);
+    return fmt::format("{:.3g}", e);
   };
   if (job.outcome) return job.outcome->rms_error ? text(*job.outcome->rms_error) : "-";
   return job.progress ? text(std::sqrt(job.progress->best_normalized_error)) + "~" : "-";

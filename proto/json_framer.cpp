@@ -1,6 +1,6 @@
 #include "proto/json_framer.h"
 
-#include <cstdio>
+#include <fmt/format.h>
 
 namespace springfit::proto {
 namespace {
@@ -18,13 +18,7 @@ bool IsHexDigit(char c) {
 // A byte as it can be shown in a message: 'x', or \xNN when not printable.
 std::string Shown(char c) {
   const auto u = static_cast<unsigned char>(c);
-  char text[16];
-  if (u >= 0x20 && u < 0x7f) {
-    std::snprintf(text, sizeof text, "'%c'", c);
-  } else {
-    std::snprintf(text, sizeof text, "byte 0x%02x", u);
-  }
-  return text;
+  return u >= 0x20 && u < 0x7f ? fmt::format("'{}'", c) : fmt::format("byte 0x{:02x}", u);
 }
 
 }  // namespace

@@ -198,26 +198,6 @@ Json ProbesToJson(int probes) {
   return probes == 0 ? Json("none") : Json(probes);
 }
 
-const char* ProbeFamilyName(response::ProbeFamily family) {
-  switch (family) {
-    case response::ProbeFamily::kPoint:
-      return "point";
-    case response::ProbeFamily::kPatch:
-      return "patch";
-    case response::ProbeFamily::kBody:
-      return "body";
-    case response::ProbeFamily::kNamed:
-      return "named";
-    case response::ProbeFamily::kMode:
-      return "mode";
-    case response::ProbeFamily::kPush:
-      return "push";
-    case response::ProbeFamily::kGrasp:
-      return "grasp";
-  }
-  return "?";
-}
-
 std::string_view StopReasonName(StopReason reason) {
   switch (reason) {
     case StopReason::kTargetReached:

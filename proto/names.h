@@ -58,10 +58,6 @@ std::optional<int> ProbesFromText(const std::string& text, const std::string& pa
 // The JSON of search.probes: "none" for 0, else the count.
 Json ProbesToJson(int probes);
 
-// "point", "patch", "body", "push", "grasp", "named": the words of the result's `generalization`
-// object.
-const char* ProbeFamilyName(response::ProbeFamily family);
-
 // "default, paper, direct, hybrid or continuous": the accepted names, for messages.
 std::string StrategyNames();
 std::vector<Strategy> AllStrategies();

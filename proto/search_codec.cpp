@@ -1,11 +1,12 @@
 #include "proto/search_codec.h"
 
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include <fmt/format.h>
 
 #include "engine/api/input_error.h"
 #include "engine/api/scene.h"
@@ -224,7 +225,8 @@ Json ErrorSummaryToJson(const response::ErrorSummary& s) {
 
 Json FamiliesToJson(const std::vector<response::FamilyErrors>& families) {
   Json j = Json::object();
-  for (const auto& f : families) j[ProbeFamilyName(f.family)] = ErrorSummaryToJson(f.errors);
+  for (const auto& f : families)
+    j[response::ProbeFamilyName(f.family)] = ErrorSummaryToJson(f.errors);
   return j;
 }
 
@@ -423,10 +425,9 @@ std::string TraceCsvHeader() {
 
 std::string TraceRowToCsv(const TraceRow& r) {
   auto count = [](int c) { return c < 0 ? std::string() : std::to_string(c); };
-  char numbers[160];
-  std::snprintf(numbers, sizeof numbers, "%.6f,%lld,%lld,%.17g,%.17g,%.17g", r.wall_seconds,
-                static_cast<long long>(r.evaluations), static_cast<long long>(r.cache_hits),
-                r.best_cost, r.best_normalized_error, r.mean_cost);
+  const std::string numbers =
+      fmt::format("{:.6f},{},{},{:.17g},{:.17g},{:.17g}", r.wall_seconds, r.evaluations,
+                  r.cache_hits, r.best_cost, r.best_normalized_error, r.mean_cost);
   return std::to_string(r.generation) + "," + numbers + "," + count(r.missing) + "," +
          count(r.extra);
 }

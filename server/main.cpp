@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <csignal>
-#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
@@ -16,6 +15,8 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/address.hpp>
 #include <boost/asio/signal_set.hpp>
+
+#include <fmt/format.h>
 
 #include "proto/scene_codec.h"
 #include "proto/server_address.h"
@@ -67,8 +68,7 @@ std::string ReadToken(const std::string& path) {
     if (S_ISDIR(st.st_mode))
       throw std::runtime_error("the token file " + path + " is a directory, not a file");
     if ((st.st_mode & 077) != 0) {
-      char mode[8];
-      std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777));
+      const std::string mode = fmt::format("{:04o}", static_cast<unsigned>(st.st_mode & 07777));
       throw std::runtime_error("the token file " + path + " is readable by others (mode " + mode +
                                "): chmod 600 " + path);
     }

@@ -2,11 +2,11 @@
 
 #include <array>
 #include <cmath>
-#include <cstdio>
 #include <numbers>
 #include <stdexcept>
 
 #include "engine/problem/problem.h"
+#include "engine/runtime/number_text.h"
 #include "engine/search/random_stream.h"
 
 namespace springfit::examples {
@@ -215,9 +215,7 @@ Scene WithMeasurementNoise(const Scene& scene, double fraction, std::uint64_t se
     return radius * std::cos(2.0 * std::numbers::pi * random.Uniform());
   };
   Scene noisy = scene;
-  char tag[64];
-  std::snprintf(tag, sizeof tag, "-noise%g-s%llu", fraction, static_cast<unsigned long long>(seed));
-  noisy.name += tag;
+  noisy.name += "-noise" + NumberText(fraction, 6) + "-s" + std::to_string(seed);
   noisy.description = scene.description + "; reference positions with Gaussian noise of " +
                       std::to_string(fraction) + " x the RMS displacement (seed " +
                       std::to_string(seed) + ")";

@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "engine/linalg/newton_iteration.h"
+#include "engine/runtime/number_text.h"
 #include "engine/runtime/options_check.h"
 
 namespace springfit::fem {
@@ -24,9 +25,7 @@ constexpr double kShifts[] = {0.0, 1e-10, 1e-7, 1e-4, 1e-2, 1e-1, 1.0, 10.0};
 constexpr double kRestShift = 1e-13;
 
 std::string Fraction(double f) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4g%%", 100.0 * f);
-  return buf;
+  return NumberText(100.0 * f, 4) + "%";
 }
 
 }  // namespace

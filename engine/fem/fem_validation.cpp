@@ -7,6 +7,7 @@
 
 #include "engine/fem/fem_model.h"
 #include "engine/runtime/input_error.h"
+#include "engine/runtime/number_text.h"
 
 namespace springfit::fem {
 namespace {
@@ -20,9 +21,7 @@ std::string Index(const std::string& path, std::size_t i) {
 }
 
 std::string Number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
+  return NumberText(v, 6);
 }
 
 // Nodes as the user knows them: by the mesh's own tags (Gmsh's node tags, a deck's node

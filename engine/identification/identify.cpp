@@ -1,6 +1,5 @@
 #include "engine/identification/identify.h"
 
-#include <cstdio>
 #include <string>
 
 #include <fmt/format.h>
@@ -55,63 +54,51 @@ std::string DirectAdvice(const IdentificationResult& r) {
 }
 
 std::string StopMessage(const IdentificationResult& r) {
-  char buf[200];
   // (A run stopped before its strategy had a model has its message from StoppedBeforeAModel.)
   if (r.trace.empty() && r.direct_phase &&
-      (r.stop == StopReason::kCancelled || r.stop == StopReason::kTimeLimit)) {
-    std::snprintf(buf, sizeof buf,
-                  "%s during the first generation: the direct phase's topology is kept",
-                  r.stop == StopReason::kCancelled ? "stopped on request" : "time limit reached");
-    return buf;
-  }
+      (r.stop == StopReason::kCancelled || r.stop == StopReason::kTimeLimit))
+    return fmt::format(
+        "{} during the first generation: the direct phase's topology is kept",
+        r.stop == StopReason::kCancelled ? "stopped on request" : "time limit reached");
   const double target = std::max(r.options.target_normalized_error, kExactNormalizedError);
+  const double e = r.evaluation.normalized_error;
   switch (r.stop) {
     case StopReason::kTargetReached:
-      std::snprintf(buf, sizeof buf, "the normalised error %.3g reached the target (<= %.3g)",
-                    r.evaluation.normalized_error, target);
-      break;
+      return fmt::format("the normalised error {:.3g} reached the target (<= {:.3g})", e, target);
     case StopReason::kGenerationLimit:
-      std::snprintf(buf, sizeof buf, "the generation limit (%d) was reached; normalised error %.3g",
-                    r.options.max_generations, r.evaluation.normalized_error);
-      break;
+      return fmt::format("the generation limit ({}) was reached; normalised error {:.3g}",
+                         r.options.max_generations, e);
     case StopReason::kCancelled:
-      std::snprintf(buf, sizeof buf,
-                    "stopped on request after %d generations; the best so far is kept",
-                    r.generations);
-      break;
+      return fmt::format("stopped on request after {} generations; the best so far is kept",
+                         r.generations);
     case StopReason::kTimeLimit:
-      std::snprintf(
-          buf, sizeof buf,
-          "the time limit (%.3g s) was reached after %d generations; normalised error %.3g",
-          r.options.max_seconds, r.generations, r.evaluation.normalized_error);
-      break;
+      return fmt::format(
+          "the time limit ({:.3g} s) was reached after {} generations; normalised error {:.3g}",
+          r.options.max_seconds, r.generations, e);
     case StopReason::kStalled:
-      std::snprintf(
-          buf, sizeof buf,
-          "no improvement for %d generations (best found in generation %d); normalised error %.3g",
-          r.options.stall_generations, r.best_generation, r.evaluation.normalized_error);
-      break;
+      return fmt::format(
+          "no improvement for {} generations (best found in generation {}); normalised error "
+          "{:.3g}",
+          r.options.stall_generations, r.best_generation, e);
     case StopReason::kCompleted:
-      std::snprintf(buf, sizeof buf, "ran to its end; normalised error %.3g",
-                    r.evaluation.normalized_error);
-      break;
+      return fmt::format("ran to its end; normalised error {:.3g}", e);
     case StopReason::kNotReproduced:
-      std::snprintf(buf, sizeof buf,
-                    "direct's model does not reproduce the reference: normalised error %.3g, "
-                    "above the target (<= %.3g)",
-                    r.evaluation.normalized_error, target);
-      return buf + DirectAdvice(r);
+      return fmt::format(
+                 "direct's model does not reproduce the reference: normalised error {:.3g}, "
+                 "above the target (<= {:.3g})",
+                 e, target) +
+             DirectAdvice(r);
     case StopReason::kMechanism:
-      std::snprintf(buf, sizeof buf,
-                    "the best model found is a mechanism (%d free modes over the load cases): "
-                    "it cannot carry the loads and is no answer",
-                    r.evaluation.mechanism_modes);
-      return buf + DirectAdvice(r);
+      return fmt::format(
+                 "the best model found is a mechanism ({} free modes over the load cases): it "
+                 "cannot carry the loads and is no answer",
+                 r.evaluation.mechanism_modes) +
+             DirectAdvice(r);
     case StopReason::kNoEquilibrium:
       return "the best model found has no equilibrium under some load case (" +
              NoEquilibriumCases(r.evaluation) + "): it is no answer" + DirectAdvice(r);
   }
-  return buf;
+  return "";
 }
 
 // A run stopped before its strategy had a model: a resumed run's checkpointed best; else, where

@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -294,41 +293,34 @@ class NamedCaseFit {
   // The stop message: why there is no fit, or which point by which rule, and what came of it.
   std::string Message() const {
     const double e = r_.evaluation.normalized_error;
-    char message[512];
-    if (stopped_choosing_) {
-      std::snprintf(
-          message, sizeof message,
-          "%s while the regularisation was chosen, before any fit: the start (%s) at E %.3g",
+    if (stopped_choosing_)
+      return fmt::format(
+          "{} while the regularisation was chosen, before any fit: the start ({}) at E {:.3g}",
           r_.stop == StopReason::kTimeLimit ? "time limit reached" : "stopped on request",
           StartName(), std::sqrt(e));
-      return message;
-    }
-    if (path_.points.empty()) {
-      std::snprintf(message, sizeof message,
-                    "no model with an equilibrium in every load case to start from (the start is "
-                    "a mechanism or does not converge)%s",
-                    problem_.response() == Response::kNonlinear
-                        ? ": try the linear response (search.response) or smaller loads"
-                        : ": try more candidates");
-      return message;
-    }
-    char refused[160] = "";
-    if (details_.rejected > 0)
-      std::snprintf(refused, sizeof refused,
-                    "; %d model(s) refused by the final evaluation (no equilibrium from the "
-                    "reference's, or worse than the start)",
-                    details_.rejected);
-    std::snprintf(
-        message, sizeof message,
-        "%s%d springs at E %.3g, from %s; the fit on every candidate reached E %.3g "
-        "from %.3g at its start (%s)%s",
+    if (path_.points.empty())
+      return fmt::format(
+          "no model with an equilibrium in every load case to start from (the start is a "
+          "mechanism or does not converge){}",
+          problem_.response() == Response::kNonlinear
+              ? ": try the linear response (search.response) or smaller loads"
+              : ": try more candidates");
+    const std::string refused =
+        details_.rejected > 0
+            ? fmt::format(
+                  "; {} model(s) refused by the final evaluation (no equilibrium from "
+                  "the reference's, or worse than the start)",
+                  details_.rejected)
+            : std::string();
+    return fmt::format(
+        "{}{} springs at E {:.3g}, from {}; the fit on every candidate reached E {:.3g} from "
+        "{:.3g} at its start ({}){}",
         stopped_ ? (r_.stop == StopReason::kTimeLimit ? "time limit reached; the best so far: "
                                                       : "stopped on request; the best so far: ")
                  : "",
-        PresentSprings(weights_), std::sqrt(e), ReturnedFrom().c_str(),
+        PresentSprings(weights_), std::sqrt(e), ReturnedFrom(),
         std::sqrt(details_.fit_normalized_error), std::sqrt(details_.start_normalized_error),
         StartName(), refused);
-    return message;
   }
 
   const char* StartName() const {
@@ -338,42 +330,33 @@ class NamedCaseFit {
 
   // Which point the rule chose (and whether the rule was met), and what was returned.
   std::string ReturnedFrom() const {
-    char rule[160];
     const PathPoint* point = &path_.points[static_cast<std::size_t>(selected_)];
+    std::string rule;
     if (options_.max_springs > 0) {
-      std::snprintf(rule, sizeof rule,
-                    point && point->springs <= options_.max_springs
-                        ? "the lowest E with at most %d springs"
-                        : "no point has at most %d springs: the smallest",
-                    options_.max_springs);
+      rule =
+          point && point->springs <= options_.max_springs
+              ? fmt::format("the lowest E with at most {} springs", options_.max_springs)
+              : fmt::format("no point has at most {} springs: the smallest", options_.max_springs);
     } else if (target_ > 0.0) {
-      std::snprintf(rule, sizeof rule,
-                    point && point->normalized_error <= target_
-                        ? "the fewest springs with E <= %.3g"
-                        : "no point reaches E %.3g: the lowest E",
-                    options_.target_error);
+      rule = point && point->normalized_error <= target_
+                 ? fmt::format("the fewest springs with E <= {:.3g}", options_.target_error)
+                 : fmt::format("no point reaches E {:.3g}: the lowest E", options_.target_error);
     } else {
-      std::snprintf(rule, sizeof rule, "the fewest springs within 5%% of the lowest E");
+      rule = "the fewest springs within 5% of the lowest E";
     }
-    char from[320];
-    if (returned_ == selected_) {
-      std::snprintf(from, sizeof from, "path point %d of %zu (%s)%s", returned_ + 1,
-                    path_.points.size(), rule, refitted_ ? ", refitted" : "");
-    } else if (returned_ >= 0) {
-      std::snprintf(from, sizeof from,
-                    "path point %d of %zu, next in line: the final evaluation refused point %d "
-                    "(%s, %d springs)",
-                    returned_ + 1, path_.points.size(), selected_ + 1, rule, point->springs);
-    } else if (options_.max_springs > 0 && PresentSprings(*start_) <= options_.max_springs) {
-      std::snprintf(from, sizeof from,
-                    "the start: no point of the path with at most %d springs passed the final "
-                    "evaluation",
-                    options_.max_springs);
-    } else {
-      std::snprintf(from, sizeof from,
-                    "the start: no point of the path passed the final evaluation");
-    }
-    return from;
+    if (returned_ == selected_)
+      return fmt::format("path point {} of {} ({}){}", returned_ + 1, path_.points.size(), rule,
+                         refitted_ ? ", refitted" : "");
+    if (returned_ >= 0)
+      return fmt::format(
+          "path point {} of {}, next in line: the final evaluation refused point {} ({}, {} "
+          "springs)",
+          returned_ + 1, path_.points.size(), selected_ + 1, rule, point->springs);
+    if (options_.max_springs > 0 && PresentSprings(*start_) <= options_.max_springs)
+      return fmt::format(
+          "the start: no point of the path with at most {} springs passed the final evaluation",
+          options_.max_springs);
+    return "the start: no point of the path passed the final evaluation";
   }
 
   // Judged on the probe bank as a probe fit is, where the reference can be probed (a target

@@ -166,6 +166,26 @@ bool HoldsRigidMotion(const Scene& scene, const std::vector<int>& nodes) {
 
 }  // namespace
 
+const char* ProbeFamilyName(ProbeFamily family) {
+  switch (family) {
+    case ProbeFamily::kPoint:
+      return "point";
+    case ProbeFamily::kPatch:
+      return "patch";
+    case ProbeFamily::kBody:
+      return "body";
+    case ProbeFamily::kNamed:
+      return "named";
+    case ProbeFamily::kMode:
+      return "mode";
+    case ProbeFamily::kPush:
+      return "push";
+    case ProbeFamily::kGrasp:
+      return "grasp";
+  }
+  return "?";
+}
+
 void ProbeOptions::Validate(const std::string& owner) const {
   const OptionsCheck check(owner);
   check.Require(count >= 0, "count", count, "value >= 0");

@@ -40,12 +40,10 @@ std::vector<double> FitWeights(const ProbeBank& bank, const ProbeOptions& option
   for (std::size_t p = 0; p < bank.probes.size(); ++p) {
     const Probe& probe = bank.probes[p];
     if (probe.role != ProbeRole::kFit || !(probe.reference_norm2 > 0.0)) continue;
-    const double family_share =
-        probe.family == ProbeFamily::kNamed  ? named_share
-        : probe.family == ProbeFamily::kMode ? mode_share
-        : probe.family == ProbeFamily::kPush || probe.family == ProbeFamily::kGrasp
-            ? tool_share / tools
-            : generated_share;
+    const double family_share = probe.family == ProbeFamily::kNamed  ? named_share
+                                : probe.family == ProbeFamily::kMode ? mode_share
+                                : IsToolFamily(probe.family)         ? tool_share / tools
+                                                                     : generated_share;
     w[p] = family_share / count[static_cast<std::size_t>(probe.family)] / probe.reference_norm2;
   }
   return w;

@@ -62,7 +62,7 @@ struct PushResult {
 void ToolPushOptions::Validate(const std::string& owner) const {
   const OptionsCheck check(owner);
   CheckAmplitudes(check, amplitudes);
-  check.Require(max_pushes >= 1, "max_pushes", max_pushes, "value >= 1");
+  check.Require(max_tool_loads >= 1, "max_tool_loads", max_tool_loads, "value >= 1");
 }
 
 std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const ProbeBank& bank,
@@ -75,9 +75,8 @@ std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const ProbeB
   const int d = scene.dimension;
   std::vector<int> all;
   for (std::size_t p = 0; p < bank.probes.size(); ++p)
-    if (bank.probes[p].family == ProbeFamily::kPush || bank.probes[p].family == ProbeFamily::kGrasp)
-      all.push_back(static_cast<int>(p));
-  const std::vector<int> pushed = EvenlySpread(all, options.max_pushes);
+    if (IsToolFamily(bank.probes[p].family)) all.push_back(static_cast<int>(p));
+  const std::vector<int> pushed = EvenlySpread(all, options.max_tool_loads);
   if (pushed.empty()) return {};
   const std::size_t depths = options.amplitudes.size();
   const ReferenceModel reference(problem);

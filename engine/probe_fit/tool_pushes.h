@@ -29,7 +29,7 @@ struct ToolPushOptions {
   std::vector<double> amplitudes = {0.25, 0.5, 1.0};
   // Tool loads (pushes and grasps) judged at most (>= 1), evenly spread over the bank's: each
   // is three nonlinear solves per depth.
-  int max_pushes = 24;
+  int max_tool_loads = 24;
 
   // Throws std::invalid_argument naming the field, its value and the rule.
   void Validate(const std::string& owner = "ToolPushOptions") const;
@@ -54,7 +54,7 @@ struct ToolPushErrors {
   int baseline_inverted = 0;
 };
 
-// Per depth, up to options.max_pushes of `bank`'s tool loads (families push and grasp, each at
+// Per depth, up to options.max_tool_loads of `bank`'s tool loads (families push and grasp, each at
 // the bank's amplitude, scaled to the depth; a grasp's force is the sum over its held nodes).
 // Empty for a bank without them (an MSS reference).
 // Throws Interrupted when stopped; with a pool the pushes run in parallel, with the same result.

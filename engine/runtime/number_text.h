@@ -2,16 +2,11 @@
 // for a small value (std::to_string's fixed notation).
 #pragma once
 
-#include <cstdio>
 #include <string>
 
 namespace springfit {
 
 // `value` with `digits` significant digits, %g style: 1.23e-09, 0.5, 1.5e+06, inf, nan.
-inline std::string NumberText(double value, int digits = 3) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.*g", digits, value);
-  return buf;
-}
+std::string NumberText(double value, int digits = 3);
 
 }  // namespace springfit

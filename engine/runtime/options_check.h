@@ -4,7 +4,6 @@
 // Validate() runs at the entry of the algorithm the options configure, before any work.
 #pragma once
 
-#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -16,16 +15,13 @@ class OptionsCheck {
   explicit OptionsCheck(std::string_view owner) : owner_(owner) {}
   // Throws std::invalid_argument unless `ok`.
   void Require(bool ok, std::string_view field, double value, std::string_view rule) const {
-    if (ok) return;
-    char text[32];
-    std::snprintf(text, sizeof text, "%.17g", value);
-    throw std::invalid_argument(owner_ + "::" + std::string(field) + " = " + text +
-                                ". Violated constraint: " + std::string(rule));
+    if (!ok) Fail(field, value, rule);
   }
   // A nested Options struct's field name, for its own check ("DirectOptions::nnls").
   std::string Nested(std::string_view field) const { return owner_ + "::" + std::string(field); }
 
  private:
+  [[noreturn]] void Fail(std::string_view field, double value, std::string_view rule) const;
   std::string owner_;
 };
 

@@ -151,7 +151,7 @@ TEST(ToolPushes, TheShapeIgnoresAStiffnessScaleAndTheToolForceDoesNot) {
   for (double& k : doubled.stiffness) k *= 2.0;
   ToolPushOptions options;
   options.amplitudes = {0.5, 1.0};
-  options.max_pushes = 6;
+  options.max_tool_loads = 6;
   const std::vector<ToolPushErrors> pushes =
       JudgeToolPushes(kidney.problem, kidney.bank, doubled, baseline, options);
   ASSERT_EQ(pushes.size(), 2u);

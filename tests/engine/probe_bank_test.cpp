@@ -52,13 +52,13 @@ TEST(ProbeBank, EverySupportHasEveryFamilyInEveryDirectionAndAHeldOutPart) {
           }
         }
       }
-      EXPECT_GT(count, 0) << "support " << s << " family " << proto::ProbeFamilyName(family);
+      EXPECT_GT(count, 0) << "support " << s << " family " << response::ProbeFamilyName(family);
       EXPECT_GT(choosing, 0);
       EXPECT_GT(fitted, 0);
       // Both directions of the plane are loaded.
       const Eigen::SelfAdjointEigenSolver<Matrix> eig(directions);
       EXPECT_GT(eig.eigenvalues()[0], 0.05 * eig.eigenvalues()[1])
-          << proto::ProbeFamilyName(family);
+          << response::ProbeFamilyName(family);
     }
   }
   // Same options, same bank.
@@ -140,7 +140,7 @@ TEST(ProbeBank, ToolLoadsHoldTheirNodesAtTheAmplitudeAlongTheInwardNormal) {
   // Per base support and tool family: fitted and choosing loads.
   std::map<std::pair<int, ProbeFamily>, std::pair<int, int>> roles;
   for (const Probe& p : bank.probes) {
-    if (p.family != ProbeFamily::kPush && p.family != ProbeFamily::kGrasp) continue;
+    if (!IsToolFamily(p.family)) continue;
     const Support& support = bank.supports[static_cast<std::size_t>(p.support)];
     const std::vector<int>& nodes = support.tool_nodes;
     ASSERT_EQ(nodes.size(), p.family == ProbeFamily::kPush ? 1u : 3u);

@@ -110,6 +110,13 @@ IdentificationResult CertifiedResult() {
   t.model_force.median = 0.1;
   t.baseline_force.median = 0.3;
   g.tool_pushes.push_back(t);
+  for (response::ProbeFamily f : {response::ProbeFamily::kPoint, response::ProbeFamily::kPush,
+                                  response::ProbeFamily::kNamed}) {
+    g.model.push_back({f, {}});
+    g.model.back().errors.median = 0.05;
+    g.baseline.push_back({f, {}});
+    g.baseline.back().errors.median = 0.2;
+  }
   return r;
 }
 
@@ -149,6 +156,15 @@ TEST(Verdict, WorseThanTheRecipeAnywhereIsDoubtfulWithEachDoubtOnItsLine) {
   o = JudgeResult(problem, r);
   EXPECT_EQ(o.verdict, Verdict::kDoubtful);
   EXPECT_TRUE(Mentions(o, "the free body"));
+
+  r = CertifiedResult();  // pooled fine, pushes worse than the recipe (the named cases: E's)
+  r.generalization->model[1].errors.median = 0.34;
+  r.generalization->model[2].errors.median = 0.9;
+  o = JudgeResult(problem, r);
+  EXPECT_EQ(o.verdict, Verdict::kDoubtful);
+  ASSERT_EQ(o.doubts.size(), 1u);
+  EXPECT_TRUE(Mentions(o, "above the recipe's on push 0.34 (recipe 0.2)")) << o.doubts[0];
+  EXPECT_FALSE(Mentions(o, "named"));
 
   r = CertifiedResult();
   r.generalization->amplitudes[0].model.median = 0.12;
