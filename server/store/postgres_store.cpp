@@ -525,7 +525,13 @@ auto PostgresStore::With(Slot& slot, const Call& call, F&& f) {
   } catch (const pqxx::in_doubt_error& e) {
     throw drop(std::string("the database connection failed during a commit: ") + e.what());
   } catch (const pqxx::sql_error& e) {
-    if (IsUnavailable(e.sqlstate()) || disarm())
+    // A statement whose connection went under it (the server stopped or restarted: libpq's
+    // "server closed the connection unexpectedly") can come as an SQL error with no SQLSTATE,
+    // the server having said nothing: the connection is gone, not the statement wrong. (The
+    // hour's soak met one as job.submit's internal error after a PostgreSQL restart.)
+    const bool connection_lost =
+        e.sqlstate().empty() || !slot.connection || !slot.connection->is_open();
+    if (IsUnavailable(e.sqlstate()) || connection_lost || disarm())
       throw drop(std::string("the database is unavailable: ") + e.what());
     throw std::runtime_error(std::string("database: ") + e.what());
   }

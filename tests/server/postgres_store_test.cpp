@@ -1,9 +1,13 @@
 // The PostgreSQL store alone (server/store/postgres_store.h), on the private server of
 // tests/server/with_postgres.sh: wake-ups across stores, migrations at once, the watchdog,
 // and reads on free connections.
+#include <signal.h>
+#include <unistd.h>
+
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <cstdlib>
 #include <future>
 #include <memory>
 #include <optional>
@@ -12,6 +16,8 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+
+#include <pqxx/pqxx>
 
 #include "server/store/job_store.h"
 #include "server/store/postgres_store.h"
@@ -133,6 +139,96 @@ TEST(PostgresStoreOnly, AReadTakesAFreeConnectionWhileAnotherIsHeld) {
   }
   release = true;
   EXPECT_TRUE(slow.get());
+}
+
+// Restarts tests/server/with_postgres.sh's server (`pg_ctl restart -m MODE`, as the user that
+// runs it); returns pg_ctl's exit status.
+int RestartServer(const std::string& mode) {
+  const char* dir = std::getenv("SPRINGFIT_TEST_PG_DIR");
+  const char* bin = std::getenv("SPRINGFIT_TEST_PG_BIN");
+  if (!dir || !bin) return -1;
+  const std::string as_server = ::geteuid() == 0 ? "runuser -u postgres -- " : "";
+  const std::string command = as_server + bin + "/pg_ctl -D " + dir + "/data -l " + dir +
+                              "/server.log -m " + mode + " -w -t 30 restart >/dev/null 2>&1";
+  return std::system(command.c_str());
+}
+
+// PostgreSQL alone: the server drops the store's connections (a restart, an administrator's
+// pg_terminate_backend): the next call on each is "the store is unavailable" (the daemon's
+// callers retry, a job keeps its lease), never an internal error, and the call after it works
+// on a new connection. (The hour's soak met "database: server closed the connection
+// unexpectedly" as an internal error of job.submit after a PostgreSQL restart.)
+TEST(PostgresStoreOnly, ConnectionsTheServerDroppedAreUnavailableNotInternalErrors) {
+  PostgresFactory factory("t_dropped");
+  PostgresStore::Options options;
+  options.readers = 1;
+  PostgresStore store(factory.url(), "", options);
+  const std::int64_t id = store.CreateJob(StoreTestJob("before"), 10).job.id;
+  ASSERT_TRUE(store.GetJob(id));
+  // An administrator's termination (the server says why: SQLSTATE 57P01), then the server
+  // restarted fast and immediately: an immediate stop closes the sockets with nothing said, and
+  // libpq reports "server closed the connection unexpectedly" with no SQLSTATE.
+  for (const char* drop : {"terminate", "kill", "fast", "immediate", "immediate"}) {
+    SCOPED_TRACE(drop);
+    if (std::string(drop) == "terminate") {
+      factory.ExecRaw(
+          "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE datname = "
+          "current_database() AND pid <> pg_backend_pid()");
+    } else if (std::string(drop) == "kill") {
+      // A backend that dies without a word (SIGKILL, the OOM killer): the server resets
+      // every session and recovers by itself.
+      pqxx::connection c(factory.url());
+      const pqxx::result r = pqxx::nontransaction(c).exec(
+          "SELECT pid FROM pg_stat_activity WHERE datname = current_database() AND pid <> "
+          "pg_backend_pid()");
+      ASSERT_FALSE(r.empty());
+      for (const auto& row : r) ::kill(row[0].as<int>(), SIGKILL);
+      std::this_thread::sleep_for(1500ms);  // crash recovery
+    } else {
+      ASSERT_EQ(RestartServer(drop), 0) << "pg_ctl restart -m " << drop;
+    }
+    std::this_thread::sleep_for(200ms);  // the sessions are gone
+    // The writer's call, then the reader's: each may find its connection dropped.
+    const auto either = [&](const char* what, const auto& call) {
+      try {
+        call();
+      } catch (const StoreUnavailable&) {
+        // (Expected: the connection was dropped under it.)
+      } catch (const std::exception& e) {
+        ADD_FAILURE() << what << " on a dropped connection: not 'unavailable': " << e.what();
+      }
+    };
+    either("a write", [&] { store.CreateJob(StoreTestJob("dropped"), 10); });
+    either("a read", [&] { store.GetJob(id); });
+    // The next calls open new connections.
+    EXPECT_NO_THROW(store.CreateJob(StoreTestJob("after"), 10));
+    EXPECT_NO_THROW(EXPECT_TRUE(store.GetJob(id)));
+  }
+  // The server restarted while a write waits inside its transaction (another session locks the
+  // jobs table): the connection goes mid-statement.
+  for (const char* mode : {"fast", "immediate", "immediate"}) {
+    SCOPED_TRACE(std::string("a write in flight, restart ") + mode);
+    auto locker = std::make_unique<pqxx::connection>(factory.url());
+    auto lock = std::make_unique<pqxx::work>(*locker);
+    lock->exec("LOCK TABLE jobs IN ACCESS EXCLUSIVE MODE");
+    auto write = std::async(std::launch::async, [&] {
+      try {
+        store.CreateJob(StoreTestJob("in flight"), 10);
+        return std::string("succeeded");
+      } catch (const StoreUnavailable&) {
+        return std::string("unavailable");
+      } catch (const std::exception& e) {
+        return std::string("internal error: ") + e.what();
+      }
+    });
+    std::this_thread::sleep_for(300ms);  // the write waits on the lock
+    ASSERT_EQ(RestartServer(mode), 0) << "pg_ctl restart -m " << mode;
+    const std::string outcome = write.get();
+    EXPECT_TRUE(outcome == "unavailable" || outcome == "succeeded") << outcome;
+    lock.reset();  // (its session is gone with the restart)
+    locker.reset();
+    EXPECT_NO_THROW(store.CreateJob(StoreTestJob("after"), 10));
+  }
 }
 
 }  // namespace
