@@ -72,6 +72,13 @@ void PrintNonlinearFit(const proto::Json& fit, std::ostream& out) {
 // How the run went: the scene and job, the verdict, the strategy and its stop, its work.
 void PrintRun(const proto::Json& r, bool continuous, std::ostream& out) {
   out << "scene:             " << r.value("scene", std::string()) << "\n";
+  // The units the numbers are in, where the scene states them (proto/SCENE.md, "Units").
+  if (r.contains("units") && r["units"].is_object()) {
+    const proto::Json& u = r["units"];
+    out << "units:             length " << u.value("length", "") << ", force "
+        << u.value("force", "") << ", stiffness " << u.value("stiffness", "") << ", mass "
+        << u.value("mass", "") << ", time " << u.value("time", "") << " (E is relative: no unit)\n";
+  }
   if (r.contains("job_id"))
     out << "job:               " << r["job_id"].get<long long>() << " ("
         << r.value("state", std::string()) << ")\n";
@@ -147,10 +154,14 @@ void PrintModel(const proto::Json& r, std::ostream& out) {
     const std::vector<double> k = r["stiffness"].get<std::vector<double>>();
     const io::StiffnessSpread spread = io::SpreadOf(k);
     const double fraction = io::ModelOptions{}.dead_fraction;
+    const std::string unit = r.contains("units") && r["units"].is_object()
+                                 ? " " + r["units"].value("stiffness", std::string())
+                                 : std::string();
     out << "stiffness:         " << fmt::format("{:.4g}", spread.min) << " to "
         << fmt::format("{:.4g}", spread.max) << ", median " << fmt::format("{:.4g}", spread.median)
-        << " (spread " << fmt::format("{:.3g}", spread.min > 0.0 ? spread.max / spread.min : 0.0)
-        << "); " << spread.below(k, fraction) << " dead (below " << fmt::format("{:g}", fraction)
+        << unit << " (spread "
+        << fmt::format("{:.3g}", spread.min > 0.0 ? spread.max / spread.min : 0.0) << "); "
+        << spread.below(k, fraction) << " dead (below " << fmt::format("{:g}", fraction)
         << " x the median: export flags them, --drop-dead leaves them out)\n";
   }
   // E is the one quality measure shown (the normalised error and the cost are in --json).

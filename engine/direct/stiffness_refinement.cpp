@@ -162,6 +162,14 @@ void RefinementOptions::Validate(const std::string& owner) const {
                 "0 < value < 1");
   check.Require(initial_damping > 0.0 && std::isfinite(initial_damping), "initial_damping",
                 initial_damping, "0 < value < infinity");
+  check.Require(damping_decrease > 1.0 && std::isfinite(damping_decrease), "damping_decrease",
+                damping_decrease, "1 < value < infinity");
+  check.Require(damping_increase > 1.0 && std::isfinite(damping_increase), "damping_increase",
+                damping_increase, "1 < value < infinity");
+  check.Require(min_damping > 0.0 && min_damping <= initial_damping, "min_damping", min_damping,
+                "0 < value <= initial_damping");
+  check.Require(max_damping_attempts >= 1, "max_damping_attempts", max_damping_attempts,
+                "value >= 1");
   check.Require(max_genes >= 0, "max_genes", max_genes, "value >= 0");
 }
 
@@ -193,7 +201,7 @@ RefinementResult RefineWeights(const Problem& problem, const std::vector<double>
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
     const Vector d2 = MarquardtScaling(at.jacobian);
     bool accepted = false;
-    for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
+    for (int attempt = 0; attempt < options.max_damping_attempts && !accepted; ++attempt) {
       ThrowIfInterrupted(interruption);
       GaussNewtonPoint trial;
       trial.w = DampedStep(at, d2, lambda, usable);
@@ -202,12 +210,12 @@ RefinementResult RefineWeights(const Problem& problem, const std::vector<double>
       if (trial.Linearize(problem, solvers, /*only_if_below=*/at.cost)) {
         const double decrease = (at.cost - trial.cost) / at.cost;
         at = std::move(trial);
-        lambda = std::max(lambda / 3.0, 1e-12);
+        lambda = std::max(lambda / options.damping_decrease, options.min_damping);
         accepted = true;
         ++result.iterations;
         if (decrease < options.relative_tolerance) result.converged = true;
       } else {
-        lambda *= 10.0;
+        lambda *= options.damping_increase;
       }
     }
     if (!accepted) {

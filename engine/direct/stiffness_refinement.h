@@ -25,10 +25,17 @@ struct RefinementOptions {
   int max_iterations = 30;            // accepted steps
   double relative_tolerance = 1e-10;  // stop when f falls by less than this fraction
   double initial_damping = 1e-4;      // lambda at the start, relative to D^2
+  // Levenberg-Marquardt's damping: divided by damping_decrease after a step that lowers the
+  // cost (never below min_damping), multiplied by damping_increase after one that does not,
+  // at most max_damping_attempts times per step; none lowering it ends the refinement at a
+  // (local) minimum.
+  double damping_decrease = 3.0;
+  double damping_increase = 10.0;
+  double min_damping = 1e-12;
+  int max_damping_attempts = 12;
   // Dense Jacobians (rows x genes, one solve per gene and load case) and a dense bounded
-  // least-squares step per attempt, cubic in the genes: 0.01 s at 0.1% noise on
-  // paper-aniso-5x5 (72 genes), 0.7 s on grid3d-4x4x4 (465), 1.9 s on kidney-2d (461, 15
-  // steps); larger scenes keep the force-balance weights.
+  // least-squares step per attempt, cubic in the genes: larger scenes keep the force-balance
+  // weights.
   int max_genes = 1000;
 
   // Throws std::invalid_argument naming the field, its value and the rule it breaks.

@@ -14,6 +14,10 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// Lanczos stops where the next basis vector's B-norm falls below this fraction of the last
+// diagonal entry: the Krylov space is exhausted (an invariant subspace found), and one more
+// vector would be round-off.
+constexpr double kLanczosBreakdown = 1e-12;
 
 double Quantile(std::vector<double> sorted, double q) {
   std::sort(sorted.begin(), sorted.end());
@@ -57,7 +61,7 @@ PencilLanczos RunPencilLanczos(const SupportSystem& a, const SupportSystem& b, i
       for (std::size_t i = 0; i < l.basis.size(); ++i) w -= b_basis[i].dot(w) * l.basis[i];
     const Vector bw = b.Multiply(w);
     const double next = std::sqrt(std::max(w.dot(bw), 0.0));
-    if (!(next > 1e-12 * std::abs(alpha.back()))) break;
+    if (!(next > kLanczosBreakdown * std::abs(alpha.back()))) break;
     beta.push_back(next);
     q = w / next;
     bq = bw / next;

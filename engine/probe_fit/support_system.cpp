@@ -5,6 +5,16 @@
 #include "engine/linalg/blocked_triangular_solve.h"
 
 namespace springfit::response {
+namespace {
+
+// A support's system is singular (the support leaves a rigid motion free) when its smallest
+// pivot is below this fraction of its largest: round-off of a zero pivot in a
+// double-precision factorisation, not a soft mode of tissue.
+constexpr double kSingularPivotRatio = 1e-14;
+// The same bound on the diagonal of L (LL^T), which holds the pivots' square roots.
+constexpr double kSingularDiagonalRatio = 1e-7;
+
+}  // namespace
 
 SupportSystem::SupportSystem(int dimension, const std::vector<bool>& constrained)
     : dimension_(dimension), constrained_(constrained) {
@@ -65,14 +75,14 @@ bool SupportSystem::Factorize(const SparseMatrix& full) {
                                 restricted_.valuePtr()))
       return false;
     const Vector pivots = supernodal_->Pivots();
-    return pivots.minCoeff() > 1e-14 * pivots.maxCoeff();
+    return pivots.minCoeff() > kSingularPivotRatio * pivots.maxCoeff();
   }
   llt_ = std::make_unique<Llt>();
   llt_->compute(restricted_);
   if (llt_->info() != Eigen::Success) return false;
   const Vector diagonal = llt_->matrixL().nestedExpression().diagonal();
   const double largest = diagonal.cwiseAbs().maxCoeff();
-  return diagonal.minCoeff() > 1e-7 * largest;
+  return diagonal.minCoeff() > kSingularDiagonalRatio * largest;
 }
 
 Vector SupportSystem::Gather(const Vector& full) const {

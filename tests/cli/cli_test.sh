@@ -419,7 +419,12 @@ expect_exit 2 "a mesh without --loads" "$sf" run "$tmp/inclusion.msh"
 grep -q "load_cases: required: a mesh carries no load cases; pass them with --loads" "$tmp/err" || fail "a mesh without --loads: $(cat "$tmp/err")"
 [ "$(grep -o "inclusion.msh" "$tmp/err" | wc -l)" -eq 1 ] || fail "a mesh without --loads names the mesh once: $(cat "$tmp/err")"
 # Units stated in the loads file reach the result and every export (issue 33).
-"$sf" run "$tmp/inclusion.msh" --loads "$src/examples/pipeline/inclusion-loads.json" --strategy direct -q -o "$tmp/inclusion-direct.json" >/dev/null 2>&1
+"$sf" run "$tmp/inclusion.msh" --loads "$src/examples/pipeline/inclusion-loads.json" --strategy direct -q -o "$tmp/inclusion-direct.json" >"$tmp/inclusion-summary.txt" 2>&1
+# The summary says them too (issue 47 item 4: every number with its unit).
+grep -qx "units:             length mm, force mN, stiffness mN/mm, mass kg, time s (E is relative: no unit)" "$tmp/inclusion-summary.txt" \
+  || fail "the run's summary states no units: $(head -5 "$tmp/inclusion-summary.txt")"
+grep -q "^stiffness:  .*, median [0-9.e+-]* mN/mm (spread" "$tmp/inclusion-summary.txt" \
+  || fail "the run's stiffness line has no unit: $(grep stiffness: "$tmp/inclusion-summary.txt")"
 python3 - "$tmp/inclusion-direct.json" <<'PY' || fail "the result carries the units"
 import json, sys
 r = json.load(open(sys.argv[1]))
