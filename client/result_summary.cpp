@@ -12,6 +12,7 @@
 #include <fmt/format.h>
 
 #include "proto/outcome_codec.h"
+#include "proto/scene_codec.h"
 
 namespace springfit::cli {
 namespace {
@@ -73,12 +74,8 @@ void PrintNonlinearFit(const proto::Json& fit, std::ostream& out) {
 void PrintRun(const proto::Json& r, bool continuous, std::ostream& out) {
   out << "scene:             " << r.value("scene", std::string()) << "\n";
   // The units the numbers are in, where the scene states them (proto/SCENE.md, "Units").
-  if (r.contains("units") && r["units"].is_object()) {
-    const proto::Json& u = r["units"];
-    out << "units:             length " << u.value("length", "") << ", force "
-        << u.value("force", "") << ", stiffness " << u.value("stiffness", "") << ", mass "
-        << u.value("mass", "") << ", time " << u.value("time", "") << " (E is relative: no unit)\n";
-  }
+  if (const std::string units = proto::UnitsText(r.value("units", proto::Json())); !units.empty())
+    out << "units:             " << units << "\n";
   if (r.contains("job_id"))
     out << "job:               " << r["job_id"].get<long long>() << " ("
         << r.value("state", std::string()) << ")\n";

@@ -583,6 +583,14 @@ Json UnitsToJson(const DerivedUnits& u) {
           {"modulus", u.modulus}, {"mass", u.mass},   {"time", u.time}};
 }
 
+std::string UnitsText(const Json& units) {
+  if (!units.is_object()) return "";
+  const auto field = [&](const char* name) { return units.value(name, std::string("?")); };
+  return "length " + field("length") + ", force " + field("force") + ", stiffness " +
+         field("stiffness") + ", mass " + field("mass") + ", time " + field("time") +
+         " (E is relative: no unit)";
+}
+
 Json SceneToJson(const Scene& s) {
   Json j;
   if (!s.name.empty()) j["name"] = s.name;

@@ -25,6 +25,10 @@ Json SceneToJson(const Scene& scene);
 // The units the numbers are in (DeriveUnits: the scene's length and force, and the stiffness,
 // modulus, mass and time they imply), as results and exported models state them.
 Json UnitsToJson(const DerivedUnits& units);
+// The same units in words, as the run's summary and the dashboard say them: "length mm, force
+// mN, stiffness mN/mm, mass kg, time s (E is relative: no unit)". Empty for a result without
+// units (null, or written before a result had them).
+std::string UnitsText(const Json& units);
 // A scene's `search` member alone, both ways (the same rules and paths as in a scene): what
 // `submit` reads, applies its flags to and writes back.
 SearchSettings SearchSettingsFromJson(const Json& json);

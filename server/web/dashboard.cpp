@@ -297,6 +297,9 @@ std::string ResultCard(const Outcome& o, const Json& result, const Json& search)
   }
   if (result.contains("ran") && result["ran"].is_string())
     body += Row("strategy that ran", XmlEscape(result["ran"].get<std::string>()));
+  if (const std::string units = proto::UnitsText(result.value("units", proto::Json()));
+      !units.empty())
+    body += Row("units", XmlEscape(units));
   // What was asked (the scene's search settings; none: every default), then every option as
   // it ran.
   std::string asked;

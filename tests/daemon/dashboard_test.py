@@ -102,8 +102,12 @@ def check_pages(rpc_port, port):
     current = "pages"
     running = int(cli(rpc_port, "submit", os.path.join(SRC, "examples", "kidney-2d.json"),
                       "--strategy", "paper", "--generations", "100000", "--label", LABEL).stdout)
-    done = int(cli(rpc_port, "submit", os.path.join(SRC, "examples", "paper-iso-5x5.json"),
-                   "--label", "quick").stdout)
+    # The quick job's scene states its units: the card says them as `springfit run` does.
+    quick = json.load(open(os.path.join(SRC, "examples", "paper-iso-5x5.json")))
+    quick["units"] = {"length": "mm", "force": "mN"}
+    quick_path = os.path.join(TMP, "paper-iso-5x5-mm.json")
+    json.dump(quick, open(quick_path, "w"))
+    done = int(cli(rpc_port, "submit", quick_path, "--label", "quick").stdout)
     expect(cli(rpc_port, "watch", str(done), "-q").returncode == 0, "the quick job did not finish")
     expect(wait_for(lambda: json.loads(get(port, f"/jobs/{running}/progress.json")[2])
                     .get("generation_number", -1) >= 2, 30), "the long job made no progress")
@@ -149,6 +153,8 @@ def check_pages(rpc_port, port):
            "the card's spring count is not the result's")
     expect(f"<th>E (named cases)</th><td>{result['outcome']['rms_error']:.3g}</td>" in page,
            "the card's E is not the result's")
+    expect("<th>units</th><td>length mm, force mN, stiffness mN/mm, mass kg, time s (E is "
+           "relative: no unit)</td>" in page, "the card does not state the scene's units")
     expect("<th>settings submitted</th>" in page and "<th>option: max_generations</th>" in page,
            "the card lacks the settings submitted and the options as run")
     status, _, listing = get(port, "/?label=quick")
