@@ -41,6 +41,8 @@ void EquilibriumOptions::Validate() const {
                 "0 < value < 1");
   check.Require(banded_max_dofs >= 0, "banded_max_dofs", banded_max_dofs, "value >= 0");
   check.Require(supernodal_min_dofs >= 0, "supernodal_min_dofs", supernodal_min_dofs, "value >= 0");
+  check.Require(chord_contraction >= 0.0 && chord_contraction < 1.0, "chord_contraction",
+                chord_contraction, "0 <= value < 1");
 }
 
 EquilibriumSolver::EquilibriumSolver(const SpringGeometry& geometry, FreeNodes free_nodes,
@@ -180,7 +182,8 @@ bool EquilibriumSolver::FactorizeTangent(const ActiveSprings& springs, const Vec
   if (free_.count == 0) return true;
   // The Hessian does not depend on the external forces.
   EnergyAndGradient(springs, Vector::Zero(u.size()), u, nullptr, true, false);
-  return system_.Factorize(0.0, options_.pivot_tolerance, false).positive_definite;
+  holds_tangent_ = system_.Factorize(0.0, options_.pivot_tolerance, false).positive_definite;
+  return holds_tangent_;
 }
 
 bool EquilibriumSolver::SolveWithTangent(const ActiveSprings& springs, const Vector& /*force*/,
@@ -202,6 +205,7 @@ EquilibriumSolver::Resolution EquilibriumSolver::DisplacementResolution(
   if (free_.count == 0) return resolution;
   constexpr double kInfinity = std::numeric_limits<double>::infinity();
   const Vector zero = Vector::Zero(u.size());
+  holds_tangent_ = false;
   // The exact tangent, with any positive pivot: a step would not trust one this small, but
   // the size of H^-1 r is what is asked, and the softest direction decides it.
   EnergyAndGradient(springs, zero, u, nullptr, true, false);
@@ -246,6 +250,7 @@ void EquilibriumSolver::AssembleUnitRest(const ActiveSprings& springs) {
 RestStability EquilibriumSolver::RestStabilityOf(const ActiveSprings& springs) {
   RestStability r;
   if (free_.count == 0) return r;
+  holds_tangent_ = false;
   AssembleUnitRest(springs);
   const SymmetricSystem::Factorization f =
       system_.Factorize(0.0, options_.near_mechanism_tolerance, true);
@@ -264,8 +269,14 @@ RestStability EquilibriumSolver::RestStabilityOf(const ActiveSprings& springs) {
 
 EquilibriumSummary EquilibriumSolver::Solve(const ActiveSprings& springs, const Vector& force,
                                             const Vector& prescribed, Vector& u) {
-  return dim_ == 2 ? SolveImpl<2>(springs, force, prescribed, u)
-                   : SolveImpl<3>(springs, force, prescribed, u);
+  return Solve(springs, force, prescribed, u, nullptr);
+}
+
+EquilibriumSummary EquilibriumSolver::Solve(const ActiveSprings& springs, const Vector& force,
+                                            const Vector& prescribed, Vector& u,
+                                            const EquilibriumSolver* start_tangent) {
+  return dim_ == 2 ? SolveImpl<2>(springs, force, prescribed, u, start_tangent)
+                   : SolveImpl<3>(springs, force, prescribed, u, start_tangent);
 }
 
 template <int D>
@@ -334,8 +345,18 @@ template <int D>
 const char* EquilibriumSolver::NewtonStep(const ActiveSprings& springs, const Vector& force,
                                           const Vector& u, EquilibriumSummary& summary,
                                           double& slope) {
+  chord_step_ = chord_ != nullptr && options_.chord_contraction > 0.0 &&
+                contraction_ <= options_.chord_contraction;
+  if (chord_step_) {
+    ++summary.chord_steps;
+    step_ = -gradient_;
+    chord_->system_.Solve(step_);
+    return LimitStep<D>(springs, slope);
+  }
   // The exact Hessian when positive definite, else the projected one, else the projected one
   // regularised.
+  holds_tangent_ = false;
+  chord_ = nullptr;
   SymmetricSystem::Factorization f = system_.Factorize(0.0, options_.pivot_tolerance, false);
   if (!f.positive_definite) {
     ++summary.projected_steps;
@@ -347,8 +368,15 @@ const char* EquilibriumSolver::NewtonStep(const ActiveSprings& springs, const Ve
     }
     if (!f.positive_definite) return "the Hessian stayed singular after regularisation";
   }
+  holds_tangent_ = true;
+  chord_ = this;
   step_ = -gradient_;
   system_.Solve(step_);
+  return LimitStep<D>(springs, slope);
+}
+
+template <int D>
+const char* EquilibriumSolver::LimitStep(const ActiveSprings& springs, double& slope) {
   // A step that changes some spring's separation by more than a fraction of its length leaves
   // the region where the quadratic model means anything: it can jump a node onto another
   // (L = 0, where E has a cone) or across a fixed node. Shorten it; the line search does the
@@ -402,8 +430,11 @@ struct EquilibriumSolver::NewtonSteps {
 
   // (The iteration count is summary.iterations, which NewtonIterate counts; the excess is
   // per node, from the gradient, not from |gradient|_inf alone.)
-  const char* StopBeforeStep(int, const EnergyPoint&) {
+  double residual_before = 0.0;  // the largest imbalance before the step (chord steps)
+
+  const char* StopBeforeStep(int, const EnergyPoint& at) {
     summary.excess = solver.Excess<D>(solver.gradient_);
+    residual_before = at.residual;
     return solver.StopBeforeStep(summary);
   }
   const char* Direction(double& slope) {
@@ -411,9 +442,10 @@ struct EquilibriumSolver::NewtonSteps {
   }
   EnergyPoint Trial(double alpha) { return solver.TrialPoint<D>(springs, force, u, alpha); }
   // The trial's gradient and Hessian are the new point's.
-  const char* Accept(EnergyPoint&) {
+  const char* Accept(EnergyPoint& at) {
     u.swap(solver.trial_u_);
     solver.gradient_.swap(solver.trial_gradient_);
+    solver.contraction_ = residual_before > 0.0 ? at.residual / residual_before : 0.0;
     return nullptr;
   }
   // Restores the Hessian of the current point for a caller that inspects it.
@@ -422,7 +454,8 @@ struct EquilibriumSolver::NewtonSteps {
 
 template <int D>
 EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, const Vector& force,
-                                                const Vector& prescribed, Vector& u) {
+                                                const Vector& prescribed, Vector& u,
+                                                const EquilibriumSolver* start_tangent) {
   EquilibriumSummary summary;
   const int nodes = static_cast<int>(free_.free_index.size());
   for (int node = 0; node < nodes; ++node) {
@@ -451,7 +484,18 @@ EquilibriumSummary EquilibriumSolver::SolveImpl(const ActiveSprings& springs, co
   NewtonSteps<D> steps{*this, springs, force, u, summary};
   const LineSearchOptions search{options_.armijo, options_.max_line_search_steps + 1,
                                  RoundoffRule::kGradientDecides};
-  summary.why = NewtonIterate(steps, at, search, summary.iterations, &summary.line_search_steps);
+  chord_ = start_tangent != nullptr && start_tangent->holds_tangent_ ? start_tangent : nullptr;
+  contraction_ = 0.0;
+  chord_step_ = false;
+  for (;;) {
+    summary.why = NewtonIterate(steps, at, search, summary.iterations, &summary.line_search_steps);
+    // A chord step the line search refused is retried with the tangent at the point.
+    if (summary.converged() || summary.termination == Termination::kInterrupted || !chord_step_)
+      break;
+    contraction_ = std::numeric_limits<double>::infinity();
+    chord_step_ = false;
+  }
+  chord_ = nullptr;
   summary.final_residual = at.residual / force_scale;
   if (!summary.converged()) summary.excess = Excess<D>(gradient_);
   return summary;

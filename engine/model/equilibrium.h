@@ -89,6 +89,15 @@ struct EquilibriumOptions {
   // simplicial LDLT: at a 316 x 316 grid (200k) the simplicial one took 20 s a
   // factorisation. Above every example's size, so that their trajectories do not change.
   int supernodal_min_dofs = 20000;
+  // Chord steps: a Newton step may solve with a tangent factorised earlier (one solve in place
+  // of a factorisation) while the step before it shrank the largest force imbalance to at most
+  // this fraction; a step after a weaker contraction, and a step after a chord step whose line
+  // search failed, factorise the tangent at the current point. Near a known equilibrium (the
+  // previous load step's, the previous model's) a chord step contracts by about the change of
+  // the tangent, and a solve costs a fraction of a factorisation (docs/ARCHITECTURE.md, "The
+  // nonlinear fit"). 0: every step factorises (exact Newton, the default, so that every other
+  // solve keeps its trajectory). In [0, 1).
+  double chord_contraction = 0.0;
 
   // Throws std::invalid_argument naming the field, its value and the rule it breaks.
   void Validate() const;
@@ -98,6 +107,7 @@ struct EquilibriumSummary {
   Termination termination = Termination::kNotConverged;
   int iterations = 0;             // Newton steps taken
   int projected_steps = 0;        // of which on the projected Hessian
+  int chord_steps = 0;            // of which solved with an earlier factorisation
   int line_search_steps = 0;      // step halvings in all
   double initial_residual = 0.0;  // |gradient|_inf / force_scale at the start
   double final_residual = 0.0;    // |gradient|_inf / force_scale at the end
@@ -167,6 +177,17 @@ class EquilibriumSolver {
   // a meaningless equilibrium, never NaN). Never throws.
   EquilibriumSummary Solve(const ActiveSprings& springs, const Vector& force,
                            const Vector& prescribed, Vector& u);
+  // Solve() whose first step may solve with `start_tangent`'s last factorisation as its chord
+  // (EquilibriumOptions::chord_contraction): a solver of the same geometry and free nodes that
+  // HoldsTangent() near `u` (the previous load step's, FactorizeTangent() at its equilibrium;
+  // this solver itself after a Solve() of the same springs). nullptr: the first step
+  // factorises. `start_tangent` must not change while this runs.
+  EquilibriumSummary Solve(const ActiveSprings& springs, const Vector& force,
+                           const Vector& prescribed, Vector& u,
+                           const EquilibriumSolver* start_tangent);
+  // Whether the last factorisation is a positive-definite tangent (exact, projected or
+  // regularised) of the springs last solved or factorised, which Solve() may start from.
+  bool HoldsTangent() const { return holds_tangent_; }
 
   // Solves H x = b for every column b of `rhs` (free degrees of freedom, free-node order), H
   // the exact Hessian of E at `u` (an equilibrium from Solve): one factorisation, then one
@@ -216,7 +237,8 @@ class EquilibriumSolver {
                   Vector* gradient, bool hessian, bool projected, double* magnitude);
   template <int D>
   EquilibriumSummary SolveImpl(const ActiveSprings& springs, const Vector& force,
-                               const Vector& prescribed, Vector& u);
+                               const Vector& prescribed, Vector& u,
+                               const EquilibriumSolver* start_tangent);
   // SolveImpl's steps.
   // The load's force scale, which the relative tolerance multiplies.
   template <int D>
@@ -234,6 +256,10 @@ class EquilibriumSolver {
   template <int D>
   const char* NewtonStep(const ActiveSprings& springs, const Vector& force, const Vector& u,
                          EquilibriumSummary& summary, double& slope);
+  // Shortens step_ where it would move a spring's ends by more than max_step of its length,
+  // and sets its slope along the gradient: nullptr, or why it is no descent direction.
+  template <int D>
+  const char* LimitStep(const ActiveSprings& springs, double& slope);
   // Newton's steps (newton_iteration.h), on this solver's state.
   template <int D>
   struct NewtonSteps;
@@ -259,6 +285,13 @@ class EquilibriumSolver {
   Vector gradient_, trial_gradient_, step_, trial_u_;
   std::vector<double> floor_;  // per free node: its round-off force floor (SolveImpl)
   double relative_ = 0.0;      // the relative force tolerance in force units (SolveImpl)
+  // Chord steps (EquilibriumOptions::chord_contraction): the solver whose factorisation they
+  // solve with (this one, a start tangent, or none), the last step's contraction of the
+  // largest imbalance, and whether the last step was a chord step.
+  const EquilibriumSolver* chord_ = nullptr;
+  double contraction_ = 0.0;
+  bool chord_step_ = false;
+  bool holds_tangent_ = false;
 };
 
 }  // namespace springfit

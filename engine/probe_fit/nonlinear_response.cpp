@@ -93,14 +93,21 @@ void NonlinearFitOptions::Validate(const std::string& owner) const {
   check.Require(!regularizations.empty(), "regularizations", 0.0, "at least one strength");
   for (double r : regularizations) check.Require(r >= 0.0, "regularizations", r, "each >= 0");
   check.Require(steps_per_strength >= 1, "steps_per_strength", steps_per_strength, "value >= 1");
+  check.Require(chord_contraction >= 0.0 && chord_contraction < 1.0, "chord_contraction",
+                chord_contraction, "0 <= value < 1");
 }
 
 NonlinearCases::NonlinearCases(const Problem& problem, const ProbeBank& bank,
                                const std::vector<double>& fit_weight,
                                const NonlinearFitOptions& options, Interruption* interruption,
                                WorkerPool* pool)
-    : problem_(problem), bank_(bank), interruption_(interruption), pool_(pool) {
+    : problem_(problem),
+      bank_(bank),
+      interruption_(interruption),
+      pool_(pool),
+      solver_options_(problem.solver_options()) {
   options.Validate();
+  solver_options_.chord_contraction = options.chord_contraction;
   const int d = problem.dimension();
   const std::vector<int> fitted = CaseProbes(bank, ProbeRole::kFit, options.max_fitted_probes);
   const std::vector<int> choosing =
@@ -166,11 +173,12 @@ double NonlinearCases::ChoosingError(const std::vector<double>& weights, int* fa
         const auto [begin, end] = groups[g];
         const Probe& probe = bank_.probes[static_cast<std::size_t>(choosing_[begin].probe)];
         const FreeNodes free = FreeOf(bank_, probe);
-        SpringResponse solver(input, free, problem_.solver_options(), interruption_);
+        SpringResponse solver(input, free, solver_options_, interruption_);
         double sum = 0.0;
         for (std::size_t i = begin; i < end; ++i) {
           const ScaledLoad load = ScaleLoad(probe.force, probe.prescribed, choosing_[i].amplitude);
-          const std::optional<Vector> u = solver.Solve(load.force, load.prescribed);
+          const double warm = i > begin ? choosing_[i].amplitude / choosing_[i - 1].amplitude : 1.0;
+          const std::optional<Vector> u = solver.Solve(load.force, load.prescribed, warm);
           double e = 1.0;
           if (u && InvertedElements(problem_.scene(), *u) == 0)
             e = std::min(1.0, RelativeError(*u, choosing_[i].reference, free, d));
@@ -191,6 +199,25 @@ double NonlinearCases::ChoosingError(const std::vector<double>& weights, int* fa
   return FamilyBalancedRms(bank_, per_probe);
 }
 
+std::unique_ptr<EquilibriumSolver> NonlinearCases::TakeSolver(std::size_t fitted_case) const {
+  {
+    const std::lock_guard lock(spare_mutex_);
+    if (spare_solvers_.size() == fitted_.size() && spare_solvers_[fitted_case])
+      return std::move(spare_solvers_[fitted_case]);
+  }
+  const Probe& probe = bank_.probes[static_cast<std::size_t>(fitted_[fitted_case].probe)];
+  return std::make_unique<EquilibriumSolver>(problem_.candidates(), FreeOf(bank_, probe),
+                                             solver_options_);
+}
+
+void NonlinearCases::ReturnSolvers(std::vector<std::unique_ptr<EquilibriumSolver>>& solvers) const {
+  const std::lock_guard lock(spare_mutex_);
+  spare_solvers_.resize(fitted_.size());
+  for (std::size_t i = 0; i < solvers.size() && i < fitted_.size(); ++i)
+    if (solvers[i]) spare_solvers_[i] = std::move(solvers[i]);
+  solvers.clear();
+}
+
 void NonlinearCases::BoundWeights(const std::vector<double>& start_errors) {
   for (std::size_t i = 0; i < fitted_.size() && i < start_errors.size(); ++i)
     if (start_errors[i] > 1.0) fitted_[i].weight /= start_errors[i] * start_errors[i];
@@ -203,6 +230,10 @@ NonlinearResponse::NonlinearResponse(const NonlinearCases& cases, const GeneSpri
       cases_(&cases),
       springs_(&springs) {}
 
+NonlinearResponse::~NonlinearResponse() {
+  cases_->ReturnSolvers(solvers_);
+}
+
 bool NonlinearResponse::At(const std::vector<double>& weights) {
   const Problem& problem = cases_->problem();
   const ProbeBank& bank = cases_->bank();
@@ -213,7 +244,7 @@ bool NonlinearResponse::At(const std::vector<double>& weights) {
   const std::vector<int>& gene_candidate = problem.gene_candidates();
   parts_.assign(cases.size(), Part{});
   case_errors_.assign(cases.size(), std::numeric_limits<double>::quiet_NaN());
-  solvers_.clear();
+  cases_->ReturnSolvers(solvers_);
   solvers_.resize(cases.size());
   const auto groups = ByProbe(cases);
   std::vector<char> held(groups.size(), 0);
@@ -225,13 +256,20 @@ bool NonlinearResponse::At(const std::vector<double>& weights) {
         const FreeNodes free = FreeOf(bank, probe);
         Vector u = Vector::Zero(static_cast<Eigen::Index>(problem.scene().rest.size()));
         for (std::size_t i = begin; i < end; ++i) {
-          solvers_[i] =
-              std::make_unique<EquilibriumSolver>(geometry, free, problem.solver_options());
+          solvers_[i] = cases_->TakeSolver(i);
           EquilibriumSolver& solver = *solvers_[i];
           solver.set_interruption(interruption_);
           if (i == begin && solver.RestMechanismModes(active) != 0) return;
+          // A load step: from the last amplitude's equilibrium, scaled (its linear
+          // prediction), and its tangent, which its adjoint factorised.
+          const EquilibriumSolver* previous = nullptr;
+          if (i > begin) {
+            u *= cases[i].amplitude / cases[i - 1].amplitude;
+            previous = solvers_[i - 1].get();
+          }
           const ScaledLoad load = ScaleLoad(probe.force, probe.prescribed, cases[i].amplitude);
-          const EquilibriumSummary summary = solver.Solve(active, load.force, load.prescribed, u);
+          const EquilibriumSummary summary =
+              solver.Solve(active, load.force, load.prescribed, u, previous);
           if (summary.termination == Termination::kInterrupted) throw Interrupted();
           // (No equilibrium, or one that is not a minimum of the energy: the model folds.)
           if (!summary.converged() || !solver.FactorizeTangent(active, u)) return;

@@ -14,6 +14,7 @@
 
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,11 @@ struct NonlinearFitOptions {
   // Gauss-Newton steps per strength (>= 1).
   std::vector<double> regularizations = {1e-2, 1e-3, 1e-4, 1e-5};
   int steps_per_strength = 3;
+  // The stage's equilibrium solves take chord steps (EquilibriumOptions::chord_contraction)
+  // while a step shrinks the force imbalance to at most this fraction: each load step starts
+  // from the previous amplitude's tangent, factorised anyway for the adjoint. In [0, 1); 0:
+  // exact Newton.
+  double chord_contraction = 0.1;
 
   // Throws std::invalid_argument naming the field, its value and the rule.
   void Validate(const std::string& owner = "NonlinearFitOptions") const;
@@ -82,6 +88,8 @@ class NonlinearCases {
 
   const Problem& problem() const { return problem_; }
   const ProbeBank& bank() const { return bank_; }
+  // The problem's solver options with the stage's chord steps.
+  const EquilibriumOptions& solver_options() const { return solver_options_; }
   // Ordered by probe, then by amplitude ascending.
   const std::vector<NonlinearCase>& fitted() const { return fitted_; }
   const std::vector<NonlinearCase>& choosing() const { return choosing_; }
@@ -95,6 +103,13 @@ class NonlinearCases {
   // on another branch, a snap-through) is missed, and one such probe does not decide a choice.
   double ChoosingError(const std::vector<double>& weights, int* failed = nullptr) const;
 
+  // The fitted cases' equilibrium solvers that no NonlinearResponse holds. A solver's
+  // construction orders its sparsity pattern (the candidates' on the case's support), the same
+  // for every model, so the responses of successive trials hand them on; a solver's results do
+  // not depend on what it solved before (EquilibriumSolver::Solve takes its start explicitly).
+  std::unique_ptr<EquilibriumSolver> TakeSolver(std::size_t fitted_case) const;
+  void ReturnSolvers(std::vector<std::unique_ptr<EquilibriumSolver>>& solvers) const;
+
   // Scales each fitted case's weight by min(1, 1 / E^2), E its error at the start
   // (NonlinearResponse::CaseErrors): a case the start misses by more than its whole response
   // weighs as one missed by exactly that, so that one far-off equilibrium cannot steer the fit.
@@ -105,7 +120,10 @@ class NonlinearCases {
   const ProbeBank& bank_;
   Interruption* interruption_;
   WorkerPool* pool_;
+  EquilibriumOptions solver_options_;
   std::vector<NonlinearCase> fitted_, choosing_;
+  mutable std::mutex spare_mutex_;
+  mutable std::vector<std::unique_ptr<EquilibriumSolver>> spare_solvers_;  // per fitted case
 };
 
 // The nonlinear objective's operators at a model (spring_sensitivities.h): a part per fitted
@@ -117,6 +135,9 @@ class NonlinearResponse : public SpringSensitivities {
   // fit's (ProbeObjective::scale()).
   NonlinearResponse(const NonlinearCases& cases, const GeneSprings& springs, const Vector& scale,
                     Interruption* interruption = nullptr, WorkerPool* pool = nullptr);
+  ~NonlinearResponse() override;
+  NonlinearResponse(const NonlinearResponse&) = delete;
+  NonlinearResponse& operator=(const NonlinearResponse&) = delete;
 
   bool At(const std::vector<double>& weights) override;
   // Per fitted case, the relative error E of the last successful At()'s equilibrium.

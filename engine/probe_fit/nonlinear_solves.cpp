@@ -44,11 +44,12 @@ SpringResponse::SpringResponse(const SpringSolverInput& input, const FreeNodes& 
   held_ = solver_.RestMechanismModes(input.springs) == 0;
 }
 
-std::optional<Vector> SpringResponse::Solve(const Vector& force, const Vector& prescribed) {
+std::optional<Vector> SpringResponse::Solve(const Vector& force, const Vector& prescribed,
+                                            double warm_scale) {
   if (!held_) return std::nullopt;
   if (last_.size() != force.size()) last_ = Vector::Zero(force.size());
-  Vector u = last_;
-  const EquilibriumSummary summary = solver_.Solve(input_.springs, force, prescribed, u);
+  Vector u = warm_scale * last_;
+  const EquilibriumSummary summary = solver_.Solve(input_.springs, force, prescribed, u, &solver_);
   if (summary.termination == Termination::kInterrupted) throw Interrupted();
   if (!summary.converged()) {
     last_ = Vector::Zero(force.size());

@@ -39,8 +39,11 @@ class SpringResponse {
   SpringResponse(const SpringSolverInput& input, const FreeNodes& free,
                  const EquilibriumOptions& options, Interruption* interruption);
   // The displacement (flat d*n) under (force, prescribed), or nothing (a mechanism, no
-  // convergence). Throws Interrupted when stopped.
-  std::optional<Vector> Solve(const Vector& force, const Vector& prescribed);
+  // convergence). The solve starts from the last equilibrium times `warm_scale` (the ratio of
+  // this load's size to the last one's: a load step's linear prediction) and, with the
+  // options' chord_contraction, from the last solve's tangent. Throws Interrupted when stopped.
+  std::optional<Vector> Solve(const Vector& force, const Vector& prescribed,
+                              double warm_scale = 1.0);
 
  private:
   const SpringSolverInput& input_;

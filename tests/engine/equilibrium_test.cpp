@@ -269,6 +269,47 @@ TEST(Equilibrium, EverySolveIsInForceBalance) {
   }
 }
 
+// Chord steps (EquilibriumOptions::chord_contraction): a load step solved from the previous
+// step's tangent, factorised by another solver, reaches exact Newton's equilibrium to the
+// solve's tolerance with fewer factorisations; with the option at 0 (the default) the start
+// tangent is ignored and every step factorises. The loads move the mesh by about a tenth of its
+// size, where the springs' turning shows (the response is checked to be nonlinear).
+TEST(Equilibrium, ChordStepsFromTheLastLoadStepsTangentReachNewtonsEquilibrium) {
+  const Problem p = Problem::Build(testing::JitteredScene(2, 8, 0.2, 5));
+  const std::vector<std::uint8_t> all(p.candidates().size(), 1);
+  const ActiveSprings springs = p.SpringsFromMask(all);
+  const PreparedLoadCase& lc = p.load_cases().front();
+  const FreeNodes& free = p.free_sets()[lc.free_set];
+  const Vector force = 40.0 * lc.force;
+  EquilibriumOptions chord;
+  chord.chord_contraction = 0.1;
+  // The first load step, with its tangent factorised at its equilibrium.
+  EquilibriumSolver first(p.candidates(), free, chord);
+  Vector half = Vector::Zero(force.size());
+  ASSERT_TRUE(first.Solve(springs, 0.5 * force, lc.prescribed, half).converged());
+  ASSERT_TRUE(first.FactorizeTangent(springs, half));
+  ASSERT_TRUE(first.HoldsTangent());
+  // The second: exact Newton, and chord steps from the first's tangent, from the same start.
+  EquilibriumSolver exact(p.candidates(), free);
+  EquilibriumSolver chorded(p.candidates(), free, chord);
+  Vector u_exact = 2.0 * half, u_chord = 2.0 * half;
+  const EquilibriumSummary newton = exact.Solve(springs, force, lc.prescribed, u_exact, &first);
+  const EquilibriumSummary steps = chorded.Solve(springs, force, lc.prescribed, u_chord, &first);
+  ASSERT_TRUE(newton.converged());
+  ASSERT_TRUE(steps.converged());
+  EXPECT_EQ(newton.chord_steps, 0);  // the option at 0 ignores a start tangent
+  EXPECT_GT(steps.chord_steps, 0);
+  // (Here 2 factorisations against Newton's 4.)
+  EXPECT_LE(steps.iterations - steps.chord_steps, newton.iterations / 2);
+  // Nonlinear: the full load's equilibrium is not twice the half load's.
+  EXPECT_GT((u_exact - 2.0 * half).norm(), 1e-3 * u_exact.norm());
+  // The same equilibrium, to what the force tolerance resolves.
+  EXPECT_LE((u_chord - u_exact).norm(), 1e-8 * u_exact.norm());
+  Vector gradient;
+  chorded.EnergyAndGradient(springs, force, u_chord, &gradient, false, false);
+  EXPECT_LE(gradient.lpNorm<Eigen::Infinity>(), kForceBalance * force.lpNorm<Eigen::Infinity>());
+}
+
 TEST(Equilibrium, MechanismsAreCountedNotSolved) {
   // A unit square fixed along its bottom edge, without a diagonal: one shear mode.
   Vector rest(8);

@@ -27,16 +27,22 @@ struct NonlinearKidney : KidneyAtRest {
   NonlinearKidney() : KidneyAtRest("fem-kidney-2d-nl") {}
 };
 
+// Six fitted probes at half and the full named size, one choosing probe: a small objective.
+NonlinearFitOptions FewCasesOptions() {
+  NonlinearFitOptions options;
+  options.amplitudes = {0.5, 1.0};
+  options.max_fitted_probes = 6;
+  options.max_choosing_probes = 1;
+  return options;
+}
+
 // J^T r and J^T J v of the nonlinear objective against central differences of its residuals:
 // the derivative of the equilibria in the stiffness through the tangent at each one (the
 // adjoint), at loads that turn and stretch the springs (the full named size).
 TEST(NonlinearResponse, GradientAndNormalProductMatchFiniteDifferences) {
   const NonlinearKidney kidney;
-  NonlinearFitOptions options;
-  options.amplitudes = {0.5, 1.0};
-  options.max_fitted_probes = 6;
-  options.max_choosing_probes = 1;
-  const NonlinearCases cases(kidney.problem, kidney.bank, FitWeights(kidney.bank, {}), options);
+  const NonlinearCases cases(kidney.problem, kidney.bank, FitWeights(kidney.bank, {}),
+                             FewCasesOptions());
   ASSERT_GE(cases.fitted().size(), 8u);
   const GeneSprings springs = GeneSpringsOf(kidney.problem);
   const Vector scale = PriorScale(kidney.prior);
@@ -69,6 +75,34 @@ TEST(NonlinearResponse, GradientAndNormalProductMatchFiniteDifferences) {
   EXPECT_NEAR(v.dot(at.NormalProduct(v)), jv.squaredNorm(), 1e-5 * jv.squaredNorm());
   const double uhv = u.dot(at.NormalProduct(v)), vhu = v.dot(at.NormalProduct(u));
   EXPECT_NEAR(uhv, vhu, 1e-10 * std::abs(uhv) + 1e-14);
+}
+
+// The trials of the nonlinear fit hand their equilibrium solvers on (NonlinearCases::TakeSolver):
+// a response's results do not depend on what its solvers solved before, to the bit, and a
+// returned solver comes back with its state (its last tangent), not rebuilt.
+TEST(NonlinearResponse, HandedOnSolversGiveTheSameResidualsWhateverTheySolvedBefore) {
+  const NonlinearKidney kidney;
+  const NonlinearCases cases(kidney.problem, kidney.bank, FitWeights(kidney.bank, {}),
+                             FewCasesOptions());
+  const GeneSprings springs = GeneSpringsOf(kidney.problem);
+  const Vector scale = PriorScale(kidney.prior);
+  std::vector<double> other = kidney.prior;
+  for (std::size_t e = 0; e < other.size(); ++e) other[e] *= 1.0 + 0.3 * std::sin(double(e));
+  const auto residuals_at = [&](const std::vector<double>& weights) {
+    NonlinearResponse response(cases, springs, scale);
+    EXPECT_TRUE(response.At(weights));
+    return Vector(response.Residuals());
+  };
+  const Vector first = residuals_at(kidney.prior);  // fresh solvers
+  const Vector moved = residuals_at(other);         // the same solvers, another model
+  const Vector again = residuals_at(kidney.prior);  // and back
+  ASSERT_GT((moved - first).norm(), 0.0);
+  EXPECT_EQ((again - first).lpNorm<Eigen::Infinity>(), 0.0);
+  // The solvers came back: each still holds the tangent it factorised for its case.
+  for (std::size_t i = 0; i < cases.fitted().size(); ++i) {
+    std::unique_ptr<EquilibriumSolver> solver = cases.TakeSolver(i);
+    EXPECT_TRUE(solver->HoldsTangent()) << "case " << i;
+  }
 }
 
 // The nonlinear stage on the St. Venant-Kirchhoff kidney, from the rest-linear fit's model: a
