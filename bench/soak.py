@@ -100,6 +100,8 @@ WEDGED_SECONDS = 10.0     # a running, unfrozen daemon that does not answer serv
 START_TIMEOUT = 30.0      # a daemon's port file
 STOP_TIMEOUT = 20.0       # a daemon's exit after SIGTERM (--shutdown-seconds is 10)
 MESSAGE_SECONDS = 5.0     # the daemons' --message-seconds: what a slow-loris is cut at
+SLOW_PROBE_SECONDS = 1.0  # a server.info answer slower than this is listed with its context
+SLOW_PROBE_CONTEXT = 10.0  # seconds of the fault schedule before a slow probe, listed with it
 LORIS_CONNECTIONS = 8
 
 # Small, fast jobs (bench/RESULTS.md: 0.1-2.5 s each on one core), with a weight each. The
@@ -610,6 +612,7 @@ class Soak:
         self.known_ids = []
         self.rpc_errors = collections.Counter()
         self.info_latency = []
+        self.slow_probes = []
         self.wedged = []
         self.lease_owner = {}          # (job, epoch) -> owner
         self.lease_epoch = {}          # job -> last epoch seen
@@ -1345,6 +1348,8 @@ class Soak:
                     took = time.monotonic() - t0
                     with self.lock:
                         self.info_latency.append(took)
+                    if took > SLOW_PROBE_SECONDS:
+                        self.slow_probe(slot.inst.name, took)
                     if err is not None:
                         self.rpc_error("server.info", err)
                 except Down as e:
@@ -1359,6 +1364,16 @@ class Soak:
                         self.fail("wedged", f"{slot.inst.name}: server.info not answered "
                                             f"({e}, {took:.1f} s) while it ran unfrozen")
             self.monitor_stop.wait(1.0)
+
+    def slow_probe(self, daemon, took):
+        """A server.info answer over SLOW_PROBE_SECONDS: when, which daemon, and the faults the
+        schedule started in the SLOW_PROBE_CONTEXT seconds before it was asked (what it met)."""
+        asked = now() - self.t0 - took
+        with self.lock:
+            near = [f for f in self.fault_log
+                    if asked - SLOW_PROBE_CONTEXT <= f["t"] <= asked + took and "skipped" not in f]
+            self.slow_probes.append({"t": round(asked, 1), "daemon": daemon,
+                                     "seconds": round(took, 2), "faults_before": near})
 
     def lease_sampler(self):
         """The store's current leases, twice a second: one owner per (job, epoch), epochs of a
@@ -1731,10 +1746,16 @@ class Soak:
         series = samples.get(longest.name, [])
         growth = None
         if len(series) >= 20:
+            # The median of 10 samples at its start, at each quarter of its life, and at its
+            # end: growth that levels off from a leak, which keeps the slope.
+            def at(i):
+                window = series[max(0, min(i, len(series) - 10)):][:10]
+                return round(sorted(window)[len(window) // 2] / (1 << 20), 1)
             growth = {"daemon": longest.name,
                       "seconds": round((longest.ended or now()) - (longest.up_at or longest.launched)),
-                      "first_mb": round(sorted(series[:10])[5] / (1 << 20), 1),
-                      "last_mb": round(sorted(series[-10:])[5] / (1 << 20), 1)}
+                      "first_mb": at(0),
+                      "quarters_mb": [at(len(series) * q // 4) for q in (1, 2, 3)],
+                      "last_mb": at(len(series) - 10)}
         peak = max((inst.peak_rss for inst in instances), default=0)
         if peak > self.args.max_rss_mb << 20:
             worst = max(instances, key=lambda i: i.peak_rss)
@@ -1794,14 +1815,22 @@ class Soak:
                      f"{s.get('instances', 0)} daemon processes (bound {a.max_rss_mb} MB) |")
         g = s.get("rss_growth")
         if g:
+            quarters = " / ".join(f"{mb}" for mb in g.get("quarters_mb", []))
             lines.append(f"| memory of the longest-lived daemon process | {g['daemon']}, "
-                         f"{g['seconds']} s: {g['first_mb']} MB at its start, {g['last_mb']} MB at "
+                         f"{g['seconds']} s: {g['first_mb']} MB at its start, {quarters} MB at "
+                         f"a quarter, half and three quarters of its life, {g['last_mb']} MB at "
                          f"its end |")
         if lat:
             lines.append(f"| server.info latency | median {percentile(lat, 50) * 1000:.1f} ms, p99 "
                          f"{percentile(lat, 99) * 1000:.0f} ms, max {max(lat) * 1000:.0f} ms "
                          f"({len(lat)} probes of running daemons; {sum(1 for x in lat if x > 1)} "
                          f"over 1 s) |")
+        for slow in getattr(self, "slow_probes", []):
+            before = ", ".join(f"{f['kind']} at {f['t']:.0f} s"
+                               + (f" ({f['daemon']})" if f.get("daemon") else "")
+                               for f in slow["faults_before"]) or "no fault"
+            lines.append(f"| slow server.info | {slow['daemon']} at {slow['t']:.0f} s: "
+                         f"{slow['seconds']} s; the {SLOW_PROBE_CONTEXT:.0f} s before: {before} |")
         lines.append(f"| resumed from a checkpoint / lease lost (fenced) / runs overlapping a "
                      f"frozen one | {s.get('resumed_from_checkpoint', 0)} / "
                      f"{s.get('lease_lost_runs', 0)} / {s.get('overlapping_runs_fenced', 0)} |")
@@ -1842,7 +1871,8 @@ class Soak:
                    "counters": dict(self.counters), "rpc_errors": dict(self.rpc_errors),
                    "server_info_latency": {"count": len(lat), "median": percentile(lat, 50),
                                            "p99": percentile(lat, 99),
-                                           "max": max(lat) if lat else None},
+                                           "max": max(lat) if lat else None,
+                                           "slow": getattr(self, "slow_probes", [])},
                    "schedule": getattr(self, "schedule", []), "fault_log": self.fault_log,
                    "crashes": self.crashes, "wedged": self.wedged,
                    "reference_runs": getattr(self, "reference_runs", 0),
