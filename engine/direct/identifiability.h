@@ -31,11 +31,10 @@ struct IdentifiabilityOptions {
   ColumnDependencyOptions dependencies;
   double unseen_strain = kUnseenStrain;
   // A sparse QR of A over the seen genes (engine/linalg/column_dependencies.h; A has a column per
-  // gene and a row per free coordinate and load case) that cannot be interrupted. The whole
-  // analysis: 0.05 s at fem-kidney-2d-fine's 2,853 genes, 0.34 s at fem-block-3d's 6,256, 4.4 s
-  // and 0.8 GB at the 4,346-node Gmsh block's 26,791 (the QR 2.8 s of it), 28.6 s and 2.6 GB at
-  // the 10,582-node block's 67,809 (bench/RESULTS.md). Beyond the bound no group is analysed,
-  // and the report says so.
+  // gene and a row per free coordinate and load case) that cannot be interrupted. Its time and
+  // memory grow faster than the genes (the QR's fill): bench/RESULTS.md, "Identifiability at
+  // scale", has them from the examples to the 10,582-node block's 67,809 genes, which this bound
+  // leaves out. Beyond the bound no group is analysed, and the report says so.
   int max_genes = 30000;
   // A group gets a suggestion when its springs times its dependencies stay below this: each
   // trial load multiplies a block of that size (a one-load-case 30x30 grid would take minutes).

@@ -22,9 +22,9 @@
 namespace springfit {
 
 struct ColumnDependencyOptions {
-  // The QR's fill-reducing column ordering. METIS on A^T A: on the 4,346-node Gmsh block's
-  // force balance R11 holds 7.6 million entries and the QR takes 2.8 s, against 13.0 million
-  // and 6.7 s with COLAMD. The ordering chooses the basis, not the groups.
+  // The QR's fill-reducing column ordering. METIS on A^T A: on the Gmsh blocks' force balance it
+  // about halves R11's fill and the QR's time against COLAMD (bench/RESULTS.md, "Identifiability
+  // at scale"). The ordering chooses the basis, not the groups.
   enum class Ordering { kMetis, kColamd };
   Ordering ordering = Ordering::kMetis;
   // A column is dependent when its residual after the columns before it falls to this
@@ -44,11 +44,11 @@ struct ColumnDependencyOptions {
   // after 10 is its smallest singular value to three digits (0.02095, SciPy's eigsh).
   int confirm_iterations = 10;
   // Refactorisations without one dependent column before giving up: each costs one more QR
-  // (4 s at 26,791 columns) that cannot be interrupted. fem-kidney-2d-fine under COLAMD needs
+  // (seconds on the large meshes) that cannot be interrupted. fem-kidney-2d-fine under COLAMD needs
   // 2, under METIS none.
   int max_repairs = 5;
   // The circuits cost about 2 (nonzeros(R11) + nonzeros(A's basis columns)) per dependent
-  // column; beyond this product (about 10 s on one core) they are not traced.
+  // column; beyond this product (seconds of one core) they are not traced.
   double max_trace_work = 2e10;
 
   // Throws std::invalid_argument naming the field (of `owner`), its value and the rule it

@@ -86,8 +86,9 @@ struct EquilibriumOptions {
   // irregular meshes in their mesher's numbering (bench/RESULTS.md, solve section).
   int banded_max_dofs = 96;
   // Free-node degrees of freedom above which CHOLMOD's supernodal Cholesky replaces Eigen's
-  // simplicial LDLT: at a 316 x 316 grid (200k) the simplicial one took 20 s a
-  // factorisation. Above every example's size, so that their trajectories do not change.
+  // simplicial LDLT, whose fill makes it an order of magnitude slower on large grids
+  // (bench/RESULTS.md, "Control within a second": the 316 x 316 grid). Above every example's
+  // size, so that their trajectories do not change.
   int supernodal_min_dofs = 20000;
   // Chord steps: a Newton step may solve with a tangent factorised earlier (one solve in place
   // of a factorisation) while the step before it shrank the largest force imbalance to at most

@@ -70,8 +70,9 @@ std::vector<AmplitudeErrors> JudgeAtAmplitudes(const Problem& problem, const Pro
         bank.supports[static_cast<std::size_t>(probe.support)].constrained);
     ReferenceSolver reference_solver(reference_model.fem, reference_model.springs, free, problem,
                                      interruption);
-    SpringResponse model_solver(model_input, free, problem.solver_options(), interruption);
-    SpringResponse baseline_solver(baseline_input, free, problem.solver_options(), interruption);
+    SpringResponse model_solver(model_input, free, LoadStepSolverOptions(problem), interruption);
+    SpringResponse baseline_solver(baseline_input, free, LoadStepSolverOptions(problem),
+                                   interruption);
     for (std::size_t a = 0; a < amplitudes; ++a) {
       const ScaledLoad load = ScaleLoad(probe.force, probe.prescribed, options.amplitudes[a]);
       const std::optional<Vector> reference = reference_solver.Solve(load.force, load.prescribed);

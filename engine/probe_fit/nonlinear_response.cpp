@@ -177,8 +177,7 @@ double NonlinearCases::ChoosingError(const std::vector<double>& weights, int* fa
         double sum = 0.0;
         for (std::size_t i = begin; i < end; ++i) {
           const ScaledLoad load = ScaleLoad(probe.force, probe.prescribed, choosing_[i].amplitude);
-          const double warm = i > begin ? choosing_[i].amplitude / choosing_[i - 1].amplitude : 1.0;
-          const std::optional<Vector> u = solver.Solve(load.force, load.prescribed, warm);
+          const std::optional<Vector> u = solver.Solve(load.force, load.prescribed);
           double e = 1.0;
           if (u && InvertedElements(problem_.scene(), *u) == 0)
             e = std::min(1.0, RelativeError(*u, choosing_[i].reference, free, d));

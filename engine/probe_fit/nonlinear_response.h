@@ -42,7 +42,7 @@ struct NonlinearFitOptions {
   // while a step shrinks the force imbalance to at most this fraction: each load step starts
   // from the previous amplitude's tangent, factorised anyway for the adjoint. In [0, 1); 0:
   // exact Newton.
-  double chord_contraction = 0.1;
+  double chord_contraction = kLoadStepChordContraction;
 
   // Throws std::invalid_argument naming the field, its value and the rule.
   void Validate(const std::string& owner = "NonlinearFitOptions") const;

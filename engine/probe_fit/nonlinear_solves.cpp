@@ -44,19 +44,27 @@ SpringResponse::SpringResponse(const SpringSolverInput& input, const FreeNodes& 
   held_ = solver_.RestMechanismModes(input.springs) == 0;
 }
 
-std::optional<Vector> SpringResponse::Solve(const Vector& force, const Vector& prescribed,
-                                            double warm_scale) {
+std::optional<Vector> SpringResponse::Solve(const Vector& force, const Vector& prescribed) {
   if (!held_) return std::nullopt;
-  if (last_.size() != force.size()) last_ = Vector::Zero(force.size());
-  Vector u = warm_scale * last_;
+  const double size = std::sqrt(force.squaredNorm() + prescribed.squaredNorm());
+  Vector u = last_.size() == force.size() && last_size_ > 0.0 ? Vector(size / last_size_ * last_)
+                                                              : Vector::Zero(force.size());
   const EquilibriumSummary summary = solver_.Solve(input_.springs, force, prescribed, u, &solver_);
   if (summary.termination == Termination::kInterrupted) throw Interrupted();
   if (!summary.converged()) {
-    last_ = Vector::Zero(force.size());
+    last_.resize(0);
+    last_size_ = 0.0;
     return std::nullopt;
   }
   last_ = u;
+  last_size_ = size;
   return u;
+}
+
+EquilibriumOptions LoadStepSolverOptions(const Problem& problem) {
+  EquilibriumOptions options = problem.solver_options();
+  options.chord_contraction = kLoadStepChordContraction;
+  return options;
 }
 
 ReferenceSolver::ReferenceSolver(const std::optional<fem::FemModel>& fem,

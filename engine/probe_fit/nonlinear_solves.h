@@ -39,18 +39,26 @@ class SpringResponse {
   SpringResponse(const SpringSolverInput& input, const FreeNodes& free,
                  const EquilibriumOptions& options, Interruption* interruption);
   // The displacement (flat d*n) under (force, prescribed), or nothing (a mechanism, no
-  // convergence). The solve starts from the last equilibrium times `warm_scale` (the ratio of
-  // this load's size to the last one's: a load step's linear prediction) and, with the
-  // options' chord_contraction, from the last solve's tangent. Throws Interrupted when stopped.
-  std::optional<Vector> Solve(const Vector& force, const Vector& prescribed,
-                              double warm_scale = 1.0);
+  // convergence). A load step: the solve starts from the last equilibrium scaled by the ratio
+  // of this load's size to the last one's (its linear prediction) and, with the options'
+  // chord_contraction, from the last solve's tangent. Throws Interrupted when stopped.
+  std::optional<Vector> Solve(const Vector& force, const Vector& prescribed);
 
  private:
   const SpringSolverInput& input_;
   EquilibriumSolver solver_;
   bool held_ = false;
-  Vector last_;
+  Vector last_;             // the last equilibrium (empty: none)
+  double last_size_ = 0.0;  // |(force, prescribed)| of its load
 };
+
+// Chord steps of load steps (EquilibriumOptions::chord_contraction): a step refactorises when
+// the one before shrank the force imbalance by less than tenfold (docs/ARCHITECTURE.md, "The
+// nonlinear fit"; bench/RESULTS.md, round nine, has the thresholds tried).
+inline constexpr double kLoadStepChordContraction = 0.1;
+// The problem's solver options for load steps (SpringResponse's solves of a probe at
+// increasing sizes): with kLoadStepChordContraction.
+EquilibriumOptions LoadStepSolverOptions(const Problem& problem);
 
 // The reference's response to a probe's loads on one support: the FEM model's nonlinear solve,
 // or the reference MSS's. Checked for a stop at every Newton iteration too: a probe of a large

@@ -11,6 +11,7 @@
 #include "engine/fem/fem_model.h"
 #include "engine/probe_fit/nonlinear_solves.h"
 #include "engine/probe_fit/support_system.h"
+#include "engine/problem/small_strain.h"
 #include "engine/runtime/input_error.h"
 #include "engine/runtime/options_check.h"
 #include "engine/search/random_stream.h"
@@ -106,13 +107,6 @@ Vector NodalVolumes(const Scene& scene) {
   else
     add(model.elements3());
   return v;
-}
-
-double LargestNodal(int d, const Vector& u) {
-  double largest = 0.0;
-  for (int i = 0; i < static_cast<int>(u.size()) / d; ++i)
-    largest = std::max(largest, u.segment(d * i, d).norm());
-  return largest;
 }
 
 // The roles of probes [begin, end): shuffled, the first held out (`held` set), the next chosen
@@ -269,7 +263,7 @@ class BankBuilder {
 
   // The named cases, all fitted; their median largest displacement sets the probes' amplitude.
   void AddNamedCases() {
-    std::vector<double> named_largest;
+    const std::size_t first = bank_.probes.size();
     for (std::size_t k = 0; k < problem_.load_cases().size(); ++k) {
       const PreparedLoadCase& lc = problem_.load_cases()[k];
       Probe probe;
@@ -280,11 +274,12 @@ class BankBuilder {
       probe.prescribed = lc.prescribed;
       probe.reference =
           systems_[static_cast<std::size_t>(probe.support)].Displacement(lc.force, lc.prescribed);
-      named_largest.push_back(LargestNodal(d_, probe.reference));
       bank_.probes.push_back(std::move(probe));
     }
-    std::sort(named_largest.begin(), named_largest.end());
-    bank_.amplitude = named_largest.empty() ? 0.0 : named_largest[named_largest.size() / 2];
+    std::vector<const Vector*> responses;
+    for (std::size_t p = first; p < bank_.probes.size(); ++p)
+      responses.push_back(&bank_.probes[p].reference);
+    bank_.amplitude = LoadsSize(d_, responses);
     if (!(bank_.amplitude > 0.0)) bank_.amplitude = 0.05 * scene_.Bounds().Diagonal();
   }
 
@@ -466,7 +461,7 @@ class BankBuilder {
     probe.family = family;
     probe.support = s;
     probe.reference = systems_[static_cast<std::size_t>(s)].Displacement(force, Vector());
-    const double largest = LargestNodal(d_, probe.reference);
+    const double largest = LargestNodalDisplacement(d_, probe.reference);
     if (!(largest > 0.0)) return;
     const double scale = bank_.amplitude / largest;
     probe.force = force * scale;
@@ -541,7 +536,7 @@ ProbeBanks MakeProbeBanks(const Problem& problem, const SparseMatrix& reference_
 
 void AddSoftModeProbe(ProbeBank& bank, int support, const Vector& shape,
                       const SparseMatrix& reference_stiffness, int dimension) {
-  const double largest = LargestNodal(dimension, shape);
+  const double largest = LargestNodalDisplacement(dimension, shape);
   if (!(largest > 0.0)) return;
   Probe probe;
   probe.family = ProbeFamily::kMode;

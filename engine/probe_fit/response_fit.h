@@ -96,7 +96,7 @@ struct ResponseFitOptions {
   int max_springs = 0;
   // Refits that add the loads along soft modes (step 5), at most (>= 0; 0: none); and the modes
   // below min_lambda added per user support and refit, at most (>= 1). Each refit is a whole
-  // fit: fem-block-3d's whole run takes 38 s with one instead of 20 (bench/RESULTS.md); with a
+  // fit, about doubling the run where it happens (bench/RESULTS.md, "Held modes"); with a
   // larger mode share a second refit lowered the fine kidney's lambda_min again.
   int soft_mode_rounds = 1;
   int soft_modes_per_round = 4;
@@ -111,9 +111,8 @@ struct ResponseFitOptions {
   // default): the matrix-free fit (matrix_free_fit.h) runs otherwise. The dense fit's memory is
   // m^2 doubles and each of its Newton steps m^3 / 3 (>= 0). Since the held modes
   // (mode_cuts.h) the matrix-free fit does better on the independent evaluator's every family
-  // on the kidney too (700 genes: pushed node 0.063 against 0.084, gravity 0.050 against
-  // 0.093), where the dense fit's sparsity path gives a third fewer springs; on the fine
-  // kidney's 2,853 genes it took 2.6 s against the dense one's 25.6 s (bench/RESULTS.md).
+  // on the kidney too, where the dense fit's sparsity path gives a third fewer springs, and is
+  // ten times faster on the fine kidney (bench/RESULTS.md, "Held modes").
   int dense_max_genes = 0;
   // The matrix-free fit: Gauss-Newton steps per strength (>= 1); conjugate-gradient iterations
   // per step (>= 1) and their relative residual (in (0, 1)); random vectors per support that

@@ -97,8 +97,9 @@ std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const ProbeB
         const FreeNodes free = FreeNodes::FromConstrained(held);
         ReferenceSolver reference_solver(reference.fem, reference.springs, free, problem,
                                          interruption);
-        SpringResponse model_solver(model_input, free, problem.solver_options(), interruption);
-        SpringResponse baseline_solver(baseline_input, free, problem.solver_options(),
+        SpringResponse model_solver(model_input, free, LoadStepSolverOptions(problem),
+                                    interruption);
+        SpringResponse baseline_solver(baseline_input, free, LoadStepSolverOptions(problem),
                                        interruption);
         const Vector force = Vector::Zero(scene.rest.size());
         for (std::size_t a = 0; a < depths; ++a) {

@@ -10,18 +10,25 @@
 
 namespace springfit {
 
-double NamedLoadsSize(const Problem& problem) {
-  const int d = problem.dimension();
+double LargestNodalDisplacement(int d, const Vector& u) {
+  double largest = 0.0;
+  for (Eigen::Index i = 0; i < u.size() / d; ++i)
+    largest = std::max(largest, u.segment(d * i, d).norm());
+  return largest;
+}
+
+double LoadsSize(int d, const std::vector<const Vector*>& responses) {
   std::vector<double> largest;
-  for (const PreparedLoadCase& lc : problem.load_cases()) {
-    double m = 0.0;
-    for (int i = 0; i < problem.scene().node_count(); ++i)
-      m = std::max(m, lc.reference.segment(d * i, d).norm());
-    largest.push_back(m);
-  }
+  for (const Vector* u : responses) largest.push_back(LargestNodalDisplacement(d, *u));
   if (largest.empty()) return 0.0;
   std::sort(largest.begin(), largest.end());
   return largest[largest.size() / 2];
+}
+
+double NamedLoadsSize(const Problem& problem) {
+  std::vector<const Vector*> responses;
+  for (const PreparedLoadCase& lc : problem.load_cases()) responses.push_back(&lc.reference);
+  return LoadsSize(problem.dimension(), responses);
 }
 
 namespace {

@@ -8,6 +8,9 @@
 
 #include <optional>
 #include <string>
+#include <vector>
+
+#include "engine/linalg/linalg.h"
 
 namespace springfit {
 
@@ -22,9 +25,13 @@ inline constexpr double kSmallStrainLimit = 0.02;
 // body around it stays small. 5 % of the volume is the part a simulator's user sees deform.
 inline constexpr double kStrainedVolumeFraction = 0.05;
 
-// The named loads' size: the median over the named cases of the reference's largest nodal
-// displacement (for a linear FEM reference the probe bank's amplitude, probe_bank.h). 0 when no
-// case moves a node.
+// The largest nodal displacement of `u` (flat d*n).
+double LargestNodalDisplacement(int d, const Vector& u);
+// The size of a set of loads: the median over their responses of the largest nodal
+// displacement; 0 for none. The one rule for the named loads' size, here and in the probe bank.
+double LoadsSize(int d, const std::vector<const Vector*>& responses);
+// The named loads' size: LoadsSize of the reference's responses to the named cases (for a
+// linear FEM reference the probe bank's amplitude, probe_bank.h). 0 when no case moves a node.
 double NamedLoadsSize(const Problem& problem);
 
 // The strain of a linear FEM reference's named cases, each response scaled by `load_scale` (a
