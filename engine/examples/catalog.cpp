@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "engine/problem/problem.h"
+#include "engine/problem/small_strain.h"
 #include "engine/runtime/number_text.h"
 #include "engine/search/random_stream.h"
 
@@ -322,7 +323,6 @@ std::vector<LoadCase> Paper7LoadCases(int d, const Vector& rest, double magnitud
 
 void ScaleLoadsToStrain(Scene& scene, double strain) {
   const int d = scene.dimension;
-  const int n = scene.node_count();
   const BoundingBox box = scene.Bounds();
   const double extent = (box.hi - box.lo).maxCoeff();
   // A load this small (relative to the reference's stiffness) is deep in the linear regime.
@@ -335,9 +335,7 @@ void ScaleLoadsToStrain(Scene& scene, double strain) {
   // The probe is solved in the small-load limit, where every material is the linear one.
   const Problem problem = Problem::Build(probe);
   for (std::size_t k = 0; k < scene.load_cases.size(); ++k) {
-    double umax = 0.0;
-    const Vector& u = problem.load_cases()[k].reference;
-    for (int i = 0; i < n; ++i) umax = std::max(umax, u.segment(d * i, d).norm());
+    const double umax = LargestNodalDisplacement(d, problem.load_cases()[k].reference);
     std::vector<NodalLoad>& forces = scene.load_cases[k].forces;
     for (std::size_t m = 0; m < forces.size(); ++m) {
       forces[m].value = probe.load_cases[k].forces[m].value * (strain * extent / umax);

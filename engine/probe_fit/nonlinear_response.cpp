@@ -105,7 +105,7 @@ NonlinearCases::NonlinearCases(const Problem& problem, const ProbeBank& bank,
       bank_(bank),
       interruption_(interruption),
       pool_(pool),
-      solver_options_(problem.solver_options()) {
+      solver_options_(LoadStepSolverOptions(problem)) {
   options.Validate();
   solver_options_.chord_contraction = options.chord_contraction;
   const int d = problem.dimension();

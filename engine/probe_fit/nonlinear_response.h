@@ -88,8 +88,6 @@ class NonlinearCases {
 
   const Problem& problem() const { return problem_; }
   const ProbeBank& bank() const { return bank_; }
-  // The problem's solver options with the stage's chord steps.
-  const EquilibriumOptions& solver_options() const { return solver_options_; }
   // Ordered by probe, then by amplitude ascending.
   const std::vector<NonlinearCase>& fitted() const { return fitted_; }
   const std::vector<NonlinearCase>& choosing() const { return choosing_; }
@@ -120,7 +118,7 @@ class NonlinearCases {
   const ProbeBank& bank_;
   Interruption* interruption_;
   WorkerPool* pool_;
-  EquilibriumOptions solver_options_;
+  EquilibriumOptions solver_options_;  // load steps' (LoadStepSolverOptions), the stage's chord
   std::vector<NonlinearCase> fitted_, choosing_;
   mutable std::mutex spare_mutex_;
   mutable std::vector<std::unique_ptr<EquilibriumSolver>> spare_solvers_;  // per fitted case
