@@ -13,6 +13,7 @@
 #include "engine/api/identify.h"
 #include "engine/api/input_error.h"
 #include "engine/api/problem.h"
+#include "engine/api/scene.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
 
@@ -87,8 +88,8 @@ void PrintFemReference(const Scene& s) {
   }
   std::cout << "  " << (s.dimension == 2 ? "area x thickness:     " : "volume:               ")
             << model.Volume() << "\n";
-  std::printf("  smallest quality:     %.3g (element %d; 1 = equilateral)\n", quality, worst);
-  std::fflush(stdout);
+  std::cout << fmt::format("  smallest quality:     {:.3g} ({}; 1 = equilateral)\n", quality,
+                           ElementNamed(s, static_cast<std::size_t>(worst)));
 }
 
 // The reference: its kind, and what it allows (exact recovery, the FEM mesh).

@@ -817,12 +817,14 @@ Json FemReference(const DeckModel& model, const std::map<long, std::size_t>& sec
   Json reference;
   reference["type"] = "fem";
   Json elements = Json::array(), element_materials = Json::array(), materials = Json::array();
+  Json element_ids = Json::array();  // which messages name elements by
   std::map<std::string, int> material_index;
   std::optional<double> thickness;
   for (const auto& e : first.elements) {
     Json nodes_of = Json::array();
     for (long n : e.nodes) nodes_of.push_back(model.index.at(n));
     elements.push_back(std::move(nodes_of));
+    element_ids.push_back(e.id);
     if (!out.has_sections) continue;  // the material comes from --loads
     const auto s = section_of.find(e.id);
     if (s == section_of.end())
@@ -844,6 +846,7 @@ Json FemReference(const DeckModel& model, const std::map<long, std::size_t>& sec
     element_materials.push_back(it->second);
   }
   reference["elements"] = std::move(elements);
+  reference["element_tags"] = std::move(element_ids);
   if (!out.has_sections) {
     ElementRegions(first, out);
   } else if (materials.size() == 1) {

@@ -80,6 +80,7 @@ std::vector<std::size_t> ReadElements(const std::string& path, int top,
     std::vector<std::size_t> tags, node_tags;
     gmsh::model::mesh::getElementsByType(type, tags, node_tags, entity);
     element_nodes.insert(element_nodes.end(), node_tags.begin(), node_tags.end());
+    mesh.element_tags.insert(mesh.element_tags.end(), tags.begin(), tags.end());
     const auto region = region_of_entity.find(entity);
     const std::string name = region == region_of_entity.end() ? "" : region->second;
     mesh.element_regions.insert(mesh.element_regions.end(), tags.size(), name);

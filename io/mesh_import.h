@@ -20,6 +20,7 @@ struct ImportedMesh {
   std::vector<double> nodes;               // flat, `dimension` per node
   std::vector<long long> node_tags;        // each node's Gmsh tag
   std::vector<std::vector<int>> elements;  // triangles or tetrahedra
+  std::vector<long long> element_tags;     // each element's Gmsh tag
   // Per element, the name of the region (physical surface in 2D, volume in 3D) it belongs to;
   // empty when the mesh names none.
   std::vector<std::string> element_regions;

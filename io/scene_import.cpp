@@ -97,8 +97,10 @@ void MergeLoads(Json& scene, const Json& loads, const std::string& where) {
                        "the mesh's reference is of type " + given.get<std::string>() +
                            " (its elements); got " + r["type"].dump());
     }
-    if (r.contains("elements"))
-      throw LoadsError(where, "reference.elements", "the mesh gives the elements");
+    for (const char* key : {"elements", "element_tags"}) {
+      if (r.contains(key))
+        throw LoadsError(where, std::string("reference.") + key, "the mesh gives the elements");
+    }
   }
   if (loads.contains("node_sets")) {
     const Json& sets = loads["node_sets"];
@@ -207,7 +209,8 @@ Json SceneOfMesh(const ImportedMesh& mesh, const Json& loads, const std::string&
   scene["nodes"] = std::move(nodes);
   scene["node_tags"] = mesh.node_tags;
   if (!mesh.node_sets.empty()) scene["node_sets"] = mesh.node_sets;
-  scene["reference"] = {{"type", "fem"}, {"elements", mesh.elements}};
+  scene["reference"] = {
+      {"type", "fem"}, {"elements", mesh.elements}, {"element_tags", mesh.element_tags}};
 
   MergeLoads(scene, loads, loads_name);
   ResolveRegionMaterials(scene["reference"], mesh, loads_name);

@@ -49,6 +49,10 @@ void ReadFemReference(const Json& v, int dimension, FemReference& fem) {
       nodes.push_back(ReadInt(elements[e][a], IndexPath(p, a)));
     fem.elements.push_back(std::move(nodes));
   }
+  if (v.contains("element_tags")) {
+    fem.element_tags = ReadTags(v["element_tags"], JoinPath(path, "element_tags"),
+                                fem.elements.size(), "elements");
+  }
   if (v.contains("material") == v.contains("materials")) {
     throw InputError(path,
                      "an fem reference needs exactly one of \"material\" or \"materials\" (with "
@@ -102,6 +106,7 @@ void WriteFemReference(const FemReference& fem, Json& r) {
   } else {
     r["material"] = MaterialToJson(fem.materials[0]);
   }
+  if (!fem.element_tags.empty()) r["element_tags"] = fem.element_tags;
   if (fem.plane_given) r["plane"] = PlaneModeName(fem.plane);
   if (fem.thickness_given) r["thickness"] = fem.thickness;
 }

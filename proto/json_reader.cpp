@@ -107,6 +107,22 @@ double ReadNumber(const Json& value, const std::string& path) {
   return x;
 }
 
+std::vector<long long> ReadTags(const Json& value, const std::string& path, std::size_t count,
+                                std::string_view what) {
+  ExpectArray(value, path);
+  if (value.size() != count) {
+    throw InputError(path, std::to_string(value.size()) + " tags for " + std::to_string(count) +
+                               " " + std::string(what) + " (one tag each, in their order)");
+  }
+  return ReadArray<long long>(value, path, [](const Json& tag, const std::string& p) {
+    const double t = ReadNumber(tag, p);
+    // (Within a double's exact integers: a tag is a number a mesh file wrote.)
+    if (t != std::floor(t) || std::abs(t) > 9007199254740992.0)
+      throw InputError(p, "must be an integer");
+    return static_cast<long long>(t);
+  });
+}
+
 int ReadInt(const Json& value, const std::string& path) {
   if (value.is_number_integer()) {
     if (value.is_number_unsigned()) {

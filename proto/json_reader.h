@@ -43,6 +43,10 @@ double ReadNumber(const Json& value, const std::string& path);  // finite
 Json NumberOrText(double x);
 int ReadInt(const Json& value, const std::string& path);  // an integer within int range
 std::uint64_t ReadUint64(const Json& value, const std::string& path);
+// The input's own numbers of `count` things (a mesh's node or element tags): an array of
+// integers, one per thing, in their order (`what` names them in the count's message).
+std::vector<long long> ReadTags(const Json& value, const std::string& path, std::size_t count,
+                                std::string_view what);
 std::string ReadString(const Json& value, const std::string& path);
 // An array of `dimension` finite numbers; dimension 0 accepts any length >= 1.
 Vector ReadVector(const Json& value, const std::string& path, int dimension);

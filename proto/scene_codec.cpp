@@ -99,7 +99,7 @@ void ReadReference(const Json& v, Scene& s) {
   const std::string path = "reference";
   ExpectKeys(v, path,
              {"type", "springs", "stiffness", "positions", "elements", "material", "materials",
-              "element_materials", "plane", "thickness"});
+              "element_materials", "element_tags", "plane", "thickness"});
   if (!v.contains("type")) throw InputError(JoinPath(path, "type"), "required");
   const std::string type = ReadString(v["type"], JoinPath(path, "type"));
   const auto kind = ParseReferenceKind(type);
@@ -115,7 +115,7 @@ void ReadReference(const Json& v, Scene& s) {
       {"positions", Reference::Kind::kPositions},   {"elements", Reference::Kind::kFem},
       {"material", Reference::Kind::kFem},          {"materials", Reference::Kind::kFem},
       {"element_materials", Reference::Kind::kFem}, {"plane", Reference::Kind::kFem},
-      {"thickness", Reference::Kind::kFem}};
+      {"thickness", Reference::Kind::kFem},         {"element_tags", Reference::Kind::kFem}};
   for (const auto& [key, owner] : owners) {
     if (v.contains(key) && owner != r.kind) {
       throw InputError(JoinPath(path, key),
@@ -431,20 +431,8 @@ Scene SceneFromJson(const Json& json) {
   }
   ReadNodes(json["nodes"], s);
   if (json.contains("node_tags")) {
-    const Json& tags = json["node_tags"];
-    ExpectArray(tags, "node_tags");
-    if (tags.size() != static_cast<std::size_t>(s.rest.size() / s.dimension)) {
-      throw InputError("node_tags", std::to_string(tags.size()) + " tags for " +
-                                        std::to_string(s.rest.size() / s.dimension) +
-                                        " nodes (one per node, in the nodes' order)");
-    }
-    for (std::size_t i = 0; i < tags.size(); ++i) {
-      const std::string p = "node_tags[" + std::to_string(i) + "]";
-      const double t = ReadNumber(tags[i], p);
-      if (t != std::floor(t) || std::abs(t) > 9007199254740992.0)
-        throw InputError(p, "must be an integer");
-      s.node_tags.push_back(static_cast<long long>(t));
-    }
+    s.node_tags = ReadTags(json["node_tags"], "node_tags",
+                           static_cast<std::size_t>(s.rest.size() / s.dimension), "nodes");
   }
   if (json.contains("candidates")) ReadCandidates(json["candidates"], s);
   if (json.contains("node_sets")) ReadNodeSets(json["node_sets"], s);

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "engine/fem/fem_model.h"
+#include "engine/model/mesh_names.h"
 #include "engine/runtime/input_error.h"
 #include "engine/runtime/number_text.h"
 
@@ -24,17 +25,10 @@ std::string Number(double v) {
   return NumberText(v, 6);
 }
 
-// Nodes as the user knows them: by the mesh's own tags (Gmsh's node tags, a deck's node
-// ids) when the scene was imported with them, by springfit's 0-based indices otherwise.
-std::string NodesNamed(const Scene& s, const std::vector<int>& nodes) {
-  std::string text;
-  for (int node : nodes) {
-    text += text.empty() ? "" : ", ";
-    const bool tagged = static_cast<std::size_t>(node) < s.node_tags.size();
-    text += std::to_string(tagged ? s.node_tags[node] : node);
-  }
-  const bool tagged = !s.node_tags.empty();
-  return (nodes.size() == 1 ? "node " : "nodes ") + text + (tagged ? " (the mesh's tags)" : "");
+// How the user knows element `e`, as a prefix of its message (its index is in the path).
+std::string ElementTagged(const Scene& s, std::size_t e) {
+  const std::string tag = MeshElementTag(s, e);
+  return tag.empty() ? "" : "(" + tag + ") ";
 }
 
 void CheckMaterial(const Material& m, const std::string& path) {
@@ -86,14 +80,16 @@ void CheckNoFold(const Scene& s) {
     const int other = it->second.first;
     const std::string nodes = NodesNamed(s, facet);
     if (other < 0) {
-      throw InputError(Index("reference.elements", e), std::string("a third element on the ") +
+      throw InputError(Index("reference.elements", e), ElementTagged(s, e) +
+                                                           "a third element on the " +
                                                            (d == 2 ? "edge" : "face") + " (" +
                                                            nodes + "): the mesh is not a manifold");
     }
     if (Side(d, s.rest, facet, opposite) == Side(d, s.rest, facet, it->second.second)) {
       throw InputError(Index("reference.elements", e),
-                       "inverted at rest: it overlaps reference.elements[" + std::to_string(other) +
-                           "] across their " + (d == 2 ? "edge" : "face") + " (" + nodes +
+                       ElementTagged(s, e) + "inverted at rest: it overlaps reference.elements[" +
+                           std::to_string(other) + "] " + ElementTagged(s, other) +
+                           "across their " + (d == 2 ? "edge" : "face") + " (" + nodes +
                            ") (the mesh folds over itself there)");
     }
     it->second.first = -1;  // two elements seen
@@ -112,7 +108,7 @@ void ValidateFemReference(const Scene& s) {
     const std::string p = Index("reference.elements", e);
     const std::vector<int>& el = fem.elements[e];
     if (static_cast<int>(el.size()) != d + 1) {
-      throw InputError(p, std::string("a ") +
+      throw InputError(p, ElementTagged(s, e) + "a " +
                               (d == 2 ? "2D element is a 3-node triangle"
                                       : "3D element is a 4-node tetrahedron") +
                               ", got " + std::to_string(el.size()) + " nodes");
@@ -125,16 +121,17 @@ void ValidateFemReference(const Scene& s) {
       }
       for (int b = 0; b < a; ++b) {
         if (el[a] == el[b])
-          throw InputError(Index(p, a), "node " + std::to_string(el[a]) + " is listed twice");
+          throw InputError(Index(p, a),
+                           ElementTagged(s, e) + NodesNamed(s, {el[a]}) + " is listed twice");
       }
       used[el[a]] = true;
       corners.col(a) = s.rest.segment(d * el[a], d);
     }
     const double q = SimplexQuality(d, corners);
     if (!(std::abs(q) >= kDegenerateQuality)) {
-      throw InputError(p, "degenerate element (quality " + Number(std::abs(q)) +
-                              ", 1 = equilateral): its " + NodesNamed(s, el) + " are " +
-                              (d == 2 ? "on one line" : "in one plane"));
+      throw InputError(p, ElementTagged(s, e) + "degenerate element (quality " +
+                              Number(std::abs(q)) + ", 1 = equilateral): its " + NodesNamed(s, el) +
+                              " are " + (d == 2 ? "on one line" : "in one plane"));
     }
   }
   CheckNoFold(s);
@@ -173,6 +170,25 @@ void ValidateFemReference(const Scene& s) {
     throw InputError("reference.thickness",
                      "must be a finite number > 0, got " + Number(fem.thickness));
   }
+}
+
+std::optional<std::string> LockingNote(const Scene& s) {
+  const FemReference& fem = s.reference.fem;
+  for (std::size_t m = 0; m < fem.materials.size(); ++m) {
+    const double nu = fem.materials[m].poisson;
+    if (!(nu > kLockingPoisson && nu < 0.5)) continue;  // (0.5 and past: refused)
+    // The bulk over the shear modulus: 2 (1 + nu) / (3 (1 - 2 nu)); 33 at the bound 0.49.
+    const double ratio = 2.0 * (1.0 + nu) / (3.0 * (1.0 - 2.0 * nu));
+    const std::string which =
+        fem.regions ? Index("reference.materials", m) + ".poisson" : "reference.material.poisson";
+    return which + " " + Number(nu) + ": the material's volume is " + Number(ratio) +
+           " times stiffer than its shear, and linear " +
+           (s.dimension == 2 ? "triangles" : "tetrahedra") +
+           " lock under it (too few ways to deform at constant volume), so the reference "
+           "answers stiffer than the tissue and the model is fitted to that. Use " +
+           Number(kLockingPoisson) + " (nearly incompressible, the usual bound on such meshes)";
+  }
+  return std::nullopt;
 }
 
 }  // namespace springfit::fem

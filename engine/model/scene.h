@@ -101,10 +101,13 @@ struct FemReference {
   std::vector<std::vector<int>> elements;  // d + 1 node indices each, either orientation
   std::vector<Material> materials;         // one, or one per region
   std::vector<int> element_material;       // empty: every element has materials[0]
-  bool regions = false;                    // read as "materials" + "element_materials"
-  PlaneMode plane = PlaneMode::kStress;    // 2D only
-  double thickness = 1.0;                  // 2D only, > 0 (length)
-  bool plane_given = false;                // written back only when read
+  // The input's own number of each element (a Gmsh mesh's element tags, a deck's element
+  // ids), one per element; empty for a scene written by hand. Messages name elements by them.
+  std::vector<long long> element_tags;
+  bool regions = false;                  // read as "materials" + "element_materials"
+  PlaneMode plane = PlaneMode::kStress;  // 2D only
+  double thickness = 1.0;                // 2D only, > 0 (length)
+  bool plane_given = false;              // written back only when read
   bool thickness_given = false;
 
   const Material& MaterialOf(std::size_t element) const {

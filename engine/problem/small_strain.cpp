@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include "engine/fem/fem_model.h"
+#include "engine/model/mesh_names.h"
 #include "engine/problem/problem.h"
 
 namespace springfit {
@@ -85,13 +86,14 @@ std::optional<std::string> SmallStrainWarning(const Problem& problem, double loa
                                 : std::string("under the named loads");
   return fmt::format(
       "the linear reference is loaded past small strain {}: {:.1f}% strain in {:.0f}% of the "
-      "body under load_cases[{}] ('{}') (up to {:.1f}% in element {}), above {:.0f}%. A linear "
+      "body under load_cases[{}] ('{}') (up to {:.1f}% in {}), above {:.0f}%. A linear "
       "material is the small-load limit of tissue, so the model is fitted to a response tissue "
       "does not have at this size: give the reference a nonlinear material (its \"model\": "
       "\"neo_hookean\" or \"st_venant_kirchhoff\"), or smaller loads",
       where, 100.0 * s->strain, 100.0 * kStrainedVolumeFraction, s->load_case,
       problem.scene().load_cases[static_cast<std::size_t>(s->load_case)].name, 100.0 * s->largest,
-      s->element, 100.0 * kSmallStrainLimit);
+      ElementNamed(problem.scene(), static_cast<std::size_t>(s->element)),
+      100.0 * kSmallStrainLimit);
 }
 
 }  // namespace springfit

@@ -11,6 +11,7 @@
 #include "engine/examples/simplex_mesh.h"
 #include "engine/fem/traction.h"
 #include "engine/problem/problem.h"
+#include "engine/problem/scene_validation.h"
 #include "engine/runtime/input_error.h"
 #include "tests/test_scenes.h"
 
@@ -298,6 +299,21 @@ TEST(FemEquilibrium, AnIslandNotHeldByTheSupportsIsRefused) {
   }
 }
 
+// A material past poisson 0.49 is taken (the tissue may be that), with a note that linear
+// elements lock under it, naming the field and the value to use; at 0.49 and below, no note.
+TEST(FemEquilibrium, ANearlyIncompressibleMaterialGetsANoteOnLocking) {
+  Scene s = Bar(2, MaterialModel::kLinear, 0.01);
+  s.reference.fem.materials[0].poisson = 0.499;
+  EXPECT_NO_THROW(Problem::Build(s));
+  const std::vector<std::string> notes = SceneNotes(s);
+  ASSERT_EQ(notes.size(), 1u);
+  EXPECT_NE(notes[0].find("reference.material.poisson 0.499"), std::string::npos) << notes[0];
+  EXPECT_NE(notes[0].find("triangles lock"), std::string::npos) << notes[0];
+  EXPECT_NE(notes[0].find("Use 0.49"), std::string::npos) << notes[0];
+  s.reference.fem.materials[0].poisson = 0.49;
+  EXPECT_TRUE(SceneNotes(s).empty());
+}
+
 TEST(FemEquilibrium, ValidationNamesTheField) {
   auto expect_path = [](Scene s, const std::string& path, const std::string& words) {
     try {
@@ -339,6 +355,11 @@ TEST(FemEquilibrium, ValidationNamesTheField) {
   // knows, not by springfit's 0-based indices: the shared edge B-C is tags 102, 103.
   s.node_tags = {101, 102, 103, 104};
   expect_path(s, "reference.elements[1]", "edge (nodes 102, 103 (the mesh's tags))");
+  // And the elements by theirs (Gmsh's element tags, a deck's element ids).
+  s.reference.fem.element_tags = {3001, 3007};
+  expect_path(s, "reference.elements[1]",
+              "(the mesh's element 3007) inverted at rest: it overlaps reference.elements[0] (the "
+              "mesh's element 3001) across");
   s = bar;
   s.reference.fem.elements[2][2] = 99;
   expect_path(s, "reference.elements[2][2]", "out of range");

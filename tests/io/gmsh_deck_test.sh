@@ -127,6 +127,44 @@ expect_exit 0 "a deck with a clockwise triangle" "$sf" import "$tmp/inverted.inp
 grep -qF "inverted.inp: 1 of 380 elements are inverted (clockwise: 49); springfit solves them as they are, ccx refuses them" "$tmp/err" \
   || fail "the inverted triangle: $(cat "$tmp/err")"
 
+# A bad element is named as the user knows it: its id in the deck (and Gmsh's tag in the .msh,
+# the same number), and its nodes by theirs, not by springfit's 0-based indices.
+twice=$(python3 - "$tmp/inclusion.inp" "$tmp/twice.inp" <<'PY'
+import sys
+lines = open(sys.argv[1]).read().split("\n")
+at = next(i for i, l in enumerate(lines) if l.lower().startswith("*element, type=cps3")) + 1
+f = [s.strip() for s in lines[at].split(",") if s.strip()]
+assert f[0] == "49", f
+lines[at] = ", ".join([f[0], f[1], f[1], f[3]])
+open(sys.argv[2], "w").write("\n".join(lines))
+print(f[1])  # the node listed twice
+PY
+) || fail "the test's deck with a node twice"
+expect_exit 0 "import a deck whose triangle lists a node twice" "$sf" import "$tmp/twice.inp" --loads "$loads" -o "$tmp/twice.json"
+expect_exit 2 "check a deck whose triangle lists a node twice" "$sf" check "$tmp/twice.json"
+grep -qF "(the mesh's element 49) node $twice (the mesh's tags) is listed twice" "$tmp/err" \
+  || fail "the element and node named by the deck's ids: $(cat "$tmp/err")"
+# Every element's tag, in the .msh's scene and the deck's, is the deck's id of an element with
+# the same nodes (read from the deck's text here, not by springfit).
+"$debian_python" - "$tmp/msh.json" "$tmp/inp.json" "$tmp/inclusion.inp" <<'PY' || fail "element tags"
+import json, sys
+deck = {}
+kind = None
+for line in open(sys.argv[3]).read().split("\n"):
+    if line.startswith("*"):
+        kind = line.lower().replace(" ", "")
+        continue
+    f = [x.strip() for x in line.split(",") if x.strip()]
+    if kind and kind.startswith("*element,type=cps3") and len(f) == 4:
+        deck[int(f[0])] = sorted(int(x) for x in f[1:])
+for path in sys.argv[1:3]:
+    s = json.load(open(path))
+    tags, elements, node_tags = s["reference"]["element_tags"], s["reference"]["elements"], s["node_tags"]
+    assert len(tags) == len(elements) == len(deck) and len(set(tags)) == len(tags), path
+    for t, e in zip(tags, elements):
+        assert deck[t] == sorted(node_tags[i] for i in e), (path, t)
+PY
+
 # 3D: a box of tetrahedra, whose boundary Gmsh writes as CPS3 triangles beside them.
 cat >"$tmp/box.geo" <<'GEO'
 SetFactory("OpenCASCADE");

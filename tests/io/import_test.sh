@@ -26,7 +26,8 @@ tmp = sys.argv[1]
 scenes = {m: json.load(open("%s/%s.json" % (tmp, m))) for m in ("m22", "m41", "m41b")}
 ref = scenes["m41b"]
 for m, s in scenes.items():
-    assert s["name"] == m and s["reference"] == {"type": "fem", "elements": s["reference"]["elements"]}
+    assert s["name"] == m and s["reference"] == {"type": "fem", "elements": s["reference"]["elements"],
+                                                  "element_tags": ref["reference"]["element_tags"]}
     assert len(s["nodes"]) == len(ref["nodes"]) and s["reference"]["elements"] == ref["reference"]["elements"], m
     assert s["node_sets"] == ref["node_sets"], m
     for a, b in zip(s["nodes"], ref["nodes"]):
