@@ -1,5 +1,6 @@
 #include "server/store/postgres_store.h"
 
+#include <poll.h>
 #include <sys/socket.h>
 
 #include <condition_variable>
@@ -349,6 +350,14 @@ void PostgresStore::Options::Validate() const {
 
 namespace {
 
+// Whether the peer of `socket` has closed its end: a poll that neither waits nor reads (the
+// server's farewell, if it sent one, stays unread; libpq reads only what a call asks for).
+bool PeerClosed(int socket) {
+  if (socket < 0) return true;
+  pollfd p{socket, POLLRDHUP, 0};
+  return ::poll(&p, 1, 0) > 0 && (p.revents & (POLLRDHUP | POLLHUP | POLLERR | POLLNVAL)) != 0;
+}
+
 // libpq's own bound on connecting (the listening connection's; the calls' connects are the
 // watchdog's): whole seconds, at least 2 (libpq reads 1 as 2), unless the URL sets one.
 std::string WithConnectTimeout(const std::string& conninfo, double seconds) {
@@ -503,6 +512,13 @@ auto PostgresStore::With(Slot& slot, const Call& call, F&& f) {
     return StoreUnavailable(timed_out ? late : what);
   };
   try {
+    // A connection whose server closed its end since the last call (a restart, an
+    // administrator's termination, a backend killed; or a write that committed just before its
+    // session ended) is replaced before it is used: this call opens a new one instead of
+    // failing on it. (A server that went without closing, a host that lost power, is found by
+    // the call itself: the store is unavailable, and the next call opens anew.)
+    if (slot.connection && slot.connection->is_open() && PeerClosed(slot.connection->sock()))
+      slot.connection.reset();
     if (!slot.connection || !slot.connection->is_open()) {
       slot.connection = std::make_unique<pqxx::asyncconnection>(conninfo_);
       arm();

@@ -153,55 +153,74 @@ int RestartServer(const std::string& mode) {
   return std::system(command.c_str());
 }
 
+// The pids of the sessions open on `factory`'s database, but the asking one's.
+std::vector<int> SessionPids(PostgresFactory& factory) {
+  pqxx::connection c(factory.url());
+  const pqxx::result r = pqxx::nontransaction(c).exec(
+      "SELECT pid FROM pg_stat_activity WHERE datname = current_database() AND pid <> "
+      "pg_backend_pid()");
+  std::vector<int> pids;
+  for (const auto& row : r) pids.push_back(row[0].as<int>());
+  return pids;
+}
+
+// Until every process of `pids` has exited (its sockets closed), at most 30 s.
+void WaitUntilGone(const std::vector<int>& pids) {
+  for (int pid : pids) {
+    for (int i = 0; i < 3000 && ::kill(pid, 0) == 0; ++i) std::this_thread::sleep_for(10ms);
+    EXPECT_NE(::kill(pid, 0), 0) << "session " << pid << " still there after 30 s";
+  }
+}
+
+// Until the server takes a new session (after a restart or a crash recovery), at most 30 s.
+void WaitUntilAccepting(const std::string& url) {
+  for (int i = 0; i < 300; ++i) {
+    try {
+      pqxx::connection c(url);
+      pqxx::nontransaction(c).exec("SELECT 1");
+      return;
+    } catch (const std::exception&) {
+      std::this_thread::sleep_for(100ms);
+    }
+  }
+  ADD_FAILURE() << "the server takes no session 30 s after its restart";
+}
+
 // PostgreSQL alone: the server drops the store's connections (a restart, an administrator's
-// pg_terminate_backend): the next call on each is "the store is unavailable" (the daemon's
-// callers retry, a job keeps its lease), never an internal error, and the call after it works
-// on a new connection. (The hour's soak met "database: server closed the connection
-// unexpectedly" as an internal error of job.submit after a PostgreSQL restart.)
-TEST(PostgresStoreOnly, ConnectionsTheServerDroppedAreUnavailableNotInternalErrors) {
+// pg_terminate_backend, a backend killed). The store's next calls find their connections
+// closed before using them and open new ones: they succeed. A statement the drop cuts off is
+// "the store is unavailable" (the daemon's callers retry, a job keeps its lease), never an
+// internal error, and the call after it works. (The hour's soak met "database: server closed
+// the connection unexpectedly" as an internal error of job.submit after a PostgreSQL restart;
+// CI met a write that committed just before a restart ended its session, and the next call
+// failing on that connection.)
+TEST(PostgresStoreOnly, ConnectionsTheServerDroppedAreReplacedAndACutOffStatementIsUnavailable) {
   PostgresFactory factory("t_dropped");
   PostgresStore::Options options;
   options.readers = 1;
   PostgresStore store(factory.url(), "", options);
   const std::int64_t id = store.CreateJob(StoreTestJob("before"), 10).job.id;
   ASSERT_TRUE(store.GetJob(id));
-  // An administrator's termination (the server says why: SQLSTATE 57P01), then the server
-  // restarted fast and immediately: an immediate stop closes the sockets with nothing said, and
-  // libpq reports "server closed the connection unexpectedly" with no SQLSTATE.
+  // An administrator's termination (the server says why: SQLSTATE 57P01), a backend that dies
+  // without a word (SIGKILL, the OOM killer: the server resets every session and recovers by
+  // itself), then the server restarted fast and immediately (an immediate stop closes the
+  // sockets with nothing said).
   for (const char* drop : {"terminate", "kill", "fast", "immediate", "immediate"}) {
     SCOPED_TRACE(drop);
+    const std::vector<int> sessions = SessionPids(factory);  // the writer's, reader's, listener's
+    ASSERT_FALSE(sessions.empty());
     if (std::string(drop) == "terminate") {
-      factory.ExecRaw(
-          "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE datname = "
-          "current_database() AND pid <> pg_backend_pid()");
+      for (int pid : sessions)
+        factory.ExecRaw("SELECT pg_terminate_backend(" + std::to_string(pid) + ")");
     } else if (std::string(drop) == "kill") {
-      // A backend that dies without a word (SIGKILL, the OOM killer): the server resets
-      // every session and recovers by itself.
-      pqxx::connection c(factory.url());
-      const pqxx::result r = pqxx::nontransaction(c).exec(
-          "SELECT pid FROM pg_stat_activity WHERE datname = current_database() AND pid <> "
-          "pg_backend_pid()");
-      ASSERT_FALSE(r.empty());
-      for (const auto& row : r) ::kill(row[0].as<int>(), SIGKILL);
-      std::this_thread::sleep_for(1500ms);  // crash recovery
+      for (int pid : sessions) ::kill(pid, SIGKILL);
     } else {
       ASSERT_EQ(RestartServer(drop), 0) << "pg_ctl restart -m " << drop;
     }
-    std::this_thread::sleep_for(200ms);  // the sessions are gone
-    // The writer's call, then the reader's: each may find its connection dropped.
-    const auto either = [&](const char* what, const auto& call) {
-      try {
-        call();
-      } catch (const StoreUnavailable&) {
-        // (Expected: the connection was dropped under it.)
-      } catch (const std::exception& e) {
-        ADD_FAILURE() << what << " on a dropped connection: not 'unavailable': " << e.what();
-      }
-    };
-    either("a write", [&] { store.CreateJob(StoreTestJob("dropped"), 10); });
-    either("a read", [&] { store.GetJob(id); });
-    // The next calls open new connections.
-    EXPECT_NO_THROW(store.CreateJob(StoreTestJob("after"), 10));
+    WaitUntilGone(sessions);
+    WaitUntilAccepting(factory.url());
+    // The writer's call, then the reader's, each on a connection the server closed.
+    EXPECT_NO_THROW(store.CreateJob(StoreTestJob("dropped"), 10));
     EXPECT_NO_THROW(EXPECT_TRUE(store.GetJob(id)));
   }
   // The server restarted while a write waits inside its transaction (another session locks the
@@ -221,8 +240,18 @@ TEST(PostgresStoreOnly, ConnectionsTheServerDroppedAreUnavailableNotInternalErro
         return std::string("internal error: ") + e.what();
       }
     });
-    std::this_thread::sleep_for(300ms);  // the write waits on the lock
+    // Until the write waits on the lock, at most 30 s.
+    for (int i = 0; i < 3000; ++i) {
+      pqxx::connection c(factory.url());
+      const pqxx::result r = pqxx::nontransaction(c).exec(
+          "SELECT count(*) FROM pg_stat_activity WHERE datname = current_database() AND "
+          "wait_event_type = 'Lock'");
+      if (r[0][0].as<int>() > 0) break;
+      std::this_thread::sleep_for(10ms);
+    }
     ASSERT_EQ(RestartServer(mode), 0) << "pg_ctl restart -m " << mode;
+    // Cut off ("unavailable"), or committed: a fast stop ends the sessions one by one, and
+    // the locker's may end first, freeing the write before its own session ends.
     const std::string outcome = write.get();
     EXPECT_TRUE(outcome == "unavailable" || outcome == "succeeded") << outcome;
     lock.reset();  // (its session is gone with the restart)
