@@ -50,6 +50,7 @@ std::optional<Vector> SpringResponse::Solve(const Vector& force, const Vector& p
   Vector u = last_.size() == force.size() && last_size_ > 0.0 ? Vector(size / last_size_ * last_)
                                                               : Vector::Zero(force.size());
   const EquilibriumSummary summary = solver_.Solve(input_.springs, force, prescribed, u, &solver_);
+  last_summary_ = summary;
   if (summary.termination == Termination::kInterrupted) throw Interrupted();
   if (!summary.converged()) {
     last_.resize(0);

@@ -43,10 +43,13 @@ class SpringResponse {
   // of this load's size to the last one's (its linear prediction) and, with the options'
   // chord_contraction, from the last solve's tangent. Throws Interrupted when stopped.
   std::optional<Vector> Solve(const Vector& force, const Vector& prescribed);
+  // How the last Solve went (its Newton and chord steps), for tests and reports.
+  const EquilibriumSummary& last_summary() const { return last_summary_; }
 
  private:
   const SpringSolverInput& input_;
   EquilibriumSolver solver_;
+  EquilibriumSummary last_summary_;
   bool held_ = false;
   Vector last_;             // the last equilibrium (empty: none)
   double last_size_ = 0.0;  // |(force, prescribed)| of its load
