@@ -3,7 +3,6 @@
 #include <cstdio>
 
 #include "engine/api/input_error.h"
-#include "engine/api/problem.h"
 #include "io/mesh_import.h"
 #include "proto/scene_codec.h"
 
@@ -45,20 +44,13 @@ proto::Json SceneJsonOf(const SceneInput& input) {
 }
 
 Scene SceneOf(const SceneInput& input) {
-  Scene scene;
   if (!io::IsMeshFile(input.path)) {
     if (!input.loads.empty()) {
       throw InputError("", "--loads applies to a mesh (.msh); " + input.path + " is a scene");
     }
-    scene = proto::LoadSceneFile(input.path);
-  } else {
-    scene = SceneOfImported(input, SceneJsonOf(input));
+    return proto::LoadSceneFile(input.path);
   }
-  // What the user should know of a valid scene (a material whose elements lock), said by every
-  // command that reads one.
-  for (const std::string& note : SceneNotes(scene))
-    std::fprintf(stderr, "springfit: note: %s: %s\n", input.path.c_str(), note.c_str());
-  return scene;
+  return SceneOfImported(input, SceneJsonOf(input));
 }
 
 // The scene a mesh and its loads make, with the loads named in its errors.

@@ -172,23 +172,4 @@ void ValidateFemReference(const Scene& s) {
   }
 }
 
-std::optional<std::string> LockingNote(const Scene& s) {
-  const FemReference& fem = s.reference.fem;
-  for (std::size_t m = 0; m < fem.materials.size(); ++m) {
-    const double nu = fem.materials[m].poisson;
-    if (!(nu > kLockingPoisson && nu < 0.5)) continue;  // (0.5 and past: refused)
-    // The bulk over the shear modulus: 2 (1 + nu) / (3 (1 - 2 nu)); 33 at the bound 0.49.
-    const double ratio = 2.0 * (1.0 + nu) / (3.0 * (1.0 - 2.0 * nu));
-    const std::string which =
-        fem.regions ? Index("reference.materials", m) + ".poisson" : "reference.material.poisson";
-    return which + " " + Number(nu) + ": the material's volume is " + Number(ratio) +
-           " times stiffer than its shear, and linear " +
-           (s.dimension == 2 ? "triangles" : "tetrahedra") +
-           " lock under it (too few ways to deform at constant volume), so the reference "
-           "answers stiffer than the tissue and the model is fitted to that. Use " +
-           Number(kLockingPoisson) + " (nearly incompressible, the usual bound on such meshes)";
-  }
-  return std::nullopt;
-}
-
 }  // namespace springfit::fem

@@ -2,9 +2,6 @@
 // the boundary with the rest of the scene (engine/problem/scene_validation.h).
 #pragma once
 
-#include <optional>
-#include <string>
-
 #include "engine/model/scene.h"
 
 namespace springfit::fem {
@@ -20,15 +17,5 @@ namespace springfit::fem {
 //   index per element, in range;
 // - plane and thickness only in 2D; thickness finite and > 0.
 void ValidateFemReference(const Scene& scene);
-
-// Past this Poisson's ratio, linear triangles and tetrahedra lock: one constraint of nearly
-// constant volume per element leaves the mesh too few ways to bend and shear, so the reference
-// answers far stiffer than the material (the recommended 0.49 is the usual bound for soft
-// tissue on such meshes; the error grows as 1 / (1 - 2 poisson)).
-inline constexpr double kLockingPoisson = 0.49;
-
-// A note for a material past kLockingPoisson: which, how much stiffer its volume is than its
-// shear, and what to do; nullopt otherwise.
-std::optional<std::string> LockingNote(const Scene& scene);
 
 }  // namespace springfit::fem

@@ -84,11 +84,18 @@ std::vector<std::string> SceneNotices(const Problem& problem) {
   for (std::size_t i = 0; i < s.reference.fem.materials.size(); ++i) {
     const double nu = s.reference.fem.materials[i].poisson;
     if (nu > kLockingPoisson) {
+      // Named by the field the user wrote; the bulk modulus over the shear modulus says how
+      // near incompressible (2 (1 + nu) / (3 (1 - 2 nu)): 33 at 0.49, 500 at 0.499).
+      const std::string field = s.reference.fem.regions
+                                    ? fmt::format("reference.materials[{}].poisson", i)
+                                    : std::string("reference.material.poisson");
       notices.push_back(fmt::format(
-          "reference material {}: Poisson's ratio {} is above {}: linear triangles and "
-          "tetrahedra lock there (the reference turns stiffer than the material, most in "
-          "bending); 0.49 is the usual value for soft tissue",
-          i, nu, kLockingPoisson));
+          "{}: Poisson's ratio {} is above {}: linear {} lock there (the volume is {:.3g} times "
+          "stiffer than the shear; the reference turns stiffer than the material, most in "
+          "bending, and the springs are fitted to that); 0.49 is the usual value for soft "
+          "tissue",
+          field, nu, kLockingPoisson, s.dimension == 2 ? "triangles" : "tetrahedra",
+          2.0 * (1.0 + nu) / (3.0 * (1.0 - 2.0 * nu))));
     }
   }
   return notices;

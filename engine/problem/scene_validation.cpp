@@ -499,12 +499,4 @@ void ValidateScene(const Scene& s) {
   if (s.units) DeriveUnits(*s.units);
 }
 
-std::vector<std::string> SceneNotes(const Scene& scene) {
-  std::vector<std::string> notes;
-  if (scene.reference.kind == Reference::Kind::kFem) {
-    if (auto locking = fem::LockingNote(scene)) notes.push_back(std::move(*locking));
-  }
-  return notes;
-}
-
 }  // namespace springfit

@@ -1,9 +1,7 @@
 // The semantic rules of a scene, checked once at the boundary.
 #pragma once
 
-#include <string>
 #include <utility>
-#include <vector>
 
 #include "engine/model/scene.h"
 
@@ -23,11 +21,6 @@ namespace springfit {
 //   remove rigid motion (two nodes in 2D, three not on one line in 3D);
 // - training stiffness finite and > 0; search settings within their documented ranges.
 void ValidateScene(const Scene& scene);
-
-// What the user of a valid scene should know before a run, one line each, though nothing is
-// wrong: today a nearly incompressible material on linear elements (their locking). Clients
-// print them as notes.
-std::vector<std::string> SceneNotes(const Scene& scene);
 
 // A scene that passed ValidateScene: what prepares it (Problem) does not check it again. A
 // submission is validated at the door, in time linear in its size, and prepared after.
