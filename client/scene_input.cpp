@@ -3,6 +3,7 @@
 #include <cstdio>
 
 #include "engine/api/input_error.h"
+#include "engine/api/problem.h"
 #include "io/mesh_import.h"
 #include "proto/scene_codec.h"
 
@@ -53,10 +54,23 @@ Scene SceneOf(const SceneInput& input) {
   return SceneOfImported(input, SceneJsonOf(input));
 }
 
-// The scene a mesh and its loads make, with the loads named in its errors.
+namespace {
+
+// Whether an error at `path` of an imported scene lies in what the mesh gave (its nodes and
+// elements, and their tags), not in what the loads file gave.
+bool FromTheMesh(const std::string& path) {
+  for (const char* field : {"nodes", "node_tags", "reference.elements", "reference.element_tags"})
+    if (path.rfind(field, 0) == 0) return true;
+  return false;
+}
+
+}  // namespace
+
+// The scene a mesh and its loads make, validated as `run` reads it (proto/IMPORT.md), with the
+// loads file named in the errors of what it gave.
 Scene SceneOfImported(const SceneInput& input, const proto::Json& json) {
   try {
-    return proto::SceneFromJson(json);
+    return ValidScene(proto::SceneFromJson(json)).Release();
   } catch (const InputError& e) {
     // (The caller names the mesh; the loads file is named here, the field in both.)
     if (input.loads.empty()) {
@@ -67,6 +81,7 @@ Scene SceneOfImported(const SceneInput& input, const proto::Json& json) {
                          "groups: proto/IMPORT.md)");
       throw;
     }
+    if (FromTheMesh(e.path())) throw;  // (the caller names the mesh)
     throw InputError("", input.loads + " (over " + input.path + "): " + e.what());
   }
 }

@@ -177,6 +177,13 @@ bad_loads "a set the mesh has" '{"node_sets": {"left": [0]}}' "bad.json: node_se
 bad_loads "unknown set" "{\"reference\": {\"material\": $mat}, \"load_cases\": [{\"fixed\": \"lefty\", \"tractions\": [{\"on\": \"right\", \"total\": [1, 0]}]}]}" \
   "bad.json (over $tmp/m41.msh): load_cases[0].fixed: unknown node set 'lefty'"
 bad_loads "not JSON" '{"reference": ' "bad.json: "
+# A rule the scene's validation checks (not its reader) is checked at import too, as `run`
+# reads the scene, and names the loads file that gave the value.
+nu5='{"model": "linear", "young": 1, "poisson": 0.5}'
+bad_loads "poisson 0.5" "{\"reference\": {\"material\": $nu5}, \"load_cases\": [{\"fixed\": \"left\", \"tractions\": [{\"on\": \"right\", \"total\": [1, 0]}]}]}" \
+  "bad.json (over $tmp/m41.msh): reference.material.poisson: must be in (-1, 0.5), got 0.5"
+bad_loads "units that disagree" "{\"units\": {\"length\": \"mm\", \"force\": \"mN\", \"modulus\": \"Pa\"}, \"reference\": {\"material\": $mat}, \"load_cases\": [{\"fixed\": \"left\", \"tractions\": [{\"on\": \"right\", \"total\": [1, 0]}]}]}" \
+  "bad.json (over $tmp/m41.msh): units.modulus: 'Pa' is not force / length^2"
 expect_exit 2 "loads with a scene" "$sf" run "$src/examples/fem-plate-5x5.json" --loads "$loads"
 grep -q -- "--loads applies to a mesh (.msh)" "$tmp/err" || fail "loads with a scene: $(cat "$tmp/err")"
 
