@@ -36,8 +36,7 @@ std::string FactsLine(const io::SpringModel& model) {
       "stiffness {:.4g} to {:.4g}, median {:.4g} (spread {:.3g}); {} dead springs (below {:.3g} "
       "x the median){}",
       f.min_stiffness, f.max_stiffness, f.median_stiffness,
-      f.min_stiffness > 0.0 ? f.max_stiffness / f.min_stiffness : 0.0, f.dead,
-      f.median_stiffness > 0.0 ? f.dead_threshold / f.median_stiffness : 0.0,
+      f.min_stiffness > 0.0 ? f.max_stiffness / f.min_stiffness : 0.0, f.dead, f.dead_fraction,
       f.dead == 0      ? ""
       : f.dead_dropped ? ", left out"
                        : ", kept and flagged");

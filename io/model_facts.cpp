@@ -48,14 +48,23 @@ void MarkDeadSprings(SpringModel& model, const ModelOptions& options) {
   facts.min_stiffness = spread.min;
   facts.median_stiffness = spread.median;
   facts.max_stiffness = spread.max;
+  facts.dead_fraction = options.dead_fraction;
   facts.dead_threshold = options.dead_fraction * spread.median;
   facts.dead_dropped = options.drop_dead;
   for (auto& s : model.springs) {
     s.dead = s.stiffness < facts.dead_threshold;
     facts.dead += s.dead ? 1 : 0;
   }
-  if (options.drop_dead)
-    std::erase_if(model.springs, [](const SpringModel::Spring& s) { return s.dead; });
+  if (!options.drop_dead) return;
+  std::erase_if(model.springs, [](const SpringModel::Spring& s) { return s.dead; });
+  // The stiffness the file holds: the kept springs' (the threshold stays the whole model's, the
+  // median that defines a dead spring).
+  k.clear();
+  for (const auto& s : model.springs) k.push_back(s.stiffness);
+  const StiffnessSpread kept = SpreadOf(k);
+  facts.min_stiffness = kept.min;
+  facts.median_stiffness = kept.median;
+  facts.max_stiffness = kept.max;
 }
 
 void LumpMasses(SpringModel& model, const Scene& scene, const ModelOptions& options) {

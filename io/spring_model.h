@@ -89,9 +89,13 @@ struct SpringModel {
 
   // What a simulator needs to know of the springs and masses (model_facts.h).
   struct Facts {
+    // Of the springs the model holds (with drop_dead, the kept ones).
     double min_stiffness = 0.0, median_stiffness = 0.0, max_stiffness = 0.0;
-    double dead_threshold = 0.0;  // dead_fraction x the median
-    int dead = 0;                 // springs below it (dropped or flagged)
+    // dead_fraction x the median of every spring, dead ones included (the median above,
+    // unless they were dropped).
+    double dead_fraction = 0.0;
+    double dead_threshold = 0.0;
+    int dead = 0;  // springs below it (dropped or flagged)
     bool dead_dropped = false;
     std::optional<double> total_mass;
     // The largest step of an explicit integrator (symplectic Euler, central differences) that

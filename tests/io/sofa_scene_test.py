@@ -322,6 +322,13 @@ with tempfile.TemporaryDirectory() as work:
     s = read_scene(f"{work}/dropped.scn", "v26.06", 2)
     check(len(s["springs"]) == len(flagged["springs"]) - len(dead), "--drop-dead leaves them out")
     check(f"{len(dead)} dead springs (below 0.2 x the median), left out" in p.stdout, p.stdout)
+    # The facts describe the springs the file holds, not the ones left out.
+    run("export", plate, "-o", f"{work}/dropped.json", "--dead-fraction", "0.2", "--drop-dead")
+    dropped = json.load(open(f"{work}/dropped.json"))
+    kept = sorted(s["stiffness"] for s in dropped["springs"])
+    check(dropped["facts"]["min_stiffness"] == kept[0] and dropped["facts"]["max_stiffness"] == kept[-1]
+          and dropped["facts"]["dead_springs"] == len(dead) and dropped["facts"]["dead_dropped"],
+          f"--drop-dead's facts: {dropped['facts']}, kept {kept[0]} to {kept[-1]}")
 
     # The stable explicit time step: safe (at most 2 / omega_max of the model linearised at
     # rest with its masses), and not far below it.
