@@ -39,8 +39,10 @@ std::string PairList(const std::vector<NodePair>& pairs, bool all) {
   return out;
 }
 
-void PrintIdentifiability(const IdentifiabilityReport& report, bool all_pairs) {
+// `held`: the springs between held nodes, listed above (unseen too, but counted apart).
+void PrintIdentifiability(const IdentifiabilityReport& report, bool all_pairs, std::size_t held) {
   std::cout << "unseen springs:         " << report.unseen.size();
+  if (held > 0) std::cout << " besides the " << held << " between held nodes";
   if (!report.unseen.empty())
     std::cout << " (no load case changes their length):" << PairList(report.unseen, all_pairs);
   std::cout << "\n";
@@ -184,7 +186,7 @@ int Check(const SceneInput& input, bool all_pairs) {
               << PairList(pairs, all_pairs);
   }
   std::cout << "\n";
-  PrintIdentifiability(Identifiability(problem), all_pairs);
+  PrintIdentifiability(Identifiability(problem), all_pairs, problem.unidentifiable().size());
   for (const std::string& notice : SceneNotices(problem))
     std::cout << "notice:                 " << notice << "\n";
   // (The same line a run's verdict gives as a doubt: proto/RUN.md, "Doubts".)

@@ -513,6 +513,8 @@ grep -q "^    \.\.\. and [0-9]* more (springfit check --all-pairs lists them)" "
 # same words and number in check, run's verdict and springs lines, and export.
 held=$(sed -n 's/^between held nodes: *\([0-9]*\) springs.*/\1/p' "$tmp/held-check.txt")
 [ -n "$held" ] && [ "$held" -gt 0 ] || fail "check names the springs between held nodes: $(grep -m1 "held nodes" "$tmp/held-check.txt" | cut -c1-120)"
+# (They are unseen too: check's unseen count says it leaves them out, rather than "0" beside them.)
+grep -q "^unseen springs: *[0-9]* besides the $held between held nodes" "$tmp/held-check.txt" || fail "check's unseen line: $(grep -m1 '^unseen' "$tmp/held-check.txt")"
 "$sf" run "$tmp/held-rows.json" --strategy direct -o "$tmp/held-result.json" >"$tmp/held-run.txt" 2>&1
 grep -q "^verdict: .* (+$held between held nodes, in exports)" "$tmp/held-run.txt" || fail "run's verdict: $(grep -m1 '^verdict' "$tmp/held-run.txt")"
 grep -q "^springs: .* (+$held between held nodes: no load case sees them" "$tmp/held-run.txt" || fail "run's springs line: $(grep -m1 '^springs' "$tmp/held-run.txt")"
