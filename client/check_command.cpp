@@ -2,6 +2,8 @@
 #include <algorithm>
 #include <cstdio>
 #include <iostream>
+#include <optional>
+#include <string>
 
 #include <fmt/format.h>
 
@@ -62,19 +64,27 @@ void PrintIdentifiability(const IdentifiabilityReport& report, bool all_pairs, s
   }
 }
 
-std::string MaterialText(const Material& m) {
-  return fmt::format("{}, young {:.6g}, poisson {:.6g}", proto::MaterialModelName(m.model), m.young,
-                     m.poisson);
+// " UNIT" of a number, or nothing where the scene states no units (proto/SCENE.md, "Units").
+std::string Unit(const std::optional<DerivedUnits>& units, std::string DerivedUnits::*which) {
+  return units ? " " + (*units).*which : std::string();
+}
+
+std::string MaterialText(const Material& m, const std::optional<DerivedUnits>& units) {
+  return fmt::format("{}, young {:.6g}{}, poisson {:.6g}", proto::MaterialModelName(m.model),
+                     m.young, Unit(units, &DerivedUnits::modulus), m.poisson);
 }
 
 void PrintFemReference(const Scene& s) {
+  const std::optional<DerivedUnits> units =
+      s.units ? std::optional<DerivedUnits>(DeriveUnits(*s.units)) : std::nullopt;
   const FemReference& fem = s.reference.fem;
   const fem::FemModel model = fem::FemModel::Build(s);
   const auto [quality, worst] = model.WorstQuality();
   std::cout << "reference:              fem, " << fem.elements.size()
             << (s.dimension == 2 ? " triangles" : " tetrahedra");
   if (s.dimension == 2) {
-    std::cout << ", plane " << proto::PlaneModeName(fem.plane) << ", thickness " << fem.thickness;
+    std::cout << ", plane " << proto::PlaneModeName(fem.plane) << ", thickness " << fem.thickness
+              << Unit(units, &DerivedUnits::length);
   }
   std::cout << "\n";
   if (fem.regions) {
@@ -83,13 +93,13 @@ void PrintFemReference(const Scene& s) {
           std::count(fem.element_material.begin(), fem.element_material.end(), static_cast<int>(m));
       std::printf("  material %-14s", (std::to_string(m) + ":").c_str());
       std::fflush(stdout);
-      std::cout << MaterialText(fem.materials[m]) << " (" << count << " elements)\n";
+      std::cout << MaterialText(fem.materials[m], units) << " (" << count << " elements)\n";
     }
   } else {
-    std::cout << "  material:             " << MaterialText(fem.materials[0]) << "\n";
+    std::cout << "  material:             " << MaterialText(fem.materials[0], units) << "\n";
   }
   std::cout << "  " << (s.dimension == 2 ? "area x thickness:     " : "volume:               ")
-            << model.Volume() << "\n";
+            << model.Volume() << (units ? " " + units->length + "^3" : std::string()) << "\n";
   std::cout << fmt::format("  smallest quality:     {:.3g} ({}; 1 = equilateral)\n", quality,
                            ElementNamed(s, static_cast<std::size_t>(worst)));
 }
@@ -172,6 +182,11 @@ int Check(const SceneInput& input, bool all_pairs) {
   const Scene& s = problem.scene();
   std::cout << "scene:                  " << (s.name.empty() ? file : s.name) << "\n";
   if (!s.description.empty()) std::cout << "description:            " << s.description << "\n";
+  // The units the numbers below are in, as `run`'s summary says them.
+  const std::optional<DerivedUnits> units =
+      s.units ? std::optional<DerivedUnits>(DeriveUnits(*s.units)) : std::nullopt;
+  if (units)
+    std::cout << "units:                  " << proto::UnitsText(proto::UnitsToJson(*units)) << "\n";
   std::cout << "dimension:              " << s.dimension << "\n"
             << "nodes:                  " << s.node_count() << "\n"
             << "candidate springs:      " << problem.candidates().size() << " ("
@@ -193,7 +208,8 @@ int Check(const SceneInput& input, bool all_pairs) {
   if (const auto strain = SmallStrainWarning(problem, s.search.load_size.value_or(0.0)))
     std::cout << "WARNING:                " << *strain << "\n";
   PrintReference(problem);
-  std::cout << "training stiffness:     " << problem.training_stiffness() << "\n"
+  std::cout << "training stiffness:     " << problem.training_stiffness()
+            << Unit(units, &DerivedUnits::stiffness) << "\n"
             << "load cases:             " << s.load_cases.size() << "\n";
   PrintLoadCases(problem);
   if (problem.DisplacementOnly()) {

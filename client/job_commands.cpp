@@ -144,12 +144,22 @@ int Trace(const JobArgs& a) {
   } else if (a.csv) {
     std::cout << proto::TraceCsvHeader() << "\n";
     for (const TraceRow& r : rows) std::cout << proto::TraceRowToCsv(r) << "\n";
-  } else {
-    std::printf("%10s %10s %12s %14s %14s %8s %6s\n", "generation", "seconds", "evaluations",
-                "best cost", "norm. error", "missing", "extra");
+  } else if (proto::ProgressCountsSteps(
+                 proto::JobFromJson(client.Call("job.get", JobIdParams(a.job_id))).strategy)) {
+    // A fit's rows are its models, after so many Gauss-Newton steps; E is the one error
+    // measure shown (proto/RUN.md), as `run` and `watch` show it.
+    std::printf("%6s %10s %8s %12s\n", "model", "seconds", "steps", "E");
     for (const TraceRow& r : rows) {
-      std::printf("%10d %10.3f %12lld %14.6g %14.6g %8s %6s\n", r.generation, r.wall_seconds,
-                  static_cast<long long>(r.evaluations), r.best_cost, r.best_normalized_error,
+      std::printf("%6d %10.3f %8lld %12.6g\n", r.generation, r.wall_seconds,
+                  static_cast<long long>(r.evaluations), std::sqrt(r.best_normalized_error));
+    }
+  } else {
+    std::printf("%10s %10s %12s %14s %12s %8s %6s\n", "generation", "seconds", "evaluations",
+                "best cost", "E", "missing", "extra");
+    for (const TraceRow& r : rows) {
+      std::printf("%10d %10.3f %12lld %14.6g %12.6g %8s %6s\n", r.generation, r.wall_seconds,
+                  static_cast<long long>(r.evaluations), r.best_cost,
+                  std::sqrt(r.best_normalized_error),
                   r.missing < 0 ? "-" : std::to_string(r.missing).c_str(),
                   r.extra < 0 ? "-" : std::to_string(r.extra).c_str());
     }

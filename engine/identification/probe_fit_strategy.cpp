@@ -352,8 +352,9 @@ namespace {
 
 // The model as the run's genome and stiffness, and its one trace row; false when the caller's
 // on_iteration asks to stop.
-bool RecordModel(const Problem& problem, const std::vector<double>& weights, double wall_seconds,
-                 const RunContext& context, RunMonitor& monitor, IdentificationResult& r) {
+bool RecordModel(const Problem& problem, const std::vector<double>& weights, int steps,
+                 double wall_seconds, const RunContext& context, RunMonitor& monitor,
+                 IdentificationResult& r) {
   const int genes = problem.gene_count();
   r.best.assign(static_cast<std::size_t>(genes), 0);
   for (int g = 0; g < genes; ++g) {
@@ -365,6 +366,9 @@ bool RecordModel(const Problem& problem, const std::vector<double>& weights, dou
   TraceRow row;
   row.generation = static_cast<int>(r.trace.size());
   row.wall_seconds = wall_seconds;
+  // The fit's steps, as the named-case fit's rows count them: the progress line's "fit step N"
+  // then agrees with the result's steps (a new user's trial saw "fit step 0" beside 21).
+  row.evaluations = steps;
   row.best_normalized_error = r.evaluation.normalized_error;
   row.best_cost = r.evaluation.cost;
   row.mean_cost = row.best_cost;
@@ -444,8 +448,9 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   details.regularization = m.fit.regularization;
   details.steps = m.fit.gauss_newton_accepted;
 
-  const bool stopped = !RecordModel(problem, m.weights, since(), context, monitor, r) ||
-                       m.stopped != StoppedIn::kNowhere;
+  const bool stopped =
+      !RecordModel(problem, m.weights, details.steps, since(), context, monitor, r) ||
+      m.stopped != StoppedIn::kNowhere;
   r.wall_seconds = since();
   r.stop = stopped
                ? (monitor.time_limit_reached() ? StopReason::kTimeLimit : StopReason::kCancelled)

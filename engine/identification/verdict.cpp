@@ -191,7 +191,7 @@ std::string Outcome::Headline() const {
   text += ", E " + (rms_error ? NumberText(*rms_error) : std::string("-"));
   if (baseline_rms_error) text += " (baseline " + NumberText(*baseline_rms_error) + ")";
   if (held_out_rms_error) {
-    text += ", unseen " + held_out_of + " E " + NumberText(*held_out_rms_error);
+    text += ", held-out " + held_out_of + " E " + NumberText(*held_out_rms_error);
     if (baseline_held_out_rms_error)
       text += " (baseline " + NumberText(*baseline_held_out_rms_error) + ")";
   }

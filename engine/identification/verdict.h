@@ -57,7 +57,8 @@ struct Outcome {
   std::optional<double> baseline_held_out_rms_error;
   std::string held_out_of;
 
-  // One line: "usable: 273 springs, E 0.048 (baseline 0.33), unseen loads E 0.049 (baseline 0.20)"
+  // One line: "usable: 273 springs, E 0.048 (baseline 0.33), held-out probes E 0.049 (baseline
+  // 0.20)"
   std::string Headline() const;
 };
 

@@ -13,11 +13,11 @@
 // A lost connection (server restart, network) fails the call in progress with
 // StoreUnavailable, and the next call connects again; nothing half-written is left, since
 // every write is one transaction. A connection the server closed between calls is replaced
-// before the next call uses it, so that call succeeds. A server that does not answer (stopped, partitioned, its
-// machine frozen: the kernel still accepts the bytes, so no socket error comes) fails every
-// call within Options::call_seconds: the wait for the slot's connection, the connecting and the
-// statements alike. A watchdog shuts down the socket of a call past its deadline, which ends
-// libpq's wait; the connection is then opened anew by the next call.
+// before the next call uses it, so that call succeeds. A server that does not answer (stopped,
+// partitioned, its machine frozen: the kernel still accepts the bytes, so no socket error comes)
+// fails every call within Options::call_seconds: the wait for the slot's connection, the connecting
+// and the statements alike. A watchdog shuts down the socket of a call past its deadline, which
+// ends libpq's wait; the connection is then opened anew by the next call.
 #pragma once
 #include <atomic>
 #include <condition_variable>

@@ -235,7 +235,7 @@ std::string ResultCard(const Outcome& o, const Json& result, const Json& search)
     if (o.held_out_p95) text += ", worst 5% above " + ErrorText(*o.held_out_p95);
     if (o.baseline_held_out_rms_error)
       text += " (baseline median " + ErrorText(*o.baseline_held_out_rms_error) + ")";
-    body += Row("E on unseen " + o.held_out_of, text);
+    body += Row("E on held-out " + o.held_out_of, text);
   }
   if (const auto g = result.find("generalization"); g != result.end() && g->is_object()) {
     if (const auto low = NumberAt(*g, {"lambda_min"}), high = NumberAt(*g, {"lambda_max"});

@@ -305,6 +305,8 @@ PY
 # loads it was never fitted to, beside the baseline, in the summary and the result.
 expect_exit 0 "run fem probes" "$sf" run "$src/examples/fem-plate-5x5.json" -q -o "$tmp/probes.json"
 grep -q "^unseen loads:      [0-9]* held-out probes on [0-9]* supports, never fitted: median E .*; baseline " "$tmp/out" || fail "run prints the held-out E: $(cat "$tmp/out")"
+# The verdict line names them as the certificate does: held-out probes (issue 47 item 5).
+grep -q "^verdict: .*, held-out probes E [0-9.e-]* (baseline [0-9.e-]*)" "$tmp/out" || fail "the verdict names the held-out probes: $(grep -m1 '^verdict' "$tmp/out")"
 grep -q "^  every load:      any load on your supports is reproduced within [0-9.e+-]* of the response in the energy norm (baseline within [0-9.e+-]*); generalised eigenvalues of (K_model, K_ref) in \[" "$tmp/out" || fail "run prints the pencil's bound beside the baseline's: $(cat "$tmp/out")"
 grep -q "^  any support:     on the free body (modulo rigid motions, which bounds every support) in \[" "$tmp/out" || fail "run prints the free-body bound: $(cat "$tmp/out")"
 cp "$tmp/out" "$tmp/probes-summary.txt"
@@ -323,10 +325,14 @@ assert fb["model"]["lambda_min"] <= g["lambda_min"] * (1 + 1e-9) and fb["baselin
 PY
 python3 - "$tmp/kidney-steps.json" "$src/examples/fem-kidney-2d.json" "$sf" <<'PY' || fail "the summary's steps are the fit's"
 import json, subprocess, sys
-out = subprocess.run([sys.argv[3], "run", sys.argv[2], "-o", sys.argv[1]], capture_output=True, text=True).stdout
+p = subprocess.run([sys.argv[3], "run", sys.argv[2], "-o", sys.argv[1]], capture_output=True, text=True)
+out = p.stdout
 r = json.load(open(sys.argv[1]))
 steps = r["continuous"]["steps"]
 assert steps > 0 and f"steps:             {steps} (Gauss-Newton steps of the probe fit)" in out, (steps, out)
+# The progress line's last "fit step N" is the same N (it said 0 beside 21 once).
+fit_lines = [l for l in p.stderr.splitlines() if l.startswith("fit step ")]
+assert fit_lines and fit_lines[-1].startswith(f"fit step {steps} "), (steps, fit_lines[-3:])
 PY
 # A requested probe count: the generated probes are about that many, with the tool loads (8
 # pushes and 6 grasps on each of the 5 supports) on top.
@@ -425,6 +431,12 @@ grep -qx "units:             length mm, force mN, stiffness mN/mm, mass kg, time
   || fail "the run's summary states no units: $(head -5 "$tmp/inclusion-summary.txt")"
 grep -q "^stiffness:  .*, median [0-9.e+-]* mN/mm (spread" "$tmp/inclusion-summary.txt" \
   || fail "the run's stiffness line has no unit: $(grep stiffness: "$tmp/inclusion-summary.txt")"
+# And check, with its numbers' units.
+"$sf" check "$tmp/inclusion.msh" --loads "$src/examples/pipeline/inclusion-loads.json" >"$tmp/inclusion-check.txt" 2>&1 || fail "check with units: $(tail -2 "$tmp/inclusion-check.txt")"
+grep -qx "units:                  length mm, force mN, stiffness mN/mm, mass kg, time s (E is relative: no unit)" "$tmp/inclusion-check.txt" \
+  || fail "check states no units: $(head -5 "$tmp/inclusion-check.txt")"
+grep -q "young [0-9.e+-]* kPa, poisson" "$tmp/inclusion-check.txt" && grep -q "^training stiffness:     [0-9.e+-]* mN/mm$" "$tmp/inclusion-check.txt" \
+  || fail "check's numbers have no units: $(grep -E 'young|training' "$tmp/inclusion-check.txt")"
 python3 - "$tmp/inclusion-direct.json" <<'PY' || fail "the result carries the units"
 import json, sys
 r = json.load(open(sys.argv[1]))

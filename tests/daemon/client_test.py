@@ -99,6 +99,7 @@ class Context:
         self.iso_path = os.path.join(source, "examples", "paper-iso-5x5.json")
         self.aniso_path = os.path.join(source, "examples", "paper-aniso-5x5.json")
         self.kidney_path = os.path.join(source, "examples", "kidney-2d.json")
+        self.plate_path = os.path.join(source, "examples", "fem-plate-5x5.json")
         with open(self.iso_path) as f:
             self.small_scene = json.load(f)
         self.nonce = f"{os.getpid()}-{time.time_ns()}"
@@ -380,6 +381,27 @@ def test_list(ctx):
         R.expect(isinstance(rows, list) and len(rows) >= 1 and
                  all(isinstance(r, dict) and "generation" in r for r in rows),
                  f"{cli_desc(args)}: rows of a finished job: {short(rows)}")
+    # The table: E (the one error measure shown), not E squared under another name; on a fit
+    # (the FEM plate: strategy continuous, whose rows are models after so many steps; a
+    # search of the paper's scenes recovers them at E 0).
+    args = ("submit", ctx.plate_path, "--server", ctx.server())
+    code, out, err = expect_exit(ctx, 0, *args)
+    require(code == 0 and out.strip().isdigit(), f"{cli_desc(args)}: expected a job id, got {out!r}")
+    plate = int(out.strip())
+    with Conn(ctx.main.port) as c:
+        wait_state(c, plate, FINAL_STATES, JOB_TIMEOUT)
+    code, out, err = expect_exit(ctx, 0, "trace", str(plate), "--json", "--server", ctx.server())
+    rows = parse_json_output(out, "trace --json")["rows"] if code == 0 else []
+    args = ("trace", str(plate), "--server", ctx.server())
+    code, out, err = expect_exit(ctx, 0, *args)
+    lines = out.splitlines()
+    header = lines[0].split() if lines else []
+    R.expect(header == ["model", "seconds", "steps", "E"], f"{cli_desc(args)}: header {header}")
+    shown = [(int(l.split()[2]), float(l.split()[3])) for l in lines[1:]]
+    want = [(r["evaluations"], r["best_normalized_error"] ** 0.5) for r in rows]
+    R.expect(len(shown) == len(want) and all(w > 0 and s > 0 for s, w in want) and
+             all(a == b and abs(e - w) <= 1e-5 * w for (a, e), (b, w) in zip(shown, want)),
+             f"{cli_desc(args)}: steps and E {shown}, want {want}")
 
 
 def test_idempotency(ctx):
