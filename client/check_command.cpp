@@ -74,9 +74,7 @@ std::string MaterialText(const Material& m, const std::optional<DerivedUnits>& u
                      m.young, Unit(units, &DerivedUnits::modulus), m.poisson);
 }
 
-void PrintFemReference(const Scene& s) {
-  const std::optional<DerivedUnits> units =
-      s.units ? std::optional<DerivedUnits>(DeriveUnits(*s.units)) : std::nullopt;
+void PrintFemReference(const Scene& s, const std::optional<DerivedUnits>& units) {
   const FemReference& fem = s.reference.fem;
   const fem::FemModel model = fem::FemModel::Build(s);
   const auto [quality, worst] = model.WorstQuality();
@@ -105,7 +103,7 @@ void PrintFemReference(const Scene& s) {
 }
 
 // The reference: its kind, and what it allows (exact recovery, the FEM mesh).
-void PrintReference(const Problem& problem) {
+void PrintReference(const Problem& problem, const std::optional<DerivedUnits>& units) {
   const Scene& s = problem.scene();
   if (s.reference.kind == Reference::Kind::kMss) {
     std::cout << "reference:              mss, " << s.reference.springs.size() << " springs";
@@ -117,7 +115,7 @@ void PrintReference(const Problem& problem) {
     }
     std::cout << "\n";
   } else if (s.reference.kind == Reference::Kind::kFem) {
-    PrintFemReference(s);
+    PrintFemReference(s, units);
   } else {
     std::cout << "reference:              positions given per load case\n";
   }
@@ -207,7 +205,7 @@ int Check(const SceneInput& input, bool all_pairs) {
   // (The same line a run's verdict gives as a doubt: proto/RUN.md, "Doubts".)
   if (const auto strain = SmallStrainWarning(problem, s.search.load_size.value_or(0.0)))
     std::cout << "WARNING:                " << *strain << "\n";
-  PrintReference(problem);
+  PrintReference(problem, units);
   std::cout << "training stiffness:     " << problem.training_stiffness()
             << Unit(units, &DerivedUnits::stiffness) << "\n"
             << "load cases:             " << s.load_cases.size() << "\n";
