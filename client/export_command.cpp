@@ -32,11 +32,14 @@ struct ExportArgs {
 // The facts a simulator needs, one line (proto/MODEL.md, "Simulator facts").
 std::string FactsLine(const io::SpringModel& model) {
   const auto& f = model.facts;
+  // Stiffness in force / length where the scene states its units.
+  const std::string k_unit = model.units ? " " + model.units->stiffness : "";
   std::string text = fmt::format(
-      "stiffness {:.4g} to {:.4g}, median {:.4g} (spread {:.3g}); {} dead springs (below {:.3g} "
-      "x the median){}",
-      f.min_stiffness, f.max_stiffness, f.median_stiffness,
-      f.min_stiffness > 0.0 ? f.max_stiffness / f.min_stiffness : 0.0, f.dead, f.dead_fraction,
+      "stiffness {:.4g} to {:.4g}{}, median {:.4g}{} (spread {:.3g}) over the {} springs in the "
+      "file; {} dead springs (below {:.4g}{}: {:g} x the fitted springs' median {:.4g}{}){}",
+      f.min_stiffness, f.max_stiffness, k_unit, f.median_stiffness, k_unit,
+      f.min_stiffness > 0.0 ? f.max_stiffness / f.min_stiffness : 0.0, model.springs.size(), f.dead,
+      f.dead_threshold, k_unit, f.dead_fraction, f.fitted_median_stiffness, k_unit,
       f.dead == 0      ? ""
       : f.dead_dropped ? ", left out"
                        : ", kept and flagged");

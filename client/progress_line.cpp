@@ -114,6 +114,10 @@ void ProgressLine::Beat(const ProgressBeat& beat) {
     line =
         fmt::format("generation 0/{}: evaluating the initial population  {} evaluations  {:.1f} s",
                     max_generations_, beat.evaluations, beat.wall_seconds);
+  } else if (!std::isnan(beat.best_normalized_error)) {
+    // (The probe fit's phases: E of its latest model on the probes it chooses by.)
+    line = fmt::format("{} phase  choosing E {:.4g}  {:.1f} s", beat.phase,
+                       std::sqrt(beat.best_normalized_error), beat.wall_seconds);
   } else {
     line = fmt::format("{} phase  {:.1f} s", beat.phase, beat.wall_seconds);
   }

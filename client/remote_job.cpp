@@ -91,6 +91,11 @@ Json WatchJob(RpcClient& client, std::int64_t job_id, bool quiet) {
     if (p.value("job_id", std::int64_t{-1}) != job_id) continue;
     if (n["method"] == "job.progress") {
       progress.Report(proto::TraceRowFromJson(p, "params"), false);
+    } else if (n["method"] == "job.phase") {
+      // Inside a step (the analysis, a fit's steps, the certificate), as `run` shows it.
+      proto::PhaseBeat beat;
+      proto::ProgressBeatFromJson(p, "params", beat);
+      progress.Beat(beat.beat);
     } else if (n["method"] == "job.finished") {
       if (p["progress"].is_object())
         progress.Report(proto::TraceRowFromJson(p["progress"], "params.progress"), true);

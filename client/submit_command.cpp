@@ -71,6 +71,11 @@ int Submit(const SubmitArgs& args) {
             << " (" << job["scene"].get<std::string>() << ", " << job["genes"].get<int>()
             << " genes, strategy " << job["strategy"].get<std::string>() << ", seed "
             << job["seed"].get<std::uint64_t>() << ")" << std::endl;
+  // The scene's notices, as `run` says them before it runs (a daemon before them sends none).
+  if (submitted.contains("notices") && submitted["notices"].is_array())
+    for (const Json& notice : submitted["notices"])
+      if (notice.is_string())
+        std::cerr << "springfit: notice: " << notice.get<std::string>() << std::endl;
   if (!args.wait && !args.watch) {
     if (args.json) {
       std::cout << submitted.dump() << std::endl;

@@ -41,30 +41,31 @@ int StiffnessSpread::below(const std::vector<double>& stiffness, double fraction
 }
 
 void MarkDeadSprings(SpringModel& model, const ModelOptions& options) {
-  std::vector<double> k;
-  for (const auto& s : model.springs) k.push_back(s.stiffness);
-  const StiffnessSpread spread = SpreadOf(k);
+  // The threshold is the result's springs' median, as `run` and `result` print it: the springs
+  // between held nodes that the export adds are not the fit's (a model of only those: theirs).
+  std::vector<double> fitted, all;
+  for (const auto& s : model.springs) {
+    all.push_back(s.stiffness);
+    if (!s.between_held) fitted.push_back(s.stiffness);
+  }
   auto& facts = model.facts;
-  facts.min_stiffness = spread.min;
-  facts.median_stiffness = spread.median;
-  facts.max_stiffness = spread.max;
+  facts.fitted_median_stiffness = SpreadOf(fitted.empty() ? all : fitted).median;
   facts.dead_fraction = options.dead_fraction;
-  facts.dead_threshold = options.dead_fraction * spread.median;
+  facts.dead_threshold = options.dead_fraction * facts.fitted_median_stiffness;
   facts.dead_dropped = options.drop_dead;
   for (auto& s : model.springs) {
     s.dead = s.stiffness < facts.dead_threshold;
     facts.dead += s.dead ? 1 : 0;
   }
-  if (!options.drop_dead) return;
-  std::erase_if(model.springs, [](const SpringModel::Spring& s) { return s.dead; });
-  // The stiffness the file holds: the kept springs' (the threshold stays the whole model's, the
-  // median that defines a dead spring).
-  k.clear();
-  for (const auto& s : model.springs) k.push_back(s.stiffness);
-  const StiffnessSpread kept = SpreadOf(k);
-  facts.min_stiffness = kept.min;
-  facts.median_stiffness = kept.median;
-  facts.max_stiffness = kept.max;
+  if (options.drop_dead)
+    std::erase_if(model.springs, [](const SpringModel::Spring& s) { return s.dead; });
+  // The stiffness the file holds (with drop_dead, the kept springs').
+  std::vector<double> held;
+  for (const auto& s : model.springs) held.push_back(s.stiffness);
+  const StiffnessSpread spread = SpreadOf(held);
+  facts.min_stiffness = spread.min;
+  facts.median_stiffness = spread.median;
+  facts.max_stiffness = spread.max;
 }
 
 void LumpMasses(SpringModel& model, const Scene& scene, const ModelOptions& options) {

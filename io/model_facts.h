@@ -20,8 +20,8 @@ struct StiffnessSpread {
 };
 StiffnessSpread SpreadOf(std::vector<double> stiffness);
 
-// Flags the springs below options.dead_fraction x the median (or drops them with drop_dead)
-// and sets the stiffness facts.
+// Flags the springs below options.dead_fraction x the result's springs' median (or drops them
+// with drop_dead) and sets the stiffness facts.
 void MarkDeadSprings(SpringModel& model, const ModelOptions& options);
 
 // model.mass from options.node_mass, options.density or the materials' densities lumped on

@@ -42,6 +42,7 @@ std::string ModelJsonText(const SpringModel& model) {
       {"min_stiffness", f.min_stiffness},
       {"median_stiffness", f.median_stiffness},
       {"max_stiffness", f.max_stiffness},
+      {"fitted_median_stiffness", f.fitted_median_stiffness},
       {"dead_threshold", f.dead_threshold},
       {"dead_springs", f.dead},
       {"dead_dropped", f.dead_dropped},

@@ -91,7 +91,8 @@ void AddSprings(SpringModel& model, const Problem& problem, const proto::StoredR
                                                 ? SpringModel::Identified::kYes
                                                 : SpringModel::Identified::kNotAnalysed;
   if (!result.groups_analysed) model.groups_not_analysed = result.groups_not_analysed;
-  const auto add = [&](NodePair p, double stiffness, SpringModel::Identified identified) {
+  const auto add = [&](NodePair p, double stiffness, SpringModel::Identified identified,
+                       bool between_held) {
     SpringModel::Spring s;
     s.a = p.first;
     s.b = p.second;
@@ -100,6 +101,7 @@ void AddSprings(SpringModel& model, const Problem& problem, const proto::StoredR
     s.rest_length =
         (scene.rest.segment(d * p.first, d) - scene.rest.segment(d * p.second, d)).norm();
     s.identified = identified;
+    s.between_held = between_held;
     model.springs.push_back(s);
   };
   const double training = problem.training_stiffness();
@@ -112,7 +114,7 @@ void AddSprings(SpringModel& model, const Problem& problem, const proto::StoredR
                            (candidate(p) ? "listed twice" : "not a candidate of the scene"));
     }
     add(p, result.stiffness.empty() ? training : result.stiffness[i],
-        undetermined.count(p) ? SpringModel::Identified::kNo : otherwise);
+        undetermined.count(p) ? SpringModel::Identified::kNo : otherwise, false);
   }
   std::map<NodePair, double> unseen_stiffness;
   for (std::size_t u = 0; u < problem.unidentifiable().size(); ++u)
@@ -122,7 +124,8 @@ void AddSprings(SpringModel& model, const Problem& problem, const proto::StoredR
   for (const NodePair& p : result.unidentifiable) {
     const auto k = unseen_stiffness.find(p);
     if (candidate(p) && present.insert(p).second)
-      add(p, k == unseen_stiffness.end() ? training : k->second, SpringModel::Identified::kNo);
+      add(p, k == unseen_stiffness.end() ? training : k->second, SpringModel::Identified::kNo,
+          true);
   }
 }
 

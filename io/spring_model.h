@@ -56,8 +56,12 @@ struct SpringModel {
     // kNotAnalysed where that was not analysed (SpringModel::groups_not_analysed says why):
     // it may or may not be determined.
     Identified identified = Identified::kYes;
-    // Below ModelOptions::dead_fraction of the median stiffness (kept: drop_dead was false).
+    // Below ModelOptions::dead_fraction of the fitted springs' median stiffness (kept:
+    // drop_dead was false).
     bool dead = false;
+    // Not the result's: a candidate between held nodes that the export adds (its stiffness the
+    // problem's for it), so that the model is complete.
+    bool between_held = false;
   };
   std::vector<Spring> springs;
   // Why the scene's dependent groups were not analysed (IdentifiabilityReport::not_analysed),
@@ -89,10 +93,12 @@ struct SpringModel {
 
   // What a simulator needs to know of the springs and masses (model_facts.h).
   struct Facts {
-    // Of the springs the model holds (with drop_dead, the kept ones).
+    // Of the springs the model holds (with drop_dead, the kept ones; with the springs between
+    // held nodes).
     double min_stiffness = 0.0, median_stiffness = 0.0, max_stiffness = 0.0;
-    // dead_fraction x the median of every spring, dead ones included (the median above,
-    // unless they were dropped).
+    // The median of the result's springs, dead ones included: the median `run` and `result`
+    // print, and the base of the dead threshold (dead_fraction x it).
+    double fitted_median_stiffness = 0.0;
     double dead_fraction = 0.0;
     double dead_threshold = 0.0;
     int dead = 0;  // springs below it (dropped or flagged)

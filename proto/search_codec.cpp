@@ -99,6 +99,31 @@ TraceRow TraceRowFromJson(const Json& j, const std::string& path) {
   return r;
 }
 
+Json ProgressBeatToJson(const ProgressBeat& b) {
+  Json j;
+  j["phase"] = std::string(b.phase);
+  j["wall_seconds"] = b.wall_seconds;
+  j["generation"] = b.generation;
+  j["evaluations"] = b.evaluations;
+  j["best_normalized_error"] =
+      std::isfinite(b.best_normalized_error) ? Json(b.best_normalized_error) : Json(nullptr);
+  return j;
+}
+
+void ProgressBeatFromJson(const Json& j, const std::string& path, PhaseBeat& out) {
+  auto at = [&](const char* key) -> const Json& { return RequiredMember(j, path, key); };
+  out.phase = ReadString(at("phase"), JoinPath(path, "phase"));
+  ProgressBeat& b = out.beat;
+  b.phase = out.phase;
+  b.wall_seconds = ReadNumber(at("wall_seconds"), JoinPath(path, "wall_seconds"));
+  b.generation = ReadInt(at("generation"), JoinPath(path, "generation"));
+  b.evaluations =
+      static_cast<std::int64_t>(ReadUint64(at("evaluations"), JoinPath(path, "evaluations")));
+  const Json& e = at("best_normalized_error");
+  b.best_normalized_error = e.is_null() ? std::numeric_limits<double>::quiet_NaN()
+                                        : ReadNumber(e, JoinPath(path, "best_normalized_error"));
+}
+
 Json IdentifiabilityToJson(const IdentifiabilityReport& report) {
   Json j;
   j["unseen"] = PairsToJson(report.unseen);

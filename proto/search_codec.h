@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/api/identify.h"
 #include "engine/api/problem.h"
 #include "engine/api/result.h"
 #include "proto/json_reader.h"
@@ -19,6 +20,18 @@ Json TraceRowToJson(const TraceRow& row);
 Json CountOrNull(int count);
 // Reads what TraceRowToJson wrote; throws InputError naming the path.
 TraceRow TraceRowFromJson(const Json& json, const std::string& path);
+// A job.phase notification's fields (proto/RPC.md): where a step has got between two rows.
+// `best_normalized_error` NaN (JSON null): no model yet in this phase.
+Json ProgressBeatToJson(const ProgressBeat& beat);
+struct PhaseBeat {
+  std::string phase;
+  ProgressBeat beat;  // its `phase` views the member above (valid while this object lives)
+  PhaseBeat() = default;
+  PhaseBeat(const PhaseBeat&) = delete;
+  PhaseBeat& operator=(const PhaseBeat&) = delete;
+};
+// Reads what ProgressBeatToJson wrote into `out`; throws InputError naming the path.
+void ProgressBeatFromJson(const Json& json, const std::string& path, PhaseBeat& out);
 // The identifiability report (proto/RUN.md, "identifiability").
 Json IdentifiabilityToJson(const IdentifiabilityReport& report);
 // The result object of every strategy (proto/RUN.md): `stiffness` per spring of `springs`,

@@ -40,10 +40,12 @@ struct IterationState {
 
 // Between iterations: where a long step has got to (RunContext::on_beat).
 struct ProgressBeat {
-  // "analysis" (identifiability, the FEM baseline: before the run's clock), "direct" (the
-  // force-balance solve of strategies direct and hybrid), "genetic"; strategy continuous:
-  // "fit" (its first fit: `evaluations` accepted steps, the last one's error), "path" (the
-  // sparsity path: `generation` points so far, the last one's error), "refit" and "held_out".
+  // "direct" (the force-balance solve of strategies direct and hybrid), "genetic"; strategy
+  // continuous on the named cases: "regularization", "fit" (`evaluations` accepted steps, the
+  // last one's error), "path" (the sparsity path: `generation` points so far, the last one's
+  // error), "refit" and "held_out"; fitted to probes: "probes" (the banks), "probe_fit",
+  // "probe_path", "probe_refine", "probe_lift", "nonlinear_fit", "certificate" and "nonlinear"
+  // (the judgement as the simulator runs it). proto/RPC.md (job.phase) lists them too.
   std::string_view phase;
   double wall_seconds = 0.0;  // on the run's clock (analysis: since the run began)
   int generation = 0;         // the generation in progress

@@ -16,7 +16,7 @@ from .errors import (BUSY, INTERNAL_ERROR, INVALID_PARAMS, INVALID_REQUEST, INVA
                      STORE_UNAVAILABLE, UNAUTHORIZED, WRONG_STATE, CliError, RpcError,
                      ServerConnectionError, ServerTimeout, SpringfitError, WatchTimeout)
 from .records import (DOUBTFUL, FINAL_STATES, UNMET_REQUEST, UNUSABLE, USABLE, Improvement, Job,
-                      Outcome,
+                      Outcome, Phase,
                       Progress, Result, ServerInfo, Submission, TraceRow)
 
 __version__ = "1.0.0"
@@ -27,6 +27,6 @@ __all__ = [
     "CliError", "PARSE_ERROR", "INVALID_REQUEST", "METHOD_NOT_FOUND", "INVALID_PARAMS",
     "INTERNAL_ERROR", "UNAUTHORIZED", "NO_SUCH_JOB", "INVALID_SCENE", "LIMIT_EXCEEDED", "BUSY",
     "WRONG_STATE", "STORE_UNAVAILABLE", "STORE_CORRUPT",
-    "USABLE", "UNMET_REQUEST", "UNUSABLE", "DOUBTFUL", "FINAL_STATES", "Job", "Outcome", "Progress",
+    "USABLE", "UNMET_REQUEST", "UNUSABLE", "DOUBTFUL", "FINAL_STATES", "Job", "Outcome", "Phase", "Progress",
     "TraceRow", "Result", "ServerInfo", "Submission", "Improvement",
 ]

@@ -9,7 +9,7 @@ import time
 
 from .errors import (NO_SUCH_JOB, CliError, RpcError, ServerConnectionError, ServerTimeout,
                      WatchTimeout)
-from .records import Improvement, Job, Progress, Result, ServerInfo, Submission, TraceRow
+from .records import Improvement, Job, Phase, Progress, Result, ServerInfo, Submission, TraceRow
 
 __all__ = ["Client", "DEFAULT_SERVER", "DEFAULT_TIMEOUT", "parse_server_address"]
 
@@ -310,13 +310,16 @@ class Client:
         """job.get: the Job. RpcError NO_SUCH_JOB for an unknown id."""
         return Job.from_json(self.call("job.get", {"job_id": job_id}))
 
-    def watch(self, job_id, on_progress=None, poll_interval=None, timeout=None):
+    def watch(self, job_id, on_progress=None, poll_interval=None, timeout=None, on_phase=None):
         """Follows a job until it finishes; returns the finished Job (its .verdict, .outcome).
 
         on_progress(Progress): called for each job.progress notification (at most four a
         second; the server always sends generation 0), then once with the finished job's last
         row (Progress.final True) unless that row was reported already: at least once for
         every job that reached its search, even one finished before the watch began.
+        on_phase(Phase): called for each job.phase notification of a job that the daemon
+        watched runs itself (each phase's first beat, then at most four a second): where a step
+        has got between rows, the analysis, a fit's steps, the certificate.
         poll_interval: None follows the job through job.watch's notifications; a number of
         seconds polls job.get at that interval instead (reporting each new generation).
         timeout: None waits as long as the job takes; seconds raise WatchTimeout (the job
@@ -339,6 +342,9 @@ class Client:
                     if on_progress is not None:
                         on_progress(Progress.from_json(params))
                     reported = params.get("generation")
+                elif method == "job.phase":
+                    if on_phase is not None:
+                        on_phase(Phase.from_json(params))
                 elif method == "job.finished":
                     job = Job.from_json(params)
                     self._report_final(job, reported, on_progress)

@@ -78,6 +78,12 @@ class Outcome(_Record):
         return self.verdict in (USABLE, UNMET_REQUEST, DOUBTFUL)
 
 
+def _rms_of(normalized_error):
+    """E, the square root of a normalised error (E squared); None where there is none."""
+    e = normalized_error
+    return math.sqrt(e) if isinstance(e, (int, float)) and e >= 0 else None
+
+
 @dataclass(frozen=True)
 class TraceRow(_Record):
     """One stored generation of a job's search (proto/RUN.md, "The trace")."""
@@ -95,8 +101,7 @@ class TraceRow(_Record):
     @property
     def rms_error(self):
         """E of the best so far: the square root of best_normalized_error."""
-        e = self.best_normalized_error
-        return math.sqrt(e) if isinstance(e, (int, float)) and e >= 0 else None
+        return _rms_of(self.best_normalized_error)
 
 
 @dataclass(frozen=True)
@@ -111,6 +116,25 @@ class Progress(TraceRow):
     def from_json(cls, obj, final=False):
         p = super().from_json(obj)
         return dataclasses.replace(p, final=final)
+
+
+@dataclass(frozen=True)
+class Phase(_Record):
+    """A job.phase notification: where a job's step has got between two rows (the analysis,
+    a fit's steps, the sparsity path, the certificate), as `springfit watch` shows it."""
+    job_id: Optional[int] = None
+    phase: Optional[str] = None            # proto/RPC.md, job.phase: probe_fit, certificate, ...
+    wall_seconds: Optional[float] = None   # on the run's clock
+    generation: Optional[int] = None       # the generation in progress (path: its points)
+    evaluations: Optional[int] = None      # fit: its accepted steps
+    best_normalized_error: Optional[float] = None  # None: no model yet in this phase
+    max_generations: Optional[int] = None
+    raw: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def rms_error(self):
+        """E of the phase's latest model (None: none yet)."""
+        return _rms_of(self.best_normalized_error)
 
 
 @dataclass(frozen=True)
@@ -215,6 +239,7 @@ class Submission(_Record):
     same idempotency key existed)."""
     created: Optional[bool] = None
     job: Optional[Job] = None
+    notices: Optional[List[str]] = None    # the scene's notices (a created job's)
     raw: dict = field(default_factory=dict, repr=False, compare=False)
 
 

@@ -215,6 +215,8 @@ void Scheduler::Publish(std::int64_t id, const proto::Json& notification) {
   if (method == "job.finished" || method == "job.gone") {
     if (announced.finished) return;  // the runner and the monitor may both see the end
     announced.finished = true;
+  } else if (method == "job.phase") {
+    if (announced.finished) return;  // (no phase after the end)
   } else {
     // Each generation once, in order (a job resumed from a checkpoint repeats some).
     const int generation = notification.at("params").value("generation", -1);
@@ -284,6 +286,28 @@ void Scheduler::OnGeneration(std::int64_t id, Running& running, const JobRecord&
   params["job_id"] = id;
   params["max_generations"] = job.max_generations;
   Publish(id, proto::rpc::Notification("job.progress", params));
+}
+
+void Scheduler::OnBeat(std::int64_t id, Running& running, const JobRecord& job,
+                       const ProgressBeat& beat) {
+  {
+    MutexLock lock(running.live_mutex);
+    running.phase = LivePhase{std::string(beat.phase), beat.wall_seconds,
+                              std::sqrt(beat.best_normalized_error)};
+  }
+  // A watcher sees where the step has got (the preparation's analysis, a fit's steps, the
+  // certificate): each phase's first beat, then at most every progress_seconds.
+  const auto now = std::chrono::steady_clock::now();
+  if (beat.phase == running.last_phase &&
+      std::chrono::duration<double>(now - running.last_phase_notified).count() <
+          options_.progress_seconds)
+    return;
+  running.last_phase = std::string(beat.phase);
+  running.last_phase_notified = now;
+  proto::Json params = proto::ProgressBeatToJson(beat);
+  params["job_id"] = id;
+  params["max_generations"] = job.max_generations;
+  Publish(id, proto::rpc::Notification("job.phase", params));
 }
 
 void Scheduler::RunnerLoop() {
@@ -368,11 +392,7 @@ void Scheduler::RunClaimed(const Claim& claim) {
   control.shutdown = &stopping_;
   control.lease_lost = &running->lease_lost;
   control.on_generation = [&](const TraceRow& row) { OnGeneration(id, *running, claim.job, row); };
-  control.on_beat = [&](const ProgressBeat& beat) {
-    MutexLock lock(running->live_mutex);
-    running->phase = LivePhase{std::string(beat.phase), beat.wall_seconds,
-                               std::sqrt(beat.best_normalized_error)};
-  };
+  control.on_beat = [&](const ProgressBeat& beat) { OnBeat(id, *running, claim.job, beat); };
   const JobRecord after =
       RunJob(store_, pool_, claim, std::move(prepared), options_.runner, control);
   if (proto::IsFinal(after.state)) {

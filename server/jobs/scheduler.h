@@ -141,6 +141,9 @@ class Scheduler {
     std::optional<TraceRow> progress SF_GUARDED_BY(live_mutex);
     std::optional<LivePhase> phase SF_GUARDED_BY(live_mutex);
     std::chrono::steady_clock::time_point last_notified{};
+    // The last job.phase sent (the job's thread).
+    std::string last_phase;
+    std::chrono::steady_clock::time_point last_phase_notified{};
     std::int64_t evaluations = 0;  // counted into the metrics so far (the job's thread)
   };
 
@@ -157,6 +160,7 @@ class Scheduler {
   // whose row cannot be read (`why`).
   void PublishGone(std::int64_t id, const std::string& why = "");
   void OnGeneration(std::int64_t id, Running& running, const JobRecord& job, const TraceRow& row);
+  void OnBeat(std::int64_t id, Running& running, const JobRecord& job, const ProgressBeat& beat);
 
   JobStore& store_;
   SchedulerOptions options_;

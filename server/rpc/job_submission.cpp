@@ -209,10 +209,13 @@ Json RpcService::JobSubmit(const Json& params, SessionContext& session) {
   job.scene_json = proto::SceneToJson(scene).dump();
   const JobStore::Created created = CreateJob(job, session);
   if (!created.created) return AnswerRetry(store_, job, created.job);
-  const JobRecord prepared = Prepare(created, std::move(valid), session);
+  std::vector<std::string> notices;
+  const JobRecord prepared = Prepare(created, std::move(valid), session, notices);
   Json j;
   j["created"] = true;
   j["job"] = proto::JobToJson(prepared);
+  // What `springfit run` says of the scene before it runs (its result says it again).
+  j["notices"] = notices;
   return j;
 }
 
@@ -258,7 +261,8 @@ std::optional<JobRecord> RpcService::WaitWhilePreparing(std::int64_t id,
 }
 
 JobRecord RpcService::Prepare(const JobStore::Created& created, ValidScene scene,
-                              const SessionContext& session) {
+                              const SessionContext& session,
+                              std::vector<std::string>& scene_notices) {
   const Lease& lease = created.lease;
   const std::int64_t id = lease.job_id;
   JobRecord r = created.job;
@@ -314,6 +318,7 @@ JobRecord RpcService::Prepare(const JobStore::Created& created, ValidScene scene
   }
   if (stop_requested()) return PreparationStopped(lease, *control, r, outcome);
   const SearchOptions options = CheckPreparedBounds(*problem, options_.limits);
+  scene_notices = SceneNotices(*problem);
   r.genes = problem->gene_count();
   r.max_generations = options.max_generations;
   // The strategy that runs, `default` resolved (the stored scene keeps what was asked).

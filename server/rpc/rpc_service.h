@@ -122,8 +122,9 @@ class RpcService {
   // Prepares a job just created `preparing` (its reference solved, its candidates laid out):
   // queues it, or returns it cancelled (a cancel came meanwhile), or drops it and throws the
   // error its submitter gets (an invalid scene, a bound, a shutdown, a lost connection).
+  // `scene_notices`: the prepared scene's (SceneNotices), for the submitter.
   JobRecord Prepare(const JobStore::Created& created, ValidScene scene,
-                    const SessionContext& session);
+                    const SessionContext& session, std::vector<std::string>& scene_notices);
   // A retry of a submission being prepared (its idempotency key) waits, bounded, for that
   // preparation's end: the job as it then is, or nothing when it was dropped.
   std::optional<JobRecord> WaitWhilePreparing(std::int64_t id, const SessionContext& session);

@@ -233,6 +233,27 @@ def test_submit_wait(ctx):
                  f"{cli_desc(args)}: the result lacks springs or state succeeded: {short(result)}")
 
 
+def test_submit_watch_phases(ctx):
+    """submit --watch says what run says: the scene's notices before the job runs, and where a
+    step has got between rows (job.phase), not only the rows."""
+    scene = json.load(open(os.path.join(ctx.source, "examples", "fem-kidney-2d.json")))
+    scene["reference"]["material"]["poisson"] = 0.495  # a notice: linear elements lock near 0.5
+    scene["name"] = f"locking kidney {ctx.nonce}"
+    path = os.path.join(ctx.tmp, "locking-kidney.json")
+    json.dump(scene, open(path, "w"))
+    args = ("submit", path, "--watch", "--server", ctx.server())
+    code, out, err, _ = run_cli(ctx, *args, timeout=JOB_TIMEOUT)
+    R.expect(code in (0, 12), f"{cli_desc(args)}: exit {code} (usable or doubtful) ({short(err)})")
+    lines = err.splitlines()
+    queued = next((i for i, l in enumerate(lines) if re.search(r"\bjob \d+ queued\b", l)), None)
+    notices = [i for i, l in enumerate(lines) if l.startswith("springfit: notice: ") and "0.495" in l]
+    R.expect(queued is not None and notices and notices[0] == queued + 1,
+             f"{cli_desc(args)}: the scene's notice right after 'job N queued': {short(err, 1500)}")
+    # The probe fit's phases (analysis, fit, ...) as run shows them: lines of the watched job.
+    phases = [l for l in lines if re.search(r"\bphase\b|in progress|sparsity path", l)]
+    R.expect(len(phases) >= 1, f"{cli_desc(args)}: no phase line while the job ran: {short(err, 1500)}")
+
+
 def sigint_caught(pid):
     """True when the process has a handler for SIGINT (Linux /proc); None when unknown."""
     try:
@@ -960,6 +981,7 @@ def main(argv):
         ("setup", test_setup, True),
         ("client timeout", test_client_timeout, False),
         ("submit --wait --json", test_submit_wait, False),
+        ("submit --watch: notices and phases", test_submit_watch_phases, False),
         ("watch interrupted", test_watch_interrupt, False),
         ("list and trace", test_list, False),
         ("idempotency key", test_idempotency, False),

@@ -96,8 +96,9 @@ TEST(AmplitudeJudgement, ItsSolvesAreLoadStepsThatReachTheEquilibriaFromRest) {
     EXPECT_GT(alone.last_summary().iterations, 1);  // nonlinear at this size
     SpringResponse from_rest(input, free, LoadStepSolverOptions(problem), nullptr);
     ASSERT_TRUE(from_rest.Solve(size * lc.force, size * lc.prescribed));
-    if (size != 0.25)
+    if (size != 0.25) {
       EXPECT_LT(steps.last_summary().iterations, from_rest.last_summary().iterations);
+    }
   }
 }
 

@@ -311,9 +311,16 @@ with tempfile.TemporaryDirectory() as work:
     check("UniformMass" in s["tags"] and np.all(s["mass"] == 0.5), "UniformMass of --node-mass")
 
     # Dead springs: below --dead-fraction of the median, flagged, or left out with --drop-dead.
+    # The median is the result's springs' (the one run and result print), whatever the export
+    # adds between held nodes.
     run("export", plate, "-o", f"{work}/flagged.json", "--dead-fraction", "0.2")
     flagged = json.load(open(f"{work}/flagged.json"))
-    median = flagged["facts"]["median_stiffness"]
+    fitted = sorted(json.load(open(plate))["stiffness"])
+    n = len(fitted)
+    median = fitted[n // 2] if n % 2 else 0.5 * (fitted[n // 2 - 1] + fitted[n // 2])
+    check(flagged["facts"]["fitted_median_stiffness"] == median
+          and abs(flagged["facts"]["dead_threshold"] - 0.2 * median) <= 1e-15 * median,
+          f"the dead threshold is of the result's median {median}: {flagged['facts']}")
     dead = [s for s in flagged["springs"] if s["dead"]]
     check(dead and all(s["stiffness"] < 0.2 * median for s in dead)
           and all(s["stiffness"] >= 0.2 * median for s in flagged["springs"] if not s["dead"])
@@ -321,7 +328,25 @@ with tempfile.TemporaryDirectory() as work:
     p = run("export", plate, "-o", f"{work}/dropped.scn", "--dead-fraction", "0.2", "--drop-dead")
     s = read_scene(f"{work}/dropped.scn", "v26.06", 2)
     check(len(s["springs"]) == len(flagged["springs"]) - len(dead), "--drop-dead leaves them out")
-    check(f"{len(dead)} dead springs (below 0.2 x the median), left out" in p.stdout, p.stdout)
+    check(f"{len(dead)} dead springs (below {0.2 * median:.4g}: 0.2 x the fitted springs' median "
+          f"{median:.4g}), left out" in p.stdout, p.stdout)
+    # The springs between held nodes that the export adds (the grid's 3, at the training
+    # stiffness 1) are not the fit's: the dead threshold is the result's median's fraction.
+    edited = json.load(open(grid))
+    edited["stiffness"] = [1.0 + i for i in range(len(edited["springs"]))]
+    json.dump(edited, open(f"{work}/grid-edited.json", "w"))
+    p = run("export", f"{work}/grid-edited.json", "-o", f"{work}/grid-edited-model.json",
+            "--dead-fraction", "0.5")
+    facts = json.load(open(f"{work}/grid-edited-model.json"))["facts"]
+    n = len(edited["stiffness"])
+    want = 1.0 + n // 2 if n % 2 else 0.5 * (2.0 + n // 2 - 1 + n // 2)
+    held = len(edited["unidentifiable"])
+    check(held > 0 and facts["fitted_median_stiffness"] == want
+          and facts["dead_threshold"] == 0.5 * want
+          and facts["dead_springs"] == held + sum(1 for k in edited["stiffness"] if k < 0.5 * want),
+          f"the dead threshold of a model with {held} springs between held nodes: {facts}, "
+          f"the result's median {want}")
+    check(f"over the {n + held} springs in the file" in p.stdout, p.stdout)
     # The facts describe the springs the file holds, not the ones left out.
     run("export", plate, "-o", f"{work}/dropped.json", "--dead-fraction", "0.2", "--drop-dead")
     dropped = json.load(open(f"{work}/dropped.json"))

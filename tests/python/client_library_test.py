@@ -589,6 +589,27 @@ def test_submit_options(ctx):
                  f"the invalid scene's path: {e and e.data}")
 
 
+def test_notices_and_phases(ctx):
+    """A submission's notices, and the phases a watch reports between rows (job.phase)."""
+    with open(os.path.join(ctx.source, "examples", "fem-kidney-2d.json")) as f:
+        scene = json.load(f)
+    scene["reference"]["material"]["poisson"] = 0.495
+    scene["name"] = f"locking kidney {ctx.nonce}"
+    with ctx.client() as c:
+        submitted = c.submit_job(scene)
+        R.expect(submitted.created and any("0.495" in n for n in submitted.notices or []),
+                 f"the submission's notices: {submitted.notices}")
+        phases = []
+        job = c.watch(submitted.job.job_id, on_phase=phases.append, timeout=JOB_TIMEOUT)
+        R.expect(job.finished, f"the job: {job}")
+        known = {"direct", "genetic", "regularization", "fit", "path", "refit", "held_out",
+                 "probes", "probe_fit", "probe_path", "probe_refine", "probe_lift",
+                 "nonlinear_fit", "certificate", "nonlinear"}
+        R.expect(phases and all(isinstance(p, sf.Phase) and p.job_id == job.job_id and
+                                p.phase in known and p.wall_seconds >= 0 for p in phases),
+                 f"on_phase: {phases}")
+
+
 def test_cancel_delete(ctx):
     with ctx.client() as c:
         job_id = c.submit(ctx.kidney_path, label=f"long-{ctx.nonce}", strategy="paper",
@@ -734,6 +755,7 @@ def main(argv):
         ("submit, watch, result, list, trace, export", test_round_trip, False),
         ("paging", test_paging, False),
         ("submit options", test_submit_options, False),
+        ("notices and phases", test_notices_and_phases, False),
         ("cancel and delete", test_cancel_delete, False),
         ("submit_mesh", test_submit_mesh, False),
         ("README example", test_readme_example, False),
