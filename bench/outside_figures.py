@@ -9,7 +9,7 @@ once, have succeeded, and have the result and trace of the same scene+seed on a 
 never killed (proto/RPC.md, "Durability": equal but for wall times and cache_hits).
 load: 50 client threads each submit 10 small jobs and poll job.get until they finish; none may be
 lost. The job.get latency is the clients' view (50 Python threads share one interpreter lock).
-The hostile-corpus figure is tests/daemon/protocol_test.py's. Exit status 1 when anything was
+The hostile-corpus figure is tests/daemon/protocol_corpus_test.py's. Exit status 1 when anything was
 lost or differed; the temporary directory (databases, daemon logs) is then kept.
 """
 import argparse

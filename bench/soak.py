@@ -21,7 +21,7 @@ while a chaos schedule drawn from the seed injects, in rounds that each hold eve
                by deleting the filler or by growing the filesystem                  (sqlite)
   damage       a queued job's row damaged behind the daemons' back (progress not JSON,
                a progress row with a wrong field, or an unknown state), as the store
-               suite and client_test.py's "damaged row" do
+               suite and client_store_test.py's "damaged row" do
   disconnect   a client gone mid-message: half a request then close, a reset (RST) in the
                middle of one, a submit closed before its answer, a watch abandoned
   slowloris    8 connections sending a request a byte at a time, or half of one and then

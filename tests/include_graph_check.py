@@ -11,6 +11,9 @@ proto/, io/, figures/, server/ and client/ include the engine only through engin
 public surface.
 KNOWN lists the upward includes that are still there, each with why; the check also fails when
 one of them is gone (so the list shrinks with the code).
+It also counts the internal engine headers reachable from engine/api/ (through any chain of
+includes) and fails unless the count is REACHABLE_FROM_API: more is a surface that grew, fewer
+a number to lower here (docs/ARCHITECTURE.md, "The engine's surface").
   include_graph_check.py SOURCE_DIR
 """
 import os
@@ -28,6 +31,8 @@ SURFACE_ONLY = {"proto", "io", "figures", "server", "client"}
 # Upward includes not yet removed, each with why (none left: Problem's preparation moved to its
 # own room above fem/, and the positions reference's force balance with it).
 KNOWN = set()
+# Internal engine headers reachable from engine/api/ (issue 49's target: at most 10).
+REACHABLE_FROM_API = 47
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"')
 
 
@@ -41,6 +46,25 @@ def room(path):
 def level(r):
     kind, name = r
     return (TOP if kind == "top" else ENGINE).get(name)
+
+
+def reachable_from_api(root):
+    """The internal engine headers that some chain of includes from engine/api/ reaches."""
+    api = os.path.join(root, "engine", "api")
+    stack = [os.path.join("engine", "api", n) for n in sorted(os.listdir(api)) if n.endswith(".h")]
+    seen = set()
+    while stack:
+        path = stack.pop()
+        if path in seen:
+            continue
+        seen.add(path)
+        with open(os.path.join(root, path), encoding="utf-8") as f:
+            for line in f:
+                m = INCLUDE.match(line)
+                if m and m.group(1).startswith("engine/") and \
+                        os.path.exists(os.path.join(root, m.group(1))):
+                    stack.append(m.group(1))
+    return sorted(p for p in seen if not p.startswith("engine/api/"))
 
 
 def main():
@@ -84,12 +108,21 @@ def main():
                                 upward.append(f"{path}:{number}: includes {target}, a room above "
                                               f"its own or beside it ({a[1]}, {b[1]})")
     gone = sorted(KNOWN - seen_known)
+    reached = reachable_from_api(root)
+    if len(reached) > REACHABLE_FROM_API:
+        upward.append(f"engine/api/ reaches {len(reached)} internal headers, more than "
+                      f"{REACHABLE_FROM_API}: keep machinery out of what the surface includes "
+                      "(docs/ARCHITECTURE.md, \"The engine's surface\")")
+    elif len(reached) < REACHABLE_FROM_API:
+        upward.append(f"engine/api/ reaches {len(reached)} internal headers: lower "
+                      f"REACHABLE_FROM_API from {REACHABLE_FROM_API} to {len(reached)}")
     for line in upward:
         print("FAIL: " + line)
     for path, target in gone:
         print(f"FAIL: {path} no longer includes {target}: remove it from KNOWN")
     print(f"include_graph_check: {files} files, {len(upward)} upward includes, "
-          f"{len(seen_known)} known ones left")
+          f"{len(seen_known)} known ones left, {len(reached)} internal headers reachable from "
+          "engine/api/")
     return 1 if upward or gone else 0
 
 

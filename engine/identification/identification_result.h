@@ -11,7 +11,7 @@
 #include "engine/direct/direct_identification.h"
 #include "engine/direct/identifiability.h"
 #include "engine/identification/verdict.h"
-#include "engine/probe_fit/generalization.h"
+#include "engine/probe_fit/probe_fit_report.h"
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/problem/cost.h"
 #include "engine/problem/problem.h"
@@ -92,7 +92,7 @@ struct IdentificationResult {
   // identification must beat, engine/fem/closed_form_baseline.h).
   std::optional<BaselineReport> baseline;
   // An FEM or MSS reference under strategy continuous with probes: the model judged on loads
-  // it was not fitted to, beside the baseline (engine/probe_fit/generalization.h).
+  // it was not fitted to, beside the baseline (engine/probe_fit/probe_fit_report.h).
   std::optional<response::Generalization> generalization;
 
   // nullopt when the reference topology is unknown.

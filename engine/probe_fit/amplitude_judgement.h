@@ -20,6 +20,7 @@
 #include "engine/probe_fit/nonlinear_solves.h"
 #include "engine/probe_fit/probe_bank.h"
 #include "engine/probe_fit/probe_evaluation.h"
+#include "engine/probe_fit/probe_fit_report.h"
 #include "engine/runtime/interruption.h"
 #include "engine/runtime/worker_pool.h"
 
@@ -34,17 +35,6 @@ struct AmplitudeOptions {
 
   // Throws std::invalid_argument naming the field, its value and the rule.
   void Validate(const std::string& owner = "AmplitudeOptions") const;
-};
-
-struct AmplitudeErrors {
-  double amplitude = 0.0;
-  ErrorSummary model;
-  ErrorSummary baseline;
-  int reference_failed = 0;  // probes left out: the reference has no equilibrium there
-  // Judged probes whose equilibrium turns an element of the FEM mesh inside out
-  // (InvertedElements): the model and the baseline fail them, whatever their E.
-  int model_inverted = 0;
-  int baseline_inverted = 0;
 };
 
 // Per amplitude, on the probes of `judged` (the certificate's: the held-out probes and the named

@@ -20,6 +20,7 @@
 
 #include "engine/probe_fit/nonlinear_solves.h"
 #include "engine/probe_fit/probe_bank.h"
+#include "engine/probe_fit/probe_fit_report.h"
 #include "engine/probe_fit/spring_sensitivities.h"
 
 namespace springfit::response {
@@ -48,24 +49,6 @@ struct NonlinearFitOptions {
   void Validate(const std::string& owner = "NonlinearFitOptions") const;
 };
 
-// What the nonlinear stage of the probe fit did (FitNonlinearResponse, matrix_free_fit.h).
-struct NonlinearFitResult {
-  std::vector<double> weights;     // per gene
-  std::vector<double> amplitudes;  // NonlinearFitOptions::amplitudes
-  int fitted_cases = 0;            // probe-amplitude pairs in the objective
-  int choosing_cases = 0;          // and in the choice
-  // The choosing error (NonlinearCases::ChoosingError) of `start` and of the returned model,
-  // and their choosing cases without a stable equilibrium.
-  double start_choosing_error = 0.0;
-  double choosing_error = 0.0;
-  int start_failed = 0;
-  int failed = 0;
-  // The closed-form baseline's, where it is a model of the candidates (NaN otherwise).
-  double baseline_choosing_error = std::numeric_limits<double>::quiet_NaN();
-  double regularization = 0.0;  // of the returned iterate (0 when it is `start`)
-  int steps = 0;                // Gauss-Newton steps accepted
-  double seconds = 0.0;
-};
 // One probe at one amplitude, with the reference's equilibrium there.
 struct NonlinearCase {
   int probe = 0;  // in the bank

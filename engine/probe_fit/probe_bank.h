@@ -46,23 +46,11 @@
 #include <utility>
 #include <vector>
 
+#include "engine/probe_fit/probe_fit_report.h"
 #include "engine/probe_fit/rest_stiffness.h"
 #include "engine/problem/problem.h"
 
 namespace springfit::response {
-
-// kMode: a load along a mode a fitted model left soft (AddSoftModeProbe), added by the fit
-// itself (response_fit.h); never in the banks MakeProbeBanks returns, so never judged on.
-enum class ProbeFamily { kPoint, kPatch, kBody, kNamed, kMode, kPush, kGrasp };
-inline constexpr int kProbeFamilies = 7;
-// The family's name, as results (proto/RUN.md), the summary and the verdict's doubts say it:
-// "point", "patch", "body", "named", "mode", "push", "grasp".
-const char* ProbeFamilyName(ProbeFamily family);
-// A tool's load: imposed displacements on nodes the tool holds (push: one node, grasp: three),
-// each probe on a support of its own.
-constexpr bool IsToolFamily(ProbeFamily family) {
-  return family == ProbeFamily::kPush || family == ProbeFamily::kGrasp;
-}
 
 // The roles of the probes in a ProbeBank; the held-out ones are in HeldOutProbes.
 enum class ProbeRole { kFit, kSelect };

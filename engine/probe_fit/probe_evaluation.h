@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "engine/probe_fit/probe_bank.h"
+#include "engine/probe_fit/probe_fit_report.h"
 #include "engine/probe_fit/support_system.h"
 #include "engine/runtime/interruption.h"
 
@@ -35,20 +36,9 @@ std::vector<double> ProbeErrorsFor(const ProbeBank& bank, const SparseMatrix& mo
                                    Interruption* interruption = nullptr,
                                    const FactorizedOn& factorized = {});
 
-struct ErrorSummary {
-  int probes = 0;
-  double median = std::numeric_limits<double>::quiet_NaN();
-  double p95 = std::numeric_limits<double>::quiet_NaN();  // the 95th percentile
-  double rms = std::numeric_limits<double>::quiet_NaN();  // sqrt(mean E_p^2)
-};
 // Of the finite and infinite entries of `errors` (NaN entries are skipped).
 ErrorSummary Summarize(const std::vector<double>& errors);
 
-// Per family of the probes whose error is not NaN; families without any are left out.
-struct FamilyErrors {
-  ProbeFamily family = ProbeFamily::kPoint;
-  ErrorSummary errors;
-};
 std::vector<FamilyErrors> SummarizeByFamily(const ProbeBank& bank,
                                             const std::vector<double>& errors);
 // sqrt of the mean over families of each family's mean E_p^2: every family counts alike.
@@ -58,12 +48,6 @@ double FamilyBalancedRms(const ProbeBank& bank, const std::vector<double>& error
 // extremes of every example to settle to three digits (bench/RESULTS.md, "Held modes").
 inline constexpr int kLanczosIterations = 80;
 
-struct PencilExtremes {
-  double lambda_min = 0.0;  // 0 when the model is not held by the support
-  double lambda_max = 0.0;
-  // max(1/lambda_min - 1, 1 - 1/lambda_max): infinity when lambda_min is 0.
-  double Bound() const;
-};
 // The smallest generalised eigenvalue of (model, reference) on `reference`'s support, whose
 // factorisation it uses: 0 when the model is not held there.
 // `interruption`, when set, is checked at every Lanczos iteration (one solve).

@@ -46,6 +46,7 @@
 #include "engine/probe_fit/mode_lift.h"
 #include "engine/probe_fit/nonlinear_response.h"
 #include "engine/probe_fit/probe_bank.h"
+#include "engine/probe_fit/probe_fit_report.h"
 #include "engine/probe_fit/quadratic_nnls.h"
 #include "engine/runtime/interruption.h"
 #include "engine/runtime/worker_pool.h"
@@ -130,48 +131,6 @@ struct ResponseFitOptions {
   int continuation_patience = 3;
 
   void Validate(const std::string& owner = "ResponseFitOptions") const;
-};
-
-struct ResponseFitResult {
-  std::vector<double> weights;   // per gene, >= 0
-  std::string method = "dense";  // or "matrix-free" (ResponseFitOptions::dense_max_genes)
-  struct Point {
-    int springs = 0;
-    double select_error = 0.0;  // FamilyBalancedRms on the choosing probes
-    double lambda_min = 0.0;    // the smallest over the user supports
-  };
-  std::vector<Point> path;
-  int chosen = 0;  // the path point refined into `weights`
-  double regularization = 0.0;
-  // The strengths tried (ResponseFitOptions::regularizations, then any raised for min_lambda),
-  // and per strength its model's choosing error and smallest eigenvalue.
-  std::vector<double> regularizations;
-  std::vector<double> regularization_select_errors;
-  std::vector<double> regularization_lambda_min;
-  double lambda_min = 0.0;    // of `weights`
-  double select_error = 0.0;  // of `weights`
-  int gauss_newton_accepted = 0;
-  // Step 5: per fit (the first without soft-mode probes, then one per refit), the soft-mode
-  // probes in it and its model's springs, choosing error and smallest eigenvalue; and which
-  // fit's model was returned.
-  // The last may be step 6's lift of the model then chosen (`lifted`; no probes).
-  struct SoftModeRound {
-    int probes = 0;
-    int springs = 0;
-    double select_error = 0.0;
-    double lambda_min = 0.0;
-    bool lifted = false;
-  };
-  std::vector<SoftModeRound> soft_mode_rounds;
-  int soft_mode_chosen = 0;
-  // Wall seconds: building the first-order fit's Gram matrix, its solves (one per strength),
-  // the sparsity path, the Gauss-Newton steps.
-  double seconds_gram = 0.0;
-  double seconds_first_order = 0.0;
-  double seconds_path = 0.0;
-  double seconds_refine = 0.0;
-  // The nonlinear stage, where it ran (a nonlinear response: matrix_free_fit.h).
-  std::optional<NonlinearFitResult> nonlinear;
 };
 
 // Progress: called with the phase ("probe_fit", "probe_path", "probe_refine") and the best

@@ -18,6 +18,7 @@
 #include "engine/probe_fit/nonlinear_solves.h"
 #include "engine/probe_fit/probe_bank.h"
 #include "engine/probe_fit/probe_evaluation.h"
+#include "engine/probe_fit/probe_fit_report.h"
 #include "engine/runtime/interruption.h"
 #include "engine/runtime/worker_pool.h"
 
@@ -33,25 +34,6 @@ struct ToolPushOptions {
 
   // Throws std::invalid_argument naming the field, its value and the rule.
   void Validate(const std::string& owner = "ToolPushOptions") const;
-};
-
-struct ToolPushErrors {
-  double amplitude = 0.0;
-  double depth = 0.0;  // in the scene's length
-  ErrorSummary model;  // E over the free nodes
-  ErrorSummary baseline;
-  // |R - R_ref| / |R_ref|, R the tool's reaction (the elastic force on the pushed node).
-  ErrorSummary model_force;
-  ErrorSummary baseline_force;
-  // The median of |R| / |R_ref|: below 1, the model feels too soft to the tool.
-  double model_force_ratio = 0.0;
-  double baseline_force_ratio = 0.0;
-  int pushes = 0;            // the judged pushes (family push) with a reference equilibrium
-  int grasps = 0;            // and grasps (family grasp)
-  int reference_failed = 0;  // tool loads the reference has no equilibrium for, left out
-  // Pushes whose equilibrium turns an FEM element inside out (InvertedElements): failed.
-  int model_inverted = 0;
-  int baseline_inverted = 0;
 };
 
 // Per depth, up to options.max_tool_loads of `bank`'s tool loads (families push and grasp, each at

@@ -1,4 +1,4 @@
-"""Shared scaffolding of the daemon's end-to-end tests (protocol_test.py, client_test.py).
+"""Shared scaffolding of the daemon's end-to-end tests (protocol_*_test.py, client_*_test.py).
 
 Reporting (Report, the shared instance R, Abort, require, short), a JSON-RPC connection with a
 line reader (Conn), job polling (wait_state) and a springfitd started on 127.0.0.1 with a free
