@@ -92,7 +92,7 @@ Json WatchJob(RpcClient& client, std::int64_t job_id, bool quiet) {
     if (n["method"] == "job.progress") {
       progress.Report(proto::TraceRowFromJson(p, "params"), false);
     } else if (n["method"] == "job.phase") {
-      // Inside a step (the analysis, a fit's steps, the certificate), as `run` shows it.
+      // Inside a step (a fit's steps, the sparsity path, the certificate), as `run` shows it.
       proto::PhaseBeat beat;
       proto::ProgressBeatFromJson(p, "params", beat);
       progress.Beat(beat.beat);

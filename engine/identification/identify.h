@@ -47,7 +47,7 @@ struct ProgressBeat {
   // "probe_path", "probe_refine", "probe_lift", "nonlinear_fit", "certificate" and "nonlinear"
   // (the judgement as the simulator runs it). proto/RPC.md (job.phase) lists them too.
   std::string_view phase;
-  double wall_seconds = 0.0;  // on the run's clock (analysis: since the run began)
+  double wall_seconds = 0.0;  // on the run's clock
   int generation = 0;         // the generation in progress
   std::int64_t evaluations = 0;
   double best_normalized_error = 0.0;  // of the best model so far

@@ -295,7 +295,7 @@ void Scheduler::OnBeat(std::int64_t id, Running& running, const JobRecord& job,
     running.phase = LivePhase{std::string(beat.phase), beat.wall_seconds,
                               std::sqrt(beat.best_normalized_error)};
   }
-  // A watcher sees where the step has got (the preparation's analysis, a fit's steps, the
+  // A watcher sees where the step has got (a fit's steps, the sparsity path, the
   // certificate): each phase's first beat, then at most every progress_seconds.
   const auto now = std::chrono::steady_clock::now();
   if (beat.phase == running.last_phase &&
