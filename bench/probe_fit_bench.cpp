@@ -80,10 +80,6 @@ int Main(int argc, char** argv) {
                  "ResponseFitOptions::soft_modes_per_round");
   app.add_option("--regularizations", defaults.regularizations,
                  "ResponseFitOptions::regularizations");
-  app.add_option("--gauss-newton-steps", defaults.gauss_newton_steps,
-                 "ResponseFitOptions::gauss_newton_steps");
-  app.add_option("--dense-max-genes", defaults.dense_max_genes,
-                 "ResponseFitOptions::dense_max_genes");
   app.add_option("--steps-per-strength", defaults.steps_per_strength,
                  "ResponseFitOptions::steps_per_strength");
   app.add_option("--cg-iterations", defaults.cg_iterations, "ResponseFitOptions::cg_iterations");
@@ -127,20 +123,11 @@ int Main(int argc, char** argv) {
     const response::ResponseFitResult fit =
         response::FitResponse(problem, bank, k_ref, prior, options, nullptr, {}, pool.get());
     // (The returned fit's phases: after a soft-mode refit, the refit's.)
-    if (fit.method == "matrix-free") {
-      std::printf(
-          "  fit: %.2f s (Gauss-Newton continuation %.2f s, spring budget %.2f s), %d springs, "
-          "regularisation %g, %d GN steps\n",
-          Seconds(t2), fit.seconds_first_order, fit.seconds_path, PresentSprings(fit.weights),
-          fit.regularization, fit.gauss_newton_accepted);
-    } else {
-      std::printf(
-          "  fit: %.2f s (gram %.2f s, first-order fits %.2f s, path %.2f s, Gauss-Newton %.2f "
-          "s), %d springs, regularisation %g, %d GN steps\n",
-          Seconds(t2), fit.seconds_gram, fit.seconds_first_order, fit.seconds_path,
-          fit.seconds_refine, PresentSprings(fit.weights), fit.regularization,
-          fit.gauss_newton_accepted);
-    }
+    std::printf(
+        "  fit: %.2f s (Gauss-Newton continuation %.2f s, spring budget %.2f s), %d springs, "
+        "regularisation %g, %d GN steps\n",
+        Seconds(t2), fit.seconds_continuation, fit.seconds_budget, PresentSprings(fit.weights),
+        fit.regularization, fit.gauss_newton_accepted);
     std::printf("    %s fit, strengths:", fit.method.c_str());
     for (std::size_t i = 0; i < fit.regularizations.size(); ++i)
       std::printf(" %g:%.3g (lambda %.3g)", fit.regularizations[i],

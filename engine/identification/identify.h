@@ -44,7 +44,7 @@ struct ProgressBeat {
   // continuous on the named cases: "regularization", "fit" (`evaluations` accepted steps, the
   // last one's error), "path" (the sparsity path: `generation` points so far, the last one's
   // error), "refit" and "held_out"; fitted to probes: "probes" (the banks), "probe_fit",
-  // "probe_path", "probe_refine", "probe_lift", "nonlinear_fit", "certificate" and "nonlinear"
+  // "probe_path", "probe_lift", "nonlinear_fit", "certificate" and "nonlinear"
   // (the judgement as the simulator runs it). proto/RPC.md (job.phase) lists them too.
   std::string_view phase;
   double wall_seconds = 0.0;  // on the run's clock

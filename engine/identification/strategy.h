@@ -68,8 +68,7 @@ WorkerPool* PoolOf(const RunContext& context, std::unique_ptr<WorkerPool>& own);
 
 // Strategy continuous fits the reference's whole response (probe_fit_strategy.cpp) when the
 // reference can be probed (FEM or MSS), the probes are not switched off and no target error is
-// set (it chooses along the named cases' path); by the matrix-free fit (matrix_free_fit.h) unless
-// ResponseFitOptions::dense_max_genes asks for the dense one.
+// set (it chooses along the named cases' path), by the matrix-free fit (matrix_free_fit.h).
 bool FitsToProbes(const Problem& problem, const SearchOptions& options);
 // A model certified on the probe bank: the model returned (the one given, or the closed-form
 // baseline when the given one is not better on the choosing probes), and its certificate.

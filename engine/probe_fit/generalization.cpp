@@ -29,9 +29,10 @@ Generalization Certifier::Certify(const std::vector<double>& model, const Sparse
   g.held_out = held_out_;
   const std::vector<bool> every(judged_.probes.size(), true);
   const SparseMatrix k_model = SpringRestStiffness(problem_, model);
-  const std::vector<double> model_errors = ProbeErrorsFor(judged_, k_model, every, interruption);
+  const std::vector<double> model_errors =
+      ProbeErrorsFor(judged_, k_model, every, interruption, {}, ToolSolves::kThroughBase);
   const std::vector<double> baseline_errors =
-      ProbeErrorsFor(judged_, baseline, every, interruption);
+      ProbeErrorsFor(judged_, baseline, every, interruption, {}, ToolSolves::kThroughBase);
   g.model = SummarizeByFamily(judged_, model_errors);
   g.baseline = SummarizeByFamily(judged_, baseline_errors);
   const auto held_only = [&](const std::vector<double>& errors) {

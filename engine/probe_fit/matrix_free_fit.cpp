@@ -192,21 +192,14 @@ class MatrixFreeFit {
 
   // The best iterate within the spring budget that is a model; nothing when none is.
   std::optional<std::size_t> BestWithinBudget() const {
-    std::vector<std::size_t> within;
+    std::vector<int> springs;
     std::vector<double> errors, lambdas;
-    for (std::size_t i = 0; i < iterates_.size(); ++i) {
-      const Iterate& it = iterates_[i];
-      if (PresentSprings(it.weights) > options_.max_springs || !(it.lambda_min > 0.0) ||
-          !(it.select_error < kNoModel))
-        continue;
-      within.push_back(i);
+    for (const Iterate& it : iterates_) {
+      springs.push_back(PresentSprings(it.weights));
       errors.push_back(it.select_error);
       lambdas.push_back(it.lambda_min);
     }
-    if (within.empty()) return std::nullopt;
-    const std::vector<double> score = PreferSupported(errors, lambdas, options_);
-    return within[static_cast<std::size_t>(std::min_element(score.begin(), score.end()) -
-                                           score.begin())];
+    return response::BestWithinBudget(springs, errors, lambdas, options_);
   }
 
   // The best iterate from `from` on, on the choosing probes, preferring one that holds every
@@ -352,7 +345,7 @@ ResponseFitResult FitResponseMatrixFree(const Problem& problem, const ProbeBank&
   ResponseFitResult r;
   r.method = "matrix-free";
   fit.Continuation(r);
-  r.seconds_first_order = seconds();
+  r.seconds_continuation = seconds();
 
   std::size_t chosen = fit.BestOf(0);
   const auto point = [&](std::size_t i) {
@@ -375,7 +368,7 @@ ResponseFitResult FitResponseMatrixFree(const Problem& problem, const ProbeBank&
   r.select_error = returned.select_error;
   r.lambda_min = returned.lambda_min;
   r.gauss_newton_accepted = returned.step;
-  r.seconds_path = seconds() - r.seconds_first_order;
+  r.seconds_budget = seconds() - r.seconds_continuation;
   return r;
 }
 

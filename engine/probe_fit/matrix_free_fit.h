@@ -1,8 +1,7 @@
-// The probe fit without a Gram matrix (response_fit.h, step 2; the default at every size, above
-// ResponseFitOptions::dense_max_genes): the dense fit's m^2 doubles and m^3 / 3 per Newton step
-// rule it out on meshes (a 3D mesh of a thousand nodes has six thousand springs), and with the
-// held modes this fit does better on the kidney's 700 genes too. It uses only sparse solves with
-// each support's factorisation, so its memory grows with the mesh and the probes, not with the
+// The probe fit's one driver (response_fit.h, step 2), without a Gram matrix: a Gram matrix in
+// the genes takes m^2 doubles and m^3 / 3 per Newton step, which rules it out on meshes (a 3D
+// mesh of a thousand nodes has six thousand springs). It uses only sparse solves with each
+// support's factorisation, so its memory grows with the mesh and the probes, not with the
 // square of the springs.
 //
 // Projected Gauss-Newton on the exact error (the rest-linear responses) over the fitted probes,
@@ -22,7 +21,7 @@
 // The Tikhonov strengths are a continuation (strongest first, `steps_per_strength` steps each,
 // ended after `continuation_patience` strengths in a row that do no better):
 // every accepted iterate is judged on the choosing probes and the best is returned, preferring
-// one that holds every mode (min_lambda), as the dense fit chooses. Springs the fit drives to 0,
+// one that holds every mode (min_lambda). Springs the fit drives to 0,
 // or to dust, leave the model. Every mode a judged model leaves below the held target gives a
 // cut whose penalty joins Phi (mode_cuts.h). With a spring budget, the least salient springs of
 // the chosen model (1/2 x_e^2 (J^T J)_ee) are removed, a tenth at a time down to it, each

@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/probe_fit/compliance_gram.h"
+#include "engine/probe_fit/gene_springs.h"
 #include "engine/probe_fit/probe_evaluation.h"
 #include "engine/probe_fit/support_system.h"
 

@@ -1,6 +1,6 @@
 #include "engine/probe_fit/mode_lift.h"
 
-#include "engine/probe_fit/compliance_gram.h"
+#include "engine/probe_fit/gene_springs.h"
 #include "engine/probe_fit/mode_cuts.h"
 #include "engine/probe_fit/probe_evaluation.h"
 #include "engine/probe_fit/quadratic_nnls.h"

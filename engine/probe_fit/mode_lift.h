@@ -1,4 +1,4 @@
-// Step 6 of the probe fit (response_fit.h): the smallest stiffening that lifts the modes a
+// Step 4 of the probe fit (response_fit.h): the smallest stiffening that lifts the modes a
 // model leaves soft.
 //
 // The smallest generalised eigenvalue of (K_model, K_ref) on a support is the minimum over
@@ -14,7 +14,7 @@
 // prediction optimistic, so the rounds repeat on the new modes. Only present springs change:
 // the spring count, and a spring budget with it, stay as they were.
 //
-// Where the soft-mode refits (step 5) lift a mode by fitting the load along it, which moves
+// Where the soft-mode refits (step 3) lift a mode by fitting the load along it, which moves
 // every spring and lets another mode sink, this moves only the springs the soft modes stretch,
 // by the least that lifts them.
 #pragma once

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <map>
 #include <numeric>
 #include <stdexcept>
@@ -381,7 +382,7 @@ class BankBuilder {
         const std::size_t begin = bank_.probes.size();
         for (int node : EvenlySpread(pushable, made))
           AddTool(s, family, push ? std::vector<int>{node} : Nearest(scene_, pushable, node, 3),
-                  -surface_.normal.segment(d_ * node, d_));
+                  -surface_.normal.segment(d_ * node, d_), !fitted);
         AssignRoles(bank_.probes, held_, begin, options_, random_);
         if (!fitted)
           for (std::size_t p = begin; p < held_.size(); ++p) held_[p] = true;
@@ -472,17 +473,20 @@ class BankBuilder {
   // A tool load on base support `base`: `nodes` held and moved by the bank's amplitude along
   // the unit `direction` (the tool's depth is the loads' size; the body beyond it may move
   // further, as a cantilever's tip does). Dropped when the base support with the nodes held
-  // does not hold the reference.
+  // does not hold the reference. `held_out_only`: the reference solved through the base's
+  // factor (support_system.h; as the certificate solves the models), else with a factorisation
+  // of its own (as the fit's judgements do: probe_evaluation.h, ToolSolves).
   void AddTool(std::size_t base, ProbeFamily family, const std::vector<int>& nodes,
-               const Vector& direction) {
+               const Vector& direction, bool held_out_only) {
     Support support = bank_.supports[base];
     support.user = false;
     support.tool_nodes = nodes;
+    support.base = static_cast<int>(base);
     for (int node : nodes) support.constrained[static_cast<std::size_t>(node)] = true;
     support.description =
         fmt::format("{} at node {} on {}", family == ProbeFamily::kPush ? "push" : "grasp",
                     nodes[0], bank_.supports[base].description);
-    SupportSystem system(d_, support.constrained);
+    SupportSystem system(d_, support.constrained, held_out_only ? &systems_[base] : nullptr);
     if (!system.Factorize(reference_stiffness_)) return;
     Probe probe;
     probe.family = family;
@@ -505,8 +509,9 @@ class BankBuilder {
   RandomStream random_;
   const Surface surface_;
   ProbeBank bank_;
-  std::vector<bool> held_;              // per probe of bank_: held out
-  std::vector<SupportSystem> systems_;  // per support of the bank
+  std::vector<bool> held_;  // per probe of bank_: held out
+  // Per support of the bank (a deque: a tool load's system points to its base's).
+  std::deque<SupportSystem> systems_;
   std::vector<int> support_of_free_set_;
 };
 

@@ -119,6 +119,10 @@ struct Support {
   // A tool load's support (families push and grasp): the nodes the tool holds at their depth,
   // besides the base support's nodes; empty for every other support.
   std::vector<int> tool_nodes;
+  // A tool load's base support (index into the bank's supports: the one the tool pushes on,
+  // which holds its other nodes); -1 for every other support. Its systems solve through the
+  // base's factor (support_system.h).
+  int base = -1;
   bool tool() const { return !tool_nodes.empty(); }
   std::string description;  // "load case 'stretch'", "boundary patch around node 17"
 };

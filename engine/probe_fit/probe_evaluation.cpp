@@ -87,7 +87,7 @@ double LargestPencilEigenvalue(const SupportSystem& a, const SupportSystem& b, i
 
 std::vector<double> ProbeErrorsFor(const ProbeBank& bank, const SparseMatrix& model,
                                    const std::vector<bool>& include, Interruption* interruption,
-                                   const FactorizedOn& factorized) {
+                                   const FactorizedOn& factorized, ToolSolves tool_solves) {
   const auto check = [interruption] {
     if (interruption && interruption->Check()) throw Interrupted();
   };
@@ -95,41 +95,58 @@ std::vector<double> ProbeErrorsFor(const ProbeBank& bank, const SparseMatrix& mo
   const int d = bank.probes.empty() ? 2
                                     : static_cast<int>(bank.probes[0].force.size()) /
                                           static_cast<int>(bank.supports[0].constrained.size());
+  std::vector<std::vector<std::size_t>> mine(bank.supports.size());
+  for (std::size_t p = 0; p < bank.probes.size(); ++p)
+    if (include[p]) mine[static_cast<std::size_t>(bank.probes[p].support)].push_back(p);
+  // The errors of support s's probes, solved with `system` (held: factorised).
+  const auto judge = [&](std::size_t s, const SupportSystem& system, bool held) {
+    if (!held) {
+      for (std::size_t p : mine[s]) errors[p] = kInf;
+      return;
+    }
+    // The probes' solves in batches of 16 (one pass over the factor each), a stop check
+    // before every batch.
+    for (std::size_t first = 0; first < mine[s].size(); first += 16) {
+      check();
+      const std::size_t count = std::min<std::size_t>(16, mine[s].size() - first);
+      Matrix u(system.free_dofs(), static_cast<Eigen::Index>(count));
+      for (std::size_t j = 0; j < count; ++j) {
+        const Probe& probe = bank.probes[mine[s][first + j]];
+        u.col(static_cast<Eigen::Index>(j)) = system.RightHandSide(probe.force, probe.prescribed);
+      }
+      system.SolveColumns(u);
+      for (std::size_t j = 0; j < count; ++j) {
+        const Probe& probe = bank.probes[mine[s][first + j]];
+        const double e2 =
+            (u.col(static_cast<Eigen::Index>(j)) - system.Gather(probe.reference)).squaredNorm();
+        errors[mine[s][first + j]] = std::sqrt(e2 / probe.reference_norm2);
+      }
+    }
+  };
+  // Per support that is no tool load's, its probes, then those of the tool loads on it, each
+  // solved through its factor (support_system.h), which is factorised once for them all.
+  std::vector<std::vector<std::size_t>> tools(bank.supports.size());
+  for (std::size_t s = 0; s < bank.supports.size(); ++s)
+    if (bank.supports[s].base >= 0 && !mine[s].empty())
+      tools[static_cast<std::size_t>(bank.supports[s].base)].push_back(s);
   for (std::size_t s = 0; s < bank.supports.size(); ++s) {
-    bool any = false;
-    for (std::size_t p = 0; p < bank.probes.size(); ++p)
-      any |= include[p] && bank.probes[p].support == static_cast<int>(s);
-    if (!any) continue;
+    if (bank.supports[s].base >= 0 || (mine[s].empty() && tools[s].empty())) continue;
     check();
     const SupportSystem* given = factorized ? factorized(s) : nullptr;
     std::optional<SupportSystem> own;
     if (!given) own.emplace(d, bank.supports[s].constrained);
     const bool held = given || own->Factorize(model);
     const SupportSystem& system = given ? *given : *own;
-    std::vector<std::size_t> mine;
-    for (std::size_t p = 0; p < bank.probes.size(); ++p)
-      if (include[p] && bank.probes[p].support == static_cast<int>(s)) mine.push_back(p);
-    if (!held) {
-      for (std::size_t p : mine) errors[p] = kInf;
-      continue;
-    }
-    // The probes' solves in batches of 16 (one pass over the factor each), a stop check
-    // before every batch.
-    for (std::size_t first = 0; first < mine.size(); first += 16) {
+    judge(s, system, held);
+    for (std::size_t t : tools[s]) {
       check();
-      const std::size_t count = std::min<std::size_t>(16, mine.size() - first);
-      Matrix u(system.free_dofs(), static_cast<Eigen::Index>(count));
-      for (std::size_t j = 0; j < count; ++j) {
-        const Probe& probe = bank.probes[mine[first + j]];
-        u.col(static_cast<Eigen::Index>(j)) = system.RightHandSide(probe.force, probe.prescribed);
-      }
-      system.SolveColumns(u);
-      for (std::size_t j = 0; j < count; ++j) {
-        const Probe& probe = bank.probes[mine[first + j]];
-        const double e2 =
-            (u.col(static_cast<Eigen::Index>(j)) - system.Gather(probe.reference)).squaredNorm();
-        errors[mine[first + j]] = std::sqrt(e2 / probe.reference_norm2);
-      }
+      const SupportSystem* given_tool = factorized ? factorized(t) : nullptr;
+      std::optional<SupportSystem> own_tool;
+      const bool through_base = held && tool_solves == ToolSolves::kThroughBase;
+      if (!given_tool)
+        own_tool.emplace(d, bank.supports[t].constrained, through_base ? &system : nullptr);
+      const bool tool_held = given_tool || own_tool->Factorize(model);
+      judge(t, given_tool ? *given_tool : *own_tool, tool_held);
     }
   }
   return errors;

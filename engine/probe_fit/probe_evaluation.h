@@ -28,13 +28,22 @@ namespace springfit::response {
 // same matrix on the same support, so the same bits.
 using FactorizedOn = std::function<const SupportSystem*(std::size_t support)>;
 
+// How ProbeErrorsFor solves a tool load's support (support_system.h): through its base
+// support's factor, bordered by the tool's nodes (the certificate's held-out pushes and grasps:
+// in 3D each one's own factorisation costs as much as its base's), or with a factorisation of
+// its own (the fit's judgements: they choose among nearly tied iterates, a choice that tips on
+// the last bits, and the two solves agree to 1e-10, not bit for bit; a fitted tool support is
+// factorised in the fit's linearisation anyway).
+enum class ToolSolves { kOwnFactor, kThroughBase };
+
 // Per probe of the bank, E_p where `include[p]` (NaN for the others). `interruption`, when set,
 // is checked before each support's factorisation and every 16 probes' solves; it throws
 // Interrupted when a stop is requested.
 std::vector<double> ProbeErrorsFor(const ProbeBank& bank, const SparseMatrix& model,
                                    const std::vector<bool>& include,
                                    Interruption* interruption = nullptr,
-                                   const FactorizedOn& factorized = {});
+                                   const FactorizedOn& factorized = {},
+                                   ToolSolves tool_solves = ToolSolves::kOwnFactor);
 
 // Of the finite and infinite entries of `errors` (NaN entries are skipped).
 ErrorSummary Summarize(const std::vector<double>& errors);

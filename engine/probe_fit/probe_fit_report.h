@@ -103,15 +103,17 @@ struct NonlinearFitResult {
 
 // What the probe fit did (FitResponse, response_fit.h).
 struct ResponseFitResult {
-  std::vector<double> weights;   // per gene, >= 0
-  std::string method = "dense";  // or "matrix-free" (ResponseFitOptions::dense_max_genes)
+  std::vector<double> weights;         // per gene, >= 0
+  std::string method = "matrix-free";  // the fit that ran (one since the dense fit left)
   struct Point {
     int springs = 0;
     double select_error = 0.0;  // FamilyBalancedRms on the choosing probes
     double lambda_min = 0.0;    // the smallest over the user supports
   };
+  // The continuation's chosen model, then, with a spring budget it exceeds, the best within the
+  // budget; `chosen` is the one returned.
   std::vector<Point> path;
-  int chosen = 0;  // the path point refined into `weights`
+  int chosen = 0;
   double regularization = 0.0;
   // The strengths tried (ResponseFitOptions::regularizations, then any raised for min_lambda),
   // and per strength its model's choosing error and smallest eigenvalue.
@@ -121,10 +123,10 @@ struct ResponseFitResult {
   double lambda_min = 0.0;    // of `weights`
   double select_error = 0.0;  // of `weights`
   int gauss_newton_accepted = 0;
-  // Step 5: per fit (the first without soft-mode probes, then one per refit), the soft-mode
+  // Step 3: per fit (the first without soft-mode probes, then one per refit), the soft-mode
   // probes in it and its model's springs, choosing error and smallest eigenvalue; and which
   // fit's model was returned.
-  // The last may be step 6's lift of the model then chosen (`lifted`; no probes).
+  // The last may be step 4's lift of the model then chosen (`lifted`; no probes).
   struct SoftModeRound {
     int probes = 0;
     int springs = 0;
@@ -134,12 +136,9 @@ struct ResponseFitResult {
   };
   std::vector<SoftModeRound> soft_mode_rounds;
   int soft_mode_chosen = 0;
-  // Wall seconds: building the first-order fit's Gram matrix, its solves (one per strength),
-  // the sparsity path, the Gauss-Newton steps.
-  double seconds_gram = 0.0;
-  double seconds_first_order = 0.0;
-  double seconds_path = 0.0;
-  double seconds_refine = 0.0;
+  // Wall seconds: the continuation over the strengths, and the spring budget's sparsity paths.
+  double seconds_continuation = 0.0;
+  double seconds_budget = 0.0;
   // The nonlinear stage, where it ran (a nonlinear response: matrix_free_fit.h).
   std::optional<NonlinearFitResult> nonlinear;
 };

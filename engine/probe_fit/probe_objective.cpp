@@ -63,6 +63,26 @@ std::vector<double> PreferSupported(const std::vector<double>& errors,
   return score;
 }
 
+std::optional<std::size_t> BestWithinBudget(const std::vector<int>& springs,
+                                            const std::vector<double>& errors,
+                                            const std::vector<double>& lambda_min,
+                                            const ResponseFitOptions& options) {
+  if (options.max_springs == 0) return std::nullopt;
+  std::vector<std::size_t> models;
+  std::vector<double> model_errors, model_lambdas;
+  for (std::size_t i = 0; i < springs.size(); ++i) {
+    if (springs[i] <= options.max_springs && lambda_min[i] > 0.0 && errors[i] < kNoModel) {
+      models.push_back(i);
+      model_errors.push_back(errors[i]);
+      model_lambdas.push_back(lambda_min[i]);
+    }
+  }
+  if (models.empty()) return std::nullopt;
+  const std::vector<double> score = PreferSupported(model_errors, model_lambdas, options);
+  return models[static_cast<std::size_t>(std::min_element(score.begin(), score.end()) -
+                                         score.begin())];
+}
+
 Vector PriorScale(const std::vector<double>& prior) {
   const double median = MedianPositive(prior);
   Vector scale(static_cast<Eigen::Index>(prior.size()));

@@ -1,10 +1,11 @@
 // What every probe fit judges a model by (response_fit.h): the fitted objective, the choosing
-// error, the smallest generalised eigenvalue, and the scaled variables the fits work in. Shared
-// by the dense fit (a Gram matrix in the genes) and the matrix-free one (solves only), so that
-// both choose by the same numbers.
+// error, the smallest generalised eigenvalue, the choices among candidate models, and the scaled
+// variables the fits work in: the rest-linear fit, its nonlinear stage, the soft-mode rounds and
+// the lift all choose by the same numbers.
 #pragma once
 
 #include <limits>
+#include <optional>
 #include <vector>
 
 #include "engine/probe_fit/probe_bank.h"
@@ -30,6 +31,15 @@ std::vector<double> FitWeights(const ProbeBank& bank, const ProbeOptions& option
 std::vector<double> PreferSupported(const std::vector<double>& errors,
                                     const std::vector<double>& lambda_min,
                                     const ResponseFitOptions& options);
+
+// With a spring budget (options.max_springs > 0), the candidate to return among those within
+// it that are models (a finite choosing error, lambda_min > 0: every support holds them), by
+// PreferSupported; nothing without a budget or when no model is within it. Candidate i has
+// springs[i] springs, choosing error errors[i] and smallest eigenvalue lambda_min[i].
+std::optional<std::size_t> BestWithinBudget(const std::vector<int>& springs,
+                                            const std::vector<double>& errors,
+                                            const std::vector<double>& lambda_min,
+                                            const ResponseFitOptions& options);
 
 // The fits work in scaled variables x = k / scale, scale = the prior stiffness (at least a tenth
 // of its median), so that a fit does not depend on units and the Tikhonov pull moves every

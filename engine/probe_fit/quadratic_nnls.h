@@ -1,6 +1,6 @@
 // A convex quadratic over the non-negative orthant:
 //   minimise q(x) = 1/2 x^T H x - c^T x   subject to x >= 0,
-// H symmetric positive semi-definite and dense (the probe fit's Gram matrix, compliance_gram.h).
+// H symmetric positive semi-definite and dense (the mode lift's dual, mode_lift.h).
 //
 // Projected Newton (Bertsekas, "Projected Newton methods for optimization problems with simple
 // constraints", SIAM J. Control Optim. 20(2), 1982): each iteration fixes the variables at
@@ -8,8 +8,8 @@
 // the others (a dense Cholesky of H restricted to them, with a relative ridge that keeps it
 // positive definite where H is only semi-definite), and searches along the projected arc
 // max(x + alpha d, 0) with Armijo's rule. Variables held at 0 by `fixed` stay there.
-// On the few hundred to few thousand springs of a probe fit it converges in a few tens of
-// iterations; the Cholesky is the cost (m^3 / 3 per iteration).
+// On the mode lift's few tens of modes it converges in a few iterations; the Cholesky is the
+// cost (m^3 / 3 per iteration).
 #pragma once
 
 #include <string>

@@ -24,7 +24,7 @@
 #include <functional>
 #include <vector>
 
-#include "engine/probe_fit/compliance_gram.h"
+#include "engine/probe_fit/gene_springs.h"
 #include "engine/probe_fit/probe_evaluation.h"
 #include "engine/runtime/interruption.h"
 #include "engine/runtime/worker_pool.h"

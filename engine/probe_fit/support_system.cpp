@@ -1,5 +1,8 @@
 #include "engine/probe_fit/support_system.h"
 
+#include <algorithm>
+#include <stdexcept>
+
 #include <Eigen/Cholesky>
 
 #include "engine/linalg/blocked_triangular_solve.h"
@@ -47,7 +50,85 @@ SupportSystem SupportSystem::OfDofs(int dimension, const std::vector<bool>& held
   return system;
 }
 
+SupportSystem::SupportSystem(int dimension, const std::vector<bool>& constrained,
+                             const SupportSystem* base)
+    : SupportSystem(dimension, constrained) {
+  if (!base) return;
+  base_ = base;
+  for (int dof : free_dofs_) {
+    const int b = base->free_index_[static_cast<std::size_t>(dof)];
+    if (b < 0)
+      throw std::invalid_argument(
+          "SupportSystem: a bordered support frees a degree of freedom "
+          "its base holds");
+    base_index_.push_back(b);
+  }
+  for (std::size_t dof = 0; dof < free_index_.size(); ++dof)
+    if (free_index_[dof] < 0 && base->free_index_[dof] >= 0)
+      border_.push_back(base->free_index_[dof]);
+}
+
+namespace {
+
+// Whether two matrices are the same, entry for entry (a cheap pass beside a factorisation).
+bool SameMatrix(const SparseMatrix& a, const SparseMatrix& b) {
+  if (a.rows() != b.rows() || a.cols() != b.cols() || a.nonZeros() != b.nonZeros() ||
+      !a.isCompressed() || !b.isCompressed())
+    return false;
+  const auto nnz = static_cast<std::size_t>(a.nonZeros());
+  return std::equal(a.outerIndexPtr(), a.outerIndexPtr() + a.outerSize() + 1, b.outerIndexPtr()) &&
+         std::equal(a.innerIndexPtr(), a.innerIndexPtr() + nnz, b.innerIndexPtr()) &&
+         std::equal(a.valuePtr(), a.valuePtr() + nnz, b.valuePtr());
+}
+
+}  // namespace
+
 bool SupportSystem::Factorize(const SparseMatrix& full) {
+  bordered_ = false;
+  if (base_ && base_->held_ && !base_->bordered_ && SameMatrix(full, base_->full_)) {
+    full_ = SparseMatrix();
+    restricted_ = SparseMatrix();
+    llt_.reset();
+    supernodal_.reset();
+    return held_ = FactorizeBordered();
+  }
+  return held_ = FactorizeOwn(full);
+}
+
+// A principal submatrix of the base's positive definite K_ff: positive definite too, and so is
+// the Schur complement.
+bool SupportSystem::FactorizeBordered() {
+  if (free_dofs() == 0) return false;
+  const auto m = static_cast<Eigen::Index>(border_.size());
+  border_solves_ = Matrix::Zero(base_->free_dofs(), m);
+  for (Eigen::Index j = 0; j < m; ++j)
+    border_solves_(border_[static_cast<std::size_t>(j)], j) = 1.0;
+  base_->SolveColumns(border_solves_);
+  Matrix schur(m, m);
+  for (Eigen::Index i = 0; i < m; ++i)
+    schur.row(i) = border_solves_.row(border_[static_cast<std::size_t>(i)]);
+  schur_.compute(schur);
+  if (schur_.info() != Eigen::Success) return false;
+  bordered_ = true;
+  return true;
+}
+
+void SupportSystem::SolveBordered(Matrix& b) const {
+  // With u_c = 0 on the degrees of freedom held besides: K u = b + E mu on the base's free ones
+  // and E^T u = 0, so u = w - Z S^-1 E^T w with w = K^-1 b, Z = K^-1 E and S = E^T Z.
+  Matrix w = Matrix::Zero(base_->free_dofs(), b.cols());
+  for (std::size_t i = 0; i < base_index_.size(); ++i)
+    w.row(base_index_[i]) = b.row(static_cast<Eigen::Index>(i));
+  base_->SolveColumns(w);
+  Matrix t(static_cast<Eigen::Index>(border_.size()), b.cols());
+  for (std::size_t j = 0; j < border_.size(); ++j)
+    t.row(static_cast<Eigen::Index>(j)) = w.row(border_[j]);
+  w.noalias() -= border_solves_ * schur_.solve(t);
+  for (std::size_t i = 0; i < base_index_.size(); ++i)
+    b.row(static_cast<Eigen::Index>(i)) = w.row(base_index_[i]);
+}
+
+bool SupportSystem::FactorizeOwn(const SparseMatrix& full) {
   full_ = full;
   const int n = free_dofs();
   std::vector<Eigen::Triplet<double>> t;
@@ -100,17 +181,25 @@ Vector SupportSystem::Scatter(const Vector& free, const Vector& prescribed) cons
 
 Vector SupportSystem::RightHandSide(const Vector& force, const Vector& prescribed) const {
   if (prescribed.size() == 0 || prescribed.isZero(0.0)) return Gather(force);
-  return Gather(force - full_ * prescribed);
+  return Gather(force - Full() * prescribed);
 }
 
 void SupportSystem::Solve(Vector& b) const {
-  if (supernodal_)
+  if (bordered_) {
+    Matrix column = b;
+    SolveBordered(column);
+    b = column.col(0);
+  } else if (supernodal_)
     supernodal_->Solve(b);
   else
     b = llt_->solve(b);
 }
 
 void SupportSystem::SolveColumns(Matrix& b) const {
+  if (bordered_) {
+    SolveBordered(b);
+    return;
+  }
   if (supernodal_) {
     supernodal_->SolveColumns(b);
     return;
@@ -134,14 +223,15 @@ Vector SupportSystem::Displacement(const Vector& force, const Vector& prescribed
 }
 
 Vector SupportSystem::Multiply(const Vector& x) const {
-  return restricted_.selfadjointView<Eigen::Lower>() * x;
-}
-
-Matrix SupportSystem::Compliance() const {
-  const int n = free_dofs();
-  Matrix c = Matrix::Identity(n, n);
-  SolveColumns(c);
-  return c;
+  if (!bordered_) return restricted_.selfadjointView<Eigen::Lower>() * x;
+  Vector on_base = Vector::Zero(base_->free_dofs());
+  for (std::size_t i = 0; i < base_index_.size(); ++i)
+    on_base[base_index_[i]] = x[static_cast<Eigen::Index>(i)];
+  const Vector product = base_->Multiply(on_base);
+  Vector y(free_dofs());
+  for (std::size_t i = 0; i < base_index_.size(); ++i)
+    y[static_cast<Eigen::Index>(i)] = product[base_index_[i]];
+  return y;
 }
 
 }  // namespace springfit::response

@@ -15,6 +15,7 @@
 #include <memory>
 #include <vector>
 
+#include <Eigen/Cholesky>
 #include <Eigen/SparseCholesky>
 
 #include "engine/linalg/supernodal_cholesky.h"
@@ -31,6 +32,16 @@ class SupportSystem {
   // minimal one that removes the rigid motions alone (free_body.h). constrained() is then true
   // for a node with any held degree of freedom.
   static SupportSystem OfDofs(int dimension, const std::vector<bool>& held_dofs);
+  // A support that holds what `base` holds and more nodes besides (a tool's nodes on the
+  // support it pushes on). When `base` holds the matrix later given to Factorize() (its own
+  // last Factorize() had the same matrix and succeeded), this system solves through base's
+  // factor instead of factorising anew: the m degrees of freedom it holds besides border
+  // base's system (a Schur complement: m solves with base's factor once, then per load one
+  // solve with it and one with an m x m matrix; docs/ARCHITECTURE.md, "Tool pushes"). Else
+  // it factorises as any system. `base` must outlive this system and must not be factorised
+  // again while this one is used; base's SolveColumns() is then called from this one's
+  // thread, which is safe beside base's own solves.
+  SupportSystem(int dimension, const std::vector<bool>& constrained, const SupportSystem* base);
   SupportSystem(SupportSystem&&) = default;
   SupportSystem& operator=(SupportSystem&&) = default;
 
@@ -46,6 +57,8 @@ class SupportSystem {
   // the prescribed displacements' coupling. False when that restriction is not positive
   // definite: the support leaves a mechanism (or the matrix is indefinite).
   bool Factorize(const SparseMatrix& full);
+  // Whether the last Factorize() solved through the base's factor (above).
+  bool bordered() const { return bordered_; }
   // The free entries of a flat d*n vector.
   Vector Gather(const Vector& full) const;
   // A flat d*n vector: `free` on the free degrees of freedom, `prescribed`'s entries elsewhere.
@@ -59,12 +72,16 @@ class SupportSystem {
   void SolveColumns(Matrix& b) const;
   // The full displacement (flat d*n) under a load.
   Vector Displacement(const Vector& force, const Vector& prescribed) const;
-  // K_ff^-1, dense (free x free).
-  Matrix Compliance() const;
   // K_ff x for x on the free degrees of freedom (the matrix last given to Factorize()).
   Vector Multiply(const Vector& x) const;
 
  private:
+  bool FactorizeOwn(const SparseMatrix& full);
+  bool FactorizeBordered();
+  // Overwrites b (free x columns) with K_ff^-1 b through the base's factor.
+  void SolveBordered(Matrix& b) const;
+  const SparseMatrix& Full() const { return bordered_ ? base_->full_ : full_; }
+
   int dimension_ = 2;
   std::vector<bool> constrained_;
   std::vector<int> free_dofs_;
@@ -74,6 +91,16 @@ class SupportSystem {
   using Llt = Eigen::SimplicialLLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>>;
   std::unique_ptr<Llt> llt_;
   std::unique_ptr<SupernodalCholesky> supernodal_;  // (3D, from kSupernodalMinDofs3d)
+  bool held_ = false;                               // the last Factorize()'s answer
+  // The bordered solve: the base, per free degree of freedom its index among the base's free
+  // ones, the base's free indices of the degrees of freedom held besides (E's columns), base's
+  // K_ff^-1 E, and the Cholesky factor of the Schur complement E^T K_ff^-1 E.
+  const SupportSystem* base_ = nullptr;
+  bool bordered_ = false;
+  std::vector<int> base_index_;
+  std::vector<int> border_;
+  Matrix border_solves_;
+  Eigen::LLT<Matrix> schur_;
 };
 
 }  // namespace springfit::response

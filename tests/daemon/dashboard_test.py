@@ -286,7 +286,7 @@ def check_phase(rpc_port, port):
         return p.get("phase", "-") != "-"
     expect(wait_for(phase_shown, 30), f"no phase shown for the running continuous job: {seen}")
     name = seen.get("phase", "-").split(",")[0]
-    expect(name in ("analysis", "probes", "probe_fit", "probe_path", "probe_refine",
+    expect(name in ("analysis", "probes", "probe_fit", "probe_path", "probe_lift",
                     "nonlinear_fit", "certificate", "nonlinear", "fit", "path", "refit",
                     "held_out"), f"an unexpected phase: {seen.get('phase')}")
     expect("/" not in seen.get("generation", ""), f"a continuous job shown by generations: {seen}")

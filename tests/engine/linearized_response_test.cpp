@@ -5,7 +5,7 @@
 #include <cmath>
 #include <vector>
 
-#include "engine/probe_fit/compliance_gram.h"
+#include "engine/probe_fit/gene_springs.h"
 #include "engine/probe_fit/linearized_response.h"
 #include "engine/probe_fit/probe_bank.h"
 #include "engine/probe_fit/probe_objective.h"

@@ -6,7 +6,7 @@
 #include <random>
 #include <vector>
 
-#include "engine/probe_fit/compliance_gram.h"
+#include "engine/probe_fit/gene_springs.h"
 #include "engine/probe_fit/mode_cuts.h"
 #include "engine/probe_fit/probe_evaluation.h"
 #include "engine/probe_fit/probe_objective.h"

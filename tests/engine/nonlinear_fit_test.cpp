@@ -6,7 +6,7 @@
 #include <cmath>
 
 #include "engine/identification/identify.h"
-#include "engine/probe_fit/compliance_gram.h"
+#include "engine/probe_fit/gene_springs.h"
 #include "engine/probe_fit/matrix_free_fit.h"
 #include "engine/probe_fit/nonlinear_response.h"
 #include "engine/probe_fit/probe_bank.h"

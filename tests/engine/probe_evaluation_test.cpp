@@ -1,8 +1,10 @@
 // The pencil's eigenvalues (engine/probe_fit/probe_evaluation.h): its extremes against a dense
-// generalised eigensolver, and the soft modes as its smallest eigenpairs.
+// generalised eigensolver, and the soft modes as its smallest eigenpairs; the probes' errors
+// with the tool loads solved through their base's factor.
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <vector>
 
 #include <Eigen/Eigenvalues>
@@ -64,6 +66,34 @@ TEST(PencilExtremes, SoftModesAreTheSmallestGeneralisedEigenpairs) {
     EXPECT_NEAR(modes[i].shape.squaredNorm(), v.squaredNorm(), 1e-12 * v.squaredNorm());
   }
   EXPECT_TRUE(SoftModes(kb, reference, modes[0].lambda * 0.999, 3).empty());
+}
+
+// Every probe's error, the tool loads' solved through their base support's factor (as the
+// certificate solves them) or each with a factorisation of its own, agree to the solves'
+// round-off, for the model and the baseline; no probe is left out.
+TEST(ProbeErrors, ToolLoadsSolvedThroughTheirBaseGiveTheirOwnFactorisationsErrors) {
+  const Problem problem(examples::Make("fem-kidney-2d"));
+  const SparseMatrix kref = ReferenceRestStiffness(problem);
+  const ProbeBank bank = MakeProbeBanks(problem, kref, ProbeOptions{}).fit;
+  std::vector<double> prior = *BaselineGeneWeights(problem);
+  const std::vector<bool> every(bank.probes.size(), true);
+  int tools = 0;
+  for (const Probe& probe : bank.probes)
+    tools += bank.supports[static_cast<std::size_t>(probe.support)].tool();
+  ASSERT_GT(tools, 10);
+  for (int model = 0; model < 2; ++model) {
+    if (model == 1)
+      for (std::size_t g = 0; g < prior.size(); ++g) prior[g] *= 1.0 + 0.5 * std::sin(3.0 * g);
+    const SparseMatrix k = SpringRestStiffness(problem, prior);
+    const std::vector<double> own = ProbeErrorsFor(bank, k, every);
+    const std::vector<double> through =
+        ProbeErrorsFor(bank, k, every, nullptr, {}, ToolSolves::kThroughBase);
+    ASSERT_EQ(own.size(), through.size());
+    for (std::size_t p = 0; p < own.size(); ++p) {
+      ASSERT_TRUE(std::isfinite(own[p])) << p;
+      EXPECT_NEAR(through[p], own[p], 1e-9 * own[p]) << "probe " << p;
+    }
+  }
 }
 
 }  // namespace

@@ -23,23 +23,29 @@ namespace springfit::response {
 namespace {
 
 // The supports' work runs on the pool: the same model whatever the threads.
-// The kidney's probe bank and baseline, fitted with one thread and with a pool of two.
+// The kidney's probe bank and baseline, fitted with one thread and with a pool of two; `hold`:
+// with the held modes (mode_cuts.h), else without them.
 struct KidneyFits : KidneyAtRest {
   ResponseFitResult one, two;
-  // `matrix_free`: the default fit; else the dense one (the kidney's genes within
-  // dense_max_genes).
-  explicit KidneyFits(bool matrix_free = false) {
-    options.dense_max_genes = matrix_free ? 0 : problem.gene_count();
+  explicit KidneyFits(bool hold = true) {
+    // (Without the held modes the fit leaves a mode at lambda 0.133: below a min_lambda of
+    // 0.15.)
+    if (!hold) {
+      options.hold.weight = 0.0;
+      options.min_lambda = 0.15;
+      options.lift.target = 0.18;
+    }
     WorkerPool pool(2);
     one = FitResponse(problem, bank, k, prior, options);
     two = FitResponse(problem, bank, k, prior, options, nullptr, {}, &pool);
   }
 };
 
-// The kidney's fit to the probes alone leaves a mode at lambda 0.068; the loads along its soft
-// modes, fitted too, hold every mode above min_lambda, and the model still generalises.
+// The kidney's fit to the probes alone, without the held modes, leaves a mode soft; the loads
+// along its soft modes, fitted too, hold every mode above min_lambda, and the model still
+// generalises.
 TEST(ResponseFit, SoftModeProbesHoldEveryModeOfTheKidney) {
-  const KidneyFits fits;
+  const KidneyFits fits(/*hold=*/false);
   const ResponseFitResult& r = fits.one;
   ResponseFitOptions without = fits.options;
   without.soft_mode_rounds = 0;
@@ -56,8 +62,8 @@ TEST(ResponseFit, SoftModeProbesHoldEveryModeOfTheKidney) {
   EXPECT_LT(g.model_held_out.median, 0.5 * g.baseline_held_out.median);
 }
 
-// A bound on the stiffness spread holds for the model returned, by the dense and the
-// matrix-free fit, with every mode still held; without it the kidney's model spans more.
+// A bound on the stiffness spread holds for the model returned, with every mode still held;
+// without it the kidney's model spans more.
 TEST(ResponseFit, AStiffnessSpreadBoundHoldsInTheModelReturned) {
   const KidneyAtRest kidney;
   const auto spread = [](const std::vector<double>& w) {
@@ -71,14 +77,11 @@ TEST(ResponseFit, AStiffnessSpreadBoundHoldsInTheModelReturned) {
       FitResponse(kidney.problem, kidney.bank, kidney.k, kidney.prior, options);
   ASSERT_GT(spread(free.weights), 50.0);
   options.max_spread = 50.0;
-  for (const int dense_max : {kidney.problem.gene_count(), 0}) {
-    options.dense_max_genes = dense_max;
-    const ResponseFitResult r =
-        FitResponse(kidney.problem, kidney.bank, kidney.k, kidney.prior, options);
-    EXPECT_LE(spread(r.weights), 50.0) << r.method;
-    EXPECT_GT(r.lambda_min, 0.0) << r.method;
-    EXPECT_LT(r.select_error, kNoModel) << r.method;
-  }
+  const ResponseFitResult r =
+      FitResponse(kidney.problem, kidney.bank, kidney.k, kidney.prior, options);
+  EXPECT_LE(spread(r.weights), 50.0);
+  EXPECT_GT(r.lambda_min, 0.0);
+  EXPECT_LT(r.select_error, kNoModel);
 }
 
 TEST(ResponseFit, SameModelWithOneOrTwoThreads) {
@@ -96,7 +99,6 @@ TEST(ResponseFit, SameModelWithOneOrTwoThreads) {
 TEST(ResponseFit, HeldModesKeepTheKidneysEveryModeWithoutRefitOrLift) {
   const KidneyAtRest kidney;
   ResponseFitOptions options = kidney.options;
-  options.dense_max_genes = 0;
   options.soft_mode_rounds = 0;
   options.lift_soft_modes = false;
   const ResponseFitResult held =
@@ -116,10 +118,10 @@ TEST(ResponseFit, HeldModesKeepTheKidneysEveryModeWithoutRefitOrLift) {
   EXPECT_LT(ForceFamiliesRatio(g), 0.25);
 }
 
-// The matrix-free fit (the default): a model far better than the closed-form baseline on
-// held-out probes, the same with one or two threads, within a spring budget too.
+// The fit: a model far better than the closed-form baseline on held-out probes, the same with
+// one or two threads, within a spring budget too.
 TEST(ResponseFit, TheMatrixFreeFitBeatsTheBaselineOnHeldOutProbesWhateverTheThreads) {
-  const KidneyFits fits(/*matrix_free=*/true);
+  const KidneyFits fits;
   const ResponseFitResult& a = fits.one;
   EXPECT_EQ(a.method, "matrix-free");
   EXPECT_EQ(a.weights, fits.two.weights);

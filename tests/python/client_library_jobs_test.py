@@ -216,7 +216,7 @@ def test_notices_and_phases(ctx):
         job = c.watch(submitted.job.job_id, on_phase=phases.append, timeout=JOB_TIMEOUT)
         R.expect(job.finished, f"the job: {job}")
         known = {"direct", "genetic", "regularization", "fit", "path", "refit", "held_out",
-                 "probes", "probe_fit", "probe_path", "probe_refine", "probe_lift",
+                 "probes", "probe_fit", "probe_path", "probe_lift",
                  "nonlinear_fit", "certificate", "nonlinear"}
         R.expect(phases and all(isinstance(p, sf.Phase) and p.job_id == job.job_id and
                                 p.phase in known and p.wall_seconds >= 0 for p in phases),
