@@ -67,6 +67,8 @@ std::string JudgementLine(const proto::StoredResult& result) {
     text += fmt::format(
         "; generalised eigenvalues of (K_model, K_ref) on the user's supports in [{:.3g}, {:.3g}]",
         *result.lambda_min, *result.lambda_max);
+  if (const std::string what = result.outcome->WhatToTry(); !what.empty())
+    text += "; what to try: " + what;
   return text;
 }
 

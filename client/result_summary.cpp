@@ -40,9 +40,8 @@ void PrintOutcome(const Outcome& o, std::ostream& out) {
   out << "verdict:           " << o.Headline() << "\n";
   for (const std::string& line : o.unmet) out << "WARNING:           " << line << "\n";
   for (const std::string& line : o.doubts) out << "WARNING:           " << line << "\n";
-  if (o.verdict == Verdict::kDoubtful)
-    out << "what to try:       proto/RUN.md, \"What to try\": what changes each doubt, and what "
-           "it costs\n";
+  if (const std::string what = o.WhatToTry(); !what.empty())
+    out << "what to try:       " << what << "\n";
   if (!o.reason.empty()) out << "NO USABLE MODEL:   " << o.reason << "\n";
 }
 

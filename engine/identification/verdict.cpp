@@ -183,6 +183,11 @@ std::optional<Verdict> ParseVerdict(std::string_view name) {
   return std::nullopt;
 }
 
+std::string Outcome::WhatToTry() const {
+  if (verdict != Verdict::kDoubtful) return "";
+  return "proto/RUN.md, \"What to try\": what changes each doubt, and what it costs";
+}
+
 std::string Outcome::Headline() const {
   std::string text =
       std::string(VerdictName(verdict)) + ": " + std::to_string(springs) + " springs";

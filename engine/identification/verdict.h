@@ -60,6 +60,9 @@ struct Outcome {
   // One line: "usable: 273 springs, E 0.048 (baseline 0.33), held-out probes E 0.049 (baseline
   // 0.20)"
   std::string Headline() const;
+  // Where a doubtful verdict's reader finds what changes each doubt and what it costs, in the
+  // words every summary uses (run, result, the dashboard, export); empty for other verdicts.
+  std::string WhatToTry() const;
 };
 
 // Judges `result` (of `problem`).

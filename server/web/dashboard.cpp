@@ -218,6 +218,8 @@ std::string ResultCard(const Outcome& o, const Json& result, const Json& search)
                              std::string(VerdictName(o.verdict)) + "</strong>");
   for (const std::string& line : o.unmet) body += Row("WARNING", XmlEscape(line));
   for (const std::string& line : o.doubts) body += Row("WARNING", XmlEscape(line));
+  if (const std::string what = o.WhatToTry(); !what.empty())
+    body += Row("what to try", XmlEscape(what));
   if (!o.reason.empty()) body += Row("no usable model", XmlEscape(o.reason));
   body += Row("springs",
               std::to_string(o.springs) +

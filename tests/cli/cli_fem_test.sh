@@ -110,11 +110,14 @@ assert 120 <= r["generalization"]["probes"]["total"] - len(r["load_cases"]) <= 1
 PY
 # (The kidney's certificate bound, 6.4, is worse than the recipe's 4.18 by more than a quarter:
 # a doubtful verdict, exit 12, with the WARNING saying it; proto/RUN.md, "Doubts".)
-expect_exit 12 "run fem kidney doubtful" "$sf" run "$src/examples/fem-kidney-2d.json" -q
+expect_exit 12 "run fem kidney doubtful" "$sf" run "$src/examples/fem-kidney-2d.json" -q -o "$tmp/kidney.json"
 grep -q "^WARNING: *the certificate: a load on your supports can move the model by up to [0-9.]* times" "$tmp/out" || fail "the doubt is not said: $(grep -E 'verdict|WARNING' "$tmp/out")"
 # and where to read what changes it (a new user's trial found no hint).
 grep -A1 "^WARNING:" "$tmp/out" | tail -1 | grep -q '^what to try: *proto/RUN.md, "What to try"' || fail "no hint after the doubts: $(grep -A1 -E 'WARNING' "$tmp/out" | tail -2)"
 grep -q '^### What to try$' "$src/proto/RUN.md" || fail "proto/RUN.md has no section What to try"
+# The export of that model says the same where it states the verdict.
+expect_exit 0 "export doubtful kidney" "$sf" export "$tmp/kidney.json" -o "$tmp/kidney.vtk"
+grep -q 'verdict doubtful: .*; what to try: proto/RUN.md, "What to try"' "$tmp/out" || fail "the export does not point to what to try: $(cat "$tmp/out")"
 expect_exit 2 "bad probes" "$sf" run "$src/examples/fem-plate-5x5.json" --probes many
 grep -q -- "--probes: must be \"auto\", \"none\" or a count from 1 to 20000, got 'many'" "$tmp/err" || fail "probes names the value: $(cat "$tmp/err")"
 

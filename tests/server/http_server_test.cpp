@@ -118,8 +118,8 @@ TEST(HttpServer, HealthAndMetricsAnswerWhilePagesKeepEveryThreadBusy) {
 
 // The job page opens with the result card and links a large figure instead of inlining it
 // (issue 33 item 4).
-// A finished job of paper-iso-5x5 in `store`, its result JSON passed through `edit` first;
-// returns the job's page path.
+// A finished job of paper-iso-5x5 in `store`, its result JSON (its outcome too) passed through
+// `edit` first; returns the job's page path.
 std::string FinishedPaperJob(SqliteStore& store,
                              const std::function<void(proto::Json&)>& edit = {}) {
   const Scene scene = examples::Make("paper-iso-5x5");
@@ -137,8 +137,10 @@ std::string FinishedPaperJob(SqliteStore& store,
   EXPECT_TRUE(claim);
   proto::Json result = proto::ResultToJson(problem, r, false);
   if (edit) edit(result);
-  store.MarkFinished(claim->lease, {JobState::kSucceeded, "", result.dump(), r.exact(), 1.7e9,
-                                    proto::OutcomeToJson(r.outcome).dump()});
+  // (The outcome column as the result's, edited or not.)
+  store.MarkFinished(claim->lease,
+                     {JobState::kSucceeded, "", result.dump(), r.exact(), 1.7e9,
+                      result.value("outcome", proto::OutcomeToJson(r.outcome)).dump()});
   return "/jobs/" + std::to_string(id);
 }
 
@@ -237,6 +239,32 @@ TEST(Dashboard, TheJobPageShowsToolPushesAndTheNonlinearFit) {
         << page.body;
     EXPECT_NE(page.body.find("<tr><th>nonlinear fit</th><td>12 Gauss-Newton steps: choosing E "
                              "0.124 at rest-linear fit, 0.123 returned (baseline 0.319)</td>"),
+              std::string::npos)
+        << page.body;
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// Issue 47: a doubtful result's card says its doubts and, as `springfit run` does, where to
+// read what changes them.
+TEST(Dashboard, ADoubtfulResultsCardPointsToWhatToTry) {
+  const auto dir = std::filesystem::temp_directory_path() / "springfit-dashboard-doubtful";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  {
+    SqliteStore store((dir / "jobs.db").string());
+    Metrics metrics;
+    Scheduler scheduler(store, SchedulerOptions{});
+    const std::string target = FinishedPaperJob(store, [](proto::Json& result) {
+      result["outcome"]["verdict"] = "doubtful";
+      result["outcome"]["doubts"] = proto::Json::array({"the certificate: a soft mode"});
+    });
+    Dashboard dashboard(store, scheduler, metrics, DashboardOptions{});
+    const HttpResponse page = dashboard.Handle({"GET", target, {}, ""});
+    ASSERT_EQ(page.status, 200) << page.body;
+    EXPECT_NE(page.body.find("<tr><th>WARNING</th><td>the certificate: a soft mode</td></tr>\n"
+                             "<tr><th>what to try</th><td>proto/RUN.md, &quot;What to "
+                             "try&quot;: what changes each doubt, and what it costs</td></tr>"),
               std::string::npos)
         << page.body;
   }
