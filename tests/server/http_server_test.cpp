@@ -144,131 +144,117 @@ std::string FinishedPaperJob(SqliteStore& store,
   return "/jobs/" + std::to_string(id);
 }
 
-TEST(Dashboard, TheJobPageLinksALargeFigureInsteadOfInliningIt) {
-  const auto dir = std::filesystem::temp_directory_path() / "springfit-dashboard-figure";
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  {
-    SqliteStore store((dir / "jobs.db").string());
-    Metrics metrics;
-    Scheduler scheduler(store, SchedulerOptions{});
-    const std::string target = FinishedPaperJob(store);
-    const std::string img = "<img src=\"" + target + "/topology.svg?of=result\"";
-    for (const std::size_t limit : {std::size_t{1} << 30, std::size_t{1000}}) {
-      DashboardOptions options;
-      options.max_inline_figure_bytes = limit;
-      Dashboard dashboard(store, scheduler, metrics, options);
-      const HttpResponse page = dashboard.Handle({"GET", target, {}, ""});
-      ASSERT_EQ(page.status, 200) << page.body;
-      const bool linked = limit < 1000000;
-      EXPECT_EQ(page.body.find("<figure id=\"topology\"><svg") != std::string::npos, !linked);
-      EXPECT_EQ(page.body.find(img) != std::string::npos, linked);
-      EXPECT_LT(page.body.find("id=\"result-card\""), page.body.find("id=\"topology\""));
-    }
+// A dashboard over a fresh SQLite store in a temporary directory of its own (removed at the end).
+struct DashboardOnStore {
+  explicit DashboardOnStore(const std::string& name)
+      : dir(Fresh(std::filesystem::temp_directory_path() / name)),
+        store((dir / "jobs.db").string()),
+        scheduler(store, SchedulerOptions{}) {}
+  ~DashboardOnStore() { std::filesystem::remove_all(dir); }
+  HttpResponse Get(const std::string& target, const DashboardOptions& options = {}) {
+    Dashboard dashboard(store, scheduler, metrics, options);
+    return dashboard.Handle({"GET", target, {}, ""});
   }
-  std::filesystem::remove_all(dir);
+  static std::filesystem::path Fresh(const std::filesystem::path& path) {
+    std::filesystem::remove_all(path);
+    std::filesystem::create_directories(path);
+    return path;
+  }
+  std::filesystem::path dir;
+  SqliteStore store;
+  Metrics metrics;
+  Scheduler scheduler;
+};
+
+TEST(Dashboard, TheJobPageLinksALargeFigureInsteadOfInliningIt) {
+  DashboardOnStore d("springfit-dashboard-figure");
+  const std::string target = FinishedPaperJob(d.store);
+  const std::string img = "<img src=\"" + target + "/topology.svg?of=result\"";
+  for (const std::size_t limit : {std::size_t{1} << 30, std::size_t{1000}}) {
+    DashboardOptions options;
+    options.max_inline_figure_bytes = limit;
+    const HttpResponse page = d.Get(target, options);
+    ASSERT_EQ(page.status, 200) << page.body;
+    const bool linked = limit < 1000000;
+    EXPECT_EQ(page.body.find("<figure id=\"topology\"><svg") != std::string::npos, !linked);
+    EXPECT_EQ(page.body.find(img) != std::string::npos, linked);
+    EXPECT_LT(page.body.find("id=\"result-card\""), page.body.find("id=\"topology\""));
+  }
 }
 
 // Issue 31: a result whose dependent groups were not analysed (too many seen genes) shows no
 // count of groups but the reason, where an analysed one shows its count.
 TEST(Dashboard, GroupsNotAnalysedAreNotCountedOnTheJobPage) {
-  const auto dir = std::filesystem::temp_directory_path() / "springfit-dashboard-groups";
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  {
-    SqliteStore store((dir / "jobs.db").string());
-    Metrics metrics;
-    Scheduler scheduler(store, SchedulerOptions{});
-    const std::string analysed = FinishedPaperJob(store);
-    const std::string not_analysed = FinishedPaperJob(store, [](proto::Json& result) {
-      result["identifiability"]["analysed"] = false;
-      result["identifiability"]["rank"] = nullptr;
-      result["identifiability"]["groups"] = proto::Json::array();
-      result["identifiability"]["not_analysed"] = "more than 5 seen genes";
-    });
-    Dashboard dashboard(store, scheduler, metrics, DashboardOptions{});
-    const std::string row = "<tr><th>groups of springs the loads do not tell apart</th><td>";
-    const HttpResponse counted = dashboard.Handle({"GET", analysed, {}, ""});
-    ASSERT_EQ(counted.status, 200) << counted.body;
-    EXPECT_NE(counted.body.find(row + "0</td>"), std::string::npos) << counted.body;
-    const HttpResponse page = dashboard.Handle({"GET", not_analysed, {}, ""});
-    ASSERT_EQ(page.status, 200) << page.body;
-    EXPECT_EQ(page.body.find(row + "0</td>"), std::string::npos);
-    EXPECT_NE(page.body.find(row + "not analysed (more than 5 seen genes)</td>"), std::string::npos)
-        << page.body;
-    EXPECT_EQ(page.body.find("rank of the analysed groups"), std::string::npos);
-  }
-  std::filesystem::remove_all(dir);
+  DashboardOnStore d("springfit-dashboard-groups");
+  const std::string analysed = FinishedPaperJob(d.store);
+  const std::string not_analysed = FinishedPaperJob(d.store, [](proto::Json& result) {
+    result["identifiability"]["analysed"] = false;
+    result["identifiability"]["rank"] = nullptr;
+    result["identifiability"]["groups"] = proto::Json::array();
+    result["identifiability"]["not_analysed"] = "more than 5 seen genes";
+  });
+  const std::string row = "<tr><th>groups of springs the loads do not tell apart</th><td>";
+  const HttpResponse counted = d.Get(analysed);
+  ASSERT_EQ(counted.status, 200) << counted.body;
+  EXPECT_NE(counted.body.find(row + "0</td>"), std::string::npos) << counted.body;
+  const HttpResponse page = d.Get(not_analysed);
+  ASSERT_EQ(page.status, 200) << page.body;
+  EXPECT_EQ(page.body.find(row + "0</td>"), std::string::npos);
+  EXPECT_NE(page.body.find(row + "not analysed (more than 5 seen genes)</td>"), std::string::npos)
+      << page.body;
+  EXPECT_EQ(page.body.find("rank of the analysed groups"), std::string::npos);
 }
 
 // Issue 50: the job page shows the tool loads (the shape's E and the tool's force error, beside
 // the baseline's, over how many pushes and grasps) and the nonlinear fit's choosing errors, in the
 // summary's words.
 TEST(Dashboard, TheJobPageShowsToolPushesAndTheNonlinearFit) {
-  const auto dir = std::filesystem::temp_directory_path() / "springfit-dashboard-pushes";
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  {
-    SqliteStore store((dir / "jobs.db").string());
-    Metrics metrics;
-    Scheduler scheduler(store, SchedulerOptions{});
-    const std::string target = FinishedPaperJob(store, [](proto::Json& result) {
-      proto::Json g = proto::Json::object();
-      g["tool_pushes"] = proto::Json::array({{{"amplitude", 1.0},
-                                              {"model", {{"median", 0.159}}},
-                                              {"baseline", {{"median", 0.16}}},
-                                              {"model_force", {{"median", 0.126}}},
-                                              {"baseline_force", {{"median", 0.152}}},
-                                              {"pushes", 10},
-                                              {"grasps", 8},
-                                              {"model_inverted", 2}}});
-      g["fit"] = {{"nonlinear",
-                   {{"gauss_newton_steps", 12},
-                    {"start_choosing_rms_error", 0.124},
-                    {"choosing_rms_error", 0.123},
-                    {"baseline_choosing_rms_error", 0.319}}}};
-      result["generalization"] = g;
-    });
-    Dashboard dashboard(store, scheduler, metrics, DashboardOptions{});
-    const HttpResponse page = dashboard.Handle({"GET", target, {}, ""});
-    ASSERT_EQ(page.status, 200) << page.body;
-    EXPECT_NE(page.body.find("<tr><th>tool push at 100% of the loads</th><td>median E 0.159, "
-                             "tool force error 0.126 (baseline 0.16, 0.152); 2 invert an "
-                             "element over 10 pushes and 8 grasps</td>"),
-              std::string::npos)
-        << page.body;
-    EXPECT_NE(page.body.find("<tr><th>nonlinear fit</th><td>12 Gauss-Newton steps: choosing E "
-                             "0.124 at rest-linear fit, 0.123 returned (baseline 0.319)</td>"),
-              std::string::npos)
-        << page.body;
-  }
-  std::filesystem::remove_all(dir);
+  DashboardOnStore d("springfit-dashboard-pushes");
+  const std::string target = FinishedPaperJob(d.store, [](proto::Json& result) {
+    proto::Json g = proto::Json::object();
+    g["tool_pushes"] = proto::Json::array({{{"amplitude", 1.0},
+                                            {"model", {{"median", 0.159}}},
+                                            {"baseline", {{"median", 0.16}}},
+                                            {"model_force", {{"median", 0.126}}},
+                                            {"baseline_force", {{"median", 0.152}}},
+                                            {"pushes", 10},
+                                            {"grasps", 8},
+                                            {"model_inverted", 2}}});
+    g["fit"] = {{"nonlinear",
+                 {{"gauss_newton_steps", 12},
+                  {"start_choosing_rms_error", 0.124},
+                  {"choosing_rms_error", 0.123},
+                  {"baseline_choosing_rms_error", 0.319}}}};
+    result["generalization"] = g;
+  });
+  const HttpResponse page = d.Get(target);
+  ASSERT_EQ(page.status, 200) << page.body;
+  EXPECT_NE(page.body.find("<tr><th>tool push at 100% of the loads</th><td>median E 0.159, "
+                           "tool force error 0.126 (baseline 0.16, 0.152); 2 invert an "
+                           "element over 10 pushes and 8 grasps</td>"),
+            std::string::npos)
+      << page.body;
+  EXPECT_NE(page.body.find("<tr><th>nonlinear fit</th><td>12 Gauss-Newton steps: choosing E "
+                           "0.124 at rest-linear fit, 0.123 returned (baseline 0.319)</td>"),
+            std::string::npos)
+      << page.body;
 }
 
 // Issue 47: a doubtful result's card says its doubts and, as `springfit run` does, where to
 // read what changes them.
 TEST(Dashboard, ADoubtfulResultsCardPointsToWhatToTry) {
-  const auto dir = std::filesystem::temp_directory_path() / "springfit-dashboard-doubtful";
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  {
-    SqliteStore store((dir / "jobs.db").string());
-    Metrics metrics;
-    Scheduler scheduler(store, SchedulerOptions{});
-    const std::string target = FinishedPaperJob(store, [](proto::Json& result) {
-      result["outcome"]["verdict"] = "doubtful";
-      result["outcome"]["doubts"] = proto::Json::array({"the certificate: a soft mode"});
-    });
-    Dashboard dashboard(store, scheduler, metrics, DashboardOptions{});
-    const HttpResponse page = dashboard.Handle({"GET", target, {}, ""});
-    ASSERT_EQ(page.status, 200) << page.body;
-    EXPECT_NE(page.body.find("<tr><th>WARNING</th><td>the certificate: a soft mode</td></tr>\n"
-                             "<tr><th>what to try</th><td>proto/RUN.md, &quot;What to "
-                             "try&quot;: what changes each doubt, and what it costs</td></tr>"),
-              std::string::npos)
-        << page.body;
-  }
-  std::filesystem::remove_all(dir);
+  DashboardOnStore d("springfit-dashboard-doubtful");
+  const std::string target = FinishedPaperJob(d.store, [](proto::Json& result) {
+    result["outcome"]["verdict"] = "doubtful";
+    result["outcome"]["doubts"] = proto::Json::array({"the certificate: a soft mode"});
+  });
+  const HttpResponse page = d.Get(target);
+  ASSERT_EQ(page.status, 200) << page.body;
+  EXPECT_NE(page.body.find("<tr><th>WARNING</th><td>the certificate: a soft mode</td></tr>\n"
+                           "<tr><th>what to try</th><td>proto/RUN.md, &quot;What to "
+                           "try&quot;: what changes each doubt, and what it costs</td></tr>"),
+            std::string::npos)
+      << page.body;
 }
 
 // Issue 48: a job whose row cannot be read is listed apart, as quarantined, with its incident
