@@ -21,6 +21,11 @@ void QuadraticNnlsOptions::Validate(const std::string& owner) const {
   check.Require(max_iterations >= 1, "max_iterations", max_iterations, "value >= 1");
   check.Require(tolerance > 0.0 && tolerance < 1.0, "tolerance", tolerance, "0 < value < 1");
   check.Require(ridge > 0.0 && ridge <= 1e-2, "ridge", ridge, "0 < value <= 1e-2");
+  check.Require(fallback_ridge > 0.0 && fallback_ridge <= 1e-2, "fallback_ridge", fallback_ridge,
+                "0 < value <= 1e-2");
+  check.Require(bound_band > 0.0 && bound_band < 1.0, "bound_band", bound_band, "0 < value < 1");
+  check.Require(armijo > 0.0 && armijo < 0.5, "armijo", armijo, "0 < value < 0.5");
+  check.Require(max_halvings >= 1, "max_halvings", max_halvings, "value >= 1");
 }
 
 QuadraticNnlsResult SolveQuadraticNnls(const Matrix& H, const Vector& c, const Vector& start,
@@ -50,7 +55,7 @@ QuadraticNnlsResult SolveQuadraticNnls(const Matrix& H, const Vector& c, const V
       const double diagonal = std::max(H(i, i), 1e-300);
       wide = std::max(wide, std::abs(r.x[i] - std::max(r.x[i] - g[i] / diagonal, 0.0)));
     }
-    const double eps = std::min(1e-2 * std::max(r.x.maxCoeff(), 1.0), wide);
+    const double eps = std::min(options.bound_band * std::max(r.x.maxCoeff(), 1.0), wide);
     std::vector<int> free;
     double projected = 0.0;
     for (int i = 0; i < m; ++i) {
@@ -74,7 +79,7 @@ QuadraticNnlsResult SolveQuadraticNnls(const Matrix& H, const Vector& c, const V
     Hf.diagonal().array() += options.ridge * diagonal_scale;
     Eigen::LLT<Matrix> llt(Hf);
     if (llt.info() != Eigen::Success) {
-      Hf.diagonal().array() += 1e-8 * diagonal_scale;
+      Hf.diagonal().array() += options.fallback_ridge * diagonal_scale;
       llt.compute(Hf);
     }
     const Vector step = llt.solve(-gf);
@@ -83,10 +88,10 @@ QuadraticNnlsResult SolveQuadraticNnls(const Matrix& H, const Vector& c, const V
     // Armijo along the projected arc.
     double alpha = 1.0;
     bool moved = false;
-    for (int halving = 0; halving < 40; ++halving, alpha *= 0.5) {
+    for (int halving = 0; halving < options.max_halvings; ++halving, alpha *= 0.5) {
       const Vector trial = (r.x + alpha * direction).cwiseMax(0.0);
       const double value = Value(H, c, trial);
-      if (value <= r.value + 1e-4 * g.dot(trial - r.x)) {
+      if (value <= r.value + options.armijo * g.dot(trial - r.x)) {
         moved = value < r.value || (trial - r.x).norm() == 0.0;
         r.x = trial;
         r.value = value;

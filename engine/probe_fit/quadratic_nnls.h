@@ -29,6 +29,18 @@ struct QuadraticNnlsOptions {
   // semi-definite H (springs the probes cannot tell apart) still factorises, and the step then
   // prefers the smallest change. In (0, 1e-2].
   double ridge = 1e-12;
+  // When the restricted H with that ridge still fails to factorise (round-off of a singular
+  // H), this further ridge is added, relative as above (in (0, 1e-2]).
+  double fallback_ridge = 1e-8;
+  // Bertsekas' epsilon, the band above 0 where a variable whose gradient points out counts as
+  // at its bound, is at most this fraction of max(largest x, 1) (in (0, 1)); narrower when the
+  // projected gradient step is.
+  double bound_band = 1e-2;
+  // Armijo's rule along the projected arc: a step is taken when it lowers q by at least this
+  // fraction of the gradient's prediction (in (0, 0.5)), the step halved at most
+  // `max_halvings` times (>= 1) before the iteration counts as converged to round-off.
+  double armijo = 1e-4;
+  int max_halvings = 40;
   void Validate(const std::string& owner = "QuadraticNnlsOptions") const;
 };
 

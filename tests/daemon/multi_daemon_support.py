@@ -188,9 +188,13 @@ def wait_checkpoint(daemon, job_id, generation, timeout=30):
 
 
 def wait_log(daemon, text, timeout):
+    """Whether `text` (or, given a tuple, any of its strings) appears in the daemon's log
+    within `timeout` seconds."""
+    texts = text if isinstance(text, tuple) else (text,)
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
-        if text in daemon.log():
+        log = daemon.log()
+        if any(t in log for t in texts):
             return True
         time.sleep(0.1)
     return False

@@ -10,6 +10,7 @@
 #include "engine/fem/fem_equilibrium.h"
 #include "engine/linalg/column_dependencies.h"
 #include "engine/model/equilibrium.h"
+#include "engine/probe_fit/quadratic_nnls.h"
 #include "engine/search/genetic_search.h"
 #include "engine/search/search_options.h"
 #include "io/example_catalog.h"
@@ -52,6 +53,17 @@ TEST(Options, EachStructNamesTheFieldTheValueAndTheRule) {
   NnlsOptions nnls;
   nnls.tolerance = 0.0;
   ExpectRefused([&] { nnls.Validate(); }, {"NnlsOptions::tolerance = 0", "0 < value < 1"});
+
+  response::QuadraticNnlsOptions quadratic;
+  quadratic.armijo = 0.5;  // (a step must lower q by a share of the prediction below one half)
+  ExpectRefused([&] { quadratic.Validate(); },
+                {"QuadraticNnlsOptions::armijo = 0.5", "0 < value < 0.5"});
+  quadratic = {};
+  quadratic.bound_band = 0.0;
+  ExpectRefused([&] { quadratic.Validate(); }, {"bound_band = 0", "0 < value < 1"});
+  quadratic = {};
+  quadratic.max_halvings = 0;
+  ExpectRefused([&] { quadratic.Validate(); }, {"max_halvings = 0", "value >= 1"});
 
   RefinementOptions refinement;
   refinement.max_iterations = -1;
