@@ -159,7 +159,7 @@ void PrintLoadCases(const Problem& problem) {
 void PrintSearch(const Problem& problem) {
   const Scene& s = problem.scene();
   const SearchOptions options = ResolveSearchOptions(s.search, problem.gene_count());
-  const Strategy runs = ResolvedStrategy(options.strategy, problem);
+  const Strategy runs = ResolvedStrategy(options.strategy, problem.scene());
   const bool stiffness = runs == Strategy::kContinuous ||
                          options.identify == Identify::kTopologyAndStiffness ||
                          (options.strategy == Strategy::kDefault && runs == Strategy::kDirect);

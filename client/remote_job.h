@@ -9,6 +9,7 @@
 
 #include "client/rpc_client.h"
 #include "engine/api/checkpoint.h"
+#include "engine/api/identify.h"
 
 namespace springfit::cli {
 

@@ -86,8 +86,9 @@ int Run(const RunArgs& args) {
     if (!trace) throw std::runtime_error("cannot write the trace file " + args.trace_path);
     trace << proto::TraceCsvHeader() << "\n";
   }
-  ProgressLine progress(options.max_generations, args.quiet,
-                        ResolvedStrategy(options.strategy, problem) == Strategy::kContinuous);
+  ProgressLine progress(
+      options.max_generations, args.quiet,
+      ResolvedStrategy(options.strategy, problem.scene()) == Strategy::kContinuous);
   g_interrupted.store(false);
   auto previous_int = std::signal(SIGINT, OnInterrupt);
   auto previous_term = std::signal(SIGTERM, OnInterrupt);

@@ -3,4 +3,4 @@
 #pragma once
 
 #include "engine/genome/genome_packing.h"
-#include "engine/search/genetic_search.h"
+#include "engine/search/search_state.h"

@@ -6,7 +6,6 @@
 
 #include "engine/identification/identify.h"
 #include "engine/identification/run_bounds.h"
-#include "engine/identification/strategy.h"
 #include "engine/runtime/interruption.h"
 #include "engine/runtime/wall_clock.h"
 #include "engine/runtime/worker_pool.h"

@@ -128,23 +128,48 @@ class WeightReader {
     return e;
   }
 
-  // Below-threshold genes by decreasing weight: the shortest prefix that carries the loads.
-  // With per-spring stiffness a gene at weight 0 has no stiffness to add; with a known
-  // stiffness it has, and comes last.
+  // Below-threshold genes by decreasing weight, then the unseen ones: the shortest prefix that
+  // carries the loads. With per-spring stiffness a gene at weight 0, or on exact data at
+  // round-off (at most relative_threshold of the largest), has no stiffness the data tells from
+  // zero and is not tried (docs/ARCHITECTURE.md, "What a model leaves out": round-off springs
+  // holding a mechanism would be a model of dust; on noisy data the floor is not what separates
+  // noise); with a known stiffness every gene has one.
+  // An unseen gene (no load case stretches it) can still be the one that holds a mode the loads
+  // do not excite: tried last, at the median identified stiffness (the loads cannot tell its
+  // own; with a known stiffness, at that).
   void CarryLoads(Reading& r) {
+    const int genes = problem_.gene_count();
+    const double floor =
+        exact_data_ && genes > 0
+            ? options_.relative_threshold * *std::max_element(r.weights.begin(), r.weights.end())
+            : 0.0;
     std::vector<int> order;
-    for (int g = 0; g < problem_.gene_count(); ++g) {
-      if (usable_[g] && !r.genome[g] && (r.weights[g] > 0.0 || TopologyOnly())) order.push_back(g);
+    for (int g = 0; g < genes; ++g) {
+      if (usable_[g] && !r.genome[g] && (r.weights[g] > floor || TopologyOnly()))
+        order.push_back(g);
     }
     std::stable_sort(order.begin(), order.end(),
                      [&](int a, int b) { return r.weights[a] > r.weights[b]; });
+    std::vector<double> weights = r.weights;
+    std::vector<double> present;
+    for (int g = 0; g < genes; ++g)
+      if (r.genome[g]) present.push_back(r.weights[g]);
+    if (!present.empty()) {
+      std::nth_element(present.begin(), present.begin() + present.size() / 2, present.end());
+      const double stand_in = present[present.size() / 2];
+      for (int g = 0; g < genes; ++g) {
+        if (usable_[g]) continue;
+        order.push_back(g);
+        weights[g] = stand_in;
+      }
+    }
     const auto with_prefix = [&](std::size_t count) {
       Genome genome = r.genome;
       for (std::size_t i = 0; i < count; ++i) genome[order[i]] = 1;
       return genome;
     };
     const auto carries = [&](std::size_t count) {
-      return !Evaluate(ModelOf(with_prefix(count), r.weights)).mechanism;
+      return !Evaluate(ModelOf(with_prefix(count), weights)).mechanism;
     };
     if (!carries(order.size())) return;
     std::size_t enough = order.size();
@@ -156,7 +181,7 @@ class WeightReader {
     r.added_to_carry.assign(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(enough));
     std::sort(r.added_to_carry.begin(), r.added_to_carry.end());
     r.genome = with_prefix(enough);
-    r.springs = ModelOf(r.genome, r.weights);
+    r.springs = ModelOf(r.genome, weights);
     r.evaluation = Evaluate(r.springs);
   }
 

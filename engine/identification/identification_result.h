@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/direct/direct_identification.h"
+#include "engine/direct/direct_result.h"
 #include "engine/direct/identifiability.h"
 #include "engine/identification/verdict.h"
 #include "engine/probe_fit/probe_fit_report.h"
@@ -16,8 +16,8 @@
 #include "engine/problem/cost.h"
 #include "engine/problem/problem.h"
 #include "engine/runtime/trace.h"
-#include "engine/search/fitness_evaluator.h"
 #include "engine/search/search_options.h"
+#include "engine/search/search_state.h"
 
 namespace springfit {
 

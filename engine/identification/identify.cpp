@@ -116,7 +116,7 @@ IdentificationResult StoppedBeforeAModel(const Problem& problem, const SearchOpt
   const char* why = r.stop == StopReason::kCancelled ? "stopped on request" : "time limit reached";
   // (The baseline of an FEM reference, within the spring budget: the start the fit would have.)
   std::optional<std::vector<double>> baseline;
-  if (ResolvedStrategy(options.strategy, problem) == Strategy::kContinuous &&
+  if (ResolvedStrategy(options.strategy, problem.scene()) == Strategy::kContinuous &&
       problem.scene().reference.kind == Reference::Kind::kFem)
     baseline = BaselineGeneWeights(problem);
   if (baseline && (PresentSprings(*baseline) == 0 ||
@@ -174,7 +174,7 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
   // each one's (ResolvedStrategy: search.identify was unset, or asked for exactly that).
   SearchOptions options = requested;
   CheckRunBounds(problem, options);
-  if (ResolvedStrategy(options.strategy, problem) == Strategy::kDirect &&
+  if (ResolvedStrategy(options.strategy, problem.scene()) == Strategy::kDirect &&
       options.strategy == Strategy::kDefault)
     options.identify = Identify::kTopologyAndStiffness;
   RunMonitor monitor(context, options.max_seconds);
@@ -196,9 +196,9 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
   }
   // Continuous identifies each spring's stiffness, whatever the resolved options said of
   // `default` (they do not know the reference).
-  if (ResolvedStrategy(options.strategy, problem) == Strategy::kContinuous)
+  if (ResolvedStrategy(options.strategy, problem.scene()) == Strategy::kContinuous)
     r.options.identify = Identify::kTopologyAndStiffness;
-  r.ran = ResolvedStrategy(options.strategy, problem);
+  r.ran = ResolvedStrategy(options.strategy, problem.scene());
   r.identifiability = std::move(identifiability);
   r.baseline = std::move(baseline);
   // A run that ended by itself (not by request, time or target) with no answer says so

@@ -24,7 +24,7 @@
 
 #include "engine/identification/identification_result.h"
 #include "engine/runtime/worker_pool.h"
-#include "engine/search/genetic_search.h"
+#include "engine/search/search_state.h"
 
 namespace springfit {
 

@@ -18,7 +18,7 @@ constexpr double kFitVectorsPerProbe = 2.0;
 
 bool RunsProbes(const Problem& problem, const SearchOptions& options) {
   return options.probes != 0 && problem.scene().reference.kind != Reference::Kind::kPositions &&
-         ResolvedStrategy(options.strategy, problem) == Strategy::kContinuous;
+         ResolvedStrategy(options.strategy, problem.scene()) == Strategy::kContinuous;
 }
 
 int UserSupports(const Problem& problem) {

@@ -8,7 +8,9 @@
 #include <optional>
 #include <string_view>
 
+#include "engine/direct/direct_identification.h"
 #include "engine/fit/sparsity_path.h"
+#include "engine/search/genetic_search.h"
 
 namespace springfit {
 namespace {
@@ -213,12 +215,8 @@ WorkerPool* PoolOf(const RunContext& context, std::unique_ptr<WorkerPool>& own) 
   return own.get();
 }
 
-Strategy ResolvedStrategy(Strategy strategy, const Problem& problem) {
-  return ResolvedStrategy(strategy, problem.scene());
-}
-
 std::unique_ptr<IdentificationStrategy> MakeStrategy(Strategy strategy, const Problem& problem) {
-  switch (ResolvedStrategy(strategy, problem)) {
+  switch (ResolvedStrategy(strategy, problem.scene())) {
     case Strategy::kPaper:
       return std::make_unique<GeneticStrategy>();
     case Strategy::kDirect:

@@ -61,7 +61,6 @@ class ContinuousStrategy : public IdentificationStrategy {
                            const RunContext& context, RunMonitor& monitor) const override;
 };
 
-// ResolvedStrategy (scene.h) for the problem's reference.
 // The run's threads: the caller's pool, else one of context.threads kept in `own` (none for
 // one thread).
 WorkerPool* PoolOf(const RunContext& context, std::unique_ptr<WorkerPool>& own);
@@ -95,7 +94,6 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
 IdentificationResult RunNamedCaseFit(const Problem& problem, const SearchOptions& options,
                                      const RunContext& context, RunMonitor& monitor);
 
-Strategy ResolvedStrategy(Strategy strategy, const Problem& problem);
 std::unique_ptr<IdentificationStrategy> MakeStrategy(Strategy strategy, const Problem& problem);
 
 }  // namespace springfit

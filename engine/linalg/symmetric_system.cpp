@@ -14,6 +14,8 @@ void dpbtrs_(const char* uplo, const int* n, const int* kd, const int* nrhs, con
              const int* ldab, double* b, const int* ldb, int* info, std::size_t uplo_len);
 }
 
+#include "engine/linalg/supernodal_cholesky.h"
+
 namespace springfit {
 
 SymmetricSystem::SymmetricSystem(int n, std::vector<std::pair<int, int>> lower, Backend backend)
@@ -54,6 +56,9 @@ void SymmetricSystem::AnalyseSparse() {
   sldlt_ = std::make_unique<SparseLdlt>();
   sldlt_->analyzePattern(sparse_work_);
 }
+
+SymmetricSystem::SymmetricSystem() = default;
+SymmetricSystem::~SymmetricSystem() = default;
 
 SymmetricSystem::SymmetricSystem(const SymmetricSystem& other)
     : n_(other.n_),

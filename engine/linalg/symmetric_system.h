@@ -31,9 +31,10 @@
 #include <Eigen/SparseCore>
 
 #include "engine/linalg/linalg.h"
-#include "engine/linalg/supernodal_cholesky.h"
 
 namespace springfit {
+
+class SupernodalCholesky;  // supernodal_cholesky.h: CHOLMOD, kept out of this header
 
 class SymmetricSystem {
  public:
@@ -51,7 +52,8 @@ class SymmetricSystem {
     double min_pivot = 0.0;  // smallest scaled pivot
   };
 
-  SymmetricSystem() = default;
+  SymmetricSystem();
+  ~SymmetricSystem();
   // `lower` lists the (row, col), row >= col, of every entry that may become nonzero; the
   // diagonal is added automatically. Duplicates are allowed.
   SymmetricSystem(int n, std::vector<std::pair<int, int>> lower, Backend backend);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 
+#include "engine/linalg/newton_iteration.h"
 #include "engine/model/rigidity.h"
 #include "engine/runtime/number_text.h"
 #include "engine/runtime/options_check.h"

@@ -24,13 +24,14 @@
 #include <vector>
 
 #include "engine/linalg/linalg.h"
-#include "engine/linalg/newton_iteration.h"
 #include "engine/linalg/symmetric_system.h"
 #include "engine/model/free_nodes.h"
 #include "engine/model/springs.h"
 #include "engine/runtime/interruption.h"
 
 namespace springfit {
+
+struct EnergyPoint;  // newton_iteration.h
 
 enum class Termination {
   kConverged,     // |gradient|_inf <= tolerance (see EquilibriumOptions)

@@ -18,13 +18,14 @@
 #include "engine/genome/genome_packing.h"
 #include "engine/problem/problem.h"
 #include "engine/search/fitness.h"
+#include "engine/search/search_options.h"
 
 namespace springfit {
 
 class FitnessCache {
  public:
   // About 100 bytes per entry plus the packed genome (genes / 8 bytes).
-  static constexpr std::size_t kDefaultCapacity = std::size_t{1} << 18;
+  static constexpr std::size_t kDefaultCapacity = kDefaultFitnessCacheCapacity;
 
   explicit FitnessCache(std::size_t capacity = kDefaultCapacity) : capacity_(capacity) {}
 

@@ -18,14 +18,9 @@
 #include "engine/runtime/worker_pool.h"
 #include "engine/search/fitness.h"
 #include "engine/search/fitness_cache.h"
+#include "engine/search/search_state.h"
 
 namespace springfit {
-
-struct EvaluationCounters {
-  std::int64_t evaluations = 0;  // genomes asked for
-  std::int64_t cache_hits = 0;   // of those, answered without a solve
-  friend bool operator==(const EvaluationCounters&, const EvaluationCounters&) = default;
-};
 
 class FitnessEvaluator {
  public:

@@ -27,7 +27,6 @@
 #include <cstdint>
 
 #include "engine/model/scene.h"
-#include "engine/search/fitness_cache.h"
 
 namespace springfit {
 
@@ -39,6 +38,9 @@ inline constexpr double kExactNormalizedError = 1e-12;
 // The largest roulette exponent: an exact individual's weight (1e-12)^-10 = 1e120 keeps every
 // weight, and the sum of a population's, finite.
 inline constexpr double kMaxRouletteExponent = 10.0;
+// The fitness cache's default capacity in entries (FitnessCache: about 100 bytes each plus the
+// packed genome).
+inline constexpr std::size_t kDefaultFitnessCacheCapacity = std::size_t{1} << 18;
 
 struct SearchOptions {
   enum class Selection { kRoulette, kTournament };
@@ -92,7 +94,7 @@ struct SearchOptions {
   bool local_search_swaps = true;
   double swap_radius = 0.5;
 
-  std::size_t cache_capacity = FitnessCache::kDefaultCapacity;
+  std::size_t cache_capacity = kDefaultFitnessCacheCapacity;
 
   // Strategy continuous: which point of the sparsity path to return (engine/fit/
   // sparsity_path.h, SelectPathPoint): the lowest error with at most `max_springs` springs

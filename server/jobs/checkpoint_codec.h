@@ -18,6 +18,7 @@
 #include <string>
 
 #include "engine/api/checkpoint.h"
+#include "engine/api/identify.h"
 
 namespace springfit::server {
 

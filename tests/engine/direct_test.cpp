@@ -267,7 +267,7 @@ TEST(Direct, SceneIdentifySettingChoosesWhatRunDirectFinds) {
   scene.search.strategy = Strategy::kDefault;
   {
     const Problem runs_direct(scene);
-    EXPECT_EQ(ResolvedStrategy(Strategy::kDefault, runs_direct), Strategy::kDirect);
+    EXPECT_EQ(ResolvedStrategy(Strategy::kDefault, runs_direct.scene()), Strategy::kDirect);
   }
   for (const Strategy s : {Strategy::kPaper, Strategy::kHybrid}) {
     scene.search.strategy = s;
