@@ -76,8 +76,9 @@ std::string MaterialText(const Material& m, const std::optional<DerivedUnits>& u
 
 void PrintFemReference(const Scene& s, const std::optional<DerivedUnits>& units) {
   const FemReference& fem = s.reference.fem;
-  const fem::FemModel model = fem::FemModel::Build(s);
-  const auto [quality, worst] = model.WorstQuality();
+  const fem::MeshFacts facts = fem::MeshFactsOf(s);
+  const double quality = facts.worst_quality;
+  const int worst = facts.worst_element;
   std::cout << "reference:              fem, " << fem.elements.size()
             << (s.dimension == 2 ? " triangles" : " tetrahedra");
   if (s.dimension == 2) {
@@ -97,7 +98,7 @@ void PrintFemReference(const Scene& s, const std::optional<DerivedUnits>& units)
     std::cout << "  material:             " << MaterialText(fem.materials[0], units) << "\n";
   }
   std::cout << "  " << (s.dimension == 2 ? "area x thickness:     " : "volume:               ")
-            << model.Volume() << (units ? " " + units->length + "^3" : std::string()) << "\n";
+            << facts.volume << (units ? " " + units->length + "^3" : std::string()) << "\n";
   std::cout << fmt::format("  smallest quality:     {:.3g} ({}; 1 = equilateral)\n", quality,
                            ElementNamed(s, static_cast<std::size_t>(worst)));
 }

@@ -99,12 +99,11 @@ void LumpMasses(SpringModel& model, const Scene& scene, const ModelOptions& opti
   }
   const int d = model.dimension;
   // Each element's rest measure (2D: area x thickness) as the FEM model computes it.
-  const fem::FemModel fem_model = fem::FemModel::Build(scene);
+  const fem::MeshFacts facts = fem::MeshFactsOf(scene);
   model.mass.assign(static_cast<std::size_t>(n), 0.0);
   for (std::size_t e = 0; e < mesh.elements.size(); ++e) {
     const std::vector<int>& nodes = mesh.elements[e];
-    const double measure =
-        d == 2 ? fem_model.elements2()[e].volume : fem_model.elements3()[e].volume;
+    const double measure = facts.element_measures[e];
     const double rho = options.density ? *options.density : *mesh.MaterialOf(e).density;
     for (int node : nodes) model.mass[node] += rho * measure / static_cast<double>(nodes.size());
   }

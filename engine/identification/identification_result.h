@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "engine/direct/direct_result.h"
-#include "engine/direct/identifiability.h"
+#include "engine/direct/identifiability_report.h"
 #include "engine/identification/verdict.h"
 #include "engine/probe_fit/probe_fit_report.h"
 #include "engine/problem/baseline_evaluation.h"

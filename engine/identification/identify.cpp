@@ -9,6 +9,7 @@
 #include "engine/identification/run_monitor.h"
 #include "engine/identification/strategy.h"
 #include "engine/problem/baseline_evaluation.h"
+#include "engine/problem/force_balance.h"
 #include "engine/runtime/input_error.h"
 #include "engine/runtime/number_text.h"
 

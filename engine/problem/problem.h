@@ -27,7 +27,7 @@
 
 namespace springfit {
 
-struct IdentifiabilityReport;  // engine/direct/identifiability.h
+struct IdentifiabilityReport;  // engine/direct/identifiability_report.h
 namespace fem {
 struct ClosedFormModel;  // engine/fem/closed_form_baseline.h
 }

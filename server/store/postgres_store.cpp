@@ -340,6 +340,9 @@ struct PostgresStore::Slot {
   std::chrono::steady_clock::time_point deadline SF_GUARDED_BY(watch);
   // The watchdog shut the socket down: the call ran out of time.
   bool fired SF_GUARDED_BY(watch) = false;
+  // When it fired on waking from a sleep far past its beat: the seconds the daemon itself did
+  // not run (0 otherwise).
+  double stalled_seconds SF_GUARDED_BY(watch) = 0.0;
 };
 
 void PostgresStore::Options::Validate() const {
@@ -404,8 +407,17 @@ double PostgresStore::CallLimit() const {
 void PostgresStore::WatchdogLoop() {
   // Every 50 ms: a call past its deadline has its socket shut down (not closed: the descriptor
   // stays the connection's, which its owner drops when libpq reports the error).
+  // A beat that comes a second or more late means the daemon itself did not run (SIGSTOP, a
+  // host that froze or starved it): the call's time ran out on the daemon's side, not the
+  // database's. It still ends (a daemon frozen past its lease must not write on), but its error
+  // says whose the delay was.
+  constexpr auto kBeat = std::chrono::milliseconds(50);
+  constexpr auto kStalled = std::chrono::seconds(1);
+  auto last = std::chrono::steady_clock::now();
   while (!stopping_.load()) {
     const auto now = std::chrono::steady_clock::now();
+    const auto asleep = now - last;
+    last = now;
     std::vector<Slot*> slots{writer_.get()};
     for (const auto& r : readers_) slots.push_back(r.get());
     for (Slot* slot : slots) {
@@ -413,9 +425,11 @@ void PostgresStore::WatchdogLoop() {
       if (slot->socket >= 0 && !slot->fired && now >= slot->deadline) {
         ::shutdown(slot->socket, SHUT_RDWR);
         slot->fired = true;
+        slot->stalled_seconds =
+            asleep >= kStalled ? std::chrono::duration<double>(asleep - kBeat).count() : 0.0;
       }
     }
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    std::this_thread::sleep_for(kBeat);
   }
 }
 
@@ -488,11 +502,22 @@ auto PostgresStore::With(Slot& slot, const Call& call, F&& f) {
     slot.socket = slot.connection->sock();
     slot.deadline = deadline;
     slot.fired = false;
+    slot.stalled_seconds = 0.0;
   };
   const auto disarm = [&] {
     MutexLock watch(slot.watch);
     slot.socket = -1;
     return slot.fired;
+  };
+  // The error of a call the watchdog ended: the database's delay, or the daemon's own.
+  const auto timed_out_error = [&] {
+    MutexLock watch(slot.watch);
+    if (!(slot.stalled_seconds > 0.0)) return late;
+    return fmt::format(
+        "the store call ran past its limit while this daemon itself did not run for {:.1f} s "
+        "(stopped, or its host froze or starved it): the delay was the daemon's, not the "
+        "database's",
+        slot.stalled_seconds);
   };
   // The watchdog may fire after the call's last round trip: the call succeeded, but the
   // socket is shut all the same, and the connection's next call would fail on it (a progress
@@ -509,7 +534,7 @@ auto PostgresStore::With(Slot& slot, const Call& call, F&& f) {
   const auto drop = [&](const std::string& what) {
     const bool timed_out = disarm();
     slot.connection.reset();
-    return StoreUnavailable(timed_out ? late : what);
+    return StoreUnavailable(timed_out ? timed_out_error() : what);
   };
   try {
     // A connection whose server closed its end since the last call (a restart, an

@@ -58,10 +58,12 @@ def check_pause():
     if job["state"] != "succeeded":
         fail("pause", f"job {job_id}: {job['state']}")
     # A stops the job either way: its heartbeat finds the lease lost, or, when the freeze
-    # caught it inside a store call, that call's watchdog fires first on waking (the freeze
-    # looks like a database that did not answer) and the job goes back to the store.
-    if not wait_log(a, ("lease lost", f"job {job_id} interrupted: the database did not answer"),
-                    10):
+    # caught it inside a store call, that call's watchdog fires first on waking, and its error
+    # names the daemon's own stall (not a database that did not answer); the job goes back to
+    # the store.
+    if not wait_log(a, ("lease lost",
+                        f"job {job_id} interrupted: the store call ran past its limit while this "
+                        "daemon itself did not run"), 10):
         fail("pause", "the resumed daemon A did not stop the job (no lease lost, no watchdog)")
     if f"job {job_id} succeeded" in a.log():
         fail("pause", "the paused daemon ran the job to completion too")

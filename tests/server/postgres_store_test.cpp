@@ -2,6 +2,7 @@
 // tests/server/with_postgres.sh: wake-ups across stores, migrations at once, the watchdog,
 // and reads on free connections.
 #include <signal.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -101,6 +102,52 @@ TEST(PostgresStoreOnly, AWatchdogFiringAfterASuccessfulCallLeavesNoDeadConnectio
   } catch (const StoreUnavailable& e) {
     ADD_FAILURE() << "the reader kept the connection the watchdog shut: " << e.what();
   }
+}
+
+// PostgreSQL alone: a call that runs out of time while the daemon itself is stopped (SIGSTOP
+// past the call's limit, as a frozen host does) still ends, but its error names the daemon's
+// stall, not a database that did not answer; the same call past its limit with the daemon
+// running blames the database. (The call waits on a table lock another session holds.)
+TEST(PostgresStoreOnly, ACallThatTimesOutWhileTheDaemonIsStoppedSaysSo) {
+  PostgresFactory factory("t_stalled_call");
+  PostgresStore::Options options;
+  options.call_seconds = 1.5;
+  options.readers = 1;
+  PostgresStore store(factory.url(), "", options);
+  const std::int64_t id = store.CreateJob(StoreTestJob("stalled"), 10).job.id;
+  pqxx::connection locker(factory.url());
+  pqxx::work lock(locker);
+  lock.exec("LOCK TABLE jobs IN ACCESS EXCLUSIVE MODE");
+  const auto message = [&] {
+    try {
+      store.GetJob(id);
+    } catch (const StoreUnavailable& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  // Running: the database's delay.
+  const std::string running = message();
+  EXPECT_NE(running.find("did not answer within 1.5 s"), std::string::npos) << running;
+  // Stopped from 0.3 s to 3.3 s into the call by a child process (which only sleeps and
+  // signals: safe after fork in a threaded process).
+  const pid_t self = ::getpid();
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    ::usleep(300000);
+    ::kill(self, SIGSTOP);
+    ::sleep(3);
+    ::kill(self, SIGCONT);
+    ::_exit(0);
+  }
+  const std::string stopped = message();
+  ::waitpid(child, nullptr, 0);
+  EXPECT_NE(stopped.find("this daemon itself did not run for"), std::string::npos) << stopped;
+  EXPECT_NE(stopped.find("not the database's"), std::string::npos) << stopped;
+  EXPECT_EQ(stopped.find("did not answer"), std::string::npos) << stopped;
+  lock.abort();
+  EXPECT_TRUE(store.GetJob(id));  // the store works on once the lock is gone
 }
 
 // PostgreSQL alone: a read takes a reading connection no call holds. One read held on its
