@@ -13,8 +13,8 @@
 #include <CLI/CLI.hpp>
 
 #include "client/rpc_client.h"
+#include "engine/api/problem.h"
 #include "engine/identification/identify.h"
-#include "engine/problem/problem.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
 

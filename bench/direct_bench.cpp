@@ -12,9 +12,10 @@
 
 #include <CLI/CLI.hpp>
 
+#include "engine/api/problem.h"
 #include "engine/direct/direct_identification.h"
+#include "engine/examples/catalog.h"
 #include "engine/identification/identify.h"
-#include "engine/problem/problem.h"
 #include "io/example_catalog.h"
 
 using namespace springfit;

@@ -20,9 +20,10 @@
 #include <string>
 #include <vector>
 
+#include "engine/api/problem.h"
+#include "engine/examples/catalog.h"
 #include "engine/examples/simplex_mesh.h"
 #include "engine/fem/fem_equilibrium.h"
-#include "engine/problem/problem.h"
 #include "io/example_catalog.h"
 
 namespace springfit {

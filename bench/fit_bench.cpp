@@ -19,10 +19,10 @@
 #include <string>
 #include <vector>
 
+#include "engine/api/problem.h"
 #include "engine/fit/sparsity_path.h"
 #include "engine/fit/stiffness_fit.h"
 #include "engine/problem/baseline_evaluation.h"
-#include "engine/problem/problem.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
 

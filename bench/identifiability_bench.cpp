@@ -14,8 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "engine/api/problem.h"
 #include "engine/direct/identifiability.h"
-#include "engine/problem/problem.h"
 #include "proto/scene_codec.h"
 
 namespace springfit {

@@ -9,9 +9,10 @@
 #include <memory>
 #include <random>
 
+#include "engine/api/problem.h"
+#include "engine/examples/catalog.h"
 #include "engine/model/candidates.h"
 #include "engine/model/point_index.h"
-#include "engine/problem/problem.h"
 #include "engine/search/genetic_search.h"
 #include "io/example_catalog.h"
 

@@ -15,13 +15,13 @@
 #include <string>
 #include <vector>
 
+#include "engine/api/problem.h"
 #include "engine/fit/stiffness_fit.h"
 #include "engine/probe_fit/generalization.h"
 #include "engine/probe_fit/probe_evaluation.h"
 #include "engine/probe_fit/response_fit.h"
 #include "engine/probe_fit/rest_stiffness.h"
 #include "engine/problem/baseline_evaluation.h"
-#include "engine/problem/problem.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
 

@@ -10,8 +10,10 @@
 #include <map>
 #include <memory>
 
+#include "engine/api/problem.h"
+#include "engine/examples/catalog.h"
+#include "engine/model/equilibrium.h"
 #include "engine/problem/cost.h"
-#include "engine/problem/problem.h"
 #include "io/example_catalog.h"
 
 namespace springfit {

@@ -347,7 +347,7 @@ void PrintReferenceTopology(const proto::Json& r, std::ostream& out) {
            "the candidates)\n";
   }
   if (r.contains("direct") && r["direct"].is_object()) {
-    PrintPairs(out, "below threshold, kept so the model carries the loads",
+    PrintPairs(out, "added so the model carries the loads (below the threshold, or unseen)",
                r["direct"].value("added_to_carry", proto::Json::array()));
   }
 }

@@ -10,7 +10,7 @@
 namespace springfit::cli {
 
 void PrintResultSummary(const proto::Json& result, std::ostream& out);
-// The verdict (engine/identification/verdict.h): the one line a pipeline reads, then a WARNING
+// The verdict (engine/api/verdict.h): the one line a pipeline reads, then a WARNING
 // line per unmet request, or why there is no usable model. The same words for a result and a
 // job (`status`, `watch`).
 void PrintOutcome(const Outcome& outcome, std::ostream& out);

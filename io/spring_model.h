@@ -34,7 +34,7 @@ struct ModelOptions {
 struct SpringModel {
   std::string name;         // the scene's
   std::string description;  // where it comes from: strategy, seed, E, units
-  // The scene's units (engine/model/units.h), when it states them.
+  // The scene's units (DerivedUnits, engine/api/scene.h), when it states them.
   std::optional<DerivedUnits> units;
   int dimension = 2;                 // 2 or 3
   std::vector<double> rest;          // flat rest positions, `dimension` per node

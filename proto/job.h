@@ -45,7 +45,7 @@ struct JobRecord {
   std::optional<TraceRow> progress;  // the last generation stored (or seen, while running)
   int checkpoint_generation = -1;    // generation of the last checkpoint; -1 = none
   std::optional<bool> exact;         // when finished and the reference topology is known
-  // A finished job's verdict and headline numbers (engine/identification/verdict.h), the same
+  // A finished job's verdict and headline numbers (engine/api/verdict.h), the same
   // as its result's `outcome`; absent before it finishes, when it failed, or stopped before it
   // had a model.
   std::optional<Outcome> outcome;

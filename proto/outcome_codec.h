@@ -1,4 +1,4 @@
-// The verdict of a result (engine/identification/verdict.h) on the wire: the `outcome` object
+// The verdict of a result (engine/api/verdict.h) on the wire: the `outcome` object
 // of a result (proto/RUN.md, "Outcome") and of a finished job (proto/RPC.md, "Job").
 #pragma once
 

@@ -400,7 +400,7 @@ Json ResultToJson(const Problem& problem, const IdentificationResult& r, bool wi
   j["stop"] = StopReasonName(r.stop);
   j["stop_message"] = r.stop_message;
   j["outcome"] = OutcomeToJson(r.outcome);
-  // Notices about the scene (engine/problem/problem.h, SceneNotices): shown wherever the result is.
+  // Notices about the scene (engine/api/problem.h, SceneNotices): shown wherever the result is.
   j["notices"] = SceneNotices(problem);
   // The units the numbers are in, as the scene states them (null: unstated).
   const auto& units = problem.scene().units;

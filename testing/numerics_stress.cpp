@@ -8,9 +8,10 @@
 #include <memory>
 #include <random>
 
+#include "engine/api/problem.h"
 #include "engine/identification/identify.h"
+#include "engine/model/equilibrium.h"
 #include "engine/problem/cost.h"
-#include "engine/problem/problem.h"
 #include "engine/runtime/input_error.h"
 
 namespace springfit::examples {

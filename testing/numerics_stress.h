@@ -14,7 +14,7 @@
 #include <cstdint>
 #include <string>
 
-#include "engine/model/scene.h"
+#include "engine/api/scene.h"
 
 namespace springfit::examples {
 

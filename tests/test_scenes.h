@@ -5,8 +5,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/model/scene.h"
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
+#include "engine/api/scene.h"
 
 namespace springfit::testing {
 

@@ -7,6 +7,7 @@
 
 #include "engine/direct/scale_pinning.h"
 #include "engine/direct/weight_uncertainty.h"
+#include "engine/genome/gene_weights.h"
 #include "engine/runtime/options_check.h"
 #include "engine/runtime/wall_clock.h"
 
@@ -151,12 +152,11 @@ class WeightReader {
     std::stable_sort(order.begin(), order.end(),
                      [&](int a, int b) { return r.weights[a] > r.weights[b]; });
     std::vector<double> weights = r.weights;
-    std::vector<double> present;
+    std::vector<double> present(genes, 0.0);
     for (int g = 0; g < genes; ++g)
-      if (r.genome[g]) present.push_back(r.weights[g]);
-    if (!present.empty()) {
-      std::nth_element(present.begin(), present.begin() + present.size() / 2, present.end());
-      const double stand_in = present[present.size() / 2];
+      if (r.genome[g]) present[g] = r.weights[g];
+    if (std::any_of(present.begin(), present.end(), [](double w) { return w > 0.0; })) {
+      const double stand_in = MedianPositive(present);
       for (int g = 0; g < genes; ++g) {
         if (usable_[g]) continue;
         order.push_back(g);
@@ -314,14 +314,17 @@ void ReadWeights(const Problem& problem, const ForceBalance& fb, const std::vect
 // not change.
 void FixDisplacementOnlyScale(const Problem& problem, const DirectOptions& options,
                               DirectResult& r) {
-  std::vector<double> kept_weights;
+  std::vector<double> kept_weights(problem.gene_count(), 0.0);
+  bool any_kept = false;
   for (int g = 0; g < problem.gene_count(); ++g) {
-    if (r.genome[g] && r.weights[g] > 0.0) kept_weights.push_back(r.weights[g]);
+    if (r.genome[g] && r.weights[g] > 0.0) {
+      kept_weights[g] = r.weights[g];
+      any_kept = true;
+    }
   }
-  if (!r.displacement_only || kept_weights.empty()) return;
-  const auto middle = kept_weights.begin() + static_cast<std::ptrdiff_t>(kept_weights.size() / 2);
-  std::nth_element(kept_weights.begin(), middle, kept_weights.end());
-  const double factor = options.known_stiffness.value_or(problem.training_stiffness()) / *middle;
+  if (!r.displacement_only || !any_kept) return;
+  const double factor =
+      options.known_stiffness.value_or(problem.training_stiffness()) / MedianPositive(kept_weights);
   for (double& w : r.weights) w *= factor;
   for (double& s : r.sigma) s *= factor;
   r.topology_threshold *= factor;

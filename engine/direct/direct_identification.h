@@ -42,12 +42,12 @@
 #include <optional>
 #include <vector>
 
-#include "engine/direct/direct_result.h"
+#include "engine/api/direct_result.h"
+#include "engine/api/problem.h"
 #include "engine/direct/stiffness_refinement.h"
 #include "engine/linalg/nnls.h"
 #include "engine/problem/cost.h"
 #include "engine/problem/force_balance.h"
-#include "engine/problem/problem.h"
 
 namespace springfit {
 

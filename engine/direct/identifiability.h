@@ -20,10 +20,10 @@
 #include <string>
 #include <vector>
 
-#include "engine/direct/identifiability_report.h"
+#include "engine/api/identifiability_report.h"
+#include "engine/api/problem.h"
 #include "engine/linalg/column_dependencies.h"
 #include "engine/problem/force_balance.h"
-#include "engine/problem/problem.h"
 
 namespace springfit {
 

@@ -8,6 +8,7 @@
 #include "engine/problem/force_balance.h"
 
 #include "engine/linalg/sparse_columns.h"
+#include "engine/model/equilibrium.h"
 #include "engine/runtime/options_check.h"
 
 namespace springfit {

@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "engine/api/problem.h"
 #include "engine/problem/cost.h"
-#include "engine/problem/problem.h"
 #include "engine/runtime/interruption.h"
 
 namespace springfit {

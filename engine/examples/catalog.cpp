@@ -5,7 +5,7 @@
 #include <numbers>
 #include <stdexcept>
 
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
 #include "engine/problem/small_strain.h"
 #include "engine/runtime/number_text.h"
 #include "engine/search/random_stream.h"

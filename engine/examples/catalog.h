@@ -9,23 +9,15 @@
 #include <string>
 #include <vector>
 
+#include "engine/api/examples.h"
+#include "engine/api/scene.h"
 #include "engine/examples/simplex_mesh.h"
-#include "engine/model/scene.h"
 
 namespace springfit::examples {
 
-// The example scenes' builders; the catalogue that names them, and loads the kidney's mesh
-// from its Gmsh file, is io/example_catalog.h (`springfit example`).
-
-// The paper's 5x5 grids (isotropic or anisotropic reference), a 4x4x4 grid, a grid of varied
-// stiffness.
-Scene PaperGrid(const std::string& name, bool anisotropic);
-Scene Grid3d();
-Scene Stiff2d();
-// An MSS reference on the edges of a triangulated kidney cross-section `mesh`.
-Scene Kidney2d(const SimplexMesh& mesh);
-
-// Building blocks, also used by the benchmarks and tests.
+// The example scenes' builders are on the surface (engine/api/examples.h); the catalogue that
+// names them, and loads the kidney's mesh from its Gmsh file, is io/example_catalog.h
+// (`springfit example`). Here: their building blocks, also used by the benchmarks and tests.
 
 // A regular grid of n[0] x n[1] (x n[2]) nodes with the given spacing, numbered with x fastest.
 Vector GridNodes(const std::vector<int>& n, double spacing);
@@ -56,15 +48,6 @@ const std::vector<Paper7Pattern>& Paper7Patterns(int dimension);
 // boundary, within 1e-9 of the diagonal) of the low or the high side along `axis`.
 std::vector<int> SideNodes(int dimension, const Vector& rest, int axis, bool low, double band);
 
-// The FEM examples (fem_examples.cpp): the paper7 patterns as tractions on named node sets,
-// scaled to 5% strain in the small-load limit.
-Scene FemPlate5x5();
-// On the kidney's mesh (io/example_catalog.h, KidneyMesh).
-Scene FemKidney2d(const SimplexMesh& mesh, bool nonlinear);
-// fem-kidney-2d on the fine mesh (KidneyMeshFine): the size of a simulator's organ section.
-Scene FemKidney2dFine(const SimplexMesh& mesh);
-Scene FemBlock3d();
-
 // Rescales every load case's forces and tractions so that the reference's largest nodal
 // displacement in the small-load (linear) limit is `strain` times the scene's extent
 // (docs/ARCHITECTURE.md, "Paper7 load cases": examples keep loads at moderate strain).
@@ -80,13 +63,6 @@ void CheckFoldFree(const Scene& scene, const std::vector<std::vector<int>>& simp
 // each cell rigid). Stiffness log-uniform over `stiffness_decades` decades around 1. Loads:
 // paper7 at 5% strain. Deterministic in `seed`; for tests and benchmarks at any size.
 Scene ThinnedGrid(const std::vector<int>& n, std::uint64_t seed, double stiffness_decades);
-
-// The scene with its reference replaced by measured positions: the reference's equilibrium
-// positions under each load case, each coordinate of every free node perturbed by Gaussian
-// noise of standard deviation `fraction` times that load case's RMS nodal displacement (over
-// its free nodes). Constrained nodes keep their exact positions. Deterministic in `seed`
-// (Box-Muller on the project's own random stream, so every platform draws the same noise).
-Scene WithMeasurementNoise(const Scene& scene, double fraction, std::uint64_t seed);
 
 // The simplices of a grid (each cell split both ways in 2D; the eight corner tetrahedra of
 // each cube in 3D), for CheckFoldFree.

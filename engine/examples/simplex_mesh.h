@@ -4,14 +4,10 @@
 
 #include <vector>
 
+#include "engine/api/examples.h"
 #include "engine/linalg/linalg.h"
 
 namespace springfit::examples {
-
-struct SimplexMesh {
-  Vector nodes;                            // flat d*n rest positions, x fastest, then y (then z)
-  std::vector<std::vector<int>> elements;  // triangles or tetrahedra, positively oriented
-};
 
 // (nx + 1) x (ny + 1) nodes on [0, nx h] x [0, ny h]; each cell split into two triangles, by
 // the '/' diagonal everywhere, or alternating '/' and '\' like a chequerboard (`alternate`).

@@ -12,7 +12,7 @@
 
 #include <vector>
 
-#include "engine/model/scene.h"
+#include "engine/api/scene.h"
 
 namespace springfit::fem {
 

@@ -15,8 +15,8 @@
 #include <array>
 #include <vector>
 
+#include "engine/api/scene.h"
 #include "engine/fem/material_law.h"
-#include "engine/model/scene.h"
 
 namespace springfit::fem {
 

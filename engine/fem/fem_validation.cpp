@@ -5,8 +5,8 @@
 #include <map>
 #include <string>
 
+#include "engine/api/scene.h"
 #include "engine/fem/fem_model.h"
-#include "engine/model/mesh_names.h"
 #include "engine/runtime/input_error.h"
 #include "engine/runtime/number_text.h"
 

@@ -1,8 +1,8 @@
 // The semantic rules of a finite-element reference (proto/SCENE.md, "fem"), checked once at
-// the boundary with the rest of the scene (engine/problem/scene_validation.h).
+// the boundary with the rest of the scene (ValidateScene, engine/api/scene.h).
 #pragma once
 
-#include "engine/model/scene.h"
+#include "engine/api/scene.h"
 
 namespace springfit::fem {
 

@@ -25,8 +25,8 @@
 // tangent is condensed: A = W_FF - W_Fl W_lF / W_ll.
 #pragma once
 
+#include "engine/api/scene.h"
 #include "engine/linalg/linalg.h"
-#include "engine/model/scene.h"
 
 namespace springfit::fem {
 

@@ -1,4 +1,4 @@
-#include "engine/fem/mesh_facts.h"
+#include "engine/api/mesh_facts.h"
 
 #include "engine/fem/fem_model.h"
 

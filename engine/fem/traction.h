@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/model/scene.h"
+#include "engine/api/scene.h"
 
 namespace springfit::fem {
 

@@ -23,8 +23,8 @@
 #include <string>
 #include <vector>
 
+#include "engine/api/problem.h"
 #include "engine/fit/stiffness_fit.h"
-#include "engine/problem/problem.h"
 #include "engine/runtime/interruption.h"
 
 namespace springfit {

@@ -6,6 +6,7 @@
 #include <limits>
 #include <random>
 
+#include "engine/model/equilibrium.h"
 #include "engine/problem/force_balance.h"
 #include "engine/runtime/options_check.h"
 

@@ -24,8 +24,8 @@
 #include <string>
 #include <vector>
 
+#include "engine/api/problem.h"
 #include "engine/genome/gene_weights.h"
-#include "engine/problem/problem.h"
 #include "engine/runtime/interruption.h"
 #include "engine/runtime/worker_pool.h"
 

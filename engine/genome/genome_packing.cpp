@@ -1,4 +1,4 @@
-#include "engine/genome/genome_packing.h"
+#include "engine/api/checkpoint.h"
 
 namespace springfit {
 

@@ -8,6 +8,8 @@
 #include "engine/identification/run_bounds.h"
 #include "engine/identification/run_monitor.h"
 #include "engine/identification/strategy.h"
+#include "engine/identification/verdict.h"
+#include "engine/model/equilibrium.h"
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/problem/force_balance.h"
 #include "engine/runtime/input_error.h"

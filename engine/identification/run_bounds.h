@@ -3,8 +3,9 @@
 // work"), not discovered minutes or gigabytes later.
 #pragma once
 
-#include "engine/problem/problem.h"
-#include "engine/search/search_options.h"
+#include "engine/api/identify.h"
+#include "engine/api/problem.h"
+#include "engine/api/search_options.h"
 
 namespace springfit {
 
@@ -21,10 +22,6 @@ double ProbeFitBytes(const Problem& problem, const SearchOptions& options);
 // The machine's physical memory in bytes (0 when it cannot be read).
 double PhysicalMemoryBytes();
 
-// Throws InputError naming search.probes when an explicit probe count is below what gives every
-// (support, family) group a fitted, a choosing and a held-out probe (MinimumProbeCount), or when
-// ProbeFitBytes exceeds `available_bytes` (<= 0: half the machine's physical memory).
-void CheckRunBounds(const Problem& problem, const SearchOptions& options,
-                    double available_bytes = 0.0);
+// CheckRunBounds, which a service calls at the door, is on the surface (engine/api/identify.h).
 
 }  // namespace springfit

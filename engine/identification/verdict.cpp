@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "engine/identification/identification_result.h"
+#include "engine/api/result.h"
 #include "engine/problem/small_strain.h"
 #include "engine/runtime/number_text.h"
 

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "engine/linalg/linalg.h"
+#include "engine/linalg/nnls_result.h"
 #include "engine/runtime/interruption.h"
 
 namespace springfit {
@@ -40,16 +41,6 @@ struct NnlsOptions {
   // Throws std::invalid_argument naming the field, its value and the rule it breaks; `owner`
   // names the struct holding these options, if any.
   void Validate(const std::string& owner = "NnlsOptions") const;
-};
-
-struct NnlsResult {
-  Vector x;  // >= 0; 0 on columns not usable
-  // The optimality conditions hold within the tolerance, and the least-squares solves on the
-  // positive set were accurate (false for a singular set the ridge could not resolve).
-  bool converged = false;
-  int iterations = 0;  // pivoting rounds
-  int factorizations = 0;
-  double residual_norm = 0.0;  // |A x - b|
 };
 
 // Columns with `usable[j]` false are held at 0 (e.g. zero columns).

@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "engine/model/scene.h"
+#include "engine/api/scene.h"
 
 namespace springfit {
 
@@ -14,14 +14,8 @@ namespace springfit {
 // distinct) and kPairs entries are in range and not self pairs.
 std::vector<NodePair> GenerateCandidates(const Scene& scene);
 
-// An upper bound on the number of candidates GenerateCandidates(scene) yields, computed
-// without generating them, so that a service can refuse a scene too large for it before the
-// work: 4 n (2D) or 13 n (3D) on a grid, k n for k nearest (each pair counted from both ends
-// at most), the pairs given, the mesh's element edges plus k n, and for a radius the pairs
-// within it counted on a k-d tree, exactly, or up to the first count past `stop_above` (the
-// answer then exceeds stop_above and is at most the true count). O(n log n) plus the pairs
-// counted. 0 when a node coordinate is not finite (validation refuses the scene).
-std::int64_t EstimateCandidateCount(const Scene& scene, std::int64_t stop_above);
+// EstimateCandidateCount, which a service calls before the work, is on the surface
+// (engine/api/scene.h).
 
 // The per-axis lattice step of `scene`'s nodes: the smallest difference between node
 // coordinates along each axis that exceeds 1e-6 of the axis's range (0 for an axis on which

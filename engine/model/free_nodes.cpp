@@ -1,4 +1,4 @@
-#include "engine/model/free_nodes.h"
+#include "engine/api/model.h"
 
 namespace springfit {
 

@@ -1,4 +1,4 @@
-#include "engine/model/mesh_names.h"
+#include "engine/api/scene.h"
 
 namespace springfit {
 

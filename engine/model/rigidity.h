@@ -15,7 +15,7 @@
 // (EquilibriumSolver::RestStabilityOf).
 #pragma once
 
-#include "engine/model/free_nodes.h"
+#include "engine/api/model.h"
 #include "engine/model/springs.h"
 
 namespace springfit {

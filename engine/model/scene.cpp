@@ -1,4 +1,4 @@
-#include "engine/model/scene.h"
+#include "engine/api/scene.h"
 
 #include <algorithm>
 

@@ -13,34 +13,10 @@
 #include <cmath>
 #include <vector>
 
+#include "engine/api/model.h"
 #include "engine/linalg/linalg.h"
-#include "engine/model/scene.h"
 
 namespace springfit {
-
-// A fixed set of potential springs over a scene's nodes (the candidates, or a reference's own
-// springs): endpoints and rest lengths. Constant after construction.
-struct SpringGeometry {
-  int dimension = 2;
-  std::vector<NodePair> pairs;
-  std::vector<double> rest_length;
-  Vector rest_separation;  // X_i - X_j at rest, flat d per spring
-
-  SpringGeometry() = default;
-  // Precondition: every pair is in range, first != second, rest positions distinct.
-  SpringGeometry(int dimension, const Vector& rest, std::vector<NodePair> pairs);
-  int size() const { return static_cast<int>(pairs.size()); }
-  double MaxRestLength() const;
-};
-
-// The springs present in one model: indices into a SpringGeometry and their stiffness.
-struct ActiveSprings {
-  std::vector<int> index;
-  std::vector<double> stiffness;  // > 0, parallel to index
-
-  int size() const { return static_cast<int>(index.size()); }
-  double MaxStiffness() const;
-};
 
 // Per-spring quantities at the current separation, computed once and shared by the energy,
 // gradient and Hessian. A spring whose nodes coincide (L = 0) has no direction: its force and

@@ -1,4 +1,4 @@
-#include "engine/model/units.h"
+#include "engine/api/scene.h"
 
 #include <cmath>
 #include <utility>

@@ -14,8 +14,8 @@
 
 #include <vector>
 
+#include "engine/api/problem.h"
 #include "engine/probe_fit/probe_evaluation.h"
-#include "engine/problem/problem.h"
 #include "engine/runtime/interruption.h"
 
 namespace springfit::response {

@@ -11,8 +11,8 @@
 
 #include <vector>
 
+#include "engine/api/problem.h"
 #include "engine/probe_fit/support_system.h"
-#include "engine/problem/problem.h"
 
 namespace springfit::response {
 

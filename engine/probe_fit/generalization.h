@@ -6,10 +6,10 @@
 #include <string>
 #include <vector>
 
+#include "engine/api/probe_fit_report.h"
 #include "engine/probe_fit/amplitude_judgement.h"
 #include "engine/probe_fit/free_body.h"
 #include "engine/probe_fit/probe_evaluation.h"
-#include "engine/probe_fit/probe_fit_report.h"
 #include "engine/probe_fit/response_fit.h"
 #include "engine/probe_fit/tool_pushes.h"
 

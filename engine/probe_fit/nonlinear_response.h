@@ -18,9 +18,9 @@
 #include <string>
 #include <vector>
 
+#include "engine/api/probe_fit_report.h"
 #include "engine/probe_fit/nonlinear_solves.h"
 #include "engine/probe_fit/probe_bank.h"
-#include "engine/probe_fit/probe_fit_report.h"
 #include "engine/probe_fit/spring_sensitivities.h"
 
 namespace springfit::response {

@@ -8,9 +8,9 @@
 #include <optional>
 #include <vector>
 
+#include "engine/api/problem.h"
 #include "engine/fem/fem_equilibrium.h"
 #include "engine/model/equilibrium.h"
-#include "engine/problem/problem.h"
 #include "engine/runtime/options_check.h"
 
 namespace springfit::response {

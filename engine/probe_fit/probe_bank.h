@@ -46,9 +46,9 @@
 #include <utility>
 #include <vector>
 
-#include "engine/probe_fit/probe_fit_report.h"
+#include "engine/api/probe_fit_report.h"
+#include "engine/api/problem.h"
 #include "engine/probe_fit/rest_stiffness.h"
-#include "engine/problem/problem.h"
 
 namespace springfit::response {
 

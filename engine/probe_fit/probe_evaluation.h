@@ -16,8 +16,8 @@
 #include <limits>
 #include <vector>
 
+#include "engine/api/probe_fit_report.h"
 #include "engine/probe_fit/probe_bank.h"
-#include "engine/probe_fit/probe_fit_report.h"
 #include "engine/probe_fit/support_system.h"
 #include "engine/runtime/interruption.h"
 

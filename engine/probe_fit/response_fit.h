@@ -28,11 +28,11 @@
 #include <string>
 #include <vector>
 
+#include "engine/api/probe_fit_report.h"
 #include "engine/probe_fit/mode_cuts.h"
 #include "engine/probe_fit/mode_lift.h"
 #include "engine/probe_fit/nonlinear_response.h"
 #include "engine/probe_fit/probe_bank.h"
-#include "engine/probe_fit/probe_fit_report.h"
 #include "engine/runtime/interruption.h"
 #include "engine/runtime/worker_pool.h"
 

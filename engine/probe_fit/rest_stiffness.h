@@ -15,7 +15,7 @@
 
 #include <Eigen/SparseCore>
 
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
 
 namespace springfit::response {
 

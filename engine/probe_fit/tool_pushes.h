@@ -15,10 +15,10 @@
 #include <string>
 #include <vector>
 
+#include "engine/api/probe_fit_report.h"
 #include "engine/probe_fit/nonlinear_solves.h"
 #include "engine/probe_fit/probe_bank.h"
 #include "engine/probe_fit/probe_evaluation.h"
-#include "engine/probe_fit/probe_fit_report.h"
 #include "engine/runtime/interruption.h"
 #include "engine/runtime/worker_pool.h"
 

@@ -7,7 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/problem/problem.h"
+#include "engine/api/analysis.h"
+#include "engine/api/problem.h"
 #include "engine/runtime/interruption.h"
 
 namespace springfit {
@@ -17,16 +18,7 @@ namespace springfit {
 // candidate (the baseline is then not a model of the candidate set). Precondition as above.
 std::optional<std::vector<double>> BaselineGeneWeights(const Problem& problem);
 
-struct BaselineReport {
-  std::string recipe = "van_gelder_1998";
-  int springs = 0;
-  // The baseline model's equilibria against the reference's, over the free nodes of every
-  // load case (as the cost, engine/problem/cost.h): e = sum |u_mss - u_ref|^2 / sum |u_ref|^2 and
-  // the relative RMS nodal error E = sqrt(e). Only meaningful when `converged`.
-  double normalized_error = 0.0;
-  double rms_error = 0.0;
-  bool converged = true;  // false: the baseline has no equilibrium under some load case
-};
+// BaselineReport, what a result shows of the baseline, is on the surface (engine/api/analysis.h).
 
 // nullopt unless the reference is an FEM model. Throws Interrupted when `interruption` stops
 // it (checked inside its solves).

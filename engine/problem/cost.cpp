@@ -1,6 +1,9 @@
 #include "engine/problem/cost.h"
 
 #include <algorithm>
+#include <utility>
+
+#include "engine/model/equilibrium.h"
 
 namespace springfit {
 namespace {
@@ -49,18 +52,27 @@ void Penalize(const Problem& p, double stable_cost, Evaluation& e) {
 
 }  // namespace
 
+struct CostFunction::Solvers {
+  std::vector<EquilibriumSolver> per_free_set;  // one per Problem::free_sets()
+  std::vector<RestStability> stability;         // per free set, for the current evaluation
+};
+
 CostFunction::CostFunction(const Problem& problem, CostOptions options)
-    : problem_(&problem), options_(options) {
-  solvers_.reserve(problem.free_sets().size());
+    : problem_(&problem), options_(options), solvers_(std::make_unique<Solvers>()) {
+  solvers_->per_free_set.reserve(problem.free_sets().size());
   EquilibriumOptions solver_options = problem.solver_options();
   if (options_.response) solver_options.response = *options_.response;
   for (const FreeNodes& free : problem.free_sets()) {
-    solvers_.emplace_back(problem.candidates(), free, solver_options);
+    solvers_->per_free_set.emplace_back(problem.candidates(), free, solver_options);
   }
 }
 
+CostFunction::~CostFunction() = default;
+CostFunction::CostFunction(CostFunction&&) noexcept = default;
+CostFunction& CostFunction::operator=(CostFunction&&) noexcept = default;
+
 void CostFunction::set_interruption(Interruption* interruption) {
-  for (EquilibriumSolver& solver : solvers_) solver.set_interruption(interruption);
+  for (EquilibriumSolver& solver : solvers_->per_free_set) solver.set_interruption(interruption);
 }
 
 Evaluation CostFunction::EvaluateGenome(const Genome& genome) {
@@ -73,11 +85,12 @@ Evaluation CostFunction::EvaluateMask(const std::vector<std::uint8_t>& candidate
 
 bool CostFunction::CheckStability(const ActiveSprings& springs) {
   // One rest factorisation per distinct set of constrained nodes.
-  stability_.assign(solvers_.size(), RestStability{});
+  std::vector<RestStability>& stability = solvers_->stability;
+  stability.assign(solvers_->per_free_set.size(), RestStability{});
   bool any_mechanism = false;
-  for (std::size_t f = 0; f < solvers_.size(); ++f) {
-    stability_[f] = solvers_[f].RestStabilityOf(springs);
-    any_mechanism = any_mechanism || stability_[f].modes > 0;
+  for (std::size_t f = 0; f < stability.size(); ++f) {
+    stability[f] = solvers_->per_free_set[f].RestStabilityOf(springs);
+    any_mechanism = any_mechanism || stability[f].modes > 0;
   }
   return any_mechanism;
 }
@@ -91,13 +104,14 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs,
   if (displacements) displacements->assign(p.load_cases().size(), Vector());
 
   const bool any_mechanism = CheckStability(springs);
+  const std::vector<RestStability>& stability = solvers_->stability;
 
   double stable_cost = 0.0;
   for (std::size_t k = 0; k < p.load_cases().size(); ++k) {
     const PreparedLoadCase& lc = p.load_cases()[k];
     LoadCaseEvaluation& out = e.load_cases[k];
-    const int modes = stability_[lc.free_set].modes;
-    out.solve.near_mechanism_modes = stability_[lc.free_set].near_modes;
+    const int modes = stability[lc.free_set].modes;
+    out.solve.near_mechanism_modes = stability[lc.free_set].near_modes;
     if (modes > 0) {
       out.solve.termination = Termination::kMechanism;
       out.solve.mechanism_modes = modes;
@@ -115,9 +129,9 @@ Evaluation CostFunction::Evaluate(const ActiveSprings& springs,
     } else {
       u_.setZero(lc.reference.size());
     }
-    EquilibriumSolver& solver = solvers_[lc.free_set];
+    EquilibriumSolver& solver = solvers_->per_free_set[lc.free_set];
     out.solve = solver.Solve(springs, lc.force, lc.prescribed, u_);
-    out.solve.near_mechanism_modes = stability_[lc.free_set].near_modes;
+    out.solve.near_mechanism_modes = stability[lc.free_set].near_modes;
     if (out.solve.termination == Termination::kInterrupted) {
       e.interrupted = true;
       e.converged = false;

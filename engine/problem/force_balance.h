@@ -15,7 +15,7 @@
 #include <optional>
 #include <vector>
 
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
 
 namespace springfit {
 

@@ -1,4 +1,4 @@
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,6 +7,7 @@
 
 #include <fmt/format.h>
 
+#include "engine/api/scene.h"
 #include "engine/fem/closed_form_baseline.h"
 #include "engine/fem/traction.h"
 #include "engine/genome/gene_weights.h"
@@ -14,10 +15,16 @@
 #include "engine/model/candidates.h"
 #include "engine/problem/force_balance.h"
 #include "engine/problem/reference_equilibria.h"
-#include "engine/problem/scene_validation.h"
 #include "engine/runtime/input_error.h"
 
 namespace springfit {
+
+// The training stiffness of a positions reference given without one: the median of the
+// springs the force balance at the reference's positions keeps (its non-negative
+// least-squares weights above 1e-3 of the largest, engine/linalg/nnls.h): the stiffness the
+// data give the springs they need, in the data's units. 1 when the loads only prescribe
+// displacements (the data fix no scale).
+double PositionsTrainingStiffness(const Problem& problem);
 namespace {
 
 // A force-balance weight below this fraction of the largest is an absent spring's (round-off or

@@ -7,8 +7,8 @@
 
 #include <vector>
 
+#include "engine/api/problem.h"
 #include "engine/model/equilibrium.h"
-#include "engine/problem/problem.h"
 #include "engine/runtime/interruption.h"
 
 namespace springfit {

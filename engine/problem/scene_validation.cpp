@@ -1,5 +1,4 @@
-#include "engine/problem/scene_validation.h"
-#include "engine/model/units.h"
+#include "engine/api/scene.h"
 
 #include <Eigen/Eigenvalues>
 

@@ -5,9 +5,9 @@
 
 #include <fmt/format.h>
 
+#include "engine/api/problem.h"
+#include "engine/api/scene.h"
 #include "engine/fem/fem_model.h"
-#include "engine/model/mesh_names.h"
-#include "engine/problem/problem.h"
 
 namespace springfit {
 

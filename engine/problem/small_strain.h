@@ -48,8 +48,7 @@ struct ReferenceStrain {
 std::optional<ReferenceStrain> LinearReferenceStrain(const Problem& problem,
                                                      double load_scale = 1.0);
 
-// One line when a linear FEM reference is strained past kSmallStrainLimit at `load_size` (the
-// scene's length; 0 for the named loads' own size): where, how much, and what to use instead.
-std::optional<std::string> SmallStrainWarning(const Problem& problem, double load_size = 0.0);
+// SmallStrainWarning, the one line `run` and `check` print, is on the surface
+// (engine/api/problem.h).
 
 }  // namespace springfit

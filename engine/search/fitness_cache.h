@@ -15,10 +15,9 @@
 #include <utility>
 #include <vector>
 
-#include "engine/genome/genome_packing.h"
-#include "engine/problem/problem.h"
-#include "engine/search/fitness.h"
-#include "engine/search/search_options.h"
+#include "engine/api/checkpoint.h"
+#include "engine/api/problem.h"
+#include "engine/api/search_options.h"
 
 namespace springfit {
 
@@ -29,7 +28,7 @@ class FitnessCache {
 
   explicit FitnessCache(std::size_t capacity = kDefaultCapacity) : capacity_(capacity) {}
 
-  // Keys are packed genomes (engine/genome/genome_packing.h).
+  // Keys are packed genomes (engine/api/checkpoint.h).
   static std::string Key(const Genome& genome) { return PackGenome(genome); }
 
   std::optional<Fitness> Find(const std::string& key) const;

@@ -12,13 +12,12 @@
 #include <memory>
 #include <vector>
 
+#include "engine/api/checkpoint.h"
+#include "engine/api/problem.h"
 #include "engine/problem/cost.h"
-#include "engine/problem/problem.h"
 #include "engine/runtime/interruption.h"
 #include "engine/runtime/worker_pool.h"
-#include "engine/search/fitness.h"
 #include "engine/search/fitness_cache.h"
-#include "engine/search/search_state.h"
 
 namespace springfit {
 

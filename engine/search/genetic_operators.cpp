@@ -4,7 +4,7 @@
 #include <stdexcept>
 #include <utility>
 
-#include "engine/search/search_options.h"
+#include "engine/api/search_options.h"
 
 namespace springfit {
 

@@ -4,7 +4,7 @@
 
 #include <span>
 
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
 #include "engine/search/random_stream.h"
 
 namespace springfit {

@@ -15,12 +15,12 @@
 #include <string>
 #include <vector>
 
-#include "engine/problem/problem.h"
+#include "engine/api/checkpoint.h"
+#include "engine/api/problem.h"
+#include "engine/api/search_options.h"
 #include "engine/runtime/trace.h"
 #include "engine/search/fitness_evaluator.h"
 #include "engine/search/random_stream.h"
-#include "engine/search/search_options.h"
-#include "engine/search/search_state.h"
 
 namespace springfit {
 

@@ -1,4 +1,4 @@
-#include "engine/search/search_options.h"
+#include "engine/api/search_options.h"
 
 #include <algorithm>
 #include <cmath>

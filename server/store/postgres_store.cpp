@@ -84,7 +84,7 @@ CREATE TABLE improvements (
   normalized_error DOUBLE PRECISION NOT NULL,
   missing INTEGER,
   extra INTEGER,
-  genome BYTEA NOT NULL,             -- packed 8 genes per byte (engine/genome/genome_packing.h)
+  genome BYTEA NOT NULL,             -- packed 8 genes per byte (engine/api/checkpoint.h)
   PRIMARY KEY (job_id, generation)
 );
 CREATE TABLE checkpoints (

@@ -70,7 +70,7 @@ CREATE TABLE improvements (
   normalized_error REAL NOT NULL,
   missing INTEGER,
   extra INTEGER,
-  genome BLOB NOT NULL,              -- packed 8 genes per byte (engine/genome/genome_packing.h)
+  genome BLOB NOT NULL,              -- packed 8 genes per byte (engine/api/checkpoint.h)
   PRIMARY KEY (job_id, generation)
 );
 CREATE TABLE checkpoints (

@@ -210,7 +210,7 @@ std::string Row(const std::string& key, const std::string& value_html) {
 // once when it ends, to show the result. data-updates counts the updates received (the
 // browser test reads it).
 // The result card: the verdict and the numbers that matter first, in the words of `springfit
-// run` (engine/identification/verdict.h), then the regularisation and the certificate's bound
+// run` (engine/api/verdict.h), then the regularisation and the certificate's bound
 // from the result, then every search setting submitted.
 std::string ResultCard(const Outcome& o, const Json& result, const Json& search) {
   std::string body = "<table id=\"result-card\">\n";

@@ -6,10 +6,10 @@
 #include <limits>
 #include <string>
 
+#include "engine/api/search_options.h"
 #include "engine/identification/identify.h"
 #include "engine/identification/strategy.h"
 #include "engine/runtime/input_error.h"
-#include "engine/search/search_options.h"
 #include "io/example_catalog.h"
 
 namespace springfit {

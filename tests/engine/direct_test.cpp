@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "engine/direct/direct_identification.h"
+#include "engine/examples/catalog.h"
 #include "engine/identification/identify.h"
 #include "engine/identification/strategy.h"
 #include "engine/linalg/nnls.h"

@@ -6,7 +6,7 @@
 #include <gtest/gtest.h>
 #include <Eigen/Eigenvalues>
 
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
 #include "tests/test_scenes.h"
 
 namespace springfit {

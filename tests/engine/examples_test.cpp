@@ -3,7 +3,8 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
+#include "engine/examples/catalog.h"
 #include "engine/problem/small_strain.h"
 
 namespace springfit {

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "engine/model/equilibrium.h"
 #include "engine/problem/cost.h"
 #include "io/example_catalog.h"
 #include "tests/test_scenes.h"

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "engine/examples/simplex_mesh.h"
 #include "io/example_catalog.h"
 #include "tests/test_scenes.h"
 

@@ -8,9 +8,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "engine/api/problem.h"
 #include "engine/examples/simplex_mesh.h"
 #include "engine/fem/traction.h"
-#include "engine/problem/problem.h"
 #include "engine/runtime/input_error.h"
 #include "tests/test_scenes.h"
 

@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "engine/examples/catalog.h"
 #include "engine/fit/sparsity_path.h"
 #include "engine/fit/stiffness_fit.h"
 #include "engine/genome/gene_weights.h"

@@ -1,6 +1,6 @@
 // What the tests of the linear response and of the continuous fit share.
 #pragma once
-#include "engine/model/scene.h"
+#include "engine/api/scene.h"
 
 namespace springfit {
 

@@ -1,4 +1,4 @@
-// The linear response (engine/problem/problem.h, issue 16): chosen for a linear FEM reference,
+// The linear response (engine/api/problem.h, issue 16): chosen for a linear FEM reference,
 // the rest stiffness's solve, displacements that scale with the load, and the force balance at
 // the reference stiffness.
 #include <gtest/gtest.h>
@@ -6,10 +6,11 @@
 #include <cstddef>
 #include <vector>
 
-#include "engine/model/free_nodes.h"
+#include "engine/api/model.h"
+#include "engine/api/problem.h"
+#include "engine/examples/catalog.h"
 #include "engine/model/springs.h"
 #include "engine/problem/force_balance.h"
-#include "engine/problem/problem.h"
 #include "io/example_catalog.h"
 #include "tests/engine/fit_test_support.h"
 

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include "engine/api/search_options.h"
 #include "engine/direct/direct_identification.h"
 #include "engine/direct/identifiability.h"
 #include "engine/fem/fem_equilibrium.h"
@@ -12,7 +13,6 @@
 #include "engine/model/equilibrium.h"
 #include "engine/probe_fit/quadratic_nnls.h"
 #include "engine/search/genetic_search.h"
-#include "engine/search/search_options.h"
 #include "io/example_catalog.h"
 
 namespace springfit {

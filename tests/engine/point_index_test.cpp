@@ -9,9 +9,9 @@
 
 #include <gtest/gtest.h>
 
+#include "engine/api/problem.h"
+#include "engine/api/scene.h"
 #include "engine/model/candidates.h"
-#include "engine/problem/problem.h"
-#include "engine/problem/scene_validation.h"
 #include "engine/runtime/input_error.h"
 #include "engine/search/genetic_search.h"
 #include "io/example_catalog.h"

@@ -8,11 +8,11 @@
 #include <string>
 #include <vector>
 
+#include "engine/api/search_options.h"
 #include "engine/identification/identify.h"
 #include "engine/probe_fit/generalization.h"
 #include "engine/probe_fit/response_fit.h"
 #include "engine/problem/baseline_evaluation.h"
-#include "engine/search/search_options.h"
 #include "io/example_catalog.h"
 #include "tests/engine/probe_fit_test_support.h"
 

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/api/search_options.h"
 #include "engine/examples/catalog.h"
 #include "engine/identification/identify.h"
 #include "engine/identification/run_bounds.h"
@@ -16,7 +17,6 @@
 #include "engine/probe_fit/response_fit.h"
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/runtime/input_error.h"
-#include "engine/search/search_options.h"
 
 namespace springfit::response {
 namespace {

@@ -1,5 +1,5 @@
 // Problem preparation: genes, unidentifiable candidates, reference equilibria.
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
 
 #include <gtest/gtest.h>
 

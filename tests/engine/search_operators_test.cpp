@@ -5,11 +5,11 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/genome/genome_packing.h"
+#include "engine/api/checkpoint.h"
+#include "engine/api/search_options.h"
 #include "engine/search/fitness_cache.h"
 #include "engine/search/genetic_operators.h"
 #include "engine/search/random_stream.h"
-#include "engine/search/search_options.h"
 
 namespace springfit {
 namespace {

@@ -11,7 +11,7 @@
 #include <cstdlib>
 #include <string_view>
 
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
 #include "engine/runtime/input_error.h"
 #include "proto/scene_codec.h"
 

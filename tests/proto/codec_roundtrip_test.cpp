@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include "engine/examples/catalog.h"
 #include "io/example_catalog.h"
 #include "proto/json_reader.h"
 #include "proto/scene_codec.h"

@@ -9,9 +9,9 @@
 
 #include <gtest/gtest.h>
 
+#include "engine/api/search_options.h"
 #include "engine/identification/identify.h"
 #include "engine/runtime/input_error.h"
-#include "engine/search/search_options.h"
 #include "io/example_catalog.h"
 #include "proto/evaluation_codec.h"
 #include "proto/json_reader.h"

@@ -1,12 +1,12 @@
 // Reading scenes: every validation rule rejects with a message naming the JSON path.
 #include "proto/scene_codec.h"
-#include "engine/model/units.h"
+#include "engine/api/scene.h"
 
 #include <functional>
 
 #include <gtest/gtest.h>
 
-#include "engine/problem/problem.h"
+#include "engine/api/problem.h"
 #include "engine/runtime/input_error.h"
 #include "io/example_catalog.h"
 

@@ -32,6 +32,12 @@
 namespace springfit::server {
 namespace {
 
+// Whether `body` (a page) holds `text`; a failure prints the page.
+::testing::AssertionResult Holds(const std::string& body, const std::string& text) {
+  if (body.find(text) != std::string::npos) return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure() << "the page lacks \"" << text << "\":\n" << body;
+}
+
 // Job reads stall until released (a figure building a large job's problem stands for them).
 class StallingStore final : public ForwardingStore {
  public:
@@ -196,12 +202,11 @@ TEST(Dashboard, GroupsNotAnalysedAreNotCountedOnTheJobPage) {
   const std::string row = "<tr><th>groups of springs the loads do not tell apart</th><td>";
   const HttpResponse counted = d.Get(analysed);
   ASSERT_EQ(counted.status, 200) << counted.body;
-  EXPECT_NE(counted.body.find(row + "0</td>"), std::string::npos) << counted.body;
+  EXPECT_TRUE(Holds(counted.body, row + "0</td>"));
   const HttpResponse page = d.Get(not_analysed);
   ASSERT_EQ(page.status, 200) << page.body;
   EXPECT_EQ(page.body.find(row + "0</td>"), std::string::npos);
-  EXPECT_NE(page.body.find(row + "not analysed (more than 5 seen genes)</td>"), std::string::npos)
-      << page.body;
+  EXPECT_TRUE(Holds(page.body, row + "not analysed (more than 5 seen genes)</td>"));
   EXPECT_EQ(page.body.find("rank of the analysed groups"), std::string::npos);
 }
 
@@ -229,15 +234,13 @@ TEST(Dashboard, TheJobPageShowsToolPushesAndTheNonlinearFit) {
   });
   const HttpResponse page = d.Get(target);
   ASSERT_EQ(page.status, 200) << page.body;
-  EXPECT_NE(page.body.find("<tr><th>tool push at 100% of the loads</th><td>median E 0.159, "
-                           "tool force error 0.126 (baseline 0.16, 0.152); 2 invert an "
-                           "element over 10 pushes and 8 grasps</td>"),
-            std::string::npos)
-      << page.body;
-  EXPECT_NE(page.body.find("<tr><th>nonlinear fit</th><td>12 Gauss-Newton steps: choosing E "
-                           "0.124 at rest-linear fit, 0.123 returned (baseline 0.319)</td>"),
-            std::string::npos)
-      << page.body;
+  EXPECT_TRUE(Holds(page.body,
+                    "<tr><th>tool push at 100% of the loads</th><td>median E 0.159, "
+                    "tool force error 0.126 (baseline 0.16, 0.152); 2 invert an "
+                    "element over 10 pushes and 8 grasps</td>"));
+  EXPECT_TRUE(Holds(page.body,
+                    "<tr><th>nonlinear fit</th><td>12 Gauss-Newton steps: choosing E "
+                    "0.124 at rest-linear fit, 0.123 returned (baseline 0.319)</td>"));
 }
 
 // Issue 47: a doubtful result's card says its doubts and, as `springfit run` does, where to
@@ -250,11 +253,10 @@ TEST(Dashboard, ADoubtfulResultsCardPointsToWhatToTry) {
   });
   const HttpResponse page = d.Get(target);
   ASSERT_EQ(page.status, 200) << page.body;
-  EXPECT_NE(page.body.find("<tr><th>WARNING</th><td>the certificate: a soft mode</td></tr>\n"
-                           "<tr><th>what to try</th><td>proto/RUN.md, &quot;What to "
-                           "try&quot;: what changes each doubt, and what it costs</td></tr>"),
-            std::string::npos)
-      << page.body;
+  EXPECT_TRUE(Holds(page.body,
+                    "<tr><th>WARNING</th><td>the certificate: a soft mode</td></tr>\n"
+                    "<tr><th>what to try</th><td>proto/RUN.md, &quot;What to "
+                    "try&quot;: what changes each doubt, and what it costs</td></tr>"));
 }
 
 // Issue 48: a job whose row cannot be read is listed apart, as quarantined, with its incident
@@ -292,8 +294,7 @@ TEST(Dashboard, AQuarantinedJobIsListedApartWithItsIncident) {
         << list.body;  // the state before
     EXPECT_EQ(list.body.find("<b>x</b>"), std::string::npos);
     const HttpResponse page = dashboard.Handle({"GET", "/jobs/" + std::to_string(damaged), {}, ""});
-    EXPECT_NE(page.body.find("is quarantined (quarantine incident 1)"), std::string::npos)
-        << page.body;
+    EXPECT_TRUE(Holds(page.body, "is quarantined (quarantine incident 1)"));
   }
   std::filesystem::remove_all(dir);
 }

@@ -7,12 +7,12 @@
 #include <string>
 #include <vector>
 
-#include "engine/model/scene.h"
+#include "engine/api/scene.h"
 
 namespace springfit {
 
 class Interruption;  // engine/runtime/interruption.h
-class Problem;       // engine/problem/problem.h
+class Problem;       // engine/api/problem.h
 
 struct LoadSuggestion {
   int node = -1;

@@ -1,5 +1,5 @@
 // What the probe fit and its certificate report: plain data, which the one result
-// (engine/identification/identification_result.h) carries and every surface shows (run, the
+// (engine/api/result.h) carries and every surface shows (run, the
 // daemon, the dashboard, exports). The machinery that computes them is in the files each type
 // names; this header holds no machinery, so that the result's readers do not reach it
 // (docs/ARCHITECTURE.md, "The engine's surface").

@@ -1,13 +1,13 @@
-// What strategy `direct` returns (direct_identification.h): its weights, topology, standard
+// The engine's public surface (engine/api/). What strategy `direct` returns
+// (engine/direct/direct_identification.h): its weights, topology, standard
 // errors and the identified model, apart from the machinery that computes them.
 #pragma once
 
 #include <vector>
 
-#include "engine/genome/genome.h"
-#include "engine/linalg/nnls.h"
-#include "engine/model/springs.h"
-#include "engine/problem/cost.h"
+#include "engine/api/model.h"
+#include "engine/api/problem.h"
+#include "engine/linalg/nnls_result.h"
 
 namespace springfit {
 

@@ -5,7 +5,7 @@
 
 #include <vector>
 
-#include "engine/model/scene.h"
+#include "engine/api/scene.h"
 
 namespace springfit::fem {
 

@@ -26,7 +26,7 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "engine/model/scene.h"
+#include "engine/api/scene.h"
 
 namespace springfit {
 
