@@ -66,6 +66,9 @@ void PrintNonlinearFit(const proto::Json& fit, std::ostream& out) {
       << number("start_choosing_rms_error") << " at rest-linear fit, "
       << number("choosing_rms_error") << " returned (baseline "
       << number("baseline_choosing_rms_error") << ")";
+  if (n.value("fitted_left_out", 0) > 0)
+    out << "; " << n.value("fitted_left_out", 0)
+        << " fitted equilibria left out (the rest-linear model folds there or has none)";
   if (n.value("failed", 0) > 0)
     out << "; " << n.value("failed", 0)
         << " choosing equilibria not found (a fold or no equilibrium)";

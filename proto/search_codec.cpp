@@ -344,6 +344,7 @@ Json GeneralizationToJson(const response::Generalization& g) {
     if (const auto& n = g.fit.nonlinear) {
       fit["nonlinear"] = {{"amplitudes", n->amplitudes},
                           {"fitted_cases", n->fitted_cases},
+                          {"fitted_left_out", n->fitted_left_out},
                           {"choosing_cases", n->choosing_cases},
                           {"start_choosing_rms_error", NumberOrNull(n->start_choosing_error)},
                           {"choosing_rms_error", NumberOrNull(n->choosing_error)},

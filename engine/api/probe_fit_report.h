@@ -87,7 +87,10 @@ struct NonlinearFitResult {
   std::vector<double> weights;     // per gene
   std::vector<double> amplitudes;  // NonlinearFitOptions::amplitudes
   int fitted_cases = 0;            // probe-amplitude pairs in the objective
-  int choosing_cases = 0;          // and in the choice
+  // Fitted probe-amplitude pairs the start model cannot hold (it folds there, or has no
+  // equilibrium), left out of the objective (NonlinearCases::StartFrom).
+  int fitted_left_out = 0;
+  int choosing_cases = 0;  // and in the choice
   // The choosing error (NonlinearCases::ChoosingError) of `start` and of the returned model,
   // and their choosing cases without a stable equilibrium.
   double start_choosing_error = 0.0;

@@ -381,12 +381,15 @@ NonlinearFitResult FitNonlinearResponse(
   nonlinear.Validate();
   NonlinearCases cases(problem, bank, FitWeights(bank, options.probes), nonlinear, interruption,
                        pool);
+  std::vector<double> start_errors;
   {
     const GeneSprings springs = GeneSpringsOf(problem);
     NonlinearResponse at_start(cases, springs, PriorScale(start), interruption, pool);
-    if (at_start.At(start)) cases.BoundWeights(at_start.CaseErrors());
+    at_start.At(start);
+    start_errors = at_start.CaseErrors();
   }
   NonlinearFitResult r;
+  r.fitted_left_out = cases.StartFrom(start_errors);
   r.amplitudes = nonlinear.amplitudes;
   r.fitted_cases = static_cast<int>(cases.fitted().size());
   r.choosing_cases = static_cast<int>(cases.choosing().size());

@@ -217,9 +217,33 @@ void NonlinearCases::ReturnSolvers(std::vector<std::unique_ptr<EquilibriumSolver
   solvers.clear();
 }
 
-void NonlinearCases::BoundWeights(const std::vector<double>& start_errors) {
-  for (std::size_t i = 0; i < fitted_.size() && i < start_errors.size(); ++i)
-    if (start_errors[i] > 1.0) fitted_[i].weight /= start_errors[i] * start_errors[i];
+int NonlinearCases::StartFrom(const std::vector<double>& start_errors) {
+  std::map<ProbeFamily, double> share_before, share_kept;
+  std::vector<NonlinearCase> kept;
+  std::vector<std::unique_ptr<EquilibriumSolver>> kept_solvers;
+  const std::lock_guard lock(spare_mutex_);
+  const bool spares = spare_solvers_.size() == fitted_.size();
+  for (std::size_t i = 0; i < fitted_.size(); ++i) {
+    const ProbeFamily family = bank_.probes[static_cast<std::size_t>(fitted_[i].probe)].family;
+    share_before[family] += fitted_[i].weight;
+    const double e =
+        i < start_errors.size() ? start_errors[i] : std::numeric_limits<double>::quiet_NaN();
+    if (std::isnan(e)) continue;
+    share_kept[family] += fitted_[i].weight;
+    kept.push_back(std::move(fitted_[i]));
+    if (e > 1.0) kept.back().weight /= e * e;
+    if (spares) kept_solvers.push_back(std::move(spare_solvers_[i]));
+  }
+  const int left_out = static_cast<int>(fitted_.size() - kept.size());
+  if (left_out > 0) {
+    for (NonlinearCase& c : kept) {
+      const ProbeFamily family = bank_.probes[static_cast<std::size_t>(c.probe)].family;
+      c.weight *= share_before[family] / share_kept[family];
+    }
+  }
+  fitted_ = std::move(kept);
+  spare_solvers_ = std::move(kept_solvers);
+  return left_out;
 }
 
 NonlinearResponse::NonlinearResponse(const NonlinearCases& cases, const GeneSprings& springs,

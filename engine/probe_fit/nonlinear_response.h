@@ -91,10 +91,16 @@ class NonlinearCases {
   std::unique_ptr<EquilibriumSolver> TakeSolver(std::size_t fitted_case) const;
   void ReturnSolvers(std::vector<std::unique_ptr<EquilibriumSolver>>& solvers) const;
 
-  // Scales each fitted case's weight by min(1, 1 / E^2), E its error at the start
-  // (NonlinearResponse::CaseErrors): a case the start misses by more than its whole response
-  // weighs as one missed by exactly that, so that one far-off equilibrium cannot steer the fit.
-  void BoundWeights(const std::vector<double>& start_errors);
+  // Fits from the start model (NonlinearResponse::CaseErrors at it, NaN where it found no
+  // stable equilibrium): a fitted case the start cannot hold (it folds there, or has no
+  // equilibrium: at a deep push or a large load) is left out of the objective, and the later
+  // amplitudes of its probe with it (each is a load step from the last), so that the fit can
+  // move from the start at all; the other cases of its family share the family's weight. The
+  // trials are then held to every case the start held. Each kept case's weight is scaled by
+  // min(1, 1 / E^2): a case the start misses by more than its whole response weighs as one
+  // missed by exactly that, so that one far-off equilibrium cannot steer the fit. Returns the
+  // cases left out.
+  int StartFrom(const std::vector<double>& start_errors);
 
  private:
   const Problem& problem_;

@@ -34,6 +34,7 @@ inline double ForceFamiliesRatio(const Generalization& g) {
 struct KidneyAtRest {
   explicit KidneyAtRest(const std::string& example = "fem-kidney-2d")
       : problem(examples::Make(example)) {}
+  explicit KidneyAtRest(Scene scene) : problem(std::move(scene)) {}
   Problem problem;
   SparseMatrix k = ReferenceRestStiffness(problem);
   ResponseFitOptions options;

@@ -229,7 +229,9 @@ TEST(Dashboard, TheJobPageShowsToolPushesAndTheNonlinearFit) {
                  {{"gauss_newton_steps", 12},
                   {"start_choosing_rms_error", 0.124},
                   {"choosing_rms_error", 0.123},
-                  {"baseline_choosing_rms_error", 0.319}}}};
+                  {"baseline_choosing_rms_error", 0.319},
+                  {"fitted_left_out", 3},
+                  {"failed", 2}}}};
     result["generalization"] = g;
   });
   const HttpResponse page = d.Get(target);
@@ -238,9 +240,12 @@ TEST(Dashboard, TheJobPageShowsToolPushesAndTheNonlinearFit) {
                     "<tr><th>tool push at 100% of the loads</th><td>median E 0.159, "
                     "tool force error 0.126 (baseline 0.16, 0.152); 2 invert an "
                     "element over 10 pushes and 8 grasps</td>"));
-  EXPECT_TRUE(Holds(page.body,
-                    "<tr><th>nonlinear fit</th><td>12 Gauss-Newton steps: choosing E "
-                    "0.124 at rest-linear fit, 0.123 returned (baseline 0.319)</td>"));
+  EXPECT_TRUE(
+      Holds(page.body,
+            "<tr><th>nonlinear fit</th><td>12 Gauss-Newton steps: choosing E "
+            "0.124 at rest-linear fit, 0.123 returned (baseline 0.319); 3 fitted equilibria "
+            "left out (the rest-linear model folds there or has none); 2 choosing "
+            "equilibria not found (a fold or no equilibrium)</td>"));
 }
 
 // Issue 47: a doubtful result's card says its doubts and, as `springfit run` does, where to
