@@ -294,8 +294,11 @@ bool NonlinearResponse::At(const std::vector<double>& weights) {
           const EquilibriumSummary summary =
               solver.Solve(active, load.force, load.prescribed, u, previous);
           if (summary.termination == Termination::kInterrupted) throw Interrupted();
-          // (No equilibrium, or one that is not a minimum of the energy: the model folds.)
-          if (!summary.converged() || !solver.FactorizeTangent(active, u)) return;
+          // (No equilibrium, or one that is not a minimum of the energy, or one that turns an
+          // element of the FEM mesh inside out: the model folds, a failure as in the choice.)
+          if (!summary.converged() || !solver.FactorizeTangent(active, u) ||
+              InvertedElements(problem.scene(), u) > 0)
+            return;
           Part& part = parts_[i];
           part.key = i;
           const double root = std::sqrt(cases[i].weight);

@@ -92,8 +92,9 @@ class NonlinearCases {
   void ReturnSolvers(std::vector<std::unique_ptr<EquilibriumSolver>>& solvers) const;
 
   // Fits from the start model (NonlinearResponse::CaseErrors at it, NaN where it found no
-  // stable equilibrium): a fitted case the start cannot hold (it folds there, or has no
-  // equilibrium: at a deep push or a large load) is left out of the objective, and the later
+  // stable equilibrium): a fitted case the start cannot hold (it folds there, its tangent not
+  // positive definite or an FEM element inside out, or has no equilibrium: at a deep push or a
+  // large load) is left out of the objective, and the later
   // amplitudes of its probe with it (each is a load step from the last), so that the fit can
   // move from the start at all; the other cases of its family share the family's weight. The
   // trials are then held to every case the start held. Each kept case's weight is scaled by
@@ -115,7 +116,9 @@ class NonlinearCases {
 
 // The nonlinear objective's operators at a model (spring_sensitivities.h): a part per fitted
 // case, H the exact tangent of the model's energy at the case's equilibrium (each probe's
-// amplitudes solved in order, each warm-started from the last).
+// amplitudes solved in order, each warm-started from the last). A model holds a case when it
+// has an equilibrium there that is a minimum of its energy and turns no FEM element inside out
+// (InvertedElements): a fold fails the case, as it fails a choosing one.
 class NonlinearResponse : public SpringSensitivities {
  public:
   // `cases` and `springs` (GeneSpringsOf the problem) must outlive this object; `scale` as the

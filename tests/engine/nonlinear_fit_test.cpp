@@ -164,7 +164,9 @@ TEST(NonlinearFit, LeavesOutWhatTheStartCannotHoldAndFitsTheRest) {
   const NonlinearFitResult n =
       FitNonlinearResponse(kidney.problem, kidney.bank, kidney.k, rest.weights, kidney.options,
                            nonlinear, &kidney.prior, nullptr, {}, nullptr);
-  EXPECT_GT(n.fitted_left_out, 0);
+  // Most of those left out turn an element of the mesh inside out with a tangent still positive
+  // definite (3 fold it otherwise): a fold, as the choice judges it.
+  EXPECT_GT(n.fitted_left_out, 10);
   EXPECT_GT(n.fitted_cases, 100);
   EXPECT_GT(n.steps, 0);
   EXPECT_LT(n.choosing_error, 0.98 * n.start_choosing_error)
