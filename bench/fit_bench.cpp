@@ -45,7 +45,7 @@ int Main(int argc, char** argv) {
   CLI::App app{"Continuous stiffness fits on FEM references"};
   std::vector<std::string> files;
   std::string response;
-  int max_iterations = StiffnessFitOptions{}.max_iterations;
+  int max_iterations = StiffnessFitOptions{}.descent.max_steps;
   int threads = 1;
   bool path_flag = false;
   std::vector<double> regularizations;
@@ -82,7 +82,7 @@ int Main(int argc, char** argv) {
     std::printf("  %-28s E %-10.4g springs %5d\n", "closed form (van Gelder)",
                 baseline->converged ? baseline->rms_error : NAN, baseline->springs);
     StiffnessFitOptions options;
-    options.max_iterations = max_iterations;
+    options.descent.max_steps = max_iterations;
     std::vector<bool> edges(start->size()), all(start->size(), true);
     for (std::size_t g = 0; g < start->size(); ++g) edges[g] = (*start)[g] > 0.0;
     t0 = Clock::now();

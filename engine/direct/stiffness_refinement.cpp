@@ -66,7 +66,7 @@ bool Jacobian(const Problem& problem, const std::vector<double>& w,
 
 // The Levenberg-Marquardt iterate: weights, their equilibria, the residual, its Jacobian and
 // the cost |r|^2.
-struct GaussNewtonPoint {
+struct RefinementPoint {
   std::vector<double> w;
   std::vector<Vector> u;  // per load case (warm starts)
   Vector r;
@@ -99,7 +99,7 @@ Vector MarquardtScaling(const Matrix& jacobian) {
 
 // The damped Gauss-Newton step's new weights: [J; sqrt(lambda) D] w' = [J w - r; sqrt(lambda)
 // D w], w' >= 0 (unusable genes held at 0).
-std::vector<double> DampedStep(const GaussNewtonPoint& at, const Vector& d2, double lambda,
+std::vector<double> DampedStep(const RefinementPoint& at, const Vector& d2, double lambda,
                                const std::vector<bool>& usable) {
   const Matrix& jacobian = at.jacobian;
   const auto genes = jacobian.cols();
@@ -116,7 +116,7 @@ std::vector<double> DampedStep(const GaussNewtonPoint& at, const Vector& d2, dou
 
 // Standard errors from the Gauss-Newton approximation of the covariance at the optimum
 // (RefinementResult::sigma); empty when J^T J over the usable genes is singular.
-std::vector<double> StandardErrors(const GaussNewtonPoint& at, const std::vector<bool>& usable) {
+std::vector<double> StandardErrors(const RefinementPoint& at, const std::vector<bool>& usable) {
   const Matrix& jacobian = at.jacobian;
   const auto genes = static_cast<int>(jacobian.cols());
   int positive = 0;
@@ -191,7 +191,7 @@ RefinementResult RefineWeights(const Problem& problem, const std::vector<double>
   cost.set_interruption(interruption);
   // An interrupted solve reads as a failed one: every failure checks the interruption first.
 
-  GaussNewtonPoint at;
+  RefinementPoint at;
   at.w = start;
   at.u.resize(problem.load_cases().size());
   const bool started = at.Linearize(problem, solvers, /*only_if_below=*/std::nullopt);
@@ -204,7 +204,7 @@ RefinementResult RefineWeights(const Problem& problem, const std::vector<double>
     bool accepted = false;
     for (int attempt = 0; attempt < options.max_damping_attempts && !accepted; ++attempt) {
       ThrowIfInterrupted(interruption);
-      GaussNewtonPoint trial;
+      RefinementPoint trial;
       trial.w = DampedStep(at, d2, lambda, usable);
       trial.u = at.u;
       // The Jacobian (one solve per gene) only for a step that lowers the cost.

@@ -32,7 +32,7 @@ class PathWalk {
     quiet_ = context;  // the refits report no steps
     quiet_.on_step = nullptr;
     refit_ = first;
-    refit_.max_iterations = options.refit_iterations;
+    refit_.descent.max_steps = options.refit_iterations;
     // Along the path only the springs present may be refitted: the model shrinks at every
     // point (absent candidates had their chance, by their gradient, in step 1).
     allowed_.resize(usable.size());
@@ -200,7 +200,7 @@ std::optional<HeldOutError> HeldOutErrors(const Problem& problem,
                                           const FitContext& context) {
   const std::size_t cases = problem.load_cases().size();
   StiffnessFitOptions options = path_options.fit;
-  options.max_iterations = path_options.held_out_iterations;
+  options.descent.max_steps = path_options.held_out_iterations;
   options.saliency_probes = 0;
   if (cases < 2) return std::nullopt;
   std::vector<bool> support(weights.size());

@@ -4,8 +4,11 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <memory>
+#include <optional>
 #include <random>
 
+#include "engine/fit/gauss_newton.h"
 #include "engine/model/equilibrium.h"
 #include "engine/problem/force_balance.h"
 #include "engine/runtime/options_check.h"
@@ -15,8 +18,6 @@ namespace {
 
 // Below this normalised error the fit is exact (an MSS reference): nothing is left to fit.
 constexpr double kExactError = 1e-24;
-// A trust region this small (in the scaled weights' units) has stopped moving the weights.
-constexpr double kSmallestRadius = 1e-12;
 // The saliency probes' signs.
 constexpr std::uint64_t kSaliencySeed = 20031116;
 // Linear solves: passes of iterative refinement at most, and the gradient, relative to the
@@ -213,13 +214,22 @@ class ResponseState {
 
 }  // namespace
 
+GaussNewtonOptions NamedCaseDescent() {
+  GaussNewtonOptions o;
+  o.max_steps = 200;
+  o.cg_iterations = 40;
+  o.cg_tolerance = 1e-3;
+  o.initial_radius = 1.0;
+  o.max_radius = 1e3;
+  o.relative_tolerance = 1e-6;
+  return o;
+}
+
 void StiffnessFitOptions::Validate(const std::string& owner) const {
   const OptionsCheck check(owner);
-  check.Require(max_iterations >= 0, "max_iterations", max_iterations, "value >= 0");
-  check.Require(InOpenUnit(relative_tolerance), "relative_tolerance", relative_tolerance,
-                "0 < value < 1");
-  check.Require(max_cg_iterations >= 1, "max_cg_iterations", max_cg_iterations, "value >= 1");
-  check.Require(InOpenUnit(cg_tolerance), "cg_tolerance", cg_tolerance, "0 < value < 1");
+  descent.Validate(check.Nested("descent"));
+  check.Require(descent.initial_radius > 0.0, "descent.initial_radius", descent.initial_radius,
+                "value > 0 (the named-case fit runs in a trust region)");
   check.Require(max_stiffness_ratio > 1.0 && std::isfinite(max_stiffness_ratio),
                 "max_stiffness_ratio", max_stiffness_ratio, "1 < value < infinity");
   check.Require(scale_floor > 0.0 && scale_floor <= 1.0, "scale_floor", scale_floor,
@@ -227,302 +237,203 @@ void StiffnessFitOptions::Validate(const std::string& owner) const {
   check.Require(saliency_probes >= 0, "saliency_probes", saliency_probes, "value >= 0");
   check.Require(upper_bound >= 0.0 && std::isfinite(upper_bound), "upper_bound", upper_bound,
                 "0 <= value < infinity (0: from max_stiffness_ratio)");
-  check.Require(max_radius > 0.0 && std::isfinite(max_radius), "max_radius", max_radius,
-                "0 < value < infinity");
-  check.Require(initial_radius > 0.0 && initial_radius <= max_radius, "initial_radius",
-                initial_radius, "0 < value <= max_radius");
   check.Require(regularization >= 0.0 && std::isfinite(regularization), "regularization",
                 regularization, "0 <= value < infinity");
 }
 
 namespace {
 
-// The projected trust-region Gauss-Newton fit of FitStiffness, as named steps: start, then per
-// iteration linearise, a Steihaug step, try it (projected onto the bounds, else stopped short
-// of them), accept or reject; then the saliency at the result. Each step that ends the fit
-// sets its termination in the result.
-class TrustRegionFit {
+// FitStiffness as an objective on the fitting core (gauss_newton.h): Phi = 1/2 |r|^2 + the
+// regularisation, over the weights within [0, upper]. Two response states take turns: the
+// current point's, and its trials' (each warm-started from the current equilibria), so that a
+// trial that fails leaves the current point as it was.
+class NamedCaseFit {
  public:
-  TrustRegionFit(const Problem& problem, const std::vector<double>& start, const FitScope& scope,
-                 const StiffnessFitOptions& options, const FitContext& context)
+  NamedCaseFit(const Problem& problem, const std::vector<double>& start, const FitScope& scope,
+               const StiffnessFitOptions& options, const FitContext& context)
       : problem_(problem),
         scope_(scope),
         options_(options),
         context_(context),
-        genes_(problem.gene_count()),
-        state_(problem, scope.cases, context),
-        norm2_(state_.ReferenceNorm2()) {
-    w_ = start;
-    w_.resize(static_cast<std::size_t>(genes_), 0.0);
+        genes_(problem.gene_count()) {
+    states_.reserve(2);
+    states_.emplace_back(problem, scope.cases, context);
+    states_.emplace_back(problem, scope.cases, context);
+    norm2_ = states_[0].ReferenceNorm2();
+    start_ = start;
+    start_.resize(static_cast<std::size_t>(genes_), 0.0);
     for (int g = 0; g < genes_; ++g) {
-      if (!scope.usable[g] || !(w_[g] > 0.0)) w_[g] = 0.0;
+      if (!scope.usable[g] || !(start_[g] > 0.0)) start_[g] = 0.0;
     }
-    result_.weights = w_;
     // The upper bound: a spring this much stiffer than the stiffest at the start is rigid for
     // the data (a rigid limit, where the displacements no longer respond to it).
     upper_ = options.upper_bound > 0.0
                  ? options.upper_bound
-                 : options.max_stiffness_ratio * *std::max_element(w_.begin(), w_.end());
-    scale_.resize(genes_);
-    gradient_.resize(genes_);
-    free_.resize(static_cast<std::size_t>(genes_));
-    trial_.resize(static_cast<std::size_t>(genes_));
+                 : options.max_stiffness_ratio * *std::max_element(start_.begin(), start_.end());
   }
 
   StiffnessFitResult Run() {
-    if (!Start()) return result_;
-    try {
-      while (result_.iterations < options_.max_iterations && Error(data_phi_) > kExactError) {
-        if (Interrupted()) throw springfit::Interrupted();
-        ++result_.iterations;
-        if (!Linearize()) {
-          result_.converged = true;
-          break;
-        }
-        if (!Iterate()) break;
-      }
-    } catch (const springfit::Interrupted&) {
-      result_.interrupted = true;  // w and phi are the last accepted step's
+    StiffnessFitResult result;
+    result.weights = start_;
+    std::unique_ptr<GaussNewtonPoint> point = Start();
+    if (!point) {
+      result.feasible = false;
+      result.normalized_error = result.initial_normalized_error =
+          std::numeric_limits<double>::infinity();
+      return result;
     }
-    if (Error(data_phi_) <= kExactError) result_.converged = true;
-    result_.weights = w_;
-    result_.normalized_error = Error(data_phi_);
-    result_.solves = state_.solves();
-    if (result_.interrupted || options_.saliency_probes == 0) return result_;
-    Saliency();
-    return result_;
+    result.initial_normalized_error = Error(*point);
+    GaussNewtonOptions descent = options_.descent;
+    descent.target_value = 0.5 * kExactError * norm2_;
+    try {
+      const GaussNewtonOutcome outcome = DescendGaussNewton(
+          point, descent,
+          [&](const GaussNewtonPoint& accepted) {
+            const auto& p = static_cast<const Point&>(accepted);
+            if (context_.on_step) context_.on_step(p.weights(), Error(p), ++result.accepted);
+          },
+          context_.interruption);
+      result.iterations = outcome.steps;
+      result.converged = outcome.converged;
+    } catch (const springfit::Interrupted&) {
+      result.interrupted = true;  // the point is the last accepted step's
+    }
+    const auto& last = static_cast<const Point&>(*point);
+    if (Error(last) <= kExactError) result.converged = true;
+    result.weights = last.weights();
+    result.normalized_error = Error(last);
+    if (!result.interrupted && options_.saliency_probes > 0) Saliency(last, result);
+    result.solves = states_[0].solves() + states_[1].solves();
+    return result;
   }
 
  private:
-  double Error(double data_phi) const { return 2.0 * data_phi / norm2_; }
-  bool Interrupted() const { return context_.interruption && context_.interruption->Check(); }
+  // A set of weights with its equilibria solved in response state `state`.
+  class Point : public GaussNewtonPoint {
+   public:
+    Point(NamedCaseFit& fit, std::vector<double> weights, int state)
+        : fit_(fit),
+          weights_(std::move(weights)),
+          state_(state),
+          data_phi_(0.5 * fit.states_[state].residual().squaredNorm()) {
+      // Weight g moves in units of s_g = max(w_g, scale_floor x the median weight): a step
+      // changes each weight relative to itself, so it cannot take a spring to 0 in one stride
+      // unless the model asks for it, and an absent spring enters at a typical stiffness.
+      const double typical = MedianPositive(weights_);
+      scale_.resize(fit.genes_);
+      for (int g = 0; g < fit.genes_; ++g)
+        scale_[g] = std::max(weights_[g], fit.options_.scale_floor * typical);
+    }
 
-  // The start's equilibria (false: it has none, and the fit ends infeasible) and the
+    double Value() const override { return data_phi_ + fit_.Penalty(weights_); }
+    // S (A^T H^-1 r + the regularisation's gradient): J^T r by the adjoint, one solve per case.
+    Vector Gradient() const override {
+      Vector t = fit_.states_[state_].residual();
+      fit_.states_[state_].ApplyInverseTangent(t);
+      Vector gradient = Balance().a.transpose() * t;
+      for (int g = 0; g < fit_.genes_; ++g)
+        gradient[g] += fit_.curvature_[g] * (weights_[g] - fit_.prior_[g]);
+      return scale_.cwiseProduct(gradient);
+    }
+    // S J^T J S v plus the regularisation's curvature: two solves per case.
+    Vector NormalProduct(const Vector& v) const override {
+      const Vector sv = v.cwiseProduct(scale_);
+      Vector t = Balance().a * sv;
+      fit_.states_[state_].ApplyInverseTangent(t);  // J S v = H^-1 A S v
+      fit_.states_[state_].ApplyInverseTangent(t);  // the adjoint: J^T y = A^T H^-1 y
+      return scale_.cwiseProduct(Balance().a.transpose() * t + fit_.curvature_.cwiseProduct(sv));
+    }
+    // No preconditioner: an estimated Jacobi one steers the steps into springs the data barely
+    // see, which then run to their bounds (docs/ARCHITECTURE.md, "The fitting core").
+    Vector NormalDiagonal() const override { return Vector::Ones(fit_.genes_); }
+    // Unusable genes stay at 0; a weight at a bound stays while the gradient pushes it past.
+    std::vector<bool> Free(const Vector& gradient) const override {
+      std::vector<bool> free(static_cast<std::size_t>(fit_.genes_));
+      for (int g = 0; g < fit_.genes_; ++g)
+        free[g] = fit_.scope_.usable[g] && !(weights_[g] == 0.0 && gradient[g] >= 0.0) &&
+                  !(weights_[g] == fit_.upper_ && gradient[g] <= 0.0);
+      return free;
+    }
+    Vector Taken(const Vector& d, double t) const override {
+      const std::vector<double> moved = Moved(d, t);
+      Vector taken(fit_.genes_);
+      for (int g = 0; g < fit_.genes_; ++g) taken[g] = (moved[g] - weights_[g]) / scale_[g];
+      return taken;
+    }
+    // Each weight the step takes below kShortFraction of itself kept at that fraction instead
+    // (its own fraction-to-the-bound: one small spring does not shorten the whole step).
+    Vector ShortOfBounds(const Vector& d) const override {
+      Vector shorter = d;
+      for (int g = 0; g < fit_.genes_; ++g)
+        if (d[g] != 0.0 && weights_[g] + scale_[g] * d[g] < kShortFraction * weights_[g])
+          shorter[g] = (kShortFraction - 1.0) * weights_[g] / scale_[g];
+      return shorter;
+    }
+    // w + t S d within [0, upper], solved in the other state from this point's equilibria.
+    std::unique_ptr<GaussNewtonPoint> Trial(const Vector& d, double t) const override {
+      std::vector<double> trial = Moved(d, t);
+      const int other = 1 - state_;
+      fit_.states_[other].displacements() = fit_.states_[state_].displacements();
+      if (!fit_.states_[other].Evaluate(trial)) return nullptr;
+      return std::make_unique<Point>(fit_, std::move(trial), other);
+    }
+
+    // w + t S d within [0, upper] (a weight the step leaves alone stays exactly where it is).
+    std::vector<double> Moved(const Vector& d, double t) const {
+      std::vector<double> moved(weights_.size());
+      for (int g = 0; g < fit_.genes_; ++g)
+        moved[g] = d[g] == 0.0 ? weights_[g]
+                               : std::clamp(weights_[g] + t * scale_[g] * d[g], 0.0, fit_.upper_);
+      return moved;
+    }
+
+    const std::vector<double>& weights() const { return weights_; }
+    double data_phi() const { return data_phi_; }
+    int state() const { return state_; }
+    // The force balance's columns at this point's equilibria (once: every product uses it).
+    const ForceBalance& Balance() const {
+      if (!balance_)
+        balance_ = AssembleForceBalance(fit_.problem_, &fit_.states_[state_].displacements());
+      return *balance_;
+    }
+
+   private:
+    NamedCaseFit& fit_;
+    std::vector<double> weights_;
+    int state_;
+    double data_phi_;
+    Vector scale_;
+    mutable std::optional<ForceBalance> balance_;
+  };
+
+  double Error(const GaussNewtonPoint& point) const {
+    return 2.0 * static_cast<const Point&>(point).data_phi() / norm2_;
+  }
+
+  // The start's equilibria (nullptr: it has none, and the fit ends infeasible) and the
   // regularisation: 1/2 mu sum_j ((w_j - p_j) / s_j)^2 over the usable genes (those held at 0
   // add a constant), mu scaled so that its E^2 is `regularization` x the mean square.
-  bool Start() {
-    if (!state_.Evaluate(w_)) {
-      result_.feasible = false;
-      result_.normalized_error = result_.initial_normalized_error =
-          std::numeric_limits<double>::infinity();
-      return false;
-    }
-    prior_ = scope_.prior.empty() ? w_ : scope_.prior;
+  std::unique_ptr<GaussNewtonPoint> Start() {
+    if (!states_[0].Evaluate(start_)) return nullptr;
+    prior_ = scope_.prior.empty() ? start_ : scope_.prior;
     prior_.resize(static_cast<std::size_t>(genes_), 0.0);
-    mu_ = options_.regularization * norm2_ / std::max(genes_, 1);
+    const double mu = options_.regularization * norm2_ / std::max(genes_, 1);
     curvature_ = Vector::Zero(genes_);  // mu / s_j^2 on the usable genes
-    if (mu_ > 0.0) {
+    if (mu > 0.0) {
       const double floor = options_.scale_floor * MedianPositive(prior_);
       for (int g = 0; g < genes_; ++g) {
-        if (scope_.usable[g]) curvature_[g] = mu_ / std::pow(std::max(prior_[g], floor), 2);
+        if (scope_.usable[g]) curvature_[g] = mu / std::pow(std::max(prior_[g], floor), 2);
       }
     }
-    // data_phi = 1/2 |r|^2 is what E reports; phi = data_phi + the penalty is what is minimised.
-    data_phi_ = 0.5 * state_.residual().squaredNorm();
-    phi_ = data_phi_ + Penalty(w_);
-    result_.initial_normalized_error = Error(data_phi_);
-    radius_ = options_.initial_radius;
-    return true;
+    return std::make_unique<Point>(*this, start_, 0);
   }
 
-  double Penalty(const std::vector<double>& x) const {
+  double Penalty(const std::vector<double>& w) const {
     double sum = 0.0;
-    if (mu_ > 0.0) {
-      for (int g = 0; g < genes_; ++g)
-        sum += curvature_[g] * (x[g] - prior_[g]) * (x[g] - prior_[g]);
+    for (int g = 0; g < genes_; ++g) {
+      if (curvature_[g] > 0.0) sum += curvature_[g] * (w[g] - prior_[g]) * (w[g] - prior_[g]);
     }
     return 0.5 * sum;
-  }
-
-  // out = S J^T J S v on the free genes (plus the regularisation's curvature).
-  void ApplyNormal(const Vector& v, Vector& out) {
-    Vector sv = v.cwiseProduct(scale_);
-    t_ = fb_.a * sv;
-    state_.ApplyInverseTangent(t_);  // J S v = H^-1 A S v
-    state_.ApplyInverseTangent(t_);  // the adjoint: J^T y = A^T H^-1 y
-    out = scale_.cwiseProduct(fb_.a.transpose() * t_);
-    if (mu_ > 0.0) out += scale_.cwiseProduct(curvature_).cwiseProduct(sv);
-    for (int g = 0; g < genes_; ++g) {
-      if (!free_[g]) out[g] = 0.0;
-    }
-  }
-
-  // The gradient at w by the adjoint, the free genes and their scales; false when the scaled
-  // gradient vanishes (a stationary point: converged).
-  bool Linearize() {
-    fb_ = AssembleForceBalance(problem_, &state_.displacements());
-    // The gradient J^T r by the adjoint: one solve per load case.
-    t_ = state_.residual();
-    state_.ApplyInverseTangent(t_);
-    gradient_ = fb_.a.transpose() * t_;
-    if (mu_ > 0.0) {
-      for (int g = 0; g < genes_; ++g) gradient_[g] += curvature_[g] * (w_[g] - prior_[g]);
-    }
-    // Weight g moves in units of s_g = max(w_g, scale_floor x the median weight): the trust
-    // region bounds each weight's relative change, so a step cannot take a spring to 0 in one
-    // stride unless the model asks for it, and an absent spring enters at a typical stiffness.
-    const double typical = MedianPositive(w_);
-    for (int g = 0; g < genes_; ++g) {
-      free_[g] = scope_.usable[g] && !(w_[g] == 0.0 && gradient_[g] >= 0.0) &&
-                 !(w_[g] == upper_ && gradient_[g] <= 0.0);
-      scale_[g] = free_[g] ? std::max(w_[g], options_.scale_floor * typical) : 0.0;
-    }
-    gs_ = scale_.cwiseProduct(gradient_);  // zero off the free genes
-    gs_norm_ = gs_.norm();
-    return gs_norm_ > 0.0;
-  }
-
-  // Steihaug's truncated CG on min gs.z + 1/2 z.M z, |z| <= radius: the step z_ and the model's
-  // decrease along it. (A Jacobi preconditioner, exact or estimated, was tried: on FEM
-  // references it steers the steps into springs the data barely see, which then run to their
-  // bounds, and the fit stalls at E 0.05-0.12 where plain CG reaches 0.043 on fem-kidney-2d.)
-  double SteihaugStep() {
-    z_ = Vector::Zero(genes_);
-    cg_r_ = -gs_;
-    p_ = cg_r_;
-    double rr = cg_r_.squaredNorm();
-    for (int it = 0; it < options_.max_cg_iterations; ++it) {
-      if (Interrupted()) throw springfit::Interrupted();
-      ApplyNormal(p_, mp_);
-      const double pmp = p_.dot(mp_);
-      // The step to the boundary along p: the largest tau with |z + tau p| = radius.
-      const auto to_boundary = [&]() {
-        const double a = p_.squaredNorm(), b = 2.0 * z_.dot(p_),
-                     c = z_.squaredNorm() - radius_ * radius_;
-        return (-b + std::sqrt(std::max(b * b - 4.0 * a * c, 0.0))) / (2.0 * a);
-      };
-      if (!(pmp > 0.0)) {
-        const double tau = to_boundary();
-        z_ += tau * p_;
-        cg_r_ -= tau * mp_;
-        break;
-      }
-      const double alpha = rr / pmp;
-      if ((z_ + alpha * p_).norm() >= radius_) {
-        const double tau = to_boundary();
-        z_ += tau * p_;
-        cg_r_ -= tau * mp_;
-        break;
-      }
-      z_ += alpha * p_;
-      cg_r_ -= alpha * mp_;
-      const double rr_new = cg_r_.squaredNorm();
-      if (std::sqrt(rr_new) <= options_.cg_tolerance * gs_norm_) break;
-      p_ = cg_r_ + (rr_new / rr) * p_;
-      rr = rr_new;
-    }
-    // The model's decrease: -(gs.z + 1/2 z.M z), with M z = -gs - cg_r.
-    return 0.5 * (cg_r_.dot(z_) - gs_.dot(z_));
-  }
-
-  // The model's decrease for the scaled step zs: -(gs.zs + 1/2 zs.M zs) (one more product).
-  double ModelDecrease(const Vector& zs) {
-    ApplyNormal(zs, mp_);
-    return -(gs_.dot(zs) + 0.5 * zs.dot(mp_));
-  }
-
-  // Tries w + S zs: its f, and whether it has an equilibrium. The state is then the trial's.
-  // Genes in `leaves_` or `caps_` are set exactly to their bound (rounding must not leave a
-  // spring at 1e-17 of itself).
-  bool Attempt(const Vector& zs) {
-    for (int g = 0; g < genes_; ++g) {
-      trial_[g] = !free_[g]    ? w_[g]
-                  : leaves_[g] ? 0.0
-                  : caps_[g]   ? upper_
-                               : std::clamp(w_[g] + scale_[g] * zs[g], 0.0, upper_);
-    }
-    const bool feasible = state_.Evaluate(trial_);
-    trial_data_ =
-        feasible ? 0.5 * state_.residual().squaredNorm() : std::numeric_limits<double>::infinity();
-    trial_phi_ = trial_data_ + Penalty(trial_);
-    return feasible;
-  }
-
-  // One iteration after the linearisation: a step, tried, accepted or rejected; false ends
-  // the fit (converged set where it has).
-  bool Iterate() {
-    double predicted = SteihaugStep();
-    const double step = z_.norm();
-    const std::vector<Vector> accepted_u = state_.displacements();
-    leaves_.assign(static_cast<std::size_t>(genes_), false);
-    caps_.assign(static_cast<std::size_t>(genes_), false);
-    // First the step projected onto the bounds (springs whose weight it takes below 0 leave).
-    Vector zp = z_;
-    bool projected = false;
-    for (int g = 0; g < genes_; ++g) {
-      if (free_[g] && w_[g] + scale_[g] * z_[g] < 0.0) {
-        zp[g] = -w_[g] / scale_[g];
-        leaves_[g] = projected = true;
-      } else if (free_[g] && w_[g] + scale_[g] * z_[g] > upper_) {
-        zp[g] = (upper_ - w_[g]) / scale_[g];
-        caps_[g] = projected = true;
-      }
-    }
-    // Should removing those springs fail (near a mechanism the displacements grow like 1 / k,
-    // which the Gauss-Newton model cannot see), the same step with each weight it would take
-    // out divided by ten instead (its own fraction-to-the-bound: one small spring does not
-    // shorten the whole step). Both model decreases are computed here, while the
-    // factorisations are the accepted weights'.
-    Vector zt;
-    double predicted_short = 0.0;
-    if (projected) {
-      predicted = ModelDecrease(zp);
-      zt = z_;
-      for (int g = 0; g < genes_; ++g) {
-        if (free_[g] && w_[g] + scale_[g] * z_[g] < kShortFraction * w_[g])
-          zt[g] = (kShortFraction - 1.0) * w_[g] / scale_[g];
-      }
-      predicted_short = ModelDecrease(zt);
-    }
-    bool feasible = Attempt(zp);
-    double actual = phi_ - trial_phi_;
-    double rho = predicted > 0.0 ? actual / predicted : -1.0;
-    if (projected && !(feasible && actual > 0.0 && (rho > 1e-4 || !(predicted > 0.0)))) {
-      predicted = predicted_short;
-      leaves_.assign(leaves_.size(), false);
-      caps_.assign(caps_.size(), false);
-      state_.displacements() = accepted_u;
-      feasible = Attempt(zt);
-      actual = phi_ - trial_phi_;
-      rho = predicted > 0.0 ? actual / predicted : -1.0;
-    }
-    // (A projected step can have a model decrease <= 0 and still lower f: it is taken, and
-    // the trust region kept.)
-    if (feasible && actual > 0.0 && !(predicted > 0.0)) rho = 0.5;
-    if (feasible && actual > 0.0 && rho > 1e-4) return Accept(actual, rho, step);
-    return Reject(accepted_u, step);
-  }
-
-  // The trial becomes the weights; the trust region grows or shrinks with the model's
-  // agreement. False after two decreases in a row below the relative tolerance (converged).
-  bool Accept(double actual, double rho, double step) {
-    ++result_.accepted;
-    small_decreases_ = actual < options_.relative_tolerance * phi_ ? small_decreases_ + 1 : 0;
-    w_ = trial_;
-    phi_ = trial_phi_;
-    data_phi_ = trial_data_;
-    if (rho > 0.75 && step >= 0.99 * radius_)
-      radius_ = std::min(2.0 * radius_, options_.max_radius);
-    if (rho < 0.25) radius_ = 0.25 * step;
-    if (context_.on_step) context_.on_step(w_, Error(data_phi_), result_.accepted);
-    if (small_decreases_ >= 2) {
-      result_.converged = true;
-      return false;
-    }
-    return true;
-  }
-
-  // Back to the accepted weights (their equilibria solve at once from where they were), with
-  // a smaller trust region. False when it has shrunk to nothing (converged).
-  bool Reject(const std::vector<Vector>& accepted_u, double step) {
-    state_.displacements() = accepted_u;
-    if (!state_.Evaluate(w_)) return false;  // cannot happen: w had an equilibrium
-    radius_ = 0.25 * step;
-    if (radius_ < kSmallestRadius) {
-      result_.converged = true;
-      return false;
-    }
-    return true;
   }
 
   // Saliency (optimal brain damage, LeCun, Denker and Solla 1990): at an optimum the gradient
@@ -530,20 +441,21 @@ class TrustRegionFit {
   // The column norms are estimated from random-sign products J^T z (E[(J^T z)_j^2] =
   // |J e_j|^2): one solve per load case each, where the exact ones would cost one per gene.
   // The signs come from a fixed seed: deterministic.
-  void Saliency() {
-    fb_ = AssembleForceBalance(problem_, &state_.displacements());
+  void Saliency(const Point& at, StiffnessFitResult& result) {
+    ResponseState& state = states_[at.state()];
+    const ForceBalance& balance = at.Balance();
     Vector column2 = Vector::Zero(genes_);
-    t_.resize(state_.residual().size());  // (the loop above may not have run)
+    Vector t(state.residual().size());
     std::mt19937_64 signs(kSaliencySeed);
     for (int probe = 0; probe < options_.saliency_probes; ++probe) {
-      for (Eigen::Index row = 0; row < t_.size(); ++row) t_[row] = (signs() >> 63) ? 1.0 : -1.0;
-      state_.ApplyInverseTangent(t_);
-      column2 += (fb_.a.transpose() * t_).cwiseAbs2();
+      for (Eigen::Index row = 0; row < t.size(); ++row) t[row] = (signs() >> 63) ? 1.0 : -1.0;
+      state.ApplyInverseTangent(t);
+      column2 += (balance.a.transpose() * t).cwiseAbs2();
     }
-    result_.solves = state_.solves();
-    result_.importance.assign(static_cast<std::size_t>(genes_), 0.0);
+    result.importance.assign(static_cast<std::size_t>(genes_), 0.0);
+    const std::vector<double>& w = at.weights();
     for (int g = 0; g < genes_; ++g)
-      result_.importance[g] = 0.5 * w_[g] * w_[g] * column2[g] / options_.saliency_probes;
+      result.importance[g] = 0.5 * w[g] * w[g] * column2[g] / options_.saliency_probes;
   }
 
   const Problem& problem_;
@@ -551,30 +463,13 @@ class TrustRegionFit {
   const StiffnessFitOptions& options_;
   const FitContext& context_;
   const int genes_;
-  ResponseState state_;
-  const double norm2_;
-  StiffnessFitResult result_;
-  std::vector<double> w_;
+  std::vector<ResponseState> states_;  // the current point's and its trials', in turn
+  double norm2_ = 0.0;
+  std::vector<double> start_;
   double upper_ = 0.0;
   // The regularisation.
   std::vector<double> prior_;
-  double mu_ = 0.0;
   Vector curvature_;
-  double data_phi_ = 0.0;
-  double phi_ = 0.0;
-  double radius_ = 0.0;
-  int small_decreases_ = 0;
-  // The linearisation at w.
-  ForceBalance fb_;
-  Vector scale_, gradient_, gs_;
-  double gs_norm_ = 0.0;
-  std::vector<bool> free_;
-  // The step and its trial.
-  Vector z_, cg_r_, p_, mp_, t_;
-  std::vector<double> trial_;
-  std::vector<bool> leaves_, caps_;
-  double trial_phi_ = 0.0;
-  double trial_data_ = 0.0;
 };
 
 }  // namespace
@@ -583,7 +478,7 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
                                 const FitScope& scope, const StiffnessFitOptions& options,
                                 const FitContext& context) {
   options.Validate();
-  return TrustRegionFit(problem, start, scope, options, context).Run();
+  return NamedCaseFit(problem, start, scope, options, context).Run();
 }
 
 }  // namespace springfit

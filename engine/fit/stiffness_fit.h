@@ -11,12 +11,11 @@
 //   J v   = H^-1 (A v)       one solve per load case,
 //   J^T y = A^T (H^-1 y)     one solve per load case (H symmetric): the adjoint; J^T r is the
 //                            gradient for every spring at the price of one solve per case.
-// Each step is a projected Gauss-Newton step in a trust region (Steihaug's truncated
-// conjugate gradients on J^T J; weights at a bound whose gradient pushes them out held there),
-// in variables scaled by the
-// weights themselves, so that a step's size is relative to the stiffness it changes and the
-// result does not depend on the units. A projected step that fails (near a mechanism the
-// displacements grow like 1 / k) is retried stopped short of the bounds.
+// Each step is the fitting core's (gauss_newton.h) in its trust region: a projected
+// Gauss-Newton step by Steihaug's truncated conjugate gradients on J^T J (weights at a bound
+// whose gradient pushes them out held there), in variables scaled by the weights themselves,
+// so that a step's size is relative to the stiffness it changes and the result does not depend
+// on the units.
 #pragma once
 
 #include <cstdint>
@@ -25,27 +24,26 @@
 #include <vector>
 
 #include "engine/api/problem.h"
+#include "engine/fit/gauss_newton.h"
 #include "engine/genome/gene_weights.h"
 #include "engine/runtime/interruption.h"
 #include "engine/runtime/worker_pool.h"
 
 namespace springfit {
 
+// The named-case fit's descent on the core (its defaults): 200 steps tried, accepted or not;
+// 40 conjugate-gradient iterations per step (2 solves per case each), stopped at 1e-3 of the
+// initial residual; the trust region from 1 (weights change by 100%) up to 1e3 in the scaled
+// units (the bounds, 0 and upper_bound, keep weights out of the rigid and mechanism limits;
+// the largest radius only keeps a step finite); converged when two accepted steps in a row
+// lower f by less than 1e-6 of it. Its target_value is the fit's own (an exact fit, E 1e-12).
+GaussNewtonOptions NamedCaseDescent();
+
 struct StiffnessFitOptions {
-  int max_iterations = 200;  // trust-region steps tried, accepted or not
-  // Converged when two accepted steps in a row lower f by less than this fraction of f.
-  double relative_tolerance = 1e-6;
-  int max_cg_iterations = 40;  // conjugate-gradient iterations per step (2 solves per case each)
-  double cg_tolerance = 1e-3;  // CG stops below this fraction of its initial residual
+  GaussNewtonOptions descent = NamedCaseDescent();  // a trust region: initial_radius > 0
   // Step scaling: weight j moves in units of max(w_j, scale_floor * median positive weight),
   // so that an absent spring can enter at a typical stiffness.
   double scale_floor = 0.1;
-  double initial_radius = 1.0;  // the trust region, in scaled units (1 = weights change by 100%)
-  // The largest trust region, in the same units. Near a rigid or a mechanism limit
-  // (k -> infinity or 0) the displacements stop responding to a weight, which the Gauss-Newton
-  // model cannot see; the bounds (upper_bound, 0) keep weights out of those limits, this only
-  // keeps a step finite.
-  double max_radius = 1e3;
   // Random-sign products that estimate the saliencies' Jacobian column norms (one solve per
   // load case each, once per fit); 0: no saliency (`importance` empty), for fits whose caller
   // does not prune.

@@ -8,7 +8,8 @@
 #include <numeric>
 #include <optional>
 
-#include "engine/fit/stiffness_fit.h"
+#include "engine/fit/gauss_newton.h"
+#include "engine/genome/gene_weights.h"
 #include "engine/probe_fit/linearized_response.h"
 #include "engine/probe_fit/mode_cuts.h"
 #include "engine/probe_fit/nonlinear_response.h"
@@ -17,37 +18,6 @@
 
 namespace springfit::response {
 namespace {
-
-// Jacobi-preconditioned conjugate gradients for A d = b on the entries where `free` holds (d is
-// 0 elsewhere); at most `iterations`, or until the residual falls below `tolerance` |b|.
-// (Eigen's ConjugateGradient takes a matrix-free operator only as a sparse-matrix-like
-// expression type; a closure over the masked products is the shorter and clearer form here.)
-Vector ConjugateGradients(const std::function<Vector(const Vector&)>& multiply, const Vector& b,
-                          const Vector& diagonal, const std::vector<bool>& free, int iterations,
-                          double tolerance) {
-  const Eigen::Index m = b.size();
-  Vector mask(m);
-  for (Eigen::Index e = 0; e < m; ++e) mask[e] = free[static_cast<std::size_t>(e)] ? 1.0 : 0.0;
-  Vector d = Vector::Zero(m);
-  Vector r = b.cwiseProduct(mask);
-  const double target = tolerance * r.norm();
-  Vector z = r.cwiseQuotient(diagonal);
-  Vector p = z;
-  double rz = r.dot(z);
-  for (int it = 0; it < iterations && r.norm() > target; ++it) {
-    const Vector ap = multiply(p).cwiseProduct(mask);
-    const double curvature = p.dot(ap);
-    if (!(curvature > 0.0)) break;
-    const double alpha = rz / curvature;
-    d += alpha * p;
-    r -= alpha * ap;
-    z = r.cwiseQuotient(diagonal);
-    const double rz_next = r.dot(z);
-    p = z + (rz_next / rz) * p;
-    rz = rz_next;
-  }
-  return d;
-}
 
 // What the driver descends and chooses by where it is not the rest-linear probe objective (the
 // nonlinear stage's).
@@ -267,54 +237,92 @@ class MatrixFreeFit {
            cuts_.Penalty(objective_.Scaled(weights));
   }
 
-  // Gauss-Newton steps at one strength from `weights`, `at` its linearisation (springs with
+  // A model of the fit as the core's point (engine/fit/gauss_newton.h): the scaled stiffness
+  // x, its linearisation, the strength's Tikhonov pull and the held modes' penalty (read at
+  // every call: a judgement may add cuts).
+  class Point : public GaussNewtonPoint {
+   public:
+    Point(const MatrixFreeFit& fit, std::vector<double> weights,
+          std::unique_ptr<SpringSensitivities> at, double regularization,
+          const std::vector<bool>& removed)
+        : fit_(fit),
+          weights_(std::move(weights)),
+          x_(fit.objective_.Scaled(weights_)),
+          at_(std::move(at)),
+          regularization_(regularization),
+          rho_(regularization / fit.genes_),
+          removed_(removed) {}
+
+    double Value() const override { return fit_.Phi(weights_, *at_, regularization_); }
+    Vector Gradient() const override {
+      return at_->Gradient() + rho_ * (x_ - fit_.objective_.prior_scaled()) +
+             fit_.cuts_.HalfGradient(x_);
+    }
+    Vector NormalProduct(const Vector& v) const override {
+      return at_->NormalProduct(v) + rho_ * v + fit_.cuts_.HalfHessianProduct(x_, v);
+    }
+    Vector NormalDiagonal() const override {
+      Vector diagonal =
+          at_->NormalDiagonal(fit_.options_.diagonal_samples, fit_.options_.probes.seed);
+      diagonal.array() += rho_;
+      return diagonal + fit_.cuts_.HalfHessianDiagonal(x_);
+    }
+    // Springs removed stay out; one at 0 stays there while the gradient pushes it below.
+    std::vector<bool> Free(const Vector& gradient) const override {
+      std::vector<bool> free(static_cast<std::size_t>(x_.size()));
+      for (Eigen::Index e = 0; e < x_.size(); ++e)
+        free[static_cast<std::size_t>(e)] =
+            !removed_[static_cast<std::size_t>(e)] && !(x_[e] <= 0.0 && gradient[e] > 0.0);
+      return free;
+    }
+    Vector Taken(const Vector& d, double t) const override {
+      return (x_ + t * d).cwiseMax(0.0) - x_;
+    }
+    // max(x + t d, 0), with the dust out (ProbeObjective::Weights).
+    std::unique_ptr<GaussNewtonPoint> Trial(const Vector& d, double t) const override {
+      std::vector<double> trial = fit_.objective_.Weights((x_ + t * d).cwiseMax(0.0));
+      if (PresentSprings(trial) == 0) return nullptr;
+      std::unique_ptr<SpringSensitivities> next = fit_.Linearisation();
+      if (!next->At(trial)) return nullptr;
+      return std::make_unique<Point>(fit_, std::move(trial), std::move(next), regularization_,
+                                     removed_);
+    }
+
+    const std::vector<double>& weights() const { return weights_; }
+    const SpringSensitivities& at() const { return *at_; }
+    // Hands the model and its linearisation back (the point is spent).
+    void Release(std::vector<double>& weights, std::unique_ptr<SpringSensitivities>& at) {
+      weights = std::move(weights_);
+      at = std::move(at_);
+    }
+
+   private:
+    const MatrixFreeFit& fit_;
+    std::vector<double> weights_;
+    Vector x_;
+    std::unique_ptr<SpringSensitivities> at_;
+    double regularization_, rho_;
+    const std::vector<bool>& removed_;
+  };
+
+  // The core's steps at one strength from `weights`, `at` its linearisation (springs with
   // `removed` set stay out); each accepted step is judged, and `weights` and `at` follow it.
   void Descend(std::vector<double>& weights, std::unique_ptr<SpringSensitivities>& at,
                double regularization, const std::vector<bool>& removed) {
-    const double rho = regularization / genes_;
-    Vector x = objective_.Scaled(weights);
-    for (int step = 0; step < options_.steps_per_strength; ++step) {
-      // (Again at every step: the judgement of the last one may have added cuts.)
-      double phi = Phi(weights, *at, regularization);
-      const Vector gradient =
-          at->Gradient() + rho * (x - objective_.prior_scaled()) + cuts_.HalfGradient(x);
-      std::vector<bool> free(static_cast<std::size_t>(x.size()));
-      for (Eigen::Index e = 0; e < x.size(); ++e)
-        free[static_cast<std::size_t>(e)] =
-            !removed[static_cast<std::size_t>(e)] && !(x[e] <= 0.0 && gradient[e] > 0.0);
-      Vector diagonal = at->NormalDiagonal(options_.diagonal_samples, options_.probes.seed);
-      diagonal.array() += rho;
-      diagonal += cuts_.HalfHessianDiagonal(x);
-      const Vector d = ConjugateGradients(
-          [&](const Vector& v) {
-            return Vector(at->NormalProduct(v) + rho * v + cuts_.HalfHessianProduct(x, v));
-          },
-          -gradient, diagonal, free, options_.cg_iterations, options_.cg_tolerance);
-      if (!ProjectedStep(weights, x, phi, at, d, regularization)) break;
-      Judge(weights, regularization, ++step_count_, at.get());
-    }
-  }
-
-  // The projected step max(x + t d, 0), t halved until the objective falls (at most three
-  // times); false when it never does. On success `weights`, `x`, `phi` and `at` follow it.
-  bool ProjectedStep(std::vector<double>& weights, Vector& x, double& phi,
-                     std::unique_ptr<SpringSensitivities>& at, const Vector& d,
-                     double regularization) const {
-    for (int halving = 0; halving < 4; ++halving) {
-      const double t = std::ldexp(1.0, -halving);
-      const std::vector<double> trial = objective_.Weights((x + t * d).cwiseMax(0.0));
-      if (PresentSprings(trial) == 0) continue;
-      std::unique_ptr<SpringSensitivities> next = Linearisation();
-      if (!next->At(trial)) continue;
-      const double value = Phi(trial, *next, regularization);
-      if (!(value < phi)) continue;
-      weights = trial;
-      x = objective_.Scaled(trial);
-      phi = value;
-      at = std::move(next);
-      return true;
-    }
-    return false;
+    std::unique_ptr<GaussNewtonPoint> point =
+        std::make_unique<Point>(*this, std::move(weights), std::move(at), regularization, removed);
+    GaussNewtonOptions descent;
+    descent.max_steps = options_.steps_per_strength;
+    descent.cg_iterations = options_.cg_iterations;
+    descent.cg_tolerance = options_.cg_tolerance;
+    DescendGaussNewton(
+        point, descent,
+        [&](const GaussNewtonPoint& accepted) {
+          const auto& p = static_cast<const Point&>(accepted);
+          Judge(p.weights(), regularization, ++step_count_, &p.at());
+        },
+        interruption_);
+    static_cast<Point&>(*point).Release(weights, at);
   }
 
   const ProbeObjective objective_;

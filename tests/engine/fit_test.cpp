@@ -33,9 +33,9 @@ void ExpectTheFitRecoversTheStiffness(Response response) {
     start[g] = usable[g] ? 1.0 : 0.0;
   }
   StiffnessFitOptions options;
-  options.max_iterations = 500;
-  options.max_cg_iterations = 1000;
-  options.cg_tolerance = 1e-12;
+  options.descent.max_steps = 500;
+  options.descent.cg_iterations = 1000;
+  options.descent.cg_tolerance = 1e-12;
   const StiffnessFitResult fit = FitStiffness(problem, start, FitScope{usable, {}, {}}, options);
   ASSERT_TRUE(fit.feasible);
   EXPECT_GT(fit.initial_normalized_error, 1e-3);
@@ -68,7 +68,7 @@ TEST(StiffnessFit, NeverRaisesTheErrorAndKeepsTheBounds) {
   while ((*start)[held] > 0.0) ++held;
   usable[held] = false;
   StiffnessFitOptions options;
-  options.max_iterations = 25;
+  options.descent.max_steps = 25;
   const StiffnessFitResult fit = FitStiffness(problem, *start, FitScope{usable, {}, {}}, options);
   const BaselineReport baseline = *EvaluateClosedFormBaseline(problem);
   EXPECT_NEAR(fit.initial_normalized_error, baseline.normalized_error,
@@ -94,7 +94,7 @@ TEST(StiffnessFit, ALeftOutLoadCaseIsNotFitted) {
   std::vector<bool> cases(problem.load_cases().size(), true);
   cases[0] = false;
   StiffnessFitOptions options;
-  options.max_iterations = 10;
+  options.descent.max_steps = 10;
   const StiffnessFitResult fit = FitStiffness(problem, start, FitScope{usable, cases, {}}, options);
   CostOptions all;
   all.solve_cases_of_mechanisms = true;
@@ -112,7 +112,7 @@ TEST(StiffnessFit, RegularizationPullsTowardThePriorAndReportsTheDataError) {
   const std::vector<double> start = *BaselineGeneWeights(problem);
   const std::vector<bool> usable(start.size(), true);
   StiffnessFitOptions options;
-  options.max_iterations = 40;
+  options.descent.max_steps = 40;
   options.saliency_probes = 0;
   // The mean square relative distance from the prior (the start), as the penalty measures it.
   const double floor = options.scale_floor * MedianPositive(start);
@@ -136,7 +136,7 @@ TEST(StiffnessFit, RegularizationPullsTowardThePriorAndReportsTheDataError) {
   // An explicit prior is what it pulls toward. From the free fit's weights: toward the start
   // (lowering E^2 + 0.01 x distance from where it was), or kept near where it is by a prior
   // there.
-  options.max_iterations = 5;
+  options.descent.max_steps = 5;
   const StiffnessFitResult held =
       FitStiffness(problem, free.weights, FitScope{usable, {}, free.weights}, options);
   const StiffnessFitResult back =
@@ -151,7 +151,7 @@ TEST(SparsityPath, HeldOutErrorsDependOnTheModelsSpringsNotTheirFittedStiffness)
   const std::vector<double> start = *BaselineGeneWeights(problem);
   const std::vector<bool> usable(start.size(), true);
   StiffnessFitOptions fit_options;
-  fit_options.max_iterations = 60;
+  fit_options.descent.max_steps = 60;
   fit_options.saliency_probes = 0;
   const StiffnessFitResult fit =
       FitStiffness(problem, start, FitScope{usable, {}, {}}, fit_options);
@@ -199,7 +199,7 @@ TEST(SparsityPath, EveryPointCarriesTheLoadsAndTheSizeFalls) {
   const std::vector<double> start = *BaselineGeneWeights(problem);
   const std::vector<bool> usable(start.size(), true);
   SparsityPathOptions options;
-  options.fit.max_iterations = 60;
+  options.fit.descent.max_steps = 60;
   // Asked to go as far as the baseline's error.
   const double baseline = EvaluateClosedFormBaseline(problem)->normalized_error;
   const SparsityPath path = TraceSparsityPath(problem, start, usable, options, baseline, 0);

@@ -9,6 +9,8 @@
 #include "engine/direct/direct_identification.h"
 #include "engine/direct/identifiability.h"
 #include "engine/fem/fem_equilibrium.h"
+#include "engine/fit/gauss_newton.h"
+#include "engine/fit/stiffness_fit.h"
 #include "engine/linalg/column_dependencies.h"
 #include "engine/model/equilibrium.h"
 #include "engine/probe_fit/quadratic_nnls.h"
@@ -37,6 +39,8 @@ TEST(Options, DefaultsAreValid) {
   EXPECT_NO_THROW(IdentifiabilityOptions{}.Validate());
   EXPECT_NO_THROW(ColumnDependencyOptions{}.Validate());
   EXPECT_NO_THROW(fem::FemSolverOptions{}.Validate());
+  EXPECT_NO_THROW(GaussNewtonOptions{}.Validate());
+  EXPECT_NO_THROW(StiffnessFitOptions{}.Validate());
   for (Strategy s : {Strategy::kPaper, Strategy::kDefault, Strategy::kHybrid, Strategy::kDirect})
     EXPECT_NO_THROW(StrategyDefaults(s, 100).Validate());
 }
@@ -64,6 +68,14 @@ TEST(Options, EachStructNamesTheFieldTheValueAndTheRule) {
   quadratic = {};
   quadratic.max_halvings = 0;
   ExpectRefused([&] { quadratic.Validate(); }, {"max_halvings = 0", "value >= 1"});
+
+  GaussNewtonOptions descent;
+  descent.halvings = 0;
+  ExpectRefused([&] { descent.Validate(); }, {"GaussNewtonOptions::halvings = 0", "value >= 1"});
+  descent = {};
+  descent.initial_radius = 1.0;
+  ExpectRefused([&] { descent.Validate(); },
+                {"GaussNewtonOptions::max_radius = 0", "initial_radius <= value"});
 
   RefinementOptions refinement;
   refinement.max_iterations = -1;

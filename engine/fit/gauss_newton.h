@@ -1,0 +1,90 @@
+// The fitting core's one driver (docs/ARCHITECTURE.md, "The fitting core"): projected
+// Gauss-Newton with a projected-arc line search, over any objective that can state, at a point,
+// its value, its gradient, its Gauss-Newton product and an estimate of that product's diagonal.
+// The named-case fit (stiffness_fit.h), the rest-linear probe fit and its nonlinear stage
+// (engine/probe_fit/matrix_free_fit.h) are objectives on it; each says what its variables are
+// and where their bounds lie, the driver only steps.
+//
+// Each step, at the point x with the objective Phi:
+//   1. g = the gradient, in the point's step coordinates, halved where Phi is a squared norm
+//      (Phi = |r|^2: g = J^T r; Phi = 1/2 |r|^2: g = J^T r as well);
+//   2. the free coordinates: those not held at a bound the gradient pushes them past;
+//   3. the Gauss-Newton system N d = -g on the free coordinates (N = J^T J plus the penalties'
+//      curvature), by conjugate gradients preconditioned with N's diagonal as the point
+//      estimates it (ones: none), with d scaled down to `max_step` when longer;
+//   4. the point at t d projected onto the bounds, t = 1, 1/2, 1/4, ... until Phi falls
+//      (Bertsekas' projected arc), at most `halvings` trials; none falling ends the descent.
+// The driver is deterministic: all randomness (the diagonal's estimate) is the point's, seeded.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "engine/linalg/linalg.h"
+#include "engine/runtime/interruption.h"
+
+namespace springfit {
+
+// One point of an objective: a model with its equilibria solved and its operators ready.
+class GaussNewtonPoint {
+ public:
+  virtual ~GaussNewtonPoint() = default;
+  // Phi, what the descent lowers.
+  virtual double Value() const = 0;
+  // In the point's step coordinates (see above).
+  virtual Vector Gradient() const = 0;
+  virtual Vector NormalProduct(const Vector& v) const = 0;
+  virtual Vector NormalDiagonal() const = 0;
+  // Per coordinate, whether it moves in this step, given the gradient.
+  virtual std::vector<bool> Free(const Vector& gradient) const = 0;
+  // The step Trial(d, t) takes, in step coordinates: t d cut at the bounds.
+  virtual Vector Taken(const Vector& d, double t) const = 0;
+  // The trust region's second try when the step cut at the bounds fails: d stopped short of
+  // them (d itself: no second try).
+  virtual Vector ShortOfBounds(const Vector& d) const { return d; }
+  // The point t d away, projected onto the bounds; nullptr when there is no model there (no
+  // equilibrium, no springs). Throws Interrupted when stopped.
+  virtual std::unique_ptr<GaussNewtonPoint> Trial(const Vector& d, double t) const = 0;
+};
+
+struct GaussNewtonOptions {
+  int max_steps = 200;  // steps tried, accepted or not
+  int cg_iterations = 40;
+  double cg_tolerance = 1e-3;  // CG stops below this fraction of its initial residual
+  int halvings = 4;            // line search: trials per step, t = 1, 1/2, ..., 2^-(halvings - 1)
+  // The trust region's first radius, in the step coordinates' 2-norm; 0: the line search.
+  double initial_radius = 0.0;
+  // Its largest radius. Near a rigid or a mechanism limit the response stops following the
+  // variables, which the Gauss-Newton model cannot see: this only keeps a step finite.
+  double max_radius = 0.0;
+  // Converged when two accepted steps in a row lower Phi by less than this fraction of it
+  // (0: the descent runs its steps, or until no step lowers Phi).
+  double relative_tolerance = 0.0;
+  // Converged once Phi is at or below this (an exact fit: nothing is left to lower).
+  double target_value = 0.0;
+
+  // Throws std::invalid_argument naming the field, its value and the rule it breaks.
+  void Validate(const std::string& owner = "GaussNewtonOptions") const;
+};
+
+struct GaussNewtonOutcome {
+  int steps = 0;     // steps tried
+  int accepted = 0;  // steps that lowered Phi
+  // Ended before the step limit: by the tolerance, the target, a vanishing free gradient, or a
+  // step whose trials found no lower Phi (a minimum along the arc to within its last trial).
+  bool converged = false;
+};
+
+// Called after every accepted step with the new point.
+using GaussNewtonAccepted = std::function<void(const GaussNewtonPoint&)>;
+
+// Descends from `point`, which follows every accepted step. `interruption`, when set, is
+// checked before every step and throws Interrupted; `point` is then the last accepted one.
+GaussNewtonOutcome DescendGaussNewton(std::unique_ptr<GaussNewtonPoint>& point,
+                                      const GaussNewtonOptions& options,
+                                      const GaussNewtonAccepted& on_accept = {},
+                                      Interruption* interruption = nullptr);
+
+}  // namespace springfit
