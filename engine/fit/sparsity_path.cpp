@@ -5,6 +5,7 @@
 #include <limits>
 #include <numeric>
 
+#include "engine/fit/pruning_path.h"
 #include "engine/problem/cost.h"
 #include "engine/runtime/options_check.h"
 
@@ -15,20 +16,21 @@ PathPoint PointOf(const StiffnessFitResult& fit) {
   return PathPoint{PresentSprings(fit.weights), fit.normalized_error, fit.weights};
 }
 
-// The path after step 1: springs removed, least leaned on first, the rest refitted each time.
-class PathWalk {
+// The path after step 1 as the one pruning path's model (pruning_path.h): the named-case fit's
+// saliencies order the springs, and each removal is a refit of the springs left, a point of
+// the path.
+class NamedCasePruning : public PrunableModel {
  public:
-  PathWalk(const Problem& problem, const std::vector<double>& start,
-           const std::vector<bool>& usable, const SparsityPathOptions& options,
-           const StiffnessFitOptions& first, int min_springs, const FitContext& context,
-           SparsityPath& path)
+  NamedCasePruning(const Problem& problem, const std::vector<double>& start,
+                   const std::vector<bool>& usable, const SparsityPathOptions& options,
+                   const StiffnessFitOptions& first, const FitContext& context,
+                   const PathProgress& progress, SparsityPath& path)
       : problem_(problem),
         start_(start),
         options_(options),
-        min_springs_(min_springs),
+        progress_(progress),
         path_(path),
-        current_(path.fit),
-        structural_(usable.size(), false) {
+        current_(path.fit) {
     quiet_ = context;  // the refits report no steps
     quiet_.on_step = nullptr;
     refit_ = first;
@@ -40,65 +42,28 @@ class PathWalk {
       allowed_[g] = usable[g] && path.fit.weights[g] > 0.0;
   }
 
-  // One step: removes springs and adds a point, or marks a spring structural, or resets the
-  // structural marks. False when the path ends (a whole round removed nothing). Throws
-  // Interrupted from a refit.
-  bool Step() {
-    points_before_ = static_cast<int>(path_.points.size());
-    const std::vector<int> removable = RemovableSprings();
-    if (removable.empty()) {
-      // A removal refused once can pass later (a nonlinear model's solves depend on the
-      // stiffness the refits changed): test them all again once, and end only when a whole
-      // round removes nothing.
-      if (!moved_since_reset_) return false;
-      structural_.assign(structural_.size(), false);
-      moved_since_reset_ = false;
-      return true;
-    }
-    const int last_springs = path_.points.back().springs;
-    int remove = std::max(1, static_cast<int>(options_.prune_fraction * last_springs));
-    remove = std::min(
-        {remove, std::max(1, last_springs - min_springs_), static_cast<int>(removable.size())});
-    const double last_error = path_.points.back().normalized_error;
-    for (int retries = 0;;) {
-      const Removal outcome = TryRemoval(removable, remove, last_error, retries);
-      if (outcome != Removal::kTooCostly && outcome != Removal::kInfeasible) return true;
-      if (remove == 1) {
-        structural_[removable[0]] = true;  // try the next one in the next round
-        return true;
-      }
-      remove /= 2;
-      if (outcome == Removal::kTooCostly) ++retries;
-    }
-  }
+  int PresentSprings() const override { return path_.points.back().springs; }
 
-  // The number of path points before the last Step (a step that added one reports progress).
-  int points_before_step() const { return points_before_; }
-
- private:
-  enum class Removal { kAccepted, kTooCostly, kInfeasible };
-
-  // The removable springs, least leaned on first (ties by gene: deterministic).
-  std::vector<int> RemovableSprings() const {
-    std::vector<int> removable;
+  // Least leaned on first: the fit's saliencies (StiffnessFitResult::importance).
+  std::vector<int> BySaliency() const override {
+    std::vector<int> present;
     for (int g = 0; g < static_cast<int>(current_.weights.size()); ++g) {
-      if (current_.weights[g] > 0.0 && !structural_[g]) removable.push_back(g);
+      if (current_.weights[g] > 0.0) present.push_back(g);
     }
-    std::stable_sort(removable.begin(), removable.end(),
+    std::stable_sort(present.begin(), present.end(),
                      [&](int a, int b) { return current_.importance[a] < current_.importance[b]; });
-    return removable;
+    return present;
   }
 
-  // Refits without the first `remove` removable springs. A removal that multiplies the error by
-  // more than `max_error_growth` is too costly (the saliencies are first-order: many springs at
-  // once can matter together), `max_retries` times at most; then the last try stands.
-  Removal TryRemoval(const std::vector<int>& removable, int remove, double last_error,
-                     int retries) {
+  // Refits without `genes`. With `may_refuse`, a removal that multiplies the error by more
+  // than `max_error_growth` is too costly (the saliencies are first-order: many springs at
+  // once can matter together).
+  Removal Remove(const std::vector<int>& genes, bool may_refuse) override {
     std::vector<bool> trial_allowed = allowed_;
     std::vector<double> trial_start = current_.weights;
-    for (int i = 0; i < remove; ++i) {
-      trial_allowed[removable[i]] = false;
-      trial_start[removable[i]] = 0.0;
+    for (int g : genes) {
+      trial_allowed[g] = false;
+      trial_start[g] = 0.0;
     }
     StiffnessFitResult fit =
         FitStiffness(problem_, trial_start, FitScope{trial_allowed, {}, start_}, refit_, quiet_);
@@ -107,31 +72,26 @@ class PathWalk {
     if (fit.interrupted) throw Interrupted();  // a half-done refit is not a path point
     if (!fit.feasible) return Removal::kInfeasible;
     const double max_growth2 = options_.max_error_growth * options_.max_error_growth;
-    if (remove > 1 && retries < options_.max_retries &&
-        fit.normalized_error > max_growth2 * last_error)
+    if (may_refuse && fit.normalized_error > max_growth2 * path_.points.back().normalized_error)
       return Removal::kTooCostly;
     current_ = std::move(fit);
     for (std::size_t g = 0; g < allowed_.size(); ++g)
       allowed_[g] = trial_allowed[g] && current_.weights[g] > 0.0;
     path_.points.push_back(PointOf(current_));
-    moved_since_reset_ = true;
+    if (progress_) progress_(path_);
     return Removal::kAccepted;
   }
 
+ private:
   const Problem& problem_;
   const std::vector<double>& start_;
   const SparsityPathOptions& options_;
-  const int min_springs_;
+  const PathProgress& progress_;
   SparsityPath& path_;
   FitContext quiet_;
   StiffnessFitOptions refit_;
   StiffnessFitResult current_;
   std::vector<bool> allowed_;
-  // Springs whose removal alone leaves a mechanism: the model keeps them whatever they carry
-  // (a spring can hold a mode no load case loads).
-  std::vector<bool> structural_;
-  bool moved_since_reset_ = false;
-  int points_before_ = 0;
 };
 
 }  // namespace
@@ -177,16 +137,19 @@ SparsityPath TraceSparsityPath(const Problem& problem, const std::vector<double>
   const double stop =
       std::max(stop_normalized_error,
                options.stop_error_factor * options.stop_error_factor * path.fit.normalized_error);
-  PathWalk walk(problem, start, usable, options, first, min_springs, context, path);
+  NamedCasePruning model(problem, start, usable, options, first, context, progress, path);
+  PruningOptions pruning;
+  pruning.prune_fraction = options.prune_fraction;
+  pruning.max_refusals = options.max_retries;
+  // (A removal refused once can pass later: a nonlinear model's solves depend on the stiffness
+  // the refits changed.)
+  pruning.retry_kept = true;
   try {
     if (progress) progress(path);  // (its stop request stops the path: the fit's point stands)
-    while (static_cast<int>(path.points.size()) < options.max_points) {
-      const PathPoint& last = path.points.back();  // (used before Step appends)
-      if (last.normalized_error > stop || last.springs <= min_springs) break;
-      if (!walk.Step()) break;
-      if (path.points.size() > static_cast<std::size_t>(walk.points_before_step()) && progress)
-        progress(path);
-    }
+    PruneModel(model, min_springs, pruning, [&] {
+      return static_cast<int>(path.points.size()) < options.max_points &&
+             !(path.points.back().normalized_error > stop);
+    });
   } catch (const Interrupted&) {
     path.interrupted = true;  // the path so far stands (it has the fit's point)
   }

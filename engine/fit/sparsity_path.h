@@ -6,14 +6,15 @@
 //    other candidates). Candidates enter by their gradient, which ranks all of them in one
 //    adjoint pass; those the fit drives to 0 leave. The fit only ever accepts steps that lower
 //    the error, so the result is at least as good as the start.
-// 2. Path: the springs whose removal raises the error least (the lowest saliency,
-//    StiffnessFitResult::importance) are removed, `prune_fraction` of them at a time, and the
-//    rest refitted from where they were; each refit is one point of the sparsity path
-//    (springs, E). A removal that would leave a mechanism is retried with fewer springs; a
-//    single spring whose removal leaves one is kept (it holds a mode no load case loads) until
-//    every spring is so marked, when all are tried once more (a nonlinear model's solves
-//    depend on the stiffness the refits changed). The path ends where a whole round removes no
-//    spring, or where E passes the stop.
+// 2. Path: the one pruning path (pruning_path.h) over this fit: the springs whose removal
+//    raises the error least (the lowest saliency, StiffnessFitResult::importance) are removed,
+//    `prune_fraction` of them at a time, and the rest refitted from where they were; each
+//    refit is one point of the sparsity path (springs, E). A removal that would leave a
+//    mechanism, or that multiplies E by more than `max_error_growth`, is retried with fewer
+//    springs; a single spring whose removal leaves a mechanism is kept (it holds a mode no load
+//    case loads) until every spring is so marked, when all are tried once more (a nonlinear
+//    model's solves depend on the stiffness the refits changed). The path ends where a whole
+//    round removes no spring, or where E passes the stop.
 // 3. Choice (SelectPathPoint): the fewest springs whose E is within `tolerance` of the best
 //    on the path, or the user's size or error target; then refitted to convergence.
 #pragma once

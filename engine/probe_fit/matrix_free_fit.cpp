@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "engine/fit/gauss_newton.h"
+#include "engine/fit/pruning_path.h"
 #include "engine/genome/gene_weights.h"
 #include "engine/probe_fit/linearized_response.h"
 #include "engine/probe_fit/mode_cuts.h"
@@ -105,60 +106,71 @@ class MatrixFreeFit {
     return BestWithinBudget();
   }
 
-  // One path from `weights` down to the spring budget (`refit`: its springs refitted first).
-  // The least salient springs (1/2 x_e^2 (J^T J)_ee at the current model) out, `prune_fraction`
-  // of the present ones at a time and at most down to the budget, each removal followed by the
-  // Gauss-Newton steps of the strength on the springs left; a spring once out stays out. A
-  // removal that leaves a mechanism is retried with half as many springs; a single spring whose
-  // removal leaves one is kept for good (the saliency does not see that a soft spring alone
-  // holds a node).
+  // One path from `weights` down to the spring budget (`refit`: its springs refitted first),
+  // the one pruning path (engine/fit/pruning_path.h) with the saliency 1/2 x_e^2 (J^T J)_ee at
+  // the current model, `prune_fraction` of the present springs at a time (rounded up), each
+  // removal followed by the Gauss-Newton steps of the strength on the springs left; a spring
+  // once out stays out. (A removal that leaves a mechanism is retried with half as many
+  // springs; a single spring whose removal leaves one is kept for good: the saliency does not
+  // see that a soft spring alone holds a node.)
   void BudgetPath(std::vector<double> weights, double regularization, bool refit) {
     std::unique_ptr<SpringSensitivities> at = Linearisation();
     if (!at->At(weights)) return;
-    std::vector<bool> removed(weights.size()), kept(weights.size(), false);
-    const auto descend = [&] {
-      for (std::size_t g = 0; g < weights.size(); ++g)
-        removed[g] = removed[g] || !(weights[g] > 0.0);
-      Descend(weights, at, regularization, removed);
-    };
+    BudgetPruning model(*this, std::move(weights), std::move(at), regularization);
     if (refit) {
-      Judge(weights, regularization, step_count_, at.get());
-      descend();
+      Judge(model.weights(), regularization, step_count_, &model.at());
+      model.Descend();
     }
-    while (PresentSprings(weights) > options_.max_springs) {
-      ThrowIfInterrupted(interruption_);
-      const int present = PresentSprings(weights);
-      std::vector<int> order;
-      for (int e : BySaliency(weights, *at))
-        if (!kept[static_cast<std::size_t>(e)]) order.push_back(e);
-      std::vector<double> trial;
-      std::unique_ptr<SpringSensitivities> next = Linearisation();
-      bool held = false;
-      while (!held && !order.empty()) {
-        int count =
-            std::min({present - options_.max_springs, static_cast<int>(order.size()),
-                      std::max(1, static_cast<int>(std::ceil(options_.prune_fraction * present)))});
-        while (!held) {
-          ThrowIfInterrupted(interruption_);  // (each attempt factorises every fitted support)
-          trial = weights;
-          for (int i = 0; i < count; ++i) trial[static_cast<std::size_t>(order[i])] = 0.0;
-          held = next->At(trial);
-          if (!held && count == 1) break;
-          if (!held) count = std::max(1, count / 2);
-        }
-        if (!held) {
-          kept[static_cast<std::size_t>(order.front())] = true;
-          order.erase(order.begin());
-        }
-      }
-      if (!held) return;
-      weights = std::move(trial);
-      at = std::move(next);
-      Judge(weights, regularization, step_count_, at.get());
-      if (progress_) progress_("probe_path", iterates_.back().select_error);
-      descend();
-    }
+    PruningOptions pruning;
+    pruning.prune_fraction = options_.prune_fraction;
+    pruning.round_up = true;
+    PruneModel(model, options_.max_springs, pruning);
   }
+
+  // The budget path's model: the current weights and their linearisation.
+  class BudgetPruning : public PrunableModel {
+   public:
+    BudgetPruning(MatrixFreeFit& fit, std::vector<double> weights,
+                  std::unique_ptr<SpringSensitivities> at, double regularization)
+        : fit_(fit),
+          weights_(std::move(weights)),
+          at_(std::move(at)),
+          regularization_(regularization),
+          removed_(weights_.size(), false) {}
+
+    int PresentSprings() const override { return springfit::PresentSprings(weights_); }
+    std::vector<int> BySaliency() const override { return fit_.BySaliency(weights_, *at_); }
+    // The trial without `genes` linearised (kInfeasible when it has no model on some fitted
+    // support), then judged and refitted.
+    Removal Remove(const std::vector<int>& genes, bool /*may_refuse*/) override {
+      ThrowIfInterrupted(fit_.interruption_);  // (each attempt factorises every fitted support)
+      std::vector<double> trial = weights_;
+      for (int g : genes) trial[static_cast<std::size_t>(g)] = 0.0;
+      std::unique_ptr<SpringSensitivities> next = fit_.Linearisation();
+      if (!next->At(trial)) return Removal::kInfeasible;
+      weights_ = std::move(trial);
+      at_ = std::move(next);
+      fit_.Judge(weights_, regularization_, fit_.step_count_, at_.get());
+      if (fit_.progress_) fit_.progress_("probe_path", fit_.iterates_.back().select_error);
+      Descend();
+      return Removal::kAccepted;
+    }
+    // The strength's steps on the springs present (those out stay out).
+    void Descend() {
+      for (std::size_t g = 0; g < weights_.size(); ++g)
+        removed_[g] = removed_[g] || !(weights_[g] > 0.0);
+      fit_.Descend(weights_, at_, regularization_, removed_);
+    }
+    const std::vector<double>& weights() const { return weights_; }
+    const SpringSensitivities& at() const { return *at_; }
+
+   private:
+    MatrixFreeFit& fit_;
+    std::vector<double> weights_;
+    std::unique_ptr<SpringSensitivities> at_;
+    double regularization_;
+    std::vector<bool> removed_;
+  };
 
   // The best iterate within the spring budget that is a model; nothing when none is.
   std::optional<std::size_t> BestWithinBudget() const {
