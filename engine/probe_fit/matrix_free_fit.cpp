@@ -13,6 +13,7 @@
 #include "engine/genome/gene_weights.h"
 #include "engine/probe_fit/linearized_response.h"
 #include "engine/probe_fit/mode_cuts.h"
+#include "engine/probe_fit/model_chooser.h"
 #include "engine/probe_fit/nonlinear_response.h"
 #include "engine/probe_fit/probe_objective.h"
 #include "engine/runtime/wall_clock.h"
@@ -174,30 +175,23 @@ class MatrixFreeFit {
 
   // The best iterate within the spring budget that is a model; nothing when none is.
   std::optional<std::size_t> BestWithinBudget() const {
-    std::vector<int> springs;
-    std::vector<double> errors, lambdas;
-    for (const Iterate& it : iterates_) {
-      springs.push_back(PresentSprings(it.weights));
-      errors.push_back(it.select_error);
-      lambdas.push_back(it.lambda_min);
-    }
-    return response::BestWithinBudget(springs, errors, lambdas, options_);
+    return ModelChooser(options_).BestWithinBudget(Candidates());
   }
 
-  // The best iterate from `from` on, on the choosing probes, preferring one that holds every
-  // mode.
+  // The best iterate from `from` on (ModelChooser::Best).
   std::size_t BestOf(std::size_t from) const {
-    std::vector<double> errors, lambdas;
-    for (std::size_t i = from; i < iterates_.size(); ++i) {
-      errors.push_back(iterates_[i].select_error);
-      lambdas.push_back(iterates_[i].lambda_min);
-    }
-    const std::vector<double> score = PreferSupported(errors, lambdas, options_);
-    return from +
-           static_cast<std::size_t>(std::min_element(score.begin(), score.end()) - score.begin());
+    return ModelChooser(options_).Best(Candidates(), from);
   }
 
  private:
+  // The iterates as the chooser sees them.
+  std::vector<CandidateModel> Candidates() const {
+    std::vector<CandidateModel> candidates;
+    for (const Iterate& it : iterates_)
+      candidates.push_back({PresentSprings(it.weights), it.select_error, it.lambda_min});
+    return candidates;
+  }
+
   // The present springs of `weights`, least salient first (1/2 x_e^2 (J^T J)_ee, `at` its
   // linearisation; ties by gene).
   std::vector<int> BySaliency(const std::vector<double>& weights,

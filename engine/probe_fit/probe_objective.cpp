@@ -49,40 +49,6 @@ std::vector<double> FitWeights(const ProbeBank& bank, const ProbeOptions& option
   return w;
 }
 
-std::vector<double> PreferSupported(const std::vector<double>& errors,
-                                    const std::vector<double>& lambda_min,
-                                    const ResponseFitOptions& options) {
-  const double best = *std::min_element(errors.begin(), errors.end());
-  bool near = false;
-  for (std::size_t i = 0; i < errors.size(); ++i)
-    near |= lambda_min[i] >= options.min_lambda && errors[i] <= (1.0 + options.lambda_slack) * best;
-  std::vector<double> score = errors;
-  for (std::size_t i = 0; i < errors.size(); ++i)
-    if (near && lambda_min[i] < options.min_lambda)
-      score[i] = std::numeric_limits<double>::infinity();
-  return score;
-}
-
-std::optional<std::size_t> BestWithinBudget(const std::vector<int>& springs,
-                                            const std::vector<double>& errors,
-                                            const std::vector<double>& lambda_min,
-                                            const ResponseFitOptions& options) {
-  if (options.max_springs == 0) return std::nullopt;
-  std::vector<std::size_t> models;
-  std::vector<double> model_errors, model_lambdas;
-  for (std::size_t i = 0; i < springs.size(); ++i) {
-    if (springs[i] <= options.max_springs && lambda_min[i] > 0.0 && errors[i] < kNoModel) {
-      models.push_back(i);
-      model_errors.push_back(errors[i]);
-      model_lambdas.push_back(lambda_min[i]);
-    }
-  }
-  if (models.empty()) return std::nullopt;
-  const std::vector<double> score = PreferSupported(model_errors, model_lambdas, options);
-  return models[static_cast<std::size_t>(std::min_element(score.begin(), score.end()) -
-                                         score.begin())];
-}
-
 Vector PriorScale(const std::vector<double>& prior) {
   const double median = MedianPositive(prior);
   Vector scale(static_cast<Eigen::Index>(prior.size()));

@@ -5,7 +5,6 @@
 #pragma once
 
 #include <limits>
-#include <optional>
 #include <vector>
 
 #include "engine/probe_fit/probe_bank.h"
@@ -24,22 +23,6 @@ inline constexpr double kNoModel = std::numeric_limits<double>::infinity();
 // the fit share the rest equally, and within a family every
 // probe counts alike as a relative error (1 / |u_ref|^2). Probes not fitted weigh 0.
 std::vector<double> FitWeights(const ProbeBank& bank, const ProbeOptions& options);
-
-// The choosing errors of candidate models with those that leave a mode soft (smallest
-// eigenvalue below min_lambda) made infinite, when a model that does not is within
-// lambda_slack of the best: a supported model is preferred where it costs little.
-std::vector<double> PreferSupported(const std::vector<double>& errors,
-                                    const std::vector<double>& lambda_min,
-                                    const ResponseFitOptions& options);
-
-// With a spring budget (options.max_springs > 0), the candidate to return among those within
-// it that are models (a finite choosing error, lambda_min > 0: every support holds them), by
-// PreferSupported; nothing without a budget or when no model is within it. Candidate i has
-// springs[i] springs, choosing error errors[i] and smallest eigenvalue lambda_min[i].
-std::optional<std::size_t> BestWithinBudget(const std::vector<int>& springs,
-                                            const std::vector<double>& errors,
-                                            const std::vector<double>& lambda_min,
-                                            const ResponseFitOptions& options);
 
 // The fits work in scaled variables x = k / scale, scale = the prior stiffness (at least a tenth
 // of its median), so that a fit does not depend on units and the Tikhonov pull moves every

@@ -11,6 +11,7 @@
 #include "engine/fit/stiffness_fit.h"
 #include "engine/probe_fit/gene_springs.h"
 #include "engine/probe_fit/matrix_free_fit.h"
+#include "engine/probe_fit/model_chooser.h"
 #include "engine/probe_fit/probe_evaluation.h"
 #include "engine/probe_fit/probe_objective.h"
 #include "engine/runtime/options_check.h"
@@ -48,29 +49,14 @@ void ResponseFitOptions::Validate(const std::string& owner) const {
 
 namespace {
 
-// The springs, choosing errors and smallest eigenvalues of the candidate models (the fits).
-struct Candidates {
-  std::vector<int> springs;
-  std::vector<double> errors, lambdas;
-};
-Candidates CandidatesOf(const std::vector<ResponseFitResult::SoftModeRound>& models) {
-  Candidates c;
-  for (const ResponseFitResult::SoftModeRound& m : models) {
-    c.springs.push_back(m.springs);
-    c.errors.push_back(m.select_error);
-    c.lambdas.push_back(m.lambda_min);
-  }
-  return c;
-}
-
 // The fit (a soft-mode round, or the lift) returned: with a spring budget the best within it; else
-// the best on the choosing probes, a model that holds every mode preferred.
+// the best on the choosing probes, a model that holds every mode preferred (ModelChooser).
 std::size_t ChooseRound(const std::vector<ResponseFitResult::SoftModeRound>& path,
                         const ResponseFitOptions& options) {
-  const auto [springs, errors, lambdas] = CandidatesOf(path);
-  if (const auto within = BestWithinBudget(springs, errors, lambdas, options)) return *within;
-  const std::vector<double> score = PreferSupported(errors, lambdas, options);
-  return static_cast<std::size_t>(std::min_element(score.begin(), score.end()) - score.begin());
+  std::vector<CandidateModel> candidates;
+  for (const ResponseFitResult::SoftModeRound& m : path)
+    candidates.push_back({m.springs, m.select_error, m.lambda_min});
+  return ModelChooser(options).Choose(candidates);
 }
 
 }  // namespace
