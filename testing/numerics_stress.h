@@ -1,5 +1,5 @@
 // Seeded extreme scenes and independent checks of springfit's numerical verdicts on them: the
-// stress test of tests/engine/numerics_stress_test.cpp (a bounded number in CI) and of
+// stress test of tests/engine/linalg/numerics_stress_test.cpp (a bounded number in CI) and of
 // bench/numerics_stress.cpp (10,000 and more, counts in bench/RESULTS.md).
 //
 // A scene is drawn from the seed alone: 2D and 3D grids, jittered grids, nodes nearly on a

@@ -32,7 +32,7 @@ namespace springfit {
 
 // A normalised error at or below this counts as exact recovery (target 0). The reference
 // topology evaluates to exactly 0 (its solve starts at the reference equilibrium); one
-// wrong gene costs far more (tests/engine/search_test.cpp checks a margin of 1e3 on a
+// wrong gene costs far more (tests/engine/search/search_test.cpp checks a margin of 1e3 on a
 // small scene).
 inline constexpr double kExactNormalizedError = 1e-12;
 // The largest roulette exponent: an exact individual's weight (1e-12)^-10 = 1e120 keeps every

@@ -18,7 +18,7 @@
 // depended on the backend would make the graded mechanism penalty, hence a search's
 // trajectory, depend on a size threshold. Counting small pivots instead would miss modes and
 // invent others (a pivot is a ratio of leading minors, not an eigenvalue);
-// tests/engine/mechanism_verdict_test.cpp checks the count against a dense eigensolver.
+// tests/engine/linalg/numerics_stress_test.cpp checks the count against a dense eigensolver.
 //
 // Not thread-safe; copy one per thread.
 #pragma once

@@ -12,7 +12,7 @@
 #include "engine/probe_fit/response_fit.h"
 #include "engine/probe_fit/rest_stiffness.h"
 #include "engine/probe_fit/support_system.h"
-#include "tests/engine/probe_fit_test_support.h"
+#include "tests/engine/probe_fit/probe_fit_test_support.h"
 
 namespace springfit::response {
 namespace {

@@ -14,7 +14,7 @@
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/problem/cost.h"
 #include "io/example_catalog.h"
-#include "tests/engine/fit_test_support.h"
+#include "tests/engine/fit/fit_test_support.h"
 
 namespace springfit {
 namespace {

@@ -12,7 +12,7 @@
 #include "engine/model/springs.h"
 #include "engine/problem/force_balance.h"
 #include "io/example_catalog.h"
-#include "tests/engine/fit_test_support.h"
+#include "tests/engine/fit/fit_test_support.h"
 
 namespace springfit {
 namespace {

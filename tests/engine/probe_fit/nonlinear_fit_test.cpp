@@ -17,7 +17,7 @@
 #include "engine/problem/cost.h"
 #include "engine/runtime/input_error.h"
 #include "io/example_catalog.h"
-#include "tests/engine/probe_fit_test_support.h"
+#include "tests/engine/probe_fit/probe_fit_test_support.h"
 
 namespace springfit::response {
 namespace {

@@ -13,7 +13,7 @@
 #include "engine/probe_fit/rest_stiffness.h"
 #include "engine/problem/baseline_evaluation.h"
 #include "io/example_catalog.h"
-#include "tests/engine/probe_fit_test_support.h"
+#include "tests/engine/probe_fit/probe_fit_test_support.h"
 
 namespace springfit::response {
 namespace {

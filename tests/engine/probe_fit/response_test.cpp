@@ -17,7 +17,7 @@
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/runtime/worker_pool.h"
 #include "io/example_catalog.h"
-#include "tests/engine/probe_fit_test_support.h"
+#include "tests/engine/probe_fit/probe_fit_test_support.h"
 
 namespace springfit::response {
 namespace {

@@ -8,7 +8,7 @@
 
 #include "engine/probe_fit/probe_objective.h"
 #include "engine/runtime/interruption.h"
-#include "tests/engine/probe_fit_test_support.h"
+#include "tests/engine/probe_fit/probe_fit_test_support.h"
 
 namespace springfit::response {
 namespace {
