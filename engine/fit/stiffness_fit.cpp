@@ -290,13 +290,15 @@ class NamedCaseFit {
           point, descent,
           [&](const GaussNewtonPoint& accepted) {
             const auto& p = static_cast<const Point&>(accepted);
-            if (context_.on_step) context_.on_step(p.weights(), Error(p), ++result.accepted);
+            ++result.accepted;
+            if (context_.on_step) context_.on_step(p.weights(), Error(p), result.accepted);
           },
           context_.interruption);
       result.iterations = outcome.steps;
       result.converged = outcome.converged;
     } catch (const springfit::Interrupted&) {
-      result.interrupted = true;  // the point is the last accepted step's
+      result.interrupted = true;            // the point is the last accepted step's
+      result.iterations = result.accepted;  // (at least: the refused steps are not counted)
     }
     const auto& last = static_cast<const Point&>(*point);
     if (Error(last) <= kExactError) result.converged = true;

@@ -41,6 +41,9 @@ void ExpectTheFitRecoversTheStiffness(Response response) {
   EXPECT_GT(fit.initial_normalized_error, 1e-3);
   EXPECT_LT(fit.normalized_error, 1e-16);
   EXPECT_TRUE(fit.converged);
+  // (Counted without a step callback too.)
+  EXPECT_GT(fit.accepted, 0);
+  EXPECT_LE(fit.accepted, fit.iterations);
   for (std::size_t g = 0; g < truth.size(); ++g) {
     if (usable[g]) {
       EXPECT_NEAR(fit.weights[g], truth[g], 1e-5 * truth[g]) << "gene " << g;
