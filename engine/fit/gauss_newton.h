@@ -1,19 +1,29 @@
 // The fitting core's one driver (docs/ARCHITECTURE.md, "The fitting core"): projected
-// Gauss-Newton with a projected-arc line search, over any objective that can state, at a point,
-// its value, its gradient, its Gauss-Newton product and an estimate of that product's diagonal.
-// The named-case fit (stiffness_fit.h), the rest-linear probe fit and its nonlinear stage
+// Gauss-Newton over any objective that can state, at a point, its value, its gradient, its
+// Gauss-Newton product and an estimate of that product's diagonal. The named-case fit
+// (stiffness_fit.h), the rest-linear probe fit and its nonlinear stage
 // (engine/probe_fit/matrix_free_fit.h) are objectives on it; each says what its variables are
 // and where their bounds lie, the driver only steps.
 //
 // Each step, at the point x with the objective Phi:
-//   1. g = the gradient, in the point's step coordinates, halved where Phi is a squared norm
-//      (Phi = |r|^2: g = J^T r; Phi = 1/2 |r|^2: g = J^T r as well);
+//   1. g = the gradient in the point's step coordinates (J^T r for Phi = 1/2 |r|^2; for
+//      Phi = |r|^2 the half gradient, also J^T r: the step is the same);
 //   2. the free coordinates: those not held at a bound the gradient pushes them past;
 //   3. the Gauss-Newton system N d = -g on the free coordinates (N = J^T J plus the penalties'
 //      curvature), by conjugate gradients preconditioned with N's diagonal as the point
-//      estimates it (ones: none), with d scaled down to `max_step` when longer;
-//   4. the point at t d projected onto the bounds, t = 1, 1/2, 1/4, ... until Phi falls
-//      (Bertsekas' projected arc), at most `halvings` trials; none falling ends the descent.
+//      estimates it (ones: none);
+//   4. the step's globalisation, one of two:
+//      - the line search (initial_radius 0): the point at t d projected onto the bounds,
+//        t = 1, 1/2, 1/4, ... until Phi falls (Bertsekas' projected arc), at most `halvings`
+//        trials; none falling ends the descent. Cheap where the objective is near quadratic
+//        in the stiffness, as the rest-linear probe fit's is;
+//      - the trust region (initial_radius > 0): CG truncated at the radius (Steihaug), the
+//        step cut at the bounds tried once (and once more stopped short of them when it
+//        fails), accepted when Phi falls by a fair share of what the Gauss-Newton model
+//        predicts, the radius grown or shrunk with that agreement. Where the response is far
+//        from quadratic (equilibria near a mechanism after springs are pruned, nonlinear
+//        springs) the radius remembers how far the model can be trusted, which a line search
+//        restarted at t = 1 forgets (bench/RESULTS.md, round fifteen).
 // The driver is deterministic: all randomness (the diagonal's estimate) is the point's, seeded.
 #pragma once
 
@@ -50,8 +60,8 @@ class GaussNewtonPoint {
 };
 
 struct GaussNewtonOptions {
-  int max_steps = 200;  // steps tried, accepted or not
-  int cg_iterations = 40;
+  int max_steps = 200;         // steps tried, accepted or not
+  int cg_iterations = 40;      // conjugate-gradient iterations per step (one product each)
   double cg_tolerance = 1e-3;  // CG stops below this fraction of its initial residual
   int halvings = 4;            // line search: trials per step, t = 1, 1/2, ..., 2^-(halvings - 1)
   // The trust region's first radius, in the step coordinates' 2-norm; 0: the line search.
@@ -72,8 +82,9 @@ struct GaussNewtonOptions {
 struct GaussNewtonOutcome {
   int steps = 0;     // steps tried
   int accepted = 0;  // steps that lowered Phi
-  // Ended before the step limit: by the tolerance, the target, a vanishing free gradient, or a
-  // step whose trials found no lower Phi (a minimum along the arc to within its last trial).
+  // Ended before the step limit: by the tolerance, the target, a vanishing free gradient, a
+  // line search whose trials found no lower Phi (a minimum along the arc to within its last
+  // trial), or a trust region shrunk below 1e-12.
   bool converged = false;
 };
 
