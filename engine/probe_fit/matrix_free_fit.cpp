@@ -140,7 +140,12 @@ class MatrixFreeFit {
           removed_(weights_.size(), false) {}
 
     int PresentSprings() const override { return springfit::PresentSprings(weights_); }
-    std::vector<int> BySaliency() const override { return fit_.BySaliency(weights_, *at_); }
+    // (Kept until the model changes: a failed removal asks again, and each estimate costs
+    // diagonal_samples solves per support.)
+    std::vector<int> BySaliency() const override {
+      if (!order_) order_ = fit_.BySaliency(weights_, *at_);
+      return *order_;
+    }
     // The trial without `genes` linearised (kInfeasible when it has no model on some fitted
     // support), then judged and refitted.
     Removal Remove(const std::vector<int>& genes, bool /*may_refuse*/) override {
@@ -151,6 +156,7 @@ class MatrixFreeFit {
       if (!next->At(trial)) return Removal::kInfeasible;
       weights_ = std::move(trial);
       at_ = std::move(next);
+      order_.reset();
       fit_.Judge(weights_, regularization_, fit_.step_count_, at_.get());
       if (fit_.progress_) fit_.progress_("probe_path", fit_.iterates_.back().select_error);
       Descend();
@@ -161,6 +167,7 @@ class MatrixFreeFit {
       for (std::size_t g = 0; g < weights_.size(); ++g)
         removed_[g] = removed_[g] || !(weights_[g] > 0.0);
       fit_.Descend(weights_, at_, regularization_, removed_);
+      order_.reset();
     }
     const std::vector<double>& weights() const { return weights_; }
     const SpringSensitivities& at() const { return *at_; }
@@ -171,6 +178,7 @@ class MatrixFreeFit {
     std::unique_ptr<SpringSensitivities> at_;
     double regularization_;
     std::vector<bool> removed_;
+    mutable std::optional<std::vector<int>> order_;  // BySaliency of the current model
   };
 
   // The best iterate within the spring budget that is a model; nothing when none is.
