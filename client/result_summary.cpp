@@ -13,6 +13,7 @@
 
 #include "proto/outcome_codec.h"
 #include "proto/scene_codec.h"
+#include "proto/search_codec.h"
 
 namespace springfit::cli {
 namespace {
@@ -65,14 +66,7 @@ void PrintNonlinearFit(const proto::Json& fit, std::ostream& out) {
       << "% of the named loads, nonlinear springs): choosing E "
       << number("start_choosing_rms_error") << " at rest-linear fit, "
       << number("choosing_rms_error") << " returned (baseline "
-      << number("baseline_choosing_rms_error") << ")";
-  if (n.value("fitted_left_out", 0) > 0)
-    out << "; " << n.value("fitted_left_out", 0)
-        << " fitted equilibria left out (the rest-linear model folds there or has none)";
-  if (n.value("failed", 0) > 0)
-    out << "; " << n.value("failed", 0)
-        << " choosing equilibria not found (a fold or no equilibrium)";
-  out << "\n";
+      << number("baseline_choosing_rms_error") << ")" << proto::NonlinearFitNotes(n) << "\n";
 }
 
 // How the run went: the scene and job, the verdict, the strategy and its stop, its work.

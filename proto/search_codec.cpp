@@ -345,6 +345,9 @@ Json GeneralizationToJson(const response::Generalization& g) {
       fit["nonlinear"] = {{"amplitudes", n->amplitudes},
                           {"fitted_cases", n->fitted_cases},
                           {"fitted_left_out", n->fitted_left_out},
+                          {"left_for_memory", n->left_for_memory},
+                          {"case_bytes", n->case_bytes},
+                          {"max_bytes", n->max_bytes},
                           {"choosing_cases", n->choosing_cases},
                           {"start_choosing_rms_error", NumberOrNull(n->start_choosing_error)},
                           {"choosing_rms_error", NumberOrNull(n->choosing_error)},
@@ -442,6 +445,25 @@ Json ResultToJson(const Problem& problem, const IdentificationResult& r, bool wi
   if (r.generalization) j["generalization"] = GeneralizationToJson(*r.generalization);
   if (with_trace) j["trace"] = TraceToJson(r.trace);
   return j;
+}
+
+std::string NonlinearFitNotes(const Json& nonlinear) {
+  const auto count = [&nonlinear](const char* key) -> long long {
+    return nonlinear.contains(key) && nonlinear[key].is_number_integer()
+               ? nonlinear[key].get<long long>()
+               : 0;
+  };
+  std::string notes;
+  if (const long long out = count("fitted_left_out"); out > 0)
+    notes += fmt::format(
+        "; {} fitted equilibria left out (the rest-linear model folds there or has none)", out);
+  if (const long long memory = count("left_for_memory"); memory > 0)
+    notes += fmt::format(
+        "; {} fitted probes left out for memory ({:.1f} MB per equilibrium, {:.1f} GB allowed)",
+        memory, nonlinear.value("case_bytes", 0.0) / 1e6, nonlinear.value("max_bytes", 0.0) / 1e9);
+  if (const long long failed = count("failed"); failed > 0)
+    notes += fmt::format("; {} choosing equilibria not found (a fold or no equilibrium)", failed);
+  return notes;
 }
 
 std::string TraceCsvHeader() {

@@ -85,6 +85,11 @@ StoredResult StoredResultFromJson(const Json& json);
 // scene's name or gene count): its springs could still name valid node pairs.
 void ExpectResultOfScene(const StoredResult& result, const Problem& problem);
 
+// What a result's nonlinear fit left out and did not find (generalization.fit.nonlinear, as
+// ResultToJson wrote it), in the words the run and the dashboard both show: "" when nothing,
+// else each note after "; ".
+std::string NonlinearFitNotes(const Json& nonlinear);
+
 // One CSV line per trace row under a header line (no trailing newline in either).
 std::string TraceCsvHeader();
 std::string TraceRowToCsv(const TraceRow& row);

@@ -90,6 +90,12 @@ struct NonlinearFitResult {
   // Fitted probe-amplitude pairs the start model cannot hold (it folds there, or has no
   // equilibrium), left out of the objective (NonlinearCases::StartFrom).
   int fitted_left_out = 0;
+  // Generated fitted probes left out to keep the stage within its memory
+  // (NonlinearFitOptions::max_bytes), the bytes each probe-amplitude case holds and the bound
+  // (0: none).
+  int left_for_memory = 0;
+  double case_bytes = 0.0;
+  double max_bytes = 0.0;
   int choosing_cases = 0;  // and in the choice
   // The choosing error (NonlinearCases::ChoosingError) of `start` and of the returned model,
   // and their choosing cases without a stable equilibrium.

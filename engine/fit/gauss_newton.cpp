@@ -154,6 +154,7 @@ GaussNewtonOutcome DescendGaussNewton(std::unique_ptr<GaussNewtonPoint>& point,
         continue;
       }
     } else {
+      point->Idle();
       for (int halving = 0; halving < options.halvings && !next; ++halving) {
         std::unique_ptr<GaussNewtonPoint> trial = point->Trial(cg.d, std::ldexp(1.0, -halving));
         if (!trial) continue;

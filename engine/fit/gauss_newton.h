@@ -57,6 +57,11 @@ class GaussNewtonPoint {
   // The point t d away, projected onto the bounds; nullptr when there is no model there (no
   // equilibrium, no springs). Throws Interrupted when stopped.
   virtual std::unique_ptr<GaussNewtonPoint> Trial(const Vector& d, double t) const = 0;
+  // Called by the line search once the step is computed: until a trial is accepted or the
+  // search gives up, it reads only the trials' values, so the point may release what its
+  // operators need (the nonlinear stage's factorised tangents: one set alive instead of the
+  // point's and its trial's) and rebuild it if they are asked for again. Nothing by default.
+  virtual void Idle() {}
 };
 
 struct GaussNewtonOptions {

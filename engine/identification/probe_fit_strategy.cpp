@@ -2,6 +2,7 @@
 // reference's whole response (engine/probe_fit/response_fit.h), returned only when it beats the
 // closed-form baseline on the choosing probes, and certified on the held-out probes, which
 // nothing else reads (docs/ARCHITECTURE.md, "Probes by role").
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -12,6 +13,7 @@
 
 #include "engine/fem/closed_form_baseline.h"
 #include "engine/fit/stiffness_fit.h"
+#include "engine/identification/run_bounds.h"
 #include "engine/identification/strategy.h"
 #include "engine/probe_fit/generalization.h"
 #include "engine/probe_fit/matrix_free_fit.h"
@@ -223,6 +225,19 @@ response::ResponseFitOptions FitOptionsOf(const SearchOptions& options) {
   return o;
 }
 
+// The nonlinear stage at the load range's sizes, within what a run may hold (CheckRunBounds:
+// half the machine's memory) beside the probe fit's vectors; no bound where the machine's
+// memory cannot be read.
+response::NonlinearFitOptions NonlinearStageOptions(const Problem& problem,
+                                                    const SearchOptions& options,
+                                                    const std::vector<double>& amplitudes) {
+  response::NonlinearFitOptions nonlinear;
+  nonlinear.amplitudes = amplitudes;
+  if (const double machine = PhysicalMemoryBytes(); machine > 0.0)
+    nonlinear.max_bytes = std::max(0.5 * machine - ProbeFitBytes(problem, options), 1.0);
+  return nonlinear;
+}
+
 // Where a run stopped (on request or at its time limit), if it did.
 enum class StoppedIn { kNowhere, kFit, kNonlinearFit, kCertificate, kJudgement };
 
@@ -242,9 +257,9 @@ struct ProbeFitModel {
 // The fit; stopped, the start, uncertified (a stop ends the run within a second: certifying
 // a large model is seconds of solves).
 void Fit(const Problem& problem, const RunProbes& probes, const ProbeFitBaseline& baseline,
-         const response::ResponseFitOptions& fit_options, const std::vector<double>& amplitudes,
-         RunMonitor& monitor, const response::ResponseProgress& progress, WorkerPool* pool,
-         ProbeFitModel& m) {
+         const response::ResponseFitOptions& fit_options,
+         const response::NonlinearFitOptions& nonlinear, RunMonitor& monitor,
+         const response::ResponseProgress& progress, WorkerPool* pool, ProbeFitModel& m) {
   m.weights = baseline.start;
   m.start_is_baseline = baseline.on_genes.has_value();
   try {
@@ -261,8 +276,6 @@ void Fit(const Problem& problem, const RunProbes& probes, const ProbeFitBaseline
   // range's sizes (docs/ARCHITECTURE.md, "The nonlinear fit"); stopped, the rest-linear model.
   if (problem.response() != Response::kNonlinear) return;
   try {
-    response::NonlinearFitOptions nonlinear;
-    nonlinear.amplitudes = amplitudes;
     m.fit.nonlinear = response::FitNonlinearResponse(
         problem, probes.fit(), probes.reference_stiffness(), m.fit.weights, fit_options, nonlinear,
         baseline.on_genes ? &*baseline.on_genes : nullptr, &monitor.interruption(), progress, pool);
@@ -421,7 +434,8 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   ProbeFitModel m;
   // (The load range is checked before the fit: a size out of bounds is refused at once.)
   const std::vector<double> amplitudes = LoadRangeAmplitudes(options, probes.fit());
-  Fit(problem, probes, baseline, fit_options, amplitudes, monitor, progress, pool, m);
+  Fit(problem, probes, baseline, fit_options, NonlinearStageOptions(problem, options, amplitudes),
+      monitor, progress, pool, m);
   if (m.stopped == StoppedIn::kNowhere) enter("certificate");
   ChooseAndCertify(problem, options, probes, baseline, fit_options, monitor, m);
   if (m.certificate && problem.response() == Response::kNonlinear) {

@@ -72,6 +72,13 @@ SupernodalCholesky::SupernodalCholesky(int n, const int* outer, const int* inner
 
 SupernodalCholesky::~SupernodalCholesky() = default;
 
+double SupernodalCholesky::FactorBytes() const {
+  const cholmod_factor& l = *state_->factor;
+  // (values; supernode row indices and pointers; the permutation and column counts)
+  return 8.0 * static_cast<double>(l.xsize) + 4.0 * static_cast<double>(l.ssize) +
+         4.0 * 4.0 * static_cast<double>(l.nsuper + 1) + 4.0 * 3.0 * static_cast<double>(l.n);
+}
+
 bool SupernodalCholesky::Factorize(const int* outer, const int* inner, const double* values) {
   State& s = *state_;
   s.view.p = const_cast<int*>(outer);

@@ -37,6 +37,9 @@ class SupernodalCholesky {
   // loops (blocked_triangular_solve.h) instead of CHOLMOD's solve: twice as fast with the
   // reference BLAS, and the same bits whatever BLAS is installed.
   void SolveColumns(Matrix& b) const;
+  // The bytes the factor holds once factorised (its supernodes' values and indices, known from
+  // the analysis), for memory estimates.
+  double FactorBytes() const;
 
  private:
   struct State;

@@ -57,6 +57,20 @@ void SymmetricSystem::AnalyseSparse() {
   sldlt_->analyzePattern(sparse_work_);
 }
 
+double SymmetricSystem::Bytes() const {
+  const auto sparse_bytes = [](const Eigen::SparseMatrix<double>& m) {
+    return 12.0 * static_cast<double>(m.nonZeros()) + 4.0 * static_cast<double>(m.outerSize() + 1);
+  };
+  double bytes = 8.0 * static_cast<double>(band_.size() + band_factor_.size() + scale_.size()) +
+                 4.0 * static_cast<double>(diagonal_slot_.size()) + sparse_bytes(sparse_) +
+                 sparse_bytes(sparse_work_);
+  // (L's values and row indices; D, the permutation and its inverse, the elimination tree)
+  if (sldlt_)
+    bytes += 12.0 * static_cast<double>(sldlt_->FactorEntries()) + 28.0 * static_cast<double>(n_);
+  if (supernodal_) bytes += supernodal_->FactorBytes();
+  return bytes;
+}
+
 SymmetricSystem::SymmetricSystem() = default;
 SymmetricSystem::~SymmetricSystem() = default;
 

@@ -83,6 +83,9 @@ class SymmetricSystem {
   Factorization FactorizeIndefinite(double shift);
   // Overwrites b with the solution of (A + shift S^-2) x = b, using the last Factorize().
   void Solve(Vector& b) const;
+  // The bytes this system holds, its factor included at the size its analysis gives (a
+  // factorisation allocates no more), for memory estimates.
+  double Bytes() const;
 
  private:
   void ComputeScaling();
@@ -114,8 +117,11 @@ class SymmetricSystem {
   Eigen::SparseMatrix<double> sparse_;
   Eigen::SparseMatrix<double> sparse_work_;
   std::vector<int> diagonal_slot_;
-  using SparseLdlt =
-      Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>>;
+  // Eigen's simplicial LDLT, with the size of its factor (allocated by the analysis) readable.
+  struct SparseLdlt
+      : Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>> {
+    Eigen::Index FactorEntries() const { return m_matrix.nonZeros(); }
+  };
   // Eigen's sparse solvers cannot be copied: a copy of the system analyses the pattern anew
   // (once per thread, not once per solve). A copy carries the matrix and the pattern but no
   // numeric factorisation (copying an unfactorised Eigen LDLT reads its uninitialised status,

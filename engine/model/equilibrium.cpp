@@ -106,6 +106,16 @@ EquilibriumSolver::EquilibriumSolver(const SpringGeometry& geometry, FreeNodes f
   step_.resize(n);
 }
 
+double EquilibriumSolver::Bytes() const {
+  const double n = static_cast<double>(system_.size());
+  const double nodes = static_cast<double>(free_.free_index.size());
+  // (the slots; the gradients, step and trial displacements, all nodes' for the last; each free
+  // node's force floor; the rest verdict's unit springs, one per candidate at most)
+  return system_.Bytes() + 4.0 * static_cast<double>(slots_.size() + free_.free_index.size()) +
+         8.0 * (3.0 * n + nodes * dim_ + static_cast<double>(free_.count)) +
+         12.0 * static_cast<double>(geometry_ ? geometry_->size() : 0);
+}
+
 template <int D>
 double EquilibriumSolver::Assemble(const ActiveSprings& springs, const Vector& force,
                                    const Vector& u, Vector* gradient, bool hessian, bool projected,

@@ -94,6 +94,9 @@ class EquilibriumSolver {
   // Whether the last factorisation is a positive-definite tangent (exact, projected or
   // regularised) of the springs last solved or factorised, which Solve() may start from.
   bool HoldsTangent() const { return holds_tangent_; }
+  // The bytes this solver holds once it has solved (its system and factor, its slots and its
+  // work vectors), for memory estimates: known at construction.
+  double Bytes() const;
 
   // Solves H x = b for every column b of `rhs` (free degrees of freedom, free-node order), H
   // the exact Hessian of E at `u` (an equilibrium from Solve): one factorisation, then one

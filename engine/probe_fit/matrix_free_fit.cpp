@@ -302,6 +302,8 @@ class MatrixFreeFit {
                                      removed_);
     }
 
+    void Idle() override { at_->Idle(); }
+
     const std::vector<double>& weights() const { return weights_; }
     const SpringSensitivities& at() const { return *at_; }
     // Hands the model and its linearisation back (the point is spent).
@@ -412,6 +414,9 @@ NonlinearFitResult FitNonlinearResponse(
   }
   NonlinearFitResult r;
   r.fitted_left_out = cases.StartFrom(start_errors);
+  r.left_for_memory = cases.LeftForMemory();
+  r.case_bytes = cases.CaseBytes();
+  r.max_bytes = nonlinear.max_bytes;
   r.amplitudes = nonlinear.amplitudes;
   r.fitted_cases = static_cast<int>(cases.fitted().size());
   r.choosing_cases = static_cast<int>(cases.choosing().size());

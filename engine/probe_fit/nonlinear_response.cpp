@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <stdexcept>
 
 #include "engine/probe_fit/probe_evaluation.h"
 #include "engine/runtime/options_check.h"
@@ -89,6 +90,8 @@ void NonlinearFitOptions::Validate(const std::string& owner) const {
   const OptionsCheck check(owner);
   CheckAmplitudes(check, amplitudes);
   check.Require(max_fitted_probes >= 0, "max_fitted_probes", max_fitted_probes, "value >= 0");
+  check.Require(max_bytes >= 0.0 && std::isfinite(max_bytes), "max_bytes", max_bytes,
+                "0 <= value < infinity");
   check.Require(max_choosing_probes >= 1, "max_choosing_probes", max_choosing_probes, "value >= 1");
   check.Require(!regularizations.empty(), "regularizations", 0.0, "at least one strength");
   for (double r : regularizations) check.Require(r >= 0.0, "regularizations", r, "each >= 0");
@@ -109,7 +112,7 @@ NonlinearCases::NonlinearCases(const Problem& problem, const ProbeBank& bank,
   options.Validate();
   solver_options_.chord_contraction = options.chord_contraction;
   const int d = problem.dimension();
-  const std::vector<int> fitted = CaseProbes(bank, ProbeRole::kFit, options.max_fitted_probes);
+  const std::vector<int> fitted = FittedWithinMemory(options);
   const std::vector<int> choosing =
       CaseProbes(bank, ProbeRole::kSelect, options.max_choosing_probes);
   std::vector<int> all = fitted;
@@ -159,6 +162,32 @@ NonlinearCases::NonlinearCases(const Problem& problem, const ProbeBank& bank,
   }
 }
 
+std::vector<int> NonlinearCases::FittedWithinMemory(const NonlinearFitOptions& options) {
+  std::vector<int> fitted = CaseProbes(bank_, ProbeRole::kFit, options.max_fitted_probes);
+  if (!(options.max_bytes > 0.0)) return fitted;
+  const int d = problem_.dimension();
+  const double nodes = static_cast<double>(problem_.scene().node_count());
+  const EquilibriumSolver free_body(
+      problem_.candidates(),
+      FreeNodes::FromConstrained(std::vector<bool>(problem_.scene().node_count(), false)),
+      solver_options_);
+  // (the solver; the reference's equilibrium; in each of two responses a part, its per-gene
+  // columns and stretches, residual and equilibrium)
+  case_bytes_ = free_body.Bytes() + 8.0 * d * nodes +
+                2.0 * (static_cast<double>(problem_.gene_count()) * (sizeof(SpringColumn) + 8.0) +
+                       16.0 * d * nodes);
+  const double amplitudes = static_cast<double>(options.amplitudes.size());
+  const auto probes_within = static_cast<long long>(options.max_bytes / (case_bytes_ * amplitudes));
+  if (static_cast<long long>(fitted.size()) <= probes_within) return fitted;
+  int named = 0;
+  for (int p : fitted)
+    named += bank_.probes[static_cast<std::size_t>(p)].family == ProbeFamily::kNamed;
+  const auto generated = static_cast<int>(std::max<long long>(probes_within - named, 0));
+  const std::vector<int> within = CaseProbes(bank_, ProbeRole::kFit, generated);
+  left_for_memory_ = static_cast<int>(fitted.size() - within.size());
+  return within;
+}
+
 double NonlinearCases::ChoosingError(const std::vector<double>& weights, int* failed) const {
   const int d = problem_.dimension();
   const SpringModel springs = ModelOfWeights(problem_, weights);
@@ -205,6 +234,7 @@ std::unique_ptr<EquilibriumSolver> NonlinearCases::TakeSolver(std::size_t fitted
       return std::move(spare_solvers_[fitted_case]);
   }
   const Probe& probe = bank_.probes[static_cast<std::size_t>(fitted_[fitted_case].probe)];
+  ++solvers_built_;
   return std::make_unique<EquilibriumSolver>(problem_.candidates(), FreeOf(bank_, probe),
                                              solver_options_);
 }
@@ -262,13 +292,15 @@ bool NonlinearResponse::At(const std::vector<double>& weights) {
   const ProbeBank& bank = cases_->bank();
   const std::vector<NonlinearCase>& cases = cases_->fitted();
   const int d = problem.dimension();
-  const ActiveSprings active = ActiveOf(problem, weights);
+  active_ = ActiveOf(problem, weights);
+  const ActiveSprings& active = active_;
   const SpringGeometry& geometry = problem.candidates();
   const std::vector<int>& gene_candidate = problem.gene_candidates();
   parts_.assign(cases.size(), Part{});
   case_errors_.assign(cases.size(), std::numeric_limits<double>::quiet_NaN());
   cases_->ReturnSolvers(solvers_);
   solvers_.resize(cases.size());
+  equilibria_.assign(cases.size(), Vector());
   const auto groups = ByProbe(cases);
   std::vector<char> held(groups.size(), 0);
   ForEach(
@@ -299,6 +331,7 @@ bool NonlinearResponse::At(const std::vector<double>& weights) {
           if (!summary.converged() || !solver.FactorizeTangent(active, u) ||
               InvertedElements(problem.scene(), u) > 0)
             return;
+          equilibria_[i] = u;
           Part& part = parts_[i];
           part.key = i;
           const double root = std::sqrt(cases[i].weight);
@@ -337,7 +370,18 @@ bool NonlinearResponse::At(const std::vector<double>& weights) {
   return std::find(held.begin(), held.end(), 0) == held.end();
 }
 
+void NonlinearResponse::Idle() {
+  cases_->ReturnSolvers(solvers_);
+  solvers_.resize(cases_->fitted().size());
+}
+
 void NonlinearResponse::Solve(std::size_t part, Matrix& b) const {
+  if (!solvers_[part]) {
+    solvers_[part] = cases_->TakeSolver(part);
+    // (At() factorised this tangent at this equilibrium: it is positive definite again.)
+    if (!solvers_[part]->FactorizeTangent(active_, equilibria_[part]))
+      throw std::logic_error("NonlinearResponse: an idle part's tangent lost its factorisation");
+  }
   for (Eigen::Index j = 0; j < b.cols(); ++j) {
     Vector column = b.col(j);
     solvers_[part]->SolveTangent(column);

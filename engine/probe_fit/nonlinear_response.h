@@ -12,6 +12,7 @@
 // (they are judged at amplitudes by the certificate, amplitude_judgement.h).
 #pragma once
 
+#include <atomic>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -44,6 +45,12 @@ struct NonlinearFitOptions {
   // from the previous amplitude's tangent, factorised anyway for the adjoint. In [0, 1); 0:
   // exact Newton.
   double chord_contraction = kLoadStepChordContraction;
+  // The stage's memory at most, in bytes (0: no bound): per fitted case one equilibrium solver
+  // with its factorised tangent (the free body's pattern bounds every support's), the case's
+  // reference, and its part in the two responses alive at a time (the line search's point and
+  // its trial; GaussNewtonPoint::Idle). Generated fitted probes beyond it are left out, evenly
+  // spread, before any solve (the named cases stay in), and the result counts them. >= 0.
+  double max_bytes = 0.0;
 
   // Throws std::invalid_argument naming the field, its value and the rule.
   void Validate(const std::string& owner = "NonlinearFitOptions") const;
@@ -74,6 +81,10 @@ class NonlinearCases {
   // Ordered by probe, then by amplitude ascending.
   const std::vector<NonlinearCase>& fitted() const { return fitted_; }
   const std::vector<NonlinearCase>& choosing() const { return choosing_; }
+  // The memory bound (NonlinearFitOptions::max_bytes): the bytes a fitted case holds (0 without
+  // a bound) and the fitted probes it left out.
+  double CaseBytes() const { return case_bytes_; }
+  int LeftForMemory() const { return left_for_memory_; }
 
   // What the nonlinear fit chooses by: FamilyBalancedRms over the choosing probes of each
   // probe's RMS E over its amplitudes, the model solved with the spring law. A case the model
@@ -90,6 +101,9 @@ class NonlinearCases {
   // not depend on what it solved before (EquilibriumSolver::Solve takes its start explicitly).
   std::unique_ptr<EquilibriumSolver> TakeSolver(std::size_t fitted_case) const;
   void ReturnSolvers(std::vector<std::unique_ptr<EquilibriumSolver>>& solvers) const;
+  // How many solvers TakeSolver built (the rest were handed on): one per fitted case when the
+  // fit keeps one set of factorised tangents alive (NonlinearResponse::Idle).
+  int SolversBuilt() const { return solvers_built_.load(); }
 
   // Fits from the start model (NonlinearResponse::CaseErrors at it, NaN where it found no
   // stable equilibrium): a fitted case the start cannot hold (it folds there, its tangent not
@@ -109,9 +123,16 @@ class NonlinearCases {
   Interruption* interruption_;
   WorkerPool* pool_;
   EquilibriumOptions solver_options_;  // load steps' (LoadStepSolverOptions), the stage's chord
+  // The fitted probes within NonlinearFitOptions::max_bytes, setting case_bytes_ and
+  // left_for_memory_.
+  std::vector<int> FittedWithinMemory(const NonlinearFitOptions& options);
+
   std::vector<NonlinearCase> fitted_, choosing_;
+  double case_bytes_ = 0.0;
+  int left_for_memory_ = 0;
   mutable std::mutex spare_mutex_;
   mutable std::vector<std::unique_ptr<EquilibriumSolver>> spare_solvers_;  // per fitted case
+  mutable std::atomic<int> solvers_built_{0};
 };
 
 // The nonlinear objective's operators at a model (spring_sensitivities.h): a part per fitted
@@ -130,6 +151,10 @@ class NonlinearResponse : public SpringSensitivities {
   NonlinearResponse& operator=(const NonlinearResponse&) = delete;
 
   bool At(const std::vector<double>& weights) override;
+  // Hands the solvers back to the cases (a trial then takes them instead of building its own);
+  // a later Solve() takes a part's solver again and factorises the tangent at its equilibrium,
+  // the same factorisation At() made.
+  void Idle() override;
   // Per fitted case, the relative error E of the last successful At()'s equilibrium.
   const std::vector<double>& CaseErrors() const { return case_errors_; }
 
@@ -139,7 +164,13 @@ class NonlinearResponse : public SpringSensitivities {
   std::vector<double> case_errors_;
   const NonlinearCases* cases_;
   const GeneSprings* springs_;
-  std::vector<std::unique_ptr<EquilibriumSolver>> solvers_;  // per part (fitted case)
+  // The last At()'s springs and, per part (fitted case), its equilibrium, from which an idle
+  // part's tangent is factorised again.
+  ActiveSprings active_;
+  std::vector<Vector> equilibria_;
+  // Per part; empty entries after Idle(), taken again by Solve() (each part by one task at a
+  // time: SpringSensitivities::Run).
+  mutable std::vector<std::unique_ptr<EquilibriumSolver>> solvers_;
 };
 
 }  // namespace springfit::response

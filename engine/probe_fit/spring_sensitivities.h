@@ -45,6 +45,11 @@ class SpringSensitivities {
   // The rest model of the last successful At() factorised on each support it holds one for
   // (the rest linearisation's), for the judgements of that model; none by default.
   virtual FactorizedOn Factorized() const { return {}; }
+  // Releases what the operators (Gradient, NormalProduct, NormalDiagonal) need beyond the
+  // residuals, which the next operator call rebuilds with the same bits: a caller that reads
+  // only values for a while (the line search's trials, GaussNewtonPoint::Idle). Nothing by
+  // default.
+  virtual void Idle() {}
 
   // sum_p |r_p|^2.
   double ResidualNorm2() const;

@@ -289,14 +289,7 @@ std::string ResultCard(const Outcome& o, const Json& result, const Json& search)
       text += ErrorText(*returned) + " returned";
       if (const auto base = NumberAt(*g, {"fit", "nonlinear", "baseline_choosing_rms_error"}))
         text += " (baseline " + ErrorText(*base) + ")";
-      if (const auto out = NumberAt(*g, {"fit", "nonlinear", "fitted_left_out"}); out && *out > 0)
-        text += fmt::format(
-            "; {} fitted equilibria left out (the rest-linear model folds there "
-            "or has none)",
-            static_cast<long long>(*out));
-      if (const auto failed = NumberAt(*g, {"fit", "nonlinear", "failed"}); failed && *failed > 0)
-        text += fmt::format("; {} choosing equilibria not found (a fold or no equilibrium)",
-                            static_cast<long long>(*failed));
+      text += proto::NonlinearFitNotes(g->at("fit").at("nonlinear"));
       body += Row("nonlinear fit", text);
     }
     if (const auto strength = NumberAt(*g, {"fit", "regularization"}))

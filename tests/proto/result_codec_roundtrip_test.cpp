@@ -195,5 +195,22 @@ TEST(TopologyCodecRoundTrip, AnyMaskSurvivesATopologyFile) {
   }
 }
 
+// The nonlinear fit's notes, the words the run's summary and the dashboard share: what it left
+// out (folds, memory) and what it did not find, each only when it happened.
+TEST(NonlinearFitNotes, SayWhatTheStageLeftOutInTheRunsAndTheDashboardsWords) {
+  EXPECT_EQ(NonlinearFitNotes(Json{{"fitted_left_out", 0}, {"left_for_memory", 0}, {"failed", 0}}),
+            "");
+  EXPECT_EQ(NonlinearFitNotes(Json::object()), "");  // (a result from before these counts)
+  const Json stage = {{"fitted_left_out", 20},
+                      {"left_for_memory", 96},
+                      {"case_bytes", 9.2e6},
+                      {"max_bytes", 1.5e9},
+                      {"failed", 6}};
+  EXPECT_EQ(NonlinearFitNotes(stage),
+            "; 20 fitted equilibria left out (the rest-linear model folds there or has none)"
+            "; 96 fitted probes left out for memory (9.2 MB per equilibrium, 1.5 GB allowed)"
+            "; 6 choosing equilibria not found (a fold or no equilibrium)");
+}
+
 }  // namespace
 }  // namespace springfit::proto

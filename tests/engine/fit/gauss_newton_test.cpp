@@ -22,6 +22,14 @@ struct Residual {
   bool bounded = false;
   std::function<bool(const Vector&)> feasible = [](const Vector&) { return true; };
   bool jacobi = false;  // precondition with J^T J's diagonal
+  // What the driver asked of its points (GaussNewtonPoint::Idle): idle points, trials made
+  // while their point was not idle, and operators asked of an idle point (it rebuilds them).
+  struct IdleLog {
+    int idles = 0;
+    int trials_of_busy_points = 0;
+    int operators_of_idle_points = 0;
+  };
+  std::shared_ptr<IdleLog> log = std::make_shared<IdleLog>();
 };
 
 class TestPoint : public GaussNewtonPoint {
@@ -29,9 +37,16 @@ class TestPoint : public GaussNewtonPoint {
   TestPoint(const Residual& f, Vector x)
       : f_(f), x_(std::move(x)), r_(f.r(x_)), j_(f.jacobian(x_)) {}
   double Value() const override { return 0.5 * r_.squaredNorm(); }
-  Vector Gradient() const override { return j_.transpose() * r_; }
-  Vector NormalProduct(const Vector& v) const override { return j_.transpose() * (j_ * v); }
+  Vector Gradient() const override {
+    Wake();
+    return j_.transpose() * r_;
+  }
+  Vector NormalProduct(const Vector& v) const override {
+    Wake();
+    return j_.transpose() * (j_ * v);
+  }
   Vector NormalDiagonal() const override {
+    Wake();
     return f_.jacobi ? Vector(j_.colwise().squaredNorm().transpose()) : Vector::Ones(x_.size());
   }
   std::vector<bool> Free(const Vector& g) const override {
@@ -43,7 +58,12 @@ class TestPoint : public GaussNewtonPoint {
   Vector Taken(const Vector& d, double t) const override {
     return f_.bounded ? Vector((x_ + t * d).cwiseMax(0.0) - x_) : Vector(t * d);
   }
+  void Idle() override {
+    idle_ = true;
+    ++f_.log->idles;
+  }
   std::unique_ptr<GaussNewtonPoint> Trial(const Vector& d, double t) const override {
+    if (!idle_) ++f_.log->trials_of_busy_points;
     const Vector x = x_ + Taken(d, t);
     if (!f_.feasible(x)) return nullptr;
     return std::make_unique<TestPoint>(f_, x);
@@ -51,10 +71,16 @@ class TestPoint : public GaussNewtonPoint {
   const Vector& x() const { return x_; }
 
  private:
+  void Wake() const {
+    if (idle_) ++f_.log->operators_of_idle_points;
+    idle_ = false;
+  }
+
   const Residual& f_;
   Vector x_;
   Vector r_;
   Matrix j_;
+  mutable bool idle_ = false;
 };
 
 const Vector& X(const std::unique_ptr<GaussNewtonPoint>& p) {
@@ -155,6 +181,41 @@ TEST(GaussNewton, TheTrustRegionCrossesACurvedValleyAndNeverStepsWhereThereIsNoM
   EXPECT_NEAR(X(point)[0], 1.0, 1e-8);
   EXPECT_NEAR(X(point)[1], 1.0, 1e-8);
   for (std::size_t i = 1; i < values.size(); ++i) EXPECT_LT(values[i], values[i - 1]);
+}
+
+// The line search reads only its trials' values once the step is computed, so it lets the point
+// go idle before its first trial (the nonlinear stage then keeps one set of factorised tangents
+// alive, not the point's and the trial's); the trust region, which asks the point again after
+// a refused step, does not.
+TEST(GaussNewton, TheLineSearchLetsItsPointIdleWhileItTriesSteps) {
+  Matrix a;
+  Vector b;
+  const Residual f = BoundedLinear(a, b);
+  GaussNewtonOptions options;
+  options.cg_iterations = 1;  // (one CG iteration per step: many steps)
+  options.max_steps = 30;
+  const Vector start = Vector::Constant(4, 1.0);
+  std::unique_ptr<GaussNewtonPoint> point = std::make_unique<TestPoint>(f, start);
+  const GaussNewtonOutcome line = DescendGaussNewton(point, options);
+  EXPECT_GT(line.steps, 10);
+  // (every step that reached its line search; a last step can end stationary before it)
+  EXPECT_GE(f.log->idles, line.steps - 1);
+  EXPECT_LE(f.log->idles, line.steps);
+  EXPECT_EQ(f.log->trials_of_busy_points, 0);
+  EXPECT_EQ(f.log->operators_of_idle_points, 0);
+
+  // (Rosenbrock's valley, where the trust region refuses steps and shrinks)
+  const Residual valley = Rosenbrock();
+  GaussNewtonOptions region_options;
+  region_options.max_steps = 50;
+  region_options.initial_radius = 10.0;
+  region_options.max_radius = 100.0;
+  Vector far(2);
+  far << -1.2, 1.0;
+  point = std::make_unique<TestPoint>(valley, far);
+  const GaussNewtonOutcome region = DescendGaussNewton(point, region_options);
+  EXPECT_GT(region.steps, region.accepted);  // (refused steps ask the point again)
+  EXPECT_EQ(valley.log->idles, 0);
 }
 
 TEST(GaussNewton, AStopKeepsTheLastAcceptedPoint) {

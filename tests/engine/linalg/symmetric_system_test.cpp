@@ -121,6 +121,27 @@ TEST(SymmetricSystem, TheThreeBackendsAgreeOnDefiniteAndSingularMatrices) {
   }
 }
 
+// The bytes a system holds (memory estimates before a large solve: the nonlinear stage's bound)
+// grow with its factor's fill, which the analysis knows before any factorisation: a dense
+// pattern's factor has n (n - 1) / 2 entries below the diagonal, a path's n - 1. Each backend's
+// estimate covers its factor, and a factorisation allocates nothing the estimate missed.
+TEST(SymmetricSystem, ItsBytesCountTheFactorsFillBeforeAnyFactorisation) {
+  const int n = 300;
+  std::vector<std::pair<int, int>> dense, path;
+  for (int i = 1; i < n; ++i) {
+    path.emplace_back(i, i - 1);
+    for (int j = 0; j < i; ++j) dense.emplace_back(i, j);
+  }
+  const double below = 0.5 * n * (n - 1.0);
+  for (auto backend : {SymmetricSystem::Backend::kSparse, SymmetricSystem::Backend::kSupernodal}) {
+    const SymmetricSystem full(n, dense, backend);
+    const SymmetricSystem chain(n, path, backend);
+    // (the matrix and its scaled copy, 12 bytes per entry each, and the factor, 8 at least)
+    EXPECT_GE(full.Bytes(), (2.0 * 12.0 + 8.0) * below) << static_cast<int>(backend);
+    EXPECT_LT(chain.Bytes(), 0.05 * full.Bytes()) << static_cast<int>(backend);
+  }
+}
+
 // The supernodal factor solved by springfit's own loops over its columns (SolveColumns) gives
 // CHOLMOD's solve to round-off, for many right-hand sides at once: a 3D grid Laplacian, whose
 // supernodes are wide enough to have dense blocks below their diagonal.

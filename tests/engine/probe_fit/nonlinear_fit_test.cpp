@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <set>
 
 #include "engine/identification/identify.h"
 #include "engine/probe_fit/gene_springs.h"
@@ -35,6 +36,22 @@ NonlinearFitOptions FewCasesOptions() {
   options.max_choosing_probes = 1;
   return options;
 }
+
+// The kidney's few cases and what a response on them needs; `Other()` another model near the
+// prior (every stiffness moved by up to 30 %).
+struct FewCases {
+  const NonlinearKidney kidney;
+  const NonlinearCases cases{kidney.problem, kidney.bank, FitWeights(kidney.bank, {}),
+                             FewCasesOptions()};
+  const GeneSprings springs = GeneSpringsOf(kidney.problem);
+  const Vector scale = PriorScale(kidney.prior);
+
+  std::vector<double> Other() const {
+    std::vector<double> other = kidney.prior;
+    for (std::size_t e = 0; e < other.size(); ++e) other[e] *= 1.0 + 0.3 * std::sin(double(e));
+    return other;
+  }
+};
 
 // J^T r and J^T J v of the nonlinear objective against central differences of its residuals:
 // the derivative of the equilibria in the stiffness through the tangent at each one (the
@@ -81,13 +98,9 @@ TEST(NonlinearResponse, GradientAndNormalProductMatchFiniteDifferences) {
 // a response's results do not depend on what its solvers solved before, to the bit, and a
 // returned solver comes back with its state (its last tangent), not rebuilt.
 TEST(NonlinearResponse, HandedOnSolversGiveTheSameResidualsWhateverTheySolvedBefore) {
-  const NonlinearKidney kidney;
-  const NonlinearCases cases(kidney.problem, kidney.bank, FitWeights(kidney.bank, {}),
-                             FewCasesOptions());
-  const GeneSprings springs = GeneSpringsOf(kidney.problem);
-  const Vector scale = PriorScale(kidney.prior);
-  std::vector<double> other = kidney.prior;
-  for (std::size_t e = 0; e < other.size(); ++e) other[e] *= 1.0 + 0.3 * std::sin(double(e));
+  const FewCases few;
+  const auto& [kidney, cases, springs, scale] = few;
+  const std::vector<double> other = few.Other();
   const auto residuals_at = [&](const std::vector<double>& weights) {
     NonlinearResponse response(cases, springs, scale);
     EXPECT_TRUE(response.At(weights));
@@ -103,6 +116,66 @@ TEST(NonlinearResponse, HandedOnSolversGiveTheSameResidualsWhateverTheySolvedBef
     std::unique_ptr<EquilibriumSolver> solver = cases.TakeSolver(i);
     EXPECT_TRUE(solver->HoldsTangent()) << "case " << i;
   }
+}
+
+// An idle response (NonlinearResponse::Idle: the line search's point while it tries steps) hands
+// its solvers back, so a trial takes them instead of building its own: one solver per fitted
+// case is ever built, one set of factorised tangents alive. Asked again, it factorises its
+// tangents anew and its operators come out the same to the bit.
+TEST(NonlinearResponse, AnIdleResponseHandsItsTangentsOnAndRebuildsThemTheSame) {
+  const FewCases few;
+  const auto& [kidney, cases, springs, scale] = few;
+  Vector v(scale.size());
+  for (Eigen::Index e = 0; e < v.size(); ++e) v[e] = std::cos(2.0 + 5.0 * static_cast<double>(e));
+  NonlinearResponse point(cases, springs, scale);
+  ASSERT_TRUE(point.At(kidney.prior));
+  const int fitted = static_cast<int>(cases.fitted().size());
+  EXPECT_EQ(cases.SolversBuilt(), fitted);
+  const Vector gradient = point.Gradient(), product = point.NormalProduct(v);
+  point.Idle();
+  {
+    NonlinearResponse trial(cases, springs, scale);
+    ASSERT_TRUE(trial.At(few.Other()));
+    EXPECT_EQ(cases.SolversBuilt(), fitted);  // the idle point's, handed on
+  }
+  EXPECT_EQ((point.Gradient() - gradient).lpNorm<Eigen::Infinity>(), 0.0);
+  EXPECT_EQ((point.NormalProduct(v) - product).lpNorm<Eigen::Infinity>(), 0.0);
+  EXPECT_EQ(cases.SolversBuilt(), fitted);
+}
+
+// The stage's memory (NonlinearFitOptions::max_bytes): per fitted case a solver with its
+// factorised tangent and the case's parts, estimated before any solve; fitted probes beyond the
+// bound are left out, evenly spread, and counted, and the named cases stay in.
+TEST(NonlinearFit, KeepsItsMemoryBoundByLeavingOutFittedProbes) {
+  const NonlinearKidney kidney;
+  NonlinearFitOptions options = FewCasesOptions();
+  options.max_bytes = 1e15;  // (a bound that leaves everything in: the estimate alone)
+  const NonlinearCases all(kidney.problem, kidney.bank, FitWeights(kidney.bank, {}), options);
+  EXPECT_EQ(all.LeftForMemory(), 0);
+  const double case_bytes = all.CaseBytes();
+  // At least the factor of the kidney's spring system and a part's columns per gene.
+  EXPECT_GT(case_bytes, 80.0 * kidney.problem.gene_count());
+  EXPECT_LT(case_bytes, 1e8);
+  std::set<int> named, probes;
+  for (const NonlinearCase& c : all.fitted()) {
+    probes.insert(c.probe);
+    if (kidney.bank.probes[static_cast<std::size_t>(c.probe)].family == ProbeFamily::kNamed)
+      named.insert(c.probe);
+  }
+  ASSERT_GE(probes.size(), named.size() + 4);
+  // Room for the named cases and two generated probes at both amplitudes.
+  const int room = static_cast<int>(named.size()) + 2;
+  options.max_bytes = case_bytes * 2.0 * room + 1.0;
+  const NonlinearCases within(kidney.problem, kidney.bank, FitWeights(kidney.bank, {}), options);
+  EXPECT_EQ(within.LeftForMemory(), static_cast<int>(probes.size()) - room);
+  std::set<int> kept, kept_named;
+  for (const NonlinearCase& c : within.fitted()) {
+    kept.insert(c.probe);
+    if (named.count(c.probe)) kept_named.insert(c.probe);
+  }
+  EXPECT_EQ(static_cast<int>(kept.size()), room);
+  EXPECT_EQ(kept_named, named);
+  EXPECT_LE(static_cast<double>(within.fitted().size()) * case_bytes, options.max_bytes);
 }
 
 // The nonlinear stage on the St. Venant-Kirchhoff kidney, from the rest-linear fit's model: a
