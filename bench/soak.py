@@ -90,6 +90,9 @@ import time
 import traceback
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+# The daemon tests' connection (one line reader for the tests and the soak).
+sys.path.insert(0, os.path.join(ROOT, "tests", "daemon"))
+from harness import Conn  # noqa: E402
 WITH_POSTGRES = os.path.join(ROOT, "tests", "server", "with_postgres.sh")
 TERMINAL = ("succeeded", "failed", "cancelled")
 # Not reproducible by design (proto/RPC.md, "Durability"): wall times, the fitness cache's
@@ -186,55 +189,21 @@ def rpc(port, method, params=None, timeout=CALL_TIMEOUT):
         raise Down("not running")
     deadline = time.monotonic() + timeout
     try:
-        with socket.create_connection(("127.0.0.1", port), timeout=timeout) as s:
+        with Conn(port, timeout=timeout) as conn:
             message = {"jsonrpc": "2.0", "id": 1, "method": method}
             if params is not None:
                 message["params"] = params
-            s.sendall(json.dumps(message).encode() + b"\n")
-            reader = LineReader(s)
+            conn.send(json.dumps(message).encode() + b"\n")
             while True:
-                line = reader.line(deadline)
+                line = conn.read_raw_line(max(deadline - time.monotonic(), 0.0))
                 if line is None:
-                    raise Down("no answer" if not reader.eof else "closed")
+                    raise Down("no answer" if not conn.eof else "closed")
                 answer = json.loads(line)
                 if answer.get("id") == 1:
                     return answer.get("result"), answer.get("error")
                 # (job.preparing notices before a slow submission's answer)
     except (OSError, ValueError) as e:
         raise Down(f"{type(e).__name__}: {e}") from None
-
-
-class LineReader:
-    def __init__(self, sock):
-        self.sock = sock
-        self.chunks = []
-        self.eof = False
-
-    def line(self, deadline):
-        """The next line, or None at the deadline or the end of the stream."""
-        while True:
-            if self.chunks and b"\n" in self.chunks[-1]:
-                data = b"".join(self.chunks)
-                line, rest = data.split(b"\n", 1)
-                self.chunks = [rest] if rest else []
-                return line
-            remaining = deadline - time.monotonic()
-            if remaining <= 0 or self.eof:
-                return None
-            self.sock.settimeout(remaining)
-            try:
-                chunk = self.sock.recv(1 << 20)
-            except socket.timeout:
-                return None
-            except (ConnectionResetError, ConnectionAbortedError):
-                chunk = b""
-            if not chunk:
-                self.eof = True
-                return None
-            if self.chunks and b"\n" not in self.chunks[-1]:
-                self.chunks[-1] += chunk
-            else:
-                self.chunks.append(chunk)
 
 
 # --------------------------------------------------------------------------------------------
@@ -1022,13 +991,12 @@ class Soak:
             return
         abandon = rng.random() < 0.2
         deadline = time.monotonic() + 8.0
-        with socket.create_connection(("127.0.0.1", port), timeout=CALL_TIMEOUT) as s:
+        with Conn(port, timeout=CALL_TIMEOUT) as conn:
             t = now()
-            s.sendall(json.dumps({"jsonrpc": "2.0", "id": 7, "method": "job.watch",
+            conn.send(json.dumps({"jsonrpc": "2.0", "id": 7, "method": "job.watch",
                                   "params": {"job_id": job.job_id}}).encode() + b"\n")
-            reader = LineReader(s)
             while True:
-                line = reader.line(deadline)
+                line = conn.read_raw_line(max(deadline - time.monotonic(), 0.0))
                 if line is None:
                     return
                 msg = json.loads(line)
@@ -1241,13 +1209,10 @@ class Soak:
                 ids = self.known_ids[-50:]
             if not ids:
                 return self.skip("disconnect", "no job to watch")
-            sock = socket.create_connection(("127.0.0.1", port), timeout=CALL_TIMEOUT)
-            try:
-                sock.sendall(json.dumps({"jsonrpc": "2.0", "id": 1, "method": "job.watch",
-                                         "params": {"job_id": random.choice(ids)}}).encode() + b"\n")
-                LineReader(sock).line(time.monotonic() + 2.0)
-            finally:
-                sock.close()
+            with Conn(port, timeout=CALL_TIMEOUT) as conn:
+                conn.send(json.dumps({"jsonrpc": "2.0", "id": 1, "method": "job.watch",
+                                      "params": {"job_id": random.choice(ids)}}).encode() + b"\n")
+                conn.read_raw_line(2.0)
         self.injected("disconnect", {"daemon": slot.inst.name if slot.inst else None,
                                      "variant": variant})
 

@@ -346,8 +346,6 @@ Json GeneralizationToJson(const response::Generalization& g) {
                           {"fitted_cases", n->fitted_cases},
                           {"fitted_left_out", n->fitted_left_out},
                           {"left_for_memory", n->left_for_memory},
-                          {"case_bytes", n->case_bytes},
-                          {"max_bytes", n->max_bytes},
                           {"choosing_cases", n->choosing_cases},
                           {"start_choosing_rms_error", NumberOrNull(n->start_choosing_error)},
                           {"choosing_rms_error", NumberOrNull(n->choosing_error)},
@@ -357,6 +355,12 @@ Json GeneralizationToJson(const response::Generalization& g) {
                           {"regularization", n->regularization},
                           {"gauss_newton_steps", n->steps},
                           {"seconds", n->seconds}};
+      // (The bound is half the machine's memory: written only where it cut, so that the same
+      // scene and seed write the same result on every machine it does not cut on.)
+      if (n->left_for_memory > 0) {
+        fit["nonlinear"]["case_bytes"] = n->case_bytes;
+        fit["nonlinear"]["max_bytes"] = n->max_bytes;
+      }
     }
     j["fit"] = std::move(fit);
   }
@@ -457,10 +461,16 @@ std::string NonlinearFitNotes(const Json& nonlinear) {
   if (const long long out = count("fitted_left_out"); out > 0)
     notes += fmt::format(
         "; {} fitted equilibria left out (the rest-linear model folds there or has none)", out);
-  if (const long long memory = count("left_for_memory"); memory > 0)
+  if (const long long memory = count("left_for_memory"); memory > 0) {
+    const double case_bytes = nonlinear.value("case_bytes", 0.0);
+    const double max_bytes = nonlinear.value("max_bytes", 0.0);
     notes += fmt::format(
-        "; {} fitted probes left out for memory ({:.1f} MB per equilibrium, {:.1f} GB allowed)",
-        memory, nonlinear.value("case_bytes", 0.0) / 1e6, nonlinear.value("max_bytes", 0.0) / 1e9);
+        "; {} fitted probes left out for memory ({:.1f} MB per equilibrium, {:.1f} GB allowed{})",
+        memory, case_bytes / 1e6, max_bytes / 1e9,
+        static_cast<double>(count("fitted_cases")) * case_bytes > max_bytes
+            ? ": the named cases alone exceed it"
+            : "");
+  }
   if (const long long failed = count("failed"); failed > 0)
     notes += fmt::format("; {} choosing equilibria not found (a fold or no equilibrium)", failed);
   return notes;

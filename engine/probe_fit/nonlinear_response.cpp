@@ -177,7 +177,9 @@ std::vector<int> NonlinearCases::FittedWithinMemory(const NonlinearFitOptions& o
                 2.0 * (static_cast<double>(problem_.gene_count()) * (sizeof(SpringColumn) + 8.0) +
                        16.0 * d * nodes);
   const double amplitudes = static_cast<double>(options.amplitudes.size());
-  const auto probes_within = static_cast<long long>(options.max_bytes / (case_bytes_ * amplitudes));
+  // (clamped in double: a bound far above any bank must not overflow the count)
+  const auto probes_within = static_cast<long long>(std::min(
+      std::floor(options.max_bytes / (case_bytes_ * amplitudes)), static_cast<double>(1LL << 40)));
   if (static_cast<long long>(fitted.size()) <= probes_within) return fitted;
   int named = 0;
   for (int p : fitted)
@@ -377,10 +379,11 @@ void NonlinearResponse::Idle() {
 
 void NonlinearResponse::Solve(std::size_t part, Matrix& b) const {
   if (!solvers_[part]) {
-    solvers_[part] = cases_->TakeSolver(part);
+    std::unique_ptr<EquilibriumSolver> solver = cases_->TakeSolver(part);
     // (At() factorised this tangent at this equilibrium: it is positive definite again.)
-    if (!solvers_[part]->FactorizeTangent(active_, equilibria_[part]))
+    if (!solver->FactorizeTangent(active_, equilibria_[part]))
       throw std::logic_error("NonlinearResponse: an idle part's tangent lost its factorisation");
+    solvers_[part] = std::move(solver);
   }
   for (Eigen::Index j = 0; j < b.cols(); ++j) {
     Vector column = b.col(j);

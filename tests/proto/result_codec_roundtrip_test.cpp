@@ -210,6 +210,12 @@ TEST(NonlinearFitNotes, SayWhatTheStageLeftOutInTheRunsAndTheDashboardsWords) {
             "; 20 fitted equilibria left out (the rest-linear model folds there or has none)"
             "; 96 fitted probes left out for memory (9.2 MB per equilibrium, 1.5 GB allowed)"
             "; 6 choosing equilibria not found (a fold or no equilibrium)");
+  // (a bound the named cases alone exceed: the stage kept them, and says so)
+  const Json over = {
+      {"fitted_cases", 40}, {"left_for_memory", 96}, {"case_bytes", 9.2e6}, {"max_bytes", 1e8}};
+  EXPECT_EQ(NonlinearFitNotes(over),
+            "; 96 fitted probes left out for memory (9.2 MB per equilibrium, 0.1 GB allowed: the "
+            "named cases alone exceed it)");
 }
 
 }  // namespace
