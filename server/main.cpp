@@ -140,6 +140,8 @@ sf::SchedulerOptions SchedulerOptionsOf(const DaemonArgs& args, sf::Metrics& met
   options.workers = args.workers;
   options.max_running = args.max_running.value_or(args.workers);
   options.runner.checkpoint_seconds = args.checkpoint_seconds;
+  // (the half of the machine's memory a run has alone, split among the jobs run at once)
+  options.runner.memory_share = 0.5 / options.max_running;
   options.owner = args.name;
   options.lease_seconds = args.lease_seconds;
   options.heartbeat_seconds = std::min(1.0, args.lease_seconds / 3);

@@ -78,6 +78,10 @@ struct RunContext {
   // start, a job's claim). The time limit (SearchOptions::max_seconds) counts from here, so
   // that it bounds what the user waits; unset, from the call of RunIdentification().
   std::optional<std::chrono::steady_clock::time_point> started;
+  // The share of the machine's memory this run may hold, in (0, 1]: a daemon running several
+  // jobs at once gives each its part of the half a run has alone. The nonlinear fit bounds
+  // itself by it (engine/probe_fit/nonlinear_response.h, NonlinearFitOptions::max_bytes).
+  double memory_share = 0.5;
   // Continue a checkpointed genetic run instead of starting one; `trace` is the trace so far.
   std::optional<SearchState> resume_from;
   std::vector<TraceRow> trace;

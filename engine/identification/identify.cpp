@@ -176,6 +176,9 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
   // `default` on a scene whose springs differ in stiffness runs direct, which then identifies
   // each one's (ResolvedStrategy: search.identify was unset, or asked for exactly that).
   SearchOptions options = requested;
+  if (!(context.memory_share > 0.0 && context.memory_share <= 1.0))
+    throw std::invalid_argument(
+        fmt::format("RunContext.memory_share: {} (must be in (0, 1])", context.memory_share));
   CheckRunBounds(problem, options);
   if (ResolvedStrategy(options.strategy, problem.scene()) == Strategy::kDirect &&
       options.strategy == Strategy::kDefault)

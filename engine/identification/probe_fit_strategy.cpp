@@ -225,16 +225,18 @@ response::ResponseFitOptions FitOptionsOf(const SearchOptions& options) {
   return o;
 }
 
-// The nonlinear stage at the load range's sizes, within what a run may hold (CheckRunBounds:
-// half the machine's memory) beside the probe fit's vectors; no bound where the machine's
-// memory cannot be read.
+// The nonlinear stage at the load range's sizes, within what the run may hold (its share of
+// the machine's memory, RunContext::memory_share: half when it runs alone, as CheckRunBounds
+// assumes) beside the probe fit's vectors; no bound where the machine's memory cannot be read.
 response::NonlinearFitOptions NonlinearStageOptions(const Problem& problem,
                                                     const SearchOptions& options,
+                                                    const RunContext& context,
                                                     const std::vector<double>& amplitudes) {
   response::NonlinearFitOptions nonlinear;
   nonlinear.amplitudes = amplitudes;
   if (const double machine = PhysicalMemoryBytes(); machine > 0.0)
-    nonlinear.max_bytes = std::max(0.5 * machine - ProbeFitBytes(problem, options), 1.0);
+    nonlinear.max_bytes =
+        std::max(context.memory_share * machine - ProbeFitBytes(problem, options), 1.0);
   return nonlinear;
 }
 
@@ -434,8 +436,8 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   ProbeFitModel m;
   // (The load range is checked before the fit: a size out of bounds is refused at once.)
   const std::vector<double> amplitudes = LoadRangeAmplitudes(options, probes.fit());
-  Fit(problem, probes, baseline, fit_options, NonlinearStageOptions(problem, options, amplitudes),
-      monitor, progress, pool, m);
+  Fit(problem, probes, baseline, fit_options,
+      NonlinearStageOptions(problem, options, context, amplitudes), monitor, progress, pool, m);
   if (m.stopped == StoppedIn::kNowhere) enter("certificate");
   ChooseAndCertify(problem, options, probes, baseline, fit_options, monitor, m);
   if (m.certificate && problem.response() == Response::kNonlinear) {

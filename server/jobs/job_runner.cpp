@@ -100,6 +100,7 @@ class JobRun {
     RunContext run;
     run.started = started_;  // the job's time limit counts from its claim, preparation included
     run.pool = &pool_;
+    run.memory_share = options_.memory_share;
     run.resume_from = LoadCheckpoint();
     best_error_ = run.resume_from ? run.resume_from->best_fitness.normalized_error
                                   : std::numeric_limits<double>::infinity();

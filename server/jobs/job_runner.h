@@ -15,6 +15,9 @@ namespace springfit::server {
 struct JobRunnerOptions {
   double flush_seconds = 1.0;        // trace rows and progress reach the store at least this often
   double checkpoint_seconds = 10.0;  // a checkpoint at least this often (and at a shutdown)
+  // The share of the machine's memory a job may hold (RunContext::memory_share): the half a
+  // run has alone, split among the jobs run at once (set by the daemon from --jobs).
+  double memory_share = 0.5;
 };
 
 struct JobControl {

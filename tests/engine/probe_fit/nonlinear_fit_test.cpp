@@ -299,6 +299,27 @@ TEST(ToolPushes, TheShapeIgnoresAStiffnessScaleAndTheToolForceDoesNot) {
   }
 }
 
+// A run's memory share (RunContext::memory_share, a daemon's half of the machine split among its
+// jobs at once) bounds the nonlinear stage: at a share that leaves it nothing beside the probe
+// fit's vectors, every generated fitted probe is left out, counted, and the named cases are
+// fitted alone; a share outside (0, 1] is refused.
+TEST(NonlinearFit, ARunsMemoryShareBoundsTheStage) {
+  const Problem problem(examples::Make("fem-kidney-2d-nl"));
+  const SearchOptions options = ResolveSearchOptions(problem.scene().search, problem.gene_count());
+  RunContext tight;
+  tight.memory_share = 1e-12;
+  const IdentificationResult r = RunIdentification(problem, options, tight);
+  ASSERT_TRUE(r.generalization && r.generalization->fit.nonlinear);
+  const NonlinearFitResult& n = *r.generalization->fit.nonlinear;
+  EXPECT_GT(n.left_for_memory, 50);
+  EXPECT_GT(n.case_bytes, 0.0);
+  EXPECT_EQ(n.fitted_cases + n.fitted_left_out,
+            static_cast<int>(problem.load_cases().size() * n.amplitudes.size()));
+  RunContext wrong;
+  wrong.memory_share = 0.0;
+  EXPECT_THROW(RunIdentification(problem, options, wrong), std::invalid_argument);
+}
+
 // A stated load range (search.load_size): the nonlinear fit, the judgement and the tool pushes
 // run at 25, 50 and 100% of it rather than of the named loads' size; a size beyond 20 times
 // the named loads' is refused, naming the field, before the fit.
