@@ -114,14 +114,22 @@ SearchOptions Resolved(const Problem& p, Strategy strategy) {
   return ResolveSearchOptions(s, p.gene_count());
 }
 
+// `strategy` on `p`, stopped at its first beat in `phase`: the last beat seen is that phase's,
+// and the run says it was cancelled.
+IdentificationResult StoppedIn(const Problem& p, Strategy strategy, const std::string& phase) {
+  StopAtPhase stop{phase, {}};
+  IdentificationResult r = RunIdentification(p, Resolved(p, strategy), stop.Context());
+  EXPECT_FALSE(stop.seen.empty()) << phase;
+  if (!stop.seen.empty()) {
+    EXPECT_EQ(stop.seen.back(), phase);
+  }
+  EXPECT_EQ(r.stop, StopReason::kCancelled) << phase;
+  return r;
+}
+
 TEST(RunControl, StoppingTheDirectPhaseReturnsNoModel) {
   const Problem p = Problem::Build(examples::Make("paper-aniso-5x5"));
-  StopAtPhase stop{"direct", {}};
-  const IdentificationResult r =
-      RunIdentification(p, Resolved(p, Strategy::kDirect), stop.Context());
-  ASSERT_FALSE(stop.seen.empty());
-  EXPECT_EQ(stop.seen.back(), "direct");
-  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  const IdentificationResult r = StoppedIn(p, Strategy::kDirect, "direct");
   EXPECT_TRUE(r.trace.empty());
   EXPECT_EQ(std::count(r.best.begin(), r.best.end(), 1), 0);
   EXPECT_EQ(static_cast<int>(r.best.size()), p.gene_count());
@@ -203,12 +211,7 @@ TEST(RunControl, AStopDuringTheNonlinearJudgementIsAStopNotACompletion) {
   ASSERT_EQ(whole.stop, StopReason::kCompleted);
   ASSERT_TRUE(whole.generalization);
   ASSERT_FALSE(whole.generalization->amplitudes.empty());
-  StopAtPhase stop{"nonlinear", {}};
-  const IdentificationResult r =
-      RunIdentification(p, Resolved(p, Strategy::kContinuous), stop.Context());
-  ASSERT_FALSE(stop.seen.empty());
-  EXPECT_EQ(stop.seen.back(), "nonlinear");
-  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  const IdentificationResult r = StoppedIn(p, Strategy::kContinuous, "nonlinear");
   EXPECT_NE(r.stop_message.find("during the nonlinear judgement"), std::string::npos)
       << r.stop_message;
   ASSERT_TRUE(r.generalization);
@@ -228,12 +231,7 @@ TEST(RunControl, AStopDuringTheNonlinearFitReturnsTheRestLinearModel) {
   for (double w : whole.generalization->fit.weights)
     if (w > 0.0) rest_linear.push_back(w);
   ASSERT_NE(rest_linear, whole.stiffness);  // (the stage moved it)
-  StopAtPhase stop{"nonlinear_fit", {}};
-  const IdentificationResult r =
-      RunIdentification(p, Resolved(p, Strategy::kContinuous), stop.Context());
-  ASSERT_FALSE(stop.seen.empty());
-  EXPECT_EQ(stop.seen.back(), "nonlinear_fit");
-  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  const IdentificationResult r = StoppedIn(p, Strategy::kContinuous, "nonlinear_fit");
   EXPECT_NE(r.stop_message.find("during the nonlinear fit: the rest-linear fitted model"),
             std::string::npos)
       << r.stop_message;
@@ -248,12 +246,7 @@ TEST(RunControl, AStopDuringTheCertificateReturnsTheModelUncertified) {
   const IdentificationResult whole =
       RunIdentification(p, Resolved(p, Strategy::kContinuous), RunContext{});
   ASSERT_TRUE(whole.generalization);
-  StopAtPhase stop{"certificate", {}};
-  const IdentificationResult r =
-      RunIdentification(p, Resolved(p, Strategy::kContinuous), stop.Context());
-  ASSERT_FALSE(stop.seen.empty());
-  EXPECT_EQ(stop.seen.back(), "certificate");
-  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  const IdentificationResult r = StoppedIn(p, Strategy::kContinuous, "certificate");
   EXPECT_NE(r.stop_message.find("during the certificate"), std::string::npos) << r.stop_message;
   EXPECT_NE(r.stop_message.find("not certified"), std::string::npos) << r.stop_message;
   EXPECT_FALSE(r.generalization);
@@ -264,12 +257,7 @@ TEST(RunControl, AStopDuringTheCertificateReturnsTheModelUncertified) {
 // A stop during the fit returns the start, named as such: not "springs fitted".
 TEST(RunControl, AStopDuringTheFitReturnsTheStartNamedAsTheBaseline) {
   const Problem p = Problem::Build(examples::Make("fem-kidney-2d"));
-  StopAtPhase stop{"probe_fit", {}};
-  const IdentificationResult r =
-      RunIdentification(p, Resolved(p, Strategy::kContinuous), stop.Context());
-  ASSERT_FALSE(stop.seen.empty());
-  EXPECT_EQ(stop.seen.back(), "probe_fit");
-  EXPECT_EQ(r.stop, StopReason::kCancelled);
+  const IdentificationResult r = StoppedIn(p, Strategy::kContinuous, "probe_fit");
   EXPECT_NE(r.stop_message.find("during the fit: the start (the closed-form baseline"),
             std::string::npos)
       << r.stop_message;
