@@ -20,8 +20,8 @@
 #include "engine/probe_fit/generalization.h"
 #include "engine/probe_fit/probe_evaluation.h"
 #include "engine/probe_fit/response_fit.h"
-#include "engine/probe_fit/rest_stiffness.h"
 #include "engine/problem/baseline_evaluation.h"
+#include "engine/problem/rest_stiffness.h"
 #include "proto/names.h"
 #include "proto/scene_codec.h"
 
@@ -103,7 +103,7 @@ int Main(int argc, char** argv) {
     std::printf("%s: %d genes, prepared in %.2f s\n", file.c_str(), problem.gene_count(),
                 Seconds(t0));
     const auto t1 = Clock::now();
-    const SparseMatrix k_ref = response::ReferenceRestStiffness(problem);
+    const SparseMatrix k_ref = ReferenceRestStiffness(problem);
     response::ResponseFitOptions options = defaults;
     options.probes.seed = seed;
     const response::ProbeBanks banks = response::MakeProbeBanks(problem, k_ref, options.probes);
@@ -144,7 +144,7 @@ int Main(int argc, char** argv) {
     const auto t3 = Clock::now();
     const response::Generalization g =
         response::Certifier(problem, bank, banks.held_out, k_ref)
-            .Certify(fit.weights, response::SpringRestStiffness(problem, prior));
+            .Certify(fit.weights, SpringRestStiffness(problem, prior));
     PrintFamilies("model", g.model);
     PrintFamilies("baseline", g.baseline);
     for (const auto& pencil : g.pencils) {

@@ -17,6 +17,7 @@
 #include "engine/api/problem.h"
 #include "engine/api/scene.h"
 #include "proto/names.h"
+#include "proto/outcome_codec.h"
 #include "proto/scene_codec.h"
 
 namespace springfit::cli {
@@ -195,9 +196,9 @@ int Check(const SceneInput& input, bool all_pairs) {
   if (!problem.unidentifiable().empty()) {
     std::vector<NodePair> pairs;
     for (int c : problem.unidentifiable()) pairs.push_back(problem.candidates().pairs[c]);
-    std::cout << " springs (both nodes held in every load case: no load case sees them; exports "
-                 "add them at the recipe's stiffness):"
-              << PairList(pairs, all_pairs);
+    std::cout << " springs (both nodes held in every load case: "
+              << proto::HeldSpringsText(s.reference.kind == Reference::Kind::kFem)
+              << "):" << PairList(pairs, all_pairs);
   }
   std::cout << "\n";
   PrintIdentifiability(Identifiability(problem), all_pairs, problem.unidentifiable().size());

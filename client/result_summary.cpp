@@ -139,9 +139,9 @@ void PrintModel(const proto::Json& r, std::ostream& out) {
       << r.value("genes", 0) << " genes";
   const int unseen = r.contains("outcome") ? r["outcome"].value("unseen_springs", 0) : 0;
   if (unseen > 0)
-    out << " (+" << unseen
-        << " between held nodes: no load case sees them; exports add them at the recipe's "
-           "stiffness, proto/MODEL.md)";
+    out << " (+" << unseen << " between held nodes: "
+        << proto::HeldSpringsText(r.contains("baseline") && r["baseline"].is_object())
+        << ", proto/MODEL.md)";
   out << "\n";
   // The stiffness a simulator will get (proto/MODEL.md, "Simulator facts"): its range, and
   // the dead springs an export flags or drops, where the result identifies stiffness.

@@ -85,4 +85,10 @@ Outcome OutcomeFromJson(const Json& j, const std::string& path) {
   return o;
 }
 
+std::string HeldSpringsText(bool fem) {
+  return std::string("no load case sees them; exports add them at ") +
+         (fem ? "the recipe's stiffness (the training stiffness where no mesh edge joins them)"
+              : "the training stiffness");
+}
+
 }  // namespace springfit::proto

@@ -14,4 +14,11 @@ Json OutcomeToJson(const Outcome& outcome);
 // InputError naming `path` and the field.
 Outcome OutcomeFromJson(const Json& json, const std::string& path);
 
+// What the springs between held nodes (`outcome.unseen_springs`, both nodes held in every load
+// case) are and get, in the words `check`, `run` and the dashboard share: no load case sees
+// them, and exports add them at the recipe's stiffness on an FEM reference (`fem`; the training
+// stiffness where no mesh edge joins them), at the training stiffness otherwise
+// (Problem::unidentifiable_stiffness).
+std::string HeldSpringsText(bool fem);
+
 }  // namespace springfit::proto

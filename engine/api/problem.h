@@ -134,7 +134,7 @@ class Problem {
   // other supports (a simulator's, the probe bank's) they hold the body. The closed-form
   // model's on an FEM reference's mesh edge (not fitted: the baseline is the best guess there),
   // the training stiffness otherwise. Exports write them (io/spring_model.h); the rest-linear
-  // stiffness of a model includes them (engine/probe_fit/rest_stiffness.h).
+  // stiffness of a model includes them (engine/problem/rest_stiffness.h).
   const std::vector<double>& unidentifiable_stiffness() const { return unidentifiable_stiffness_; }
   // The scene's `stiffness`, else: an MSS reference's single stiffness, the closed-form
   // baseline's median on an FEM reference, PositionsTrainingStiffness on a positions one.

@@ -1,14 +1,17 @@
 #include "engine/direct/identifiability.h"
 
 #include <Eigen/QR>
+#include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <memory>
+#include <optional>
 
 #include "engine/linalg/column_dependencies.h"
 #include "engine/linalg/sparse_columns.h"
-#include "engine/model/equilibrium.h"
 #include "engine/problem/force_balance.h"
+#include "engine/problem/rest_stiffness.h"
 
 #include "engine/runtime/options_check.h"
 
@@ -74,29 +77,70 @@ int Separated(const Matrix& block, const Matrix& group_null, double tolerance) {
   return NumericalRank(seen / seen.norm(), tolerance);
 }
 
-// The suggestion for one group (MSS reference only): see identifiability.h.
+// The reference's small-load response under the scene's supports: its stiffness at rest (the
+// FEM model's or the reference springs', rest_stiffness.h) on a free set's degrees of freedom,
+// factorised once per free set, and only when a group asks for a suggestion there.
+class ReferenceRestResponse {
+ public:
+  explicit ReferenceRestResponse(const Problem& problem) : problem_(problem) {}
+
+  // The factor on free set `s`; nullptr where the reference is not positive definite there.
+  const Eigen::SimplicialLDLT<SparseMatrix>* Factor(int s) {
+    auto [at, added] = factors_.try_emplace(s);
+    if (added) at->second = Factorize(problem_.free_sets()[static_cast<std::size_t>(s)]);
+    return at->second.get();
+  }
+
+ private:
+  std::unique_ptr<Eigen::SimplicialLDLT<SparseMatrix>> Factorize(const FreeNodes& free) {
+    if (!stiffness_) stiffness_ = ReferenceRestStiffness(problem_);
+    const int d = problem_.dimension();
+    std::vector<Eigen::Triplet<double>> entries;
+    for (Eigen::Index col = 0; col < stiffness_->outerSize(); ++col) {
+      const int c = free.free_index[static_cast<std::size_t>(col / d)];
+      if (c < 0) continue;
+      for (SparseMatrix::InnerIterator it(*stiffness_, col); it; ++it) {
+        const int r = free.free_index[static_cast<std::size_t>(it.row() / d)];
+        if (r >= 0)
+          entries.emplace_back(d * r + it.row() % d, d * c + static_cast<int>(col % d), it.value());
+      }
+    }
+    SparseMatrix k(static_cast<Eigen::Index>(d) * free.count,
+                   static_cast<Eigen::Index>(d) * free.count);
+    k.setFromTriplets(entries.begin(), entries.end());
+    auto factor = std::make_unique<Eigen::SimplicialLDLT<SparseMatrix>>(k);
+    // (LDLT reports success on a singular matrix unless a pivot is exactly zero: the pivots
+    // are tested here, relative to the largest.)
+    const Vector pivots = factor->info() == Eigen::Success ? factor->vectorD() : Vector();
+    if (pivots.size() == 0 || !(pivots.minCoeff() > kSingularPivotRatio * pivots.maxCoeff()))
+      return nullptr;
+    return factor;
+  }
+
+  // A pivot at most this fraction of the largest: the reference is not held there.
+  static constexpr double kSingularPivotRatio = 1e-12;
+  const Problem& problem_;
+  std::optional<SparseMatrix> stiffness_;
+  std::map<int, std::unique_ptr<Eigen::SimplicialLDLT<SparseMatrix>>> factors_;
+};
+
+// The suggestion for one group (an MSS or FEM reference; none for positions): see
+// identifiability.h.
 std::optional<LoadSuggestion> SuggestLoad(const Problem& problem,
                                           const std::vector<int>& group_genes,
                                           const Matrix& group_null,
                                           const IdentifiabilityOptions& options,
+                                          ReferenceRestResponse& reference,
                                           Interruption* interruption) {
   const Scene& scene = problem.scene();
-  if (scene.reference.kind != Reference::Kind::kMss) return std::nullopt;
+  if (scene.reference.kind == Reference::Kind::kPositions) return std::nullopt;
   const int d = problem.dimension();
-  const SpringGeometry reference(d, scene.rest, scene.reference.springs);
-  ActiveSprings springs;
-  for (int m = 0; m < reference.size(); ++m) {
-    springs.index.push_back(m);
-    springs.stiffness.push_back(scene.reference.stiffness.size() == 1
-                                    ? scene.reference.stiffness[0]
-                                    : scene.reference.stiffness[m]);
-  }
   const std::vector<int> nodes = NodesOfGenes(problem, group_genes);
   std::optional<LoadSuggestion> best;
-  const Vector zero = Vector::Zero(static_cast<Eigen::Index>(d) * scene.node_count());
   for (std::size_t c = 0; c < problem.load_cases().size(); ++c) {
     ThrowIfInterrupted(interruption);
-    const FreeNodes& free = problem.free_sets()[problem.load_cases()[c].free_set];
+    const int free_set = problem.load_cases()[c].free_set;
+    const FreeNodes& free = problem.free_sets()[static_cast<std::size_t>(free_set)];
     // One unit force per (group node free in this case, axis): their small-load responses
     // from one factorisation of the reference's rest stiffness.
     std::vector<std::pair<int, int>> trials;
@@ -105,14 +149,15 @@ std::optional<LoadSuggestion> SuggestLoad(const Problem& problem,
       for (int a = 0; a < d; ++a) trials.emplace_back(node, a);
     }
     if (trials.empty()) continue;
-    Matrix response = Matrix::Zero(static_cast<Eigen::Index>(d) * free.count,
-                                   static_cast<Eigen::Index>(trials.size()));
+    const Eigen::SimplicialLDLT<SparseMatrix>* factor = reference.Factor(free_set);
+    if (factor == nullptr) continue;
+    Matrix forces = Matrix::Zero(static_cast<Eigen::Index>(d) * free.count,
+                                 static_cast<Eigen::Index>(trials.size()));
     for (std::size_t t = 0; t < trials.size(); ++t) {
-      response(d * free.free_index[trials[t].first] + trials[t].second,
-               static_cast<Eigen::Index>(t)) = 1.0;
+      forces(d * free.free_index[trials[t].first] + trials[t].second,
+             static_cast<Eigen::Index>(t)) = 1.0;
     }
-    EquilibriumSolver solver(reference, free, problem.solver_options());
-    if (!solver.SolveWithTangent(springs, zero, zero, response)) continue;
+    const Matrix response = factor->solve(forces);
     for (std::size_t t = 0; t < trials.size(); ++t) {
       const Matrix block =
           GroupBlock(problem, group_genes, free, response.col(static_cast<Eigen::Index>(t)));
@@ -124,7 +169,7 @@ std::optional<LoadSuggestion> SuggestLoad(const Problem& problem,
   }
   if (best) {
     const std::string& name = scene.load_cases[best->constraints_of].name;
-    best->text = "add a load case with a force on node " + std::to_string(best->node) + " along " +
+    best->text = "add a load case with a force on " + NodesNamed(scene, {best->node}) + " along " +
                  kAxisNames[best->axis] + ", with the constraints of load case " +
                  std::to_string(best->constraints_of) + (name.empty() ? "" : " ('" + name + "')") +
                  ": it separates " + std::to_string(best->separated) + " of " +
@@ -233,6 +278,7 @@ IdentifiabilityReport AnalyseIdentifiability(const Problem& problem,
   report.groups_analysed = dependencies.analysed;
   report.not_analysed = dependencies.not_analysed;
   if (!dependencies.analysed) return report;
+  ReferenceRestResponse reference(problem);
   for (const std::vector<int>& members : GroupsOfCircuits(dependencies)) {
     DependentGroup group;
     std::vector<int> genes;
@@ -247,7 +293,7 @@ IdentifiabilityReport AnalyseIdentifiability(const Problem& problem,
     const auto size = static_cast<long long>(genes.size()) * group.dependencies;
     if (size <= options.max_suggestion_size) {
       group.suggestion = SuggestLoad(problem, genes, NullBasisOfGroup(dependencies, members),
-                                     options, interruption);
+                                     options, reference, interruption);
     }
     report.groups.push_back(std::move(group));
   }

@@ -13,8 +13,10 @@
 //  - for each group, a suggested extra load case that separates it: among single nodal
 //    forces on the group's free nodes along each axis, applied with the constraints of an
 //    existing load case, the one whose small-load response gives the group's columns the
-//    most independent new rows. Tried on the reference MSS in the linear (small-load) limit;
-//    for a positions reference no model exists to try loads on, so there is no suggestion.
+//    most independent new rows. Tried on the reference itself in the small-load limit (its
+//    stiffness at rest, an MSS's or an FEM model's: engine/problem/rest_stiffness.h, factorised
+//    once per support); for a positions reference no model exists to try loads on, so there is
+//    no suggestion.
 #pragma once
 #include <optional>
 #include <string>

@@ -44,12 +44,11 @@ BaselineModel BaselineModelOf(const Problem& problem,
   const std::vector<double>* weights = on_genes ? &*on_genes : &start;
   if (!on_genes && problem.scene().reference.kind == Reference::Kind::kFem) {
     fem::ClosedFormModel closed = fem::VanGelderModel(problem.scene());
-    return {response::SpringRestStiffness(problem.dimension(), problem.scene().rest, closed.springs,
-                                          closed.stiffness),
+    return {SpringRestStiffness(problem.dimension(), problem.scene().rest, closed.springs,
+                                closed.stiffness),
             {std::move(closed.springs), std::move(closed.stiffness)}};
   }
-  return {response::SpringRestStiffness(problem, *weights),
-          response::ModelOfWeights(problem, *weights)};
+  return {SpringRestStiffness(problem, *weights), response::ModelOfWeights(problem, *weights)};
 }
 
 response::ProbeOptions ProbeOptionsOf(const SearchOptions& options) {
@@ -64,7 +63,7 @@ response::ProbeOptions ProbeOptionsOf(const SearchOptions& options) {
 class RunProbes {
  public:
   RunProbes(const Problem& problem, const response::ProbeOptions& options)
-      : reference_stiffness_(response::ReferenceRestStiffness(problem)),
+      : reference_stiffness_(ReferenceRestStiffness(problem)),
         banks_(response::MakeProbeBanks(problem, reference_stiffness_, options)),
         certifier_(problem, banks_.fit, banks_.held_out, reference_stiffness_) {}
   RunProbes(const RunProbes&) = delete;
@@ -97,8 +96,7 @@ bool BaselineChosen(const Problem& problem, const SearchOptions& options,
   const bool nonlinear = stage && stage->choosing_cases > 0;
   const double model_error =
       nonlinear ? stage->choosing_error
-                : response::ChoosingError(bank, response::SpringRestStiffness(problem, fitted),
-                                          interruption);
+                : response::ChoosingError(bank, SpringRestStiffness(problem, fitted), interruption);
   const double baseline_error = nonlinear ? stage->baseline_choosing_error
                                           : response::ChoosingError(bank, baseline, interruption);
   if (model_error < baseline_error) return false;

@@ -4,7 +4,7 @@
 #include "engine/probe_fit/mode_cuts.h"
 #include "engine/probe_fit/probe_evaluation.h"
 #include "engine/probe_fit/quadratic_nnls.h"
-#include "engine/probe_fit/rest_stiffness.h"
+#include "engine/problem/rest_stiffness.h"
 #include "engine/runtime/options_check.h"
 
 namespace springfit::response {

@@ -48,7 +48,7 @@
 
 #include "engine/api/probe_fit_report.h"
 #include "engine/api/problem.h"
-#include "engine/probe_fit/rest_stiffness.h"
+#include "engine/problem/rest_stiffness.h"
 
 namespace springfit::response {
 

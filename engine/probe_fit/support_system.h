@@ -19,7 +19,7 @@
 #include <Eigen/SparseCholesky>
 
 #include "engine/linalg/supernodal_cholesky.h"
-#include "engine/probe_fit/rest_stiffness.h"
+#include "engine/problem/rest_stiffness.h"
 
 namespace springfit::response {
 

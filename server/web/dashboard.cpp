@@ -17,6 +17,7 @@
 #include "io/model_writers.h"
 #include "io/spring_model.h"
 #include "io/xml_text.h"
+#include "proto/outcome_codec.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
 #include "server/rpc/token.h"
@@ -380,8 +381,18 @@ std::string IdentifiabilityTable(const Json& r) {
     body += Row("why", XmlEscape(r["stop_message"].get<std::string>()));
   if (const auto id = r.find("identifiability"); id != r.end() && id->is_object()) {
     const Json& rep = *id;
+    // The springs between held nodes apart, in check's and run's words (outcome.unseen_springs).
+    const int held = r.contains("outcome") && r["outcome"].is_object()
+                         ? r["outcome"].value("unseen_springs", 0)
+                         : 0;
+    if (held > 0)
+      body += Row("between held nodes",
+                  XmlEscape(fmt::format("{} springs (both nodes held in every load case: {})", held,
+                                        proto::HeldSpringsText(r.contains("baseline") &&
+                                                               r["baseline"].is_object()))));
     body += Row("unseen springs (no load case changes their length)",
-                std::to_string(rep.value("unseen", Json::array()).size()));
+                std::to_string(rep.value("unseen", Json::array()).size()) +
+                    (held > 0 ? fmt::format(" besides the {} between held nodes", held) : ""));
     if (rep.contains("rank") && rep["rank"].is_number())
       body += Row("rank of the analysed groups", std::to_string(rep["rank"].get<int>()));
     const Json groups = rep.value("groups", Json::array());

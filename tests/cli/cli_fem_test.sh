@@ -85,6 +85,10 @@ assert set(g["by_family"]) == {"point", "patch", "body", "push", "grasp", "named
 assert g["lambda_min"] > 0.1 and g["lambda_max"] >= g["lambda_min"], g
 assert g["probes"]["held_out"] > 0 and g["probes"]["supports"] >= 3, g["probes"]
 assert r["options"]["probes"] == "auto"
+# Issue 47: the options as the probe fit reads them, none of the genetic search's, and its
+# regularisation the continuation's (beside the strength it chose), not a 0 beside 1e-06.
+assert "population" not in r["options"] and "crossover" not in r["options"], r["options"]
+assert r["options"]["regularization"] == "continuation" and g["fit"]["regularization"] > 0, r["options"]
 fb = g["free_body"]
 assert fb["model"]["lambda_min"] <= g["lambda_min"] * (1 + 1e-9) and fb["baseline"]["bound"] is not None, fb
 PY

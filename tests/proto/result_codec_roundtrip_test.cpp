@@ -76,7 +76,33 @@ TEST(ResultCodecRoundTrip, ResultJsonSurvivesEveryTextFormAndItsTraceReadsBack) 
   EXPECT_EQ(back.at("springs"), PairsToJson(r.springs));
   EXPECT_EQ(back.at("stiffness").get<std::vector<double>>(), r.stiffness);
   EXPECT_EQ(back.at("seed").get<std::uint64_t>(), 5u);
-  EXPECT_EQ(back.at("options"), SearchOptionsToJson(r.options));
+  EXPECT_EQ(back.at("options"), RunOptionsToJson(r.options, r.ran, false));
+}
+
+// Issue 47: a result's options are those the strategy that ran reads (a continuous job's page
+// showed the genetic search's population and crossover), and on the probe fit a regularisation
+// of 0 is the continuation's choice, not a strength of 0 beside the one it chose.
+TEST(ResultCodecRoundTrip, AResultsOptionsAreTheOnesItsStrategyReads) {
+  SearchOptions o;
+  o.max_seconds = 30.0;
+  o.max_springs = 12;
+  for (const Strategy ran :
+       {Strategy::kPaper, Strategy::kHybrid, Strategy::kDirect, Strategy::kContinuous}) {
+    const Json j = RunOptionsToJson(o, ran, ran == Strategy::kContinuous);
+    const bool genetic = ran == Strategy::kPaper || ran == Strategy::kHybrid;
+    EXPECT_EQ(j.contains("population") && j.contains("crossover"), genetic) << j.dump();
+    EXPECT_EQ(j.contains("probes") && j.contains("max_spread"), ran == Strategy::kContinuous)
+        << j.dump();
+    EXPECT_EQ(j.at("max_seconds"), 30.0);
+    EXPECT_EQ(j.at("max_springs"), 12);
+  }
+  EXPECT_EQ(RunOptionsToJson(o, Strategy::kContinuous, true).at("regularization"), "continuation");
+  EXPECT_EQ(RunOptionsToJson(o, Strategy::kContinuous, false).at("regularization"), 0.0);
+  o.choose_regularization = true;
+  EXPECT_EQ(RunOptionsToJson(o, Strategy::kContinuous, false).at("regularization"), "auto");
+  // Every option still reaches the checkpoint's fingerprint.
+  EXPECT_TRUE(SearchOptionsToJson(o).contains("population") &&
+              SearchOptionsToJson(o).contains("probes"));
 }
 
 // What `render` and `plot` read of a result: the typed StoredResult, from the text a result

@@ -210,6 +210,25 @@ TEST(Dashboard, GroupsNotAnalysedAreNotCountedOnTheJobPage) {
   EXPECT_EQ(page.body.find("rank of the analysed groups"), std::string::npos);
 }
 
+// Issue 47 item 5: the springs between held nodes are named on the job page as check and run
+// name them, apart from the unseen ones (the page said "unseen springs 0" beside check's 635).
+TEST(Dashboard, TheSpringsBetweenHeldNodesAreCountedApartFromTheUnseen) {
+  DashboardOnStore d("springfit-dashboard-held");
+  const std::string target = FinishedPaperJob(
+      d.store, [](proto::Json& result) { result["outcome"]["unseen_springs"] = 635; });
+  const HttpResponse page = d.Get(target);
+  ASSERT_EQ(page.status, 200) << page.body;
+  EXPECT_TRUE(Holds(page.body,
+                    "<tr><th>between held nodes</th><td>635 springs (both nodes held in every load "
+                    "case: " +
+                        proto::HeldSpringsText(false) + ")</td>"));
+  EXPECT_TRUE(Holds(page.body,
+                    "<tr><th>unseen springs (no load case changes their length)</th><td>0 "
+                    "besides the 635 between held nodes</td>"));
+  const HttpResponse plain = d.Get(FinishedPaperJob(d.store));
+  EXPECT_EQ(plain.body.find("between held nodes"), std::string::npos);
+}
+
 // Issue 50: the job page shows the tool loads (the shape's E and the tool's force error, beside
 // the baseline's, over how many pushes and grasps) and the nonlinear fit's choosing errors, in the
 // summary's words.

@@ -10,8 +10,8 @@
 #include "engine/probe_fit/nonlinear_solves.h"
 #include "engine/probe_fit/probe_bank.h"
 #include "engine/probe_fit/probe_evaluation.h"
-#include "engine/probe_fit/rest_stiffness.h"
 #include "engine/problem/baseline_evaluation.h"
+#include "engine/problem/rest_stiffness.h"
 #include "engine/runtime/worker_pool.h"
 #include "io/example_catalog.h"
 

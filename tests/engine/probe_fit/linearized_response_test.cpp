@@ -10,8 +10,8 @@
 #include "engine/probe_fit/probe_bank.h"
 #include "engine/probe_fit/probe_objective.h"
 #include "engine/probe_fit/response_fit.h"
-#include "engine/probe_fit/rest_stiffness.h"
 #include "engine/problem/baseline_evaluation.h"
+#include "engine/problem/rest_stiffness.h"
 #include "io/example_catalog.h"
 #include "tests/engine/probe_fit/probe_fit_test_support.h"
 

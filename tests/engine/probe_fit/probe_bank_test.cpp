@@ -13,9 +13,9 @@
 #include "engine/probe_fit/generalization.h"
 #include "engine/probe_fit/nonlinear_solves.h"
 #include "engine/probe_fit/probe_bank.h"
-#include "engine/probe_fit/rest_stiffness.h"
 #include "engine/probe_fit/tool_pushes.h"
 #include "engine/problem/baseline_evaluation.h"
+#include "engine/problem/rest_stiffness.h"
 #include "io/example_catalog.h"
 #include "proto/names.h"
 

@@ -8,8 +8,8 @@
 #include "engine/probe_fit/generalization.h"
 #include "engine/probe_fit/probe_bank.h"
 #include "engine/probe_fit/response_fit.h"
-#include "engine/probe_fit/rest_stiffness.h"
 #include "engine/problem/baseline_evaluation.h"
+#include "engine/problem/rest_stiffness.h"
 #include "io/example_catalog.h"
 
 namespace springfit::response {

@@ -4,8 +4,8 @@
 #include <gtest/gtest.h>
 
 #include "engine/probe_fit/probe_bank.h"
-#include "engine/probe_fit/rest_stiffness.h"
 #include "engine/probe_fit/support_system.h"
+#include "engine/problem/rest_stiffness.h"
 #include "io/example_catalog.h"
 
 namespace springfit::response {

@@ -1,8 +1,8 @@
-#include "engine/probe_fit/rest_stiffness.h"
+#include "engine/problem/rest_stiffness.h"
 
 #include "engine/fem/fem_model.h"
 
-namespace springfit::response {
+namespace springfit {
 namespace {
 
 using Triplets = std::vector<Eigen::Triplet<double>>;
@@ -114,4 +114,4 @@ SparseMatrix SpringRestStiffness(int dimension, const Vector& rest,
   return FromTriplets(static_cast<int>(rest.size()), t);
 }
 
-}  // namespace springfit::response
+}  // namespace springfit

@@ -17,7 +17,7 @@
 
 #include "engine/api/problem.h"
 
-namespace springfit::response {
+namespace springfit {
 
 // The reference's rest stiffness: the FEM model's, or the reference springs' with their
 // stiffness. Precondition: the reference is FEM or MSS (not positions).
@@ -33,4 +33,4 @@ SparseMatrix SpringRestStiffness(int dimension, const Vector& rest,
                                  const std::vector<NodePair>& springs,
                                  const std::vector<double>& stiffness);
 
-}  // namespace springfit::response
+}  // namespace springfit
