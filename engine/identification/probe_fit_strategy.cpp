@@ -254,6 +254,42 @@ struct ProbeFitModel {
   StoppedIn stopped = StoppedIn::kNowhere;
 };
 
+// How far the rest-linear fit's continuation had got, from its progress (one report for the
+// start and one per accepted Gauss-Newton step, docs/ARCHITECTURE.md "The fitting core"): what a
+// time limit that stops it returns says how long the fit would need.
+struct FitPace {
+  double started = 0.0;       // run seconds when the fit began (after the probe banks)
+  int reports = 0;            // the continuation's reports: the start's, then one per step
+  double first_report = 0.0;  // run seconds of the start's report
+  double last_report = 0.0;
+  int max_steps = 0;  // the continuation's at most: strengths x steps per strength
+
+  void Reported(double seconds) {
+    if (reports++ == 0) first_report = seconds;
+    last_report = seconds;
+  }
+
+  // "; it had made 4 of its at most 21 Gauss-Newton steps in 12.3 s: at that pace the fit
+  // needs up to 52 s more (a time limit of at least 71 s), then its certificate".
+  std::string Needed(double stopped_at) const {
+    const double spent = stopped_at - started;
+    const int steps = std::max(reports - 1, 0);
+    if (steps == 0)
+      return fmt::format(
+          "; its first Gauss-Newton step was not done after {:.3g} s: the fit's at most {} steps "
+          "need more than {:.3g} s, then its certificate",
+          spent, max_steps, max_steps * std::max(spent - (first_report - started), 0.0));
+    const double per_step = (last_report - first_report) / steps;
+    // (The time since the last report is the next step's, done in part: at most one step's.)
+    const double more =
+        per_step * std::max(max_steps - steps, 0) - std::min(stopped_at - last_report, per_step);
+    return fmt::format(
+        "; it had made {} of its at most {} Gauss-Newton steps in {:.3g} s: at that pace the fit "
+        "needs up to {:.3g} s more (a time limit of at least {:.3g} s), then its certificate",
+        steps, max_steps, spent, std::max(more, 0.0), stopped_at + std::max(more, 0.0));
+  }
+};
+
 // The fit; stopped, the start, uncertified (a stop ends the run within a second: certifying
 // a large model is seconds of solves).
 void Fit(const Problem& problem, const RunProbes& probes, const ProbeFitBaseline& baseline,
@@ -317,14 +353,17 @@ void ChooseAndCertify(const Problem& problem, const SearchOptions& options, cons
 
 // The stop message: the model's springs, probes and errors, or why the baseline was returned,
 // or where the run stopped and what it returns then.
-std::string ProbeFitMessage(const IdentificationResult& r, const ProbeFitModel& m) {
-  const char* why = r.stop == StopReason::kTimeLimit ? "time limit reached" : "stopped on request";
+std::string ProbeFitMessage(const IdentificationResult& r, const ProbeFitModel& m,
+                            const FitPace& pace) {
+  const bool timed_out = r.stop == StopReason::kTimeLimit;
+  const char* why = timed_out ? "time limit reached" : "stopped on request";
   const int springs = PresentSprings(m.weights);
   switch (m.stopped) {
     case StoppedIn::kFit:
       return fmt::format(
-          "{} during the fit: the start ({}, {} springs), not fitted and not certified", why,
-          m.start_is_baseline ? "the closed-form baseline" : "the training stiffness", springs);
+          "{} during the fit: the start ({}, {} springs), not fitted and not certified{}", why,
+          m.start_is_baseline ? "the closed-form baseline" : "the training stiffness", springs,
+          timed_out ? pace.Needed(r.wall_seconds) : "");
     case StoppedIn::kNonlinearFit:
       return fmt::format(
           "{} during the nonlinear fit: the rest-linear fitted model ({} springs), not fitted at "
@@ -419,9 +458,11 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
     });
   };
   enter("probes");
+  FitPace pace;
   const response::ResponseProgress progress = [&](const char* name, double error) {
     current = error;
     if (phase != name) enter(name);
+    if (phase == "probe_fit") pace.Reported(since());
     if (monitor.TimeLimitPassed()) throw Interrupted();
   };
 
@@ -434,6 +475,9 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   ProbeFitModel m;
   // (The load range is checked before the fit: a size out of bounds is refused at once.)
   const std::vector<double> amplitudes = LoadRangeAmplitudes(options, probes.fit());
+  pace.started = since();
+  pace.max_steps =
+      static_cast<int>(fit_options.regularizations.size()) * fit_options.steps_per_strength;
   Fit(problem, probes, baseline, fit_options,
       NonlinearStageOptions(problem, options, context, amplitudes), monitor, progress, pool, m);
   if (m.stopped == StoppedIn::kNowhere) enter("certificate");
@@ -469,7 +513,7 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   r.stop = stopped
                ? (monitor.time_limit_reached() ? StopReason::kTimeLimit : StopReason::kCancelled)
                : StopReason::kCompleted;
-  r.stop_message = ProbeFitMessage(r, m);
+  r.stop_message = ProbeFitMessage(r, m, pace);
   r.continuous = std::move(details);
   r.generalization = std::move(m.certificate);
   return r;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <future>
 #include <optional>
 #include <stdexcept>
@@ -262,6 +263,39 @@ TEST(RunControl, AStopDuringTheFitReturnsTheStartNamedAsTheBaseline) {
             std::string::npos)
       << r.stop_message;
   EXPECT_EQ(r.stop_message.find("springs fitted"), std::string::npos) << r.stop_message;
+  EXPECT_FALSE(r.generalization);
+}
+
+// Issue 47 item 3: a time limit that stops the fit returns the start named as the baseline, and
+// says how long the fit would have needed at the pace of the steps it made (the machine is slowed
+// here, past the limit, once the fit has made a step).
+TEST(RunControl, ATimeLimitInTheFitSaysHowLongTheFitWouldNeed) {
+  const Problem p = Problem::Build(examples::Make("fem-kidney-2d"));
+  SearchOptions o = Resolved(p, Strategy::kContinuous);
+  o.max_seconds = 6.0;
+  // (A beat carries the fit's best choosing error so far: its third value comes after two
+  // reports past the start's, so after at least one step.)
+  std::vector<double> errors;
+  RunContext c;
+  c.beat_seconds = 0.0;
+  c.on_beat = [&](const ProgressBeat& beat) {
+    if (std::string(beat.phase) != "probe_fit" || !std::isfinite(beat.best_normalized_error) ||
+        (!errors.empty() && errors.back() == beat.best_normalized_error))
+      return true;
+    errors.push_back(beat.best_normalized_error);
+    if (errors.size() == 3) std::this_thread::sleep_for(std::chrono::milliseconds(6500));
+    return true;
+  };
+  const IdentificationResult r = RunIdentification(p, o, c);
+  ASSERT_EQ(r.stop, StopReason::kTimeLimit) << r.stop_message;
+  EXPECT_NE(r.stop_message.find("during the fit: the start (the closed-form baseline"),
+            std::string::npos)
+      << r.stop_message;
+  EXPECT_NE(r.stop_message.find("of its at most 21 Gauss-Newton steps in "), std::string::npos)
+      << r.stop_message;
+  const std::size_t at = r.stop_message.find("a time limit of at least ");
+  ASSERT_NE(at, std::string::npos) << r.stop_message;
+  EXPECT_GT(std::stod(r.stop_message.substr(at + 25)), r.wall_seconds) << r.stop_message;
   EXPECT_FALSE(r.generalization);
 }
 
