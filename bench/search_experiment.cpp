@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
 #include <CLI/CLI.hpp>
 
 #include "engine/identification/strategy.h"
@@ -95,22 +96,16 @@ double Quantile(std::vector<double> v, double q) {
 }
 
 std::string Seconds(double s) {
-  char buf[32];
   if (std::isnan(s)) return "—";
-  if (s < 1e-3)
-    std::snprintf(buf, sizeof buf, "%.0f µs", s * 1e6);
-  else if (s < 1.0)
-    std::snprintf(buf, sizeof buf, "%.1f ms", s * 1e3);
-  else
-    std::snprintf(buf, sizeof buf, "%.2f s", s);
-  return buf;
+  if (s < 1e-3) return fmt::format("{:.0f} µs", s * 1e6);
+  if (s < 1.0) return fmt::format("{:.1f} ms", s * 1e3);
+  return fmt::format("{:.2f} s", s);
 }
 
-std::string Number(double x, const char* format = "%.3g") {
+// `precision` digits: ".3g" (significant) or ".0f" / ".1f" (fixed), fmt's format specs.
+std::string Number(double x, const char* precision = ".3g") {
   if (std::isnan(x)) return "—";
-  char buf[32];
-  std::snprintf(buf, sizeof buf, format, x);
-  return buf;
+  return fmt::format(fmt::runtime(std::string("{:") + precision + "}"), x);
 }
 
 // Overrides of a strategy's operators, for the experiments on the paper's unpublished choices.
@@ -304,16 +299,16 @@ int Main(int argc, char** argv) {
           wrong.push_back(r.missing + r.extra);
         }
       }
-      std::printf(
-          "| %s | %s | %d / %d | %s / %s | %s / %s | %s / %s | %s |\n", scene.c_str(),
-          strategy_name.c_str(), exact, seeds, Number(Quantile(gens, 0.5), "%.0f").c_str(),
-          Number(Quantile(gens, 0.9), "%.0f").c_str(), Number(Quantile(evals, 0.5), "%.0f").c_str(),
-          Number(Quantile(evals, 0.9), "%.0f").c_str(), Seconds(Quantile(secs, 0.5)).c_str(),
-          Seconds(Quantile(secs, 0.9)).c_str(),
-          errors.empty()
-              ? "—"
-              : (Number(Quantile(errors, 0.5)) + ", " + Number(Quantile(wrong, 0.5), "%.1f"))
-                    .c_str());
+      std::printf("| %s | %s | %d / %d | %s / %s | %s / %s | %s / %s | %s |\n", scene.c_str(),
+                  strategy_name.c_str(), exact, seeds, Number(Quantile(gens, 0.5), ".0f").c_str(),
+                  Number(Quantile(gens, 0.9), ".0f").c_str(),
+                  Number(Quantile(evals, 0.5), ".0f").c_str(),
+                  Number(Quantile(evals, 0.9), ".0f").c_str(), Seconds(Quantile(secs, 0.5)).c_str(),
+                  Seconds(Quantile(secs, 0.9)).c_str(),
+                  errors.empty()
+                      ? "—"
+                      : (Number(Quantile(errors, 0.5)) + ", " + Number(Quantile(wrong, 0.5), ".1f"))
+                            .c_str());
       std::fflush(stdout);
       error_table += "| " + scene + " | " + strategy_name + " |";
       for (std::size_t c = 0; c < std::size(kCheckpoints); ++c) {
@@ -350,7 +345,7 @@ int Main(int argc, char** argv) {
         }
         optima_table +=
             "| " + scene + " | " + strategy_name + " | " + std::to_string(failed) + " | " +
-            std::to_string(improvable) + " (" + Number(Quantile(flips, 0.5), "%.0f") + ") | " +
+            std::to_string(improvable) + " (" + Number(Quantile(flips, 0.5), ".0f") + ") | " +
             std::to_string(optima) + " | " +
             (pairs_examined == optima ? std::to_string(pair_improvable) : "not examined") + " |\n";
       }

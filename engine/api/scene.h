@@ -153,8 +153,8 @@ struct Scene;
 //   baseline: the FEM has no springs to find);
 // - direct when search.identify asks for topology_and_stiffness, or, left unset, the
 //   reference MSS's springs differ in stiffness (a GA's topologies all carry one training
-//   stiffness and cannot reproduce it: on stiff-2d hybrid spent 22 s for 20 missing springs
-//   where direct is exact in 0.03 s);
+//   stiffness and cannot reproduce it: on stiff-2d hybrid misses springs that direct finds
+//   exactly, bench/RESULTS.md, "Strategy direct");
 // - hybrid otherwise (the topology at one stiffness: the direct topology seeding a memetic GA).
 Strategy ResolvedStrategy(Strategy strategy, const Scene& scene);
 // Why ResolvedStrategy chose what it did for `default`, in a few words for `springfit check`

@@ -11,8 +11,9 @@
 namespace springfit {
 namespace {
 
-// Below this many columns the simplicial factorisation is faster (bench/direct_bench: 4 ms
-// against 6 ms on grid3d-4x4x4's 465 columns; 2.5 s against 10.7 s on 12x12x12's 18,777).
+// Below this many columns the simplicial factorisation is faster, above it the supernodal one
+// (measured with bench/direct_bench from grid3d-4x4x4 to a 12x12x12 grid: bench/RESULTS.md,
+// "Strategy direct").
 constexpr std::size_t kSupernodalFromColumns = 2000;
 constexpr double kRidge = 1e-10;
 constexpr int kDefaultRounds = 100;  // NnlsOptions::max_iterations = 0

@@ -77,28 +77,27 @@ struct ProbeOptions {
   // The named cases' share of the fitted objective (the generated families share the rest
   // equally), in [0, 1).
   double named_weight = 0.25;
-  // The share of the soft-mode probes (family kMode), when the fit adds any. On the kidney 0.01
-  // raised lambda_min from 0.068 to 0.128 with the held-out errors unchanged; 0.03 and above
-  // lifted it further (0.19) but raised the independent evaluator's pushed-node tail past half
-  // the baseline's (bench/RESULTS.md). In [0, 1), with named_weight + soft_mode_weight < 1.
+  // The share of the soft-mode probes (family kMode), when the fit adds any: the smallest share
+  // that lifted the kidney's soft modes with its held-out errors unchanged; larger ones lifted
+  // them further but worsened the independent evaluator's pushed-node tail (bench/RESULTS.md,
+  // "Fitting the response"). In [0, 1), with named_weight + soft_mode_weight < 1.
   double soft_mode_weight = 0.01;
   // The tool loads' share of the fitted objective (split equally between the push and grasp
   // families the bank has), in [0, 1), with named_weight + soft_mode_weight + tool_weight < 1.
-  // On the 2D examples 0.1 lowered the held-out pushes' E with the other families' level
+  // On the 2D examples this share lowered the held-out pushes' E and kept the other families'
   // (bench/RESULTS.md, "Round seven").
   double tool_weight = 0.1;
   // In 3D the tool loads are held out (judged by the certificate, neither fitted nor chosen on)
   // unless this is set: an imposed point displacement's shape in a tetrahedral mesh is set by
   // the few elements at the node (its energy vanishes as the mesh refines), which no spring
-  // model on fem-block-3d came near (held-out push E 0.42 fitted, the recipe's 0.43), while the
-  // pushes' supports, one factorisation each per fit step, made the fit 2.5 times as long and
-  // every other family worse (bench/RESULTS.md, "Round seven").
+  // model on fem-block-3d came near, fitted or not, while the pushes' supports (one
+  // factorisation each per fit step) made the fit longer and every other family worse
+  // (bench/RESULTS.md, "Round seven").
   bool fit_tools_in_3d = false;
   // Grasps are held out (judged by the certificate) unless this is set. Fitted beside the
-  // pushes (the tool share split between them) they made the kidney's named cases worse (E
-  // 0.077 against 0.056), the fine kidney's fit 2.6 times as long (9.5 s against 3.6 s) and its
-  // held-out pushes no better (bench/RESULTS.md, "Round seven"): the pushes already carry the
-  // shape around a tool.
+  // pushes (the tool share split between them) they made the kidney's named cases worse, the
+  // fine kidney's fit longer and its held-out pushes no better (bench/RESULTS.md, "Round
+  // seven"): the pushes already carry the shape around a tool.
   bool fit_grasps = false;
   std::uint64_t seed = 1;
 

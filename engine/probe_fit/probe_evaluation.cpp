@@ -203,15 +203,17 @@ double SmallestGeneralizedEigenvalue(const SparseMatrix& model, const SupportSys
 
 double SmallestGeneralizedEigenvalue(const SupportSystem& model, const SupportSystem& reference,
                                      int iterations, Interruption* interruption) {
-  return 1.0 / LargestPencilEigenvalue(reference, model, iterations, 2, interruption);
+  return 1.0 / LargestPencilEigenvalue(reference, model, iterations, kSmallestEigenvalueSeed,
+                                       interruption);
 }
 
 LowestModes SmallestGeneralizedEigenpairs(const SupportSystem& model,
                                           const SupportSystem& reference, double below, int count,
                                           int iterations, Interruption* interruption) {
   // The largest eigenvalues of K_model^-1 K_ref are the smallest of the pencil, inverted; the
-  // same Lanczos run as SmallestGeneralizedEigenvalue's (seed 2), so the first is its value.
-  const PencilLanczos l = RunPencilLanczos(reference, model, iterations, 2, interruption);
+  // same Lanczos run as SmallestGeneralizedEigenvalue's (its seed), so the first is its value.
+  const PencilLanczos l =
+      RunPencilLanczos(reference, model, iterations, kSmallestEigenvalueSeed, interruption);
   const Eigen::SelfAdjointEigenSolver<Matrix> eig(l.t);
   const Vector none = Vector::Zero(static_cast<Eigen::Index>(
       reference.constrained().size() * static_cast<std::size_t>(reference.dimension())));
@@ -244,8 +246,10 @@ PencilExtremes PencilExtremesOn(const SparseMatrix& model, const SparseMatrix& r
   if (!r.Factorize(reference)) return x;  // (callers pass supports that hold the reference)
   if (interruption && interruption->Check()) throw Interrupted();
   const bool held = m.Factorize(model);
-  x.lambda_max = LargestPencilEigenvalue(m, r, iterations, 1, interruption);
-  if (held) x.lambda_min = 1.0 / LargestPencilEigenvalue(r, m, iterations, 2, interruption);
+  x.lambda_max = LargestPencilEigenvalue(m, r, iterations, kLargestEigenvalueSeed, interruption);
+  if (held)
+    x.lambda_min =
+        1.0 / LargestPencilEigenvalue(r, m, iterations, kSmallestEigenvalueSeed, interruption);
   return x;
 }
 

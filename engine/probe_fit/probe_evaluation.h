@@ -12,6 +12,7 @@
 // mode the model leaves soft.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <limits>
 #include <vector>
@@ -56,6 +57,11 @@ double FamilyBalancedRms(const ProbeBank& bank, const std::vector<double>& error
 // Lanczos steps of the pencil's extreme eigenvalues (full reorthogonalisation): enough for the
 // extremes of every example to settle to three digits (bench/RESULTS.md, "Held modes").
 inline constexpr int kLanczosIterations = 80;
+// The seeds of the Lanczos start vectors: one for the pencil's largest eigenvalue, another for
+// its smallest (the inverted pencil's largest), so that the two runs start apart. Fixed: the
+// same model gets the same eigenvalues, bit for bit, on every run.
+inline constexpr std::uint64_t kLargestEigenvalueSeed = 1;
+inline constexpr std::uint64_t kSmallestEigenvalueSeed = 2;
 
 // The smallest generalised eigenvalue of (model, reference) on `reference`'s support, whose
 // factorisation it uses: 0 when the model is not held there.

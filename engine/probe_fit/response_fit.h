@@ -42,8 +42,8 @@ struct ResponseFitOptions {
   ProbeOptions probes;
   // The Tikhonov strengths tried: moving every spring by its own prior stiffness costs as much
   // as a mean squared relative error of this. Each >= 0. With the held modes the weak pulls
-  // no longer leave a mode soft, and the fine kidney's choosing error fell from 0.058 at 1e-4
-  // to 0.049 down to 1e-6, every mode held (bench/RESULTS.md, "Held modes").
+  // no longer leave a mode soft, so the continuation runs down to 1e-6, where the choosing
+  // errors are lower with every mode held (bench/RESULTS.md, "Held modes").
   std::vector<double> regularizations = {1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0};
   // Of the present springs removed per point of a budget's sparsity path, in (0, 1).
   double prune_fraction = 0.1;

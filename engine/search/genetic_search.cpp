@@ -200,7 +200,7 @@ std::vector<std::vector<int>> GeneticSearch::SwapPartners(const Problem& problem
   }
   // A k-d tree over the midpoints proposes, for each spring, those within radius times its
   // own length (a bound on the pair's limit); the exact test below decides. O(n log n) for
-  // local meshes, where comparing every pair was O(n^2) (0.6 s at 14k genes).
+  // local meshes, where comparing every pair was O(n^2) (bench/RESULTS.md, "Neighbour queries").
   const PointIndex index(mid, d);
   std::vector<std::vector<int>> partners(n);
   for (int g = 0; g < n; ++g) {
