@@ -107,7 +107,8 @@ class TraceRow(_Record):
 @dataclass(frozen=True)
 class Progress(TraceRow):
     """A job.progress notification: a trace row with its job and generation limit. `final` is
-    True for the last row of a finished job, which Client.watch reports once at the end."""
+    True for the last row of a finished job, which Client.watch reports once at the end. A
+    continuous job's rows are its fit's steps (`generation` the step, `max_generations` 0)."""
     job_id: Optional[int] = None
     max_generations: Optional[int] = None
     final: bool = False

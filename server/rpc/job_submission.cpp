@@ -320,9 +320,11 @@ JobRecord RpcService::Prepare(const JobStore::Created& created, ValidScene scene
   const SearchOptions options = CheckPreparedBounds(*problem, options_.limits);
   scene_notices = SceneNotices(*problem);
   r.genes = problem->gene_count();
-  r.max_generations = options.max_generations;
-  // The strategy that runs, `default` resolved (the stored scene keeps what was asked).
+  // The strategy that runs, `default` resolved (the stored scene keeps what was asked), and its
+  // generation limit: none (0) where its rows count a fit's steps (a continuous job showed
+  // "generation 0/1000" in the Python client's watch).
   r.strategy = proto::StrategyName(ResolvedStrategy(options.strategy, problem->scene()));
+  r.max_generations = proto::ProgressCountsSteps(r.strategy) ? 0 : options.max_generations;
   try {
     r.state = store_.FinishPreparing(lease, r);
   } catch (const LeaseLost&) {

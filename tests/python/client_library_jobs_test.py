@@ -212,9 +212,16 @@ def test_notices_and_phases(ctx):
         submitted = c.submit_job(scene)
         R.expect(submitted.created and any("0.495" in n for n in submitted.notices or []),
                  f"the submission's notices: {submitted.notices}")
-        phases = []
-        job = c.watch(submitted.job.job_id, on_phase=phases.append, timeout=JOB_TIMEOUT)
+        phases, rows = [], []
+        job = c.watch(submitted.job.job_id, on_phase=phases.append, on_progress=rows.append,
+                      timeout=JOB_TIMEOUT)
         R.expect(job.finished, f"the job: {job}")
+        # (A continuous job's rows are its fit's steps: no generation limit, where the watch
+        # reported "generation 0/1000", issue 47 item 6.)
+        R.expect(job.strategy == "continuous" and job.max_generations == 0 and rows and
+                 all(r.max_generations == 0 for r in rows + phases),
+                 f"a continuous job's generation limit: {job.max_generations}, "
+                 f"{[r.max_generations for r in rows + phases]}")
         known = {"direct", "genetic", "regularization", "fit", "path", "refit", "held_out",
                  "probes", "probe_fit", "probe_path", "probe_lift",
                  "nonlinear_fit", "certificate", "nonlinear"}
