@@ -30,22 +30,20 @@ Json TraceToJson(const std::vector<TraceRow>& trace) {
 
 }  // namespace
 
-namespace {
-
-// The options every strategy's run reads: its time limit, and the spring budget and error
-// target that the verdict holds the returned model to (verdict.h).
-void WriteRunBounds(const SearchOptions& o, Json& j) {
-  j["max_seconds"] = o.max_seconds;
-  j["max_springs"] = o.max_springs;
-  j["target_error"] = o.target_error;
-}
-
-// The genetic search's (strategies paper and hybrid).
-void WriteGeneticOptions(const SearchOptions& o, Json& j) {
+// (The checkpoint's fingerprint hashes this text: its keys keep their order, an ordered_json's.)
+Json SearchOptionsToJson(const SearchOptions& o) {
+  Json j;
   j["population"] = o.population;
   j["max_generations"] = o.max_generations;
+  j["max_seconds"] = o.max_seconds;
   j["stall_generations"] = o.stall_generations;
   j["target_normalized_error"] = o.target_normalized_error;
+  j["max_springs"] = o.max_springs;
+  j["target_error"] = o.target_error;
+  j["max_spread"] = o.max_spread;
+  j["load_size"] = o.load_size;
+  j["regularization"] = o.choose_regularization ? Json("auto") : Json(o.regularization);
+  j["probes"] = o.probes == SearchOptions::kAutomaticProbes ? Json("auto") : ProbesToJson(o.probes);
   j["selection"] = o.selection == SearchOptions::Selection::kRoulette ? "roulette" : "tournament";
   if (o.selection == SearchOptions::Selection::kTournament)
     j["tournament_size"] = o.tournament_size;
@@ -63,37 +61,29 @@ void WriteGeneticOptions(const SearchOptions& o, Json& j) {
     j["local_search_swaps"] = o.local_search_swaps;
     if (o.local_search_swaps) j["swap_radius"] = o.swap_radius;
   }
-}
-
-// The stiffness fit's (strategy continuous). `continuation`: what a regularisation of 0 means
-// on the probe fit, which then chooses its strength along a continuation (no regularisation on
-// the named-case fit).
-void WriteFitOptions(const SearchOptions& o, const char* zero_regularization, Json& j) {
-  j["max_spread"] = o.max_spread;
-  j["load_size"] = o.load_size;
-  j["regularization"] = o.choose_regularization ? Json("auto")
-                        : o.regularization == 0.0 && zero_regularization != nullptr
-                            ? Json(zero_regularization)
-                            : Json(o.regularization);
-  j["probes"] = o.probes == SearchOptions::kAutomaticProbes ? Json("auto") : ProbesToJson(o.probes);
-}
-
-}  // namespace
-
-Json SearchOptionsToJson(const SearchOptions& o) {
-  Json j;
-  WriteRunBounds(o, j);
-  WriteGeneticOptions(o, j);
-  WriteFitOptions(o, nullptr, j);
   return j;
 }
 
 Json RunOptionsToJson(const SearchOptions& o, Strategy ran, bool fitted_to_probes) {
-  Json j;
-  WriteRunBounds(o, j);
-  if (ran == Strategy::kPaper || ran == Strategy::kHybrid) WriteGeneticOptions(o, j);
-  if (ran == Strategy::kContinuous)
-    WriteFitOptions(o, fitted_to_probes ? "continuation" : nullptr, j);
+  Json j = SearchOptionsToJson(o);
+  // What the strategy that ran does not read leaves; every strategy's run reads its time
+  // limit, the spring budget, the error target and the load range (the verdict's).
+  const bool genetic = ran == Strategy::kPaper || ran == Strategy::kHybrid;
+  if (!genetic) {
+    for (const char* key :
+         {"population", "max_generations", "stall_generations", "selection", "tournament_size",
+          "roulette_exponent", "crossover", "crossover_probability", "mutation_probability",
+          "elites", "initial_density", "local_search", "local_search_batch", "local_search_combine",
+          "local_search_swaps", "swap_radius"})
+      j.erase(key);
+  }
+  if (!genetic && ran != Strategy::kDirect) j.erase("target_normalized_error");
+  if (ran != Strategy::kContinuous) {
+    for (const char* key : {"max_spread", "regularization", "probes"}) j.erase(key);
+  } else if (fitted_to_probes && !o.choose_regularization && o.regularization == 0.0) {
+    // On the probe fit a strength of 0 is none given: the continuation chooses it.
+    j["regularization"] = "continuation";
+  }
   return j;
 }
 
@@ -476,8 +466,7 @@ Json ResultToJson(const Problem& problem, const IdentificationResult& r, bool wi
   j["evaluations"] = r.counters.evaluations;
   j["cache_hits"] = r.counters.cache_hits;
   j["wall_seconds"] = r.wall_seconds;
-  j["options"] =
-      RunOptionsToJson(r.options, r.ran, r.generalization && r.generalization->fitted_to_probes);
+  j["options"] = RunOptionsToJson(r.options, r.ran, r.continuous && r.continuous->fitted_to_probes);
   if (r.direct_phase) j["direct_phase"] = DirectPhaseToJson(*r.direct_phase);
   if (r.direct) DirectDetailsToJson(problem, *r.direct, j);
   if (r.continuous) j["continuous"] = ContinuousDetailsToJson(*r.continuous);

@@ -14,13 +14,15 @@
 
 namespace springfit::proto {
 
-// Every option (the checkpoint's fingerprint of the resolved options, server/jobs/).
+// Every option, in a fixed order (the checkpoint's fingerprint of the resolved options hashes
+// its text, server/jobs/checkpoint_codec.h).
 Json SearchOptionsToJson(const SearchOptions& options);
-// The options as the strategy that ran reads them (a result's `options`, proto/RUN.md): the
-// time limit and the spring budget and error target (the verdict reads them whatever ran), the
-// genetic search's for `paper` and `hybrid`, the fit's for `continuous`. On the probe fit
-// (`fitted_to_probes`) a regularisation of 0 is the continuation's choice, written
-// "continuation", beside `generalization.fit.regularization`, the strength it chose.
+// The options as the strategy that ran reads them (a result's `options`, proto/RUN.md): every
+// strategy's time limit, spring budget, error target and load range (the verdict reads them),
+// `target_normalized_error` for paper, hybrid and direct, the genetic search's for paper and
+// hybrid, the fit's for continuous. On the probe fit (`fitted_to_probes`) a regularisation of 0
+// is the continuation's choice, written "continuation", beside
+// `generalization.fit.regularization`, the strength it chose.
 Json RunOptionsToJson(const SearchOptions& options, Strategy ran, bool fitted_to_probes);
 Json TraceRowToJson(const TraceRow& row);
 // A missing or extra count, -1 (unknown: no reference topology) as null.

@@ -66,6 +66,9 @@ struct IdentificationResult {
     double fit_normalized_error = 0.0;    // the first fit's, on every candidate (path[0]'s)
     double start_normalized_error = 0.0;  // its start's (the closed-form baseline on FEM)
     bool started_from_baseline = false;
+    // Fitted to probes (the probe fit), whether or not a stop left it without a certificate;
+    // false on the named-case fit.
+    bool fitted_to_probes = false;
     // Models refused by the final evaluation (no equilibrium from the reference's, or worse
     // than the start) before the returned one.
     int rejected = 0;

@@ -1,7 +1,6 @@
 #include "engine/direct/identifiability.h"
 
 #include <Eigen/QR>
-#include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -12,6 +11,7 @@
 #include "engine/linalg/sparse_columns.h"
 #include "engine/problem/force_balance.h"
 #include "engine/problem/rest_stiffness.h"
+#include "engine/problem/support_system.h"
 
 #include "engine/runtime/options_check.h"
 
@@ -78,50 +78,31 @@ int Separated(const Matrix& block, const Matrix& group_null, double tolerance) {
 }
 
 // The reference's small-load response under the scene's supports: its stiffness at rest (the
-// FEM model's or the reference springs', rest_stiffness.h) on a free set's degrees of freedom,
-// factorised once per free set, and only when a group asks for a suggestion there.
+// FEM model's or the reference springs', rest_stiffness.h) factorised on a free set's degrees of
+// freedom (support_system.h: the probe fit's factorisation, its pivots tested on the scaled
+// matrix), once per free set, and only when a group asks for a suggestion there. The free
+// degrees of freedom come node by node, as a FreeNodes numbers them.
 class ReferenceRestResponse {
  public:
   explicit ReferenceRestResponse(const Problem& problem) : problem_(problem) {}
 
-  // The factor on free set `s`; nullptr where the reference is not positive definite there.
-  const Eigen::SimplicialLDLT<SparseMatrix>* Factor(int s) {
-    auto [at, added] = factors_.try_emplace(s);
-    if (added) at->second = Factorize(problem_.free_sets()[static_cast<std::size_t>(s)]);
-    return at->second.get();
+  // The factorisation on free set `s`; nullptr where the reference is not held there.
+  const response::SupportSystem* Factor(int s) {
+    if (const auto at = systems_.find(s); at != systems_.end()) return at->second.get();
+    if (!stiffness_) stiffness_ = ReferenceRestStiffness(problem_);
+    const FreeNodes& free = problem_.free_sets()[static_cast<std::size_t>(s)];
+    std::vector<bool> constrained(free.free_index.size());
+    for (std::size_t node = 0; node < constrained.size(); ++node)
+      constrained[node] = free.free_index[node] < 0;
+    auto system = std::make_unique<response::SupportSystem>(problem_.dimension(), constrained);
+    if (!system->Factorize(*stiffness_)) system.reset();
+    return systems_.emplace(s, std::move(system)).first->second.get();
   }
 
  private:
-  std::unique_ptr<Eigen::SimplicialLDLT<SparseMatrix>> Factorize(const FreeNodes& free) {
-    if (!stiffness_) stiffness_ = ReferenceRestStiffness(problem_);
-    const int d = problem_.dimension();
-    std::vector<Eigen::Triplet<double>> entries;
-    for (Eigen::Index col = 0; col < stiffness_->outerSize(); ++col) {
-      const int c = free.free_index[static_cast<std::size_t>(col / d)];
-      if (c < 0) continue;
-      for (SparseMatrix::InnerIterator it(*stiffness_, col); it; ++it) {
-        const int r = free.free_index[static_cast<std::size_t>(it.row() / d)];
-        if (r >= 0)
-          entries.emplace_back(d * r + it.row() % d, d * c + static_cast<int>(col % d), it.value());
-      }
-    }
-    SparseMatrix k(static_cast<Eigen::Index>(d) * free.count,
-                   static_cast<Eigen::Index>(d) * free.count);
-    k.setFromTriplets(entries.begin(), entries.end());
-    auto factor = std::make_unique<Eigen::SimplicialLDLT<SparseMatrix>>(k);
-    // (LDLT reports success on a singular matrix unless a pivot is exactly zero: the pivots
-    // are tested here, relative to the largest.)
-    const Vector pivots = factor->info() == Eigen::Success ? factor->vectorD() : Vector();
-    if (pivots.size() == 0 || !(pivots.minCoeff() > kSingularPivotRatio * pivots.maxCoeff()))
-      return nullptr;
-    return factor;
-  }
-
-  // A pivot at most this fraction of the largest: the reference is not held there.
-  static constexpr double kSingularPivotRatio = 1e-12;
   const Problem& problem_;
   std::optional<SparseMatrix> stiffness_;
-  std::map<int, std::unique_ptr<Eigen::SimplicialLDLT<SparseMatrix>>> factors_;
+  std::map<int, std::unique_ptr<response::SupportSystem>> systems_;
 };
 
 // The suggestion for one group (an MSS or FEM reference; none for positions): see
@@ -149,15 +130,15 @@ std::optional<LoadSuggestion> SuggestLoad(const Problem& problem,
       for (int a = 0; a < d; ++a) trials.emplace_back(node, a);
     }
     if (trials.empty()) continue;
-    const Eigen::SimplicialLDLT<SparseMatrix>* factor = reference.Factor(free_set);
-    if (factor == nullptr) continue;
-    Matrix forces = Matrix::Zero(static_cast<Eigen::Index>(d) * free.count,
-                                 static_cast<Eigen::Index>(trials.size()));
+    const response::SupportSystem* system = reference.Factor(free_set);
+    if (system == nullptr) continue;
+    Matrix response = Matrix::Zero(static_cast<Eigen::Index>(d) * free.count,
+                                   static_cast<Eigen::Index>(trials.size()));
     for (std::size_t t = 0; t < trials.size(); ++t) {
-      forces(d * free.free_index[trials[t].first] + trials[t].second,
-             static_cast<Eigen::Index>(t)) = 1.0;
+      response(d * free.free_index[trials[t].first] + trials[t].second,
+               static_cast<Eigen::Index>(t)) = 1.0;
     }
-    const Matrix response = factor->solve(forces);
+    system->SolveColumns(response);
     for (std::size_t t = 0; t < trials.size(); ++t) {
       const Matrix block =
           GroupBlock(problem, group_genes, free, response.col(static_cast<Eigen::Index>(t)));

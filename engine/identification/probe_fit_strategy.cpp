@@ -254,39 +254,50 @@ struct ProbeFitModel {
   StoppedIn stopped = StoppedIn::kNowhere;
 };
 
-// How far the rest-linear fit's continuation had got, from its progress (one report for the
-// start and one per accepted Gauss-Newton step, docs/ARCHITECTURE.md "The fitting core"): what a
-// time limit that stops it returns says how long the fit would need.
+// How far the rest-linear fit had got, from its progress reports (one for the start, then one
+// per accepted Gauss-Newton step): a time limit that stops it says how long the fit would need.
+// Times are on the run's clock, the one its time limit counts (RunMonitor::SecondsSinceStart).
 struct FitPace {
-  double started = 0.0;       // run seconds when the fit began (after the probe banks)
-  int reports = 0;            // the continuation's reports: the start's, then one per step
-  double first_report = 0.0;  // run seconds of the start's report
+  double started = 0.0;       // when the fit began (after the probe banks)
+  int reports = 0;            // the start's report, then one per accepted step
+  double first_report = 0.0;  // the start's: its linearisation done
   double last_report = 0.0;
-  int max_steps = 0;  // the continuation's at most: strengths x steps per strength
+  double stopped = 0.0;  // when the stop reached the fit
+  int max_steps = 0;     // the continuation's at most: strengths x steps per strength
 
   void Reported(double seconds) {
     if (reports++ == 0) first_report = seconds;
     last_report = seconds;
   }
 
-  // "; it had made 4 of its at most 21 Gauss-Newton steps in 12.3 s: at that pace the fit
-  // needs up to 52 s more (a time limit of at least 71 s), then its certificate".
-  std::string Needed(double stopped_at) const {
-    const double spent = stopped_at - started;
-    const int steps = std::max(reports - 1, 0);
-    if (steps == 0)
+  // "; it had made 4 Gauss-Newton steps in 12.3 s, of the continuation's at most 21: at that
+  // pace up to 52 s more (a time limit above 71 s), and then its certificate".
+  std::string Needed() const {
+    const double spent = stopped - started;
+    if (reports == 0)
+      return fmt::format("; its first linearisation was not done after {:.3g} s", spent);
+    const int steps = reports - 1;
+    if (steps == 0) {
+      const double at_least = max_steps * (stopped - first_report);
       return fmt::format(
-          "; its first Gauss-Newton step was not done after {:.3g} s: the fit's at most {} steps "
-          "need more than {:.3g} s, then its certificate",
-          spent, max_steps, max_steps * std::max(spent - (first_report - started), 0.0));
+          "; its first Gauss-Newton step was not done after {:.3g} s: the continuation's at most "
+          "{} steps need more than {:.3g} s (a time limit above {:.3g} s), and then its "
+          "certificate",
+          spent, max_steps, at_least, stopped + at_least);
+    }
+    if (steps >= max_steps)
+      return fmt::format(
+          "; it had made {} Gauss-Newton steps in {:.3g} s (past the continuation's {}: a spring "
+          "budget's path or a soft-mode refit), and then its certificate",
+          steps, spent, max_steps);
     const double per_step = (last_report - first_report) / steps;
     // (The time since the last report is the next step's, done in part: at most one step's.)
     const double more =
-        per_step * std::max(max_steps - steps, 0) - std::min(stopped_at - last_report, per_step);
+        std::max(per_step * (max_steps - steps) - std::min(stopped - last_report, per_step), 0.0);
     return fmt::format(
-        "; it had made {} of its at most {} Gauss-Newton steps in {:.3g} s: at that pace the fit "
-        "needs up to {:.3g} s more (a time limit of at least {:.3g} s), then its certificate",
-        steps, max_steps, spent, std::max(more, 0.0), stopped_at + std::max(more, 0.0));
+        "; it had made {} Gauss-Newton steps in {:.3g} s, of the continuation's at most {}: at "
+        "that pace up to {:.3g} s more (a time limit above {:.3g} s), and then its certificate",
+        steps, spent, max_steps, more, stopped + more);
   }
 };
 
@@ -363,7 +374,7 @@ std::string ProbeFitMessage(const IdentificationResult& r, const ProbeFitModel& 
       return fmt::format(
           "{} during the fit: the start ({}, {} springs), not fitted and not certified{}", why,
           m.start_is_baseline ? "the closed-form baseline" : "the training stiffness", springs,
-          timed_out ? pace.Needed(r.wall_seconds) : "");
+          timed_out ? pace.Needed() : "");
     case StoppedIn::kNonlinearFit:
       return fmt::format(
           "{} during the nonlinear fit: the rest-linear fitted model ({} springs), not fitted at "
@@ -446,6 +457,7 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   const ProbeFitBaseline baseline = BaselineOf(problem);
   IdentificationResult::Continuous details;
   details.started_from_baseline = baseline.on_genes.has_value();
+  details.fitted_to_probes = true;
 
   // Progress: the fit's phase and its best choosing error so far.
   double current = std::numeric_limits<double>::quiet_NaN();
@@ -462,7 +474,7 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   const response::ResponseProgress progress = [&](const char* name, double error) {
     current = error;
     if (phase != name) enter(name);
-    if (phase == "probe_fit") pace.Reported(since());
+    if (phase == "probe_fit") pace.Reported(monitor.SecondsSinceStart());
     if (monitor.TimeLimitPassed()) throw Interrupted();
   };
 
@@ -475,11 +487,12 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   ProbeFitModel m;
   // (The load range is checked before the fit: a size out of bounds is refused at once.)
   const std::vector<double> amplitudes = LoadRangeAmplitudes(options, probes.fit());
-  pace.started = since();
+  pace.started = monitor.SecondsSinceStart();
   pace.max_steps =
       static_cast<int>(fit_options.regularizations.size()) * fit_options.steps_per_strength;
   Fit(problem, probes, baseline, fit_options,
       NonlinearStageOptions(problem, options, context, amplitudes), monitor, progress, pool, m);
+  pace.stopped = monitor.SecondsSinceStart();
   if (m.stopped == StoppedIn::kNowhere) enter("certificate");
   ChooseAndCertify(problem, options, probes, baseline, fit_options, monitor, m);
   if (m.certificate && problem.response() == Response::kNonlinear) {

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "engine/api/problem.h"
-#include "engine/probe_fit/support_system.h"
+#include "engine/problem/support_system.h"
 
 namespace springfit::response {
 

@@ -23,7 +23,7 @@
 #include <vector>
 
 #include "engine/probe_fit/probe_bank.h"
-#include "engine/probe_fit/support_system.h"
+#include "engine/problem/support_system.h"
 #include "engine/runtime/interruption.h"
 
 namespace springfit::response {

@@ -11,8 +11,8 @@
 
 #include "engine/fem/fem_model.h"
 #include "engine/probe_fit/nonlinear_solves.h"
-#include "engine/probe_fit/support_system.h"
 #include "engine/problem/small_strain.h"
+#include "engine/problem/support_system.h"
 #include "engine/runtime/input_error.h"
 #include "engine/runtime/options_check.h"
 #include "engine/search/random_stream.h"

@@ -19,7 +19,7 @@
 
 #include "engine/api/probe_fit_report.h"
 #include "engine/probe_fit/probe_bank.h"
-#include "engine/probe_fit/support_system.h"
+#include "engine/problem/support_system.h"
 #include "engine/runtime/interruption.h"
 
 namespace springfit::response {

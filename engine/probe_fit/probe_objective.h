@@ -9,7 +9,7 @@
 
 #include "engine/probe_fit/probe_bank.h"
 #include "engine/probe_fit/probe_evaluation.h"
-#include "engine/probe_fit/support_system.h"
+#include "engine/problem/support_system.h"
 
 namespace springfit::response {
 

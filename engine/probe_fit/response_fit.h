@@ -87,10 +87,10 @@ struct ResponseFitOptions {
   int diagonal_samples = 16;
   // The matrix-free continuation ends after this many successive strengths whose models are
   // each worse on the choosing probes than the best before them (>= 0; 0: every strength runs).
-  // Each strength is a third of the fit's time; on the 10,582-node block the strongest pull was
-  // the best and the four weaker ones were each worse (bench/RESULTS.md). With the tool pushes
-  // fitted, the kidney's choosing error rose for two strengths in a row (1e-3, 1e-4) before its
-  // best (1e-5): 2 stopped there with the named cases' E at 0.081 where 3 reaches 0.056.
+  // On the largest block the strongest pull was the best and every weaker one worse, so the
+  // patience saves most of the fit's time there; with the tool pushes fitted, the kidney's
+  // choosing error rose for two strengths in a row before its best, so a patience of 2 stopped
+  // short of it (bench/RESULTS.md, "Round seven").
   int continuation_patience = 3;
 
   void Validate(const std::string& owner = "ResponseFitOptions") const;

@@ -304,8 +304,8 @@ std::string ResultCard(const Outcome& o, const Json& result, const Json& search)
   if (const std::string units = proto::UnitsText(result.value("units", proto::Json()));
       !units.empty())
     body += Row("units", XmlEscape(units));
-  // What was asked (the scene's search settings; none: every default), then every option as
-  // it ran.
+  // What was asked (the scene's search settings; none: every default), then the options the
+  // strategy that ran read (proto::RunOptionsToJson).
   std::string asked;
   if (search.is_object())
     for (const auto& [key, value] : search.items())

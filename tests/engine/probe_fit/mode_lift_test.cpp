@@ -10,8 +10,8 @@
 #include "engine/probe_fit/probe_evaluation.h"
 #include "engine/probe_fit/probe_objective.h"
 #include "engine/probe_fit/response_fit.h"
-#include "engine/probe_fit/support_system.h"
 #include "engine/problem/rest_stiffness.h"
+#include "engine/problem/support_system.h"
 #include "tests/engine/probe_fit/probe_fit_test_support.h"
 
 namespace springfit::response {

@@ -11,9 +11,9 @@
 
 #include "engine/probe_fit/probe_bank.h"
 #include "engine/probe_fit/probe_evaluation.h"
-#include "engine/probe_fit/support_system.h"
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/problem/rest_stiffness.h"
+#include "engine/problem/support_system.h"
 #include "io/example_catalog.h"
 
 namespace springfit::response {

@@ -1,4 +1,4 @@
-#include "engine/probe_fit/support_system.h"
+#include "engine/problem/support_system.h"
 
 #include <algorithm>
 #include <stdexcept>

@@ -1,11 +1,11 @@
-// A support's factorised system (engine/probe_fit/support_system.h): many right-hand sides in
+// A support's factorised system (engine/problem/support_system.h): many right-hand sides in
 // one pass give each one's own solve; a tool load's system solves through its base's factor as
 // a factorisation of its own would.
 #include <gtest/gtest.h>
 
 #include "engine/probe_fit/probe_bank.h"
-#include "engine/probe_fit/support_system.h"
 #include "engine/problem/rest_stiffness.h"
+#include "engine/problem/support_system.h"
 #include "io/example_catalog.h"
 
 namespace springfit::response {
