@@ -6,9 +6,11 @@
 //   /usr/bin/time -f "%e s %M KB" build/bench/identifiability_bench examples/fem-block-3d.json
 //
 // --max-genes raises the report's bound (IdentifiabilityOptions::max_genes) to measure larger
-// scenes than a run analyses.
+// scenes than a run analyses; --max-suggestion-size 0 leaves the suggested load cases out, to
+// measure what they cost.
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <string>
@@ -33,6 +35,9 @@ int Run(int argc, char** argv) {
   app.add_option("scenes", files, "Scene files")->required();
   app.add_option("--max-genes", options.max_genes, "Seen genes analysed at most")
       ->capture_default_str();
+  app.add_option("--max-suggestion-size", options.max_suggestion_size,
+                 "A group's springs x dependencies at most to get a suggested load case (0: none)")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   for (const std::string& file : files) {
     auto start = Clock::now();
@@ -54,8 +59,10 @@ int Run(int argc, char** argv) {
       std::printf("%s\n", GroupsNotAnalysedText(report.not_analysed).c_str());
       continue;
     }
-    std::printf("rank %d, %d dependencies in %zu groups of %zu springs\n", report.rank,
-                dependencies, report.groups.size(), springs);
+    const auto suggested = std::count_if(report.groups.begin(), report.groups.end(),
+                                         [](const DependentGroup& g) { return g.suggestion; });
+    std::printf("rank %d, %d dependencies in %zu groups of %zu springs, %td with a suggestion\n",
+                report.rank, dependencies, report.groups.size(), springs, suggested);
   }
   return 0;
 }
