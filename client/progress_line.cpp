@@ -115,9 +115,12 @@ void ProgressLine::Beat(const ProgressBeat& beat) {
         fmt::format("generation 0/{}: evaluating the initial population  {} evaluations  {:.1f} s",
                     max_generations_, beat.evaluations, beat.wall_seconds);
   } else if (!std::isnan(beat.best_normalized_error)) {
-    // (The probe fit's phases: E of its latest model on the probes it chooses by.)
-    line = fmt::format("{} phase  choosing E {:.4g}  {:.1f} s", beat.phase,
-                       std::sqrt(beat.best_normalized_error), beat.wall_seconds);
+    // (The probe fit's phases: E of its latest model on the probes it chooses by, and the
+    // continuation's time left at most where the phase estimates it.)
+    line = fmt::format("{} phase  choosing E {:.4g}  {:.1f} s{}", beat.phase,
+                       std::sqrt(beat.best_normalized_error), beat.wall_seconds,
+                       std::isfinite(beat.eta_seconds) ? "  ETA <= " + ClockText(beat.eta_seconds)
+                                                       : std::string());
   } else {
     line = fmt::format("{} phase  {:.1f} s", beat.phase, beat.wall_seconds);
   }

@@ -131,6 +131,7 @@ Json ProgressBeatToJson(const ProgressBeat& b) {
   j["evaluations"] = b.evaluations;
   j["best_normalized_error"] =
       std::isfinite(b.best_normalized_error) ? Json(b.best_normalized_error) : Json(nullptr);
+  j["eta_seconds"] = std::isfinite(b.eta_seconds) ? Json(b.eta_seconds) : Json(nullptr);
   return j;
 }
 
@@ -146,6 +147,9 @@ void ProgressBeatFromJson(const Json& j, const std::string& path, PhaseBeat& out
   const Json& e = at("best_normalized_error");
   b.best_normalized_error = e.is_null() ? std::numeric_limits<double>::quiet_NaN()
                                         : ReadNumber(e, JoinPath(path, "best_normalized_error"));
+  // (Absent from an older daemon's beats: no estimate.)
+  if (const auto eta = j.find("eta_seconds"); eta != j.end() && !eta->is_null())
+    b.eta_seconds = ReadNumber(*eta, JoinPath(path, "eta_seconds"));
 }
 
 Json IdentifiabilityToJson(const IdentifiabilityReport& report) {

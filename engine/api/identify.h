@@ -19,6 +19,7 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <string_view>
 #include <vector>
@@ -54,6 +55,9 @@ struct ProgressBeat {
   int generation = 0;         // the generation in progress
   std::int64_t evaluations = 0;
   double best_normalized_error = 0.0;  // of the best model so far
+  // The phase's estimate of the seconds it has left, at most; NaN where it has none. The probe
+  // fit's "probe_fit": its continuation's steps left at the pace of those it made.
+  double eta_seconds = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct RunContext {

@@ -270,6 +270,16 @@ struct FitPace {
     last_report = seconds;
   }
 
+  // The continuation's seconds left at `now`, at most, at the pace of the steps it made; NaN
+  // before its first step or past its at most (a refit's or a budget's path's steps).
+  double Remaining(double now) const {
+    const int steps = reports - 1;
+    if (steps < 1 || steps >= max_steps) return std::numeric_limits<double>::quiet_NaN();
+    const double per_step = (last_report - first_report) / steps;
+    // (The time since the last report is the next step's, done in part: at most one step's.)
+    return std::max(per_step * (max_steps - steps) - std::min(now - last_report, per_step), 0.0);
+  }
+
   // "; it had made 4 Gauss-Newton steps in 12.3 s, of the continuation's at most 21: at that
   // pace up to 52 s more (a time limit above 71 s), and then its certificate".
   std::string Needed() const {
@@ -290,10 +300,7 @@ struct FitPace {
           "; it had made {} Gauss-Newton steps in {:.3g} s (past the continuation's {}: a spring "
           "budget's path or a soft-mode refit), and then its certificate",
           steps, spent, max_steps);
-    const double per_step = (last_report - first_report) / steps;
-    // (The time since the last report is the next step's, done in part: at most one step's.)
-    const double more =
-        std::max(per_step * (max_steps - steps) - std::min(stopped - last_report, per_step), 0.0);
+    const double more = Remaining(stopped);
     return fmt::format(
         "; it had made {} Gauss-Newton steps in {:.3g} s, of the continuation's at most {}: at "
         "that pace up to {:.3g} s more (a time limit above {:.3g} s), and then its certificate",
@@ -459,18 +466,20 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   details.started_from_baseline = baseline.on_genes.has_value();
   details.fitted_to_probes = true;
 
-  // Progress: the fit's phase and its best choosing error so far.
+  // Progress: the fit's phase, its best choosing error so far and, in the continuation, the
+  // time it has left at most.
   double current = std::numeric_limits<double>::quiet_NaN();
   std::string phase;
+  FitPace pace;
   const auto enter = [&](const std::string& name) {
     phase = name;
     monitor.SetPhase(phase, [&](ProgressBeat& beat) {
       beat.wall_seconds = since();
       beat.best_normalized_error = current * current;
+      if (phase == "probe_fit") beat.eta_seconds = pace.Remaining(monitor.SecondsSinceStart());
     });
   };
   enter("probes");
-  FitPace pace;
   const response::ResponseProgress progress = [&](const char* name, double error) {
     current = error;
     if (phase != name) enter(name);

@@ -129,6 +129,7 @@ class Phase(_Record):
     generation: Optional[int] = None       # the generation in progress (path: its points)
     evaluations: Optional[int] = None      # fit: its accepted steps
     best_normalized_error: Optional[float] = None  # None: no model yet in this phase
+    eta_seconds: Optional[float] = None    # the phase's seconds left at most (None: no estimate)
     max_generations: Optional[int] = None
     raw: dict = field(default_factory=dict, repr=False, compare=False)
 

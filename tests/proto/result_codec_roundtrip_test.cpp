@@ -1,6 +1,7 @@
 // Round trips of a run's outputs through their text (proto/search_codec.h, evaluation_codec.h):
 // results and their trace rows, the typed reading of a result, and topology files.
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <optional>
@@ -77,6 +78,35 @@ TEST(ResultCodecRoundTrip, ResultJsonSurvivesEveryTextFormAndItsTraceReadsBack) 
   EXPECT_EQ(back.at("stiffness").get<std::vector<double>>(), r.stiffness);
   EXPECT_EQ(back.at("seed").get<std::uint64_t>(), 5u);
   EXPECT_EQ(back.at("options"), RunOptionsToJson(r.options, r.ran, false));
+}
+
+// A job.phase beat's fields read back, the phase's time left (eta_seconds) among them, null
+// where it has none; a beat without it (an older daemon's) reads as none.
+TEST(ResultCodecRoundTrip, APhaseBeatReadsBackWithItsTimeLeft) {
+  ProgressBeat beat;
+  beat.phase = "probe_fit";
+  beat.wall_seconds = 3.5;
+  beat.generation = 2;
+  beat.evaluations = 7;
+  beat.best_normalized_error = 0.01;
+  beat.eta_seconds = 12.25;
+  for (const double eta : {12.25, std::numeric_limits<double>::quiet_NaN()}) {
+    beat.eta_seconds = eta;
+    // (Through its text, as a notification reaches a client.)
+    const Json j = ParseJson(rpc::Serialize(ProgressBeatToJson(beat)));
+    EXPECT_EQ(j.at("eta_seconds").is_null(), std::isnan(eta));
+    PhaseBeat back;
+    ProgressBeatFromJson(j, "params", back);
+    EXPECT_EQ(back.phase, "probe_fit");
+    EXPECT_EQ(back.beat.evaluations, 7);
+    EXPECT_EQ(std::isnan(back.beat.eta_seconds), std::isnan(eta));
+    if (!std::isnan(eta)) EXPECT_EQ(back.beat.eta_seconds, eta);
+  }
+  Json older = ParseJson(rpc::Serialize(ProgressBeatToJson(beat)));
+  older.erase("eta_seconds");
+  PhaseBeat back;
+  ProgressBeatFromJson(older, "params", back);
+  EXPECT_TRUE(std::isnan(back.beat.eta_seconds));
 }
 
 // Issue 47: a result's options are those the strategy that ran reads (a continuous job's page

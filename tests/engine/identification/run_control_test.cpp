@@ -276,6 +276,7 @@ TEST(RunControl, ATimeLimitInTheFitSaysHowLongTheFitWouldNeed) {
   // (A beat carries the fit's best choosing error so far: its third value comes after two
   // reports past the start's, so after at least one step.)
   std::vector<double> errors;
+  std::vector<double> etas;  // the beats' estimates of the continuation's time left
   RunContext c;
   c.beat_seconds = 0.0;
   c.on_beat = [&](const ProgressBeat& beat) {
@@ -283,6 +284,7 @@ TEST(RunControl, ATimeLimitInTheFitSaysHowLongTheFitWouldNeed) {
         (!errors.empty() && errors.back() == beat.best_normalized_error))
       return true;
     errors.push_back(beat.best_normalized_error);
+    etas.push_back(beat.eta_seconds);
     if (errors.size() == 3) std::this_thread::sleep_for(std::chrono::milliseconds(6500));
     return true;
   };
@@ -301,6 +303,11 @@ TEST(RunControl, ATimeLimitInTheFitSaysHowLongTheFitWouldNeed) {
   ASSERT_NE(at, std::string::npos) << r.stop_message;
   EXPECT_GT(std::stod(r.stop_message.substr(at + above.size())), o.max_seconds) << r.stop_message;
   EXPECT_FALSE(r.generalization);
+  // The beats said the time left (progress lines and job.phase show it): none before a step
+  // (the start's report alone), an estimate after.
+  ASSERT_EQ(etas.size(), 3u);
+  EXPECT_TRUE(std::isnan(etas[0])) << etas[0];
+  EXPECT_TRUE(std::isfinite(etas[2]) && etas[2] > 0.0) << etas[2];
 }
 
 TEST(RunControl, AResumedRunStoppedBeforeItsFirstStepKeepsTheCheckpointsBest) {
