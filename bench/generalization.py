@@ -6,8 +6,8 @@ best one model on the mesh edges for each family alone.
     /usr/bin/python3 bench/generalization.py [SCENE ...] [--springfit build/client/springfit]
         [--run-args "--threads 1"] [--model MODEL.json ...] [--seed 20261126]
         [--pushed 20] [--patches 30] [--train-factor 3] [--skip-best] [--best-seconds 120]
-        [--best-evaluations 5000] [--eig-max-dofs 5000] [--no-checks] [--json OUT.json]
-        [--keep DIR]
+        [--best-evaluations 5000] [--eig-max-dofs 5000] [--unnamed-supports 0] [--no-checks]
+        [--json OUT.json] [--keep DIR]
 
 Run it with Debian's python (/usr/bin/python3: numpy, and scipy from python3-scipy, which
 scripts/install-deps.sh installs). Default scenes: the five FEM examples.
@@ -67,6 +67,35 @@ extreme generalised eigenvalues of (K_M, K_F) on the free DOFs (dense, up to --e
 free DOFs), how many lie below 0.5 and above 2, and the bound they give on the relative
 energy-norm error of every load on that support, max_i |1/lambda_i - 1|.
 
+Supports the user did not name (issue 50: E <= 0.5 x baseline on every family there), with
+--unnamed-supports N (default 0: none, and the report is the one above alone): per scene, N
+supports drawn by a stream of this script's generator of their own (support i the same for
+every N > i), each holding every DOF of its nodes at rest, the kinds in turn (B: the number of
+boundary nodes; "the m nearest to node c": the m boundary nodes of least Euclidean distance
+to c, c itself first; counts rounded, at least 1):
+
+  third       a third of the boundary held: the round(B / 3) nearest to a random boundary node;
+  arc         a random arc (a patch in 3D): a fraction drawn uniformly in [0.1, 0.3] of B, the
+              round(fraction x B) nearest to a random boundary node;
+  two-sided   two patches of round(B / 10) each: the nearest to a random boundary node c and
+              the nearest to the boundary node farthest from c.
+
+A draw is made again (up to UNNAMED_TRIES times, then the support is left out, with a note)
+when it does not hold the FEM (K_F on its free DOFs singular: a Jacobi-scaled pivot <= 1e-12),
+when its nodes lie nearly on one line in 3D (the second singular value of their centred
+positions below COLLINEAR times the first: the rotation about that line all but free), or
+when it is a support already named or drawn. On these supports the families pushed, gravity
+and patch (drawn as above, on streams of their own; traction45 and named belong to the named
+cases and are left out) are reported as pushed@unnamed, gravity@unnamed and patch@unnamed,
+pooled over the scene's unnamed supports, in a table of their own with the same columns and
+targets; their best fits are made as above, on the unnamed supports' training draws (none with
+--skip-best). Per unnamed support: its kind, its held and boundary node counts, whether each
+model is a mechanism on it (E = inf on its loads), in how many pieces its nodes lie on the
+boundary (joined by the boundary facets' edges: the Euclidean nearest need not be one piece
+on a curved boundary), the median E of each model over its loads,
+and its generalised eigenvalues as above (up to --eig-max-dofs); unless --no-checks, the FEM
+solves' residual on the free DOFs, max over the loads of |K_ff u_f - f_f| / |f_f|.
+
 Sanity checks (unless --no-checks): this FEM against `springfit reference SCENE --json` on
 the named cases (max |u - u_springfit| / max |u_springfit|; a scene with a nonlinear
 material is compared at 1e-5 of its loads), the nodal forces resolved from the tractions
@@ -84,7 +113,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 # L-BFGS-B (Fortran) writes a note on standard output when it restarts a line search. Its
 # output unit is made unbuffered (libgfortran reads this when it loads, with numpy's LAPACK)
@@ -104,6 +133,11 @@ DEFAULT_SCENES = ["examples/fem-plate-5x5.json", "examples/fem-kidney-2d.json",
 FAMILIES = ["pushed", "gravity", "traction45", "patch", "named"]
 MECHANISM_PIVOT = 1e-12          # Jacobi-scaled pivot at or below which K is singular
 SMALL_LOAD = 1e-5                # the load fraction for the check of a nonlinear reference
+UNNAMED_KINDS = ["third", "arc", "two-sided"]      # --unnamed-supports, in turn
+UNNAMED_FAMILIES = ["pushed", "gravity", "patch"]  # the families on them
+UNNAMED_TRIES = 20               # draws of one unnamed support before it is left out
+COLLINEAR = 0.05                 # 3D: sigma_2 / sigma_1 of the held nodes below it: a line
+UNNAMED_STREAM = len(FAMILIES)   # the generator's stream of the unnamed supports
 
 
 # ----------------------------------------------------------------------------------------
@@ -534,11 +568,13 @@ def family_named(mesh):
     return out
 
 
-def draw_family(mesh, family, seed, stream, args):
+def draw_family(mesh, family, seed, stream, args, unnamed=False):
     """A draw of one family; `stream` 0 is the evaluation draw, 1 the best fit's training
     draw (--train-factor times as many pushed nodes and patches). None for the training draw
-    of a family that has only one (the evaluation's)."""
-    rng = np.random.default_rng([seed, FAMILIES.index(family), stream])
+    of a family that has only one (the evaluation's). `unnamed`: on the unnamed supports
+    (mesh.supports those), from streams of their own."""
+    rng = np.random.default_rng([seed, FAMILIES.index(family), stream]
+                                + ([UNNAMED_STREAM] if unnamed else []))
     factor = args.train_factor if stream == 1 else 1
     if family == "pushed":
         return family_pushed(mesh, rng, args.pushed * factor)
@@ -549,6 +585,93 @@ def draw_family(mesh, family, seed, stream, args):
     if stream == 1:
         return None
     return family_gravity(mesh) if family == "gravity" else family_named(mesh)
+
+
+def nearest_boundary(mesh, boundary, centre, count):
+    """The `count` boundary nodes nearest (Euclidean) to node `centre`, itself first."""
+    dist = np.linalg.norm(mesh.nodes[boundary] - mesh.nodes[centre], axis=1)
+    return boundary[np.argsort(dist, kind="stable")[:count]]
+
+
+def unnamed_support(mesh, rng, kind):
+    """One draw of an unnamed support of a kind: (held nodes, a description)."""
+    boundary, _ = boundary_normals(mesh)
+    b = len(boundary)
+    centre = int(boundary[rng.integers(b)])
+    if kind == "third":
+        return nearest_boundary(mesh, boundary, centre, max(1, round(b / 3))), \
+            "a third, around node %d" % centre
+    if kind == "arc":
+        fraction = float(rng.uniform(0.1, 0.3))
+        return nearest_boundary(mesh, boundary, centre, max(1, round(fraction * b))), \
+            "arc of %.3f, around node %d" % (fraction, centre)
+    far = int(boundary[np.argmax(np.linalg.norm(mesh.nodes[boundary] - mesh.nodes[centre],
+                                                axis=1))])
+    size = max(1, round(b / 10))
+    held = np.union1d(nearest_boundary(mesh, boundary, centre, size),
+                      nearest_boundary(mesh, boundary, far, size))
+    return held, "2 x %d, around nodes %d and %d" % (size, centre, far)
+
+
+def boundary_pieces(mesh, held):
+    """How many pieces the held nodes make on the boundary (joined by boundary facets' edges)."""
+    faces = boundary_facets(mesh)[0]
+    parent = {int(i): int(i) for i in held}
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for a in range(faces.shape[1]):
+        for b in range(a + 1, faces.shape[1]):
+            for i, j in zip(faces[:, a], faces[:, b]):
+                if int(i) in parent and int(j) in parent:
+                    parent[root(int(i))] = root(int(j))
+    return len({root(i) for i in parent})
+
+
+def support_fault(mesh, k_fem, held):
+    """Why a support does not hold the FEM (None when it does)."""
+    if mesh.dim == 3:
+        x = mesh.nodes[held] - mesh.nodes[held].mean(axis=0)
+        sigma = np.linalg.svd(x, compute_uv=False)
+        if len(held) < 3 or sigma[1] <= COLLINEAR * sigma[0]:
+            return "nearly collinear"
+    sup = Support(held, *mesh.nodes.shape)
+    if sup.free.size == 0 or Factor.make(k_fem[sup.free][:, sup.free]) is None:
+        return "K_F singular"
+    if len(free_boundary(replace(mesh, supports=[tuple(held)]), 0)[0]) == 0:
+        return "no free boundary node"
+    return None
+
+
+def draw_unnamed_supports(mesh, k_fem, seed, count):
+    """--unnamed-supports: `count` supports, the kinds in turn, each drawn again (up to
+    UNNAMED_TRIES times) while it does not hold the FEM or is one named or drawn already.
+    Per support: dict(kind, nodes (a sorted tuple), boundary, description, redraws)."""
+    rng = np.random.default_rng([seed, UNNAMED_STREAM])
+    boundary = len(boundary_normals(mesh)[0])
+    out, notes = [], []
+    for i in range(count):
+        kind = UNNAMED_KINDS[i % len(UNNAMED_KINDS)]
+        faults = []
+        for _ in range(UNNAMED_TRIES):
+            held, text = unnamed_support(mesh, rng, kind)
+            nodes = tuple(sorted(int(v) for v in held))
+            fault = ("already a support" if nodes in mesh.supports
+                     or nodes in [u["nodes"] for u in out]
+                     else support_fault(mesh, k_fem, held))
+            if fault is None:
+                out.append(dict(kind=kind, nodes=nodes, boundary=boundary, description=text,
+                                redraws=faults))
+                break
+            faults.append(fault)
+        else:
+            notes.append("unnamed support %d (%s): left out, no draw held the FEM in %d (%s)"
+                         % (i, kind, UNNAMED_TRIES, ", ".join(sorted(set(faults)))))
+    return out, notes
 
 
 # ----------------------------------------------------------------------------------------
@@ -799,7 +922,8 @@ def run_springfit(args, scene, tmp, index):
     start = time.monotonic()
     proc = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     seconds = time.monotonic() - start
-    if proc.returncode not in (0, 10):          # 10: a model that is no answer, still written
+    # 10 unusable (a model that is no answer), 11 unmet_request, 12 doubtful: written still
+    if proc.returncode not in (0, 10, 11, 12):
         raise SystemExit("%s failed (%d): %s" % (" ".join(cmd), proc.returncode, proc.stderr))
     subprocess.run([args.springfit, "export", result, "-o", model], check=True,
                    stdout=subprocess.DEVNULL)
@@ -927,12 +1051,37 @@ def print_scene(rep):
         rep["model"]["springs"],
         ", run %.1f s" % rep["model"]["run_seconds"] if rep["model"]["run_seconds"] else "",
         rep["baseline_springs"]))
+    print_families(rep["families"], FAMILIES)
+    for s, eig in enumerate(rep["eigen"]):
+        if eig is None:
+            print("support %d: eigenvalues skipped (%d free DOFs > --eig-max-dofs)" % (
+                s, rep["support_dofs"][s]))
+            continue
+        print("support %d (%d DOFs): %s" % (s, eig["springfit"]["dofs"], eigen_text(eig)))
+    print_checks(rep.get("checks"))
+    if "unnamed" in rep:
+        print_unnamed(rep["unnamed"])
+    print("timing (s): " + ", ".join("%s %.2f" % kv for kv in rep["seconds"].items()))
+    sys.stdout.flush()
+
+
+def eigen_text(eig):
+    return ("lambda(K_M, K_F) springfit [%s, %s] bound %s (%d below 0.5, %d above 2); "
+            "baseline [%s, %s] bound %s" % (
+                fmt(eig["springfit"]["lambda_min"]), fmt(eig["springfit"]["lambda_max"]),
+                fmt(eig["springfit"]["energy_bound"]), eig["springfit"]["below_0.5"],
+                eig["springfit"]["above_2"], fmt(eig["baseline"]["lambda_min"]),
+                fmt(eig["baseline"]["lambda_max"]), fmt(eig["baseline"]["energy_bound"])))
+
+
+def print_families(families, names):
+    """The table of the families `names`, then their best fits."""
     head = ("| family | loads | springfit med / p95 | baseline med / p95 | best med / p95 "
             "| sf/base med, p95 | sf/best med, p95 | targets |")
     print(head)
     print("|---|---:|---|---|---|---|---|---|")
-    for fam in FAMILIES:
-        r = rep["families"][fam]
+    for fam in names:
+        r = families[fam]
         best = r.get("best")
         best_text = ("%s / %s" % (fmt(best["median"]), fmt(best["p95"]))
                      if best else "-")
@@ -942,8 +1091,8 @@ def print_scene(rep):
             fam, r["loads"], fmt(r["springfit"]["median"]), fmt(r["springfit"]["p95"]),
             fmt(r["baseline"]["median"]), fmt(r["baseline"]["p95"]), best_text,
             fmt(rb[0]), fmt(rb[1]), fmt(rbest[0]), fmt(rbest[1]), r["targets"]))
-    for fam in FAMILIES:
-        b = rep["families"][fam].get("best_fit")
+    for fam in names:
+        b = families[fam].get("best_fit")
         if b:
             print("best %s: %d training loads%s; L-BFGS-B %s evaluations, LM %d steps, %.1f s, "
                   "%s; training E %.3g -> %.3g, %d of %d springs" % (
@@ -952,19 +1101,9 @@ def print_scene(rep):
                       b["lm_iterations"], b["seconds"],
                       "converged" if b["converged"] else "stopped by its bound",
                       b["start_rms"], b["final_rms"], b["springs"], b["edges"]))
-    for s, eig in enumerate(rep["eigen"]):
-        if eig is None:
-            print("support %d: eigenvalues skipped (%d free DOFs > --eig-max-dofs)" % (
-                s, rep["support_dofs"][s]))
-            continue
-        print("support %d (%d DOFs): lambda(K_M, K_F) springfit [%s, %s] bound %s "
-              "(%d below 0.5, %d above 2); baseline [%s, %s] bound %s" % (
-                  s, eig["springfit"]["dofs"], fmt(eig["springfit"]["lambda_min"]),
-                  fmt(eig["springfit"]["lambda_max"]), fmt(eig["springfit"]["energy_bound"]),
-                  eig["springfit"]["below_0.5"], eig["springfit"]["above_2"],
-                  fmt(eig["baseline"]["lambda_min"]), fmt(eig["baseline"]["lambda_max"]),
-                  fmt(eig["baseline"]["energy_bound"])))
-    checks = rep.get("checks")
+
+
+def print_checks(checks):
     if checks:
         ref = checks.get("reference")
         if ref:
@@ -983,8 +1122,32 @@ def print_scene(rep):
                           c["relative_difference"],
                           "" if c["same_response"] else
                           "; springfit's is its nonlinear response to the nonlinear reference"))
-    print("timing (s): " + ", ".join("%s %.2f" % kv for kv in rep["seconds"].items()))
-    sys.stdout.flush()
+
+
+def print_unnamed(unnamed):
+    """--unnamed-supports: the families on them, then each support."""
+    print("unnamed supports (--unnamed-supports %d, drawn here; E over every unnamed support's "
+          "loads; target springfit <= 0.5 x baseline):" % unnamed["count"])
+    if unnamed["families"]:
+        print_families(unnamed["families"], [f + "@unnamed" for f in UNNAMED_FAMILIES])
+    for s, u in enumerate(unnamed["supports"]):
+        faults = u["redraws"]
+        print("unnamed support %d: %s, %d of %d boundary nodes held (%s; %d piece%s), "
+              "%d free DOFs%s; %d loads, E med springfit %s%s, baseline %s%s" % (
+                  s, u["kind"], u["held"], u["boundary"], u["description"], u["pieces"],
+                  "" if u["pieces"] == 1 else "s", u["free_dofs"],
+                  "; %d redraws (%s)" % (len(faults), ", ".join(sorted(set(faults))))
+                  if faults else "", u["loads"], fmt(u["springfit"]["median"]),
+                  " (a mechanism)" if u["springfit"]["mechanism"] else "",
+                  fmt(u["baseline"]["median"]),
+                  " (a mechanism)" if u["baseline"]["mechanism"] else ""))
+        print("  " + ("eigenvalues skipped (> --eig-max-dofs)" if u["eigen"] is None else
+                      eigen_text(u["eigen"])))
+    for note in unnamed["notes"]:
+        print(note)
+    if "residual" in unnamed:
+        print("check: unnamed supports, FEM solves max |K_ff u_f - f_f| / |f_f| per support: "
+              + ", ".join("%.2g" % r for r in unnamed["residual"]))
 
 
 def family_targets(sf, base, best):
@@ -999,6 +1162,101 @@ def family_targets(sf, base, best):
 
 
 # ----------------------------------------------------------------------------------------
+
+def evaluate_family(args, mesh, evaluator, fam, models, seconds, unnamed=False):
+    """One family's figures (and its best fit, unless --skip-best) on the evaluator's supports;
+    `unnamed`: the unnamed supports' draws, named fam@unnamed, each load with its support."""
+    k_model, k_baseline, g_edges, k_base = models
+    name = fam + "@unnamed" if unnamed else fam
+    t = time.monotonic()
+    draw = draw_family(mesh, fam, args.seed, 0, args, unnamed)
+    reference = evaluator.fem_responses(draw)
+    e_model = evaluator.errors(k_model, draw, reference)
+    e_base = evaluator.errors(k_baseline, draw, reference)
+    labels = [(s, l) for s in sorted(draw.labels) for l in draw.labels[s]]
+    entry = dict(loads=draw.count(),
+                 springfit=dict(zip(("median", "p95"), quantiles(e_model)),
+                                pooled=evaluator.pooled(k_model, draw, reference)),
+                 baseline=dict(zip(("median", "p95"), quantiles(e_base)),
+                               pooled=evaluator.pooled(k_baseline, draw, reference)),
+                 per_load=[dict(label=l, springfit=float(a), baseline=float(b),
+                                **(dict(support=s) if unnamed else {}))
+                           for (s, l), a, b in zip(labels, e_model, e_base)])
+    seconds["evaluate " + name] = time.monotonic() - t
+    if not args.skip_best:
+        t = time.monotonic()
+        train = draw_family(mesh, fam, args.seed, 1, args, unnamed) or draw
+        fitter = EdgeFit(evaluator, g_edges, train)
+        k_best, info = fitter.fit(k_base, args.best_seconds, args.best_evaluations)
+        k_best_full = mss_stiffness(g_edges, k_best)
+        e_best = evaluator.errors(k_best_full, draw, reference)
+        entry["best"] = dict(zip(("median", "p95"), quantiles(e_best)),
+                             pooled=evaluator.pooled(k_best_full, draw, reference))
+        for row, e in zip(entry["per_load"], e_best):
+            row["best"] = float(e)
+        info.update(train_loads=train.count(), seconds=time.monotonic() - t,
+                    in_sample=train is draw,
+                    springs=int(np.sum(k_best > 1.001 * EdgeFit.FLOOR * k_base)),
+                    edges=len(k_best))
+        entry["best_fit"] = info
+        seconds["best " + name] = info["seconds"]
+    entry["targets"] = family_targets(entry["springfit"], entry["baseline"],
+                                      entry.get("best")) if fam != "named" else "(fitted)"
+    return entry
+
+
+def evaluate_unnamed(args, mesh, k_fem, models, seconds):
+    """--unnamed-supports: the supports drawn, their families, per support its figures."""
+    k_model, k_baseline = models[0], models[1]
+    t = time.monotonic()
+    drawn, notes = draw_unnamed_supports(mesh, k_fem, args.seed, args.unnamed_supports)
+    out = dict(count=args.unnamed_supports, notes=notes, supports=[], families={})
+    seconds["unnamed supports"] = time.monotonic() - t
+    if not drawn:
+        return out
+    umesh = replace(mesh, supports=[u["nodes"] for u in drawn])
+    evaluator = Evaluator(umesh, k_fem)
+    for fam in UNNAMED_FAMILIES:
+        out["families"][fam + "@unnamed"] = evaluate_family(args, umesh, evaluator, fam, models,
+                                                            seconds, unnamed=True)
+    t = time.monotonic()
+    for s, (u, sup) in enumerate(zip(drawn, evaluator.supports)):
+        rows = [r for f in out["families"].values() for r in f["per_load"] if r["support"] == s]
+        row = dict(kind=u["kind"], held=len(u["nodes"]), boundary=u["boundary"],
+                   description=u["description"], redraws=u["redraws"], nodes=list(u["nodes"]),
+                   free_dofs=int(sup.free.size), loads=len(rows),
+                   pieces=boundary_pieces(mesh, u["nodes"]))
+        for key, k_full in (("springfit", k_model), ("baseline", k_baseline)):
+            row[key] = dict(
+                mechanism=Factor.make(k_full[sup.free][:, sup.free]) is None,
+                median=quantiles(np.array([r[key] for r in rows]))[0])
+        row["eigen"] = (None if sup.free.size > args.eig_max_dofs else
+                        dict(springfit=generalized_extremes(k_model, k_fem, sup),
+                             baseline=generalized_extremes(k_baseline, k_fem, sup)))
+        out["supports"].append(row)
+    seconds["unnamed eigenvalues"] = time.monotonic() - t
+    if not args.no_checks:
+        t = time.monotonic()
+        out["residual"] = fem_residual(evaluator, [draw_family(umesh, fam, args.seed, 0, args,
+                                                                True)
+                                                    for fam in UNNAMED_FAMILIES])
+        seconds["unnamed checks"] = time.monotonic() - t
+    return out
+
+
+def fem_residual(evaluator, loadsets):
+    """Per support, max over the loads of |K_f. u - f_f| / |f_f| of the FEM's solves (the
+    held DOFs at rest: |K_ff u_f - f_f| / |f_f|)."""
+    k, worst = evaluator.k_fem, {}
+    for loadset in loadsets:
+        responses_ = evaluator.fem_responses(loadset)
+        for s, (forces, _) in loadset.loads.items():
+            sup, u = evaluator.supports[s], responses_[s]
+            r = k[sup.free] @ u - forces[sup.free]
+            rel = np.linalg.norm(r, axis=0) / np.linalg.norm(forces[sup.free], axis=0)
+            worst[s] = max(worst.get(s, 0.0), float(np.max(rel)))
+    return [worst[s] for s in sorted(worst)]
+
 
 def evaluate_scene(args, scene_path, model_path, tmp, index):
     """Every number of one scene: the families, the best fits, eigenvalues, checks."""
@@ -1043,41 +1301,9 @@ def evaluate_scene(args, scene_path, model_path, tmp, index):
                           springs=len(pairs), run_seconds=run_seconds),
                families={}, eigen=[], seconds=seconds)
 
+    models = (k_model, k_baseline, g_edges, k_base)
     for fam in FAMILIES:
-        t = time.monotonic()
-        draw = draw_family(mesh, fam, args.seed, 0, args)
-        reference = evaluator.fem_responses(draw)
-        e_model = evaluator.errors(k_model, draw, reference)
-        e_base = evaluator.errors(k_baseline, draw, reference)
-        labels = [l for s in sorted(draw.labels) for l in draw.labels[s]]
-        entry = dict(loads=draw.count(),
-                     springfit=dict(zip(("median", "p95"), quantiles(e_model)),
-                                    pooled=evaluator.pooled(k_model, draw, reference)),
-                     baseline=dict(zip(("median", "p95"), quantiles(e_base)),
-                                   pooled=evaluator.pooled(k_baseline, draw, reference)),
-                     per_load=[dict(label=l, springfit=float(a), baseline=float(b))
-                               for l, a, b in zip(labels, e_model, e_base)])
-        seconds["evaluate " + fam] = time.monotonic() - t
-        if not args.skip_best:
-            t = time.monotonic()
-            train = draw_family(mesh, fam, args.seed, 1, args) or draw
-            fitter = EdgeFit(evaluator, g_edges, train)
-            k_best, info = fitter.fit(k_base, args.best_seconds, args.best_evaluations)
-            k_best_full = mss_stiffness(g_edges, k_best)
-            e_best = evaluator.errors(k_best_full, draw, reference)
-            entry["best"] = dict(zip(("median", "p95"), quantiles(e_best)),
-                                 pooled=evaluator.pooled(k_best_full, draw, reference))
-            for row, e in zip(entry["per_load"], e_best):
-                row["best"] = float(e)
-            info.update(train_loads=train.count(), seconds=time.monotonic() - t,
-                        in_sample=train is draw,
-                        springs=int(np.sum(k_best > 1.001 * EdgeFit.FLOOR * k_base)),
-                        edges=len(k_best))
-            entry["best_fit"] = info
-            seconds["best " + fam] = info["seconds"]
-        entry["targets"] = family_targets(entry["springfit"], entry["baseline"],
-                                          entry.get("best")) if fam != "named" else "(fitted)"
-        rep["families"][fam] = entry
+        rep["families"][fam] = evaluate_family(args, mesh, evaluator, fam, models, seconds)
 
     t = time.monotonic()
     for s, sup in enumerate(evaluator.supports):
@@ -1106,6 +1332,8 @@ def evaluate_scene(args, scene_path, model_path, tmp, index):
                                                         if theirs else math.nan))
         rep["checks"] = checks
         seconds["checks"] = time.monotonic() - t
+    if args.unnamed_supports > 0:
+        rep["unnamed"] = evaluate_unnamed(args, mesh, k_fem, models, seconds)
     seconds["total"] = time.monotonic() - t0
     return rep
 
@@ -1130,6 +1358,10 @@ def main():
     parser.add_argument("--best-evaluations", type=int, default=5000,
                         help="bound on the L-BFGS-B evaluations of each best-model fit")
     parser.add_argument("--eig-max-dofs", type=int, default=5000)
+    parser.add_argument("--unnamed-supports", type=int, default=0,
+                        help="per scene, this many supports drawn here (kinds in turn: a "
+                             "third of the boundary, a random arc, two-sided), with the "
+                             "families pushed, gravity and patch on them")
     parser.add_argument("--no-checks", action="store_true")
     parser.add_argument("--json", help="write every number to this file")
     parser.add_argument("--keep", help="keep springfit's result and model files here")
@@ -1160,7 +1392,9 @@ def main():
             reports.append(rep)
     if args.json:
         with open(args.json, "w") as f:
-            json.dump(jsonable(dict(machine=info, seed=args.seed, args=vars(args),
+            options = {k: v for k, v in vars(args).items()      # as before --unnamed-supports
+                       if k != "unnamed_supports" or v}
+            json.dump(jsonable(dict(machine=info, seed=args.seed, args=options,
                                     scenes=reports)), f, indent=1)
 
 
