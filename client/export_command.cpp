@@ -12,6 +12,7 @@
 #include "client/result_source.h"
 #include "engine/api/analysis.h"
 #include "engine/api/input_error.h"
+#include "io/model_facts.h"
 #include "io/model_writers.h"
 #include "io/spring_model.h"
 
@@ -107,6 +108,7 @@ int Export(const ExportArgs& a) {
   std::cout << ", from " << loaded.where << "\n" << a.output << ": " << FactsLine(model) << "\n";
   if (const std::string judged = JudgementLine(loaded.result); !judged.empty())
     std::cout << a.output << ": " << judged << "\n";
+  std::cout << a.output << ": " << io::JudgedText(model) << "\n";
   return kExitOk;
 }
 

@@ -12,13 +12,6 @@
 
 namespace springfit::cli {
 
-std::string ClockText(double seconds) {
-  if (!(seconds >= 0.0) || !std::isfinite(seconds)) return "-";
-  const long long total = std::llround(seconds);
-  if (total < 3600) return fmt::format("{}:{:02}", total / 60, total % 60);
-  return fmt::format("{}:{:02}:{:02}", total / 3600, total / 60 % 60, total % 60);
-}
-
 std::string FitToWidth(const std::string& line, int columns) {
   const std::size_t room = columns > 4 ? static_cast<std::size_t>(columns - 1) : 3;
   if (line.size() <= room) return line;

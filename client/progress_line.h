@@ -5,12 +5,12 @@
 #include <string>
 
 #include "engine/api/identify.h"
+#include "proto/job.h"
 
 namespace springfit::cli {
 
-// A duration for people: "0:07", "12:34", "1:02:03" (minutes:seconds under an hour,
-// hours:minutes:seconds from it); "-" for a negative or non-finite one.
-std::string ClockText(double seconds);
+// A duration for people (proto/job.h).
+using proto::ClockText;
 
 // `line` cut to fit a terminal `columns` wide without wrapping (columns - 1 characters: a
 // terminal's last column moves the cursor on), "..." marking the cut. Lines are ASCII.

@@ -18,6 +18,12 @@
 namespace springfit::cli {
 namespace {
 
+// A JSON number to 3 significant digits, a non-finite one's spelling ("inf"), "-" for none.
+std::string ShortNumber(const proto::Json& j) {
+  if (j.is_string()) return j.get<std::string>();
+  return j.is_number() ? fmt::format("{:.3g}", j.get<double>()) : std::string("-");
+}
+
 void PrintPairs(std::ostream& out, const char* label, const proto::Json& pairs) {
   if (!pairs.is_array() || pairs.empty()) return;
   out << "  " << label << ":";
@@ -161,11 +167,20 @@ void PrintModel(const proto::Json& r, std::ostream& out) {
         << " x the median: export flags them, --drop-dead leaves them out)\n";
   }
   // E is the one quality measure shown (the normalised error and the cost are in --json).
+  // (A linear response: E is the small-load limit's, and the outcome has E as simulated.)
+  const proto::Json outcome = r.value("outcome", proto::Json::object());
+  const bool simulated = outcome.is_object() && outcome.contains("simulated_rms_error");
   out << "E (RMS nodal):     "
       << (r.contains("rms_error") ? fmt::format("{:.6g}", r["rms_error"].get<double>())
                                   : std::string("- (no equilibrium)"))
-      << " on the named load cases (relative RMS nodal error against the reference)"
+      << " on the named load cases (relative RMS nodal error against the reference"
+      << (simulated ? ", small-load limit: rest-linear springs" : "") << ")"
       << (r.value("mechanism", false) ? "; a mechanism" : "") << "\n";
+  if (simulated)
+    out << "  as simulated:    " << ShortNumber(outcome["simulated_rms_error"])
+        << " on the named load cases with nonlinear springs at their own size (as a simulator "
+           "runs them); baseline "
+        << ShortNumber(outcome.value("baseline_simulated_rms_error", proto::Json())) << "\n";
 }
 
 // Strategy continuous: the sparsity path, the regularisation, the held-out error.
@@ -245,15 +260,13 @@ void PrintBaseline(const proto::Json& b, std::ostream& out) {
 void PrintGeneralization(const proto::Json& g, std::ostream& out) {
   // ("inf": some probe finds a mode the model leaves free; "-": not measured.)
   const auto number = [](const proto::Json& j, const char* key) {
-    if (j.contains(key) && j[key].is_string()) return j[key].get<std::string>();
-    return j.contains(key) && j[key].is_number() ? fmt::format("{:.3g}", j[key].get<double>())
-                                                 : std::string("-");
+    return ShortNumber(j.contains(key) ? j[key] : proto::Json());
   };
   const proto::Json held = g.value("held_out", proto::Json::object());
   const proto::Json base = g.value("baseline_held_out", proto::Json::object());
   const proto::Json probes = g.value("probes", proto::Json::object());
   out << "unseen loads:      " << held.value("probes", 0) << " held-out probes on "
-      << probes.value("supports", 0) << " supports, never fitted: median E "
+      << probes.value("supports", 0) << " supports, never fitted (small-load limit): median E "
       << number(held, "median") << ", 95% " << number(held, "p95") << "; baseline "
       << number(base, "median") << ", 95% " << number(base, "p95") << "\n";
   const proto::Json families = g.value("by_family", proto::Json::object());
@@ -266,8 +279,8 @@ void PrintGeneralization(const proto::Json& g, std::ostream& out) {
     first = false;
   }
   out << " (median E; named: the user's cases, fitted)\n";
-  // A nonlinear response: the same loads at fractions of the named loads' size, every model
-  // nonlinear.
+  // The same loads at fractions of the load range, every model's springs nonlinear (as the
+  // simulator runs them), whatever the fit's response.
   for (const auto& a : g.value("amplitudes", proto::Json::array())) {
     const proto::Json model = a.value("model", proto::Json::object());
     const proto::Json baseline = a.value("baseline", proto::Json::object());

@@ -145,4 +145,14 @@ std::optional<double> StableExplicitTimeStep(const SpringModel& model) {
   return 2.0 / std::sqrt(omega2);
 }
 
+std::string JudgedText(const SpringModel& model) {
+  if (model.response == "linear")
+    return "judged: E as simulated and the amplitudes with nonlinear springs (as a simulator runs "
+           "them) at the loads' own size; E small-load, the held-out probes and the eigenvalues in "
+           "the small-load limit the fit used (rest-linear springs)";
+  return "judged: E and the amplitudes with nonlinear springs (as a simulator runs them) at the "
+         "loads' own size; the held-out probes and the eigenvalues, where given, in the small-load "
+         "limit (rest-linear springs)";
+}
+
 }  // namespace springfit::io

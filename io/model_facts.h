@@ -4,6 +4,7 @@
 #pragma once
 
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "engine/api/scene.h"
@@ -31,6 +32,11 @@ void MarkDeadSprings(SpringModel& model, const ModelOptions& options);
 void LumpMasses(SpringModel& model, const Scene& scene, const ModelOptions& options);
 
 std::optional<double> TotalMass(const SpringModel& model);
+
+// How the model was judged, in words every export says (the export's line, the SOFA scene's
+// comment): with a linear response, fitted in the small-load limit and judged there and as the
+// simulator runs it; with a nonlinear one, fitted and judged with the spring law.
+std::string JudgedText(const SpringModel& model);
 
 // 2 / omega_max for the model's springs linearised at rest and its masses, with omega_max^2
 // bounded from above by the block Gershgorin bound of M^-1/2 K M^-1/2: for node i,

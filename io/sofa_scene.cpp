@@ -11,6 +11,7 @@
 
 #include "engine/api/analysis.h"
 #include "engine/api/input_error.h"
+#include "io/model_facts.h"
 #include "io/text_output.h"
 #include "io/xml_text.h"
 
@@ -159,6 +160,7 @@ struct SofaScene {
     if (model.facts.stable_time_step)
       out << " Stable explicit time step at most " << Number(*model.facts.stable_time_step)
           << (model.units ? " " + model.units->time : std::string()) << " (undamped).";
+    out << "\n     How it was " << XmlCommentText(JudgedText(model)) << ".";
     if (model.dimension == 2) out << "\n     2D model: Vec3d at z = 0, every node held along z.";
     out << " -->\n";
     out << "<Node name=\"root\" gravity=\"" << Number(options.gravity[0]) << " "

@@ -58,21 +58,22 @@ void AddLoadCases(SpringModel& model, const Problem& problem) {
   }
 }
 
-// The line every format writes: the strategy and seed, the result's verdict line (as run,
-// result and the dashboard show it; E alone for a result written before it had one), and the
-// scene's units where it states them.
+// The line every format writes: the strategy and seed, the scene's units where it states them,
+// and the result's verdict line (as run, result and the dashboard show it; E alone for a result
+// written before it had one). The units come before the verdict line, which is the longest
+// part: a format that cuts the line (legacy VTK's 256-character title) keeps them.
 std::string DescriptionOf(const proto::StoredResult& result, const Scene& scene) {
   std::string description = "springfit, strategy " + result.strategy;
   if (result.seed) description += ", seed " + std::to_string(*result.seed);
-  if (result.outcome) {
-    description += "; " + result.outcome->Headline();
-  } else if (result.rms_error) {
-    description += fmt::format(", E {:.4g}", *result.rms_error);
-  }
   if (scene.units) {
     const DerivedUnits units = DeriveUnits(*scene.units);
     description += "; units: length " + units.length + ", force " + units.force + ", stiffness " +
                    units.stiffness + ", mass " + units.mass + ", time " + units.time;
+  }
+  if (result.outcome) {
+    description += "; " + result.outcome->Headline();
+  } else if (result.rms_error) {
+    description += fmt::format(", E {:.4g}", *result.rms_error);
   }
   return description;
 }

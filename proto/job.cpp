@@ -63,8 +63,21 @@ std::string JobErrorText(const JobRecord& job) {
     if (!std::isfinite(e)) return std::string("-");
     return fmt::format("{:.3g}", e);
   };
-  if (job.outcome) return job.outcome->rms_error ? text(*job.outcome->rms_error) : "-";
+  // (A linear response: E as simulated, as the headline gives it first.)
+  if (job.outcome) {
+    const std::optional<double>& e = job.outcome->simulated_rms_error
+                                         ? job.outcome->simulated_rms_error
+                                         : job.outcome->rms_error;
+    return e ? text(*e) : "-";
+  }
   return job.progress ? text(std::sqrt(job.progress->best_normalized_error)) + "~" : "-";
+}
+
+std::string ClockText(double seconds) {
+  if (!(seconds >= 0.0) || !std::isfinite(seconds)) return "-";
+  const long long total = std::llround(seconds);
+  if (total < 3600) return fmt::format("{}:{:02}", total / 60, total % 60);
+  return fmt::format("{}:{:02}:{:02}", total / 3600, total / 60 % 60, total % 60);
 }
 
 Json JobToJson(const JobRecord& job) {

@@ -59,6 +59,11 @@ bool ProgressCountsSteps(std::string_view strategy);
 // verdict, the best so far marked "~" while it runs, "-" without either (3 digits).
 std::string JobErrorText(const JobRecord& job);
 
+// A duration for people: "0:07", "12:34", "1:02:03" (minutes:seconds under an hour,
+// hours:minutes:seconds from it); "-" for a negative or non-finite one. The CLI's progress
+// line and the dashboard say a phase's time left in it.
+std::string ClockText(double seconds);
+
 Json JobToJson(const JobRecord& job);
 JobRecord JobFromJson(const Json& json);  // the client's reading; throws InputError
 

@@ -37,6 +37,10 @@ Json OutcomeToJson(const Outcome& o) {
   j["unseen_springs"] = o.unseen_springs;
   j["rms_error"] = Optional(o.rms_error);
   j["baseline_rms_error"] = Optional(o.baseline_rms_error);
+  if (o.simulated_rms_error) {
+    j["simulated_rms_error"] = Optional(o.simulated_rms_error);
+    j["baseline_simulated_rms_error"] = Optional(o.baseline_simulated_rms_error);
+  }
   if (o.held_out_rms_error || o.held_out_p95) {
     j["held_out"] = {{"of", o.held_out_of},
                      {"median", Optional(o.held_out_rms_error)},
@@ -74,6 +78,8 @@ Outcome OutcomeFromJson(const Json& j, const std::string& path) {
     o.unseen_springs = ReadInt(j["unseen_springs"], JoinPath(path, "unseen_springs"));
   o.rms_error = ReadOptional(j, "rms_error", path);
   o.baseline_rms_error = ReadOptional(j, "baseline_rms_error", path);
+  o.simulated_rms_error = ReadOptional(j, "simulated_rms_error", path);
+  o.baseline_simulated_rms_error = ReadOptional(j, "baseline_simulated_rms_error", path);
   if (j.contains("held_out") && j["held_out"].is_object()) {
     const Json& h = j["held_out"];
     const std::string at = JoinPath(path, "held_out");

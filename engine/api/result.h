@@ -29,6 +29,15 @@ struct IdentificationResult {
   std::vector<NodePair> springs;  // the best model's springs, in candidate order
   std::vector<double> stiffness;  // per spring of `springs`: identified, or the training stiffness
   Evaluation evaluation;          // of the best model, per load case
+  // The named cases as the simulator runs the model, where the problem's response is linear
+  // (`evaluation` is then the small-load limit's): E with the spring law, the model's and the
+  // closed-form baseline's (engine/identification/as_simulated.h). Absent where the response is
+  // nonlinear (`evaluation` is that already) or the run was stopped before it.
+  struct AsSimulated {
+    double rms_error = 0.0;  // infinite: no equilibrium under some case
+    std::optional<double> baseline_rms_error;
+  };
+  std::optional<AsSimulated> as_simulated;
 
   // The verdict and the headline numbers, decided once at the end of RunIdentification
   // (verdict.h): every surface shows them and the exit codes follow them.

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include "engine/genome/gene_weights.h"
+#include "engine/identification/as_simulated.h"
 #include "engine/identification/run_bounds.h"
 #include "engine/identification/run_monitor.h"
 #include "engine/identification/strategy.h"
@@ -219,6 +220,10 @@ IdentificationResult RunIdentification(const Problem& problem, const SearchOptio
   r.springs = problem.SpringsOfGenome(r.best);
   r.difference = problem.CompareWithReference(r.best);
   if (r.stiffness.empty()) r.stiffness.assign(r.springs.size(), problem.training_stiffness());
+  // (A phase of its own, whose beats carry no fill: the strategy's fill refers to its own
+  // state, which is gone once it has returned.)
+  monitor.SetPhase("as_simulated");
+  r.as_simulated = NamedCasesAsSimulated(problem, r, &monitor.interruption());
   if (r.stop_message.empty()) r.stop_message = StopMessage(r);
   r.outcome = JudgeResult(problem, r);
   return r;

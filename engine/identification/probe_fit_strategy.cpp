@@ -125,13 +125,13 @@ std::vector<double> LoadRangeAmplitudes(const SearchOptions& options,
   return {0.25 * scale, 0.5 * scale, scale};
 }
 
-// The nonlinear judgement across the load range (a nonlinear response only).
-// False when stopped: the amplitudes are then left empty (the run is ending).
+// The judgement as the simulator runs the model across the load range, with nonlinear springs
+// whatever the fit's response (docs/ARCHITECTURE.md, "Judging a model as the simulator runs
+// it"). False when stopped: the amplitudes are then left empty (the run is ending).
 bool JudgeAtAmplitudes(const Problem& problem, const RunProbes& probes,
                        const std::vector<double>& weights, const response::SpringModel& baseline,
                        const std::vector<double>& amplitudes, response::Generalization& certificate,
                        Interruption* interruption, WorkerPool* pool) {
-  if (problem.response() != Response::kNonlinear) return true;
   try {
     const response::SpringModel model = response::ModelOfWeights(problem, weights);
     response::AmplitudeOptions judged;
@@ -504,7 +504,7 @@ IdentificationResult RunProbeFit(const Problem& problem, const SearchOptions& op
   pace.stopped = monitor.SecondsSinceStart();
   if (m.stopped == StoppedIn::kNowhere) enter("certificate");
   ChooseAndCertify(problem, options, probes, baseline, fit_options, monitor, m);
-  if (m.certificate && problem.response() == Response::kNonlinear) {
+  if (m.certificate) {
     enter("nonlinear");
     if (!JudgeAtAmplitudes(problem, probes, m.weights, baseline.model.springs, amplitudes,
                            *m.certificate, &monitor.interruption(), pool))

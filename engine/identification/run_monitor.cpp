@@ -1,7 +1,6 @@
 #include "engine/identification/run_monitor.h"
 
 #include <limits>
-
 #include <utility>
 
 namespace springfit {
@@ -34,7 +33,10 @@ bool RunMonitor::Poll() {
   ProgressBeat beat;
   beat.phase = phase_;
   beat.wall_seconds = SecondsSinceStart();
-  if (fill_) fill_(beat);
+  if (fill_)
+    fill_(beat);
+  else
+    beat.best_normalized_error = std::numeric_limits<double>::quiet_NaN();  // no model: no E
   // The time limit is on the wall clock from the run's start, its analysis included: what a
   // user who asked for it waits (the trace's clock starts after the analysis).
   if (TimeLimitPassed()) return true;

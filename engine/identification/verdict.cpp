@@ -155,6 +155,16 @@ std::vector<std::string> Doubts(const Problem& problem, const IdentificationResu
     CertificateDoubts(*r.generalization, doubts);
     AsSimulatedDoubts(*r.generalization, doubts);
   }
+  if (r.as_simulated && r.as_simulated->baseline_rms_error &&
+      r.as_simulated->rms_error > *r.as_simulated->baseline_rms_error)
+    doubts.push_back(
+        "as the simulator runs it (nonlinear springs), the model meets the named "
+        "cases worse than the closed-form recipe: E " +
+        NumberText(r.as_simulated->rms_error) + " (recipe " +
+        NumberText(*r.as_simulated->baseline_rms_error) +
+        "; in the small-load limit the fit judged by, " +
+        NumberText(std::sqrt(r.evaluation.normalized_error)) + " and " +
+        (r.baseline ? NumberText(r.baseline->rms_error) : std::string("-")) + ")");
   if (const auto strain = SmallStrainWarning(problem, r.options.load_size))
     doubts.push_back(*strain);
   return doubts;
@@ -193,7 +203,15 @@ std::string Outcome::Headline() const {
       std::string(VerdictName(verdict)) + ": " + std::to_string(springs) + " springs";
   if (unseen_springs > 0)
     text += " (+" + std::to_string(unseen_springs) + " between held nodes, in exports)";
-  text += ", E " + (rms_error ? NumberText(*rms_error) : std::string("-"));
+  // (A linear response: what the simulator shows first, the small-load limit beside it.)
+  if (simulated_rms_error) {
+    text += ", E " + NumberText(*simulated_rms_error) + " as simulated";
+    if (baseline_simulated_rms_error)
+      text += " (baseline " + NumberText(*baseline_simulated_rms_error) + ")";
+    text += ", " + (rms_error ? NumberText(*rms_error) : std::string("-")) + " small-load";
+  } else {
+    text += ", E " + (rms_error ? NumberText(*rms_error) : std::string("-"));
+  }
   if (baseline_rms_error) text += " (baseline " + NumberText(*baseline_rms_error) + ")";
   if (held_out_rms_error) {
     text += ", held-out " + held_out_of + " E " + NumberText(*held_out_rms_error);
@@ -210,6 +228,10 @@ Outcome JudgeResult(const Problem& problem, const IdentificationResult& r) {
   if (r.evaluation.converged && !r.evaluation.mechanism)
     o.rms_error = std::sqrt(r.evaluation.normalized_error);
   if (r.baseline && r.baseline->converged) o.baseline_rms_error = r.baseline->rms_error;
+  if (r.as_simulated) {
+    o.simulated_rms_error = r.as_simulated->rms_error;
+    o.baseline_simulated_rms_error = r.as_simulated->baseline_rms_error;
+  }
   if (r.generalization) {
     const response::Generalization& g = *r.generalization;
     o.held_out_of = "probes";

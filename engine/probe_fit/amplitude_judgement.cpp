@@ -42,9 +42,7 @@ std::vector<AmplitudeErrors> JudgeAtAmplitudes(const Problem& problem, const Pro
                                                Interruption* interruption, WorkerPool* pool) {
   options.Validate();
   const Scene& scene = problem.scene();
-  if (problem.response() != Response::kNonlinear ||
-      scene.reference.kind == Reference::Kind::kPositions)
-    return {};
+  if (scene.reference.kind == Reference::Kind::kPositions) return {};
   const int d = problem.dimension();
   std::vector<int> all(bank.probes.size());
   std::iota(all.begin(), all.end(), 0);
@@ -75,7 +73,8 @@ std::vector<AmplitudeErrors> JudgeAtAmplitudes(const Problem& problem, const Pro
                                    interruption);
     for (std::size_t a = 0; a < amplitudes; ++a) {
       const ScaledLoad load = ScaleLoad(probe.force, probe.prescribed, options.amplitudes[a]);
-      const std::optional<Vector> reference = reference_solver.Solve(load.force, load.prescribed);
+      const std::optional<Vector> reference =
+          reference_solver.SolveAt(load, probe.reference, options.amplitudes[a]);
       if (!reference) {
         model_errors[a][i] = baseline_errors[a][i] = std::numeric_limits<double>::quiet_NaN();
         continue;

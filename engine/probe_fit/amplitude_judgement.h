@@ -1,17 +1,17 @@
-// A model judged as the nonlinear model a simulator runs (issue 31, "Nonlinear references"): the
-// probe fit matches the reference's response at rest, but under a load of the named cases' size
-// a nonlinear reference (St. Venant-Kirchhoff or neo-Hookean FEM, an MSS) and the springs
-// (which turn and stretch) both leave the small-load limit. So the held-out probes and the named
-// cases are applied again at fractions of their size (by default 25, 50 and 100% of the named
-// loads: the generated probes are scaled like them, probe_bank.h) and solved to equilibrium,
-// the reference with its own law and the model and the closed-form baseline as nonlinear
-// spring models; E per probe as in probe_evaluation.h, summarised per amplitude.
+// A model judged as the nonlinear model a simulator runs (docs/ARCHITECTURE.md, "Judging a
+// model as the simulator runs it"): the probe fit matches the reference's response at rest, but
+// under a load of the named cases' size the springs (which turn and stretch) leave the
+// small-load limit, and so does a nonlinear reference (St. Venant-Kirchhoff or neo-Hookean FEM,
+// an MSS); a linear FEM reference is the small-load limit at every size, which is what it
+// states of the tissue, and the springs are judged against it there as a simulator runs them. So
+// the held-out probes and the named cases are applied again at fractions of their size (by default
+// 25, 50 and 100% of the named loads: the generated probes are scaled like them, probe_bank.h) and
+// solved to equilibrium, the reference with its own law and the model and the closed-form baseline
+// as nonlinear spring models; E per probe as in probe_evaluation.h, summarised per amplitude.
 //
 // A probe the reference has no equilibrium for at an amplitude (a load beyond what it carries,
 // buckling) is left out at that amplitude and counted; a model without an equilibrium there (a
 // mechanism on the probe's support, or Newton's failure) has E infinite.
-// Only for a problem whose response is nonlinear: with a linear one every amplitude gives the
-// rest-linear errors of the certificate.
 #pragma once
 
 #include <string>
@@ -38,7 +38,7 @@ struct AmplitudeOptions {
 };
 
 // Per amplitude, on the probes of `judged` (the certificate's: the held-out probes and the named
-// cases, Certifier); empty when the problem's response is linear or its reference is positions.
+// cases, Certifier); empty when the reference is positions.
 // Throws Interrupted when `interruption` stops it (checked between probes). With a pool the
 // probes run in parallel, with the same result.
 std::vector<AmplitudeErrors> JudgeAtAmplitudes(const Problem& problem, const ProbeBank& judged,

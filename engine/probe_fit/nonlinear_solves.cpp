@@ -1,5 +1,6 @@
 #include "engine/probe_fit/nonlinear_solves.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -65,26 +66,40 @@ std::optional<Vector> SpringResponse::Solve(const Vector& force, const Vector& p
 EquilibriumOptions LoadStepSolverOptions(const Problem& problem) {
   EquilibriumOptions options = problem.solver_options();
   options.chord_contraction = kLoadStepChordContraction;
+  options.response = Response::kNonlinear;
   return options;
 }
 
 ReferenceSolver::ReferenceSolver(const std::optional<fem::FemModel>& fem,
                                  const std::optional<SpringSolverInput>& springs,
                                  const FreeNodes& free, const Problem& problem,
-                                 Interruption* interruption) {
+                                 Interruption* interruption)
+    : free_(free), interruption_(interruption) {
   if (fem) {
-    fem_.emplace(*fem, free);
-    fem_->set_interruption(interruption);
+    fem_model_ = &*fem;
+    const std::vector<Material>& materials = problem.scene().reference.fem.materials;
+    linear_ = std::all_of(materials.begin(), materials.end(),
+                          [](const Material& m) { return m.model == MaterialModel::kLinear; });
   } else {
     springs_.emplace(*springs, free, problem.solver_options(), interruption);
   }
 }
 
 std::optional<Vector> ReferenceSolver::Solve(const Vector& force, const Vector& prescribed) {
-  if (!fem_) return springs_->Solve(force, prescribed);
+  if (!fem_model_) return springs_->Solve(force, prescribed);
+  if (!fem_) {
+    fem_.emplace(*fem_model_, free_);
+    fem_->set_interruption(interruption_);
+  }
   Vector u = Vector::Zero(force.size());
   if (!fem_->Solve(force, prescribed, u).converged()) return std::nullopt;
   return u;
+}
+
+std::optional<Vector> ReferenceSolver::SolveAt(const ScaledLoad& load, const Vector& at_size,
+                                               double amplitude) {
+  if (linear_) return Vector(amplitude * at_size);
+  return Solve(load.force, load.prescribed);
 }
 
 ReferenceModel::ReferenceModel(const Problem& problem) {

@@ -60,8 +60,18 @@ class SpringResponse {
 // nonlinear fit"; bench/RESULTS.md, round nine, has the thresholds tried).
 inline constexpr double kLoadStepChordContraction = 0.1;
 // The problem's solver options for load steps (SpringResponse's solves of a probe at
-// increasing sizes): with kLoadStepChordContraction.
+// increasing sizes): with kLoadStepChordContraction, and the simulator's spring law (nonlinear
+// springs) whatever the problem's response, as every load-stepped solve judges or fits the
+// model as the simulator runs it.
 EquilibriumOptions LoadStepSolverOptions(const Problem& problem);
+
+// A probe's loads at `amplitude` of their size: the force and the prescribed displacements (an
+// empty `prescribed` is none).
+struct ScaledLoad {
+  Vector force;
+  Vector prescribed;
+};
+ScaledLoad ScaleLoad(const Vector& force, const Vector& prescribed, double amplitude);
 
 // The reference's response to a probe's loads on one support: the FEM model's nonlinear solve,
 // or the reference MSS's. Checked for a stop at every Newton iteration too: a probe of a large
@@ -73,10 +83,19 @@ class ReferenceSolver {
                   const Problem& problem, Interruption* interruption);
   // nullopt where the reference has no equilibrium.
   std::optional<Vector> Solve(const Vector& force, const Vector& prescribed);
+  // The response at `amplitude` of a probe's own size, whose response there `at_size` is known
+  // (the bank's, from the rest stiffness): for a reference linear at every size (an FEM model
+  // whose materials are all linear) that response scaled, without a solve (in 3D a probe's
+  // solves cost as much as the springs' there); else Solve of the scaled load.
+  std::optional<Vector> SolveAt(const ScaledLoad& load, const Vector& at_size, double amplitude);
 
  private:
-  std::optional<fem::FemEquilibriumSolver> fem_;
+  const fem::FemModel* fem_model_ = nullptr;
+  FreeNodes free_;
+  Interruption* interruption_ = nullptr;
+  std::optional<fem::FemEquilibriumSolver> fem_;  // made at the first solve that needs it
   std::optional<SpringResponse> springs_;
+  bool linear_ = false;
 };
 
 // The reference model of a problem for ReferenceSolver: its FEM model or its springs (one of
@@ -95,14 +114,6 @@ double RelativeError(const Vector& model, const Vector& reference, const FreeNod
 // whose equilibrium does that has folded the tissue the mesh describes: a simulator's
 // collision and rendering meshes invert with it. 0 for a reference without elements.
 int InvertedElements(const Scene& scene, const Vector& u);
-
-// A probe's loads at `amplitude` of their size: the force and the prescribed displacements (an
-// empty `prescribed` is none).
-struct ScaledLoad {
-  Vector force;
-  Vector prescribed;
-};
-ScaledLoad ScaleLoad(const Vector& force, const Vector& prescribed, double amplitude);
 
 // Fractions of the named loads' size (an options field `amplitudes`): at least one, each in
 // (0, 20], ascending; `check` names the owner.

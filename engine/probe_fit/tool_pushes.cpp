@@ -104,7 +104,8 @@ std::vector<ToolPushErrors> JudgeToolPushes(const Problem& problem, const ProbeB
         const Vector force = Vector::Zero(scene.rest.size());
         for (std::size_t a = 0; a < depths; ++a) {
           const Vector prescribed = options.amplitudes[a] * probe.prescribed;
-          const std::optional<Vector> u_ref = reference_solver.Solve(force, prescribed);
+          const std::optional<Vector> u_ref = reference_solver.SolveAt(
+              ScaledLoad{force, prescribed}, probe.reference, options.amplitudes[a]);
           if (!u_ref) continue;  // (NaN: left out)
           const Vector r_ref = FemReaction(*reference.fem, held, *u_ref, nodes, d);
           const auto judge = [&](SpringResponse& solver, const SpringSolverInput& input) {

@@ -69,6 +69,11 @@ class Outcome(_Record):
     unseen_springs: Optional[int] = None
     rms_error: Optional[float] = None      # E on the named load cases (None: no equilibrium)
     baseline_rms_error: Optional[float] = None
+    # A linear response (rms_error is then the small-load limit's): E on the same cases as the
+    # simulator runs the springs (nonlinear; "inf": no equilibrium), the model's and the
+    # baseline's; None otherwise (proto/RUN.md, "The verdict").
+    simulated_rms_error: Optional[float] = None
+    baseline_simulated_rms_error: Optional[float] = None
     held_out: Optional[dict] = None
     raw: dict = field(default_factory=dict, repr=False, compare=False)
 

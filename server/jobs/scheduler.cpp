@@ -293,7 +293,7 @@ void Scheduler::OnBeat(std::int64_t id, Running& running, const JobRecord& job,
   {
     MutexLock lock(running.live_mutex);
     running.phase = LivePhase{std::string(beat.phase), beat.wall_seconds,
-                              std::sqrt(beat.best_normalized_error)};
+                              std::sqrt(beat.best_normalized_error), beat.eta_seconds};
   }
   // A watcher sees where the step has got (a fit's steps, the sparsity path, the
   // certificate): each phase's first beat, then at most every progress_seconds.

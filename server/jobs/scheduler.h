@@ -16,6 +16,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -115,6 +116,8 @@ class Scheduler {
     std::string phase;
     double wall_seconds = 0.0;
     double rms_error = 0.0;
+    // The phase's time left at most (ProgressBeat::eta_seconds); NaN where it gives none.
+    double eta_seconds = std::numeric_limits<double>::quiet_NaN();
   };
   std::optional<LivePhase> Phase(std::int64_t id) const;
   bool IsRunningHere(std::int64_t id) const;

@@ -17,6 +17,7 @@
 #include "io/model_writers.h"
 #include "io/spring_model.h"
 #include "io/xml_text.h"
+#include "proto/job.h"
 #include "proto/outcome_codec.h"
 #include "proto/scene_codec.h"
 #include "proto/search_codec.h"
@@ -227,7 +228,17 @@ std::string ResultCard(const Outcome& o, const Json& result, const Json& search)
                   (o.unseen_springs > 0
                        ? fmt::format(" (+{} between held nodes, in exports)", o.unseen_springs)
                        : std::string()));
-  body += Row("E (named cases)", o.rms_error ? ErrorText(*o.rms_error) : "- (no equilibrium)");
+  // (A linear response: what the simulator shows first, the small-load limit the fit judged by
+  // beside it; the words of the headline.)
+  if (o.simulated_rms_error) {
+    body += Row("E as simulated (named cases, nonlinear springs)",
+                ErrorText(*o.simulated_rms_error) +
+                    (o.baseline_simulated_rms_error
+                         ? " (baseline " + ErrorText(*o.baseline_simulated_rms_error) + ")"
+                         : std::string()));
+  }
+  body += Row(o.simulated_rms_error ? "E small-load (named cases)" : "E (named cases)",
+              o.rms_error ? ErrorText(*o.rms_error) : "- (no equilibrium)");
   if (o.baseline_rms_error) {
     body += Row("baseline E", ErrorText(*o.baseline_rms_error));
     if (o.rms_error && *o.baseline_rms_error > 0.0)
@@ -510,12 +521,16 @@ HttpResponse Dashboard::Route(const HttpRequest&, const std::string& path,
   return Text(404, "not found\n");
 }
 
-// Where a job running here is inside its step (Scheduler::Phase): "fit, 12.3 s, E 0.05".
+// Where a job running here is inside its step (Scheduler::Phase): "fit, 12.3 s, E 0.05", and
+// the time the phase has left at most where it says ("probe_fit, 7.5 s, E 0.21, ETA <= 0:10",
+// as the CLI's progress line).
 std::string Dashboard::PhaseText(std::int64_t id) const {
   const std::optional<Scheduler::LivePhase> phase = scheduler_.Phase(id);
   if (!phase) return "-";
   std::string text = phase->phase + ", " + Seconds(phase->wall_seconds);
   if (std::isfinite(phase->rms_error)) text += ", E " + ErrorText(phase->rms_error);
+  if (std::isfinite(phase->eta_seconds) && phase->eta_seconds >= 0.0)
+    text += ", ETA <= " + proto::ClockText(phase->eta_seconds);
   return text;
 }
 

@@ -69,7 +69,7 @@ PY
 # Strategy continuous (default on an FEM reference) fitted to probe loads: the certificate on
 # loads it was never fitted to, beside the baseline, in the summary and the result.
 expect_exit 0 "run fem probes" "$sf" run "$src/examples/fem-plate-5x5.json" -q -o "$tmp/probes.json"
-grep -q "^unseen loads:      [0-9]* held-out probes on [0-9]* supports, never fitted: median E .*; baseline " "$tmp/out" || fail "run prints the held-out E: $(cat "$tmp/out")"
+grep -q "^unseen loads:      [0-9]* held-out probes on [0-9]* supports, never fitted (small-load limit): median E .*; baseline " "$tmp/out" || fail "run prints the held-out E: $(cat "$tmp/out")"
 # The verdict line names them as the certificate does: held-out probes (issue 47 item 5).
 grep -q "^verdict: .*, held-out probes E [0-9.e-]* (baseline [0-9.e-]*)" "$tmp/out" || fail "the verdict names the held-out probes: $(grep -m1 '^verdict' "$tmp/out")"
 grep -q "^  every load:      any load on your supports is reproduced within [0-9.e+-]* of the response in the energy norm (baseline within [0-9.e+-]*); generalised eigenvalues of (K_model, K_ref) in \[" "$tmp/out" || fail "run prints the pencil's bound beside the baseline's: $(cat "$tmp/out")"

@@ -287,8 +287,11 @@ def check_phase(rpc_port, port):
     expect(wait_for(phase_shown, 30), f"no phase shown for the running continuous job: {seen}")
     name = seen.get("phase", "-").split(",")[0]
     expect(name in ("analysis", "probes", "probe_fit", "probe_path", "probe_lift",
-                    "nonlinear_fit", "certificate", "nonlinear", "fit", "path", "refit",
-                    "held_out"), f"an unexpected phase: {seen.get('phase')}")
+                    "nonlinear_fit", "certificate", "nonlinear", "as_simulated", "fit", "path",
+                    "refit", "held_out"), f"an unexpected phase: {seen.get('phase')}")
+    # The probe fit's time left at most, as the CLI's progress line says it (issue 47 item 5).
+    expect(wait_for(lambda: phase_shown() and "ETA <= " in seen.get("phase", ""), 60),
+           f"no time left shown for the running probe fit: {seen}")
     expect("/" not in seen.get("generation", ""), f"a continuous job shown by generations: {seen}")
     status, _, page = get(port, f"/jobs/{job}")
     expect(status == 200 and '<span id="p-phase">' in page, "the job page has no live phase")

@@ -1,5 +1,6 @@
 // Round trips of job records and verdicts through their text (proto/job.h, outcome_codec.h),
 // what a reader of a newer server ignores, and the one wording of a job's E.
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <optional>
@@ -149,6 +150,16 @@ TEST(OutcomeCodecRoundTrip, EveryVerdictAndItsLinesReadBack) {
   EXPECT_EQ(back.unmet, o.unmet);
   EXPECT_EQ(back.springs, 80);
   EXPECT_EQ(OutcomeToJson(back).dump(), OutcomeToJson(o).dump());
+  // E as simulated (a linear response) only where there is one; "inf" for no equilibrium.
+  EXPECT_FALSE(OutcomeToJson(o).contains("simulated_rms_error"));
+  EXPECT_FALSE(back.simulated_rms_error);
+  Outcome simulated = o;
+  simulated.simulated_rms_error = HUGE_VAL;
+  simulated.baseline_simulated_rms_error = 0.3;
+  const Outcome read = OutcomeFromJson(ParseJson(OutcomeToJson(simulated).dump()), "outcome");
+  EXPECT_EQ(read.simulated_rms_error, HUGE_VAL);
+  EXPECT_EQ(read.baseline_simulated_rms_error, 0.3);
+  EXPECT_EQ(OutcomeToJson(simulated)["simulated_rms_error"], "inf");
   Json bad = OutcomeToJson(o);
   bad["doubts"][1] = 3;
   try {
@@ -171,6 +182,9 @@ TEST(JobText, ErrorIsTheVerdictsOnceFinishedAndTheBestSoFarWhileRunning) {
   outcome.rms_error = 0.0123456;
   job.outcome = outcome;
   EXPECT_EQ(JobErrorText(job), "0.0123");
+  job.outcome->simulated_rms_error = 0.0234567;  // a linear response: E as simulated first
+  EXPECT_EQ(JobErrorText(job), "0.0235");
+  job.outcome->simulated_rms_error.reset();
   job.outcome->rms_error.reset();
   EXPECT_EQ(JobErrorText(job), "-");
   EXPECT_TRUE(ProgressCountsSteps("continuous"));

@@ -1,5 +1,6 @@
 // The nonlinear judgement (engine/probe_fit/amplitude_judgement.h): small loads give the
-// rest-linear errors, models that fold the mesh are counted, a linear response is not judged.
+// rest-linear errors, models that fold the mesh are counted, a linear reference is judged with
+// the spring law too.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -121,14 +122,36 @@ TEST(AmplitudeJudgement, ModelsThatFoldTheMeshAreCounted) {
   EXPECT_LT(judged[0].model_inverted, judged[0].baseline_inverted);
 }
 
-// A linear response has nothing to add to the rest-linear certificate.
-TEST(AmplitudeJudgement, ALinearResponseIsNotJudgedAgain) {
+// A linear reference is judged as the simulator runs the springs too: the reference is the
+// small-load limit at every size, so at a thousandth of the loads the springs' errors are the
+// certificate's rest-linear ones, and at four times the loads every difference from them is the
+// springs' own (they turn and stretch), which the rest-linear certificate cannot see.
+TEST(AmplitudeJudgement, ALinearReferenceIsJudgedWithTheSpringLaw) {
   const Problem problem(examples::Make("fem-kidney-2d"));
   ASSERT_EQ(problem.response(), Response::kLinear);
   const SparseMatrix k = ReferenceRestStiffness(problem);
-  const ProbeBank bank = MakeProbeBanks(problem, k, ProbeOptions{}).fit;
-  const SpringModel baseline = ModelOfWeights(problem, *BaselineGeneWeights(problem));
-  EXPECT_TRUE(JudgeAtAmplitudes(problem, bank, baseline, baseline).empty());
+  const ProbeBank all = MakeProbeBanks(problem, k, ProbeOptions{}).fit;
+  ProbeBank bank = all;
+  bank.probes.clear();
+  for (std::size_t p = 0; p < all.probes.size(); p += 6) bank.probes.push_back(all.probes[p]);
+  const std::vector<double> baseline = *BaselineGeneWeights(problem);
+  AmplitudeOptions options;
+  options.amplitudes = {1e-3, 4.0};
+  options.max_probes = 1000;
+  const SpringModel model = ModelOfWeights(problem, baseline);
+  const std::vector<AmplitudeErrors> judged =
+      JudgeAtAmplitudes(problem, bank, model, model, options);
+  ASSERT_EQ(judged.size(), 2u);
+  const std::vector<bool> include(bank.probes.size(), true);
+  const ErrorSummary linear =
+      Summarize(ProbeErrorsFor(bank, SpringRestStiffness(problem, baseline), include));
+  EXPECT_EQ(judged[0].reference_failed, 0);
+  EXPECT_EQ(judged[0].model.probes, linear.probes);
+  EXPECT_NEAR(judged[0].model.median, linear.median, 1e-2 * linear.median);
+  EXPECT_NEAR(judged[0].model.rms, linear.rms, 1e-2 * linear.rms);
+  // (A linear reference has an equilibrium at any size: none is left out.)
+  EXPECT_EQ(judged[1].reference_failed, 0);
+  EXPECT_GT(std::abs(judged[1].model.rms - linear.rms), 1e-2 * linear.rms);
 }
 
 }  // namespace

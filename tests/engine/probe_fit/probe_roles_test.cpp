@@ -17,6 +17,7 @@
 #include "engine/probe_fit/response_fit.h"
 #include "engine/problem/baseline_evaluation.h"
 #include "engine/runtime/input_error.h"
+#include "io/example_catalog.h"
 
 namespace springfit::response {
 namespace {
