@@ -132,14 +132,19 @@ bool JudgeAtAmplitudes(const Problem& problem, const RunProbes& probes,
                        const std::vector<double>& weights, const response::SpringModel& baseline,
                        const std::vector<double>& amplitudes, response::Generalization& certificate,
                        Interruption* interruption, WorkerPool* pool) {
+  // (A linear reference is the small-load limit at every size, and the springs leave it more
+  // the larger the load: they are judged at the range's full size alone, which is also what a
+  // simulator applies. A nonlinear reference leaves it too, and is judged across the range.)
+  const std::vector<double> sizes =
+      problem.response() == Response::kLinear ? std::vector<double>{amplitudes.back()} : amplitudes;
   try {
     const response::SpringModel model = response::ModelOfWeights(problem, weights);
     response::AmplitudeOptions judged;
-    judged.amplitudes = amplitudes;
+    judged.amplitudes = sizes;
     certificate.amplitudes =
         probes.certifier().JudgeAtAmplitudes(model, baseline, judged, interruption, pool);
     response::ToolPushOptions pushes;
-    pushes.amplitudes = amplitudes;
+    pushes.amplitudes = sizes;
     certificate.tool_pushes =
         probes.certifier().JudgeToolPushes(model, baseline, pushes, interruption, pool);
     return true;
