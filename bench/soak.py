@@ -40,9 +40,11 @@ soak waits (at most --drain-seconds) for every job to end. Then it checks:
                but wall times, thread counts and cache hits) and its whole trace equal a
                local `springfit run` of the same scene and seed; a result read twice is
                the same
-  two places   no job ran in two places at once. The store keeps only the current lease
-               (owner, epoch), no history: the soak samples it twice a second (one owner
-               per epoch, epochs never going back) and rebuilds each run of a job from the
+  two places   no job ran in two places at once. From the store's lease history (table
+               leases, every claim in the store's clock): each claim began after the one
+               before had ended or expired, epochs rising, and every succeeded job has its
+               claims there. Beside it, the current lease sampled twice a second (one owner
+               per epoch, epochs never going back), and each run of a job rebuilt from the
                daemons' logs (`job N running` to its end): a run that started while another
                was still going must find the older run ending without a write (lease lost,
                interrupted, killed), never finishing the job; no run starts after the job
@@ -1351,7 +1353,7 @@ class Soak:
 
     def lease_sampler(self):
         """The store's current leases, twice a second: one owner per (job, epoch), epochs of a
-        job never going back. (The store keeps no lease history; this is a sampled one.)"""
+        job never going back (beside the store's lease history: check_lease_history)."""
         while not self.monitor_stop.is_set():
             rows = self.sql("SELECT id, lease_owner, lease_epoch FROM jobs WHERE state IN "
                             "('running', 'preparing') AND lease_owner IS NOT NULL", timeout=3)
@@ -1474,6 +1476,38 @@ class Soak:
 
     # ---- the checks
 
+    def check_lease_history(self, jobs):
+        """two places, from the store's lease history (table leases: every claim of a job, in
+        the store's clock, written with the lease): each claim began after the one before had
+        ended or expired, epochs rising; every job that ran has its claims there."""
+        rows = self.sql("SELECT job_id, epoch, owner, granted_at, expires_at, "
+                        "COALESCE(ended_at, -1), COALESCE(ended, '') FROM leases "
+                        "ORDER BY job_id, epoch", timeout=60)
+        if rows is None:
+            self.fail("two places", "the store's lease history could not be read")
+            return
+        claims = collections.defaultdict(list)
+        for r in rows:
+            claims[int(r[0])].append((int(r[1]), r[2], float(r[3]), float(r[4]), float(r[5]),
+                                      r[6]))
+        for job_id, history in claims.items():
+            for before, claim in zip(history, history[1:]):
+                held_until = before[4] if before[4] >= 0 else before[3]
+                if claim[0] <= before[0] or claim[2] < held_until:
+                    how = f" ({before[5]})" if before[5] else " (lapsed)"
+                    self.fail("two places", f"job {job_id}: claim {claim[0]} by {claim[1]} at "
+                                            f"{claim[2]:.3f} while claim {before[0]} by "
+                                            f"{before[1]} held it until {held_until:.3f}{how}")
+        for j in jobs:
+            if j["state"] == "succeeded" and j["job_id"] not in claims:
+                self.fail("two places", f"job {j['job_id']} succeeded with no claim in the "
+                                        f"store's lease history")
+        self.stats["lease_history"] = {
+            "claims": sum(len(h) for h in claims.values()), "jobs": len(claims),
+            "lapsed": sum(1 for h in claims.values() for c in h[:-1] if c[4] < 0),
+            "ended": dict(collections.Counter(c[5] or "lapsed or held"
+                                              for h in claims.values() for c in h))}
+
     def verify(self, listing):
         a = self.args
         self.stats = {}
@@ -1561,6 +1595,7 @@ class Soak:
                                         f"{short(err) if err else result.get('state')}")
             except (Down, IndexError):
                 pass
+        self.check_lease_history(jobs)
         # cancel, failed
         states = collections.Counter(j["state"] for j in jobs)
         for j in jobs:
@@ -1810,6 +1845,10 @@ class Soak:
                      f"frozen one | {s.get('resumed_from_checkpoint', 0)} / "
                      f"{s.get('lease_lost_runs', 0)} / {s.get('overlapping_runs_fenced', 0)} |")
         lines.append(f"| lease samples | {self.lease_samples} ({len(self.lease_owner)} job epochs) |")
+        history = s.get("lease_history", {})
+        lines.append(f"| store's lease history: claims / jobs / lapsed and claimed again | "
+                     f"{history.get('claims', 0)} / {history.get('jobs', 0)} / "
+                     f"{history.get('lapsed', 0)} |")
         lines.append(f"| starts refused while the store was unavailable | "
                      f"{s.get('start_refused', 0)} |")
         lines.append(f"| submits retried until acknowledged / never acknowledged (clients; "

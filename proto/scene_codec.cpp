@@ -573,7 +573,10 @@ Json UnitsToJson(const DerivedUnits& u) {
 
 std::string UnitsText(const Json& units) {
   if (!units.is_object()) return "";
-  const auto field = [&](const char* name) { return units.value(name, std::string("?")); };
+  const auto field = [&](const char* name) -> std::string {
+    const auto it = units.find(name);
+    return it != units.end() && it->is_string() ? it->get_ref<const std::string&>() : "?";
+  };
   return "length " + field("length") + ", force " + field("force") + ", stiffness " +
          field("stiffness") + ", mass " + field("mass") + ", time " + field("time") +
          " (E is relative: no unit)";

@@ -247,10 +247,11 @@ namespace {
 // regularisation, over the weights within [0, upper]. Two response states take turns: the
 // current point's, and its trials' (each warm-started from the current equilibria), so that a
 // trial that fails leaves the current point as it was.
-class NamedCaseFit {
+class NamedCaseObjective {
  public:
-  NamedCaseFit(const Problem& problem, const std::vector<double>& start, const FitScope& scope,
-               const StiffnessFitOptions& options, const FitContext& context)
+  NamedCaseObjective(const Problem& problem, const std::vector<double>& start,
+                     const FitScope& scope, const StiffnessFitOptions& options,
+                     const FitContext& context)
       : problem_(problem),
         scope_(scope),
         options_(options),
@@ -313,7 +314,7 @@ class NamedCaseFit {
   // A set of weights with its equilibria solved in response state `state`.
   class Point : public GaussNewtonPoint {
    public:
-    Point(NamedCaseFit& fit, std::vector<double> weights, int state)
+    Point(NamedCaseObjective& fit, std::vector<double> weights, int state)
         : fit_(fit),
           weights_(std::move(weights)),
           state_(state),
@@ -400,7 +401,7 @@ class NamedCaseFit {
     }
 
    private:
-    NamedCaseFit& fit_;
+    NamedCaseObjective& fit_;
     std::vector<double> weights_;
     int state_;
     double data_phi_;
@@ -480,7 +481,7 @@ StiffnessFitResult FitStiffness(const Problem& problem, const std::vector<double
                                 const FitScope& scope, const StiffnessFitOptions& options,
                                 const FitContext& context) {
   options.Validate();
-  return NamedCaseFit(problem, start, scope, options, context).Run();
+  return NamedCaseObjective(problem, start, scope, options, context).Run();
 }
 
 }  // namespace springfit

@@ -48,6 +48,9 @@ class ForwardingStore : public JobStore {
   std::optional<std::string> GetCheckpoint(std::int64_t id) override {
     return inner_.GetCheckpoint(id);
   }
+  std::vector<LeaseRecord> LeaseHistory(std::int64_t id) override {
+    return inner_.LeaseHistory(id);
+  }
   bool DeleteJob(std::int64_t id) override { return inner_.DeleteJob(id); }
   void SetChangeListener(std::function<void()> listener) override {
     inner_.SetChangeListener(std::move(listener));

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include "engine/api/input_error.h"
@@ -56,6 +57,21 @@ Outcome StoredOutcome(std::int64_t job_id, const std::string& text) {
     throw StoreCorrupt("job " + std::to_string(job_id) +
                        ": the store's outcome column is not a verdict (" + e.what() + ")");
   }
+}
+
+std::optional<std::string> LeaseOverlap(const std::vector<LeaseRecord>& history) {
+  for (std::size_t i = 1; i < history.size(); ++i) {
+    const LeaseRecord& before = history[i - 1];
+    const LeaseRecord& claim = history[i];
+    // (A lease ended by its holder ends there; one that lapsed, at its last expiry.)
+    const double held_until = before.ended_at ? *before.ended_at : before.expires_at;
+    if (claim.epoch <= before.epoch || claim.granted_at < held_until) {
+      return fmt::format("claim {} by {} at {:.3f} while claim {} by {} held it until {:.3f}{}",
+                         claim.epoch, claim.owner, claim.granted_at, before.epoch, before.owner,
+                         held_until, before.ended_at ? " (" + before.ended + ")" : "");
+    }
+  }
+  return std::nullopt;
 }
 
 std::optional<QuarantinedJob> rows::Announced(const std::optional<Quarantining>& q) {

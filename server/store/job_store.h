@@ -93,6 +93,33 @@ struct LeaseStatus {
   bool cancel_requested = false;
 };
 
+// One claim of a job as the store's lease history keeps it (every claim, in the store's clock,
+// written in the transaction that changed the lease): who held the job, from when, and until
+// when. Deleted with its job.
+struct LeaseRecord {
+  std::int64_t epoch = 0;
+  std::string owner;
+  double granted_at = 0.0;
+  double expires_at = 0.0;  // the expiry its last renewal set
+  // When the holder ended it (handed it back, finished, prepared it; or the store set it
+  // aside); none while it is held, or when it lapsed (its holder died, froze or was cut off)
+  // and was claimed again, which `expires_at` then bounds.
+  std::optional<double> ended_at;
+  std::string ended;  // how: kLeaseReleased ... below; empty with ended_at
+};
+inline constexpr const char* kLeaseReleased = "released";        // ReleaseLease
+inline constexpr const char* kLeaseFinished = "finished";        // MarkFinished
+inline constexpr const char* kLeasePrepared = "prepared";        // FinishPreparing
+inline constexpr const char* kLeaseQuarantined = "quarantined";  // its row set aside
+// SQLite: a daemon opening the store found the lease of one that is gone (the file's lock).
+inline constexpr const char* kLeaseHolderGone = "holder gone";
+
+// A job ran in one place at a time when each of its claims began after the one before it had
+// ended or expired, and epochs rise with time: the first claim of `history` (epoch order) that
+// breaks this, described ("claim 3 by b at 1700000012.5 while claim 2 by a held it until
+// 1700000013.0"), or nothing.
+std::optional<std::string> LeaseOverlap(const std::vector<LeaseRecord>& history);
+
 // A fenced write found the job claimed by another daemon, finished or deleted: nothing written.
 class LeaseLost : public std::runtime_error {
  public:
@@ -246,6 +273,8 @@ class JobStore {
                                                    const ImprovementPage& page) = 0;
   std::vector<Improvement> GetImprovements(std::int64_t id) { return GetImprovements(id, {}); }
   virtual std::optional<std::string> GetCheckpoint(std::int64_t id) = 0;
+  // Every claim of the job (its lease history), oldest first; empty for no such job.
+  virtual std::vector<LeaseRecord> LeaseHistory(std::int64_t id) = 0;
   // Deletes a finished job and everything stored with it; false when there is no such job
   // or it is not finished.
   virtual bool DeleteJob(std::int64_t id) = 0;

@@ -114,6 +114,21 @@ CREATE TABLE quarantine (
   previous_state TEXT NOT NULL      -- the job's, to set back once its row is repaired
 );
 )sql",
+    // 5: every claim of a job, its lease history (server/store/job_store.h, LeaseRecord),
+    // written with the lease it records, in the server's clock. (Claims before this version
+    // are not in it.)
+    R"sql(
+CREATE TABLE leases (
+  job_id BIGINT NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
+  epoch BIGINT NOT NULL,
+  owner TEXT NOT NULL,
+  granted_at DOUBLE PRECISION NOT NULL,
+  expires_at DOUBLE PRECISION NOT NULL,  -- the last renewal's expiry
+  ended_at DOUBLE PRECISION,             -- NULL: held, or lapsed
+  ended TEXT,                            -- how it ended (kLeaseReleased ...)
+  PRIMARY KEY (job_id, epoch)
+);
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(std::size(kMigrations));
 static_assert(kMigrationCount == PostgresStore::kSchemaVersion);
@@ -168,6 +183,20 @@ const std::pair<const char*, const char*> kStatements[] = {
      "UPDATE jobs SET lease_expires = 0 WHERE id = $1 AND state = 'running' AND lease_owner = "
      "$2 AND lease_epoch = $3"},
     {"fence", kFence},
+    // The lease history (LeaseRecord), in the transaction of the write that changed the
+    // lease: job $1's lease just granted (its clock read after the claim's); its last lease
+    // renewed, or ended ($2: how), unless it had. (A write that ends a lease clears its
+    // owner, never its epoch.)
+    {"record_grant",
+     "INSERT INTO leases (job_id, epoch, owner, granted_at, expires_at) SELECT id, lease_epoch, "
+     "lease_owner, " SF_NOW ", lease_expires FROM jobs WHERE id = $1"},
+    {"record_renewal",
+     "UPDATE leases l SET expires_at = j.lease_expires FROM jobs j WHERE j.id = $1 AND l.job_id "
+     "= j.id AND l.epoch = j.lease_epoch"},
+    {"record_end",
+     "UPDATE leases l SET ended_at = " SF_NOW ", ended = $2 FROM jobs j WHERE j.id = $1 AND "
+     "l.job_id = j.id AND l.epoch = j.lease_epoch AND l.ended_at IS NULL"},
+    {"lease_history", "SELECT " SF_LEASE_COLUMNS " FROM leases WHERE job_id = $1 ORDER BY epoch"},
     {"insert_trace",
      "INSERT INTO trace (job_id, generation, wall_seconds, evaluations, cache_hits, best_cost, "
      "best_normalized_error, mean_cost, missing, extra) SELECT $1, * FROM unnest($2::int[], "
@@ -311,7 +340,10 @@ std::optional<rows::Quarantining> QuarantineIfDamaged(pqxx::work& w, std::int64_
                               q[0][1].as<double>(), damaged.stored_state};
       });
   // (Again for a row quarantined before whose state was set back by hand.)
-  if (quarantining) w.exec_prepared("set_aside", id);
+  if (quarantining) {
+    w.exec_prepared("record_end", id, kLeaseQuarantined);
+    w.exec_prepared("set_aside", id);
+  }
   return quarantining;
 }
 
@@ -674,6 +706,7 @@ JobStore::Created PostgresStore::CreateJob(const NewJob& job, int max_queued) {
         w.exec_prepared("insert_job", r.label, r.priority, std::bit_cast<std::int64_t>(r.seed),
                         r.idempotency_key, r.scene_name, r.genes, r.strategy, r.max_generations,
                         r.created_at, job.scene_json, job.preparing_owner, job.lease_seconds);
+    if (preparing) w.exec_prepared("record_grant", inserted[0][0].as<std::int64_t>());
     // (A preparing job is announced when it is queued: no daemon can claim it before.)
     if (!preparing) w.exec_prepared("notify", kChannel, "queued");
     w.commit();
@@ -697,6 +730,7 @@ JobState PostgresStore::FinishPreparing(const Lease& lease, const JobRecord& pre
     }
     const JobState state =
         proto::ParseJobState(r[0][0].as<std::string>()).value_or(JobState::kQueued);
+    w.exec_prepared("record_end", lease.job_id, kLeasePrepared);
     w.exec_prepared("notify", kChannel, state == JobState::kQueued ? "queued" : "finished");
     w.commit();
     return state;
@@ -820,6 +854,7 @@ std::optional<Claim> PostgresStore::ClaimNext(const std::string& owner, double l
         quarantined = QuarantineIfDamaged(w, id);
         if (!quarantined) throw;  // (not set aside: it would be claimed again)
       }
+      if (!quarantined) w.exec_prepared("record_grant", id);
       w.commit();
       if (quarantined) {
         rows::Announced(*quarantined);
@@ -837,6 +872,7 @@ LeaseStatus PostgresStore::RenewLease(const Lease& lease, double lease_seconds) 
     pqxx::work w(c);
     const pqxx::result r =
         w.exec_prepared("renew", lease.job_id, lease.owner, lease.epoch, lease_seconds);
+    if (!r.empty()) w.exec_prepared("record_renewal", lease.job_id);
     w.commit();
     LeaseStatus status;
     if (!r.empty()) {
@@ -850,8 +886,10 @@ LeaseStatus PostgresStore::RenewLease(const Lease& lease, double lease_seconds) 
 void PostgresStore::ReleaseLease(const Lease& lease) {
   Write([&](pqxx::connection_base& c) {
     pqxx::work w(c);
-    if (w.exec_prepared("release", lease.job_id, lease.owner, lease.epoch).affected_rows() > 0)
+    if (w.exec_prepared("release", lease.job_id, lease.owner, lease.epoch).affected_rows() > 0) {
+      w.exec_prepared("record_end", lease.job_id, kLeaseReleased);
       w.exec_prepared("notify", kChannel, "released");
+    }
     w.commit();
   });
 }
@@ -898,6 +936,7 @@ void PostgresStore::MarkFinished(const Lease& lease, const JobEnd& end) {
                     end.result_json, end.exact ? (*end.exact ? 1 : 0) : -1, end.finished_at,
                     end.outcome_json);
     // A finished job is never resumed: its checkpoint is dead weight.
+    w.exec_prepared("record_end", lease.job_id, kLeaseFinished);
     w.exec_prepared("drop_checkpoint", lease.job_id);
     w.exec_prepared("notify", kChannel, "finished");
     w.commit();
@@ -970,6 +1009,16 @@ std::optional<std::string> PostgresStore::GetCheckpoint(std::int64_t id) {
     const pqxx::result r = w.exec_prepared("get_checkpoint", id);
     if (r.empty()) return std::nullopt;
     return pqxx::binarystring(r[0][0]).str();
+  });
+}
+
+std::vector<LeaseRecord> PostgresStore::LeaseHistory(std::int64_t id) {
+  return Read([&](pqxx::connection_base& c) {
+    pqxx::nontransaction w(c);
+    std::vector<LeaseRecord> out;
+    for (const auto& row : w.exec_prepared("lease_history", id))
+      out.push_back(rows::LeaseOf(PgRow{row}));
+    return out;
   });
 }
 

@@ -34,7 +34,7 @@ namespace springfit::server {
 
 class PostgresStore final : public JobStore {
  public:
-  static constexpr int kSchemaVersion = 4;
+  static constexpr int kSchemaVersion = 5;
 
   struct Options {
     // Each call gives up after this long with StoreUnavailable (seconds, > 0): heartbeats,
@@ -75,6 +75,7 @@ class PostgresStore final : public JobStore {
   using JobStore::GetImprovements;
   std::vector<Improvement> GetImprovements(std::int64_t id, const ImprovementPage& page) override;
   std::optional<std::string> GetCheckpoint(std::int64_t id) override;
+  std::vector<LeaseRecord> LeaseHistory(std::int64_t id) override;
   bool DeleteJob(std::int64_t id) override;
   void SetChangeListener(std::function<void()> listener) override;
   std::string Describe() const override;

@@ -108,6 +108,20 @@ CREATE TABLE quarantine (
   previous_state TEXT NOT NULL      -- the job's, to set back once its row is repaired
 );
 )sql",
+    // 6: every claim of a job, its lease history (server/store/job_store.h, LeaseRecord),
+    // written with the lease it records. (Claims before this version are not in it.)
+    R"sql(
+CREATE TABLE leases (
+  job_id INTEGER NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
+  epoch INTEGER NOT NULL,
+  owner TEXT NOT NULL,
+  granted_at REAL NOT NULL,
+  expires_at REAL NOT NULL,         -- the last renewal's expiry
+  ended_at REAL,                    -- NULL: held, or lapsed
+  ended TEXT,                       -- how it ended (kLeaseReleased ...)
+  PRIMARY KEY (job_id, epoch)
+) WITHOUT ROWID;
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(std::size(kMigrations));
 static_assert(kMigrationCount == SqliteStore::kSchemaVersion);
@@ -150,12 +164,36 @@ void FinishReturning(SQLite::Statement& q) {
   }
 }
 
-// Runs `sql`, whose three parameters are the lease's job, owner and epoch.
-void ExecOnLease(SQLite::Database& db, const char* sql, const Lease& lease) {
+// Runs `sql`, whose three parameters are the lease's job, owner and epoch: the rows it changed.
+int ExecOnLease(SQLite::Database& db, const char* sql, const Lease& lease) {
   SQLite::Statement q(db, sql);
   q.bind(1, lease.job_id);
   q.bind(2, lease.owner);
   q.bind(3, lease.epoch);
+  return q.exec();
+}
+
+// The lease history (LeaseRecord): job `id`'s current lease, just granted at `now` by the
+// statement before, as a claim of its own.
+void RecordGrant(SQLite::Database& db, std::int64_t id, double now) {
+  SQLite::Statement q(db,
+                      "INSERT INTO leases (job_id, epoch, owner, granted_at, expires_at) SELECT "
+                      "id, lease_epoch, lease_owner, ?, lease_expires FROM jobs WHERE id = ?");
+  q.bind(1, now);
+  q.bind(2, id);
+  q.exec();
+}
+
+// The lease history: job `id`'s last lease ended at `now`, `how` (kLeaseReleased ...), unless
+// it had. (A write that ends a lease clears its owner, never its epoch.)
+void RecordEnd(SQLite::Database& db, std::int64_t id, double now, const char* how) {
+  SQLite::Statement q(db,
+                      "UPDATE leases SET ended_at = ?, ended = ? WHERE job_id = ? AND epoch = "
+                      "(SELECT lease_epoch FROM jobs WHERE id = ?) AND ended_at IS NULL");
+  q.bind(1, now);
+  q.bind(2, how);
+  q.bind(3, id);
+  q.bind(4, id);
   q.exec();
 }
 
@@ -203,6 +241,7 @@ void TakeJob(SQLite::Database& db, std::int64_t id, const std::string& owner, do
   take.bind(3, now);
   take.bind(4, id);
   take.exec();
+  RecordGrant(db, id, now);
 }
 
 // The claim of job `id` just taken by `owner`; StoreCorrupt when its row cannot be read.
@@ -241,6 +280,7 @@ std::optional<rows::Quarantining> QuarantineIfDamaged(SQLite::Database& db, std:
       });
   // (Again for a row quarantined before whose state was set back by hand.)
   if (quarantining) {
+    RecordEnd(db, id, UnixNow(), kLeaseQuarantined);
     SQLite::Statement set_aside(db,
                                 "UPDATE jobs SET state = 'quarantined', lease_owner = NULL, "
                                 "lease_expires = 0 WHERE id = ?");
@@ -290,7 +330,18 @@ SqliteStore::SqliteStore(const std::string& path) : path_(path) {
     Migrate();
     // The lock says no other daemon runs: the leases of running jobs are a dead daemon's
     // (this one's before a crash or a stop), and its jobs resume at once.
-    db_->exec("UPDATE jobs SET lease_expires = 0 WHERE state = 'running'");
+    {
+      SQLite::Transaction tx(*db_, SQLite::TransactionBehavior::IMMEDIATE);
+      SQLite::Statement gone(
+          *db_,
+          "UPDATE leases SET ended_at = ?, ended = ? WHERE ended_at IS NULL AND "
+          "epoch = (SELECT lease_epoch FROM jobs WHERE jobs.id = leases.job_id)");
+      gone.bind(1, UnixNow());
+      gone.bind(2, kLeaseHolderGone);
+      gone.exec();
+      db_->exec("UPDATE jobs SET lease_expires = 0 WHERE state = 'running'");
+      tx.commit();
+    }
     // Its submissions being prepared were never answered: no client holds their ids.
     db_->exec("DELETE FROM jobs WHERE state = 'preparing'");
     for (int i = 0; i < kReaders; ++i) readers_.push_back(std::make_unique<Reader>());
@@ -465,10 +516,12 @@ JobStore::Created SqliteStore::CreateJob(const NewJob& job, int max_queued) {
       insert.bind(12);
     }
     insert.bind(13, preparing ? 1 : 0);
-    insert.bind(14, preparing ? UnixNow() + job.lease_seconds : 0.0);
+    const double now = UnixNow();
+    insert.bind(14, preparing ? now + job.lease_seconds : 0.0);
     insert.exec();
     Created created{r, true, false, {}};
     created.job.id = db.getLastInsertRowid();
+    if (preparing) RecordGrant(db, created.job.id, now);
     created.job.state = state;
     if (preparing) created.lease = {created.job.id, job.preparing_owner, 1};
     tx.commit();
@@ -478,13 +531,15 @@ JobStore::Created SqliteStore::CreateJob(const NewJob& job, int max_queued) {
 
 JobState SqliteStore::FinishPreparing(const Lease& lease, const JobRecord& prepared) {
   return Run([&](SQLite::Database& db) {
+    SQLite::Transaction tx(db, SQLite::TransactionBehavior::IMMEDIATE);
+    const double now = UnixNow();
     SQLite::Statement q(
         db,
         "UPDATE jobs SET state = CASE WHEN cancel_requested THEN 'cancelled' ELSE 'queued' END, "
         "finished_at = CASE WHEN cancel_requested THEN ? ELSE 0 END, genes = ?, strategy = ?, "
         "max_generations = ?, lease_owner = NULL, lease_expires = 0 WHERE id = ? AND state = "
         "'preparing' AND lease_owner = ? AND lease_epoch = ? RETURNING state");
-    q.bind(1, UnixNow());
+    q.bind(1, now);
     q.bind(2, prepared.genes);
     q.bind(3, prepared.strategy);
     q.bind(4, prepared.max_generations);
@@ -498,6 +553,8 @@ JobState SqliteStore::FinishPreparing(const Lease& lease, const JobRecord& prepa
     const JobState state =
         proto::ParseJobState(q.getColumn(0).getString()).value_or(JobState::kQueued);
     FinishReturning(q);
+    RecordEnd(db, lease.job_id, now, kLeasePrepared);
+    tx.commit();
     return state;
   });
 }
@@ -630,11 +687,13 @@ std::optional<Claim> SqliteStore::ClaimNext(const std::string& owner, double lea
 
 LeaseStatus SqliteStore::RenewLease(const Lease& lease, double lease_seconds) {
   return Run([&](SQLite::Database& db) {
+    SQLite::Transaction tx(db, SQLite::TransactionBehavior::IMMEDIATE);
+    const double expires = UnixNow() + lease_seconds;
     SQLite::Statement q(db,
                         "UPDATE jobs SET lease_expires = ? WHERE id = ? AND state IN ('running', "
                         "'preparing') AND lease_owner = ? AND lease_epoch = ? RETURNING "
                         "cancel_requested");
-    q.bind(1, UnixNow() + lease_seconds);
+    q.bind(1, expires);
     q.bind(2, lease.job_id);
     q.bind(3, lease.owner);
     q.bind(4, lease.epoch);
@@ -643,17 +702,28 @@ LeaseStatus SqliteStore::RenewLease(const Lease& lease, double lease_seconds) {
       status.held = true;
       status.cancel_requested = q.getColumn(0).getInt() != 0;
       FinishReturning(q);
+      SQLite::Statement renewed(db,
+                                "UPDATE leases SET expires_at = ? WHERE job_id = ? AND epoch = ?");
+      renewed.bind(1, expires);
+      renewed.bind(2, lease.job_id);
+      renewed.bind(3, lease.epoch);
+      renewed.exec();
     }
+    tx.commit();
     return status;
   });
 }
 
 void SqliteStore::ReleaseLease(const Lease& lease) {
   Run([&](SQLite::Database& db) {
-    ExecOnLease(db,
-                "UPDATE jobs SET lease_expires = 0 WHERE id = ? AND state = 'running' AND "
-                "lease_owner = ? AND lease_epoch = ?",
-                lease);
+    SQLite::Transaction tx(db, SQLite::TransactionBehavior::IMMEDIATE);
+    if (ExecOnLease(db,
+                    "UPDATE jobs SET lease_expires = 0 WHERE id = ? AND state = 'running' AND "
+                    "lease_owner = ? AND lease_epoch = ?",
+                    lease) > 0) {
+      RecordEnd(db, lease.job_id, UnixNow(), kLeaseReleased);
+    }
+    tx.commit();
   });
 }
 
@@ -749,6 +819,7 @@ void SqliteStore::MarkFinished(const Lease& lease, const JobEnd& end) {
     }
     q.bind(7, lease.job_id);
     q.exec();
+    RecordEnd(db, lease.job_id, UnixNow(), kLeaseFinished);
     // A finished job is never resumed: its checkpoint is dead weight.
     SQLite::Statement d(db, "DELETE FROM checkpoints WHERE job_id = ?");
     d.bind(1, lease.job_id);
@@ -840,6 +911,17 @@ std::optional<std::string> SqliteStore::GetCheckpoint(std::int64_t id) {
     q.bind(1, id);
     if (!q.executeStep()) return std::nullopt;
     return q.getColumn(0).getString();
+  });
+}
+
+std::vector<LeaseRecord> SqliteStore::LeaseHistory(std::int64_t id) {
+  return Read([&](SQLite::Database& db) {
+    SQLite::Statement q(db,
+                        "SELECT " SF_LEASE_COLUMNS " FROM leases WHERE job_id = ? ORDER BY epoch");
+    q.bind(1, id);
+    std::vector<LeaseRecord> out;
+    while (q.executeStep()) out.push_back(rows::LeaseOf(SqliteRow{q}));
+    return out;
   });
 }
 

@@ -33,7 +33,7 @@ namespace springfit::server {
 
 class SqliteStore final : public JobStore {
  public:
-  static constexpr int kSchemaVersion = 5;
+  static constexpr int kSchemaVersion = 6;
 
   // Opens or creates the database; throws std::runtime_error with the reason.
   explicit SqliteStore(const std::string& path);
@@ -60,6 +60,7 @@ class SqliteStore final : public JobStore {
   using JobStore::GetImprovements;
   std::vector<Improvement> GetImprovements(std::int64_t id, const ImprovementPage& page) override;
   std::optional<std::string> GetCheckpoint(std::int64_t id) override;
+  std::vector<LeaseRecord> LeaseHistory(std::int64_t id) override;
   bool DeleteJob(std::int64_t id) override;
   std::string Describe() const override;
 

@@ -47,6 +47,9 @@ inline constexpr int kJobColumnCount = 18;
   "i.generation, i.wall_seconds, i.cost, i.normalized_error, i.missing, i.extra, i.genome, " \
   "j.genes"
 
+// A lease history row's columns (table leases), in the order LeaseOf reads them.
+#define SF_LEASE_COLUMNS "epoch, owner, granted_at, expires_at, ended_at, ended"
+
 // A count the store keeps as NULL when unknown, -1 in memory.
 template <typename Row>
 int CountOrUnknown(const Row& r, int i) {
@@ -192,6 +195,20 @@ Improvement ImprovementOf(const Row& r) {
   m.extra = CountOrUnknown(r, 5);
   m.genome = UnpackGenome(r.Blob(6), r.Int(7));
   return m;
+}
+
+template <typename Row>
+LeaseRecord LeaseOf(const Row& r) {
+  LeaseRecord l;
+  l.epoch = r.Int64(0);
+  l.owner = r.Text(1);
+  l.granted_at = r.Double(2);
+  l.expires_at = r.Double(3);
+  if (!r.Null(4)) {
+    l.ended_at = r.Double(4);
+    l.ended = r.Text(5);
+  }
+  return l;
 }
 
 }  // namespace springfit::server::rows

@@ -9,8 +9,9 @@
 # allows: SPRINGFIT_SANITIZED_TESTS="engine_tests proto_tests" runs them in the same
 # instrumented tree (a sanitizer report fails the test too: UBSan does not
 # recover), and the README's sanitizer build runs every test under GCC's sanitizers. What the
-# fuzz targets reach is instrumented here: the message framer, the scene codec and the
-# engine's preparation of a scene (validation, candidates, equilibria, rigidity, FEM).
+# fuzz targets reach is instrumented here, and that alone is built: the message framer, the
+# scene codec and the engine's preparation of a scene (validation, candidates, equilibria,
+# rigidity, FEM), the libraries springfit_scene_format and springfit_engine_problem.
 #
 # Reproducible: a fixed seed and a fixed number of inputs per target (SPRINGFIT_FUZZ_RUNS
 # scales them), so every machine tries the same inputs; a time bound stops a slow machine.

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <future>
+#include <thread>
 
 #include <SQLiteCpp/SQLiteCpp.h>
 #include <gtest/gtest.h>
@@ -40,13 +41,19 @@ class SqliteStoreTest : public ::testing::Test {
 
 TEST_F(SqliteStoreTest, DataSurvivesReopeningAndADeadDaemonsLeasesAreFreed) {
   std::int64_t id = 0;
+  std::int64_t lapsed = 0;
   Lease lease;
   {
     SqliteStore store(path_);
     EXPECT_EQ(store.schema_version(), SqliteStore::kSchemaVersion);
     EXPECT_EQ(store.Describe(), "sqlite:///" + path_);
     id = store.CreateJob(Job("kept"), 10).job.id;
+    lapsed = store.CreateJob(Job("lapsed"), 10).job.id;
     lease = store.ClaimNext("crashed-daemon", 3600.0)->lease;
+    // A claim that lapsed and was claimed again before the crash: the crash ends the second.
+    EXPECT_EQ(store.ClaimNext("crashed-daemon", 0.05)->job.id, lapsed);
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    EXPECT_EQ(store.ClaimNext("crashed-daemon", 3600.0)->lease.epoch, 2);
     ProgressBatch b;
     b.trace.push_back(Row(0, 0.5));
     b.checkpoint = "cp";
@@ -64,6 +71,21 @@ TEST_F(SqliteStoreTest, DataSurvivesReopeningAndADeadDaemonsLeasesAreFreed) {
   EXPECT_EQ(claim->job.id, id);
   EXPECT_EQ(claim->lease.epoch, lease.epoch + 1);
   EXPECT_THROW(reopened.SaveProgress(lease, ProgressBatch{}), LeaseLost);
+  // Its lease history says the dead daemon's claim ended when the next one opened the file,
+  // before the hour was out, and the new claim began after that.
+  const std::vector<LeaseRecord> history = reopened.LeaseHistory(id);
+  ASSERT_EQ(history.size(), 2u);
+  EXPECT_EQ(history[0].owner, "crashed-daemon");
+  EXPECT_EQ(history[0].ended, kLeaseHolderGone);
+  ASSERT_TRUE(history[0].ended_at);
+  EXPECT_LT(*history[0].ended_at, history[0].expires_at);
+  EXPECT_EQ(history[1].owner, "next-daemon");
+  EXPECT_EQ(LeaseOverlap(history), std::nullopt);
+  const std::vector<LeaseRecord> again = reopened.LeaseHistory(lapsed);
+  ASSERT_EQ(again.size(), 2u);
+  EXPECT_EQ(again[0].ended, "") << "a lapsed claim ended by a crash after it";
+  EXPECT_EQ(again[1].ended, kLeaseHolderGone);
+  EXPECT_EQ(LeaseOverlap(again), std::nullopt);
 }
 
 // A power cut: what SQLite did not sync is lost (power_loss_vfs.h). Every write the store

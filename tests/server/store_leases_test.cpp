@@ -99,6 +99,64 @@ TEST_P(StoreSuite, RenewedLeasesHoldAndReleasedOnesAreClaimedAtOnce) {
   EXPECT_FALSE(store_->RenewLease(lease, 30.0).held);
 }
 
+// The lease history: every claim of a job, in the store's clock, with its renewals and how it
+// ended (or that it lapsed), written with the lease; the claims follow each other; the old
+// holder's late calls change none of it; it goes with its job.
+TEST_P(StoreSuite, TheLeaseHistoryKeepsEveryClaimAndHowItEnded) {
+  NewJob submitted = Job("history");
+  submitted.preparing_owner = "daemon-p";
+  const JobStore::Created created = store_->CreateJob(submitted, 10);
+  const std::int64_t id = created.job.id;
+  JobRecord prepared = created.job;
+  store_->FinishPreparing(created.lease, prepared);
+  const Lease lapsing = ClaimOne("daemon-a", 0.2).lease;
+  const double renewed_from = store_->LeaseHistory(id).back().expires_at;
+  EXPECT_TRUE(store_->RenewLease(lapsing, 0.3).held);
+  std::this_thread::sleep_for(500ms);  // past the renewed lease: daemon-a froze
+  const Lease released = ClaimOne("daemon-b").lease;
+  EXPECT_FALSE(store_->RenewLease(lapsing, 30.0).held);
+  store_->ReleaseLease(lapsing);  // a no-op: not its lease
+  store_->ReleaseLease(released);
+  const Lease finishing = ClaimOne("daemon-c").lease;
+  store_->MarkFinished(finishing, {JobState::kSucceeded, "", "{}", true, 2e9, ""});
+
+  const std::vector<LeaseRecord> history = store_->LeaseHistory(id);
+  ASSERT_EQ(history.size(), 4u);
+  const std::vector<std::string> owners = {"daemon-p", "daemon-a", "daemon-b", "daemon-c"};
+  const std::vector<std::string> ended = {kLeasePrepared, "", kLeaseReleased, kLeaseFinished};
+  for (std::size_t i = 0; i < history.size(); ++i) {
+    SCOPED_TRACE("claim " + std::to_string(i + 1));
+    EXPECT_EQ(history[i].epoch, static_cast<std::int64_t>(i + 1));
+    EXPECT_EQ(history[i].owner, owners[i]);
+    EXPECT_EQ(history[i].ended, ended[i]);
+    EXPECT_EQ(history[i].ended_at.has_value(), !ended[i].empty());
+    EXPECT_GT(history[i].granted_at, 1.7e9);
+    EXPECT_GT(history[i].expires_at, history[i].granted_at);
+    if (history[i].ended_at) {
+      EXPECT_GE(*history[i].ended_at, history[i].granted_at);
+    }
+  }
+  // daemon-a's renewal is in its record; it lapsed, and daemon-b's claim came after.
+  EXPECT_GT(history[1].expires_at, renewed_from);
+  EXPECT_GT(history[2].granted_at, history[1].expires_at);
+  EXPECT_EQ(LeaseOverlap(history), std::nullopt);
+
+  // A store that granted a claim while another held the job would say so.
+  std::vector<LeaseRecord> overlapping = history;
+  overlapping[2].granted_at = history[1].expires_at - 0.1;
+  const std::optional<std::string> overlap = LeaseOverlap(overlapping);
+  ASSERT_TRUE(overlap);
+  EXPECT_NE(overlap->find("claim 3 by daemon-b"), std::string::npos) << *overlap;
+  EXPECT_NE(overlap->find("claim 2 by daemon-a"), std::string::npos) << *overlap;
+  overlapping = history;
+  overlapping[3].granted_at = *history[2].ended_at - 0.1;  // before daemon-b handed it back
+  ASSERT_TRUE(LeaseOverlap(overlapping));
+  EXPECT_NE(LeaseOverlap(overlapping)->find("(released)"), std::string::npos);
+
+  EXPECT_TRUE(store_->DeleteJob(id));
+  EXPECT_TRUE(store_->LeaseHistory(id).empty());
+}
+
 TEST_P(StoreSuite, CancelsAreRequestsTheRunnersHeartbeatReads) {
   const std::int64_t queued = Create("queued", 0);
   const std::int64_t running = Create("running", 5);
