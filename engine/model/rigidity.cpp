@@ -4,8 +4,9 @@
 #include <vector>
 
 #include <Eigen/SPQRSupport>
-#include <Eigen/SVD>
 #include <Eigen/SparseCore>
+
+#include "engine/linalg/singular_values.h"
 
 namespace springfit {
 
@@ -60,7 +61,7 @@ int RigidityRankDeficiency(const SpringGeometry& geometry, const FreeNodes& free
   // near-zero eigenvalues are checked by a dense SVD where that is cheap.
   if (deficiency >= suspected || n > kDenseCheckMaxColumns) return deficiency;
   const Matrix dense = Matrix(r);
-  const Vector sigma = Eigen::BDCSVD<Matrix>(dense).singularValues();
+  const Vector sigma = SingularValues(dense);
   int small = n - static_cast<int>(sigma.size());  // columns beyond the rows
   for (Eigen::Index i = 0; i < sigma.size(); ++i) small += sigma[i] <= tolerance ? 1 : 0;
   return small;

@@ -112,5 +112,16 @@ for tests in $sanitized_tests; do
   done
 done
 
-run framer_fuzz 120000 "" "$src"/tests/fuzz/corpus/framer/*
-run scene_fuzz 30000 "-dict=$scene_dict" "$src"/examples/*.json "$src"/tests/data/*.json
+# The two targets at once, one per core (each is one process); each prints when it ends, and
+# either failing fails the test.
+run framer_fuzz 120000 "" "$src"/tests/fuzz/corpus/framer/* >"$build/framer_fuzz.out" 2>&1 &
+framer=$!
+run scene_fuzz 30000 "-dict=$scene_dict" "$src"/examples/*.json "$src"/tests/data/*.json \
+  >"$build/scene_fuzz.out" 2>&1 &
+scene=$!
+status=0
+wait $framer || status=1
+cat "$build/framer_fuzz.out"
+wait $scene || status=1
+cat "$build/scene_fuzz.out"
+exit $status

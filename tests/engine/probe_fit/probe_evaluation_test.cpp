@@ -83,7 +83,8 @@ TEST(ProbeErrors, ToolLoadsSolvedThroughTheirBaseGiveTheirOwnFactorisationsError
   ASSERT_GT(tools, 10);
   for (int model = 0; model < 2; ++model) {
     if (model == 1)
-      for (std::size_t g = 0; g < prior.size(); ++g) prior[g] *= 1.0 + 0.5 * std::sin(3.0 * g);
+      for (std::size_t g = 0; g < prior.size(); ++g)
+        prior[g] *= 1.0 + 0.5 * std::sin(3.0 * static_cast<double>(g));
     const SparseMatrix k = SpringRestStiffness(problem, prior);
     const std::vector<double> own = ProbeErrorsFor(bank, k, every);
     const std::vector<double> through =
